@@ -1,0 +1,69 @@
+//! Small helpers for reading loosely typed JSON with errors that name the field.
+
+use glam::{Vec2, Vec3};
+use sage_core::{Error, Result};
+use serde_json::Value;
+
+/// Parses JSON text; a syntax error names its line and column.
+pub fn parse_text(text: &str) -> Result<Value> {
+    serde_json::from_str(text).map_err(|e| Error::format(format!("line {} column {}", e.line(), e.column()), e.to_string()))
+}
+
+/// `v[key]`, or an error naming `key` as missing.
+pub fn field<'a>(v: &'a Value, key: &str) -> Result<&'a Value> {
+    v.get(key).filter(|x| !x.is_null()).ok_or_else(|| Error::format(key, "missing"))
+}
+
+/// A finite number.
+pub fn number(v: &Value, at: &str) -> Result<f32> {
+    let f = match v {
+        Value::Number(n) => n.as_f64(),
+        Value::String(s) => s.trim().parse::<f64>().ok(),
+        _ => None,
+    };
+    f.filter(|f| f.is_finite())
+        .map(|f| f as f32)
+        .ok_or_else(|| Error::format(at, format!("expected a finite number, found {}", short(v))))
+}
+
+/// A string (numbers are accepted and written out, as ids often are).
+pub fn string(v: &Value, at: &str) -> Result<String> {
+    match v {
+        Value::String(s) => Ok(s.clone()),
+        Value::Number(n) => Ok(n.to_string()),
+        _ => Err(Error::format(at, format!("expected a string, found {}", short(v)))),
+    }
+}
+
+/// An array.
+pub fn array<'a>(v: &'a Value, at: &str) -> Result<&'a Vec<Value>> {
+    v.as_array().ok_or_else(|| Error::format(at, format!("expected an array, found {}", short(v))))
+}
+
+/// A point given as `[x, y, (z)]` or `{x, y, (z)}`; a missing z reads as 0.
+pub fn point3(v: &Value, at: &str) -> Result<Vec3> {
+    let comps: Vec<&Value> = match v {
+        Value::Array(a) if a.len() == 2 || a.len() == 3 => a.iter().collect(),
+        Value::Object(o) => ["x", "y", "z"].iter().filter_map(|k| o.get(*k)).collect(),
+        _ => Vec::new(),
+    };
+    if comps.len() < 2 {
+        return Err(Error::format(at, format!("expected a point [x, y, z] or {{x, y, z}}, found {}", short(v))));
+    }
+    let mut p = [0.0f32; 3];
+    for (i, c) in comps.iter().enumerate() {
+        p[i] = number(c, &format!("{at}[{i}]"))?;
+    }
+    Ok(Vec3::from_array(p))
+}
+
+/// A floor point given as `[x, y]` or `{x, y}` (a z, if present, is ignored).
+pub fn point2(v: &Value, at: &str) -> Result<Vec2> {
+    point3(v, at).map(|p| p.truncate())
+}
+
+/// A short rendering of a value for error messages.
+pub fn short(v: &Value) -> String {
+    let s = v.to_string();
+    if s.len() > 40 { format!("{}…", &s[..s.char_indices().nth(40).map_or(s.len(), |c| c.0)]) } else { s }
+}

@@ -1,0 +1,139 @@
+//! InteriorGS `labels.json`: an array of `{ins_id, label, bounding_box: [8 × {x, y, z}]}`.
+//!
+//! Also accepted: an object with the array under `labels`, numeric `ins_id`s, `id` in place of
+//! `ins_id`. Entries without a `bounding_box` (InteriorGS walls) are skipped and counted.
+
+use super::json::{array, field, parse_text, point3, string};
+use crate::object::{Attributes, Object, PhysicsRole, RigidBody, normalize_category};
+use sage_core::{Error, InstanceId, Obb, Result, ResultExt};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+
+/// Corner tolerance (metres) when reading boxes: rounding in files stays within it.
+const BOX_TOLERANCE: f32 = 0.01;
+
+/// Parses `labels.json` into objects (ids unset) and the count of skipped entries.
+pub fn parse(text: &str) -> Result<(Vec<Object>, usize)> {
+    let root = parse_text(text)?;
+    let entries = match &root {
+        Value::Object(o) if o.contains_key("labels") => array(&root["labels"], "labels")?,
+        other => array(other, "(top level)")?,
+    };
+    let mut objects = Vec::with_capacity(entries.len());
+    let mut skipped = 0;
+    let mut seen: BTreeMap<String, usize> = BTreeMap::new();
+    for (i, e) in entries.iter().enumerate() {
+        let parsed = parse_entry(e).within(format!("[{i}]"))?;
+        let Some(object) = parsed else {
+            skipped += 1;
+            continue;
+        };
+        if let Some(first) = seen.insert(object.ins_id.clone(), i) {
+            return Err(Error::format(
+                format!("[{i}].ins_id"),
+                format!("duplicate ins_id '{}' (first used by entry {first})", object.ins_id),
+            ));
+        }
+        objects.push(object);
+    }
+    Ok((objects, skipped))
+}
+
+fn parse_entry(e: &Value) -> Result<Option<Object>> {
+    if !e.is_object() {
+        return Err(Error::format("(entry)", "expected an object"));
+    }
+    let id_value = e.get("ins_id").or_else(|| e.get("id")).ok_or_else(|| Error::format("ins_id", "missing"))?;
+    let ins_id = string(id_value, "ins_id")?;
+    let label = string(field(e, "label")?, "label")?;
+    let Some(bb) = e.get("bounding_box").filter(|b| !b.is_null()) else {
+        return Ok(None);
+    };
+    let corners = array(bb, "bounding_box")?
+        .iter()
+        .enumerate()
+        .map(|(k, c)| point3(c, &format!("bounding_box[{k}]")))
+        .collect::<Result<Vec<_>>>()?;
+    let obb = Obb::from_corners(&corners, BOX_TOLERANCE)?;
+    Ok(Some(Object {
+        id: InstanceId::NONE,
+        category: normalize_category(&label),
+        ins_id,
+        label,
+        obb,
+        room: None,
+        attributes: Attributes::default(),
+        role: PhysicsRole::Static,
+        rigid_body: RigidBody::default(),
+        mesh: None,
+    }))
+}
+
+/// The objects as `labels.json`.
+pub fn to_json(objects: &[Object]) -> Value {
+    Value::Array(
+        objects
+            .iter()
+            .map(|o| {
+                let corners: Vec<Value> =
+                    o.obb.corners().iter().map(|c| json!({"x": c.x, "y": c.y, "z": c.z})).collect();
+                json!({"ins_id": o.ins_id, "label": o.label, "bounding_box": corners})
+            })
+            .collect(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn one(corners: &str) -> String {
+        format!(r#"[{{"ins_id":"7","label":"Dining Chair","bounding_box":{corners}}}]"#)
+    }
+
+    #[test]
+    fn round_trip() {
+        let obb = Obb { center: Vec3::new(1.0, 2.0, 0.5), half_extents: Vec3::new(0.3, 0.2, 0.5), yaw: 0.4 };
+        let o = Object { obb, ..parse(&one(&serde_json::to_string(&obb_json(&obb)).unwrap())).unwrap().0[0].clone() };
+        let text = to_json(std::slice::from_ref(&o)).to_string();
+        let (back, skipped) = parse(&text).unwrap();
+        assert_eq!(skipped, 0);
+        assert_eq!(back[0].ins_id, "7");
+        assert_eq!(back[0].category, "dining_chair");
+        assert!((back[0].obb.center - obb.center).length() < 1e-4);
+    }
+
+    fn obb_json(o: &Obb) -> Value {
+        Value::Array(o.corners().iter().map(|c| json!({"x": c.x, "y": c.y, "z": c.z})).collect())
+    }
+
+    #[test]
+    fn errors_name_entry_and_field() {
+        let b = Obb { center: Vec3::ZERO, half_extents: Vec3::ONE, yaw: 0.0 };
+        let mut corners = obb_json(&b);
+        corners.as_array_mut().unwrap().pop();
+        let e = parse(&one(&corners.to_string())).unwrap_err();
+        assert_eq!(e.to_string(), "[0].bounding_box: expected 8 corners, found 7");
+        let e = parse(r#"[{"ins_id":"1","label":"x","bounding_box":[{"x":"a","y":0,"z":0}]}]"#).unwrap_err();
+        assert!(e.to_string().starts_with("[0].bounding_box[0][0]: expected a finite number"), "{e}");
+        let e = parse(r#"[{"label":"x"}]"#).unwrap_err();
+        assert_eq!(e.to_string(), "[0].ins_id: missing");
+        let e = parse("[{").unwrap_err();
+        assert!(e.to_string().starts_with("line 1 column"), "{e}");
+    }
+
+    #[test]
+    fn entries_without_box_are_skipped_and_dict_form_accepted() {
+        let (o, skipped) = parse(r#"{"labels":[{"ins_id":3,"label":"wall"}]}"#).unwrap();
+        assert!(o.is_empty());
+        assert_eq!(skipped, 1);
+    }
+
+    #[test]
+    fn duplicate_ids_are_an_error() {
+        let b = obb_json(&Obb { center: Vec3::ZERO, half_extents: Vec3::ONE, yaw: 0.0 }).to_string();
+        let text = format!(r#"[{{"ins_id":"1","label":"a","bounding_box":{b}}},{{"ins_id":"1","label":"b","bounding_box":{b}}}]"#);
+        assert!(parse(&text).unwrap_err().to_string().contains("duplicate ins_id '1'"));
+    }
+}

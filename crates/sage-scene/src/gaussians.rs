@@ -1,0 +1,459 @@
+//! The Gaussians of a scene in a compact structure of arrays.
+//!
+//! Layout and precision (per Gaussian, SH degree 3: 93 bytes; degree 0: 46):
+//!
+//! | field | storage | bytes | precision |
+//! |---|---|---|---|
+//! | position | `[f32; 3]` | 12 | exact |
+//! | rotation (w, x, y, z), unit | `[i16; 4]` snorm16 | 8 | ≤ 1.6e-5 per component |
+//! | log-scale | `[f32; 3]` | 12 | exact |
+//! | opacity logit | `f32` | 4 | exact |
+//! | SH degree 0 (`f_dc`) | `[f16; 3]` | 6 | relative 2⁻¹¹ (≪ 1/255 in colour) |
+//! | SH degrees 1–3 (`f_rest`) | `i8` codes × per-Gaussian `f16` step | 45 + 2 | ≤ ½ step, step = max\|coeff\| / 127 |
+//! | instance id | `u32` | 4 | exact |
+//!
+//! Higher-order SH are stored coefficient-major: for Gaussian `i`, coefficient `k` (1…15) and
+//! channel `c`, the code is `sh_codes[(i * K + k - 1) * 3 + c]` with `K` the count for the degree
+//! (3, 8 or 15). The Inria PLY stores them channel-major (`f_rest_{c*K + k-1}`); readers and
+//! writers convert.
+
+use glam::{Quat, Vec3};
+use half::f16;
+use rayon::prelude::*;
+use sage_core::{Error, Result};
+
+/// The number of higher-order SH coefficients per channel for a degree (0–3).
+pub const fn sh_rest_count(degree: u8) -> usize {
+    match degree {
+        0 => 0,
+        1 => 3,
+        2 => 8,
+        _ => 15,
+    }
+}
+
+/// The SH degree whose higher-order coefficient count (all channels) is `n`, if any.
+pub fn sh_degree_for_rest_len(n: usize) -> Option<u8> {
+    (0..=3u8).find(|&d| sh_rest_count(d) * 3 == n)
+}
+
+/// `Y_0^0`: the constant SH basis value, linking `f_dc` to colour (`rgb = 0.5 + SH_C0 · f_dc`).
+pub const SH_C0: f32 = 0.282_094_8;
+
+/// One Gaussian at full precision: what readers produce and writers consume.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gaussian {
+    /// Centre in metres (world frame W).
+    pub position: Vec3,
+    /// Orientation (any non-zero quaternion; stored normalised).
+    pub rotation: Quat,
+    /// Natural-log scale along the Gaussian's own axes.
+    pub log_scale: Vec3,
+    /// Opacity before the sigmoid.
+    pub opacity_logit: f32,
+    /// SH degree-0 coefficients (RGB).
+    pub sh_dc: [f32; 3],
+    /// Higher-order SH coefficients, coefficient-major (`[k][channel]`); unused ones are zero.
+    pub sh_rest: [[f32; 3]; 15],
+    /// Instance the Gaussian belongs to (`0` for none).
+    pub instance: u32,
+}
+
+impl Default for Gaussian {
+    fn default() -> Self {
+        Gaussian {
+            position: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            log_scale: Vec3::splat(-4.0),
+            opacity_logit: 0.0,
+            sh_dc: [0.0; 3],
+            sh_rest: [[0.0; 3]; 15],
+            instance: 0,
+        }
+    }
+}
+
+impl Gaussian {
+    /// Opacity after the sigmoid.
+    pub fn opacity(&self) -> f32 {
+        1.0 / (1.0 + (-self.opacity_logit).exp())
+    }
+
+    /// Base colour (SH degree 0 only), unclamped.
+    pub fn base_color(&self) -> [f32; 3] {
+        self.sh_dc.map(|c| 0.5 + SH_C0 * c)
+    }
+}
+
+/// Inverse of the sigmoid, clamped so that 0 and 1 stay finite.
+pub fn opacity_to_logit(alpha: f32) -> f32 {
+    let a = alpha.clamp(1e-6, 1.0 - 1e-6);
+    (a / (1.0 - a)).ln()
+}
+
+/// The Gaussians of one scene (see the module docs for layout and precision).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Gaussians {
+    sh_degree: u8,
+    /// Centres, metres.
+    pub positions: Vec<[f32; 3]>,
+    /// Unit quaternions (w, x, y, z) as snorm16.
+    pub rotations: Vec<[i16; 4]>,
+    /// Natural-log scales.
+    pub log_scales: Vec<[f32; 3]>,
+    /// Opacity logits.
+    pub opacity_logits: Vec<f32>,
+    /// SH degree-0 coefficients.
+    pub sh_dc: Vec<[f16; 3]>,
+    /// Per-Gaussian step of the higher-order SH codes (empty at degree 0).
+    pub sh_steps: Vec<f16>,
+    /// Higher-order SH codes, coefficient-major (empty at degree 0).
+    pub sh_codes: Vec<i8>,
+    /// Instance ids (`0` = none).
+    pub instances: Vec<u32>,
+}
+
+/// A mutable window onto consecutive Gaussians, for filling a store in parallel.
+pub struct GaussiansSliceMut<'a> {
+    sh_degree: u8,
+    positions: &'a mut [[f32; 3]],
+    rotations: &'a mut [[i16; 4]],
+    log_scales: &'a mut [[f32; 3]],
+    opacity_logits: &'a mut [f32],
+    sh_dc: &'a mut [[f16; 3]],
+    sh_steps: &'a mut [f16],
+    sh_codes: &'a mut [i8],
+    instances: &'a mut [u32],
+}
+
+fn snorm16(v: f32) -> i16 {
+    (v.clamp(-1.0, 1.0) * 32767.0).round() as i16
+}
+
+fn quantize_sh_rest(rest: &[[f32; 3]], codes: &mut [i8]) -> f16 {
+    let max_abs = rest.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
+    if max_abs == 0.0 || !max_abs.is_finite() {
+        codes.fill(0);
+        return f16::ZERO;
+    }
+    let mut step = f16::from_f32(max_abs / 127.0);
+    // Round the step up so the largest coefficient still fits in ±127.
+    while step.to_f32() * 127.0 < max_abs {
+        step = f16::from_bits(step.to_bits() + 1);
+    }
+    let s = step.to_f32();
+    for (code, v) in codes.iter_mut().zip(rest.iter().flatten()) {
+        *code = (v / s).round().clamp(-127.0, 127.0) as i8;
+    }
+    step
+}
+
+impl GaussiansSliceMut<'_> {
+    /// The number of Gaussians in the window.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True for an empty window.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Stores `g` at index `j` of the window.
+    pub fn set(&mut self, j: usize, g: &Gaussian) {
+        self.positions[j] = g.position.to_array();
+        let q = g.rotation.normalize();
+        let q = if q.is_finite() { q } else { Quat::IDENTITY };
+        self.rotations[j] = [snorm16(q.w), snorm16(q.x), snorm16(q.y), snorm16(q.z)];
+        self.log_scales[j] = g.log_scale.to_array();
+        self.opacity_logits[j] = g.opacity_logit;
+        self.sh_dc[j] = g.sh_dc.map(f16::from_f32);
+        self.instances[j] = g.instance;
+        let k = sh_rest_count(self.sh_degree);
+        if k > 0 {
+            let codes = &mut self.sh_codes[j * k * 3..(j + 1) * k * 3];
+            self.sh_steps[j] = quantize_sh_rest(&g.sh_rest[..k], codes);
+        }
+    }
+}
+
+impl Gaussians {
+    /// An empty store for SH degree `sh_degree` (0–3).
+    pub fn new(sh_degree: u8) -> Result<Self> {
+        if sh_degree > 3 {
+            return Err(Error::invalid(format!("SH degree must be 0-3, got {sh_degree}")));
+        }
+        Ok(Gaussians { sh_degree, ..Default::default() })
+    }
+
+    /// A store of `n` default Gaussians, ready to be filled with [`Gaussians::par_chunks_mut`].
+    pub fn with_len(n: usize, sh_degree: u8) -> Result<Self> {
+        let mut g = Gaussians::new(sh_degree)?;
+        let k = sh_rest_count(sh_degree);
+        g.positions = vec![[0.0; 3]; n];
+        g.rotations = vec![[32767, 0, 0, 0]; n];
+        g.log_scales = vec![[0.0; 3]; n];
+        g.opacity_logits = vec![0.0; n];
+        g.sh_dc = vec![[f16::ZERO; 3]; n];
+        g.instances = vec![0; n];
+        if k > 0 {
+            g.sh_steps = vec![f16::ZERO; n];
+            g.sh_codes = vec![0; n * k * 3];
+        }
+        Ok(g)
+    }
+
+    /// Builds a store from full-precision Gaussians, in parallel.
+    pub fn from_gaussians(items: &[Gaussian], sh_degree: u8) -> Result<Self> {
+        let mut store = Gaussians::with_len(items.len(), sh_degree)?;
+        store.par_chunks_mut(4096).enumerate().for_each(|(c, mut w)| {
+            for j in 0..w.len() {
+                w.set(j, &items[c * 4096 + j]);
+            }
+        });
+        Ok(store)
+    }
+
+    /// The SH degree (0–3).
+    pub fn sh_degree(&self) -> u8 {
+        self.sh_degree
+    }
+
+    /// The number of Gaussians.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True when there are none.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Appends one Gaussian.
+    pub fn push(&mut self, g: &Gaussian) {
+        let k = sh_rest_count(self.sh_degree);
+        self.positions.push([0.0; 3]);
+        self.rotations.push([0; 4]);
+        self.log_scales.push([0.0; 3]);
+        self.opacity_logits.push(0.0);
+        self.sh_dc.push([f16::ZERO; 3]);
+        self.instances.push(0);
+        if k > 0 {
+            self.sh_steps.push(f16::ZERO);
+            self.sh_codes.extend(std::iter::repeat_n(0, k * 3));
+        }
+        let last = self.len() - 1;
+        self.window(last, last + 1).set(0, g);
+    }
+
+    fn window(&mut self, start: usize, end: usize) -> GaussiansSliceMut<'_> {
+        let k3 = sh_rest_count(self.sh_degree) * 3;
+        GaussiansSliceMut {
+            sh_degree: self.sh_degree,
+            positions: &mut self.positions[start..end],
+            rotations: &mut self.rotations[start..end],
+            log_scales: &mut self.log_scales[start..end],
+            opacity_logits: &mut self.opacity_logits[start..end],
+            sh_dc: &mut self.sh_dc[start..end],
+            sh_steps: if k3 > 0 { &mut self.sh_steps[start..end] } else { &mut [] },
+            sh_codes: &mut self.sh_codes[start * k3..end * k3],
+            instances: &mut self.instances[start..end],
+        }
+    }
+
+    /// Overwrites Gaussian `i`.
+    pub fn set(&mut self, i: usize, g: &Gaussian) {
+        self.window(i, i + 1).set(0, g);
+    }
+
+    /// Splits the store into windows of `chunk` consecutive Gaussians, for parallel filling.
+    pub fn par_chunks_mut(
+        &mut self,
+        chunk: usize,
+    ) -> impl IndexedParallelIterator<Item = GaussiansSliceMut<'_>> {
+        let n = self.len();
+        let k3 = sh_rest_count(self.sh_degree) * 3;
+        let degree = self.sh_degree;
+        let chunk = chunk.max(1);
+        let windows = n.div_ceil(chunk);
+        // At degree 0 the SH arrays are empty: hand out empty slices, one pair per window.
+        let sh: Vec<(&mut [f16], &mut [i8])> = if k3 > 0 {
+            self.sh_steps.chunks_mut(chunk).zip(self.sh_codes.chunks_mut(chunk * k3)).collect()
+        } else {
+            (0..windows).map(|_| (&mut [][..], &mut [][..])).collect()
+        };
+        (
+            self.positions.par_chunks_mut(chunk),
+            self.rotations.par_chunks_mut(chunk),
+            self.log_scales.par_chunks_mut(chunk),
+            self.opacity_logits.par_chunks_mut(chunk),
+            self.sh_dc.par_chunks_mut(chunk),
+            self.instances.par_chunks_mut(chunk),
+            sh.into_par_iter(),
+        )
+            .into_par_iter()
+            .map(
+                move |(positions, rotations, log_scales, opacity_logits, sh_dc, instances, (sh_steps, sh_codes))| {
+                    GaussiansSliceMut {
+                        sh_degree: degree,
+                        positions,
+                        rotations,
+                        log_scales,
+                        opacity_logits,
+                        sh_dc,
+                        sh_steps,
+                        sh_codes,
+                        instances,
+                    }
+                },
+            )
+    }
+
+    /// Orientation of Gaussian `i` (unit, w-first in storage).
+    pub fn rotation(&self, i: usize) -> Quat {
+        let [w, x, y, z] = self.rotations[i].map(|v| v as f32 / 32767.0);
+        Quat::from_xyzw(x, y, z, w)
+    }
+
+    /// Higher-order SH coefficients of Gaussian `i`, coefficient-major, into `out` (unused = 0).
+    pub fn sh_rest_into(&self, i: usize, out: &mut [[f32; 3]; 15]) {
+        let k = sh_rest_count(self.sh_degree);
+        *out = [[0.0; 3]; 15];
+        if k == 0 {
+            return;
+        }
+        let step = self.sh_steps[i].to_f32();
+        let codes = &self.sh_codes[i * k * 3..(i + 1) * k * 3];
+        for (j, c) in codes.iter().enumerate() {
+            out[j / 3][j % 3] = *c as f32 * step;
+        }
+    }
+
+    /// Gaussian `i` at the store's precision.
+    pub fn get(&self, i: usize) -> Gaussian {
+        let mut sh_rest = [[0.0; 3]; 15];
+        self.sh_rest_into(i, &mut sh_rest);
+        Gaussian {
+            position: Vec3::from_array(self.positions[i]),
+            rotation: self.rotation(i),
+            log_scale: Vec3::from_array(self.log_scales[i]),
+            opacity_logit: self.opacity_logits[i],
+            sh_dc: self.sh_dc[i].map(f16::to_f32),
+            sh_rest,
+            instance: self.instances[i],
+        }
+    }
+
+    /// Heap bytes held by the store (what a loaded scene costs per Gaussian, ×len).
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.positions.as_slice())
+            + size_of_val(self.rotations.as_slice())
+            + size_of_val(self.log_scales.as_slice())
+            + size_of_val(self.opacity_logits.as_slice())
+            + size_of_val(self.sh_dc.as_slice())
+            + size_of_val(self.sh_steps.as_slice())
+            + size_of_val(self.sh_codes.as_slice())
+            + size_of_val(self.instances.as_slice())
+    }
+
+    /// Checks that every value is finite and names the first Gaussian and field that is not.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |i: usize, field: &str| Err(Error::format(format!("vertex[{i}].{field}"), "value is not finite (NaN or infinity)"));
+        for i in 0..self.len() {
+            if !self.positions[i].iter().all(|v| v.is_finite()) {
+                return bad(i, "position");
+            }
+            if !self.log_scales[i].iter().all(|v| v.is_finite()) {
+                return bad(i, "scale");
+            }
+            if !self.opacity_logits[i].is_finite() {
+                return bad(i, "opacity");
+            }
+            if !self.sh_dc[i].iter().all(|v| v.is_finite()) {
+                return bad(i, "f_dc");
+            }
+        }
+        Ok(())
+    }
+
+    /// The axis-aligned bounds of the centres.
+    pub fn bounds(&self) -> sage_core::Aabb {
+        sage_core::Aabb::from_points(self.positions.iter().map(|p| Vec3::from_array(*p)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn arb_gaussian() -> impl Strategy<Value = Gaussian> {
+        (
+            prop::array::uniform3(-50.0f32..50.0),
+            prop::array::uniform4(-1.0f32..1.0),
+            prop::array::uniform3(-8.0f32..1.0),
+            -8.0f32..8.0,
+            prop::array::uniform3(-3.0f32..3.0),
+            prop::collection::vec(-4.0f32..4.0, 45),
+            any::<u32>(),
+        )
+            .prop_filter("non-zero quaternion", |t| t.1.iter().map(|v| v * v).sum::<f32>() > 0.01)
+            .prop_map(|(p, q, s, o, dc, rest, inst)| Gaussian {
+                position: Vec3::from_array(p),
+                rotation: Quat::from_xyzw(q[1], q[2], q[3], q[0]),
+                log_scale: Vec3::from_array(s),
+                opacity_logit: o,
+                sh_dc: dc,
+                sh_rest: std::array::from_fn(|k| [rest[k * 3], rest[k * 3 + 1], rest[k * 3 + 2]]),
+                instance: inst,
+            })
+    }
+
+    proptest! {
+        #[test]
+        fn store_round_trip_within_documented_precision(g in arb_gaussian(), degree in 0u8..=3) {
+            let mut s = Gaussians::new(degree).unwrap();
+            s.push(&g);
+            let r = s.get(0);
+            prop_assert_eq!(r.position, g.position);
+            prop_assert_eq!(r.log_scale, g.log_scale);
+            prop_assert_eq!(r.opacity_logit, g.opacity_logit);
+            prop_assert_eq!(r.instance, g.instance);
+            let q = g.rotation.normalize();
+            prop_assert!((r.rotation.dot(q).abs() - 1.0).abs() < 1e-4);
+            for c in 0..3 {
+                prop_assert!((r.sh_dc[c] - g.sh_dc[c]).abs() <= g.sh_dc[c].abs() * 1e-3 + 1e-4);
+            }
+            let k = sh_rest_count(degree);
+            let max_abs = g.sh_rest[..k].iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
+            for j in 0..15 {
+                for c in 0..3 {
+                    let want = if j < k { g.sh_rest[j][c] } else { 0.0 };
+                    prop_assert!((r.sh_rest[j][c] - want).abs() <= max_abs / 254.0 * 1.01 + 1e-7);
+                }
+            }
+        }
+
+        #[test]
+        fn parallel_fill_matches_push(items in prop::collection::vec(arb_gaussian(), 0..40), degree in 0u8..=3) {
+            let mut pushed = Gaussians::new(degree).unwrap();
+            for g in &items {
+                pushed.push(g);
+            }
+            let built = Gaussians::from_gaussians(&items, degree).unwrap();
+            prop_assert_eq!(built, pushed);
+        }
+    }
+
+    #[test]
+    fn sh3_costs_93_bytes_per_gaussian() {
+        let s = Gaussians::with_len(1000, 3).unwrap();
+        assert_eq!(s.heap_bytes(), 93_000);
+    }
+
+    #[test]
+    fn degree_four_is_rejected() {
+        assert!(Gaussians::new(4).is_err());
+    }
+}

@@ -1,0 +1,31 @@
+//! `sage-scene`: the scene model of sage3d and its files.
+//!
+//! A scene is a folder in the InteriorGS layout (SPEC §4) plus optional files of ours. This crate
+//! holds the in-memory model — [`Gaussians`] in a compact structure of arrays, [`Object`]s with
+//! boxes, meshes and attributes, the [`Floorplan`], the [`OccupancyMap`] — the readers and
+//! writers of every file ([`ply`] for 3DGS in the standard and SuperSplat compressed layouts,
+//! [`formats`] for the JSON files, [`mesh`] for OBJ/glTF/PLY meshes), and the seeded
+//! [`synth`] generator that makes whole scenes in that layout.
+//!
+//! Load a folder with [`Scene::load`]; write one with [`Scene::save`].
+
+pub mod floorplan;
+pub mod formats;
+pub mod fsutil;
+pub mod gaussians;
+pub mod instances;
+pub mod mesh;
+pub mod object;
+pub mod occupancy;
+pub mod ply;
+pub mod scene;
+pub mod synth;
+
+pub use floorplan::{Floorplan, Hole, HoleKind, Room, StructureItem, Wall};
+pub use gaussians::{Gaussian, Gaussians};
+pub use instances::{InstanceKind, InstanceTable};
+pub use mesh::TriMesh;
+pub use object::{Attributes, DoorState, Object, PhysicsRole, RigidBody};
+pub use occupancy::OccupancyMap;
+pub use ply::SplatLayout;
+pub use scene::{LoadReport, Scene};

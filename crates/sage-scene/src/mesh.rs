@@ -1,0 +1,193 @@
+//! Triangle meshes: the type, and reading them from OBJ (tobj), glTF/GLB (gltf) and PLY files.
+
+use glam::{Mat4, Vec3};
+use sage_core::{Aabb, Error, Result, ResultExt};
+use std::io::Write;
+use std::path::Path;
+
+/// An indexed triangle mesh in world coordinates (metres, W frame).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Triangles as vertex indices, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// Appends another mesh (its indices shifted).
+    pub fn append(&mut self, other: &TriMesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles.extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+
+    /// The mesh with every vertex transformed by `m`.
+    pub fn transformed(&self, m: &Mat4) -> TriMesh {
+        TriMesh {
+            positions: self.positions.iter().map(|p| m.transform_point3(*p)).collect(),
+            triangles: self.triangles.clone(),
+        }
+    }
+
+    /// Corner positions of triangle `t`.
+    pub fn triangle(&self, t: usize) -> [Vec3; 3] {
+        self.triangles[t].map(|i| self.positions[i as usize])
+    }
+
+    /// Total surface area, m².
+    pub fn area(&self) -> f32 {
+        (0..self.triangles.len())
+            .map(|t| {
+                let [a, b, c] = self.triangle(t);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+
+    /// Bounds of the vertices.
+    pub fn aabb(&self) -> Aabb {
+        Aabb::from_points(self.positions.iter().copied())
+    }
+
+    /// Checks indices and coordinates; names the first bad triangle or vertex.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(Error::format(format!("vertex[{i}]"), "coordinate is not finite"));
+        }
+        let n = self.positions.len() as u32;
+        if let Some(t) = self.triangles.iter().position(|t| t.iter().any(|&i| i >= n)) {
+            return Err(Error::format(
+                format!("face[{t}]"),
+                format!("vertex index out of range (mesh has {n} vertices)"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Writes the mesh as Wavefront OBJ text.
+    pub fn write_obj(&self, out: &mut impl Write, name: &str) -> std::io::Result<()> {
+        writeln!(out, "o {name}")?;
+        for p in &self.positions {
+            writeln!(out, "v {} {} {}", p.x, p.y, p.z)?;
+        }
+        for t in &self.triangles {
+            writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+        }
+        Ok(())
+    }
+
+    /// Reads a mesh, choosing the format by extension (`.obj`, `.gltf`, `.glb`, `.ply`).
+    pub fn load(path: &Path) -> Result<TriMesh> {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        let mesh = match ext.as_str() {
+            "obj" => load_obj(path),
+            "gltf" | "glb" => load_gltf(path),
+            "ply" => {
+                let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+                crate::ply::mesh::read_mesh(&bytes)
+            }
+            _ => Err(Error::invalid(format!(
+                "unknown mesh format '.{ext}' (expected .obj, .gltf, .glb or .ply)"
+            ))),
+        };
+        let mesh = mesh.in_file(path)?;
+        mesh.validate().in_file(path)?;
+        Ok(mesh)
+    }
+}
+
+fn load_obj(path: &Path) -> Result<TriMesh> {
+    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
+        tobj::LoadError::OpenFileFailed | tobj::LoadError::ReadError => {
+            Error::io(path, std::io::Error::other(e.to_string()))
+        }
+        other => Error::format("obj", other.to_string()),
+    })?;
+    let mut mesh = TriMesh::default();
+    for m in &models {
+        let part = TriMesh {
+            positions: m.mesh.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+            triangles: m.mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        };
+        part.validate().within(format!("object '{}'", m.name))?;
+        mesh.append(&part);
+    }
+    Ok(mesh)
+}
+
+fn load_gltf(path: &Path) -> Result<TriMesh> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::format("gltf", e.to_string()))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut buffers = Vec::new();
+    for (i, buffer) in gltf.buffers().enumerate() {
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => gltf
+                .blob
+                .clone()
+                .ok_or_else(|| Error::format(format!("buffers[{i}]"), "GLB has no binary chunk"))?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                return Err(Error::format(
+                    format!("buffers[{i}].uri"),
+                    "embedded data: URIs are not supported; use .glb or an external .bin",
+                ));
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let p = dir.join(uri);
+                std::fs::read(&p).map_err(|e| Error::io(&p, e))?
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(Error::format(
+                format!("buffers[{i}]"),
+                format!("expected {} bytes, found {}", buffer.length(), data.len()),
+            ));
+        }
+        buffers.push(data);
+    }
+    let mut mesh = TriMesh::default();
+    let scenes: Vec<_> = gltf.default_scene().into_iter().chain(gltf.scenes()).take(1).collect();
+    for scene in scenes {
+        for node in scene.nodes() {
+            collect_node(&node, Mat4::IDENTITY, &buffers, &mut mesh)?;
+        }
+    }
+    Ok(mesh)
+}
+
+fn collect_node(node: &gltf::Node, parent: Mat4, buffers: &[Vec<u8>], out: &mut TriMesh) -> Result<()> {
+    let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+    if let Some(m) = node.mesh() {
+        for (pi, prim) in m.primitives().enumerate() {
+            let at = || format!("meshes[{}].primitives[{pi}]", m.index());
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                return Err(Error::format(at(), "only triangle primitives are supported"));
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+            let positions: Vec<Vec3> = reader
+                .read_positions()
+                .ok_or_else(|| Error::format(at(), "primitive has no POSITION attribute"))?
+                .map(|p| world.transform_point3(Vec3::from_array(p)))
+                .collect();
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(ix) => ix.into_u32().collect(),
+                None => (0..positions.len() as u32).collect(),
+            };
+            if indices.len() % 3 != 0 {
+                return Err(Error::format(at(), "index count is not a multiple of 3"));
+            }
+            let part = TriMesh {
+                positions,
+                triangles: indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            };
+            part.validate().within(at())?;
+            out.append(&part);
+        }
+    }
+    for child in node.children() {
+        collect_node(&child, world, buffers, out)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,329 @@
+//! The SuperSplat/PlayCanvas compressed PLY layout (what InteriorGS ships).
+//!
+//! - `element chunk` (one per 256 Gaussians), floats: `min_x min_y min_z max_x max_y max_z`,
+//!   `min_scale_{x,y,z} max_scale_{x,y,z}` and, in 18-float records, `min_{r,g,b} max_{r,g,b}`.
+//! - `element vertex`, uints: `packed_position` and `packed_scale` (11-10-11 bit unorms lerped
+//!   between the chunk bounds; scales are logs), `packed_rotation` (2 bits naming the largest
+//!   component of (w, x, y, z), then the other three as 10-bit values in [−1/√2, 1/√2]),
+//!   `packed_color` (8-8-8-8: colour — lerped between the chunk colour bounds when present — and
+//!   post-sigmoid opacity).
+//! - optional `element sh`, uchars `f_rest_0..` (9, 24 or 45, channel-major): value
+//!   `(u − 0.5) · 8` with `u = 0` for 0, `1` for 255, else `(byte + 0.5) / 256`.
+//!
+//! The writer always emits 18-float chunk records and keeps the Gaussians in store order.
+
+use super::header::{Element, Header, Rows, Scalar, element_rows};
+use crate::gaussians::{Gaussian, Gaussians, SH_C0, sh_degree_for_rest_len, sh_rest_count};
+use glam::{Quat, Vec3};
+use rayon::prelude::*;
+use sage_core::{Error, Result};
+use std::io::Write;
+
+/// Gaussians per chunk record.
+pub const CHUNK: usize = 256;
+
+const CHUNK_POS: [&str; 12] = [
+    "min_x", "min_y", "min_z", "max_x", "max_y", "max_z",
+    "min_scale_x", "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z",
+];
+const CHUNK_COLOR: [&str; 6] = ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"];
+const PACKED: [&str; 4] = ["packed_position", "packed_rotation", "packed_scale", "packed_color"];
+
+/// Alpha is clamped half a quantisation step inside (0, 1) so the logit stays finite and
+/// re-encodes to the same byte.
+const ALPHA_EPS: f32 = 0.5 / 255.0;
+
+fn fixed<'a>(rows: &'a Rows<'a>, name: &str) -> Result<(&'a [u8], usize)> {
+    match rows {
+        Rows::Fixed { bytes, stride, big_endian: false } => Ok((bytes, *stride)),
+        _ => Err(Error::format(name, "the compressed layout must be binary little-endian without lists")),
+    }
+}
+
+fn offsets(e: &Element, names: &[&str], want: Scalar) -> Result<Vec<usize>> {
+    names
+        .iter()
+        .map(|n| match e.scalar_offset(n) {
+            Some((o, s)) if s == want => Ok(o),
+            Some((_, s)) => Err(Error::format(format!("{}.{n}", e.name), format!("expected type {want:?}, found {s:?}"))),
+            None => Err(Error::format(format!("{}.{n}", e.name), "missing property")),
+        })
+        .collect()
+}
+
+#[inline]
+fn f32_at(b: &[u8], o: usize) -> f32 {
+    f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+}
+
+#[inline]
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]])
+}
+
+#[inline]
+fn unpack_11_10_11(v: u32) -> Vec3 {
+    Vec3::new(((v >> 21) & 0x7ff) as f32 / 2047.0, ((v >> 11) & 0x3ff) as f32 / 1023.0, (v & 0x7ff) as f32 / 2047.0)
+}
+
+#[inline]
+fn unpack_rotation(v: u32) -> Quat {
+    let scale = std::f32::consts::SQRT_2;
+    let small = [(v >> 20) & 0x3ff, (v >> 10) & 0x3ff, v & 0x3ff].map(|c| (c as f32 / 1023.0 - 0.5) * scale);
+    let largest = (v >> 30) as usize;
+    let m = (1.0 - small.iter().map(|c| c * c).sum::<f32>()).max(0.0).sqrt();
+    let mut wxyz = [0.0f32; 4];
+    let mut it = small.into_iter();
+    for (i, c) in wxyz.iter_mut().enumerate() {
+        *c = if i == largest { m } else { it.next().unwrap_or(0.0) };
+    }
+    Quat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0])
+}
+
+#[inline]
+fn sh_value(byte: u8) -> f32 {
+    let u = match byte {
+        0 => 0.0,
+        255 => 1.0,
+        b => (b as f32 + 0.5) / 256.0,
+    };
+    (u - 0.5) * 8.0
+}
+
+/// Reads the compressed layout (the header has been parsed already).
+pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
+    let (ci, chunk_el) = header.element("chunk").ok_or_else(|| Error::format("chunk", "missing element"))?;
+    let (vi, vertex_el) = header.element("vertex").ok_or_else(|| Error::format("vertex", "missing element"))?;
+    let rows = element_rows(header, bytes)?;
+    let (chunk_bytes, chunk_stride) = fixed(&rows[ci], "chunk")?;
+    let (vert_bytes, vert_stride) = fixed(&rows[vi], "vertex")?;
+    let n = vertex_el.count;
+    if chunk_el.count < n.div_ceil(CHUNK) {
+        return Err(Error::format(
+            "chunk",
+            format!("{} chunk records cannot cover {n} vertices (need {})", chunk_el.count, n.div_ceil(CHUNK)),
+        ));
+    }
+    let chunk_off = offsets(chunk_el, &CHUNK_POS, Scalar::F32)?;
+    let color_off = match chunk_el.property_index("min_r") {
+        Some(_) => Some(offsets(chunk_el, &CHUNK_COLOR, Scalar::F32)?),
+        None => None,
+    };
+    let packed_off = offsets(vertex_el, &PACKED, Scalar::U32)?;
+    let sh = match header.element("sh") {
+        None => None,
+        Some((si, sh_el)) => {
+            if sh_el.count != n {
+                return Err(Error::format("sh", format!("has {} rows but vertex has {n}", sh_el.count)));
+            }
+            let names: Vec<String> = (0..sh_el.properties.len()).map(|i| format!("f_rest_{i}")).collect();
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            let off = offsets(sh_el, &names, Scalar::U8)?;
+            let (b, stride) = fixed(&rows[si], "sh")?;
+            Some((b, stride, off))
+        }
+    };
+    let degree = match &sh {
+        None => 0,
+        Some((_, _, off)) => sh_degree_for_rest_len(off.len()).ok_or_else(|| {
+            Error::format("sh", format!("found {} f_rest properties; expected 9, 24 or 45", off.len()))
+        })?,
+    };
+    let k = sh_rest_count(degree);
+    let mut store = Gaussians::with_len(n, degree)?;
+    store.par_chunks_mut(CHUNK).enumerate().for_each(|(c, mut window)| {
+        let cb = &chunk_bytes[c * chunk_stride..];
+        let f = |i: usize| f32_at(cb, chunk_off[i]);
+        let (pmin, pmax) = (Vec3::new(f(0), f(1), f(2)), Vec3::new(f(3), f(4), f(5)));
+        let (smin, smax) = (Vec3::new(f(6), f(7), f(8)), Vec3::new(f(9), f(10), f(11)));
+        let color_range = color_off.as_ref().map(|o| {
+            let g = |i: usize| f32_at(cb, o[i]);
+            (Vec3::new(g(0), g(1), g(2)), Vec3::new(g(3), g(4), g(5)))
+        });
+        for j in 0..window.len() {
+            let row = c * CHUNK + j;
+            let vb = &vert_bytes[row * vert_stride..];
+            let [pp, pr, ps, pc] = [0, 1, 2, 3].map(|i| u32_at(vb, packed_off[i]));
+            let raw = Vec3::new((pc >> 24) as f32, ((pc >> 16) & 0xff) as f32, ((pc >> 8) & 0xff) as f32) / 255.0;
+            let rgb = match color_range {
+                Some((lo, hi)) => lo + (hi - lo) * raw,
+                None => raw,
+            };
+            let alpha = ((pc & 0xff) as f32 / 255.0).clamp(ALPHA_EPS, 1.0 - ALPHA_EPS);
+            let mut sh_rest = [[0.0; 3]; 15];
+            if let Some((sb, stride, off)) = &sh {
+                let row_bytes = &sb[row * stride..];
+                for (idx, o) in off.iter().enumerate() {
+                    sh_rest[idx % k][idx / k] = sh_value(row_bytes[*o]);
+                }
+            }
+            window.set(
+                j,
+                &Gaussian {
+                    position: pmin + (pmax - pmin) * unpack_11_10_11(pp),
+                    rotation: unpack_rotation(pr),
+                    log_scale: smin + (smax - smin) * unpack_11_10_11(ps),
+                    opacity_logit: -(1.0 / alpha - 1.0).ln(),
+                    sh_dc: ((rgb - Vec3::splat(0.5)) / SH_C0).to_array(),
+                    sh_rest,
+                    instance: 0,
+                },
+            );
+        }
+    });
+    Ok(store)
+}
+
+fn unorm(v: f32, bits: u32) -> u32 {
+    let max = ((1u32 << bits) - 1) as f32;
+    (v.clamp(0.0, 1.0) * max).round() as u32
+}
+
+fn normalized(v: Vec3, lo: Vec3, hi: Vec3) -> Vec3 {
+    let range = hi - lo;
+    Vec3::select(range.cmpgt(Vec3::ZERO), (v - lo) / range, Vec3::ZERO)
+}
+
+fn pack_11_10_11(u: Vec3) -> u32 {
+    (unorm(u.x, 11) << 21) | (unorm(u.y, 10) << 11) | unorm(u.z, 11)
+}
+
+fn pack_rotation(q: Quat) -> u32 {
+    let q = q.normalize();
+    let wxyz = [q.w, q.x, q.y, q.z];
+    let largest = (0..4).max_by(|&a, &b| wxyz[a].abs().total_cmp(&wxyz[b].abs())).unwrap_or(0);
+    let sign = if wxyz[largest] < 0.0 { -1.0 } else { 1.0 };
+    let mut packed = (largest as u32) << 30;
+    let mut shift = 20u32;
+    for (i, c) in wxyz.iter().enumerate() {
+        if i != largest {
+            packed |= unorm(c * sign * std::f32::consts::FRAC_1_SQRT_2 + 0.5, 10) << shift;
+            shift = shift.saturating_sub(10);
+        }
+    }
+    packed
+}
+
+fn sh_byte(v: f32) -> u8 {
+    ((v / 8.0 + 0.5) * 256.0).clamp(0.0, 255.0) as u8
+}
+
+/// The 18 chunk floats for Gaussians `items`.
+fn chunk_bounds(items: &[Gaussian]) -> [f32; 18] {
+    let (mut pl, mut ph) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let (mut sl, mut sh) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let (mut cl, mut ch) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for g in items {
+        pl = pl.min(g.position);
+        ph = ph.max(g.position);
+        let s = g.log_scale.clamp(Vec3::splat(-20.0), Vec3::splat(20.0));
+        sl = sl.min(s);
+        sh = sh.max(s);
+        let c = Vec3::from_array(g.base_color());
+        cl = cl.min(c);
+        ch = ch.max(c);
+    }
+    let mut out = [0.0; 18];
+    for (i, v) in [pl, ph, sl, sh, cl, ch].iter().enumerate() {
+        out[i * 3..i * 3 + 3].copy_from_slice(&v.to_array());
+    }
+    out
+}
+
+/// The header of the compressed layout.
+pub fn header_text(n: usize, degree: u8) -> String {
+    let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment Generated by sage3d\n");
+    h += &format!("element chunk {}\n", n.div_ceil(CHUNK));
+    for p in CHUNK_POS.iter().chain(CHUNK_COLOR.iter()) {
+        h += &format!("property float {p}\n");
+    }
+    h += &format!("element vertex {n}\n");
+    for p in PACKED {
+        h += &format!("property uint {p}\n");
+    }
+    let k = sh_rest_count(degree);
+    if k > 0 {
+        h += &format!("element sh {n}\n");
+        for i in 0..k * 3 {
+            h += &format!("property uchar f_rest_{i}\n");
+        }
+    }
+    h + "end_header\n"
+}
+
+/// Encodes one chunk: its 18 floats, its packed vertices and its SH bytes.
+fn encode_chunk(items: &[Gaussian], k: usize) -> ([f32; 18], Vec<u8>, Vec<u8>) {
+    let b = chunk_bounds(items);
+    let v3 = |i: usize| Vec3::new(b[i], b[i + 1], b[i + 2]);
+    let (pl, ph, sl, sh, cl, ch) = (v3(0), v3(3), v3(6), v3(9), v3(12), v3(15));
+    let mut vertices = Vec::with_capacity(items.len() * 16);
+    let mut sh_bytes = Vec::with_capacity(items.len() * k * 3);
+    for g in items {
+        let c = normalized(Vec3::from_array(g.base_color()), cl, ch);
+        let alpha = g.opacity();
+        let color = (unorm(c.x, 8) << 24) | (unorm(c.y, 8) << 16) | (unorm(c.z, 8) << 8) | unorm(alpha, 8);
+        let s = g.log_scale.clamp(Vec3::splat(-20.0), Vec3::splat(20.0));
+        for word in [
+            pack_11_10_11(normalized(g.position, pl, ph)),
+            pack_rotation(g.rotation),
+            pack_11_10_11(normalized(s, sl, sh)),
+            color,
+        ] {
+            vertices.extend_from_slice(&word.to_le_bytes());
+        }
+        for c in 0..3 {
+            sh_bytes.extend(g.sh_rest[..k].iter().map(|coeff| sh_byte(coeff[c])));
+        }
+    }
+    (b, vertices, sh_bytes)
+}
+
+/// Writes the compressed layout, in store order.
+pub fn write(w: &mut impl Write, g: &Gaussians) -> std::io::Result<()> {
+    let n = g.len();
+    let k = sh_rest_count(g.sh_degree());
+    let chunks: Vec<([f32; 18], Vec<u8>, Vec<u8>)> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let items: Vec<Gaussian> = (c * CHUNK..((c + 1) * CHUNK).min(n)).map(|i| g.get(i)).collect();
+            encode_chunk(&items, k)
+        })
+        .collect();
+    w.write_all(header_text(n, g.sh_degree()).as_bytes())?;
+    for (bounds, _, _) in &chunks {
+        for f in bounds {
+            w.write_all(&f.to_le_bytes())?;
+        }
+    }
+    for (_, vertices, _) in &chunks {
+        w.write_all(vertices)?;
+    }
+    if k > 0 {
+        for (_, _, sh) in &chunks {
+            w.write_all(sh)?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn rotation_pack_round_trip(w in -1.0f32..1.0, x in -1.0f32..1.0, y in -1.0f32..1.0, z in -1.0f32..1.0) {
+            let q = Quat::from_xyzw(x, y, z, w);
+            prop_assume!(q.length() > 0.1);
+            let q = q.normalize();
+            let r = unpack_rotation(pack_rotation(q));
+            prop_assert!(r.dot(q).abs() > 1.0 - 2e-5, "{q:?} -> {r:?}");
+        }
+
+        #[test]
+        fn sh_byte_round_trip(v in -4.0f32..4.0) {
+            prop_assert!((sh_value(sh_byte(v)) - v).abs() <= 8.0 / 256.0);
+        }
+    }
+}

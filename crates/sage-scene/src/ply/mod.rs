@@ -1,0 +1,95 @@
+//! 3DGS PLY files in both layouts, and PLY meshes.
+//!
+//! - [`standard`]: the Inria layout (`x y z … f_dc_* f_rest_* opacity scale_* rot_*`), matched by
+//!   property name in any order and any scalar type, ASCII or binary; SH degree inferred from the
+//!   number of `f_rest_*` properties.
+//! - [`compressed`]: the SuperSplat/PlayCanvas chunked layout (`chunk` + packed `vertex` +
+//!   optional `sh` elements), 12- or 18-float chunk records.
+//!
+//! The layout is detected from the header, never from the file name.
+
+pub mod compressed;
+pub mod header;
+pub mod mesh;
+pub mod standard;
+
+use crate::gaussians::Gaussians;
+use sage_core::{Error, Result, ResultExt};
+use std::path::Path;
+
+/// The two 3DGS PLY layouts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SplatLayout {
+    /// The standard (Inria) float layout.
+    Standard,
+    /// The SuperSplat chunked, quantised layout.
+    Compressed,
+}
+
+impl SplatLayout {
+    /// The layout a file name asks for when writing: `*.compressed.ply` or `*_compressed.ply`
+    /// is compressed (as `splat-transform` decides), any other `.ply` standard.
+    pub fn from_file_name(path: &Path) -> Result<SplatLayout> {
+        let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        if name.ends_with("compressed.ply") {
+            Ok(SplatLayout::Compressed)
+        } else if name.ends_with(".ply") {
+            Ok(SplatLayout::Standard)
+        } else {
+            Err(Error::invalid(format!(
+                "{}: cannot tell the layout from the name (use NAME.ply or NAME.compressed.ply)",
+                path.display()
+            )))
+        }
+    }
+
+    /// A short name for reports.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SplatLayout::Standard => "standard",
+            SplatLayout::Compressed => "compressed",
+        }
+    }
+}
+
+/// Detects the layout of a parsed header.
+pub fn detect_layout(header: &header::Header) -> Result<SplatLayout> {
+    let has_chunk = header.element("chunk").is_some();
+    let packed = header.element("vertex").is_some_and(|(_, v)| v.property_index("packed_position").is_some());
+    match (has_chunk, packed) {
+        (true, true) => Ok(SplatLayout::Compressed),
+        (false, false) if header.element("vertex").is_some() => Ok(SplatLayout::Standard),
+        (true, false) => Err(Error::format("vertex", "has a 'chunk' element but no 'packed_position' property")),
+        (false, true) => Err(Error::format("chunk", "packed vertices need a 'chunk' element")),
+        (false, false) => Err(Error::format("vertex", "no 'vertex' element: not a Gaussian splat file")),
+    }
+}
+
+/// Reads Gaussians from PLY bytes in either layout.
+pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
+    let header = header::parse_header(bytes)?;
+    let layout = detect_layout(&header)?;
+    let g = match layout {
+        SplatLayout::Standard => standard::read(&header, bytes)?,
+        SplatLayout::Compressed => compressed::read(&header, bytes)?,
+    };
+    g.validate()?;
+    Ok((g, layout))
+}
+
+/// Reads a Gaussian file (memory-mapped); errors name the file.
+pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    // SAFETY: the map is read-only and dropped before returning; a file truncated by another
+    // process while mapped is outside what a reader can defend against.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
+    read_splats(&map).in_file(path)
+}
+
+/// Writes Gaussians in `layout`, atomically (temporary file, then rename).
+pub fn write_splats_file(path: &Path, gaussians: &Gaussians, layout: SplatLayout) -> Result<()> {
+    crate::fsutil::write_atomic(path, |w| match layout {
+        SplatLayout::Standard => standard::write(w, gaussians),
+        SplatLayout::Compressed => compressed::write(w, gaussians),
+    })
+}

@@ -1,0 +1,187 @@
+//! The standard (Inria) 3DGS PLY layout.
+//!
+//! Properties are matched by name: `x y z`, `f_dc_0..2` (or `red green blue` as a fallback),
+//! `f_rest_*` (0, 9, 24 or 45 of them, channel-major), `opacity`, `scale_0..2`, `rot_0..3`
+//! (w, x, y, z). Any scalar type is accepted; unknown properties (normals …) are ignored.
+
+use super::header::{Element, Header, Rows, Scalar, element_rows};
+use crate::gaussians::{Gaussian, Gaussians, SH_C0, sh_degree_for_rest_len, sh_rest_count};
+use glam::{Quat, Vec3};
+use rayon::prelude::*;
+use sage_core::{Error, Result};
+use std::io::Write;
+
+/// Where each needed value sits in a row: (byte offset, type) for fixed rows, else property index.
+enum Source {
+    Offset(usize, Scalar),
+    Index(usize),
+}
+
+fn locate(e: &Element, fixed: bool, name: &str) -> Option<Source> {
+    if fixed {
+        e.scalar_offset(name).map(|(o, s)| Source::Offset(o, s))
+    } else {
+        e.property_index(name).map(Source::Index)
+    }
+}
+
+/// Colour as `f_dc`, or as 8-bit / float `red green blue`.
+enum ColorSource {
+    Dc([Source; 3]),
+    Rgb([Source; 3], f64),
+}
+
+struct Layout {
+    position: [Source; 3],
+    color: ColorSource,
+    rest: Vec<Source>,
+    opacity: Source,
+    scale: [Source; 3],
+    rotation: [Source; 4],
+}
+
+fn require(e: &Element, fixed: bool, name: &str) -> Result<Source> {
+    locate(e, fixed, name).ok_or_else(|| Error::format(format!("vertex.{name}"), "missing property"))
+}
+
+fn layout(e: &Element, fixed: bool) -> Result<(Layout, u8)> {
+    let req = |n: &str| require(e, fixed, n);
+    let color = if e.property_index("f_dc_0").is_some() {
+        ColorSource::Dc([req("f_dc_0")?, req("f_dc_1")?, req("f_dc_2")?])
+    } else if let Some(i) = e.property_index("red") {
+        let max = if e.properties[i].scalar == Scalar::U8 { 255.0 } else { 1.0 };
+        ColorSource::Rgb([req("red")?, req("green")?, req("blue")?], max)
+    } else {
+        return Err(Error::format("vertex.f_dc_0", "missing property (and no red/green/blue)"));
+    };
+    let rest_count = e.properties.iter().filter(|p| p.name.starts_with("f_rest_")).count();
+    let degree = sh_degree_for_rest_len(rest_count).ok_or_else(|| {
+        Error::format("vertex.f_rest_*", format!("found {rest_count} f_rest properties; expected 0, 9, 24 or 45"))
+    })?;
+    let rest = (0..rest_count).map(|i| req(&format!("f_rest_{i}"))).collect::<Result<Vec<_>>>()?;
+    Ok((
+        Layout {
+            position: [req("x")?, req("y")?, req("z")?],
+            color,
+            rest,
+            opacity: req("opacity")?,
+            scale: [req("scale_0")?, req("scale_1")?, req("scale_2")?],
+            rotation: [req("rot_0")?, req("rot_1")?, req("rot_2")?, req("rot_3")?],
+        },
+        degree,
+    ))
+}
+
+/// Reads the standard layout (the header has been parsed already).
+pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
+    let (vi, element) = header.element("vertex").ok_or_else(|| Error::format("vertex", "missing element"))?;
+    let rows = element_rows(header, bytes)?;
+    let rows = &rows[vi];
+    let fixed = matches!(rows, Rows::Fixed { .. });
+    let (layout, degree) = layout(element, fixed)?;
+    let k = sh_rest_count(degree);
+    let mut store = Gaussians::with_len(element.count, degree)?;
+    const BLOCK: usize = 4096;
+    store.par_chunks_mut(BLOCK).enumerate().for_each(|(b, mut window)| {
+        for j in 0..window.len() {
+            let row = b * BLOCK + j;
+            let get = |s: &Source| -> f32 {
+                match (s, rows) {
+                    (Source::Offset(o, t), Rows::Fixed { bytes, stride, big_endian }) => {
+                        t.read(&bytes[row * stride + o..], *big_endian) as f32
+                    }
+                    (Source::Index(i), _) => rows.values(element, row, *i).first().copied().unwrap_or(f64::NAN) as f32,
+                    _ => f32::NAN,
+                }
+            };
+            let sh_dc = match &layout.color {
+                ColorSource::Dc(s) => s.each_ref().map(get),
+                ColorSource::Rgb(s, max) => s.each_ref().map(|c| (get(c) / *max as f32 - 0.5) / SH_C0),
+            };
+            let mut sh_rest = [[0.0; 3]; 15];
+            for (idx, s) in layout.rest.iter().enumerate() {
+                sh_rest[idx % k][idx / k] = get(s);
+            }
+            let [w, x, y, z] = layout.rotation.each_ref().map(get);
+            window.set(
+                j,
+                &Gaussian {
+                    position: Vec3::from_array(layout.position.each_ref().map(get)),
+                    rotation: Quat::from_xyzw(x, y, z, w),
+                    log_scale: Vec3::from_array(layout.scale.each_ref().map(get)),
+                    opacity_logit: finite_logit(get(&layout.opacity)),
+                    sh_dc,
+                    sh_rest,
+                    instance: 0,
+                },
+            );
+        }
+    });
+    Ok(store)
+}
+
+/// Tools write alpha 0 and 1 as logits of ∓infinity; keep them finite (NaN stays NaN and is
+/// rejected by validation).
+fn finite_logit(x: f32) -> f32 {
+    x.clamp(-MAX_LOGIT, MAX_LOGIT)
+}
+
+/// The largest opacity logit kept: sigmoid(±20) is within 2e-9 of 0 or 1.
+pub const MAX_LOGIT: f32 = 20.0;
+
+/// The header of the standard layout for `n` Gaussians of SH degree `degree`.
+pub fn header_text(n: usize, degree: u8) -> String {
+    let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment Generated by sage3d\n");
+    h += &format!("element vertex {n}\n");
+    for p in ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"] {
+        h += &format!("property float {p}\n");
+    }
+    for i in 0..sh_rest_count(degree) * 3 {
+        h += &format!("property float f_rest_{i}\n");
+    }
+    for p in ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"] {
+        h += &format!("property float {p}\n");
+    }
+    h + "end_header\n"
+}
+
+fn encode_row(g: &Gaussian, k: usize, out: &mut Vec<u8>) {
+    let q = g.rotation;
+    let mut push = |v: f32| out.extend_from_slice(&v.to_le_bytes());
+    g.position.to_array().into_iter().for_each(&mut push);
+    [0.0; 3].into_iter().for_each(&mut push);
+    g.sh_dc.into_iter().for_each(&mut push);
+    for c in 0..3 {
+        for coeff in &g.sh_rest[..k] {
+            push(coeff[c]);
+        }
+    }
+    push(g.opacity_logit);
+    g.log_scale.to_array().into_iter().for_each(&mut push);
+    [q.w, q.x, q.y, q.z].into_iter().for_each(&mut push);
+}
+
+/// Writes the standard layout (binary little-endian), in store order.
+pub fn write(w: &mut impl Write, g: &Gaussians) -> std::io::Result<()> {
+    let k = sh_rest_count(g.sh_degree());
+    w.write_all(header_text(g.len(), g.sh_degree()).as_bytes())?;
+    const BLOCK: usize = 16384;
+    for start in (0..g.len()).step_by(BLOCK) {
+        let end = (start + BLOCK).min(g.len());
+        let parts: Vec<Vec<u8>> = (start..end)
+            .into_par_iter()
+            .chunks(1024)
+            .map(|ids| {
+                let mut buf = Vec::with_capacity(ids.len() * (62 * 4));
+                for i in ids {
+                    encode_row(&g.get(i), k, &mut buf);
+                }
+                buf
+            })
+            .collect();
+        for p in parts {
+            w.write_all(&p)?;
+        }
+    }
+    Ok(())
+}

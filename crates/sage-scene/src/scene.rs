@@ -1,0 +1,212 @@
+//! A whole scene: Gaussians, objects, floorplan, occupancy; loading and saving a scene folder.
+
+use crate::floorplan::Floorplan;
+use crate::formats::{labels, objects_json, structure};
+use crate::gaussians::Gaussians;
+use crate::instances::{InstanceTable, assign_instances};
+use crate::mesh::TriMesh;
+use crate::object::Object;
+use crate::occupancy::OccupancyMap;
+use crate::ply::{self, SplatLayout};
+use sage_core::{Aabb, Error, Result, ResultExt};
+use std::path::Path;
+
+/// Everything sage3d knows about one indoor scene, in the world frame W.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Folder name (InteriorGS `NNNN_WWWWWW`) or a generated name.
+    pub name: String,
+    /// The 3DGS appearance.
+    pub gaussians: Gaussians,
+    /// Annotated objects, in `labels.json` order; `objects[i].id == i + 1`.
+    pub objects: Vec<Object>,
+    /// Rooms, walls, holes.
+    pub floorplan: Floorplan,
+    /// The scene's own occupancy map, when it has one.
+    pub occupancy: Option<OccupancyMap>,
+    /// The mesh of the structure (walls, floors, ceilings), when the scene has one.
+    pub structure_mesh: Option<TriMesh>,
+    /// Instance ids and categories.
+    pub instances: InstanceTable,
+}
+
+/// What [`Scene::load`] found in a folder.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoadReport {
+    /// Files read, relative to the folder.
+    pub files: Vec<String>,
+    /// Expected files that were absent.
+    pub missing: Vec<String>,
+    /// The layout of the Gaussian file.
+    pub splat_layout: Option<SplatLayout>,
+    /// Objects that came with a mesh.
+    pub meshes: usize,
+    /// Non-fatal oddities (entries skipped and why).
+    pub warnings: Vec<String>,
+}
+
+/// File names of the scene layout.
+pub mod files {
+    /// Gaussians in the SuperSplat compressed layout (InteriorGS).
+    pub const COMPRESSED_PLY: &str = "3dgs_compressed.ply";
+    /// Gaussians in the standard Inria layout.
+    pub const STANDARD_PLY: &str = "3dgs.ply";
+    /// Object boxes.
+    pub const LABELS: &str = "labels.json";
+    /// Floorplan.
+    pub const STRUCTURE: &str = "structure.json";
+    /// Our per-object extras.
+    pub const OBJECTS: &str = "objects.json";
+    /// Mesh folder.
+    pub const MESHES: &str = "meshes";
+    /// Structure mesh inside the mesh folder.
+    pub const STRUCTURE_MESH: &str = "structure.obj";
+}
+
+impl Scene {
+    /// Builds the instance table, numbers the objects, assigns rooms (where unset) and
+    /// per-Gaussian instances.
+    pub fn finish(&mut self) {
+        for o in self.objects.iter_mut().filter(|o| o.room.is_none()) {
+            o.room = self.floorplan.room_at(o.obb.center.truncate());
+        }
+        self.instances = InstanceTable::build(&mut self.objects, &self.floorplan);
+        assign_instances(&mut self.gaussians, &self.objects, &self.floorplan, &self.instances);
+    }
+
+    /// Bounds of everything: Gaussians, boxes, walls.
+    pub fn bounds(&self) -> Aabb {
+        let objects = self.objects.iter().fold(Aabb::EMPTY, |b, o| b.union(o.obb.aabb()));
+        let walls = self.floorplan.walls.iter().fold(Aabb::EMPTY, |b, w| b.union(w.obb().aabb()));
+        self.gaussians.bounds().union(objects).union(walls)
+    }
+
+    /// Loads a scene folder: the Gaussians (either layout, detected from the header), labels,
+    /// structure, occupancy, `objects.json` and meshes, whichever exist.
+    pub fn load(dir: &Path) -> Result<(Scene, LoadReport)> {
+        if !dir.is_dir() {
+            return Err(Error::invalid(format!("{} is not a scene folder", dir.display())));
+        }
+        let mut report = LoadReport::default();
+        let mut note = |name: &str, found: bool| {
+            if found { report.files.push(name.to_string()) } else { report.missing.push(name.to_string()) }
+        };
+        let splat_path = [files::COMPRESSED_PLY, files::STANDARD_PLY].iter().map(|f| dir.join(f)).find(|p| p.is_file());
+        let gaussians = match &splat_path {
+            Some(p) => {
+                note(&p.file_name().unwrap_or_default().to_string_lossy(), true);
+                let (g, layout) = ply::read_splats_file(p)?;
+                report.splat_layout = Some(layout);
+                g
+            }
+            None => {
+                note(files::COMPRESSED_PLY, false);
+                Gaussians::new(0)?
+            }
+        };
+        let labels_path = dir.join(files::LABELS);
+        let mut objects = if labels_path.is_file() {
+            note(files::LABELS, true);
+            let text = read_text(&labels_path)?;
+            let (objects, skipped) = labels::parse(&text).in_file(&labels_path)?;
+            if skipped > 0 {
+                report.warnings.push(format!("{}: {skipped} entries without bounding_box skipped", files::LABELS));
+            }
+            objects
+        } else {
+            note(files::LABELS, false);
+            Vec::new()
+        };
+        let structure_path = dir.join(files::STRUCTURE);
+        let floorplan = if structure_path.is_file() {
+            note(files::STRUCTURE, true);
+            structure::parse(&read_text(&structure_path)?).in_file(&structure_path)?
+        } else {
+            note(files::STRUCTURE, false);
+            Floorplan::default()
+        };
+        let occupancy = if dir.join("occupancy.json").is_file() && dir.join("occupancy.png").is_file() {
+            note("occupancy.png", true);
+            note("occupancy.json", true);
+            Some(OccupancyMap::load(dir)?)
+        } else {
+            note("occupancy.png", false);
+            None
+        };
+        let objects_path = dir.join(files::OBJECTS);
+        if objects_path.is_file() {
+            note(files::OBJECTS, true);
+            let unmatched = objects_json::apply(&read_text(&objects_path)?, &mut objects).in_file(&objects_path)?;
+            if unmatched > 0 {
+                report.warnings.push(format!("{}: {unmatched} entries name no object of labels.json", files::OBJECTS));
+            }
+        }
+        let mesh_dir = dir.join(files::MESHES);
+        let mut structure_mesh = None;
+        if mesh_dir.is_dir() {
+            note(files::MESHES, true);
+            for o in &mut objects {
+                if let Some(p) = ["obj", "glb", "gltf", "ply"].iter().map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id))).find(|p| p.is_file()) {
+                    o.mesh = Some(TriMesh::load(&p)?);
+                    report.meshes += 1;
+                }
+            }
+            let sp = mesh_dir.join(files::STRUCTURE_MESH);
+            if sp.is_file() {
+                structure_mesh = Some(TriMesh::load(&sp)?);
+            }
+        }
+        let name = dir
+            .canonicalize()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .unwrap_or_else(|| "scene".to_string());
+        let mut scene = Scene {
+            name,
+            gaussians,
+            objects,
+            floorplan,
+            occupancy,
+            structure_mesh,
+            instances: InstanceTable::default(),
+        };
+        scene.finish();
+        Ok((scene, report))
+    }
+
+    /// Writes the scene folder (creating it): Gaussians in `layout`, `labels.json`,
+    /// `structure.json`, `objects.json`, the occupancy map if any, and meshes as OBJ.
+    pub fn save(&self, dir: &Path, layout: SplatLayout) -> Result<()> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let splat_name = match layout {
+            SplatLayout::Compressed => files::COMPRESSED_PLY,
+            SplatLayout::Standard => files::STANDARD_PLY,
+        };
+        ply::write_splats_file(&dir.join(splat_name), &self.gaussians, layout)?;
+        crate::fsutil::write_json(&dir.join(files::LABELS), &labels::to_json(&self.objects))?;
+        crate::fsutil::write_json(&dir.join(files::STRUCTURE), &structure::to_json(&self.floorplan))?;
+        crate::fsutil::write_json(&dir.join(files::OBJECTS), &objects_json::to_json(&self.objects, &self.floorplan))?;
+        if let Some(occ) = &self.occupancy {
+            occ.save(dir)?;
+        }
+        let mesh_dir = dir.join(files::MESHES);
+        let has_meshes = self.structure_mesh.is_some() || self.objects.iter().any(|o| o.mesh.is_some());
+        if has_meshes {
+            std::fs::create_dir_all(&mesh_dir).map_err(|e| Error::io(&mesh_dir, e))?;
+        }
+        for o in &self.objects {
+            if let Some(m) = &o.mesh {
+                let p = mesh_dir.join(format!("{}.obj", o.ins_id));
+                crate::fsutil::write_atomic(&p, |w| m.write_obj(w, &o.category))?;
+            }
+        }
+        if let Some(m) = &self.structure_mesh {
+            crate::fsutil::write_atomic(&mesh_dir.join(files::STRUCTURE_MESH), |w| m.write_obj(w, "structure"))?;
+        }
+        Ok(())
+    }
+}
+
+fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+}
