@@ -82,7 +82,7 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
     let k = sh_rest_count(degree);
     let mut store = Gaussians::with_len(element.count, degree)?;
     const BLOCK: usize = 4096;
-    store.par_chunks_mut(BLOCK).enumerate().for_each(|(b, mut window)| {
+    store.par_chunks_mut(BLOCK).enumerate().try_for_each(|(b, mut window)| {
         for j in 0..window.len() {
             let row = b * BLOCK + j;
             let get = |s: &Source| -> f32 {
@@ -103,11 +103,19 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
                 sh_rest[idx % k][idx / k] = get(s);
             }
             let [w, x, y, z] = layout.rotation.each_ref().map(get);
+            let rotation = Quat::from_xyzw(x, y, z, w);
+            let bad = |field: &str, why: &str| Err(Error::format(format!("vertex[{row}].{field}"), why.to_string()));
+            if !rotation.is_finite() || rotation.length_squared() == 0.0 {
+                return bad("rot_*", "rotation is not finite or is zero");
+            }
+            if !sh_rest.iter().flatten().all(|v| v.is_finite()) {
+                return bad("f_rest_*", "value is not finite (NaN or infinity)");
+            }
             window.set(
                 j,
                 &Gaussian {
                     position: Vec3::from_array(layout.position.each_ref().map(get)),
-                    rotation: Quat::from_xyzw(x, y, z, w),
+                    rotation,
                     log_scale: Vec3::from_array(layout.scale.each_ref().map(get)),
                     opacity_logit: finite_logit(get(&layout.opacity)),
                     sh_dc,
@@ -116,7 +124,8 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
                 },
             );
         }
-    });
+        Ok(())
+    })?;
     Ok(store)
 }
 
