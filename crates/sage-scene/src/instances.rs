@@ -159,10 +159,10 @@ pub fn assign_instances(gaussians: &mut Gaussians, objects: &[Object], floorplan
         }
         let near_floor = p.z.abs() <= STRUCTURE_MARGIN;
         let near_ceiling = (p.z - ceiling).abs() <= STRUCTURE_MARGIN;
-        if near_floor || near_ceiling {
-            if let Some(room) = floorplan.room_at(xy) {
-                return if near_floor { first_floor } else { first_ceiling } + room as u32;
-            }
+        if (near_floor || near_ceiling)
+            && let Some(room) = floorplan.room_at(xy)
+        {
+            return if near_floor { first_floor } else { first_ceiling } + room as u32;
         }
         0
     };

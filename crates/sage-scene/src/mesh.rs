@@ -175,7 +175,7 @@ fn collect_node(node: &gltf::Node, parent: Mat4, buffers: &[Vec<u8>], out: &mut 
                 Some(ix) => ix.into_u32().collect(),
                 None => (0..positions.len() as u32).collect(),
             };
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 return Err(Error::format(at(), "index count is not a multiple of 3"));
             }
             let part = TriMesh {

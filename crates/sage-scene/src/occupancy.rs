@@ -63,7 +63,7 @@ impl OccupancyMap {
         let c = ((self.upper.x - p.x) / self.scale).floor();
         let r = ((p.y - self.lower.y) / self.scale).floor();
         (c >= 0.0 && r >= 0.0 && (c as usize) < self.width && (r as usize) < self.height)
-            .then(|| (c as usize, r as usize))
+            .then_some((c as usize, r as usize))
     }
 
     /// The value of cell (column, row).
