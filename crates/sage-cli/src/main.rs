@@ -1,1 +1,63 @@
-fn main() {}
+//! `sage3d`: the command-line tool of sage3d.
+//!
+//! Each subcommand is a thin edge over the library crates: it parses flags, calls one library
+//! function, prints or writes the result. See `sage3d --help`.
+
+mod bench;
+mod machine;
+mod scene_cmd;
+mod splat_cmd;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// sage3d: executable 3D Gaussian Splatting scenes for vision-and-language navigation.
+#[derive(Parser)]
+#[command(name = "sage3d", version, about, long_about = None)]
+struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the main job on the embedded default: synthesise a scene and describe it.
+    Demo(scene_cmd::DemoArgs),
+    /// Scene folders: synthesise one, describe one.
+    #[command(subcommand)]
+    Scene(scene_cmd::SceneCommand),
+    /// 3DGS PLY files: convert between the standard and compressed layouts.
+    #[command(subcommand)]
+    Splat(splat_cmd::SplatCommand),
+    /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads
+        && let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+    {
+        eprintln!("error: cannot set up {n} threads: {e}");
+        return ExitCode::FAILURE;
+    }
+    let result = match cli.command {
+        Command::Demo(a) => scene_cmd::demo(a),
+        Command::Scene(c) => scene_cmd::run(c),
+        Command::Splat(c) => splat_cmd::run(c),
+        Command::Bench(c) => bench::run(c),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

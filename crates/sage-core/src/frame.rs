@@ -41,7 +41,10 @@ pub fn habitat_quat_to_heading(xyzw: [f32; 4]) -> f32 {
 
 /// A pose in W as the Habitat `(position, rotation [x, y, z, w])` pair.
 pub fn pose_to_habitat(pose: &Pose) -> (Vec3, [f32; 4]) {
-    (world_to_habitat(pose.position), heading_to_habitat_quat(pose.yaw))
+    (
+        world_to_habitat(pose.position),
+        heading_to_habitat_quat(pose.yaw),
+    )
 }
 
 /// The per-scene offset of the SAGE "S" frame (research notes §1.6).
@@ -92,12 +95,18 @@ mod tests {
         let x = world_to_habitat(Vec3::X);
         let y = world_to_habitat(Vec3::Y);
         let z = world_to_habitat(Vec3::Z);
-        assert!((x.cross(y).dot(z) - 1.0).abs() < 1e-6, "determinant must be +1");
+        assert!(
+            (x.cross(y).dot(z) - 1.0).abs() < 1e-6,
+            "determinant must be +1"
+        );
     }
 
     #[test]
     fn identity_habitat_agent_faces_world_plus_y() {
-        assert!(angle_close(habitat_quat_to_heading([0.0, 0.0, 0.0, 1.0]), FRAC_PI_2));
+        assert!(angle_close(
+            habitat_quat_to_heading([0.0, 0.0, 0.0, 1.0]),
+            FRAC_PI_2
+        ));
         let q = heading_to_habitat_quat(FRAC_PI_2);
         assert!(q[1].abs() < 1e-6 && (q[3] - 1.0).abs() < 1e-6);
     }

@@ -16,7 +16,10 @@ pub struct Aabb {
 
 impl Aabb {
     /// The empty box (grows from nothing with [`Aabb::grow`]).
-    pub const EMPTY: Aabb = Aabb { min: Vec3::INFINITY, max: Vec3::NEG_INFINITY };
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::INFINITY,
+        max: Vec3::NEG_INFINITY,
+    };
 
     /// The smallest box holding all `points` ([`Aabb::EMPTY`] when there are none).
     pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Aabb {
@@ -25,12 +28,18 @@ impl Aabb {
 
     /// This box grown to hold `p`.
     pub fn grow(self, p: Vec3) -> Aabb {
-        Aabb { min: self.min.min(p), max: self.max.max(p) }
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
     }
 
     /// The union of two boxes.
     pub fn union(self, other: Aabb) -> Aabb {
-        Aabb { min: self.min.min(other.min), max: self.max.max(other.max) }
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
     }
 
     /// True when no point was ever added.
@@ -40,7 +49,11 @@ impl Aabb {
 
     /// Edge lengths (zero for the empty box).
     pub fn size(&self) -> Vec3 {
-        if self.is_empty() { Vec3::ZERO } else { self.max - self.min }
+        if self.is_empty() {
+            Vec3::ZERO
+        } else {
+            self.max - self.min
+        }
     }
 
     /// True when `p` lies inside or on the boundary.
@@ -132,7 +145,10 @@ impl Obb {
             ));
         }
         if let Some(i) = corners.iter().position(|c| !c.is_finite()) {
-            return Err(Error::format(format!("bounding_box[{i}]"), "corner is not finite"));
+            return Err(Error::format(
+                format!("bounding_box[{i}]"),
+                "corner is not finite",
+            ));
         }
         let face: [Vec3; 4] = [corners[0], corners[1], corners[2], corners[3]];
         let z0 = face[0].z;
@@ -145,16 +161,23 @@ impl Obb {
         let e0 = (face[1] - face[0]).truncate();
         let e1 = (face[2] - face[1]).truncate();
         let closes = face[0].truncate() + e1 - face[3].truncate();
-        if closes.length() > tolerance * 2.0 || e0.dot(e1).abs() > tolerance * (e0.length() + e1.length()).max(1.0) {
+        if closes.length() > tolerance * 2.0
+            || e0.dot(e1).abs() > tolerance * (e0.length() + e1.length()).max(1.0)
+        {
             return Err(Error::format(
                 "bounding_box",
                 "corners 0-3 are not a rectangle in cyclic order",
             ));
         }
         let z_min = corners.iter().map(|c| c.z).fold(f32::INFINITY, f32::min);
-        let z_max = corners.iter().map(|c| c.z).fold(f32::NEG_INFINITY, f32::max);
+        let z_max = corners
+            .iter()
+            .map(|c| c.z)
+            .fold(f32::NEG_INFINITY, f32::max);
         for (i, c) in corners.iter().enumerate().skip(4) {
-            let on_footprint = face.iter().any(|f| (f.truncate() - c.truncate()).length() <= tolerance * 2.0);
+            let on_footprint = face
+                .iter()
+                .any(|f| (f.truncate() - c.truncate()).length() <= tolerance * 2.0);
             if !on_footprint {
                 return Err(Error::format(
                     format!("bounding_box[{i}]"),
@@ -223,6 +246,21 @@ impl Polygon2 {
         inside
     }
 
+    /// Distance from `p` to the nearest edge (0 on the outline).
+    pub fn distance_to_boundary(&self, p: Vec2) -> f32 {
+        self.edges()
+            .map(|(a, b)| {
+                let ab = b - a;
+                let t = if ab.length_squared() > 0.0 {
+                    ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                p.distance(a + ab * t)
+            })
+            .fold(f32::INFINITY, f32::min)
+    }
+
     /// The area centroid (the vertex mean for degenerate polygons).
     pub fn centroid(&self) -> Vec2 {
         let a = self.signed_area();
@@ -236,7 +274,10 @@ impl Polygon2 {
     /// Lower and upper corners of the bounding rectangle.
     pub fn bounds(&self) -> (Vec2, Vec2) {
         let lo = self.points.iter().fold(Vec2::INFINITY, |m, p| m.min(*p));
-        let hi = self.points.iter().fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
+        let hi = self
+            .points
+            .iter()
+            .fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
         (lo, hi)
     }
 }
@@ -275,14 +316,22 @@ mod tests {
 
     #[test]
     fn seven_corners_is_an_error() {
-        let b = Obb { center: Vec3::ZERO, half_extents: Vec3::ONE, yaw: 0.0 };
+        let b = Obb {
+            center: Vec3::ZERO,
+            half_extents: Vec3::ONE,
+            yaw: 0.0,
+        };
         let e = Obb::from_corners(&b.corners()[..7], 1e-3).unwrap_err();
         assert!(e.to_string().contains("expected 8 corners, found 7"));
     }
 
     #[test]
     fn tilted_face_is_an_error() {
-        let b = Obb { center: Vec3::ZERO, half_extents: Vec3::ONE, yaw: 0.0 };
+        let b = Obb {
+            center: Vec3::ZERO,
+            half_extents: Vec3::ONE,
+            yaw: 0.0,
+        };
         let mut c = b.corners();
         c[2].z += 0.5;
         assert!(Obb::from_corners(&c, 1e-3).is_err());
@@ -290,11 +339,18 @@ mod tests {
 
     #[test]
     fn square_polygon() {
-        let p = Polygon2::new(vec![Vec2::ZERO, Vec2::new(2.0, 0.0), Vec2::new(2.0, 2.0), Vec2::new(0.0, 2.0)]);
+        let p = Polygon2::new(vec![
+            Vec2::ZERO,
+            Vec2::new(2.0, 0.0),
+            Vec2::new(2.0, 2.0),
+            Vec2::new(0.0, 2.0),
+        ]);
         assert_eq!(p.area(), 4.0);
         assert!(p.signed_area() > 0.0);
         assert!(p.contains(Vec2::new(1.0, 1.0)));
         assert!(!p.contains(Vec2::new(3.0, 1.0)));
         assert!((p.centroid() - Vec2::ONE).length() < 1e-6);
+        assert!((p.distance_to_boundary(Vec2::new(1.0, 0.5)) - 0.5).abs() < 1e-6);
+        assert!((p.distance_to_boundary(Vec2::new(3.0, 1.0)) - 1.0).abs() < 1e-6);
     }
 }

@@ -22,7 +22,10 @@ pub struct Pose {
 impl Pose {
     /// A pose at `position` facing `yaw` (wrapped).
     pub fn new(position: Vec3, yaw: f32) -> Self {
-        Pose { position, yaw: wrap_angle(yaw) }
+        Pose {
+            position,
+            yaw: wrap_angle(yaw),
+        }
     }
 
     /// The unit forward direction on the floor: (cos ψ, sin ψ).

@@ -75,7 +75,10 @@ impl Hole {
     /// Bounds of the outline: (lower corner, upper corner).
     pub fn bounds(&self) -> (Vec3, Vec3) {
         let lo = self.profile.iter().fold(Vec3::INFINITY, |m, p| m.min(*p));
-        let hi = self.profile.iter().fold(Vec3::NEG_INFINITY, |m, p| m.max(*p));
+        let hi = self
+            .profile
+            .iter()
+            .fold(Vec3::NEG_INFINITY, |m, p| m.max(*p));
         (lo, hi)
     }
 }
@@ -115,9 +118,27 @@ impl Floorplan {
             .map(|(i, _)| i)
     }
 
+    /// Index of the room holding `p`, else of the room whose outline passes nearest to `p`
+    /// within `max_distance` (objects in a wall, such as windows and doors, sit on the outline).
+    pub fn room_near(&self, p: Vec2, max_distance: f32) -> Option<usize> {
+        self.room_at(p).or_else(|| {
+            self.rooms
+                .iter()
+                .enumerate()
+                .map(|(i, r)| (i, r.profile.distance_to_boundary(p)))
+                .filter(|(_, d)| *d <= max_distance)
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(i, _)| i)
+        })
+    }
+
     /// The ceiling height: the tallest wall (2.8 m, InteriorGS's common value, without walls).
     pub fn ceiling_height(&self) -> f32 {
-        self.walls.iter().map(|w| w.height).fold(None, |m: Option<f32>, h| Some(m.map_or(h, |m| m.max(h)))).unwrap_or(2.8)
+        self.walls
+            .iter()
+            .map(|w| w.height)
+            .fold(None, |m: Option<f32>, h| Some(m.map_or(h, |m| m.max(h))))
+            .unwrap_or(2.8)
     }
 
     /// The doors.

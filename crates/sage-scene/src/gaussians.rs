@@ -181,9 +181,14 @@ impl Gaussians {
     /// An empty store for SH degree `sh_degree` (0–3).
     pub fn new(sh_degree: u8) -> Result<Self> {
         if sh_degree > 3 {
-            return Err(Error::invalid(format!("SH degree must be 0-3, got {sh_degree}")));
+            return Err(Error::invalid(format!(
+                "SH degree must be 0-3, got {sh_degree}"
+            )));
         }
-        Ok(Gaussians { sh_degree, ..Default::default() })
+        Ok(Gaussians {
+            sh_degree,
+            ..Default::default()
+        })
     }
 
     /// A store of `n` default Gaussians, ready to be filled with [`Gaussians::par_chunks_mut`].
@@ -206,11 +211,14 @@ impl Gaussians {
     /// Builds a store from full-precision Gaussians, in parallel.
     pub fn from_gaussians(items: &[Gaussian], sh_degree: u8) -> Result<Self> {
         let mut store = Gaussians::with_len(items.len(), sh_degree)?;
-        store.par_chunks_mut(4096).enumerate().for_each(|(c, mut w)| {
-            for j in 0..w.len() {
-                w.set(j, &items[c * 4096 + j]);
-            }
-        });
+        store
+            .par_chunks_mut(4096)
+            .enumerate()
+            .for_each(|(c, mut w)| {
+                for j in 0..w.len() {
+                    w.set(j, &items[c * 4096 + j]);
+                }
+            });
         Ok(store)
     }
 
@@ -255,7 +263,11 @@ impl Gaussians {
             log_scales: &mut self.log_scales[start..end],
             opacity_logits: &mut self.opacity_logits[start..end],
             sh_dc: &mut self.sh_dc[start..end],
-            sh_steps: if k3 > 0 { &mut self.sh_steps[start..end] } else { &mut [] },
+            sh_steps: if k3 > 0 {
+                &mut self.sh_steps[start..end]
+            } else {
+                &mut []
+            },
             sh_codes: &mut self.sh_codes[start * k3..end * k3],
             instances: &mut self.instances[start..end],
         }
@@ -278,7 +290,10 @@ impl Gaussians {
         let windows = n.div_ceil(chunk);
         // At degree 0 the SH arrays are empty: hand out empty slices, one pair per window.
         let sh: Vec<(&mut [f16], &mut [i8])> = if k3 > 0 {
-            self.sh_steps.chunks_mut(chunk).zip(self.sh_codes.chunks_mut(chunk * k3)).collect()
+            self.sh_steps
+                .chunks_mut(chunk)
+                .zip(self.sh_codes.chunks_mut(chunk * k3))
+                .collect()
         } else {
             (0..windows).map(|_| (&mut [][..], &mut [][..])).collect()
         };
@@ -293,7 +308,15 @@ impl Gaussians {
         )
             .into_par_iter()
             .map(
-                move |(positions, rotations, log_scales, opacity_logits, sh_dc, instances, (sh_steps, sh_codes))| {
+                move |(
+                    positions,
+                    rotations,
+                    log_scales,
+                    opacity_logits,
+                    sh_dc,
+                    instances,
+                    (sh_steps, sh_codes),
+                )| {
                     GaussiansSliceMut {
                         sh_degree: degree,
                         positions,
@@ -359,7 +382,12 @@ impl Gaussians {
 
     /// Checks that every value is finite and names the first Gaussian and field that is not.
     pub fn validate(&self) -> Result<()> {
-        let bad = |i: usize, field: &str| Err(Error::format(format!("vertex[{i}].{field}"), "value is not finite (NaN or infinity)"));
+        let bad = |i: usize, field: &str| {
+            Err(Error::format(
+                format!("vertex[{i}].{field}"),
+                "value is not finite (NaN or infinity)",
+            ))
+        };
         for i in 0..self.len() {
             if !self.positions[i].iter().all(|v| v.is_finite()) {
                 return bad(i, "position");
@@ -398,7 +426,9 @@ mod tests {
             prop::collection::vec(-4.0f32..4.0, 45),
             any::<u32>(),
         )
-            .prop_filter("non-zero quaternion", |t| t.1.iter().map(|v| v * v).sum::<f32>() > 0.01)
+            .prop_filter("non-zero quaternion", |t| {
+                t.1.iter().map(|v| v * v).sum::<f32>() > 0.01
+            })
             .prop_map(|(p, q, s, o, dc, rest, inst)| Gaussian {
                 position: Vec3::from_array(p),
                 rotation: Quat::from_xyzw(q[1], q[2], q[3], q[0]),

@@ -59,16 +59,28 @@ impl InstanceTable {
             InstanceKind::Floor(_) => "floor",
             InstanceKind::Ceiling(_) => "ceiling",
         };
-        let mut categories: Vec<String> = kinds.iter().skip(1).map(|k| name_of(k).to_string()).collect();
+        let mut categories: Vec<String> = kinds
+            .iter()
+            .skip(1)
+            .map(|k| name_of(k).to_string())
+            .collect();
         categories.sort();
         categories.dedup();
         categories.retain(|c| c != "none");
         categories.insert(0, "none".to_string());
         let category_ids = kinds
             .iter()
-            .map(|k| categories.binary_search_by(|c| c.as_str().cmp(name_of(k))).map_or(0, |i| i as u16))
+            .map(|k| {
+                categories
+                    .binary_search_by(|c| c.as_str().cmp(name_of(k)))
+                    .map_or(0, |i| i as u16)
+            })
             .collect();
-        InstanceTable { kinds, category_ids, categories }
+        InstanceTable {
+            kinds,
+            category_ids,
+            categories,
+        }
     }
 
     /// The number of ids, including 0.
@@ -99,12 +111,24 @@ struct BoxGrid {
 
 impl BoxGrid {
     fn new(boxes: &[(Obb, u32)], cell: f32) -> BoxGrid {
-        let bounds = boxes.iter().fold(sage_core::Aabb::EMPTY, |b, (o, _)| b.union(o.aabb()));
-        let origin = if bounds.is_empty() { Vec2::ZERO } else { bounds.min.truncate() };
+        let bounds = boxes
+            .iter()
+            .fold(sage_core::Aabb::EMPTY, |b, (o, _)| b.union(o.aabb()));
+        let origin = if bounds.is_empty() {
+            Vec2::ZERO
+        } else {
+            bounds.min.truncate()
+        };
         let size = bounds.size().truncate();
         let nx = ((size.x / cell).ceil() as usize).clamp(1, 4096);
         let ny = ((size.y / cell).ceil() as usize).clamp(1, 4096);
-        let mut grid = BoxGrid { origin, cell: cell.max(size.x / nx as f32).max(size.y / ny as f32), nx, ny, cells: vec![Vec::new(); nx * ny] };
+        let mut grid = BoxGrid {
+            origin,
+            cell: cell.max(size.x / nx as f32).max(size.y / ny as f32),
+            nx,
+            ny,
+            cells: vec![Vec::new(); nx * ny],
+        };
         for (i, (o, _)) in boxes.iter().enumerate() {
             let bb = o.aabb();
             let (x0, y0) = grid.index(bb.min.truncate() - Vec2::splat(STRUCTURE_MARGIN));
@@ -133,13 +157,34 @@ impl BoxGrid {
 }
 
 /// Sets every Gaussian's instance by the rule of the module docs. Deterministic and parallel.
-pub fn assign_instances(gaussians: &mut Gaussians, objects: &[Object], floorplan: &Floorplan, table: &InstanceTable) {
+pub fn assign_instances(
+    gaussians: &mut Gaussians,
+    objects: &[Object],
+    floorplan: &Floorplan,
+    table: &InstanceTable,
+) {
     let object_boxes: Vec<(Obb, u32)> = objects.iter().map(|o| (o.obb, o.id.0)).collect();
-    let first_wall = table.kinds.iter().position(|k| matches!(k, InstanceKind::Wall(_))).unwrap_or(0) as u32;
-    let first_floor = table.kinds.iter().position(|k| matches!(k, InstanceKind::Floor(_))).unwrap_or(0) as u32;
-    let first_ceiling = table.kinds.iter().position(|k| matches!(k, InstanceKind::Ceiling(_))).unwrap_or(0) as u32;
-    let wall_boxes: Vec<(Obb, u32)> =
-        floorplan.walls.iter().enumerate().map(|(i, w)| (w.obb(), first_wall + i as u32)).collect();
+    let first_wall = table
+        .kinds
+        .iter()
+        .position(|k| matches!(k, InstanceKind::Wall(_)))
+        .unwrap_or(0) as u32;
+    let first_floor = table
+        .kinds
+        .iter()
+        .position(|k| matches!(k, InstanceKind::Floor(_)))
+        .unwrap_or(0) as u32;
+    let first_ceiling = table
+        .kinds
+        .iter()
+        .position(|k| matches!(k, InstanceKind::Ceiling(_)))
+        .unwrap_or(0) as u32;
+    let wall_boxes: Vec<(Obb, u32)> = floorplan
+        .walls
+        .iter()
+        .enumerate()
+        .map(|(i, w)| (w.obb(), first_wall + i as u32))
+        .collect();
     let object_grid = BoxGrid::new(&object_boxes, 0.5);
     let wall_grid = BoxGrid::new(&wall_boxes, 0.5);
     let ceiling = floorplan.ceiling_height();
@@ -154,7 +199,11 @@ pub fn assign_instances(gaussians: &mut Gaussians, objects: &[Object], floorplan
         if let Some((_, id)) = best {
             return *id;
         }
-        if let Some(&i) = wall_grid.candidates(xy).iter().find(|&&i| wall_boxes[i as usize].0.contains(p, STRUCTURE_MARGIN)) {
+        if let Some(&i) = wall_grid
+            .candidates(xy)
+            .iter()
+            .find(|&&i| wall_boxes[i as usize].0.contains(p, STRUCTURE_MARGIN))
+        {
             return wall_boxes[i as usize].1;
         }
         let near_floor = p.z.abs() <= STRUCTURE_MARGIN;
@@ -162,7 +211,11 @@ pub fn assign_instances(gaussians: &mut Gaussians, objects: &[Object], floorplan
         if (near_floor || near_ceiling)
             && let Some(room) = floorplan.room_at(xy)
         {
-            return if near_floor { first_floor } else { first_ceiling } + room as u32;
+            return if near_floor {
+                first_floor
+            } else {
+                first_ceiling
+            } + room as u32;
         }
         0
     };

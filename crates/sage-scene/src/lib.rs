@@ -18,7 +18,9 @@ pub mod mesh;
 pub mod object;
 pub mod occupancy;
 pub mod ply;
+pub mod preview;
 pub mod scene;
+pub mod summary;
 pub mod synth;
 
 pub use floorplan::{Floorplan, Hole, HoleKind, Room, StructureItem, Wall};
@@ -29,3 +31,4 @@ pub use object::{Attributes, DoorState, Object, PhysicsRole, RigidBody};
 pub use occupancy::OccupancyMap;
 pub use ply::SplatLayout;
 pub use scene::{LoadReport, Scene};
+pub use summary::SceneSummary;

@@ -19,13 +19,18 @@ impl TriMesh {
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
-        self.triangles.extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
+        self.triangles
+            .extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
     }
 
     /// The mesh with every vertex transformed by `m`.
     pub fn transformed(&self, m: &Mat4) -> TriMesh {
         TriMesh {
-            positions: self.positions.iter().map(|p| m.transform_point3(*p)).collect(),
+            positions: self
+                .positions
+                .iter()
+                .map(|p| m.transform_point3(*p))
+                .collect(),
             triangles: self.triangles.clone(),
         }
     }
@@ -53,10 +58,17 @@ impl TriMesh {
     /// Checks indices and coordinates; names the first bad triangle or vertex.
     pub fn validate(&self) -> Result<()> {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
-            return Err(Error::format(format!("vertex[{i}]"), "coordinate is not finite"));
+            return Err(Error::format(
+                format!("vertex[{i}]"),
+                "coordinate is not finite",
+            ));
         }
         let n = self.positions.len() as u32;
-        if let Some(t) = self.triangles.iter().position(|t| t.iter().any(|&i| i >= n)) {
+        if let Some(t) = self
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&i| i >= n))
+        {
             return Err(Error::format(
                 format!("face[{t}]"),
                 format!("vertex index out of range (mesh has {n} vertices)"),
@@ -79,7 +91,11 @@ impl TriMesh {
 
     /// Reads a mesh, choosing the format by extension (`.obj`, `.gltf`, `.glb`, `.ply`).
     pub fn load(path: &Path) -> Result<TriMesh> {
-        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
         let mesh = match ext.as_str() {
             "obj" => load_obj(path),
             "gltf" | "glb" => load_gltf(path),
@@ -98,7 +114,11 @@ impl TriMesh {
 }
 
 fn load_obj(path: &Path) -> Result<TriMesh> {
-    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
         tobj::LoadError::OpenFileFailed | tobj::LoadError::ReadError => {
             Error::io(path, std::io::Error::other(e.to_string()))
@@ -108,8 +128,18 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
     let mut mesh = TriMesh::default();
     for m in &models {
         let part = TriMesh {
-            positions: m.mesh.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
-            triangles: m.mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+            positions: m
+                .mesh
+                .positions
+                .chunks_exact(3)
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
+            triangles: m
+                .mesh
+                .indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect(),
         };
         part.validate().within(format!("object '{}'", m.name))?;
         mesh.append(&part);
@@ -148,7 +178,12 @@ fn load_gltf(path: &Path) -> Result<TriMesh> {
         buffers.push(data);
     }
     let mut mesh = TriMesh::default();
-    let scenes: Vec<_> = gltf.default_scene().into_iter().chain(gltf.scenes()).take(1).collect();
+    let scenes: Vec<_> = gltf
+        .default_scene()
+        .into_iter()
+        .chain(gltf.scenes())
+        .take(1)
+        .collect();
     for scene in scenes {
         for node in scene.nodes() {
             collect_node(&node, Mat4::IDENTITY, &buffers, &mut mesh)?;
@@ -157,13 +192,21 @@ fn load_gltf(path: &Path) -> Result<TriMesh> {
     Ok(mesh)
 }
 
-fn collect_node(node: &gltf::Node, parent: Mat4, buffers: &[Vec<u8>], out: &mut TriMesh) -> Result<()> {
+fn collect_node(
+    node: &gltf::Node,
+    parent: Mat4,
+    buffers: &[Vec<u8>],
+    out: &mut TriMesh,
+) -> Result<()> {
     let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
     if let Some(m) = node.mesh() {
         for (pi, prim) in m.primitives().enumerate() {
             let at = || format!("meshes[{}].primitives[{pi}]", m.index());
             if prim.mode() != gltf::mesh::Mode::Triangles {
-                return Err(Error::format(at(), "only triangle primitives are supported"));
+                return Err(Error::format(
+                    at(),
+                    "only triangle primitives are supported",
+                ));
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
             let positions: Vec<Vec3> = reader
@@ -180,7 +223,10 @@ fn collect_node(node: &gltf::Node, parent: Mat4, buffers: &[Vec<u8>], out: &mut 
             }
             let part = TriMesh {
                 positions,
-                triangles: indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+                triangles: indices
+                    .chunks_exact(3)
+                    .map(|t| [t[0], t[1], t[2]])
+                    .collect(),
             };
             part.validate().within(at())?;
             out.append(&part);

@@ -92,7 +92,11 @@ pub struct RigidBody {
 
 impl Default for RigidBody {
     fn default() -> Self {
-        RigidBody { mass: 10.0, friction: 0.5, restitution: 0.0 }
+        RigidBody {
+            mass: 10.0,
+            friction: 0.5,
+            restitution: 0.0,
+        }
     }
 }
 
@@ -141,7 +145,11 @@ pub fn normalize_category(label: &str) -> String {
     while out.ends_with('_') {
         out.pop();
     }
-    if out.is_empty() { "unknown".to_string() } else { out }
+    if out.is_empty() {
+        "unknown".to_string()
+    } else {
+        out
+    }
 }
 
 #[cfg(test)]

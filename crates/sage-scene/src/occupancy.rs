@@ -39,7 +39,9 @@ impl OccupancyMap {
     /// A map of `UNKNOWN` cells covering `lower`…`upper` at `scale` metres per cell.
     pub fn new(lower: Vec3, upper: Vec3, scale: f32) -> Result<Self> {
         if !(scale > 0.0 && scale.is_finite()) {
-            return Err(Error::invalid(format!("occupancy scale must be > 0, got {scale}")));
+            return Err(Error::invalid(format!(
+                "occupancy scale must be > 0, got {scale}"
+            )));
         }
         let size = (upper - lower).truncate();
         if !(size.x > 0.0 && size.y > 0.0) {
@@ -47,7 +49,14 @@ impl OccupancyMap {
         }
         let width = (size.x / scale).ceil() as usize;
         let height = (size.y / scale).ceil() as usize;
-        Ok(OccupancyMap { scale, lower, upper, width, height, cells: vec![UNKNOWN; width * height] })
+        Ok(OccupancyMap {
+            scale,
+            lower,
+            upper,
+            width,
+            height,
+            cells: vec![UNKNOWN; width * height],
+        })
     }
 
     /// The world (x, y) of the centre of cell (column `c`, row `r`).
@@ -85,7 +94,14 @@ impl OccupancyMap {
         let text = std::fs::read_to_string(&json_path).map_err(|e| Error::io(&json_path, e))?;
         let (scale, lower, upper) = parse_placement(&text).in_file(&json_path)?;
         let (width, height, cells) = read_gray_png(&png_path)?;
-        Ok(OccupancyMap { scale, lower, upper, width, height, cells })
+        Ok(OccupancyMap {
+            scale,
+            lower,
+            upper,
+            width,
+            height,
+            cells,
+        })
     }
 
     /// Writes `occupancy.png` and `occupancy.json` (with both key spellings) into `dir`.
@@ -101,7 +117,9 @@ impl OccupancyMap {
             enc.set_color(png::ColorType::Grayscale);
             enc.set_depth(png::BitDepth::Eight);
             let mut writer = enc.write_header().map_err(std::io::Error::other)?;
-            writer.write_image_data(&self.cells).map_err(std::io::Error::other)?;
+            writer
+                .write_image_data(&self.cells)
+                .map_err(std::io::Error::other)?;
             writer.finish().map_err(std::io::Error::other)
         })?;
         crate::fsutil::write_json(&dir.join("occupancy.json"), &placement)
@@ -112,7 +130,9 @@ fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<Vec3> {
     let (key, value) = keys
         .iter()
         .find_map(|k| v.get(*k).map(|x| (*k, x)))
-        .ok_or_else(|| Error::format(keys.join("/"), "missing (expected a 2- or 3-number array)"))?;
+        .ok_or_else(|| {
+            Error::format(keys.join("/"), "missing (expected a 2- or 3-number array)")
+        })?;
     let arr = value
         .as_array()
         .filter(|a| a.len() == 2 || a.len() == 3)
@@ -122,7 +142,8 @@ fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<Vec3> {
         out[i] = x
             .as_f64()
             .filter(|f| f.is_finite())
-            .ok_or_else(|| Error::format(format!("{key}[{i}]"), "expected a finite number"))? as f32;
+            .ok_or_else(|| Error::format(format!("{key}[{i}]"), "expected a finite number"))?
+            as f32;
     }
     Ok(Vec3::from_array(out))
 }
@@ -135,21 +156,33 @@ pub fn parse_placement(text: &str) -> Result<(f32, Vec3, Vec3)> {
         .get("scale")
         .and_then(Value::as_f64)
         .filter(|s| *s > 0.0 && s.is_finite())
-        .ok_or_else(|| Error::format("scale", "missing or not a positive number"))? as f32;
-    Ok((scale, vec3_field(&v, ["min", "lower"])?, vec3_field(&v, ["max", "upper"])?))
+        .ok_or_else(|| Error::format("scale", "missing or not a positive number"))?
+        as f32;
+    Ok((
+        scale,
+        vec3_field(&v, ["min", "lower"])?,
+        vec3_field(&v, ["max", "upper"])?,
+    ))
 }
 
 fn read_gray_png(path: &Path) -> Result<(usize, usize, Vec<u8>)> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(|e| Error::format("png", e.to_string()).in_file(path))?;
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| Error::format("png", e.to_string()).in_file(path))?;
     let mut buf = vec![0; reader.output_buffer_size().unwrap_or(0)];
-    let info = reader.next_frame(&mut buf).map_err(|e| Error::format("png", e.to_string()).in_file(path))?;
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| Error::format("png", e.to_string()).in_file(path))?;
     let (w, h) = (info.width as usize, info.height as usize);
     let channels = info.color_type.samples();
     // Colour or grey+alpha images keep their first channel (the grey level).
-    let cells = buf[..info.buffer_size()].chunks_exact(channels).map(|px| px[0]).collect();
+    let cells = buf[..info.buffer_size()]
+        .chunks_exact(channels)
+        .map(|px| px[0])
+        .collect();
     Ok((w, h, cells))
 }
 

@@ -30,6 +30,10 @@ pub struct Scene {
     pub instances: InstanceTable,
 }
 
+/// How far outside every room polygon an object's centre may lie and still be given the nearest
+/// room (metres): windows and doors sit on the walls that bound the rooms.
+pub const ROOM_SNAP: f32 = 0.5;
+
 /// What [`Scene::load`] found in a folder.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LoadReport {
@@ -68,16 +72,28 @@ impl Scene {
     /// per-Gaussian instances.
     pub fn finish(&mut self) {
         for o in self.objects.iter_mut().filter(|o| o.room.is_none()) {
-            o.room = self.floorplan.room_at(o.obb.center.truncate());
+            o.room = self.floorplan.room_near(o.obb.center.truncate(), ROOM_SNAP);
         }
         self.instances = InstanceTable::build(&mut self.objects, &self.floorplan);
-        assign_instances(&mut self.gaussians, &self.objects, &self.floorplan, &self.instances);
+        assign_instances(
+            &mut self.gaussians,
+            &self.objects,
+            &self.floorplan,
+            &self.instances,
+        );
     }
 
     /// Bounds of everything: Gaussians, boxes, walls.
     pub fn bounds(&self) -> Aabb {
-        let objects = self.objects.iter().fold(Aabb::EMPTY, |b, o| b.union(o.obb.aabb()));
-        let walls = self.floorplan.walls.iter().fold(Aabb::EMPTY, |b, w| b.union(w.obb().aabb()));
+        let objects = self
+            .objects
+            .iter()
+            .fold(Aabb::EMPTY, |b, o| b.union(o.obb.aabb()));
+        let walls = self
+            .floorplan
+            .walls
+            .iter()
+            .fold(Aabb::EMPTY, |b, w| b.union(w.obb().aabb()));
         self.gaussians.bounds().union(objects).union(walls)
     }
 
@@ -85,13 +101,23 @@ impl Scene {
     /// structure, occupancy, `objects.json` and meshes, whichever exist.
     pub fn load(dir: &Path) -> Result<(Scene, LoadReport)> {
         if !dir.is_dir() {
-            return Err(Error::invalid(format!("{} is not a scene folder", dir.display())));
+            return Err(Error::invalid(format!(
+                "{} is not a scene folder",
+                dir.display()
+            )));
         }
         let mut report = LoadReport::default();
         let mut note = |name: &str, found: bool| {
-            if found { report.files.push(name.to_string()) } else { report.missing.push(name.to_string()) }
+            if found {
+                report.files.push(name.to_string())
+            } else {
+                report.missing.push(name.to_string())
+            }
         };
-        let splat_path = [files::COMPRESSED_PLY, files::STANDARD_PLY].iter().map(|f| dir.join(f)).find(|p| p.is_file());
+        let splat_path = [files::COMPRESSED_PLY, files::STANDARD_PLY]
+            .iter()
+            .map(|f| dir.join(f))
+            .find(|p| p.is_file());
         let gaussians = match &splat_path {
             Some(p) => {
                 note(&p.file_name().unwrap_or_default().to_string_lossy(), true);
@@ -110,7 +136,10 @@ impl Scene {
             let text = read_text(&labels_path)?;
             let (objects, skipped) = labels::parse(&text).in_file(&labels_path)?;
             if skipped > 0 {
-                report.warnings.push(format!("{}: {skipped} entries without bounding_box skipped", files::LABELS));
+                report.warnings.push(format!(
+                    "{}: {skipped} entries without bounding_box skipped",
+                    files::LABELS
+                ));
             }
             objects
         } else {
@@ -125,20 +154,25 @@ impl Scene {
             note(files::STRUCTURE, false);
             Floorplan::default()
         };
-        let occupancy = if dir.join("occupancy.json").is_file() && dir.join("occupancy.png").is_file() {
-            note("occupancy.png", true);
-            note("occupancy.json", true);
-            Some(OccupancyMap::load(dir)?)
-        } else {
-            note("occupancy.png", false);
-            None
-        };
+        let occupancy =
+            if dir.join("occupancy.json").is_file() && dir.join("occupancy.png").is_file() {
+                note("occupancy.png", true);
+                note("occupancy.json", true);
+                Some(OccupancyMap::load(dir)?)
+            } else {
+                note("occupancy.png", false);
+                None
+            };
         let objects_path = dir.join(files::OBJECTS);
         if objects_path.is_file() {
             note(files::OBJECTS, true);
-            let unmatched = objects_json::apply(&read_text(&objects_path)?, &mut objects).in_file(&objects_path)?;
+            let unmatched = objects_json::apply(&read_text(&objects_path)?, &mut objects)
+                .in_file(&objects_path)?;
             if unmatched > 0 {
-                report.warnings.push(format!("{}: {unmatched} entries name no object of labels.json", files::OBJECTS));
+                report.warnings.push(format!(
+                    "{}: {unmatched} entries name no object of labels.json",
+                    files::OBJECTS
+                ));
             }
         }
         let mesh_dir = dir.join(files::MESHES);
@@ -146,7 +180,11 @@ impl Scene {
         if mesh_dir.is_dir() {
             note(files::MESHES, true);
             for o in &mut objects {
-                if let Some(p) = ["obj", "glb", "gltf", "ply"].iter().map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id))).find(|p| p.is_file()) {
+                if let Some(p) = ["obj", "glb", "gltf", "ply"]
+                    .iter()
+                    .map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id)))
+                    .find(|p| p.is_file())
+                {
                     o.mesh = Some(TriMesh::load(&p)?);
                     report.meshes += 1;
                 }
@@ -184,13 +222,20 @@ impl Scene {
         };
         ply::write_splats_file(&dir.join(splat_name), &self.gaussians, layout)?;
         crate::fsutil::write_json(&dir.join(files::LABELS), &labels::to_json(&self.objects))?;
-        crate::fsutil::write_json(&dir.join(files::STRUCTURE), &structure::to_json(&self.floorplan))?;
-        crate::fsutil::write_json(&dir.join(files::OBJECTS), &objects_json::to_json(&self.objects, &self.floorplan))?;
+        crate::fsutil::write_json(
+            &dir.join(files::STRUCTURE),
+            &structure::to_json(&self.floorplan),
+        )?;
+        crate::fsutil::write_json(
+            &dir.join(files::OBJECTS),
+            &objects_json::to_json(&self.objects, &self.floorplan),
+        )?;
         if let Some(occ) = &self.occupancy {
             occ.save(dir)?;
         }
         let mesh_dir = dir.join(files::MESHES);
-        let has_meshes = self.structure_mesh.is_some() || self.objects.iter().any(|o| o.mesh.is_some());
+        let has_meshes =
+            self.structure_mesh.is_some() || self.objects.iter().any(|o| o.mesh.is_some());
         if has_meshes {
             std::fs::create_dir_all(&mesh_dir).map_err(|e| Error::io(&mesh_dir, e))?;
         }
@@ -201,7 +246,9 @@ impl Scene {
             }
         }
         if let Some(m) = &self.structure_mesh {
-            crate::fsutil::write_atomic(&mesh_dir.join(files::STRUCTURE_MESH), |w| m.write_obj(w, "structure"))?;
+            crate::fsutil::write_atomic(&mesh_dir.join(files::STRUCTURE_MESH), |w| {
+                m.write_obj(w, "structure")
+            })?;
         }
         Ok(())
     }

@@ -56,7 +56,9 @@ impl Scene {
         }
         let mut doors = BTreeMap::new();
         for d in self.floorplan.doors() {
-            *doors.entry(d.state.map_or("unknown", DoorState::as_str).to_string()).or_insert(0) += 1;
+            *doors
+                .entry(d.state.map_or("unknown", DoorState::as_str).to_string())
+                .or_insert(0) += 1;
         }
         let with_instance = g.instances.iter().filter(|&&i| i != 0).count();
         SceneSummary {
@@ -71,12 +73,25 @@ impl Scene {
             objects: self.objects.len(),
             objects_with_mesh: self.objects.iter().filter(|o| o.mesh.is_some()).count(),
             categories,
-            rooms: self.floorplan.rooms.iter().map(|r| (r.room_type.clone(), r.profile.area())).collect(),
+            rooms: self
+                .floorplan
+                .rooms
+                .iter()
+                .map(|r| (r.room_type.clone(), r.profile.area()))
+                .collect(),
             walls: self.floorplan.walls.len(),
             doors,
             windows: self.floorplan.windows().count(),
-            occupancy: self.occupancy.as_ref().map(|o| (o.width, o.height, o.scale)),
-            instances: self.instances.kinds.iter().filter(|k| **k != InstanceKind::None).count(),
+            occupancy: self
+                .occupancy
+                .as_ref()
+                .map(|o| (o.width, o.height, o.scale)),
+            instances: self
+                .instances
+                .kinds
+                .iter()
+                .filter(|k| **k != InstanceKind::None)
+                .count(),
         }
     }
 }
@@ -86,7 +101,10 @@ impl std::fmt::Display for SceneSummary {
         let [x0, y0, z0] = self.bounds_min;
         let [x1, y1, z1] = self.bounds_max;
         writeln!(f, "scene       {}", self.name)?;
-        writeln!(f, "bounds      x {x0:.2}..{x1:.2}  y {y0:.2}..{y1:.2}  z {z0:.2}..{z1:.2} m")?;
+        writeln!(
+            f,
+            "bounds      x {x0:.2}..{x1:.2}  y {y0:.2}..{y1:.2}  z {z0:.2}..{z1:.2} m"
+        )?;
         writeln!(
             f,
             "gaussians   {} (SH degree {}), {:.1} MB in memory = {:.1} bytes/Gaussian, {:.1}% with an instance",
@@ -96,8 +114,18 @@ impl std::fmt::Display for SceneSummary {
             self.bytes_per_gaussian,
             self.gaussians_with_instance * 100.0
         )?;
-        writeln!(f, "objects     {} in {} categories, {} with a mesh", self.objects, self.categories.len(), self.objects_with_mesh)?;
-        let cats: Vec<String> = self.categories.iter().map(|(c, n)| format!("{c} {n}")).collect();
+        writeln!(
+            f,
+            "objects     {} in {} categories, {} with a mesh",
+            self.objects,
+            self.categories.len(),
+            self.objects_with_mesh
+        )?;
+        let cats: Vec<String> = self
+            .categories
+            .iter()
+            .map(|(c, n)| format!("{c} {n}"))
+            .collect();
         if !cats.is_empty() {
             writeln!(f, "categories  {}", cats.join(", "))?;
         }

@@ -16,7 +16,10 @@ fn same_triangles(a: &TriMesh, b: &TriMesh, offset: Vec3) {
     for t in 0..a.triangles.len() {
         let (x, y) = (a.triangle(t), b.triangle(t));
         for k in 0..3 {
-            assert!((x[k] + offset - y[k]).length() < 1e-6, "triangle {t}: {x:?} vs {y:?}");
+            assert!(
+                (x[k] + offset - y[k]).length() < 1e-6,
+                "triangle {t}: {x:?} vs {y:?}"
+            );
         }
     }
 }
@@ -43,10 +46,13 @@ fn ply_ascii_and_binary_with_quads() {
 
     let mut bin = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\nelement face 1\nproperty list uchar uint vertex_index\nend_header\n".to_vec();
     for v in [[0.0f64, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]] {
-        v.iter().for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
+        v.iter()
+            .for_each(|c| bin.extend_from_slice(&c.to_le_bytes()));
     }
     bin.push(3);
-    [0u32, 1, 2].iter().for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
+    [0u32, 1, 2]
+        .iter()
+        .for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
     let p = dir.path().join("tri.ply");
     std::fs::write(&p, &bin).unwrap();
     assert!((TriMesh::load(&p).unwrap().area() - 2.0).abs() < 1e-6);
@@ -55,9 +61,16 @@ fn ply_ascii_and_binary_with_quads() {
 /// Builds a GLB holding `mesh` under a node translated by `offset`.
 fn glb(mesh: &TriMesh, offset: Vec3) -> Vec<u8> {
     let mut bin = Vec::new();
-    mesh.positions.iter().for_each(|p| p.to_array().iter().for_each(|c| bin.extend_from_slice(&c.to_le_bytes())));
+    mesh.positions.iter().for_each(|p| {
+        p.to_array()
+            .iter()
+            .for_each(|c| bin.extend_from_slice(&c.to_le_bytes()))
+    });
     let index_offset = bin.len();
-    mesh.triangles.iter().flatten().for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
+    mesh.triangles
+        .iter()
+        .flatten()
+        .for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
     let (lo, hi) = (mesh.aabb().min, mesh.aabb().max);
     let json = serde_json::json!({
         "asset": {"version": "2.0"},
@@ -76,7 +89,7 @@ fn glb(mesh: &TriMesh, offset: Vec3) -> Vec<u8> {
         ]
     });
     let mut json = serde_json::to_vec(&json).unwrap();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();
@@ -108,8 +121,13 @@ fn bad_meshes_name_file_and_face() {
     let p = dir.path().join("bad.ply");
     std::fs::write(&p, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 1 2\n").unwrap();
     let e = TriMesh::load(&p).unwrap_err().to_string();
-    assert!(e.contains("bad.ply") && e.contains("face[0]") && e.contains("out of range"), "{e}");
-    let e = TriMesh::load(Path::new("missing.obj")).unwrap_err().to_string();
+    assert!(
+        e.contains("bad.ply") && e.contains("face[0]") && e.contains("out of range"),
+        "{e}"
+    );
+    let e = TriMesh::load(Path::new("missing.obj"))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("missing.obj"), "{e}");
     let p = dir.path().join("trunc.glb");
     std::fs::write(&p, &glb(&tetrahedron(), Vec3::ZERO)[..40]).unwrap();
@@ -117,5 +135,10 @@ fn bad_meshes_name_file_and_face() {
     assert!(e.contains("trunc.glb"), "{e}");
     let p = dir.path().join("x.stl");
     std::fs::write(&p, "solid").unwrap();
-    assert!(TriMesh::load(&p).unwrap_err().to_string().contains("unknown mesh format"));
+    assert!(
+        TriMesh::load(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("unknown mesh format")
+    );
 }

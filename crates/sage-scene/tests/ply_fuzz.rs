@@ -7,11 +7,17 @@ use sage_scene::ply;
 use std::path::PathBuf;
 
 fn testdata(name: &str) -> Vec<u8> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/splats").join(name);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata/splats")
+        .join(name);
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
-const FILES: [&str; 3] = ["random_3k_sh0.compressed.ply", "random_3k_sh0.decompressed.ply", "random_4k_sh3.compressed.ply"];
+const FILES: [&str; 3] = [
+    "random_3k_sh0.compressed.ply",
+    "random_3k_sh0.decompressed.ply",
+    "random_4k_sh3.compressed.ply",
+];
 
 /// One edit of a file.
 #[derive(Debug, Clone)]
@@ -27,15 +33,30 @@ fn mutation() -> impl Strategy<Value = Mutation> {
     prop_oneof![
         (any::<usize>(), any::<u8>()).prop_map(|(at, byte)| Mutation::Flip { at, byte }),
         any::<usize>().prop_map(|keep| Mutation::Truncate { keep }),
-        (any::<usize>(), prop_oneof![0u64..10, Just(u32::MAX as u64), Just(u64::MAX), 0u64..100_000]).prop_map(|(line, value)| Mutation::HeaderNumber { line, value }),
+        (
+            any::<usize>(),
+            prop_oneof![
+                0u64..10,
+                Just(u32::MAX as u64),
+                Just(u64::MAX),
+                0u64..100_000
+            ]
+        )
+            .prop_map(|(line, value)| Mutation::HeaderNumber { line, value }),
         any::<usize>().prop_map(|line| Mutation::HeaderDropLine { line }),
         (any::<usize>(), any::<usize>()).prop_map(|(a, b)| Mutation::HeaderSwap { a, b }),
     ]
 }
 
 fn split_header(bytes: &[u8]) -> (Vec<String>, Vec<u8>) {
-    let end = bytes.windows(11).position(|w| w == b"end_header\n").map_or(bytes.len(), |p| p + 11);
-    let header = String::from_utf8_lossy(&bytes[..end]).lines().map(str::to_string).collect();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .map_or(bytes.len(), |p| p + 11);
+    let header = String::from_utf8_lossy(&bytes[..end])
+        .lines()
+        .map(str::to_string)
+        .collect();
     (header, bytes[end..].to_vec())
 }
 
@@ -110,11 +131,20 @@ fn specific_bad_inputs_name_the_field() {
         bytes.extend_from_slice(&good[end..]);
         ply::read_splats(&bytes).unwrap_err().to_string()
     };
-    assert_eq!(edit("property float opacity", "property float opacitx"), "vertex.opacity: missing property");
-    assert!(edit("element vertex 3000", "element vertex 3001").contains("element 'vertex': file is truncated"));
+    assert_eq!(
+        edit("property float opacity", "property float opacitx"),
+        "vertex.opacity: missing property"
+    );
+    assert!(
+        edit("element vertex 3000", "element vertex 3001")
+            .contains("element 'vertex': file is truncated")
+    );
     let body_start = good.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
     let mut bytes = good.clone();
     bytes[body_start..body_start + 4].copy_from_slice(&f32::NAN.to_le_bytes());
     let e = ply::read_splats(&bytes).unwrap_err().to_string();
-    assert_eq!(e, "vertex[0].position: value is not finite (NaN or infinity)");
+    assert_eq!(
+        e,
+        "vertex[0].position: value is not finite (NaN or infinity)"
+    );
 }

@@ -7,7 +7,9 @@ use sage_scene::ply::{self, SplatLayout, compressed::CHUNK};
 use std::path::PathBuf;
 
 fn testdata(name: &str) -> Vec<u8> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../testdata/splats").join(name);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata/splats")
+        .join(name);
     std::fs::read(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
@@ -20,7 +22,10 @@ fn sigmoid(x: f32) -> f32 {
 }
 
 fn max_abs_rest(g: &Gaussian) -> f32 {
-    g.sh_rest.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()))
+    g.sh_rest
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, v| m.max(v.abs()))
 }
 
 /// Our decoding of `X.compressed.ply` must equal the tool's own decoding, Gaussian by Gaussian.
@@ -34,12 +39,31 @@ fn compressed_matches_tool_decoding(stem: &str, degree: u8) {
     assert_eq!(tool.sh_degree(), degree);
     for i in 0..ours.len() {
         let (a, b) = (ours.get(i), tool.get(i));
-        assert!((a.position - b.position).abs().max_element() < 1e-5, "{i}: position {a:?} vs {b:?}");
-        assert!((a.log_scale - b.log_scale).abs().max_element() < 1e-4, "{i}: scale");
-        assert!(a.rotation.normalize().dot(b.rotation.normalize()).abs() > 1.0 - 1e-6, "{i}: rotation {:?} vs {:?}", a.rotation, b.rotation);
-        assert!((sigmoid(a.opacity_logit) - sigmoid(b.opacity_logit)).abs() < 1.0 / 255.0, "{i}: opacity");
+        assert!(
+            (a.position - b.position).abs().max_element() < 1e-5,
+            "{i}: position {a:?} vs {b:?}"
+        );
+        assert!(
+            (a.log_scale - b.log_scale).abs().max_element() < 1e-4,
+            "{i}: scale"
+        );
+        assert!(
+            a.rotation.normalize().dot(b.rotation.normalize()).abs() > 1.0 - 1e-6,
+            "{i}: rotation {:?} vs {:?}",
+            a.rotation,
+            b.rotation
+        );
+        assert!(
+            (sigmoid(a.opacity_logit) - sigmoid(b.opacity_logit)).abs() < 1.0 / 255.0,
+            "{i}: opacity"
+        );
         for c in 0..3 {
-            assert!((a.sh_dc[c] - b.sh_dc[c]).abs() < 2e-3, "{i}: f_dc {c}: {} vs {}", a.sh_dc[c], b.sh_dc[c]);
+            assert!(
+                (a.sh_dc[c] - b.sh_dc[c]).abs() < 2e-3,
+                "{i}: f_dc {c}: {} vs {}",
+                a.sh_dc[c],
+                b.sh_dc[c]
+            );
         }
         let tol = max_abs_rest(&b) / 127.0 + 1e-6;
         for (x, y) in a.sh_rest.iter().flatten().zip(b.sh_rest.iter().flatten()) {
@@ -69,7 +93,9 @@ fn writer_within_quantisation_error(stem: &str) {
     assert_eq!(back.sh_degree(), src.sh_degree());
     let k = sh_rest_count(src.sh_degree());
     for c in 0..src.len().div_ceil(CHUNK) {
-        let items: Vec<Gaussian> = (c * CHUNK..((c + 1) * CHUNK).min(src.len())).map(|i| src.get(i)).collect();
+        let items: Vec<Gaussian> = (c * CHUNK..((c + 1) * CHUNK).min(src.len()))
+            .map(|i| src.get(i))
+            .collect();
         let extent = |f: &dyn Fn(&Gaussian) -> Vec3| {
             let lo = items.iter().map(f).fold(Vec3::INFINITY, Vec3::min);
             let hi = items.iter().map(f).fold(Vec3::NEG_INFINITY, Vec3::max);
@@ -81,14 +107,35 @@ fn writer_within_quantisation_error(stem: &str) {
         for (j, a) in items.iter().enumerate() {
             let i = c * CHUNK + j;
             let b = back.get(i);
-            assert!(((a.position - b.position).abs() - pos_step * 0.5).max_element() < 1e-5, "{i}: position");
-            assert!(((a.log_scale - b.log_scale).abs() - scale_step * 0.5).max_element() < 1e-4, "{i}: scale");
-            assert!(a.rotation.normalize().dot(b.rotation.normalize()).abs() > 1.0 - 2e-6, "{i}: rotation {:?} vs {:?}", a.rotation, b.rotation);
-            assert!((a.opacity() - b.opacity()).abs() <= 0.5 / 255.0 + 1e-4, "{i}: opacity");
+            assert!(
+                ((a.position - b.position).abs() - pos_step * 0.5).max_element() < 1e-5,
+                "{i}: position"
+            );
+            assert!(
+                ((a.log_scale - b.log_scale).abs() - scale_step * 0.5).max_element() < 1e-4,
+                "{i}: scale"
+            );
+            assert!(
+                a.rotation.normalize().dot(b.rotation.normalize()).abs() > 1.0 - 2e-6,
+                "{i}: rotation {:?} vs {:?}",
+                a.rotation,
+                b.rotation
+            );
+            assert!(
+                (a.opacity() - b.opacity()).abs() <= 0.5 / 255.0 + 1e-4,
+                "{i}: opacity"
+            );
             let dc_err = (Vec3::from_array(a.sh_dc) - Vec3::from_array(b.sh_dc)).abs() * SH_C0;
-            assert!((dc_err - color_step * 0.5).max_element() < 2e-3, "{i}: colour");
+            assert!(
+                (dc_err - color_step * 0.5).max_element() < 2e-3,
+                "{i}: colour"
+            );
             let tol = 4.0 / 256.0 + max_abs_rest(a) / 127.0 + 1e-5;
-            for (x, y) in a.sh_rest[..k].iter().flatten().zip(b.sh_rest[..k].iter().flatten()) {
+            for (x, y) in a.sh_rest[..k]
+                .iter()
+                .flatten()
+                .zip(b.sh_rest[..k].iter().flatten())
+            {
                 assert!((x - y).abs() <= tol, "{i}: f_rest {x} vs {y}");
             }
         }

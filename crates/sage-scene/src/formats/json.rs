@@ -6,12 +6,19 @@ use serde_json::Value;
 
 /// Parses JSON text; a syntax error names its line and column.
 pub fn parse_text(text: &str) -> Result<Value> {
-    serde_json::from_str(text).map_err(|e| Error::format(format!("line {} column {}", e.line(), e.column()), e.to_string()))
+    serde_json::from_str(text).map_err(|e| {
+        Error::format(
+            format!("line {} column {}", e.line(), e.column()),
+            e.to_string(),
+        )
+    })
 }
 
 /// `v[key]`, or an error naming `key` as missing.
 pub fn field<'a>(v: &'a Value, key: &str) -> Result<&'a Value> {
-    v.get(key).filter(|x| !x.is_null()).ok_or_else(|| Error::format(key, "missing"))
+    v.get(key)
+        .filter(|x| !x.is_null())
+        .ok_or_else(|| Error::format(key, "missing"))
 }
 
 /// A finite number.
@@ -31,13 +38,17 @@ pub fn string(v: &Value, at: &str) -> Result<String> {
     match v {
         Value::String(s) => Ok(s.clone()),
         Value::Number(n) => Ok(n.to_string()),
-        _ => Err(Error::format(at, format!("expected a string, found {}", short(v)))),
+        _ => Err(Error::format(
+            at,
+            format!("expected a string, found {}", short(v)),
+        )),
     }
 }
 
 /// An array.
 pub fn array<'a>(v: &'a Value, at: &str) -> Result<&'a Vec<Value>> {
-    v.as_array().ok_or_else(|| Error::format(at, format!("expected an array, found {}", short(v))))
+    v.as_array()
+        .ok_or_else(|| Error::format(at, format!("expected an array, found {}", short(v))))
 }
 
 /// A point given as `[x, y, (z)]` or `{x, y, (z)}`; a missing z reads as 0.
@@ -48,7 +59,13 @@ pub fn point3(v: &Value, at: &str) -> Result<Vec3> {
         _ => Vec::new(),
     };
     if comps.len() < 2 {
-        return Err(Error::format(at, format!("expected a point [x, y, z] or {{x, y, z}}, found {}", short(v))));
+        return Err(Error::format(
+            at,
+            format!(
+                "expected a point [x, y, z] or {{x, y, z}}, found {}",
+                short(v)
+            ),
+        ));
     }
     let mut p = [0.0f32; 3];
     for (i, c) in comps.iter().enumerate() {
@@ -65,5 +82,12 @@ pub fn point2(v: &Value, at: &str) -> Result<Vec2> {
 /// A short rendering of a value for error messages.
 pub fn short(v: &Value) -> String {
     let s = v.to_string();
-    if s.len() > 40 { format!("{}…", &s[..s.char_indices().nth(40).map_or(s.len(), |c| c.0)]) } else { s }
+    if s.len() > 40 {
+        format!(
+            "{}…",
+            &s[..s.char_indices().nth(40).map_or(s.len(), |c| c.0)]
+        )
+    } else {
+        s
+    }
 }

@@ -31,7 +31,10 @@ pub fn parse(text: &str) -> Result<(Vec<Object>, usize)> {
         if let Some(first) = seen.insert(object.ins_id.clone(), i) {
             return Err(Error::format(
                 format!("[{i}].ins_id"),
-                format!("duplicate ins_id '{}' (first used by entry {first})", object.ins_id),
+                format!(
+                    "duplicate ins_id '{}' (first used by entry {first})",
+                    object.ins_id
+                ),
             ));
         }
         objects.push(object);
@@ -43,7 +46,10 @@ fn parse_entry(e: &Value) -> Result<Option<Object>> {
     if !e.is_object() {
         return Err(Error::format("(entry)", "expected an object"));
     }
-    let id_value = e.get("ins_id").or_else(|| e.get("id")).ok_or_else(|| Error::format("ins_id", "missing"))?;
+    let id_value = e
+        .get("ins_id")
+        .or_else(|| e.get("id"))
+        .ok_or_else(|| Error::format("ins_id", "missing"))?;
     let ins_id = string(id_value, "ins_id")?;
     let label = string(field(e, "label")?, "label")?;
     let Some(bb) = e.get("bounding_box").filter(|b| !b.is_null()) else {
@@ -75,8 +81,12 @@ pub fn to_json(objects: &[Object]) -> Value {
         objects
             .iter()
             .map(|o| {
-                let corners: Vec<Value> =
-                    o.obb.corners().iter().map(|c| json!({"x": c.x, "y": c.y, "z": c.z})).collect();
+                let corners: Vec<Value> = o
+                    .obb
+                    .corners()
+                    .iter()
+                    .map(|c| json!({"x": c.x, "y": c.y, "z": c.z}))
+                    .collect();
                 json!({"ins_id": o.ins_id, "label": o.label, "bounding_box": corners})
             })
             .collect(),
@@ -94,8 +104,18 @@ mod tests {
 
     #[test]
     fn round_trip() {
-        let obb = Obb { center: Vec3::new(1.0, 2.0, 0.5), half_extents: Vec3::new(0.3, 0.2, 0.5), yaw: 0.4 };
-        let o = Object { obb, ..parse(&one(&serde_json::to_string(&obb_json(&obb)).unwrap())).unwrap().0[0].clone() };
+        let obb = Obb {
+            center: Vec3::new(1.0, 2.0, 0.5),
+            half_extents: Vec3::new(0.3, 0.2, 0.5),
+            yaw: 0.4,
+        };
+        let o = Object {
+            obb,
+            ..parse(&one(&serde_json::to_string(&obb_json(&obb)).unwrap()))
+                .unwrap()
+                .0[0]
+                .clone()
+        };
         let text = to_json(std::slice::from_ref(&o)).to_string();
         let (back, skipped) = parse(&text).unwrap();
         assert_eq!(skipped, 0);
@@ -105,18 +125,35 @@ mod tests {
     }
 
     fn obb_json(o: &Obb) -> Value {
-        Value::Array(o.corners().iter().map(|c| json!({"x": c.x, "y": c.y, "z": c.z})).collect())
+        Value::Array(
+            o.corners()
+                .iter()
+                .map(|c| json!({"x": c.x, "y": c.y, "z": c.z}))
+                .collect(),
+        )
     }
 
     #[test]
     fn errors_name_entry_and_field() {
-        let b = Obb { center: Vec3::ZERO, half_extents: Vec3::ONE, yaw: 0.0 };
+        let b = Obb {
+            center: Vec3::ZERO,
+            half_extents: Vec3::ONE,
+            yaw: 0.0,
+        };
         let mut corners = obb_json(&b);
         corners.as_array_mut().unwrap().pop();
         let e = parse(&one(&corners.to_string())).unwrap_err();
-        assert_eq!(e.to_string(), "[0].bounding_box: expected 8 corners, found 7");
-        let e = parse(r#"[{"ins_id":"1","label":"x","bounding_box":[{"x":"a","y":0,"z":0}]}]"#).unwrap_err();
-        assert!(e.to_string().starts_with("[0].bounding_box[0][0]: expected a finite number"), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "[0].bounding_box: expected 8 corners, found 7"
+        );
+        let e = parse(r#"[{"ins_id":"1","label":"x","bounding_box":[{"x":"a","y":0,"z":0}]}]"#)
+            .unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("[0].bounding_box[0][0]: expected a finite number"),
+            "{e}"
+        );
         let e = parse(r#"[{"label":"x"}]"#).unwrap_err();
         assert_eq!(e.to_string(), "[0].ins_id: missing");
         let e = parse("[{").unwrap_err();
@@ -132,8 +169,20 @@ mod tests {
 
     #[test]
     fn duplicate_ids_are_an_error() {
-        let b = obb_json(&Obb { center: Vec3::ZERO, half_extents: Vec3::ONE, yaw: 0.0 }).to_string();
-        let text = format!(r#"[{{"ins_id":"1","label":"a","bounding_box":{b}}},{{"ins_id":"1","label":"b","bounding_box":{b}}}]"#);
-        assert!(parse(&text).unwrap_err().to_string().contains("duplicate ins_id '1'"));
+        let b = obb_json(&Obb {
+            center: Vec3::ZERO,
+            half_extents: Vec3::ONE,
+            yaw: 0.0,
+        })
+        .to_string();
+        let text = format!(
+            r#"[{{"ins_id":"1","label":"a","bounding_box":{b}}},{{"ins_id":"1","label":"b","bounding_box":{b}}}]"#
+        );
+        assert!(
+            parse(&text)
+                .unwrap_err()
+                .to_string()
+                .contains("duplicate ins_id '1'")
+        );
     }
 }

@@ -68,9 +68,13 @@ struct File {
 /// no object.
 pub fn apply(text: &str, objects: &mut [Object]) -> Result<usize> {
     let value = parse_text(text)?;
-    let file: File = serde_json::from_value(value).map_err(|e| Error::format("objects", e.to_string()))?;
+    let file: File =
+        serde_json::from_value(value).map_err(|e| Error::format("objects", e.to_string()))?;
     if let Some(v) = file.version.filter(|v| *v > VERSION) {
-        return Err(Error::format("version", format!("version {v} is newer than this reader ({VERSION})")));
+        return Err(Error::format(
+            "version",
+            format!("version {v} is newer than this reader ({VERSION})"),
+        ));
     }
     let mut unmatched = 0;
     for (i, e) in file.objects.into_iter().enumerate() {
@@ -84,14 +88,22 @@ pub fn apply(text: &str, objects: &mut [Object]) -> Result<usize> {
         o.room = e.room;
         o.attributes = e.attributes;
         if let Some(p) = e.physics {
-            if !(p.mass > 0.0 && p.mass.is_finite() && p.friction >= 0.0 && (0.0..=1.0).contains(&p.restitution)) {
+            if !(p.mass > 0.0
+                && p.mass.is_finite()
+                && p.friction >= 0.0
+                && (0.0..=1.0).contains(&p.restitution))
+            {
                 return Err(Error::format(
                     format!("objects[{i}].physics"),
                     "expected mass > 0, friction >= 0 and restitution in [0, 1]",
                 ));
             }
             o.role = p.role;
-            o.rigid_body = RigidBody { mass: p.mass, friction: p.friction, restitution: p.restitution };
+            o.rigid_body = RigidBody {
+                mass: p.mass,
+                friction: p.friction,
+                restitution: p.restitution,
+            };
         }
     }
     Ok(unmatched)
@@ -105,7 +117,10 @@ pub fn to_json(objects: &[Object], floorplan: &Floorplan) -> Value {
             ins_id: o.ins_id.clone(),
             category: Some(o.category.clone()),
             room: o.room,
-            room_type: o.room.and_then(|r| floorplan.rooms.get(r)).map(|r| r.room_type.clone()),
+            room_type: o
+                .room
+                .and_then(|r| floorplan.rooms.get(r))
+                .map(|r| r.room_type.clone()),
             attributes: o.attributes.clone(),
             physics: Some(Physics {
                 role: o.role,

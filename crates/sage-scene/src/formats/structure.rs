@@ -23,7 +23,11 @@ fn list<'a>(root: &'a Value, key: &str) -> Result<&'a [Value]> {
 }
 
 fn each<T>(root: &Value, key: &str, parse: impl Fn(&Value) -> Result<T>) -> Result<Vec<T>> {
-    list(root, key)?.iter().enumerate().map(|(i, v)| parse(v).within(format!("{key}[{i}]"))).collect()
+    list(root, key)?
+        .iter()
+        .enumerate()
+        .map(|(i, v)| parse(v).within(format!("{key}[{i}]")))
+        .collect()
 }
 
 fn optional_number(v: &Value, key: &str, default: f32) -> Result<f32> {
@@ -40,26 +44,40 @@ fn parse_room(v: &Value) -> Result<Room> {
         .map(|(k, p)| point2(p, &format!("profile[{k}]")))
         .collect::<Result<Vec<_>>>()?;
     if profile.len() < 3 {
-        return Err(Error::format("profile", format!("a room needs at least 3 points, found {}", profile.len())));
+        return Err(Error::format(
+            "profile",
+            format!("a room needs at least 3 points, found {}", profile.len()),
+        ));
     }
     let room_type = match v.get("room_type") {
         Some(t) if !t.is_null() => string(t, "room_type")?,
         _ => "Room".to_string(),
     };
-    Ok(Room { profile: Polygon2::new(profile), room_type })
+    Ok(Room {
+        profile: Polygon2::new(profile),
+        room_type,
+    })
 }
 
 fn parse_wall(v: &Value) -> Result<Wall> {
     let loc = array(field(v, "location")?, "location")?;
     if loc.len() != 2 {
-        return Err(Error::format("location", format!("expected 2 end points, found {}", loc.len())));
+        return Err(Error::format(
+            "location",
+            format!("expected 2 end points, found {}", loc.len()),
+        ));
     }
     let thickness = optional_number(v, "thickness", DEFAULT_WALL_THICKNESS)?;
     let height = optional_number(v, "height", DEFAULT_WALL_HEIGHT)?;
     if thickness < 0.0 || height < 0.0 {
         return Err(Error::format("thickness/height", "must not be negative"));
     }
-    Ok(Wall { start: point2(&loc[0], "location[0]")?, end: point2(&loc[1], "location[1]")?, thickness, height })
+    Ok(Wall {
+        start: point2(&loc[0], "location[0]")?,
+        end: point2(&loc[1], "location[1]")?,
+        thickness,
+        height,
+    })
 }
 
 fn parse_hole(v: &Value) -> Result<Hole> {
@@ -69,21 +87,42 @@ fn parse_hole(v: &Value) -> Result<Hole> {
         .map(|(k, p)| point3(p, &format!("profile[{k}]")))
         .collect::<Result<Vec<_>>>()?;
     if profile.len() < 3 {
-        return Err(Error::format("profile", format!("a hole needs at least 3 points, found {}", profile.len())));
+        return Err(Error::format(
+            "profile",
+            format!("a hole needs at least 3 points, found {}", profile.len()),
+        ));
     }
-    let kind = match string(field(v, "type")?, "type")?.to_ascii_uppercase().as_str() {
+    let kind = match string(field(v, "type")?, "type")?
+        .to_ascii_uppercase()
+        .as_str()
+    {
         "DOOR" => HoleKind::Door,
         "WINDOW" => HoleKind::Window,
-        other => return Err(Error::format("type", format!("expected DOOR or WINDOW, found '{other}'"))),
+        other => {
+            return Err(Error::format(
+                "type",
+                format!("expected DOOR or WINDOW, found '{other}'"),
+            ));
+        }
     };
     let state = match v.get("state") {
         None | Some(Value::Null) => None,
         Some(s) => {
             let s = string(s, "state")?;
-            Some(DoorState::parse(&s).ok_or_else(|| Error::format("state", format!("expected open, closed or half-open, found '{s}'")))?)
+            Some(DoorState::parse(&s).ok_or_else(|| {
+                Error::format(
+                    "state",
+                    format!("expected open, closed or half-open, found '{s}'"),
+                )
+            })?)
         }
     };
-    Ok(Hole { profile, thickness: optional_number(v, "thickness", 0.0)?, kind, state })
+    Ok(Hole {
+        profile,
+        thickness: optional_number(v, "thickness", 0.0)?,
+        kind,
+        state,
+    })
 }
 
 fn parse_item(v: &Value) -> Result<StructureItem> {
@@ -98,7 +137,10 @@ fn parse_item(v: &Value) -> Result<StructureItem> {
 pub fn parse(text: &str) -> Result<Floorplan> {
     let root = parse_text(text)?;
     if !root.is_object() {
-        return Err(Error::format("(top level)", "expected an object with rooms, walls, holes, ins"));
+        return Err(Error::format(
+            "(top level)",
+            "expected an object with rooms, walls, holes, ins",
+        ));
     }
     Ok(Floorplan {
         rooms: each(&root, "rooms", parse_room)?,
@@ -170,10 +212,21 @@ mod tests {
     #[test]
     fn errors_name_the_field() {
         let e = parse(r#"{"walls":[{"location":[[0,0]]}]}"#).unwrap_err();
-        assert_eq!(e.to_string(), "walls[0].location: expected 2 end points, found 1");
-        let e = parse(r#"{"holes":[{"profile":[[0,0,0],[1,0,0],[1,0,1]],"type":"ARCH"}]}"#).unwrap_err();
-        assert!(e.to_string().starts_with("holes[0].type: expected DOOR or WINDOW"));
+        assert_eq!(
+            e.to_string(),
+            "walls[0].location: expected 2 end points, found 1"
+        );
+        let e = parse(r#"{"holes":[{"profile":[[0,0,0],[1,0,0],[1,0,1]],"type":"ARCH"}]}"#)
+            .unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("holes[0].type: expected DOOR or WINDOW")
+        );
         let e = parse(r#"{"rooms":[{"profile":[[0,0],[1,"x"],[1,1]]}]}"#).unwrap_err();
-        assert!(e.to_string().starts_with("rooms[0].profile[1][1]: expected a finite number"), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("rooms[0].profile[1][1]: expected a finite number"),
+            "{e}"
+        );
     }
 }

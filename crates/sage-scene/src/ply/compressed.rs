@@ -23,11 +23,26 @@ use std::io::Write;
 pub const CHUNK: usize = 256;
 
 const CHUNK_POS: [&str; 12] = [
-    "min_x", "min_y", "min_z", "max_x", "max_y", "max_z",
-    "min_scale_x", "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z",
+    "min_x",
+    "min_y",
+    "min_z",
+    "max_x",
+    "max_y",
+    "max_z",
+    "min_scale_x",
+    "min_scale_y",
+    "min_scale_z",
+    "max_scale_x",
+    "max_scale_y",
+    "max_scale_z",
 ];
 const CHUNK_COLOR: [&str; 6] = ["min_r", "min_g", "min_b", "max_r", "max_g", "max_b"];
-const PACKED: [&str; 4] = ["packed_position", "packed_rotation", "packed_scale", "packed_color"];
+const PACKED: [&str; 4] = [
+    "packed_position",
+    "packed_rotation",
+    "packed_scale",
+    "packed_color",
+];
 
 /// Alpha is clamped half a quantisation step inside (0, 1) so the logit stays finite and
 /// re-encodes to the same byte.
@@ -35,8 +50,15 @@ const ALPHA_EPS: f32 = 0.5 / 255.0;
 
 fn fixed<'a>(rows: &'a Rows<'a>, name: &str) -> Result<(&'a [u8], usize)> {
     match rows {
-        Rows::Fixed { bytes, stride, big_endian: false } => Ok((bytes, *stride)),
-        _ => Err(Error::format(name, "the compressed layout must be binary little-endian without lists")),
+        Rows::Fixed {
+            bytes,
+            stride,
+            big_endian: false,
+        } => Ok((bytes, *stride)),
+        _ => Err(Error::format(
+            name,
+            "the compressed layout must be binary little-endian without lists",
+        )),
     }
 }
 
@@ -45,7 +67,10 @@ fn offsets(e: &Element, names: &[&str], want: Scalar) -> Result<Vec<usize>> {
         .iter()
         .map(|n| match e.scalar_offset(n) {
             Some((o, s)) if s == want => Ok(o),
-            Some((_, s)) => Err(Error::format(format!("{}.{n}", e.name), format!("expected type {want:?}, found {s:?}"))),
+            Some((_, s)) => Err(Error::format(
+                format!("{}.{n}", e.name),
+                format!("expected type {want:?}, found {s:?}"),
+            )),
             None => Err(Error::format(format!("{}.{n}", e.name), "missing property")),
         })
         .collect()
@@ -63,19 +88,30 @@ fn u32_at(b: &[u8], o: usize) -> u32 {
 
 #[inline]
 fn unpack_11_10_11(v: u32) -> Vec3 {
-    Vec3::new(((v >> 21) & 0x7ff) as f32 / 2047.0, ((v >> 11) & 0x3ff) as f32 / 1023.0, (v & 0x7ff) as f32 / 2047.0)
+    Vec3::new(
+        ((v >> 21) & 0x7ff) as f32 / 2047.0,
+        ((v >> 11) & 0x3ff) as f32 / 1023.0,
+        (v & 0x7ff) as f32 / 2047.0,
+    )
 }
 
 #[inline]
 fn unpack_rotation(v: u32) -> Quat {
     let scale = std::f32::consts::SQRT_2;
-    let small = [(v >> 20) & 0x3ff, (v >> 10) & 0x3ff, v & 0x3ff].map(|c| (c as f32 / 1023.0 - 0.5) * scale);
+    let small = [(v >> 20) & 0x3ff, (v >> 10) & 0x3ff, v & 0x3ff]
+        .map(|c| (c as f32 / 1023.0 - 0.5) * scale);
     let largest = (v >> 30) as usize;
-    let m = (1.0 - small.iter().map(|c| c * c).sum::<f32>()).max(0.0).sqrt();
+    let m = (1.0 - small.iter().map(|c| c * c).sum::<f32>())
+        .max(0.0)
+        .sqrt();
     let mut wxyz = [0.0f32; 4];
     let mut it = small.into_iter();
     for (i, c) in wxyz.iter_mut().enumerate() {
-        *c = if i == largest { m } else { it.next().unwrap_or(0.0) };
+        *c = if i == largest {
+            m
+        } else {
+            it.next().unwrap_or(0.0)
+        };
     }
     Quat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0])
 }
@@ -92,8 +128,12 @@ fn sh_value(byte: u8) -> f32 {
 
 /// Reads the compressed layout (the header has been parsed already).
 pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
-    let (ci, chunk_el) = header.element("chunk").ok_or_else(|| Error::format("chunk", "missing element"))?;
-    let (vi, vertex_el) = header.element("vertex").ok_or_else(|| Error::format("vertex", "missing element"))?;
+    let (ci, chunk_el) = header
+        .element("chunk")
+        .ok_or_else(|| Error::format("chunk", "missing element"))?;
+    let (vi, vertex_el) = header
+        .element("vertex")
+        .ok_or_else(|| Error::format("vertex", "missing element"))?;
     let rows = element_rows(header, bytes)?;
     let (chunk_bytes, chunk_stride) = fixed(&rows[ci], "chunk")?;
     let (vert_bytes, vert_stride) = fixed(&rows[vi], "vertex")?;
@@ -101,7 +141,11 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
     if chunk_el.count < n.div_ceil(CHUNK) {
         return Err(Error::format(
             "chunk",
-            format!("{} chunk records cannot cover {n} vertices (need {})", chunk_el.count, n.div_ceil(CHUNK)),
+            format!(
+                "{} chunk records cannot cover {n} vertices (need {})",
+                chunk_el.count,
+                n.div_ceil(CHUNK)
+            ),
         ));
     }
     let chunk_off = offsets(chunk_el, &CHUNK_POS, Scalar::F32)?;
@@ -114,9 +158,14 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
         None => None,
         Some((si, sh_el)) => {
             if sh_el.count != n {
-                return Err(Error::format("sh", format!("has {} rows but vertex has {n}", sh_el.count)));
+                return Err(Error::format(
+                    "sh",
+                    format!("has {} rows but vertex has {n}", sh_el.count),
+                ));
             }
-            let names: Vec<String> = (0..sh_el.properties.len()).map(|i| format!("f_rest_{i}")).collect();
+            let names: Vec<String> = (0..sh_el.properties.len())
+                .map(|i| format!("f_rest_{i}"))
+                .collect();
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
             let off = offsets(sh_el, &names, Scalar::U8)?;
             let (b, stride) = fixed(&rows[si], "sh")?;
@@ -126,51 +175,64 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
     let degree = match &sh {
         None => 0,
         Some((_, _, off)) => sh_degree_for_rest_len(off.len()).ok_or_else(|| {
-            Error::format("sh", format!("found {} f_rest properties; expected 9, 24 or 45", off.len()))
+            Error::format(
+                "sh",
+                format!(
+                    "found {} f_rest properties; expected 9, 24 or 45",
+                    off.len()
+                ),
+            )
         })?,
     };
     let k = sh_rest_count(degree);
     let mut store = Gaussians::with_len(n, degree)?;
-    store.par_chunks_mut(CHUNK).enumerate().for_each(|(c, mut window)| {
-        let cb = &chunk_bytes[c * chunk_stride..];
-        let f = |i: usize| f32_at(cb, chunk_off[i]);
-        let (pmin, pmax) = (Vec3::new(f(0), f(1), f(2)), Vec3::new(f(3), f(4), f(5)));
-        let (smin, smax) = (Vec3::new(f(6), f(7), f(8)), Vec3::new(f(9), f(10), f(11)));
-        let color_range = color_off.as_ref().map(|o| {
-            let g = |i: usize| f32_at(cb, o[i]);
-            (Vec3::new(g(0), g(1), g(2)), Vec3::new(g(3), g(4), g(5)))
-        });
-        for j in 0..window.len() {
-            let row = c * CHUNK + j;
-            let vb = &vert_bytes[row * vert_stride..];
-            let [pp, pr, ps, pc] = [0, 1, 2, 3].map(|i| u32_at(vb, packed_off[i]));
-            let raw = Vec3::new((pc >> 24) as f32, ((pc >> 16) & 0xff) as f32, ((pc >> 8) & 0xff) as f32) / 255.0;
-            let rgb = match color_range {
-                Some((lo, hi)) => lo + (hi - lo) * raw,
-                None => raw,
-            };
-            let alpha = ((pc & 0xff) as f32 / 255.0).clamp(ALPHA_EPS, 1.0 - ALPHA_EPS);
-            let mut sh_rest = [[0.0; 3]; 15];
-            if let Some((sb, stride, off)) = &sh {
-                let row_bytes = &sb[row * stride..];
-                for (idx, o) in off.iter().enumerate() {
-                    sh_rest[idx % k][idx / k] = sh_value(row_bytes[*o]);
+    store
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(c, mut window)| {
+            let cb = &chunk_bytes[c * chunk_stride..];
+            let f = |i: usize| f32_at(cb, chunk_off[i]);
+            let (pmin, pmax) = (Vec3::new(f(0), f(1), f(2)), Vec3::new(f(3), f(4), f(5)));
+            let (smin, smax) = (Vec3::new(f(6), f(7), f(8)), Vec3::new(f(9), f(10), f(11)));
+            let color_range = color_off.as_ref().map(|o| {
+                let g = |i: usize| f32_at(cb, o[i]);
+                (Vec3::new(g(0), g(1), g(2)), Vec3::new(g(3), g(4), g(5)))
+            });
+            for j in 0..window.len() {
+                let row = c * CHUNK + j;
+                let vb = &vert_bytes[row * vert_stride..];
+                let [pp, pr, ps, pc] = [0, 1, 2, 3].map(|i| u32_at(vb, packed_off[i]));
+                let raw = Vec3::new(
+                    (pc >> 24) as f32,
+                    ((pc >> 16) & 0xff) as f32,
+                    ((pc >> 8) & 0xff) as f32,
+                ) / 255.0;
+                let rgb = match color_range {
+                    Some((lo, hi)) => lo + (hi - lo) * raw,
+                    None => raw,
+                };
+                let alpha = ((pc & 0xff) as f32 / 255.0).clamp(ALPHA_EPS, 1.0 - ALPHA_EPS);
+                let mut sh_rest = [[0.0; 3]; 15];
+                if let Some((sb, stride, off)) = &sh {
+                    let row_bytes = &sb[row * stride..];
+                    for (idx, o) in off.iter().enumerate() {
+                        sh_rest[idx % k][idx / k] = sh_value(row_bytes[*o]);
+                    }
                 }
+                window.set(
+                    j,
+                    &Gaussian {
+                        position: pmin + (pmax - pmin) * unpack_11_10_11(pp),
+                        rotation: unpack_rotation(pr),
+                        log_scale: smin + (smax - smin) * unpack_11_10_11(ps),
+                        opacity_logit: -(1.0 / alpha - 1.0).ln(),
+                        sh_dc: ((rgb - Vec3::splat(0.5)) / SH_C0).to_array(),
+                        sh_rest,
+                        instance: 0,
+                    },
+                );
             }
-            window.set(
-                j,
-                &Gaussian {
-                    position: pmin + (pmax - pmin) * unpack_11_10_11(pp),
-                    rotation: unpack_rotation(pr),
-                    log_scale: smin + (smax - smin) * unpack_11_10_11(ps),
-                    opacity_logit: -(1.0 / alpha - 1.0).ln(),
-                    sh_dc: ((rgb - Vec3::splat(0.5)) / SH_C0).to_array(),
-                    sh_rest,
-                    instance: 0,
-                },
-            );
-        }
-    });
+        });
     Ok(store)
 }
 
@@ -191,7 +253,9 @@ fn pack_11_10_11(u: Vec3) -> u32 {
 fn pack_rotation(q: Quat) -> u32 {
     let q = q.normalize();
     let wxyz = [q.w, q.x, q.y, q.z];
-    let largest = (0..4).max_by(|&a, &b| wxyz[a].abs().total_cmp(&wxyz[b].abs())).unwrap_or(0);
+    let largest = (0..4)
+        .max_by(|&a, &b| wxyz[a].abs().total_cmp(&wxyz[b].abs()))
+        .unwrap_or(0);
     let sign = if wxyz[largest] < 0.0 { -1.0 } else { 1.0 };
     let mut packed = (largest as u32) << 30;
     let mut shift = 20u32;
@@ -261,7 +325,8 @@ fn encode_chunk(items: &[Gaussian], k: usize) -> ([f32; 18], Vec<u8>, Vec<u8>) {
     for g in items {
         let c = normalized(Vec3::from_array(g.base_color()), cl, ch);
         let alpha = g.opacity();
-        let color = (unorm(c.x, 8) << 24) | (unorm(c.y, 8) << 16) | (unorm(c.z, 8) << 8) | unorm(alpha, 8);
+        let color =
+            (unorm(c.x, 8) << 24) | (unorm(c.y, 8) << 16) | (unorm(c.z, 8) << 8) | unorm(alpha, 8);
         let s = g.log_scale.clamp(Vec3::splat(-20.0), Vec3::splat(20.0));
         for word in [
             pack_11_10_11(normalized(g.position, pl, ph)),
@@ -285,7 +350,9 @@ pub fn write(w: &mut impl Write, g: &Gaussians) -> std::io::Result<()> {
     let chunks: Vec<([f32; 18], Vec<u8>, Vec<u8>)> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
-            let items: Vec<Gaussian> = (c * CHUNK..((c + 1) * CHUNK).min(n)).map(|i| g.get(i)).collect();
+            let items: Vec<Gaussian> = (c * CHUNK..((c + 1) * CHUNK).min(n))
+                .map(|i| g.get(i))
+                .collect();
             encode_chunk(&items, k)
         })
         .collect();

@@ -66,7 +66,11 @@ impl Scalar {
         macro_rules! get {
             ($t:ty, $n:expr) => {{
                 let a: [u8; $n] = b[..$n].try_into().expect("caller checked the row size");
-                (if big_endian { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }) as f64
+                (if big_endian {
+                    <$t>::from_be_bytes(a)
+                } else {
+                    <$t>::from_le_bytes(a)
+                }) as f64
             }};
         }
         match self {
@@ -107,7 +111,10 @@ pub struct Element {
 impl Element {
     /// Bytes per row in binary encodings, when no property is a list.
     pub fn row_size(&self) -> Option<usize> {
-        self.properties.iter().map(|p| p.list_count.is_none().then_some(p.scalar.size())).sum()
+        self.properties
+            .iter()
+            .map(|p| p.list_count.is_none().then_some(p.scalar.size()))
+            .sum()
     }
 
     /// Index of the property called `name`.
@@ -144,7 +151,10 @@ pub struct Header {
 impl Header {
     /// The element called `name`.
     pub fn element(&self, name: &str) -> Option<(usize, &Element)> {
-        self.elements.iter().enumerate().find(|(_, e)| e.name == name)
+        self.elements
+            .iter()
+            .enumerate()
+            .find(|(_, e)| e.name == name)
     }
 }
 
@@ -154,9 +164,13 @@ const MAX_ROWS: usize = 1 << 32;
 /// Parses the header at the start of `bytes`.
 pub fn parse_header(bytes: &[u8]) -> Result<Header> {
     if !bytes.starts_with(b"ply\n") && !bytes.starts_with(b"ply\r\n") {
-        return Err(Error::format("header", "not a PLY file (it must start with the line 'ply')"));
+        return Err(Error::format(
+            "header",
+            "not a PLY file (it must start with the line 'ply')",
+        ));
     }
-    let end = find(bytes, b"end_header").ok_or_else(|| Error::format("header", "no 'end_header' line"))?;
+    let end = find(bytes, b"end_header")
+        .ok_or_else(|| Error::format("header", "no 'end_header' line"))?;
     let mut body_offset = end + b"end_header".len();
     match bytes.get(body_offset..body_offset + 2) {
         Some([b'\r', b'\n']) => body_offset += 2,
@@ -164,7 +178,8 @@ pub fn parse_header(bytes: &[u8]) -> Result<Header> {
         _ if bytes.get(body_offset) == Some(&b'\n') => body_offset += 1,
         _ => return Err(Error::format("header", "'end_header' must end its line")),
     }
-    let text = std::str::from_utf8(&bytes[..end]).map_err(|_| Error::format("header", "header is not text"))?;
+    let text = std::str::from_utf8(&bytes[..end])
+        .map_err(|_| Error::format("header", "header is not text"))?;
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
     let mut comments = Vec::new();
@@ -173,7 +188,9 @@ pub fn parse_header(bytes: &[u8]) -> Result<Header> {
         let words: Vec<&str> = line.split_whitespace().collect();
         match words.as_slice() {
             [] => {}
-            ["comment", ..] | ["obj_info", ..] => comments.push(line.trim_start()[words[0].len()..].trim().to_string()),
+            ["comment", ..] | ["obj_info", ..] => {
+                comments.push(line.trim_start()[words[0].len()..].trim().to_string())
+            }
             ["format", f, _version] => {
                 encoding = Some(match *f {
                     "ascii" => Encoding::Ascii,
@@ -183,30 +200,66 @@ pub fn parse_header(bytes: &[u8]) -> Result<Header> {
                 })
             }
             ["element", name, count] => {
-                let count: usize = count
-                    .parse()
-                    .ok()
-                    .filter(|c| *c <= MAX_ROWS)
-                    .ok_or_else(|| Error::format(at(), format!("element '{name}' has a bad count '{count}'")))?;
-                elements.push(Element { name: name.to_string(), count, properties: Vec::new() });
+                let count: usize =
+                    count
+                        .parse()
+                        .ok()
+                        .filter(|c| *c <= MAX_ROWS)
+                        .ok_or_else(|| {
+                            Error::format(
+                                at(),
+                                format!("element '{name}' has a bad count '{count}'"),
+                            )
+                        })?;
+                elements.push(Element {
+                    name: name.to_string(),
+                    count,
+                    properties: Vec::new(),
+                });
             }
             ["property", "list", count_ty, item_ty, name] => {
-                let e = elements.last_mut().ok_or_else(|| Error::format(at(), "property before any element"))?;
+                let e = elements
+                    .last_mut()
+                    .ok_or_else(|| Error::format(at(), "property before any element"))?;
                 let (Some(c), Some(i)) = (Scalar::parse(count_ty), Scalar::parse(item_ty)) else {
-                    return Err(Error::format(at(), format!("unknown list types '{count_ty} {item_ty}'")));
+                    return Err(Error::format(
+                        at(),
+                        format!("unknown list types '{count_ty} {item_ty}'"),
+                    ));
                 };
-                e.properties.push(Property { name: name.to_string(), scalar: i, list_count: Some(c) });
+                e.properties.push(Property {
+                    name: name.to_string(),
+                    scalar: i,
+                    list_count: Some(c),
+                });
             }
             ["property", ty, name] => {
-                let e = elements.last_mut().ok_or_else(|| Error::format(at(), "property before any element"))?;
-                let s = Scalar::parse(ty).ok_or_else(|| Error::format(at(), format!("unknown property type '{ty}'")))?;
-                e.properties.push(Property { name: name.to_string(), scalar: s, list_count: None });
+                let e = elements
+                    .last_mut()
+                    .ok_or_else(|| Error::format(at(), "property before any element"))?;
+                let s = Scalar::parse(ty)
+                    .ok_or_else(|| Error::format(at(), format!("unknown property type '{ty}'")))?;
+                e.properties.push(Property {
+                    name: name.to_string(),
+                    scalar: s,
+                    list_count: None,
+                });
             }
-            _ => return Err(Error::format(at(), format!("cannot read '{}'", line.trim()))),
+            _ => {
+                return Err(Error::format(
+                    at(),
+                    format!("cannot read '{}'", line.trim()),
+                ));
+            }
         }
     }
     let encoding = encoding.ok_or_else(|| Error::format("header", "no 'format' line"))?;
-    Ok(Header { encoding, elements, comments, body_offset })
+    Ok(Header {
+        encoding,
+        elements,
+        comments,
+        body_offset,
+    })
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
@@ -238,7 +291,10 @@ pub fn element_rows<'a>(header: &Header, bytes: &'a [u8]) -> Result<Vec<Rows<'a>
     let body = &bytes[header.body_offset.min(bytes.len())..];
     match header.encoding {
         Encoding::Ascii => {
-            let header_lines = bytes[..header.body_offset.min(bytes.len())].iter().filter(|&&b| b == b'\n').count();
+            let header_lines = bytes[..header.body_offset.min(bytes.len())]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
             ascii_rows(header, body, header_lines)
         }
         Encoding::BinaryLittleEndian => binary_rows(header, body, false),
@@ -249,7 +305,10 @@ pub fn element_rows<'a>(header: &Header, bytes: &'a [u8]) -> Result<Vec<Rows<'a>
 fn truncated(e: &Element, need: usize, have: usize) -> Error {
     Error::format(
         format!("element '{}'", e.name),
-        format!("file is truncated: {} rows need {need} more bytes, {have} remain", e.count),
+        format!(
+            "file is truncated: {} rows need {need} more bytes, {have} remain",
+            e.count
+        ),
     )
 }
 
@@ -259,11 +318,17 @@ fn binary_rows<'a>(header: &Header, body: &'a [u8], big_endian: bool) -> Result<
     for e in &header.elements {
         let rest = &body[pos..];
         if let Some(stride) = e.row_size() {
-            let need = stride.checked_mul(e.count).ok_or_else(|| truncated(e, usize::MAX, rest.len()))?;
+            let need = stride
+                .checked_mul(e.count)
+                .ok_or_else(|| truncated(e, usize::MAX, rest.len()))?;
             if need > rest.len() {
                 return Err(truncated(e, need, rest.len()));
             }
-            out.push(Rows::Fixed { bytes: &rest[..need], stride, big_endian });
+            out.push(Rows::Fixed {
+                bytes: &rest[..need],
+                stride,
+                big_endian,
+            });
             pos += need;
             continue;
         }
@@ -274,9 +339,14 @@ fn binary_rows<'a>(header: &Header, body: &'a [u8], big_endian: bool) -> Result<
             row_starts.push(values.len());
             for prop in &e.properties {
                 let read = |p: usize, s: Scalar| -> Result<f64> {
-                    rest.get(p..p + s.size()).map(|b| s.read(b, big_endian)).ok_or_else(|| {
-                        Error::format(format!("element '{}' row {row}", e.name), "file is truncated")
-                    })
+                    rest.get(p..p + s.size())
+                        .map(|b| s.read(b, big_endian))
+                        .ok_or_else(|| {
+                            Error::format(
+                                format!("element '{}' row {row}", e.name),
+                                "file is truncated",
+                            )
+                        })
                 };
                 match prop.list_count {
                     None => {
@@ -309,22 +379,38 @@ fn binary_rows<'a>(header: &Header, body: &'a [u8], big_endian: bool) -> Result<
 }
 
 fn ascii_rows<'a>(header: &Header, body: &[u8], header_lines: usize) -> Result<Vec<Rows<'a>>> {
-    let text = std::str::from_utf8(body).map_err(|_| Error::format("body", "ASCII body is not text"))?;
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let text =
+        std::str::from_utf8(body).map_err(|_| Error::format("body", "ASCII body is not text"))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
     let mut out = Vec::with_capacity(header.elements.len());
     for e in &header.elements {
         let mut values = Vec::new();
         let mut row_starts = Vec::with_capacity(e.count.min(body.len()) + 1);
         for row in 0..e.count {
             let (n, line) = lines.next().ok_or_else(|| {
-                Error::format(format!("element '{}'", e.name), format!("file ends after {row} of {} rows", e.count))
+                Error::format(
+                    format!("element '{}'", e.name),
+                    format!("file ends after {row} of {} rows", e.count),
+                )
             })?;
-            let at = || format!("body line {} (element '{}' row {row})", n + 1 + header_lines, e.name);
+            let at = || {
+                format!(
+                    "body line {} (element '{}' row {row})",
+                    n + 1 + header_lines,
+                    e.name
+                )
+            };
             row_starts.push(values.len());
             let mut words = line.split_whitespace();
             let mut next = |what: &str| -> Result<f64> {
-                let w = words.next().ok_or_else(|| Error::format(at(), format!("missing value for '{what}'")))?;
-                w.parse::<f64>().map_err(|_| Error::format(at(), format!("'{w}' is not a number ({what})")))
+                let w = words
+                    .next()
+                    .ok_or_else(|| Error::format(at(), format!("missing value for '{what}'")))?;
+                w.parse::<f64>()
+                    .map_err(|_| Error::format(at(), format!("'{w}' is not a number ({what})")))
             };
             for prop in &e.properties {
                 match prop.list_count {
@@ -366,8 +452,15 @@ impl Rows<'_> {
     /// a list. `row` must be in range.
     pub fn values(&self, element: &Element, row: usize, prop: usize) -> Vec<f64> {
         match self {
-            Rows::Fixed { bytes, stride, big_endian } => {
-                let offset: usize = element.properties[..prop].iter().map(|p| p.scalar.size()).sum();
+            Rows::Fixed {
+                bytes,
+                stride,
+                big_endian,
+            } => {
+                let offset: usize = element.properties[..prop]
+                    .iter()
+                    .map(|p| p.scalar.size())
+                    .sum();
                 let s = element.properties[prop].scalar;
                 vec![s.read(&bytes[row * stride + offset..], *big_endian)]
             }
@@ -375,10 +468,18 @@ impl Rows<'_> {
                 let row_values = &values[row_starts[row]..row_starts[row + 1]];
                 let mut i = 0;
                 for (k, p) in element.properties.iter().enumerate() {
-                    let len = if p.list_count.is_some() { 1 + row_values[i] as usize } else { 1 };
+                    let len = if p.list_count.is_some() {
+                        1 + row_values[i] as usize
+                    } else {
+                        1
+                    };
                     if k == prop {
                         let v = &row_values[i..i + len];
-                        return if p.list_count.is_some() { v[1..].to_vec() } else { v.to_vec() };
+                        return if p.list_count.is_some() {
+                            v[1..].to_vec()
+                        } else {
+                            v.to_vec()
+                        };
                     }
                     i += len;
                 }
@@ -418,13 +519,20 @@ mod tests {
         src.extend_from_slice(&[0u8; 12]);
         let h = parse_header(&src).unwrap();
         let e = element_rows(&h, &src).err().unwrap();
-        assert!(e.to_string().contains("element 'vertex': file is truncated"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("element 'vertex': file is truncated"),
+            "{e}"
+        );
     }
 
     #[test]
     fn garbage_is_an_error() {
         assert!(parse_header(b"PK\x03\x04").is_err());
-        assert!(parse_header(b"ply\nformat binary_little_endian 1.0\nelement vertex -3\nend_header\n").is_err());
+        assert!(
+            parse_header(b"ply\nformat binary_little_endian 1.0\nelement vertex -3\nend_header\n")
+                .is_err()
+        );
         assert!(parse_header(b"ply\nproperty float x\nend_header\n").is_err());
     }
 }

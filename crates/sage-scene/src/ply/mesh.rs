@@ -9,9 +9,14 @@ use sage_core::{Error, Result};
 /// Reads a PLY mesh.
 pub fn read_mesh(bytes: &[u8]) -> Result<TriMesh> {
     let header = parse_header(bytes)?;
-    let (vi, ve) = header.element("vertex").ok_or_else(|| Error::format("vertex", "missing element"))?;
+    let (vi, ve) = header
+        .element("vertex")
+        .ok_or_else(|| Error::format("vertex", "missing element"))?;
     let rows = element_rows(&header, bytes)?;
-    let idx = |n: &str| ve.property_index(n).ok_or_else(|| Error::format(format!("vertex.{n}"), "missing property"));
+    let idx = |n: &str| {
+        ve.property_index(n)
+            .ok_or_else(|| Error::format(format!("vertex.{n}"), "missing property"))
+    };
     let (ix, iy, iz) = (idx("x")?, idx("y")?, idx("z")?);
     let v = &rows[vi];
     let positions: Vec<Vec3> = (0..ve.count)
@@ -27,17 +32,26 @@ pub fn read_mesh(bytes: &[u8]) -> Result<TriMesh> {
             .or_else(|| fe.property_index("vertex_index"))
             .ok_or_else(|| Error::format("face.vertex_indices", "missing property"))?;
         if fe.properties[p].list_count.is_none() {
-            return Err(Error::format("face.vertex_indices", "must be a list property"));
+            return Err(Error::format(
+                "face.vertex_indices",
+                "must be a list property",
+            ));
         }
         for r in 0..fe.count {
             let poly = rows[fi].values(fe, r, p);
             if poly.iter().any(|i| *i < 0.0 || i.fract() != 0.0) {
-                return Err(Error::format(format!("face[{r}]"), "vertex index is not a non-negative integer"));
+                return Err(Error::format(
+                    format!("face[{r}]"),
+                    "vertex index is not a non-negative integer",
+                ));
             }
             for k in 1..poly.len().saturating_sub(1) {
                 triangles.push([poly[0] as u32, poly[k] as u32, poly[k + 1] as u32]);
             }
         }
     }
-    Ok(TriMesh { positions, triangles })
+    Ok(TriMesh {
+        positions,
+        triangles,
+    })
 }

@@ -30,7 +30,10 @@ impl SplatLayout {
     /// The layout a file name asks for when writing: `*.compressed.ply` or `*_compressed.ply`
     /// is compressed (as `splat-transform` decides), any other `.ply` standard.
     pub fn from_file_name(path: &Path) -> Result<SplatLayout> {
-        let name = path.file_name().map(|n| n.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
         if name.ends_with("compressed.ply") {
             Ok(SplatLayout::Compressed)
         } else if name.ends_with(".ply") {
@@ -55,13 +58,24 @@ impl SplatLayout {
 /// Detects the layout of a parsed header.
 pub fn detect_layout(header: &header::Header) -> Result<SplatLayout> {
     let has_chunk = header.element("chunk").is_some();
-    let packed = header.element("vertex").is_some_and(|(_, v)| v.property_index("packed_position").is_some());
+    let packed = header
+        .element("vertex")
+        .is_some_and(|(_, v)| v.property_index("packed_position").is_some());
     match (has_chunk, packed) {
         (true, true) => Ok(SplatLayout::Compressed),
         (false, false) if header.element("vertex").is_some() => Ok(SplatLayout::Standard),
-        (true, false) => Err(Error::format("vertex", "has a 'chunk' element but no 'packed_position' property")),
-        (false, true) => Err(Error::format("chunk", "packed vertices need a 'chunk' element")),
-        (false, false) => Err(Error::format("vertex", "no 'vertex' element: not a Gaussian splat file")),
+        (true, false) => Err(Error::format(
+            "vertex",
+            "has a 'chunk' element but no 'packed_position' property",
+        )),
+        (false, true) => Err(Error::format(
+            "chunk",
+            "packed vertices need a 'chunk' element",
+        )),
+        (false, false) => Err(Error::format(
+            "vertex",
+            "no 'vertex' element: not a Gaussian splat file",
+        )),
     }
 }
 

@@ -41,7 +41,8 @@ struct Layout {
 }
 
 fn require(e: &Element, fixed: bool, name: &str) -> Result<Source> {
-    locate(e, fixed, name).ok_or_else(|| Error::format(format!("vertex.{name}"), "missing property"))
+    locate(e, fixed, name)
+        .ok_or_else(|| Error::format(format!("vertex.{name}"), "missing property"))
 }
 
 fn layout(e: &Element, fixed: bool) -> Result<(Layout, u8)> {
@@ -49,16 +50,32 @@ fn layout(e: &Element, fixed: bool) -> Result<(Layout, u8)> {
     let color = if e.property_index("f_dc_0").is_some() {
         ColorSource::Dc([req("f_dc_0")?, req("f_dc_1")?, req("f_dc_2")?])
     } else if let Some(i) = e.property_index("red") {
-        let max = if e.properties[i].scalar == Scalar::U8 { 255.0 } else { 1.0 };
+        let max = if e.properties[i].scalar == Scalar::U8 {
+            255.0
+        } else {
+            1.0
+        };
         ColorSource::Rgb([req("red")?, req("green")?, req("blue")?], max)
     } else {
-        return Err(Error::format("vertex.f_dc_0", "missing property (and no red/green/blue)"));
+        return Err(Error::format(
+            "vertex.f_dc_0",
+            "missing property (and no red/green/blue)",
+        ));
     };
-    let rest_count = e.properties.iter().filter(|p| p.name.starts_with("f_rest_")).count();
+    let rest_count = e
+        .properties
+        .iter()
+        .filter(|p| p.name.starts_with("f_rest_"))
+        .count();
     let degree = sh_degree_for_rest_len(rest_count).ok_or_else(|| {
-        Error::format("vertex.f_rest_*", format!("found {rest_count} f_rest properties; expected 0, 9, 24 or 45"))
+        Error::format(
+            "vertex.f_rest_*",
+            format!("found {rest_count} f_rest properties; expected 0, 9, 24 or 45"),
+        )
     })?;
-    let rest = (0..rest_count).map(|i| req(&format!("f_rest_{i}"))).collect::<Result<Vec<_>>>()?;
+    let rest = (0..rest_count)
+        .map(|i| req(&format!("f_rest_{i}")))
+        .collect::<Result<Vec<_>>>()?;
     Ok((
         Layout {
             position: [req("x")?, req("y")?, req("z")?],
@@ -74,7 +91,9 @@ fn layout(e: &Element, fixed: bool) -> Result<(Layout, u8)> {
 
 /// Reads the standard layout (the header has been parsed already).
 pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
-    let (vi, element) = header.element("vertex").ok_or_else(|| Error::format("vertex", "missing element"))?;
+    let (vi, element) = header
+        .element("vertex")
+        .ok_or_else(|| Error::format("vertex", "missing element"))?;
     let rows = element_rows(header, bytes)?;
     let rows = &rows[vi];
     let fixed = matches!(rows, Rows::Fixed { .. });
@@ -82,50 +101,70 @@ pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
     let k = sh_rest_count(degree);
     let mut store = Gaussians::with_len(element.count, degree)?;
     const BLOCK: usize = 4096;
-    store.par_chunks_mut(BLOCK).enumerate().try_for_each(|(b, mut window)| {
-        for j in 0..window.len() {
-            let row = b * BLOCK + j;
-            let get = |s: &Source| -> f32 {
-                match (s, rows) {
-                    (Source::Offset(o, t), Rows::Fixed { bytes, stride, big_endian }) => {
-                        t.read(&bytes[row * stride + o..], *big_endian) as f32
+    store
+        .par_chunks_mut(BLOCK)
+        .enumerate()
+        .try_for_each(|(b, mut window)| {
+            for j in 0..window.len() {
+                let row = b * BLOCK + j;
+                let get = |s: &Source| -> f32 {
+                    match (s, rows) {
+                        (
+                            Source::Offset(o, t),
+                            Rows::Fixed {
+                                bytes,
+                                stride,
+                                big_endian,
+                            },
+                        ) => t.read(&bytes[row * stride + o..], *big_endian) as f32,
+                        (Source::Index(i), _) => {
+                            rows.values(element, row, *i)
+                                .first()
+                                .copied()
+                                .unwrap_or(f64::NAN) as f32
+                        }
+                        _ => f32::NAN,
                     }
-                    (Source::Index(i), _) => rows.values(element, row, *i).first().copied().unwrap_or(f64::NAN) as f32,
-                    _ => f32::NAN,
+                };
+                let sh_dc = match &layout.color {
+                    ColorSource::Dc(s) => s.each_ref().map(get),
+                    ColorSource::Rgb(s, max) => {
+                        s.each_ref().map(|c| (get(c) / *max as f32 - 0.5) / SH_C0)
+                    }
+                };
+                let mut sh_rest = [[0.0; 3]; 15];
+                for (idx, s) in layout.rest.iter().enumerate() {
+                    sh_rest[idx % k][idx / k] = get(s);
                 }
-            };
-            let sh_dc = match &layout.color {
-                ColorSource::Dc(s) => s.each_ref().map(get),
-                ColorSource::Rgb(s, max) => s.each_ref().map(|c| (get(c) / *max as f32 - 0.5) / SH_C0),
-            };
-            let mut sh_rest = [[0.0; 3]; 15];
-            for (idx, s) in layout.rest.iter().enumerate() {
-                sh_rest[idx % k][idx / k] = get(s);
+                let [w, x, y, z] = layout.rotation.each_ref().map(get);
+                let rotation = Quat::from_xyzw(x, y, z, w);
+                let bad = |field: &str, why: &str| {
+                    Err(Error::format(
+                        format!("vertex[{row}].{field}"),
+                        why.to_string(),
+                    ))
+                };
+                if !rotation.is_finite() || rotation.length_squared() == 0.0 {
+                    return bad("rot_*", "rotation is not finite or is zero");
+                }
+                if !sh_rest.iter().flatten().all(|v| v.is_finite()) {
+                    return bad("f_rest_*", "value is not finite (NaN or infinity)");
+                }
+                window.set(
+                    j,
+                    &Gaussian {
+                        position: Vec3::from_array(layout.position.each_ref().map(get)),
+                        rotation,
+                        log_scale: Vec3::from_array(layout.scale.each_ref().map(get)),
+                        opacity_logit: finite_logit(get(&layout.opacity)),
+                        sh_dc,
+                        sh_rest,
+                        instance: 0,
+                    },
+                );
             }
-            let [w, x, y, z] = layout.rotation.each_ref().map(get);
-            let rotation = Quat::from_xyzw(x, y, z, w);
-            let bad = |field: &str, why: &str| Err(Error::format(format!("vertex[{row}].{field}"), why.to_string()));
-            if !rotation.is_finite() || rotation.length_squared() == 0.0 {
-                return bad("rot_*", "rotation is not finite or is zero");
-            }
-            if !sh_rest.iter().flatten().all(|v| v.is_finite()) {
-                return bad("f_rest_*", "value is not finite (NaN or infinity)");
-            }
-            window.set(
-                j,
-                &Gaussian {
-                    position: Vec3::from_array(layout.position.each_ref().map(get)),
-                    rotation,
-                    log_scale: Vec3::from_array(layout.scale.each_ref().map(get)),
-                    opacity_logit: finite_logit(get(&layout.opacity)),
-                    sh_dc,
-                    sh_rest,
-                    instance: 0,
-                },
-            );
-        }
-        Ok(())
-    })?;
+            Ok(())
+        })?;
     Ok(store)
 }
 
@@ -142,13 +181,17 @@ pub const MAX_LOGIT: f32 = 20.0;
 pub fn header_text(n: usize, degree: u8) -> String {
     let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment Generated by sage3d\n");
     h += &format!("element vertex {n}\n");
-    for p in ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"] {
+    for p in [
+        "x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2",
+    ] {
         h += &format!("property float {p}\n");
     }
     for i in 0..sh_rest_count(degree) * 3 {
         h += &format!("property float f_rest_{i}\n");
     }
-    for p in ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"] {
+    for p in [
+        "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3",
+    ] {
         h += &format!("property float {p}\n");
     }
     h + "end_header\n"

@@ -1,0 +1,165 @@
+//! `sage3d bench …`: the performance figures of SPEC §12, measured on this machine.
+
+use crate::machine;
+use clap::{Args, Subcommand};
+use sage_core::{Error, Result};
+use sage_scene::ply::{self, SplatLayout};
+use sage_scene::synth::{SceneKind, SynthConfig};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Subcommand)]
+pub enum BenchCommand {
+    /// Decode a compressed PLY and measure time and resident memory per Gaussian.
+    /// Without --input, a synthetic office of --gaussians Gaussians (SH degree 1) is written
+    /// first; use --sh3 to re-encode it at SH degree 3 (the memory target's case).
+    Load(LoadArgs),
+}
+
+#[derive(Args)]
+pub struct LoadArgs {
+    /// A compressed or standard PLY to decode (default: generate one).
+    #[arg(long)]
+    input: Option<PathBuf>,
+    /// Gaussians in the generated scene.
+    #[arg(long, default_value_t = 1_000_000)]
+    gaussians: usize,
+    /// Give the generated file SH degree 3 (bands 2–3 filled from a seeded hash).
+    #[arg(long)]
+    sh3: bool,
+    /// Timed decodes (the median is reported).
+    #[arg(long, default_value_t = 7)]
+    repeat: usize,
+}
+
+pub fn run(cmd: BenchCommand) -> Result<()> {
+    match cmd {
+        BenchCommand::Load(a) => load(a),
+    }
+}
+
+fn load(a: LoadArgs) -> Result<()> {
+    match a.input {
+        Some(p) => measure_load(&p, a.repeat),
+        None => {
+            let dir = std::env::temp_dir().join(format!("sage3d-bench-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+            let file = dir.join("bench.compressed.ply");
+            eprintln!("generating a {}-Gaussian scene …", a.gaussians);
+            let result = generate(&file, a.gaussians, a.sh3)
+                .and_then(|()| measure_in_fresh_process(&file, a.repeat));
+            let _ = std::fs::remove_dir_all(&dir);
+            result
+        }
+    }
+}
+
+/// Runs the measurement in a new process, so that memory freed by the generator does not hide
+/// the loader's real resident growth.
+fn measure_in_fresh_process(file: &Path, repeat: usize) -> Result<()> {
+    let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
+    let status = std::process::Command::new(&exe)
+        .args([
+            "--threads",
+            &rayon::current_num_threads().to_string(),
+            "bench",
+            "load",
+            "--repeat",
+            &repeat.to_string(),
+            "--input",
+        ])
+        .arg(file)
+        .status()
+        .map_err(|e| Error::io(&exe, e))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(Error::invalid(format!(
+            "the measuring process failed ({status})"
+        )))
+    }
+}
+
+fn measure_load(path: &Path, repeat: usize) -> Result<()> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    let rss_before = machine::resident_bytes();
+    let (kept, layout) = ply::read_splats_file(path)?;
+    let rss_after = machine::resident_bytes();
+    let mut times = Vec::with_capacity(repeat);
+    for _ in 0..repeat.max(1) {
+        let start = Instant::now();
+        let (g, _) = ply::read_splats_file(path)?;
+        times.push(start.elapsed().as_secs_f64());
+        drop(g);
+    }
+    times.sort_by(f64::total_cmp);
+    let n = kept.len().max(1) as f64;
+    let median = times[times.len() / 2];
+    println!("machine          {}", machine::describe());
+    println!(
+        "file             {} ({} layout, {:.1} MB, SH degree {})",
+        path.display(),
+        layout.as_str(),
+        size as f64 / 1e6,
+        kept.sh_degree()
+    );
+    println!("gaussians        {}", kept.len());
+    println!(
+        "decode           median {:.3} s, best {:.3} s over {} runs ({:.1} M Gaussians/s)",
+        median,
+        times[0],
+        times.len(),
+        n / median / 1e6
+    );
+    println!(
+        "store            {:.1} bytes/Gaussian (heap of the Gaussian arrays)",
+        kept.heap_bytes() as f64 / n
+    );
+    if let (Some(b), Some(a)) = (rss_before, rss_after) {
+        println!(
+            "resident         +{:.1} bytes/Gaussian (process RSS growth while loading)",
+            a.saturating_sub(b) as f64 / n
+        );
+    }
+    Ok(())
+}
+
+/// Writes the compressed PLY of a synthetic office with about `gaussians` Gaussians.
+fn generate(path: &Path, gaussians: usize, sh3: bool) -> Result<()> {
+    let rooms = (gaussians / 60_000).clamp(4, 20);
+    let config = SynthConfig {
+        seed: 1,
+        kind: SceneKind::Office,
+        rooms,
+        objects: rooms * 25,
+        gaussians,
+        ..SynthConfig::default()
+    };
+    let scene = sage_scene::synth::generate(&config)?;
+    let g = if sh3 {
+        to_sh3(&scene.gaussians)?
+    } else {
+        scene.gaussians
+    };
+    ply::write_splats_file(path, &g, SplatLayout::Compressed)
+}
+
+/// The same Gaussians at SH degree 3, higher bands filled with small deterministic values.
+fn to_sh3(g: &sage_scene::Gaussians) -> Result<sage_scene::Gaussians> {
+    let items: Vec<_> = (0..g.len())
+        .map(|i| {
+            let mut x = g.get(i);
+            for (k, coeff) in x.sh_rest.iter_mut().enumerate().skip(3) {
+                for (c, v) in coeff.iter_mut().enumerate() {
+                    let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                        ^ ((k * 3 + c) as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+                    *v = ((h >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 0.2;
+                }
+            }
+            x
+        })
+        .collect();
+    sage_scene::Gaussians::from_gaussians(&items, 3)
+}

@@ -1,0 +1,182 @@
+//! The `sage3d` binary end to end: synth, info, convert, demo and bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn sage3d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sage3d"))
+        .args(args)
+        .output()
+        .expect("sage3d runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = sage3d(args);
+    assert!(
+        out.status.success(),
+        "sage3d {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn testdata(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata/splats")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+#[test]
+fn synth_then_info_describes_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("office");
+    let printed = ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        "5",
+        "--kind",
+        "office",
+        "--rooms",
+        "4",
+        "--objects",
+        "30",
+        "--gaussians",
+        "30000",
+        "--out",
+        s(&out),
+    ]);
+    assert!(printed.contains("gaussians"), "{printed}");
+    for f in [
+        "3dgs_compressed.ply",
+        "labels.json",
+        "structure.json",
+        "objects.json",
+        "occupancy.png",
+        "occupancy.json",
+        "sage3d_run.json",
+        "meshes/structure.obj",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let info = ok(&["scene", "info", s(&out)]);
+    assert!(
+        info.contains("SH degree 1") && info.contains("rooms") && info.contains("compressed PLY"),
+        "{info}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&ok(&["scene", "info", s(&out), "--json"])).unwrap();
+    assert!(json["summary"]["objects"].as_u64().unwrap() >= 20);
+    assert!(json["missing"].as_array().unwrap().is_empty(), "{json}");
+}
+
+#[test]
+fn standard_layout_loads_like_compressed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    let common = [
+        "--seed",
+        "2",
+        "--rooms",
+        "3",
+        "--objects",
+        "20",
+        "--gaussians",
+        "20000",
+    ];
+    ok(&[&["scene", "synth", "--out", s(&a)][..], &common[..]].concat());
+    ok(&[
+        &["scene", "synth", "--out", s(&b), "--layout", "standard"][..],
+        &common[..],
+    ]
+    .concat());
+    assert!(b.join("3dgs.ply").is_file());
+    let ja: serde_json::Value =
+        serde_json::from_str(&ok(&["scene", "info", s(&a), "--json"])).unwrap();
+    let jb: serde_json::Value =
+        serde_json::from_str(&ok(&["scene", "info", s(&b), "--json"])).unwrap();
+    assert_eq!(ja["summary"]["gaussians"], jb["summary"]["gaussians"]);
+    assert_eq!(ja["summary"]["categories"], jb["summary"]["categories"]);
+}
+
+#[test]
+fn convert_round_trip_through_both_layouts() {
+    let dir = tempfile::tempdir().unwrap();
+    let packed = dir.path().join("x.compressed.ply");
+    let plain = dir.path().join("x.ply");
+    let printed = ok(&[
+        "splat",
+        "convert",
+        &testdata("random_4k_sh3.ply"),
+        s(&packed),
+    ]);
+    assert!(printed.contains("4096 Gaussians, SH degree 3"), "{printed}");
+    ok(&["splat", "convert", s(&packed), s(&plain)]);
+    let printed = ok(&["splat", "convert", s(&plain), s(&dir.path().join("y.ply"))]);
+    assert!(printed.contains("(standard, 4096 Gaussians"), "{printed}");
+}
+
+#[test]
+fn bad_input_is_a_clear_error_and_leaves_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("broken.ply");
+    std::fs::write(
+        &bad,
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nend_header\n",
+    )
+    .unwrap();
+    let out_path = dir.path().join("out.compressed.ply");
+    let out = sage3d(&["splat", "convert", s(&bad), s(&out_path)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("broken.ply") && err.contains("element 'vertex': file is truncated"),
+        "{err}"
+    );
+    assert!(!out_path.exists());
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "no temporary files left"
+    );
+
+    let scene = dir.path().join("scene");
+    std::fs::create_dir(&scene).unwrap();
+    std::fs::write(
+        scene.join("labels.json"),
+        r#"[{"ins_id":"1","label":"chair","bounding_box":[{"x":0,"y":0,"z":0}]}]"#,
+    )
+    .unwrap();
+    let out = sage3d(&["scene", "info", s(&scene)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("labels.json: [0].bounding_box: expected 8 corners, found 1"),
+        "{err}"
+    );
+
+    let out = sage3d(&[
+        "splat",
+        "convert",
+        &testdata("random_3k_sh0.ply"),
+        s(&dir.path().join("x.splat")),
+    ]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot tell the layout"));
+}
+
+#[test]
+fn demo_runs_on_the_embedded_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let printed = ok(&["demo", "--out", s(&out)]);
+    assert!(
+        printed.contains("Loading it back") && printed.contains("objects"),
+        "{printed}"
+    );
+}

@@ -1,0 +1,107 @@
+"""sage3d's files read by independent, widely used readers (plyfile, json, numpy)."""
+
+import json
+
+import numpy as np
+import plyfile
+
+from conftest import TESTDATA
+
+SH_C0 = 0.28209479177387814
+
+
+def vertex_table(path):
+    return plyfile.PlyData.read(str(path))["vertex"].data
+
+
+def test_convert_compressed_to_standard_matches_splat_transform(sage3d, tmp_path):
+    """Our decoding, written as a standard PLY and read by plyfile, equals the tool's decoding."""
+    for stem in ["random_4k_sh3", "random_3k_sh0"]:
+        out = tmp_path / f"{stem}.ply"
+        sage3d("splat", "convert", TESTDATA / f"{stem}.compressed.ply", out)
+        ours = vertex_table(out)
+        tool = vertex_table(TESTDATA / f"{stem}.decompressed.ply")
+        assert len(ours) == len(tool)
+        for name in ["x", "y", "z", "scale_0", "scale_1", "scale_2"]:
+            np.testing.assert_allclose(ours[name], tool[name], atol=1e-4, err_msg=name)
+        for name in ["f_dc_0", "f_dc_1", "f_dc_2"]:
+            np.testing.assert_allclose(ours[name], tool[name], atol=2e-3, err_msg=name)
+        alpha = lambda logit: 1.0 / (1.0 + np.exp(-np.clip(logit, -30, 30)))
+        np.testing.assert_allclose(alpha(ours["opacity"]), alpha(tool["opacity"]), atol=1 / 255)
+        q_ours = np.stack([ours[f"rot_{i}"] for i in range(4)], axis=1)
+        q_tool = np.stack([tool[f"rot_{i}"] for i in range(4)], axis=1)
+        q_tool /= np.linalg.norm(q_tool, axis=1, keepdims=True)
+        assert np.all(np.abs(np.sum(q_ours * q_tool, axis=1)) > 1 - 1e-4)
+        rest = [n for n in tool.dtype.names if n.startswith("f_rest_")]
+        assert len(rest) == len([n for n in ours.dtype.names if n.startswith("f_rest_")])
+        if rest:
+            a = np.stack([ours[n] for n in rest], axis=1)
+            b = np.stack([tool[n] for n in rest], axis=1)
+            tol = np.abs(b).max(axis=1, keepdims=True) / 127 + 1e-5
+            assert np.all(np.abs(a - b) <= tol)
+
+
+def test_convert_preserves_order_standard_to_compressed(sage3d, tmp_path):
+    src = TESTDATA / "random_4k_sh3.ply"
+    packed = tmp_path / "x.compressed.ply"
+    back = tmp_path / "x.ply"
+    sage3d("splat", "convert", src, packed)
+    sage3d("splat", "convert", packed, back)
+    a, b = vertex_table(src), vertex_table(back)
+    extent = max(np.ptp(a["x"]), np.ptp(a["y"]), np.ptp(a["z"]))
+    # Chunks of 256 consecutive Gaussians: 10-11 bit quantisation of each chunk's range.
+    for name in ["x", "y", "z"]:
+        assert np.max(np.abs(a[name] - b[name])) <= extent / 1023
+    data = plyfile.PlyData.read(str(packed))
+    assert [e.name for e in data.elements] == ["chunk", "vertex", "sh"]
+    assert len(data["chunk"].data) == (len(a) + 255) // 256
+    assert len(data["sh"].data.dtype.names) == 45
+
+
+def test_synthetic_scene_files_follow_the_interiorgs_layout(small_scene):
+    data = plyfile.PlyData.read(str(small_scene / "3dgs_compressed.ply"))
+    n = len(data["vertex"].data)
+    assert 55000 <= n <= 65000
+    assert set(data["vertex"].data.dtype.names) == {"packed_position", "packed_rotation", "packed_scale", "packed_color"}
+    assert len(data["sh"].data.dtype.names) >= 9
+    labels = json.loads((small_scene / "labels.json").read_text())
+    assert len(labels) >= 20
+    for entry in labels:
+        assert isinstance(entry["ins_id"], str) and entry["label"]
+        corners = np.array([[c["x"], c["y"], c["z"]] for c in entry["bounding_box"]])
+        assert corners.shape == (8, 3)
+        assert np.allclose(corners[:4, 2], corners[0, 2])
+    structure = json.loads((small_scene / "structure.json").read_text())
+    assert len(structure["rooms"]) >= 4
+    assert {h["type"] for h in structure["holes"]} <= {"DOOR", "WINDOW"}
+    occupancy = json.loads((small_scene / "occupancy.json").read_text())
+    assert occupancy["min"] == occupancy["lower"] and occupancy["scale"] > 0
+
+
+def test_same_seed_same_bytes(sage3d, tmp_path):
+    outs = []
+    for name in ["a", "b"]:
+        out = tmp_path / name
+        sage3d("scene", "synth", "--seed", 11, "--out", out, "--rooms", 3, "--objects", 20, "--gaussians", 20000)
+        outs.append(out)
+    files = sorted(p.relative_to(outs[0]) for p in outs[0].rglob("*") if p.is_file())
+    assert files
+    for f in files:
+        assert (outs[0] / f).read_bytes() == (outs[1] / f).read_bytes(), f
+
+
+def test_info_json(sage3d, small_scene):
+    info = json.loads(sage3d("scene", "info", small_scene, "--json").stdout)
+    s = info["summary"]
+    assert s["objects"] >= 20 and s["gaussians"] > 0 and s["sh_degree"] >= 1
+    assert s["bytes_per_gaussian"] < 100
+    assert "labels.json" in info["files"]
+
+
+def test_bad_input_names_the_file(sage3d, tmp_path):
+    bad = tmp_path / "broken.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nend_header\n\0\0")
+    proc = sage3d("splat", "convert", bad, tmp_path / "out.ply", check=False)
+    assert proc.returncode != 0
+    assert "broken.ply" in proc.stderr and "vertex" in proc.stderr
+    assert not (tmp_path / "out.ply").exists()
