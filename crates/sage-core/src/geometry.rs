@@ -132,6 +132,24 @@ impl Obb {
         l.cmple(self.half_extents + Vec3::splat(margin)).all()
     }
 
+    /// True when the boxes overlap: their height ranges share more than 0.1 mm and their
+    /// footprints come closer than `gap` (separating-axis test). A negative `gap` asks for a
+    /// penetration deeper than `-gap`.
+    pub fn overlaps(&self, other: &Obb, gap: f32) -> bool {
+        if self.min_z() >= other.max_z() - 1e-4 || other.min_z() >= self.max_z() - 1e-4 {
+            return false;
+        }
+        let d = (other.center - self.center).truncate();
+        let (ax, ay) = self.axes();
+        let (bx, by) = other.axes();
+        [ax, ay, bx, by].iter().all(|&n| {
+            let ra = self.half_extents.x * ax.dot(n).abs() + self.half_extents.y * ay.dot(n).abs();
+            let rb =
+                other.half_extents.x * bx.dot(n).abs() + other.half_extents.y * by.dot(n).abs();
+            d.dot(n).abs() < ra + rb + gap
+        })
+    }
+
     /// Reads a box from its 8 corners (InteriorGS `bounding_box`).
     ///
     /// Corners 0–3 must form one horizontal face in cyclic order and corners 4–7 the other face
@@ -312,6 +330,41 @@ mod tests {
                 prop_assert!(b.contains(c, 1e-4));
             }
         }
+    }
+
+    #[test]
+    fn overlap_respects_gap_height_and_rotation() {
+        let a = Obb {
+            center: Vec3::new(0.0, 0.0, 0.5),
+            half_extents: Vec3::new(1.0, 0.5, 0.5),
+            yaw: 0.0,
+        };
+        let b = Obb {
+            center: Vec3::new(2.1, 0.0, 0.5),
+            ..a
+        };
+        assert!(!a.overlaps(&b, 0.0));
+        assert!(a.overlaps(&b, 0.2));
+        let above = Obb {
+            center: Vec3::new(0.0, 0.0, 1.5),
+            ..a
+        };
+        assert!(
+            !a.overlaps(&above, 0.5),
+            "stacked boxes touch, they do not overlap"
+        );
+        // Rotated 45°, the corner of b reaches into a only when close enough.
+        let r = Obb {
+            center: Vec3::new(1.6, 0.0, 0.5),
+            half_extents: Vec3::new(0.5, 0.5, 0.5),
+            yaw: std::f32::consts::FRAC_PI_4,
+        };
+        assert!(a.overlaps(&r, 0.0));
+        let r = Obb {
+            center: Vec3::new(1.8, 0.0, 0.5),
+            ..r
+        };
+        assert!(!a.overlaps(&r, 0.0));
     }
 
     #[test]

@@ -50,6 +50,16 @@ impl TriMesh {
             .sum()
     }
 
+    /// Enclosed volume, m³, for a closed mesh (positive when triangles face outwards).
+    pub fn signed_volume(&self) -> f32 {
+        (0..self.triangles.len())
+            .map(|t| {
+                let [a, b, c] = self.triangle(t);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+
     /// Bounds of the vertices.
     pub fn aabb(&self) -> Aabb {
         Aabb::from_points(self.positions.iter().copied())

@@ -3,10 +3,9 @@
 //! instances) and the occupancy map.
 
 use glam::Vec2;
-use sage_core::Obb;
 use sage_scene::occupancy::{FREE, OCCUPIED, UNKNOWN};
 use sage_scene::synth::{SceneKind, SynthConfig, color_rgb, generate};
-use sage_scene::{DoorState, Hole, HoleKind, Scene, TriMesh};
+use sage_scene::{DoorState, Hole, HoleKind, Scene};
 use std::collections::BTreeSet;
 
 fn config(
@@ -28,31 +27,6 @@ fn config(
 
 fn small(kind: SceneKind, seed: u64) -> Scene {
     generate(&config(kind, seed, 4, 40, 30_000)).unwrap()
-}
-
-/// Signed volume of a closed mesh (positive when its triangles face outwards).
-fn volume(m: &TriMesh) -> f32 {
-    (0..m.triangles.len())
-        .map(|t| {
-            let [a, b, c] = m.triangle(t);
-            a.dot(b.cross(c)) / 6.0
-        })
-        .sum()
-}
-
-/// True when two boxes overlap by more than `tolerance` in every direction.
-fn boxes_overlap(a: &Obb, b: &Obb, tolerance: f32) -> bool {
-    if a.min_z() >= b.max_z() - tolerance || b.min_z() >= a.max_z() - tolerance {
-        return false;
-    }
-    let d = (b.center - a.center).truncate();
-    let (ax, ay) = a.axes();
-    let (bx, by) = b.axes();
-    [ax, ay, bx, by].iter().all(|&n| {
-        let ra = a.half_extents.x * ax.dot(n).abs() + a.half_extents.y * ay.dot(n).abs();
-        let rb = b.half_extents.x * bx.dot(n).abs() + b.half_extents.y * by.dot(n).abs();
-        d.dot(n).abs() < ra + rb - tolerance
-    })
 }
 
 /// The representative of `i`'s group in a union-find forest.
@@ -330,7 +304,7 @@ fn objects_do_not_overlap_and_small_items_stand_on_supports() {
         for (i, a) in objects.iter().enumerate() {
             for b in &objects[i + 1..] {
                 assert!(
-                    !boxes_overlap(&a.obb, &b.obb, 1e-3),
+                    !a.obb.overlaps(&b.obb, -1e-3),
                     "{kind}: {} {} overlaps {} {}",
                     a.category,
                     a.ins_id,
@@ -446,7 +420,7 @@ fn meshes_lie_in_their_boxes_and_furniture_is_concave() {
                 o.ins_id
             );
         }
-        let v = volume(mesh);
+        let v = mesh.signed_volume();
         assert!(v > 0.0, "{} {}: mesh faces inwards", o.category, o.ins_id);
         if ["dining_table", "coffee_table", "chair", "desk", "bookshelf"]
             .contains(&o.category.as_str())

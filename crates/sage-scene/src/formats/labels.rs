@@ -109,19 +109,21 @@ mod tests {
             half_extents: Vec3::new(0.3, 0.2, 0.5),
             yaw: 0.4,
         };
-        let o = Object {
-            obb,
-            ..parse(&one(&serde_json::to_string(&obb_json(&obb)).unwrap()))
-                .unwrap()
-                .0[0]
-                .clone()
-        };
-        let text = to_json(std::slice::from_ref(&o)).to_string();
-        let (back, skipped) = parse(&text).unwrap();
+        let (objects, skipped) = parse(&one(&obb_json(&obb).to_string())).unwrap();
         assert_eq!(skipped, 0);
-        assert_eq!(back[0].ins_id, "7");
+        let (back, _) = parse(&to_json(&objects).to_string()).unwrap();
+        assert_eq!(
+            (back[0].ins_id.as_str(), back[0].label.as_str()),
+            ("7", "Dining Chair")
+        );
         assert_eq!(back[0].category, "dining_chair");
         assert!((back[0].obb.center - obb.center).length() < 1e-4);
+        assert!(
+            (back[0].obb.half_extents - obb.half_extents)
+                .abs()
+                .max_element()
+                < 1e-4
+        );
     }
 
     fn obb_json(o: &Obb) -> Value {

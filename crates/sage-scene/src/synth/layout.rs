@@ -795,42 +795,24 @@ fn place_door(
 /// The sides of room `r` on the outside walls.
 fn outside_sides(layout: &Layout, r: usize) -> Vec<Stretch> {
     let (rect, f) = (layout.rooms[r].rect, layout.footprint);
-    let close = |a: f32, b: f32| (a - b).abs() < 1e-3;
     let (along_x, along_y) = ([rect.min.x, rect.max.x], [rect.min.y, rect.max.y]);
-    let mut sides = Vec::new();
-    if close(rect.min.y, f.min.y) {
-        sides.push(Stretch {
-            axis: Axis::X,
-            line: f.min.y,
-            span: along_x,
-            rooms: [None, Some(r)],
-        });
-    }
-    if close(rect.max.y, f.max.y) {
-        sides.push(Stretch {
-            axis: Axis::X,
-            line: f.max.y,
-            span: along_x,
-            rooms: [Some(r), None],
-        });
-    }
-    if close(rect.min.x, f.min.x) {
-        sides.push(Stretch {
-            axis: Axis::Y,
-            line: f.min.x,
-            span: along_y,
-            rooms: [None, Some(r)],
-        });
-    }
-    if close(rect.max.x, f.max.x) {
-        sides.push(Stretch {
-            axis: Axis::Y,
-            line: f.max.x,
-            span: along_y,
-            rooms: [Some(r), None],
-        });
-    }
-    sides
+    // (room edge, footprint edge, wall axis, span, room below / above the line)
+    let candidates = [
+        (rect.min.y, f.min.y, Axis::X, along_x, [None, Some(r)]),
+        (rect.max.y, f.max.y, Axis::X, along_x, [Some(r), None]),
+        (rect.min.x, f.min.x, Axis::Y, along_y, [None, Some(r)]),
+        (rect.max.x, f.max.x, Axis::Y, along_y, [Some(r), None]),
+    ];
+    candidates
+        .into_iter()
+        .filter(|(edge, outer, ..)| (edge - outer).abs() < 1e-3)
+        .map(|(_, line, axis, span, rooms)| Stretch {
+            axis,
+            line,
+            span,
+            rooms,
+        })
+        .collect()
 }
 
 /// A front door on the longest outside side of the main room (or of the largest room that has one).

@@ -35,22 +35,6 @@ const GAP: f32 = 0.02;
 /// The look of a category without looks (the catalogue has none such; see its tests).
 const FALLBACK_LOOK: (Material, &[&str]) = (Material::Plastic, &["gray"]);
 
-/// True when the two boxes overlap by more than `gap` horizontally and at all vertically
-/// (boxes that only touch, like a cup on a table, do not overlap).
-fn overlaps(a: &Obb, b: &Obb, gap: f32) -> bool {
-    if a.min_z() >= b.max_z() - 1e-4 || b.min_z() >= a.max_z() - 1e-4 {
-        return false;
-    }
-    let d = (b.center - a.center).truncate();
-    let (ax, ay) = a.axes();
-    let (bx, by) = b.axes();
-    [ax, ay, bx, by].iter().all(|&n| {
-        let ra = a.half_extents.x * ax.dot(n).abs() + a.half_extents.y * ay.dot(n).abs();
-        let rb = b.half_extents.x * bx.dot(n).abs() + b.half_extents.y * by.dot(n).abs();
-        d.dot(n).abs() < ra + rb + gap
-    })
-}
-
 /// The box of a room (or any rectangle) from the floor to `height`.
 fn rect_box(r: Rect, height: f32) -> Obb {
     let c = r.center();
@@ -100,7 +84,7 @@ pub(crate) fn furnish(
             .iter()
             .map(|o| clearance(o, layout.height))
             .chain(fixed.iter().map(|i| i.obb))
-            .filter(|b| overlaps(b, &room_box, 0.0))
+            .filter(|b| b.overlaps(&room_box, 0.0))
             .collect();
         let mut state = RoomState {
             inner: room.inner,
@@ -206,7 +190,7 @@ impl RoomState {
             .blockers
             .iter()
             .chain(self.placed.iter().map(|i| &i.obb))
-            .all(|o| !overlaps(b, o, gap));
+            .all(|o| !b.overlaps(o, gap));
         let spaced = spec.spacing <= 0.0
             || self
                 .placed

@@ -191,15 +191,6 @@ pub(crate) fn first_use_order(mesh: &TriMesh) -> TriMesh {
 mod tests {
     use super::*;
 
-    fn volume(m: &TriMesh) -> f32 {
-        (0..m.triangles.len())
-            .map(|t| {
-                let [a, b, c] = m.triangle(t);
-                a.dot(b.cross(c)) / 6.0
-            })
-            .sum()
-    }
-
     #[test]
     fn first_use_order_keeps_the_shape() {
         let b = cuboid(Vec3::ZERO, Vec3::ONE);
@@ -214,17 +205,17 @@ mod tests {
     #[test]
     fn primitives_are_closed_and_outward() {
         let b = cuboid(Vec3::new(1.0, 2.0, 3.0), Vec3::new(2.0, 4.0, 6.0));
-        assert!((volume(&b) - 6.0).abs() < 1e-4);
+        assert!((b.signed_volume() - 6.0).abs() < 1e-4);
         let c = cylinder(Vec3::new(3.0, -1.0, 0.5), 0.5, 2.0);
         let exact = std::f32::consts::PI * 0.25 * 2.0;
-        assert!(volume(&c) > 0.9 * exact && volume(&c) < exact);
+        assert!(c.signed_volume() > 0.9 * exact && c.signed_volume() < exact);
         let cone = lathe(Vec3::ZERO, &[(1.0, 0.0), (0.0, 3.0)], 32);
-        assert!((volume(&cone) - std::f32::consts::PI).abs() < 0.05);
+        assert!((cone.signed_volume() - std::f32::consts::PI).abs() < 0.05);
         let e = ellipsoid(Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, 2.0, 0.5));
         let exact = 4.0 / 3.0 * std::f32::consts::PI;
-        assert!(volume(&e) > 0.85 * exact && volume(&e) < exact);
+        assert!(e.signed_volume() > 0.85 * exact && e.signed_volume() < exact);
         let r = rod(Vec3::new(0.0, 0.0, 1.0), Vec3::new(2.0, 0.0, 1.0), 0.1);
-        assert!(volume(&r) > 0.0);
+        assert!(r.signed_volume() > 0.0);
         assert!((r.aabb().size().x - 2.0).abs() < 1e-4);
     }
 }
