@@ -8,6 +8,7 @@ use crate::mesh::TriMesh;
 use crate::object::Object;
 use crate::occupancy::OccupancyMap;
 use crate::ply::{self, SplatLayout};
+use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result, ResultExt};
 use std::path::Path;
 
@@ -33,6 +34,9 @@ pub struct Scene {
 /// How far outside every room polygon an object's centre may lie and still be given the nearest
 /// room (metres): windows and doors sit on the walls that bound the rooms.
 pub const ROOM_SNAP: f32 = 0.5;
+
+/// Mesh file extensions looked for in `meshes/`, in this order.
+pub const MESH_EXTENSIONS: [&str; 4] = ["obj", "glb", "gltf", "ply"];
 
 /// What [`Scene::load`] found in a folder.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -164,10 +168,13 @@ impl Scene {
                 None
             };
         let objects_path = dir.join(files::OBJECTS);
+        let mut mesh_files = vec![None; objects.len()];
         if objects_path.is_file() {
             note(files::OBJECTS, true);
-            let unmatched = objects_json::apply(&read_text(&objects_path)?, &mut objects)
+            let applied = objects_json::apply(&read_text(&objects_path)?, &mut objects)
                 .in_file(&objects_path)?;
+            mesh_files = applied.mesh_files;
+            let unmatched = applied.unmatched;
             if unmatched > 0 {
                 report.warnings.push(format!(
                     "{}: {unmatched} entries name no object of labels.json",
@@ -176,24 +183,42 @@ impl Scene {
             }
         }
         let mesh_dir = dir.join(files::MESHES);
-        let mut structure_mesh = None;
         if mesh_dir.is_dir() {
             note(files::MESHES, true);
-            for o in &mut objects {
-                if let Some(p) = ["obj", "glb", "gltf", "ply"]
+        }
+        let meshes = objects
+            .par_iter()
+            .zip(&mesh_files)
+            .map(|(o, named)| match named {
+                Some(rel) => {
+                    let p = dir.join(rel);
+                    if !p.is_file() {
+                        return Err(Error::format(
+                            format!("objects[ins_id {}].mesh", o.ins_id),
+                            format!("names {rel}, which does not exist"),
+                        )
+                        .in_file(&objects_path));
+                    }
+                    TriMesh::load(&p).map(Some)
+                }
+                None => MESH_EXTENSIONS
                     .iter()
                     .map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id)))
                     .find(|p| p.is_file())
-                {
-                    o.mesh = Some(TriMesh::load(&p)?);
-                    report.meshes += 1;
-                }
-            }
-            let sp = mesh_dir.join(files::STRUCTURE_MESH);
-            if sp.is_file() {
-                structure_mesh = Some(TriMesh::load(&sp)?);
-            }
+                    .map(|p| TriMesh::load(&p))
+                    .transpose(),
+            })
+            .collect::<Result<Vec<_>>>()?;
+        for (o, m) in objects.iter_mut().zip(meshes) {
+            report.meshes += usize::from(m.is_some());
+            o.mesh = m;
         }
+        let structure_path = mesh_dir.join(files::STRUCTURE_MESH);
+        let structure_mesh = if structure_path.is_file() {
+            Some(TriMesh::load(&structure_path)?)
+        } else {
+            None
+        };
         let name = dir
             .canonicalize()
             .ok()

@@ -109,3 +109,41 @@ fn not_a_folder_is_an_error() {
     let e = Scene::load(std::path::Path::new("no/such/scene")).unwrap_err();
     assert!(e.to_string().contains("no/such/scene"));
 }
+
+#[test]
+fn objects_json_mesh_paths_are_honoured_and_checked() {
+    let scene = generate(&small()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+    let first = &scene.objects[0].ins_id;
+    std::fs::create_dir(dir.path().join("collision")).unwrap();
+    std::fs::rename(
+        dir.path().join(format!("meshes/{first}.obj")),
+        dir.path().join("collision/first.obj"),
+    )
+    .unwrap();
+    let objects_path = dir.path().join("objects.json");
+    let text = std::fs::read_to_string(&objects_path).unwrap();
+    let moved = text.replacen(
+        &format!("\"meshes/{first}.obj\""),
+        "\"collision/first.obj\"",
+        1,
+    );
+    assert_ne!(moved, text);
+    std::fs::write(&objects_path, &moved).unwrap();
+    let (back, _) = Scene::load(dir.path()).unwrap();
+    assert_eq!(back.objects[0].mesh, scene.objects[0].mesh);
+
+    std::fs::write(
+        &objects_path,
+        moved.replace("collision/first.obj", "collision/gone.obj"),
+    )
+    .unwrap();
+    let e = Scene::load(dir.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("objects.json")
+            && e.contains(&format!("objects[ins_id {first}].mesh"))
+            && e.contains("collision/gone.obj"),
+        "{e}"
+    );
+}

@@ -64,9 +64,17 @@ struct File {
     objects: Vec<Entry>,
 }
 
-/// Applies `objects.json` to objects read from `labels.json`; returns how many entries matched
-/// no object.
-pub fn apply(text: &str, objects: &mut [Object]) -> Result<usize> {
+/// What applying `objects.json` found beyond the attributes it set.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Applied {
+    /// Entries whose `ins_id` names no object.
+    pub unmatched: usize,
+    /// Per object (same index): the mesh file the entry names, relative to the scene folder.
+    pub mesh_files: Vec<Option<String>>,
+}
+
+/// Applies `objects.json` to objects read from `labels.json`.
+pub fn apply(text: &str, objects: &mut [Object]) -> Result<Applied> {
     let value = parse_text(text)?;
     let file: File =
         serde_json::from_value(value).map_err(|e| Error::format("objects", e.to_string()))?;
@@ -76,12 +84,17 @@ pub fn apply(text: &str, objects: &mut [Object]) -> Result<usize> {
             format!("version {v} is newer than this reader ({VERSION})"),
         ));
     }
-    let mut unmatched = 0;
+    let mut applied = Applied {
+        unmatched: 0,
+        mesh_files: vec![None; objects.len()],
+    };
     for (i, e) in file.objects.into_iter().enumerate() {
-        let Some(o) = objects.iter_mut().find(|o| o.ins_id == e.ins_id) else {
-            unmatched += 1;
+        let Some(k) = objects.iter().position(|o| o.ins_id == e.ins_id) else {
+            applied.unmatched += 1;
             continue;
         };
+        let o = &mut objects[k];
+        applied.mesh_files[k] = e.mesh;
         if let Some(c) = e.category {
             o.category = c;
         }
@@ -106,7 +119,7 @@ pub fn apply(text: &str, objects: &mut [Object]) -> Result<usize> {
             };
         }
     }
-    Ok(unmatched)
+    Ok(applied)
 }
 
 /// The objects' extras as `objects.json`.
