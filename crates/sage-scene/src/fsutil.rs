@@ -40,3 +40,25 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
         w.write_all(b"\n")
     })
 }
+
+/// Writes an 8- or 16-bit PNG (atomically). `data` holds the rows top to bottom, samples
+/// big-endian for 16 bits, as the PNG format stores them.
+pub fn write_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+) -> Result<()> {
+    write_atomic(path, |w| {
+        let mut enc = png::Encoder::new(w, width as u32, height as u32);
+        enc.set_color(color);
+        enc.set_depth(depth);
+        let mut writer = enc.write_header().map_err(std::io::Error::other)?;
+        writer
+            .write_image_data(data)
+            .map_err(std::io::Error::other)?;
+        writer.finish().map_err(std::io::Error::other)
+    })
+}

@@ -112,16 +112,14 @@ impl OccupancyMap {
             "lower": self.lower.to_array(), "upper": self.upper.to_array(),
         });
         let png_path = dir.join("occupancy.png");
-        crate::fsutil::write_atomic(&png_path, |w| {
-            let mut enc = png::Encoder::new(w, self.width as u32, self.height as u32);
-            enc.set_color(png::ColorType::Grayscale);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut writer = enc.write_header().map_err(std::io::Error::other)?;
-            writer
-                .write_image_data(&self.cells)
-                .map_err(std::io::Error::other)?;
-            writer.finish().map_err(std::io::Error::other)
-        })?;
+        crate::fsutil::write_png(
+            &png_path,
+            self.width,
+            self.height,
+            png::ColorType::Grayscale,
+            png::BitDepth::Eight,
+            &self.cells,
+        )?;
         crate::fsutil::write_json(&dir.join("occupancy.json"), &placement)
     }
 }

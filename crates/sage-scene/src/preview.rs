@@ -68,16 +68,14 @@ pub fn plan_view(gaussians: &Gaussians, metres_per_pixel: f32, cut_z: f32) -> Rg
 impl RgbImage {
     /// Writes the image as PNG (atomically).
     pub fn save_png(&self, path: &std::path::Path) -> sage_core::Result<()> {
-        crate::fsutil::write_atomic(path, |w| {
-            let mut enc = png::Encoder::new(w, self.width as u32, self.height as u32);
-            enc.set_color(png::ColorType::Rgb);
-            enc.set_depth(png::BitDepth::Eight);
-            let mut writer = enc.write_header().map_err(std::io::Error::other)?;
-            writer
-                .write_image_data(&self.pixels)
-                .map_err(std::io::Error::other)?;
-            writer.finish().map_err(std::io::Error::other)
-        })
+        crate::fsutil::write_png(
+            path,
+            self.width,
+            self.height,
+            png::ColorType::Rgb,
+            png::BitDepth::Eight,
+            &self.pixels,
+        )
     }
 }
 
