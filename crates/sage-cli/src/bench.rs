@@ -14,6 +14,25 @@ pub enum BenchCommand {
     /// Without --input, a synthetic office of --gaussians Gaussians (SH degree 1) is written
     /// first; use --sh3 to re-encode it at SH degree 3 (the memory target's case).
     Load(LoadArgs),
+    /// Render a ≥1M-Gaussian synthetic home from cameras inside its largest room at 224×224
+    /// and 640×480; report the median frame time and its breakdown.
+    Render(RenderBenchArgs),
+}
+
+#[derive(Args)]
+pub struct RenderBenchArgs {
+    /// Scene folder to render (default: generate a 16-room home of --gaussians).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Gaussians in the generated scene.
+    #[arg(long, default_value_t = 1_000_000)]
+    gaussians: usize,
+    /// Frames per resolution (headings spread over a full turn).
+    #[arg(long, default_value_t = 24)]
+    frames: usize,
+    /// Resolutions as WxH.
+    #[arg(long, value_delimiter = ',', default_value = "224x224,640x480")]
+    sizes: Vec<String>,
 }
 
 #[derive(Args)]
@@ -35,6 +54,7 @@ pub struct LoadArgs {
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Load(a) => load(a),
+        BenchCommand::Render(a) => render(a),
     }
 }
 
@@ -162,4 +182,116 @@ fn to_sh3(g: &sage_scene::Gaussians) -> Result<sage_scene::Gaussians> {
         })
         .collect();
     sage_scene::Gaussians::from_gaussians(&items, 3)
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| Error::invalid(format!("size '{s}' is not WxH")))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| Error::invalid(format!("size '{s}' is not WxH")))
+    };
+    Ok((parse(w)?, parse(h)?))
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn render(a: RenderBenchArgs) -> Result<()> {
+    use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
+    let scene = match &a.scene {
+        Some(dir) => sage_scene::Scene::load(dir)?.0,
+        None => {
+            eprintln!("generating a {}-Gaussian home …", a.gaussians);
+            let config = SynthConfig {
+                seed: 1,
+                kind: SceneKind::Home,
+                rooms: 16,
+                objects: 400,
+                gaussians: a.gaussians,
+                ..SynthConfig::default()
+            };
+            sage_scene::synth::generate(&config)?
+        }
+    };
+    let start = Instant::now();
+    let mut renderer = Renderer::new(&scene.gaussians);
+    let index_ms = start.elapsed().as_secs_f64() * 1e3;
+    let eye = crate::render_cmd::default_eye(&scene);
+    println!("machine          {}", machine::describe());
+    println!(
+        "scene            {} Gaussians (SH degree {}), camera at ({:.2}, {:.2}, {:.2}) in the largest room",
+        scene.gaussians.len(),
+        scene.gaussians.sh_degree(),
+        eye.x,
+        eye.y,
+        eye.z
+    );
+    println!(
+        "index            built in {index_ms:.0} ms, {:.1} bytes/Gaussian",
+        renderer.index().heap_bytes() as f64 / scene.gaussians.len().max(1) as f64
+    );
+    let options = RenderOptions::default();
+    for size in &a.sizes {
+        let (w, h) = parse_size(size)?;
+        let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
+        let frames = a.frames.max(1);
+        let cams: Vec<Camera> = (0..frames)
+            .map(|f| {
+                Camera::from_yaw_pitch(
+                    intrinsics,
+                    eye,
+                    std::f32::consts::TAU * f as f32 / frames as f32,
+                    -0.1,
+                )
+            })
+            .collect();
+        // One warm-up frame sizes the reusable buffers.
+        renderer.render(
+            &scene.gaussians,
+            &scene.instances.category_ids,
+            &cams[0],
+            &options,
+        )?;
+        let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames);
+        for cam in &cams {
+            let start = Instant::now();
+            renderer.render(
+                &scene.gaussians,
+                &scene.instances.category_ids,
+                cam,
+                &options,
+            )?;
+            let total = start.elapsed().as_secs_f64() * 1e3;
+            let s = renderer.stats();
+            rows.push([
+                total,
+                s.cull_ms,
+                s.project_ms,
+                s.sort_ms,
+                s.raster_ms,
+                s.projected as f64,
+                s.splats as f64,
+            ]);
+        }
+        let col = |k: usize| median(rows.iter().map(|r| r[k]).collect());
+        let worst = rows.iter().map(|r| r[0]).fold(0.0, f64::max);
+        println!(
+            "{w}x{h:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians projected, {:.0} splats",
+            col(0),
+            worst,
+            1e3 / col(0),
+            col(1),
+            col(2),
+            col(3),
+            col(4),
+            col(5),
+            col(6)
+        );
+    }
+    Ok(())
 }

@@ -5,6 +5,7 @@
 
 mod bench;
 mod machine;
+mod render_cmd;
 mod scene_cmd;
 mod splat_cmd;
 
@@ -29,6 +30,8 @@ enum Command {
     /// Scene folders: synthesise one, describe one.
     #[command(subcommand)]
     Scene(scene_cmd::SceneCommand),
+    /// Render RGB, depth, instance and semantic images of a scene from a camera.
+    Render(render_cmd::RenderArgs),
     /// 3DGS PLY files: convert between the standard and compressed layouts.
     #[command(subcommand)]
     Splat(splat_cmd::SplatCommand),
@@ -50,6 +53,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(a) => scene_cmd::demo(a),
         Command::Scene(c) => scene_cmd::run(c),
+        Command::Render(a) => render_cmd::run(a),
         Command::Splat(c) => splat_cmd::run(c),
         Command::Bench(c) => bench::run(c),
     };

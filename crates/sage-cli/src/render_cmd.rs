@@ -1,0 +1,305 @@
+//! `sage3d render`: images of a scene from a camera — RGB, depth, instance and semantic, with a
+//! legend — and an optional turntable.
+
+use clap::Args;
+use glam::Vec3;
+use sage_core::{Error, Result};
+use sage_scene::fsutil::{write_json, write_npy_f32, write_png};
+use sage_scene::{InstanceKind, Scene};
+use sage_splat::{Camera, CameraSpec, Intrinsics, RenderOptions, RenderOutput, Renderer};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Camera JSON: width, height, hfov_deg (or fx, fy, cx, cy), position with yaw_deg and
+    /// pitch_deg (or c2w: 4x4, row-major, OpenCV axes), near, far. Without it the camera
+    /// stands at 1.2 m in the middle of the largest room, set by the flags below.
+    #[arg(long)]
+    camera: Option<PathBuf>,
+    /// Image width (without --camera).
+    #[arg(long, default_value_t = 640)]
+    width: u32,
+    /// Image height (without --camera).
+    #[arg(long, default_value_t = 480)]
+    height: u32,
+    /// Horizontal field of view, degrees (without --camera).
+    #[arg(long, default_value_t = 90.0)]
+    hfov: f32,
+    /// Camera position x,y,z in metres (without --camera; default: largest room, 1.2 m).
+    #[arg(long, value_delimiter = ',', num_args = 3)]
+    position: Option<Vec<f32>>,
+    /// Heading, degrees (without --camera).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    yaw: f32,
+    /// Pitch, degrees, up positive (without --camera).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pitch: f32,
+    /// Background colour r,g,b in 0–1.
+    #[arg(long, value_delimiter = ',', num_args = 3, default_value = "0,0,0")]
+    background: Vec<f32>,
+    /// Also render a full turn of N frames about the camera position: turntable/rgb_NNN.png and
+    /// turntable.gif.
+    #[arg(long)]
+    turntable: Option<usize>,
+}
+
+/// The default eye: the middle of the largest room at 1.2 m, else the middle of the Gaussians.
+pub fn default_eye(scene: &Scene) -> Vec3 {
+    let room = scene
+        .floorplan
+        .rooms
+        .iter()
+        .max_by(|a, b| a.profile.area().total_cmp(&b.profile.area()));
+    match room {
+        Some(r) => r.profile.centroid().extend(1.2),
+        None => {
+            let b = scene.gaussians.bounds();
+            if b.is_empty() {
+                Vec3::new(0.0, 0.0, 1.2)
+            } else {
+                (b.min + b.max) * 0.5
+            }
+        }
+    }
+}
+
+fn camera_from_args(a: &RenderArgs, scene: &Scene) -> Result<Camera> {
+    if let Some(p) = &a.camera {
+        let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
+        return CameraSpec::parse(&text)
+            .and_then(|s| s.camera())
+            .map_err(|e| e.in_file(p));
+    }
+    let eye = match &a.position {
+        Some(v) => Vec3::new(v[0], v[1], v[2]),
+        None => default_eye(scene),
+    };
+    let camera = Camera::from_yaw_pitch(
+        Intrinsics::from_hfov(a.width, a.height, a.hfov)?,
+        eye,
+        a.yaw.to_radians(),
+        a.pitch.to_radians(),
+    );
+    camera.validate()?;
+    Ok(camera)
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    let (scene, _) = Scene::load(&a.scene)?;
+    let camera = camera_from_args(&a, &scene)?;
+    let options = RenderOptions {
+        background: [a.background[0], a.background[1], a.background[2]],
+    };
+    std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
+    let mut renderer = Renderer::new(&scene.gaussians);
+    let image = renderer.render(
+        &scene.gaussians,
+        &scene.instances.category_ids,
+        &camera,
+        &options,
+    )?;
+    let stats = renderer.stats();
+    write_images(&a.out, &image)?;
+    write_legend(&a.out.join("legend.json"), &scene, &image)?;
+    let record = serde_json::json!({
+        "camera": {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy,
+                   "c2w_row_major": camera.c2w().transpose().to_cols_array_2d(), "near": camera.near, "far": camera.far},
+        "files": {
+            "rgb.png": "colour, 8-bit",
+            "depth.npy": "expected z-depth, float32 metres along the optical axis (sum w z / sum w); 0 where nothing was hit",
+            "depth_median.npy": "median z-depth, float32 metres: z where transmittance first drops to 0.5; 0 where alpha < 0.5",
+            "alpha.npy": "accumulated alpha, float32",
+            "depth.png": "expected z-depth, 16-bit millimetres (clamped at 65.535 m)",
+            "instance.png": "instance of the largest blending weight, colour-coded (legend.json)",
+            "semantic.png": "category of that instance, colour-coded (legend.json)",
+        },
+        "stats_ms": {"cull": stats.cull_ms, "project": stats.project_ms, "sort": stats.sort_ms, "raster": stats.raster_ms},
+        "splats": stats.splats,
+    });
+    write_json(&a.out.join("render.json"), &record)?;
+    if let Some(n) = a.turntable {
+        write_turntable(&a.out, &mut renderer, &scene, &camera, &options, n)?;
+    }
+    eprintln!(
+        "rendered {}x{} in {:.1} ms ({} splats) -> {}",
+        camera.width,
+        camera.height,
+        stats.cull_ms + stats.project_ms + stats.sort_ms + stats.raster_ms,
+        stats.splats,
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// A distinct, stable colour per id (golden-ratio hues); id 0 is black.
+pub fn id_color(id: u32) -> [u8; 3] {
+    if id == 0 {
+        return [0, 0, 0];
+    }
+    let h = (id as f32 * 0.618_034).fract() * 6.0;
+    let (s, v) = (0.65, 0.95);
+    let f = h.fract();
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    let rgb = match h as u32 {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    };
+    rgb.map(|c| (c * 255.0).round() as u8)
+}
+
+fn colorize(ids: impl Iterator<Item = u32>) -> Vec<u8> {
+    ids.flat_map(id_color).collect()
+}
+
+fn write_images(dir: &Path, image: &RenderOutput) -> Result<()> {
+    let (w, h) = (image.width, image.height);
+    write_png(
+        &dir.join("rgb.png"),
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &image.rgb,
+    )?;
+    write_npy_f32(&dir.join("depth.npy"), &[h, w], &image.depth_expected)?;
+    write_npy_f32(&dir.join("depth_median.npy"), &[h, w], &image.depth_median)?;
+    write_npy_f32(&dir.join("alpha.npy"), &[h, w], &image.alpha)?;
+    let mm: Vec<u8> = image
+        .depth_expected
+        .iter()
+        .flat_map(|d| ((d * 1000.0).round().clamp(0.0, 65535.0) as u16).to_be_bytes())
+        .collect();
+    write_png(
+        &dir.join("depth.png"),
+        w,
+        h,
+        png::ColorType::Grayscale,
+        png::BitDepth::Sixteen,
+        &mm,
+    )?;
+    write_png(
+        &dir.join("instance.png"),
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &colorize(image.instance.iter().copied()),
+    )?;
+    write_png(
+        &dir.join("semantic.png"),
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &colorize(image.semantic.iter().map(|&c| c as u32)),
+    )
+}
+
+fn instance_name(scene: &Scene, id: u32) -> String {
+    match scene.instances.kinds.get(id as usize) {
+        Some(InstanceKind::Object(i)) => scene.objects[*i].ins_id.clone(),
+        Some(InstanceKind::Wall(i)) => format!("wall_{i}"),
+        Some(InstanceKind::Floor(r)) => format!("floor_{r}"),
+        Some(InstanceKind::Ceiling(r)) => format!("ceiling_{r}"),
+        _ => "none".to_string(),
+    }
+}
+
+/// The ids present in the image, with names, categories, colours and pixel counts.
+fn write_legend(path: &Path, scene: &Scene, image: &RenderOutput) -> Result<()> {
+    let mut instances: BTreeMap<u32, usize> = BTreeMap::new();
+    for &i in &image.instance {
+        *instances.entry(i).or_insert(0) += 1;
+    }
+    let mut categories: BTreeMap<u16, usize> = BTreeMap::new();
+    for &c in &image.semantic {
+        *categories.entry(c).or_insert(0) += 1;
+    }
+    let legend = serde_json::json!({
+        "instances": instances.iter().map(|(&id, &pixels)| serde_json::json!({
+            "id": id, "name": instance_name(scene, id), "category": scene.instances.category_name(sage_core::InstanceId(id)),
+            "color": id_color(id), "pixels": pixels,
+        })).collect::<Vec<_>>(),
+        "categories": categories.iter().map(|(&id, &pixels)| serde_json::json!({
+            "id": id, "name": scene.instances.categories.get(id as usize).cloned().unwrap_or_default(),
+            "color": id_color(id as u32), "pixels": pixels,
+        })).collect::<Vec<_>>(),
+    });
+    write_json(path, &legend)
+}
+
+fn write_turntable(
+    dir: &Path,
+    renderer: &mut Renderer,
+    scene: &Scene,
+    camera: &Camera,
+    options: &RenderOptions,
+    frames: usize,
+) -> Result<()> {
+    if frames == 0 || frames > 3600 {
+        return Err(Error::invalid(format!(
+            "--turntable must be 1-3600 frames, got {frames}"
+        )));
+    }
+    let folder = dir.join("turntable");
+    std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
+    let forward = camera.rotation.z_axis;
+    let (yaw0, pitch) = (
+        forward.y.atan2(forward.x),
+        forward.z.clamp(-1.0, 1.0).asin(),
+    );
+    let intrinsics = Intrinsics {
+        width: camera.width,
+        height: camera.height,
+        fx: camera.fx,
+        fy: camera.fy,
+        cx: camera.cx,
+        cy: camera.cy,
+    };
+    let mut images = Vec::with_capacity(frames);
+    for f in 0..frames {
+        let yaw = yaw0 + std::f32::consts::TAU * f as f32 / frames as f32;
+        let cam = Camera {
+            near: camera.near,
+            far: camera.far,
+            ..Camera::from_yaw_pitch(intrinsics, camera.position, yaw, pitch)
+        };
+        let image = renderer.render(
+            &scene.gaussians,
+            &scene.instances.category_ids,
+            &cam,
+            options,
+        )?;
+        write_png(
+            &folder.join(format!("rgb_{f:03}.png")),
+            image.width,
+            image.height,
+            png::ColorType::Rgb,
+            png::BitDepth::Eight,
+            &image.rgb,
+        )?;
+        images.push(image.rgb);
+    }
+    let (w, h) = (camera.width as u16, camera.height as u16);
+    sage_scene::fsutil::write_atomic(&dir.join("turntable.gif"), |out| {
+        let mut enc = gif::Encoder::new(out, w, h, &[]).map_err(std::io::Error::other)?;
+        enc.set_repeat(gif::Repeat::Infinite)
+            .map_err(std::io::Error::other)?;
+        for rgb in &images {
+            let mut frame = gif::Frame::from_rgb_speed(w, h, rgb, 10);
+            frame.delay = 8;
+            enc.write_frame(&frame).map_err(std::io::Error::other)?;
+        }
+        Ok(())
+    })
+}

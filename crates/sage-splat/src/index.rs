@@ -1,0 +1,156 @@
+//! The spatial index that makes large scenes cheap: Gaussians grouped, in Morton order, into
+//! chunks of 256 whose bounds (centres grown by the largest splat reach) are frustum-culled.
+
+use crate::camera::Camera;
+use glam::Vec3;
+use rayon::prelude::*;
+use sage_core::Aabb;
+use sage_scene::Gaussians;
+
+/// Gaussians per chunk.
+pub const CHUNK: usize = 256;
+
+/// How far, in standard deviations, a Gaussian of opacity 1 stays above alpha 1/255:
+/// sqrt(2 ln 255).
+pub const MAX_SIGMAS: f32 = 3.33;
+
+/// Chunks of spatially close Gaussians with conservative bounds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SplatIndex {
+    /// Gaussian indices in Morton order; chunk `c` is `order[c*256 .. (c+1)*256]`.
+    pub order: Vec<u32>,
+    /// Per chunk: the bounds of everything its Gaussians can touch.
+    pub bounds: Vec<Aabb>,
+}
+
+fn spread_bits(v: u32) -> u64 {
+    let mut x = (v & 0x1f_ffff) as u64;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    (x | x << 2) & 0x1249_2492_4924_9249
+}
+
+fn morton(p: Vec3, lo: Vec3, inv_size: Vec3) -> u64 {
+    let q = ((p - lo) * inv_size).clamp(Vec3::ZERO, Vec3::ONE) * 2_097_151.0;
+    spread_bits(q.x as u32) | spread_bits(q.y as u32) << 1 | spread_bits(q.z as u32) << 2
+}
+
+impl SplatIndex {
+    /// Builds the index of `g` (deterministic: ties in Morton code keep index order).
+    pub fn build(g: &Gaussians) -> SplatIndex {
+        let bounds = g.bounds();
+        let (lo, size) = if bounds.is_empty() {
+            (Vec3::ZERO, Vec3::ONE)
+        } else {
+            (bounds.min, bounds.size().max(Vec3::splat(1e-6)))
+        };
+        let inv = Vec3::ONE / size;
+        let mut keyed: Vec<(u64, u32)> = (0..g.len() as u32)
+            .into_par_iter()
+            .map(|i| {
+                (
+                    morton(Vec3::from_array(g.positions[i as usize]), lo, inv),
+                    i,
+                )
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
+        let bounds = order
+            .par_chunks(CHUNK)
+            .map(|ids| {
+                ids.iter().fold(Aabb::EMPTY, |b, &i| {
+                    let i = i as usize;
+                    let reach = g.log_scales[i]
+                        .iter()
+                        .fold(f32::NEG_INFINITY, |m, s| m.max(*s))
+                        .exp()
+                        * MAX_SIGMAS;
+                    let p = Vec3::from_array(g.positions[i]);
+                    b.grow(p - Vec3::splat(reach)).grow(p + Vec3::splat(reach))
+                })
+            })
+            .collect();
+        SplatIndex { order, bounds }
+    }
+
+    /// Heap bytes of the index.
+    pub fn heap_bytes(&self) -> usize {
+        std::mem::size_of_val(self.order.as_slice()) + std::mem::size_of_val(self.bounds.as_slice())
+    }
+
+    /// Appends to `out` the chunks whose bounds meet the camera's view volume.
+    pub fn visible_chunks(&self, camera: &Camera, out: &mut Vec<u32>) {
+        let planes = frustum_planes(camera);
+        out.clear();
+        out.extend(
+            self.bounds
+                .iter()
+                .enumerate()
+                .filter(|(_, b)| {
+                    !b.is_empty() && planes.iter().all(|(n, d)| box_reaches(b, *n, *d))
+                })
+                .map(|(c, _)| c as u32),
+        );
+    }
+}
+
+/// True when some point of `b` satisfies n·p ≥ d.
+fn box_reaches(b: &Aabb, n: Vec3, d: f32) -> bool {
+    let far_corner = Vec3::select(n.cmpge(Vec3::ZERO), b.max, b.min);
+    n.dot(far_corner) >= d
+}
+
+/// Inward planes (n, d) with n·p ≥ d inside: near, far and the four sides, the sides widened
+/// by the 1.3× Jacobian clamp margin of the projection so no contributing splat is lost.
+fn frustum_planes(c: &Camera) -> [(Vec3, f32); 6] {
+    let (right, down, fwd) = (c.rotation.x_axis, c.rotation.y_axis, c.rotation.z_axis);
+    let tan_l = (c.cx / c.fx) * 1.3 + 0.05;
+    let tan_r = ((c.width as f32 - c.cx) / c.fx) * 1.3 + 0.05;
+    let tan_t = (c.cy / c.fy) * 1.3 + 0.05;
+    let tan_b = ((c.height as f32 - c.cy) / c.fy) * 1.3 + 0.05;
+    let side = |n: Vec3| (n.normalize(), n.normalize().dot(c.position));
+    [
+        (fwd, fwd.dot(c.position) + c.near),
+        (-fwd, -fwd.dot(c.position) - c.far),
+        side(fwd * tan_l + right),
+        side(fwd * tan_r - right),
+        side(fwd * tan_t + down),
+        side(fwd * tan_b - down),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+    use sage_scene::Gaussian;
+
+    #[test]
+    fn chunks_behind_the_camera_are_culled() {
+        let mut g = Gaussians::new(0).unwrap();
+        for i in 0..(CHUNK * 4) {
+            let x = if i < CHUNK * 2 { 5.0 } else { -5.0 };
+            g.push(&Gaussian {
+                position: Vec3::new(x, (i % 16) as f32 * 0.01, 1.0),
+                ..Gaussian::default()
+            });
+        }
+        let index = SplatIndex::build(&g);
+        assert_eq!(index.bounds.len(), 4);
+        let cam = Camera::from_yaw_pitch(
+            Intrinsics::from_hfov(64, 64, 90.0).unwrap(),
+            Vec3::new(0.0, 0.0, 1.0),
+            0.0,
+            0.0,
+        );
+        let mut visible = Vec::new();
+        index.visible_chunks(&cam, &mut visible);
+        assert_eq!(visible.len(), 2);
+        for c in visible {
+            assert!(index.bounds[c as usize].min.x > 0.0);
+        }
+    }
+}

@@ -1,0 +1,536 @@
+//! The tile renderer. Per frame:
+//!
+//! 1. **cull**: chunks outside the view volume are dropped; the rest are ordered by their
+//!    nearest depth and given a conservative screen rectangle;
+//! 2. the depth range is cut into slabs (at quantiles of the chunks' nearest depths), and for
+//!    each slab, front to back:
+//!    - **project** the Gaussians of the chunks that reach the slab, keeping those whose depth
+//!      falls in it (chunks whose rectangle covers only finished tiles are skipped: every pixel
+//!      there already reached the transmittance floor, so nothing behind can show);
+//!    - **sort**: bin the splats into the unfinished 16×16 tiles they touch (exact
+//!      ellipse–tile test) and order each tile's list by depth;
+//!    - **raster**: blend each tile's list into its persistent per-pixel state.
+//!
+//! Because slabs partition depth and each tile is blended strictly front to back, the result is
+//! exactly that of blending every Gaussian in depth order; it is also the same for any thread
+//! count (all orders are by depth, then by a deterministic splat index).
+
+use crate::camera::Camera;
+use crate::index::{CHUNK, SplatIndex};
+use crate::project::{MIN_ALPHA, Splat, covariance, project};
+use crate::sh;
+use crate::tile::{TILE, TileState};
+use glam::{Mat3, Vec3};
+use rayon::prelude::*;
+use sage_core::{Aabb, Error, Result};
+use sage_scene::Gaussians;
+use sage_scene::gaussians::sh_rest_count;
+use std::time::Instant;
+
+/// Depth slabs per frame (at most).
+const SLABS: usize = 8;
+
+/// Options of one render.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RenderOptions {
+    /// Colour behind everything (linear 0–1); black by default.
+    pub background: [f32; 3],
+}
+
+/// The images of one render, row-major, `height × width` (RGB: × 3).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderOutput {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Colour, 8-bit (the blended colour clamped to 0–1).
+    pub rgb: Vec<u8>,
+    /// Colour before quantisation (0 and up).
+    pub rgb_f32: Vec<f32>,
+    /// Accumulated alpha, 1 − final transmittance.
+    pub alpha: Vec<f32>,
+    /// Expected z-depth (metres along the optical axis): Σ wᵢ zᵢ / Σ wᵢ, 0 where nothing was hit.
+    pub depth_expected: Vec<f32>,
+    /// Median z-depth: z of the Gaussian at which transmittance first drops to 0.5 or below;
+    /// 0 where it never does (alpha < 0.5).
+    pub depth_median: Vec<f32>,
+    /// Instance id of the Gaussian with the largest blending weight (0 where nothing was hit).
+    pub instance: Vec<u32>,
+    /// Category id of that instance (0 where nothing was hit).
+    pub semantic: Vec<u16>,
+}
+
+/// Where the time of the last render went (milliseconds) and how much work there was.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RenderStats {
+    /// Chunk frustum culling and ordering.
+    pub cull_ms: f64,
+    /// Projection and SH colour.
+    pub project_ms: f64,
+    /// Tile binning and per-tile depth sorting.
+    pub sort_ms: f64,
+    /// Blending, and assembling the images.
+    pub raster_ms: f64,
+    /// Chunks that passed frustum culling.
+    pub visible_chunks: usize,
+    /// Gaussians projected (summed over slabs).
+    pub projected: usize,
+    /// Splats after projection.
+    pub splats: usize,
+    /// (splat, tile) pairs.
+    pub tile_entries: usize,
+}
+
+/// A visible chunk: its depth range along the optical axis and its screen rectangle in tiles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct ChunkView {
+    chunk: u32,
+    z_min: f32,
+    z_max: f32,
+    tiles: [usize; 4],
+}
+
+/// A renderer for one set of Gaussians: the spatial index plus buffers reused across frames.
+pub struct Renderer {
+    index: SplatIndex,
+    count: usize,
+    visible: Vec<u32>,
+    views: Vec<ChunkView>,
+    splats: Vec<Splat>,
+    per_chunk: Vec<u32>,
+    entries: Vec<(u32, u32)>,
+    tile_entries: Vec<(u32, u32)>,
+    tile_start: Vec<u32>,
+    tiles: Vec<TileState>,
+    finished_sum: Vec<u32>,
+    stats: RenderStats,
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+/// The frame's tile grid.
+#[derive(Debug, Clone, Copy)]
+struct Grid {
+    width: usize,
+    height: usize,
+    tiles_x: usize,
+    tiles_y: usize,
+}
+
+impl Grid {
+    fn new(camera: &Camera) -> Grid {
+        let (width, height) = (camera.width as usize, camera.height as usize);
+        Grid {
+            width,
+            height,
+            tiles_x: width.div_ceil(TILE),
+            tiles_y: height.div_ceil(TILE),
+        }
+    }
+
+    fn tiles(&self) -> usize {
+        self.tiles_x * self.tiles_y
+    }
+
+    /// Top-left pixel and in-image size of tile `t`.
+    fn tile_rect(&self, t: usize) -> (usize, usize, usize, usize) {
+        let (x0, y0) = ((t % self.tiles_x) * TILE, (t / self.tiles_x) * TILE);
+        (
+            x0,
+            y0,
+            TILE.min(self.width - x0),
+            TILE.min(self.height - y0),
+        )
+    }
+}
+
+/// Depth range and a conservative tile rectangle (grown by one tile) of a chunk's bounds.
+fn chunk_view(chunk: u32, b: &Aabb, camera: &Camera, w2c: &Mat3, grid: &Grid) -> ChunkView {
+    let corners = (0..8).map(|k| {
+        let p = Vec3::new(
+            if k & 1 == 0 { b.min.x } else { b.max.x },
+            if k & 2 == 0 { b.min.y } else { b.max.y },
+            if k & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        *w2c * (p - camera.position)
+    });
+    let (mut z_min, mut z_max) = (f32::INFINITY, f32::NEG_INFINITY);
+    let (mut u0, mut v0, mut u1, mut v1) = (
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NEG_INFINITY,
+    );
+    let mut straddles = false;
+    for c in corners {
+        z_min = z_min.min(c.z);
+        z_max = z_max.max(c.z);
+        if c.z < camera.near * 0.5 {
+            straddles = true;
+            continue;
+        }
+        let (u, v) = camera.project(c);
+        (u0, v0, u1, v1) = (u0.min(u), v0.min(v), u1.max(u), v1.max(v));
+    }
+    let full = [0, 0, grid.tiles_x - 1, grid.tiles_y - 1];
+    let tiles = if straddles {
+        full
+    } else {
+        let tile =
+            |v: f32, n: usize| ((v / TILE as f32).floor().max(-1.0) as isize).clamp(-1, n as isize);
+        let (x0, y0) = (tile(u0, grid.tiles_x) - 1, tile(v0, grid.tiles_y) - 1);
+        let (x1, y1) = (tile(u1, grid.tiles_x) + 1, tile(v1, grid.tiles_y) + 1);
+        [
+            x0.clamp(0, full[2] as isize) as usize,
+            y0.clamp(0, full[3] as isize) as usize,
+            x1.clamp(0, full[2] as isize) as usize,
+            y1.clamp(0, full[3] as isize) as usize,
+        ]
+    };
+    ChunkView {
+        chunk,
+        z_min,
+        z_max,
+        tiles,
+    }
+}
+
+impl Renderer {
+    /// Indexes `gaussians` (Morton chunks) for rendering.
+    pub fn new(gaussians: &Gaussians) -> Renderer {
+        Renderer {
+            index: SplatIndex::build(gaussians),
+            count: gaussians.len(),
+            visible: Vec::new(),
+            views: Vec::new(),
+            splats: Vec::new(),
+            per_chunk: Vec::new(),
+            entries: Vec::new(),
+            tile_entries: Vec::new(),
+            tile_start: Vec::new(),
+            tiles: Vec::new(),
+            finished_sum: Vec::new(),
+            stats: RenderStats::default(),
+        }
+    }
+
+    /// The spatial index.
+    pub fn index(&self) -> &SplatIndex {
+        &self.index
+    }
+
+    /// Timings and counts of the last render.
+    pub fn stats(&self) -> RenderStats {
+        self.stats
+    }
+
+    /// Renders `gaussians` (the same set the renderer was built for) from `camera`.
+    /// `categories[instance]` gives the semantic id of each instance (missing → 0).
+    pub fn render(
+        &mut self,
+        gaussians: &Gaussians,
+        categories: &[u16],
+        camera: &Camera,
+        options: &RenderOptions,
+    ) -> Result<RenderOutput> {
+        if gaussians.len() != self.count {
+            return Err(Error::invalid(format!(
+                "renderer was built for {} Gaussians, asked to render {}",
+                self.count,
+                gaussians.len()
+            )));
+        }
+        camera.validate()?;
+        self.stats = RenderStats::default();
+        let grid = Grid::new(camera);
+        let w2c = camera.rotation.transpose();
+
+        let start = Instant::now();
+        self.index.visible_chunks(camera, &mut self.visible);
+        let bounds = &self.index.bounds;
+        self.views = self
+            .visible
+            .par_iter()
+            .map(|&c| chunk_view(c, &bounds[c as usize], camera, &w2c, &grid))
+            .collect();
+        self.views
+            .sort_by(|a, b| a.z_min.total_cmp(&b.z_min).then(a.chunk.cmp(&b.chunk)));
+        self.stats.visible_chunks = self.views.len();
+        self.reset_tiles(&grid);
+        self.stats.cull_ms = ms(start);
+
+        for (lo, hi) in slab_bounds(&self.views) {
+            self.update_finished(&grid);
+            let start = Instant::now();
+            self.project_slab(gaussians, camera, &w2c, &grid, lo, hi);
+            self.stats.project_ms += ms(start);
+            if self.splats.is_empty() {
+                continue;
+            }
+            let start = Instant::now();
+            self.bin(camera, &grid);
+            self.stats.sort_ms += ms(start);
+            let start = Instant::now();
+            self.blend(&grid);
+            self.stats.raster_ms += ms(start);
+        }
+        let start = Instant::now();
+        let out = self.assemble(&grid, categories, options);
+        self.stats.raster_ms += ms(start);
+        Ok(out)
+    }
+
+    fn reset_tiles(&mut self, grid: &Grid) {
+        let n = grid.tiles();
+        self.tiles.truncate(n);
+        self.tiles.par_iter_mut().enumerate().for_each(|(t, s)| {
+            let (_, _, tw, th) = grid.tile_rect(t);
+            s.reset(tw * th);
+        });
+        for t in self.tiles.len()..n {
+            let (_, _, tw, th) = grid.tile_rect(t);
+            self.tiles.push(TileState::new(tw * th));
+        }
+    }
+
+    /// Summed-area table of finished tiles, for O(1) "is this rectangle all finished" queries.
+    fn update_finished(&mut self, grid: &Grid) {
+        let (nx, ny) = (grid.tiles_x, grid.tiles_y);
+        self.finished_sum.clear();
+        self.finished_sum.resize((nx + 1) * (ny + 1), 0);
+        for y in 0..ny {
+            for x in 0..nx {
+                let f = u32::from(self.tiles[y * nx + x].finished());
+                self.finished_sum[(y + 1) * (nx + 1) + x + 1] = f
+                    + self.finished_sum[y * (nx + 1) + x + 1]
+                    + self.finished_sum[(y + 1) * (nx + 1) + x]
+                    - self.finished_sum[y * (nx + 1) + x];
+            }
+        }
+    }
+
+    fn all_finished(&self, grid: &Grid, r: &[usize; 4]) -> bool {
+        let w = grid.tiles_x + 1;
+        let s = &self.finished_sum;
+        let sum = s[(r[3] + 1) * w + r[2] + 1] + s[r[1] * w + r[0]]
+            - s[r[1] * w + r[2] + 1]
+            - s[(r[3] + 1) * w + r[0]];
+        sum as usize == (r[2] - r[0] + 1) * (r[3] - r[1] + 1)
+    }
+
+    fn project_slab(
+        &mut self,
+        g: &Gaussians,
+        camera: &Camera,
+        w2c: &Mat3,
+        grid: &Grid,
+        lo: f32,
+        hi: f32,
+    ) {
+        let candidates: Vec<u32> = self
+            .views
+            .iter()
+            .filter(|v| v.z_min < hi && v.z_max >= lo && !self.all_finished(grid, &v.tiles))
+            .map(|v| v.chunk)
+            .collect();
+        let k = sh_rest_count(g.sh_degree());
+        let order = &self.index.order;
+        self.splats
+            .resize(candidates.len() * CHUNK, Splat::default());
+        self.per_chunk.clear();
+        self.per_chunk.resize(candidates.len(), 0);
+        let projected: usize = self
+            .splats
+            .par_chunks_mut(CHUNK)
+            .zip(self.per_chunk.par_iter_mut())
+            .zip(candidates.par_iter())
+            .map(|((out, count), &chunk)| {
+                let c = chunk as usize;
+                let ids = &order[c * CHUNK..((c + 1) * CHUNK).min(order.len())];
+                let mut rest = [[0.0f32; 3]; 15];
+                let (mut n, mut tried) = (0, 0);
+                for &i in ids {
+                    let i = i as usize;
+                    let position = Vec3::from_array(g.positions[i]);
+                    // Slab membership by the camera-space z (the forward axis, row 3 of w2c).
+                    let z = camera.rotation.z_axis.dot(position - camera.position);
+                    if !(z >= lo && z < hi) {
+                        continue;
+                    }
+                    tried += 1;
+                    let opacity = 1.0 / (1.0 + (-g.opacity_logits[i]).exp());
+                    if opacity < MIN_ALPHA {
+                        continue;
+                    }
+                    if k > 0 {
+                        g.sh_rest_into(i, &mut rest);
+                    }
+                    let dir = (position - camera.position).normalize_or_zero();
+                    let color = sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..k], dir);
+                    let sigma = covariance(g.rotation(i), Vec3::from_array(g.log_scales[i]));
+                    if let Some(s) =
+                        project(camera, w2c, position, sigma, opacity, color, g.instances[i])
+                    {
+                        out[n] = s;
+                        n += 1;
+                    }
+                }
+                *count = n as u32;
+                tried
+            })
+            .sum();
+        self.stats.projected += projected;
+        let mut write = 0;
+        for (c, &n) in self.per_chunk.iter().enumerate() {
+            let from = c * CHUNK;
+            self.splats.copy_within(from..from + n as usize, write);
+            write += n as usize;
+        }
+        self.splats.truncate(write);
+        self.stats.splats += write;
+    }
+
+    /// Fills `tile_entries` with (depth bits, splat) grouped by unfinished tile, each tile sorted
+    /// front to back (ties by splat index), and `tile_start` with each tile's range.
+    fn bin(&mut self, camera: &Camera, grid: &Grid) {
+        let (w, h) = (camera.width as f32, camera.height as f32);
+        let (tiles_x, tiles_y) = (grid.tiles_x, grid.tiles_y);
+        let tiles = &self.tiles;
+        let blocks: Vec<Vec<(u32, u32)>> = self
+            .splats
+            .par_chunks(4096)
+            .enumerate()
+            .map(|(b, splats)| {
+                let mut out = Vec::new();
+                for (j, s) in splats.iter().enumerate() {
+                    let x0 = ((s.x - s.radius).max(0.0) / TILE as f32) as usize;
+                    let y0 = ((s.y - s.radius).max(0.0) / TILE as f32) as usize;
+                    let x1 = (((s.x + s.radius).min(w - 1.0)).max(0.0) / TILE as f32) as usize;
+                    let y1 = (((s.y + s.radius).min(h - 1.0)).max(0.0) / TILE as f32) as usize;
+                    let (x1, y1) = (x1.min(tiles_x - 1), y1.min(tiles_y - 1));
+                    let single = x0 == x1 && y0 == y1;
+                    for ty in y0.min(tiles_y - 1)..=y1 {
+                        for tx in x0.min(tiles_x - 1)..=x1 {
+                            let t = ty * tiles_x + tx;
+                            if tiles[t].finished() {
+                                continue;
+                            }
+                            let (px0, py0) = ((tx * TILE) as f32 + 0.5, (ty * TILE) as f32 + 0.5);
+                            let px1 = ((tx + 1) * TILE).min(camera.width as usize) as f32 - 0.5;
+                            let py1 = ((ty + 1) * TILE).min(camera.height as usize) as f32 - 0.5;
+                            if single || s.reaches_rect(px0, py0, px1, py1) {
+                                out.push((t as u32, (b * 4096 + j) as u32));
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        self.entries.clear();
+        for b in &blocks {
+            self.entries.extend_from_slice(b);
+        }
+        self.stats.tile_entries += self.entries.len();
+        let n_tiles = grid.tiles();
+        self.tile_start.clear();
+        self.tile_start.resize(n_tiles + 1, 0);
+        for &(t, _) in &self.entries {
+            self.tile_start[t as usize + 1] += 1;
+        }
+        for t in 0..n_tiles {
+            self.tile_start[t + 1] += self.tile_start[t];
+        }
+        let mut cursor: Vec<u32> = self.tile_start[..n_tiles].to_vec();
+        self.tile_entries.clear();
+        self.tile_entries.resize(self.entries.len(), (0, 0));
+        for &(t, s) in &self.entries {
+            let slot = &mut cursor[t as usize];
+            self.tile_entries[*slot as usize] = (self.splats[s as usize].depth.to_bits(), s);
+            *slot += 1;
+        }
+        let mut rest: &mut [(u32, u32)] = &mut self.tile_entries;
+        let mut slices = Vec::with_capacity(n_tiles);
+        for t in 0..n_tiles {
+            let len = (self.tile_start[t + 1] - self.tile_start[t]) as usize;
+            let (head, tail) = rest.split_at_mut(len);
+            slices.push(head);
+            rest = tail;
+        }
+        // Depths are positive, so their bits sort like the values.
+        slices.into_par_iter().for_each(|s| s.sort_unstable());
+    }
+
+    fn blend(&mut self, grid: &Grid) {
+        let (splats, entries, start) = (&self.splats, &self.tile_entries, &self.tile_start);
+        self.tiles
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(t, state)| {
+                let list = &entries[start[t] as usize..start[t + 1] as usize];
+                if !list.is_empty() {
+                    let (x0, y0, tw, th) = grid.tile_rect(t);
+                    state.blend(splats, list, x0, y0, tw, th);
+                }
+            });
+    }
+
+    fn assemble(&self, grid: &Grid, categories: &[u16], options: &RenderOptions) -> RenderOutput {
+        let (width, height) = (grid.width, grid.height);
+        let n = width * height;
+        let mut out = RenderOutput {
+            width,
+            height,
+            rgb: vec![0; n * 3],
+            rgb_f32: vec![0.0; n * 3],
+            alpha: vec![0.0; n],
+            depth_expected: vec![0.0; n],
+            depth_median: vec![0.0; n],
+            instance: vec![0; n],
+            semantic: vec![0; n],
+        };
+        for (t, s) in self.tiles.iter().enumerate() {
+            let (x0, y0, tw, th) = grid.tile_rect(t);
+            for ly in 0..th {
+                for lx in 0..tw {
+                    let (l, p) = (ly * TILE + lx, (y0 + ly) * width + x0 + lx);
+                    let t_final = s.t[l];
+                    for c in 0..3 {
+                        let v = s.rgb[l][c] + t_final * options.background[c];
+                        out.rgb_f32[p * 3 + c] = v;
+                        out.rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                    }
+                    out.alpha[p] = 1.0 - t_final;
+                    let hit = s.w[l] > 0.0;
+                    out.depth_expected[p] = if hit { s.wz[l] / s.w[l] } else { 0.0 };
+                    out.depth_median[p] = s.median[l];
+                    out.instance[p] = s.instance[l];
+                    out.semantic[p] = if hit {
+                        categories.get(s.instance[l] as usize).copied().unwrap_or(0)
+                    } else {
+                        0
+                    };
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Slab boundaries: quantiles of the chunks' nearest depths, first from −∞, last to +∞.
+fn slab_bounds(views: &[ChunkView]) -> Vec<(f32, f32)> {
+    let n = views.len();
+    let slabs = SLABS.min(n.max(1));
+    let mut cuts = vec![f32::NEG_INFINITY];
+    for k in 1..slabs {
+        let z = views[k * n / slabs].z_min;
+        if z > *cuts.last().unwrap_or(&f32::NEG_INFINITY) {
+            cuts.push(z);
+        }
+    }
+    cuts.push(f32::INFINITY);
+    cuts.windows(2).map(|w| (w[0], w[1])).collect()
+}
