@@ -88,9 +88,9 @@ mod tests {
                 (r * phi.sin()) as f32,
                 z as f32,
             ));
-            for p in 0..15 {
-                for q in 0..15 {
-                    gram[p][q] += (b[p] * b[q]) as f64 * 4.0 * std::f64::consts::PI / n as f64;
+            for (row, bp) in gram.iter_mut().zip(b) {
+                for (cell, bq) in row.iter_mut().zip(b) {
+                    *cell += (bp * bq) as f64 * 4.0 * std::f64::consts::PI / n as f64;
                 }
             }
         }
