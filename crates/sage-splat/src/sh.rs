@@ -94,14 +94,10 @@ mod tests {
                 }
             }
         }
-        for p in 0..15 {
-            for q in 0..15 {
+        for (p, row) in gram.iter().enumerate() {
+            for (q, value) in row.iter().enumerate() {
                 let want = if p == q { 1.0 } else { 0.0 };
-                assert!(
-                    (gram[p][q] - want).abs() < 2e-3,
-                    "({p},{q}) = {}",
-                    gram[p][q]
-                );
+                assert!((value - want).abs() < 2e-3, "({p},{q}) = {value}");
             }
         }
     }
