@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import plyfile
+from PIL import Image
 
 from conftest import TESTDATA
 
@@ -105,3 +106,27 @@ def test_bad_input_names_the_file(sage3d, tmp_path):
     assert proc.returncode != 0
     assert "broken.ply" in proc.stderr and "vertex" in proc.stderr
     assert not (tmp_path / "out.ply").exists()
+
+
+def test_render_outputs_read_with_numpy(sage3d, small_scene, tmp_path):
+    out = tmp_path / "render"
+    sage3d("render", small_scene, "--out", out, "--width", 64, "--height", 48, "--yaw", 30, "--pitch=-10")
+    depth = np.load(out / "depth.npy")
+    median = np.load(out / "depth_median.npy")
+    alpha = np.load(out / "alpha.npy")
+    assert depth.shape == (48, 64) and depth.dtype == np.float32
+    assert median.shape == alpha.shape == (48, 64)
+    inside = alpha > 0.5
+    assert inside.mean() > 0.9, "a camera inside a room sees surfaces everywhere"
+    assert np.all((depth[inside] > 0.1) & (depth[inside] < 30.0))
+    # depth.png holds the same expected depth in millimetres (16-bit grey).
+    png = Image.open(out / "depth.png")
+    assert png.size == (64, 48) and png.mode.startswith("I")
+    mm = np.array(png).astype(np.float64)
+    np.testing.assert_allclose(mm, np.clip(np.round(depth * 1000), 0, 65535), atol=1)
+    rgb = np.array(Image.open(out / "rgb.png"))
+    assert rgb.shape == (48, 64, 3) and rgb.dtype == np.uint8
+    legend = json.loads((out / "legend.json").read_text())
+    instance = np.array(Image.open(out / "instance.png"))
+    colours = {tuple(e["color"]) for e in legend["instances"]}
+    assert {tuple(c) for c in instance.reshape(-1, 3)} <= colours

@@ -32,7 +32,12 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 90.0)]
     hfov: f32,
     /// Camera position x,y,z in metres (without --camera; default: largest room, 1.2 m).
-    #[arg(long, value_delimiter = ',', num_args = 3)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "X,Y,Z",
+        allow_hyphen_values = true
+    )]
     position: Option<Vec<f32>>,
     /// Heading, degrees (without --camera).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -41,7 +46,12 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pitch: f32,
     /// Background colour r,g,b in 0–1.
-    #[arg(long, value_delimiter = ',', num_args = 3, default_value = "0,0,0")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "R,G,B",
+        default_value = "0,0,0"
+    )]
     background: Vec<f32>,
     /// Also render a full turn of N frames about the camera position: turntable/rgb_NNN.png and
     /// turntable.gif.
@@ -76,8 +86,14 @@ fn camera_from_args(a: &RenderArgs, scene: &Scene) -> Result<Camera> {
             .and_then(|s| s.camera())
             .map_err(|e| e.in_file(p));
     }
-    let eye = match &a.position {
-        Some(v) => Vec3::new(v[0], v[1], v[2]),
+    let eye = match a.position.as_deref() {
+        Some(&[x, y, z]) => Vec3::new(x, y, z),
+        Some(other) => {
+            return Err(Error::invalid(format!(
+                "--position needs 3 numbers x,y,z, got {}",
+                other.len()
+            )));
+        }
         None => default_eye(scene),
     };
     let camera = Camera::from_yaw_pitch(

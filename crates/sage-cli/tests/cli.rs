@@ -180,3 +180,94 @@ fn demo_runs_on_the_embedded_default() {
         "{printed}"
     );
 }
+
+#[test]
+fn render_writes_every_channel_and_a_turntable() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        "3",
+        "--rooms",
+        "2",
+        "--objects",
+        "12",
+        "--gaussians",
+        "20000",
+        "--out",
+        s(&scene),
+    ]);
+    let camera = dir.path().join("camera.json");
+    let info: serde_json::Value =
+        serde_json::from_str(&ok(&["scene", "info", s(&scene), "--json"])).unwrap();
+    let (lo, hi) = (
+        &info["summary"]["bounds_min"],
+        &info["summary"]["bounds_max"],
+    );
+    let mid = |k: usize| (lo[k].as_f64().unwrap() + hi[k].as_f64().unwrap()) / 2.0;
+    std::fs::write(&camera, format!(r#"{{"width": 40, "height": 30, "hfov_deg": 90, "position": [{}, {}, 1.2], "yaw_deg": 20, "pitch_deg": -10}}"#, mid(0), mid(1))).unwrap();
+    let out = dir.path().join("render");
+    ok(&[
+        "render",
+        s(&scene),
+        "--camera",
+        s(&camera),
+        "--out",
+        s(&out),
+        "--turntable",
+        "4",
+    ]);
+    for f in [
+        "rgb.png",
+        "depth.npy",
+        "depth_median.npy",
+        "alpha.npy",
+        "depth.png",
+        "instance.png",
+        "semantic.png",
+        "legend.json",
+        "render.json",
+        "turntable.gif",
+        "turntable/rgb_003.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let npy = std::fs::read(out.join("depth.npy")).unwrap();
+    assert!(npy.starts_with(b"\x93NUMPY\x01\x00"));
+    let header_len = u16::from_le_bytes([npy[8], npy[9]]) as usize;
+    assert_eq!((10 + header_len) % 64, 0);
+    assert!(String::from_utf8_lossy(&npy[10..10 + header_len]).contains("'shape': (30, 40)"));
+    assert_eq!(npy.len(), 10 + header_len + 30 * 40 * 4);
+    let legend: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("legend.json")).unwrap()).unwrap();
+    let pixels: u64 = legend["instances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["pixels"].as_u64().unwrap())
+        .sum();
+    assert_eq!(pixels, 30 * 40);
+    assert!(
+        legend["categories"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c["name"] == "floor" || c["name"] == "wall")
+    );
+
+    let bad = dir.path().join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"width": 40, "height": 30, "position": [0, 0, 1]}"#,
+    )
+    .unwrap();
+    let o = sage3d(&["render", s(&scene), "--camera", s(&bad), "--out", s(&out)]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("bad.json: hfov_deg/fx"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

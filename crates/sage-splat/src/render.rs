@@ -16,10 +16,10 @@
 //! count (all orders are by depth, then by a deterministic splat index).
 
 use crate::camera::Camera;
-use crate::index::{CHUNK, SplatIndex};
-use crate::project::{MIN_ALPHA, Splat, covariance, project};
+use crate::index::{CHUNK, MAX_SIGMAS, SplatIndex};
+use crate::project::{MIN_ALPHA, Splat, covariance, exp_fast, project, sigmoid};
 use crate::sh;
-use crate::tile::{TILE, TileState};
+use crate::tile::{TILE, TileState, lane};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result};
@@ -338,6 +338,12 @@ impl Renderer {
             .collect();
         let k = sh_rest_count(g.sh_degree());
         let order = &self.index.order;
+        let focal = camera.fx.max(camera.fy);
+        let (width, height) = (camera.width as f32, camera.height as f32);
+        let (lim_x, lim_y) = (
+            1.3 * width * 0.5 / camera.fx,
+            1.3 * height * 0.5 / camera.fy,
+        );
         self.splats
             .resize(candidates.len() * CHUNK, Splat::default());
         self.per_chunk.clear();
@@ -355,13 +361,28 @@ impl Renderer {
                 for &i in ids {
                     let i = i as usize;
                     let position = Vec3::from_array(g.positions[i]);
-                    // Slab membership by the camera-space z (the forward axis, row 3 of w2c).
-                    let z = camera.rotation.z_axis.dot(position - camera.position);
-                    if !(z >= lo && z < hi) {
+                    let t = *w2c * (position - camera.position);
+                    // Slab membership by camera-space z, then a cheap screen test of the centre
+                    // with the largest reach the Gaussian can have, before any costly work.
+                    if !(t.z >= lo && t.z < hi && t.z >= camera.near && t.z <= camera.far) {
                         continue;
                     }
                     tried += 1;
-                    let opacity = 1.0 / (1.0 + (-g.opacity_logits[i]).exp());
+                    let max_log_scale = g.log_scales[i]
+                        .iter()
+                        .fold(f32::NEG_INFINITY, |m, v| m.max(*v));
+                    // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
+                    let (sx, sy) = (
+                        (t.x / t.z).clamp(-lim_x, lim_x),
+                        (t.y / t.z).clamp(-lim_y, lim_y),
+                    );
+                    let stretch = (2.0 + sx * sx + sy * sy).sqrt();
+                    let reach = MAX_SIGMAS * exp_fast(max_log_scale) * focal * stretch / t.z + 1.0;
+                    let (u, v) = camera.project(t);
+                    if u < -reach || v < -reach || u > width + reach || v > height + reach {
+                        continue;
+                    }
+                    let opacity = sigmoid(g.opacity_logits[i]);
                     if opacity < MIN_ALPHA {
                         continue;
                     }
@@ -497,16 +518,17 @@ impl Renderer {
             for ly in 0..th {
                 for lx in 0..tw {
                     let (l, p) = (ly * TILE + lx, (y0 + ly) * width + x0 + lx);
-                    let t_final = s.t[l];
-                    for c in 0..3 {
-                        let v = s.rgb[l][c] + t_final * options.background[c];
+                    let t_final = lane(&s.t, l);
+                    for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
+                        let v = lane(sum, l) + t_final * options.background[c];
                         out.rgb_f32[p * 3 + c] = v;
                         out.rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
                     }
                     out.alpha[p] = 1.0 - t_final;
-                    let hit = s.w[l] > 0.0;
-                    out.depth_expected[p] = if hit { s.wz[l] / s.w[l] } else { 0.0 };
-                    out.depth_median[p] = s.median[l];
+                    let w = lane(&s.w, l);
+                    let hit = w > 0.0;
+                    out.depth_expected[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
+                    out.depth_median[p] = lane(&s.median, l);
                     out.instance[p] = s.instance[l];
                     out.semantic[p] = if hit {
                         categories.get(s.instance[l] as usize).copied().unwrap_or(0)

@@ -47,14 +47,18 @@ pub fn basis(d: Vec3) -> [f32; 15] {
 }
 
 /// The colour seen from direction `d` (unit, camera centre → Gaussian): `max(0, Σ c·Y + 0.5)`.
-/// `rest` holds `count` higher-order coefficients (0, 3, 8 or 15), coefficient-major.
+/// `rest` holds the higher-order coefficients (0, 3, 8 or 15 of them), coefficient-major.
 pub fn color(dc: [f32; 3], rest: &[[f32; 3]], d: Vec3) -> [f32; 3] {
     let mut c = Vec3::from_array(dc) * C0;
-    if !rest.is_empty() {
-        let b = basis(d);
-        for (k, coeff) in rest.iter().enumerate() {
-            c += Vec3::from_array(*coeff) * b[k];
+    let add = |c: &mut Vec3, coeffs: &[[f32; 3]], basis: &[f32]| {
+        for (coeff, y) in coeffs.iter().zip(basis) {
+            *c += Vec3::from_array(*coeff) * *y;
         }
+    };
+    match rest.len() {
+        0 => {}
+        3 => add(&mut c, rest, &[-C1 * d.y, C1 * d.z, -C1 * d.x]),
+        _ => add(&mut c, rest, &basis(d)),
     }
     (c + Vec3::splat(0.5)).max(Vec3::ZERO).to_array()
 }

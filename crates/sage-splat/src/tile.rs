@@ -1,6 +1,8 @@
 //! One 16×16 tile's blending state and the front-to-back compositing of splats into it.
 
 use crate::project::{MAX_ALPHA, MIN_ALPHA, Splat};
+use wide::bytemuck::cast;
+use wide::{f32x4, i32x4};
 
 /// Tile edge in pixels.
 pub const TILE: usize = 16;
@@ -9,56 +11,67 @@ pub const TILE_PIXELS: usize = TILE * TILE;
 /// Blending stops once transmittance would fall below this.
 pub const MIN_TRANSMITTANCE: f32 = 1e-4;
 
-/// Per-pixel accumulators of one tile, kept across depth slabs.
+/// Vectors per tile row (4 pixels each).
+const ROW_VECTORS: usize = TILE / 4;
+/// Vectors per tile.
+const VECTORS: usize = TILE_PIXELS / 4;
+
+/// Per-pixel accumulators of one tile, kept across depth slabs, four pixels to a vector
+/// (vector `ly * 4 + lx / 4`, lane `lx % 4`).
 #[derive(Clone)]
 pub struct TileState {
     /// Transmittance.
-    pub t: [f32; TILE_PIXELS],
-    /// Σ w · colour.
-    pub rgb: [[f32; 3]; TILE_PIXELS],
+    pub t: [f32x4; VECTORS],
+    /// Σ w · red.
+    pub r: [f32x4; VECTORS],
+    /// Σ w · green.
+    pub g: [f32x4; VECTORS],
+    /// Σ w · blue.
+    pub b: [f32x4; VECTORS],
     /// Σ w · z.
-    pub wz: [f32; TILE_PIXELS],
+    pub wz: [f32x4; VECTORS],
     /// Σ w.
-    pub w: [f32; TILE_PIXELS],
+    pub w: [f32x4; VECTORS],
     /// z where transmittance first fell to 0.5 or below (0 until then).
-    pub median: [f32; TILE_PIXELS],
+    pub median: [f32x4; VECTORS],
     /// The largest weight so far.
-    pub best_w: [f32; TILE_PIXELS],
-    /// Instance of the largest weight.
+    pub best_w: [f32x4; VECTORS],
+    /// All-ones lanes for pixels that reached the transmittance floor.
+    pub done: [f32x4; VECTORS],
+    /// Instance of the largest weight, per pixel (`ly * 16 + lx`).
     pub instance: [u32; TILE_PIXELS],
-    /// Pixels that reached the transmittance floor.
-    pub done: [bool; TILE_PIXELS],
     /// Pixels of the tile inside the image that are not done.
     pub remaining: usize,
+}
+
+/// Lane `l % 4` of vector `l / 4`: pixel `l = ly * 16 + lx` of a per-tile array.
+#[inline]
+pub fn lane(v: &[f32x4; VECTORS], l: usize) -> f32 {
+    v[l / 4].to_array()[l % 4]
 }
 
 impl TileState {
     /// A fresh tile holding `pixels` image pixels (edge tiles hold fewer than 256).
     pub fn new(pixels: usize) -> TileState {
+        let zero = [f32x4::ZERO; VECTORS];
         TileState {
-            t: [1.0; TILE_PIXELS],
-            rgb: [[0.0; 3]; TILE_PIXELS],
-            wz: [0.0; TILE_PIXELS],
-            w: [0.0; TILE_PIXELS],
-            median: [0.0; TILE_PIXELS],
-            best_w: [0.0; TILE_PIXELS],
+            t: [f32x4::ONE; VECTORS],
+            r: zero,
+            g: zero,
+            b: zero,
+            wz: zero,
+            w: zero,
+            median: zero,
+            best_w: zero,
+            done: zero,
             instance: [0; TILE_PIXELS],
-            done: [false; TILE_PIXELS],
             remaining: pixels,
         }
     }
 
     /// Resets to fresh for a tile of `pixels` pixels.
     pub fn reset(&mut self, pixels: usize) {
-        self.t = [1.0; TILE_PIXELS];
-        self.rgb = [[0.0; 3]; TILE_PIXELS];
-        self.wz = [0.0; TILE_PIXELS];
-        self.w = [0.0; TILE_PIXELS];
-        self.median = [0.0; TILE_PIXELS];
-        self.best_w = [0.0; TILE_PIXELS];
-        self.instance = [0; TILE_PIXELS];
-        self.done = [false; TILE_PIXELS];
-        self.remaining = pixels;
+        *self = TileState::new(pixels);
     }
 
     /// True when every pixel reached the transmittance floor.
@@ -70,7 +83,8 @@ impl TileState {
     /// top-left pixel is (x0, y0) and whose in-image size is tw × th.
     ///
     /// Each splat visits, row by row, only the pixel centres inside its 1/255 ellipse (the
-    /// exact interval of the quadratic form, widened by a hair so no boundary pixel is lost).
+    /// exact interval of the quadratic form, widened by a hair so no boundary pixel is lost),
+    /// four pixels at a time.
     pub fn blend(
         &mut self,
         splats: &[Splat],
@@ -80,6 +94,7 @@ impl TileState {
         tw: usize,
         th: usize,
     ) {
+        let lane_x = f32x4::new([0.0, 1.0, 2.0, 3.0]);
         for &(_, si) in list {
             if self.remaining == 0 {
                 return;
@@ -90,6 +105,7 @@ impl TileState {
             // are library calls on baseline x86-64, too slow for this loop).
             let ly0 = ((sp.y - sp.radius - y0 as f32 - 0.5).max(0.0) as usize).min(th);
             let ly1 = ((sp.y + sp.radius - y0 as f32 + 1.5).max(0.0) as usize).min(th);
+            let splat = SplatLanes::new(sp);
             for ly in ly0..ly1 {
                 let py = (y0 + ly) as f32 + 0.5;
                 let dy = sp.y - py;
@@ -105,44 +121,107 @@ impl TileState {
                 let last = floor_index(sp.x - dx_lo - x0 as f32 - 0.5 + 1e-3)
                     .wrapping_add(1)
                     .min(tw);
-                for lx in first..last {
-                    let l = ly * TILE + lx;
-                    if self.done[l] {
-                        continue;
-                    }
-                    let power = sp.power((x0 + lx) as f32 + 0.5, py);
-                    if power > 0.0 {
-                        continue;
-                    }
-                    let alpha = (sp.opacity * fast_exp(power)).min(MAX_ALPHA);
-                    if alpha < MIN_ALPHA {
-                        continue;
-                    }
-                    let t = self.t[l];
-                    let next = t * (1.0 - alpha);
-                    if next < MIN_TRANSMITTANCE {
-                        self.done[l] = true;
-                        self.remaining -= 1;
-                        continue;
-                    }
-                    let w = alpha * t;
-                    for k in 0..3 {
-                        self.rgb[l][k] += w * sp.color[k];
-                    }
-                    self.wz[l] += w * sp.depth;
-                    self.w[l] += w;
-                    if t > 0.5 && next <= 0.5 {
-                        self.median[l] = sp.depth;
-                    }
-                    if w > self.best_w[l] {
-                        self.best_w[l] = w;
-                        self.instance[l] = sp.instance;
-                    }
-                    self.t[l] = next;
+                if first >= last {
+                    continue;
+                }
+                let row_part = -0.5 * c * dy * dy;
+                let (first_f, last_f) = (f32x4::splat(first as f32), f32x4::splat(last as f32));
+                for gx in first / 4..=(last - 1) / 4 {
+                    let lx = lane_x + f32x4::splat((gx * 4) as f32);
+                    let in_range = lx.simd_ge(first_f) & lx.simd_lt(last_f);
+                    let dx = f32x4::splat(sp.x - x0 as f32 - 0.5) - lx;
+                    let power = f32x4::splat(row_part)
+                        - (f32x4::splat(0.5 * a) * dx + f32x4::splat(b * dy)) * dx;
+                    self.blend_vector(
+                        &splat,
+                        ly * ROW_VECTORS + gx,
+                        ly * TILE + gx * 4,
+                        in_range,
+                        power,
+                    );
                 }
             }
         }
     }
+
+    /// Blends one splat into four pixels (vector `v`, first pixel `l`) where `mask` is set.
+    #[inline]
+    fn blend_vector(&mut self, sp: &SplatLanes, v: usize, l: usize, mask: f32x4, power: f32x4) {
+        let alpha = (sp.opacity * exp4(power)).min(f32x4::splat(MAX_ALPHA));
+        let t = self.t[v];
+        let valid = mask
+            & !self.done[v]
+            & power.simd_le(f32x4::ZERO)
+            & alpha.simd_ge(f32x4::splat(MIN_ALPHA));
+        if valid.none() {
+            return;
+        }
+        let next = t * (f32x4::ONE - alpha);
+        let saturated = valid & next.simd_lt(f32x4::splat(MIN_TRANSMITTANCE));
+        if saturated.any() {
+            self.done[v] = self.done[v] | saturated;
+            self.remaining -= saturated.to_bitmask().count_ones() as usize;
+        }
+        let blend = valid & !saturated;
+        let w = (alpha * t) & blend;
+        self.r[v] += w * sp.r;
+        self.g[v] += w * sp.g;
+        self.b[v] += w * sp.b;
+        self.wz[v] += w * sp.depth;
+        self.w[v] += w;
+        let crosses = blend & t.simd_gt(f32x4::splat(0.5)) & next.simd_le(f32x4::splat(0.5));
+        self.median[v] = crosses.select(sp.depth, self.median[v]);
+        let better = blend & w.simd_gt(self.best_w[v]);
+        if better.any() {
+            self.best_w[v] = better.select(w, self.best_w[v]);
+            let bits = better.to_bitmask();
+            for k in 0..4 {
+                if bits & (1 << k) != 0 {
+                    self.instance[l + k] = sp.instance;
+                }
+            }
+        }
+        self.t[v] = blend.select(next, t);
+    }
+}
+
+/// A splat's per-lane constants for [`TileState::blend_vector`].
+struct SplatLanes {
+    opacity: f32x4,
+    r: f32x4,
+    g: f32x4,
+    b: f32x4,
+    depth: f32x4,
+    instance: u32,
+}
+
+impl SplatLanes {
+    fn new(s: &Splat) -> SplatLanes {
+        SplatLanes {
+            opacity: f32x4::splat(s.opacity),
+            r: f32x4::splat(s.color[0]),
+            g: f32x4::splat(s.color[1]),
+            b: f32x4::splat(s.color[2]),
+            depth: f32x4::splat(s.depth),
+            instance: s.instance,
+        }
+    }
+}
+
+/// e^x, four lanes, for x ≤ 0 down to about −87 (relative error below 5e-6): 2^(x log₂e) split
+/// at the nearest integer, the fraction in [−½, ½] by a degree-5 polynomial.
+#[inline]
+pub fn exp4(x: f32x4) -> f32x4 {
+    let y = (x * f32x4::splat(std::f32::consts::LOG2_E)).max(f32x4::splat(-126.0));
+    let n = y.round_int();
+    let f = y - f32x4::from_i32x4(n);
+    let p = f32x4::ONE
+        + f * (f32x4::splat(std::f32::consts::LN_2)
+            + f * (f32x4::splat(0.240_226_5)
+                + f * (f32x4::splat(0.055_504_11)
+                    + f * (f32x4::splat(0.009_618_129) + f * f32x4::splat(0.001_333_355_8)))));
+    let scale: f32x4 = cast((n + i32x4::splat(127)) << 23);
+    scale * p
 }
 
 /// ⌈v⌉ clamped at 0, without the library call `ceilf` (slow on baseline x86-64).
@@ -162,35 +241,20 @@ fn floor_index(v: f32) -> usize {
     if v < 0.0 { usize::MAX } else { v as usize }
 }
 
-/// e^x for x ≤ 0 down to about −87, with relative error below 2e-5: 2^(x log₂e) split into an
-/// exponent and a degree-6 polynomial of the fraction. The blending loop calls it for every
-/// pixel a splat reaches, so it matters more than anything else for speed.
-#[inline]
-pub fn fast_exp(x: f32) -> f32 {
-    let y = (x * std::f32::consts::LOG2_E).max(-126.0);
-    // floor without a library call: truncate, then step down for negative fractions.
-    let t = y as i32;
-    let n = if (t as f32) > y { t - 1 } else { t };
-    let f = y - n as f32;
-    let p = 1.0
-        + f * (std::f32::consts::LN_2
-            + f * (0.240_226_5
-                + f * (0.055_504_11
-                    + f * (0.009_618_129 + f * (0.001_333_355_8 + f * 0.000_154_035_3)))));
-    f32::from_bits(((n + 127) as u32) << 23) * p
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
-    fn fast_exp_is_accurate_where_it_is_used() {
+    fn exp4_is_accurate_where_it_is_used() {
         let mut x = -20.0f32;
         while x <= 0.0 {
-            let (a, b) = (fast_exp(x), x.exp());
-            assert!((a - b).abs() <= b * 2e-5, "exp({x}) = {a} vs {b}");
-            x += 0.001;
+            let got = exp4(f32x4::new([x, x - 1e-3, x - 2e-3, x - 3e-3])).to_array();
+            for (k, g) in got.iter().enumerate() {
+                let want = (x - k as f32 * 1e-3).exp();
+                assert!((g - want).abs() <= want * 5e-6, "exp({x}) = {g} vs {want}");
+            }
+            x += 0.004;
         }
     }
 }
