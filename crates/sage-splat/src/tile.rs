@@ -159,7 +159,7 @@ impl TileState {
         let next = t * (f32x4::ONE - alpha);
         let saturated = valid & next.simd_lt(f32x4::splat(MIN_TRANSMITTANCE));
         if saturated.any() {
-            self.done[v] = self.done[v] | saturated;
+            self.done[v] |= saturated;
             self.remaining -= saturated.to_bitmask().count_ones() as usize;
         }
         let blend = valid & !saturated;
