@@ -338,10 +338,11 @@ impl Gaussians {
         Quat::from_xyzw(x, y, z, w)
     }
 
-    /// Higher-order SH coefficients of Gaussian `i`, coefficient-major, into `out` (unused = 0).
+    /// Higher-order SH coefficients of Gaussian `i`, coefficient-major, into the first
+    /// `sh_rest_count(degree)` entries of `out` (the rest is left as it is: the renderer's hot
+    /// loop reads only those).
     pub fn sh_rest_into(&self, i: usize, out: &mut [[f32; 3]; 15]) {
         let k = sh_rest_count(self.sh_degree);
-        *out = [[0.0; 3]; 15];
         if k == 0 {
             return;
         }

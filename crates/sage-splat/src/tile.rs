@@ -106,32 +106,23 @@ impl TileState {
             let ly0 = ((sp.y - sp.radius - y0 as f32 - 0.5).max(0.0) as usize).min(th);
             let ly1 = ((sp.y + sp.radius - y0 as f32 + 1.5).max(0.0) as usize).min(th);
             let splat = SplatLanes::new(sp);
+            // Columns of the splat's square, as whole vectors; lanes outside the ellipse fail the
+            // alpha test, which is cheaper than solving for each row's exact interval.
+            let first = ((sp.x - sp.radius - x0 as f32 - 0.5).max(0.0) as usize).min(tw);
+            let last = ((sp.x + sp.radius - x0 as f32 + 0.5).max(0.0) as usize + 1).min(tw);
+            if first >= last {
+                continue;
+            }
+            let (first_f, last_f) = (f32x4::splat(first as f32), f32x4::splat(last as f32));
             for ly in ly0..ly1 {
-                let py = (y0 + ly) as f32 + 0.5;
-                let dy = sp.y - py;
-                // a dx² + 2 b dy dx + (c dy² − cutoff) ≤ 0.
-                let disc = b * b * dy * dy - a * (c * dy * dy - sp.cutoff);
-                if disc < 0.0 {
-                    continue;
-                }
-                let root = disc.sqrt();
-                let (dx_lo, dx_hi) = ((-b * dy - root) / a, (-b * dy + root) / a);
-                // Pixel centres x0 + lx + 0.5 inside [sp.x − dx_hi, sp.x − dx_lo], widened by a hair.
-                let first = ceil_index(sp.x - dx_hi - x0 as f32 - 0.5 - 1e-3);
-                let last = floor_index(sp.x - dx_lo - x0 as f32 - 0.5 + 1e-3)
-                    .wrapping_add(1)
-                    .min(tw);
-                if first >= last {
-                    continue;
-                }
-                let row_part = -0.5 * c * dy * dy;
-                let (first_f, last_f) = (f32x4::splat(first as f32), f32x4::splat(last as f32));
+                let dy = sp.y - ((y0 + ly) as f32 + 0.5);
+                let row_part = f32x4::splat(-0.5 * c * dy * dy);
+                let b_dy = f32x4::splat(b * dy);
                 for gx in first / 4..=(last - 1) / 4 {
                     let lx = lane_x + f32x4::splat((gx * 4) as f32);
                     let in_range = lx.simd_ge(first_f) & lx.simd_lt(last_f);
                     let dx = f32x4::splat(sp.x - x0 as f32 - 0.5) - lx;
-                    let power = f32x4::splat(row_part)
-                        - (f32x4::splat(0.5 * a) * dx + f32x4::splat(b * dy)) * dx;
+                    let power = row_part - (f32x4::splat(0.5 * a) * dx + b_dy) * dx;
                     self.blend_vector(
                         &splat,
                         ly * ROW_VECTORS + gx,
@@ -222,23 +213,6 @@ pub fn exp4(x: f32x4) -> f32x4 {
                     + f * (f32x4::splat(0.009_618_129) + f * f32x4::splat(0.001_333_355_8)))));
     let scale: f32x4 = cast((n + i32x4::splat(127)) << 23);
     scale * p
-}
-
-/// ⌈v⌉ clamped at 0, without the library call `ceilf` (slow on baseline x86-64).
-#[inline]
-fn ceil_index(v: f32) -> usize {
-    if v <= 0.0 {
-        return 0;
-    }
-    let t = v as usize;
-    if (t as f32) < v { t + 1 } else { t }
-}
-
-/// ⌊v⌋ for v ≥ 0; negative values give `usize::MAX` wrapped to an empty range by the caller's
-/// `+ 1` (so they read as "before pixel 0").
-#[inline]
-fn floor_index(v: f32) -> usize {
-    if v < 0.0 { usize::MAX } else { v as usize }
 }
 
 #[cfg(test)]
