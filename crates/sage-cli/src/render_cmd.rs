@@ -109,20 +109,41 @@ fn camera_from_args(a: &RenderArgs, scene: &Scene) -> Result<Camera> {
 pub fn run(a: RenderArgs) -> Result<()> {
     let (scene, _) = Scene::load(&a.scene)?;
     let camera = camera_from_args(&a, &scene)?;
-    let options = RenderOptions {
-        background: [a.background[0], a.background[1], a.background[2]],
-    };
-    std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
+    let background: [f32; 3] = a.background.as_slice().try_into().map_err(|_| {
+        Error::invalid(format!(
+            "--background needs 3 numbers r,g,b, got {}",
+            a.background.len()
+        ))
+    })?;
+    render_to_dir(
+        &scene,
+        &camera,
+        &RenderOptions { background },
+        &a.out,
+        a.turntable,
+    )
+}
+
+/// Renders `scene` from `camera` into `out`: every channel, the legend, `render.json`, and a
+/// turntable of `turntable` frames if asked.
+pub fn render_to_dir(
+    scene: &Scene,
+    camera: &Camera,
+    options: &RenderOptions,
+    out: &Path,
+    turntable: Option<usize>,
+) -> Result<()> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let mut renderer = Renderer::new(&scene.gaussians);
     let image = renderer.render(
         &scene.gaussians,
         &scene.instances.category_ids,
-        &camera,
-        &options,
+        camera,
+        options,
     )?;
     let stats = renderer.stats();
-    write_images(&a.out, &image)?;
-    write_legend(&a.out.join("legend.json"), &scene, &image)?;
+    write_images(out, &image)?;
+    write_legend(&out.join("legend.json"), scene, &image)?;
     let record = serde_json::json!({
         "camera": {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy,
                    "c2w_row_major": camera.c2w().transpose().to_cols_array_2d(), "near": camera.near, "far": camera.far},
@@ -138,9 +159,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         "stats_ms": {"cull": stats.cull_ms, "project": stats.project_ms, "sort": stats.sort_ms, "raster": stats.raster_ms},
         "splats": stats.splats,
     });
-    write_json(&a.out.join("render.json"), &record)?;
-    if let Some(n) = a.turntable {
-        write_turntable(&a.out, &mut renderer, &scene, &camera, &options, n)?;
+    write_json(&out.join("render.json"), &record)?;
+    if let Some(n) = turntable {
+        write_turntable(out, &mut renderer, scene, camera, options, n)?;
     }
     eprintln!(
         "rendered {}x{} in {:.1} ms ({} splats) -> {}",
@@ -148,7 +169,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         camera.height,
         stats.cull_ms + stats.project_ms + stats.sort_ms + stats.raster_ms,
         stats.splats,
-        a.out.display()
+        out.display()
     );
     Ok(())
 }

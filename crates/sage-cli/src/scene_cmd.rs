@@ -84,7 +84,8 @@ pub struct PreviewArgs {
 
 #[derive(Args)]
 pub struct DemoArgs {
-    /// Where to write the demo scene.
+    /// Where to write the demo scene (with preview.png, the plan view, and view/, a
+    /// first-person render with a turntable).
     #[arg(long, default_value = "scenes/demo")]
     out: PathBuf,
     /// Random seed.
@@ -129,6 +130,20 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     };
     let scene = synthesize(&config, &a.out, SplatLayout::Compressed)?;
     write_preview(&scene, &a.out.join("preview.png"), 0.02)?;
+    let eye = crate::render_cmd::default_eye(&scene);
+    let camera = sage_splat::Camera::from_yaw_pitch(
+        sage_splat::Intrinsics::from_hfov(640, 480, 90.0)?,
+        eye,
+        0.0,
+        -0.1,
+    );
+    crate::render_cmd::render_to_dir(
+        &scene,
+        &camera,
+        &sage_splat::RenderOptions::default(),
+        &a.out.join("view"),
+        Some(24),
+    )?;
     println!("Loading it back as any InteriorGS folder would be loaded:\n");
     info(&a.out, false)
 }
