@@ -312,14 +312,6 @@ impl Renderer {
         }
     }
 
-    fn all_finished(&self, grid: &Grid, r: &[usize; 4]) -> bool {
-        let w = grid.tiles_x + 1;
-        let s = &self.finished_sum;
-        let sum = s[(r[3] + 1) * w + r[2] + 1] + s[r[1] * w + r[0]]
-            - s[r[1] * w + r[2] + 1]
-            - s[(r[3] + 1) * w + r[0]];
-        sum as usize == (r[2] - r[0] + 1) * (r[3] - r[1] + 1)
-    }
 
     fn project_slab(
         &mut self,
@@ -333,11 +325,12 @@ impl Renderer {
         let candidates: Vec<u32> = self
             .views
             .iter()
-            .filter(|v| v.z_min < hi && v.z_max >= lo && !self.all_finished(grid, &v.tiles))
+            .filter(|v| v.z_min < hi && v.z_max >= lo && !rect_finished(&self.finished_sum, grid.tiles_x, &v.tiles))
             .map(|v| v.chunk)
             .collect();
         let k = sh_rest_count(g.sh_degree());
         let order = &self.index.order;
+        let finished = &self.finished_sum;
         let focal = camera.fx.max(camera.fy);
         let (width, height) = (camera.width as f32, camera.height as f32);
         let (lim_x, lim_y) = (
@@ -380,6 +373,17 @@ impl Renderer {
                     let reach = MAX_SIGMAS * exp_fast(max_log_scale) * focal * stretch / t.z + 1.0;
                     let (u, v) = camera.project(t);
                     if u < -reach || v < -reach || u > width + reach || v > height + reach {
+                        continue;
+                    }
+                    // Nothing to add where every tile the splat can reach is already opaque.
+                    let tile = |p: f32, n: usize| ((p / TILE as f32).max(0.0) as usize).min(n - 1);
+                    let rect = [
+                        tile(u - reach, grid.tiles_x),
+                        tile(v - reach, grid.tiles_y),
+                        tile(u + reach, grid.tiles_x),
+                        tile(v + reach, grid.tiles_y),
+                    ];
+                    if rect_finished(finished, grid.tiles_x, &rect) {
                         continue;
                     }
                     let opacity = sigmoid(g.opacity_logits[i]);
@@ -540,6 +544,14 @@ impl Renderer {
         }
         out
     }
+}
+
+/// True when every tile of the rectangle `r` ([x0, y0, x1, y1], inclusive) is finished, from
+/// the summed-area table `sum` of a grid `tiles_x` wide.
+fn rect_finished(sum: &[u32], tiles_x: usize, r: &[usize; 4]) -> bool {
+    let w = tiles_x + 1;
+    let total = sum[(r[3] + 1) * w + r[2] + 1] + sum[r[1] * w + r[0]] - sum[r[1] * w + r[2] + 1] - sum[(r[3] + 1) * w + r[0]];
+    total as usize == (r[2] - r[0] + 1) * (r[3] - r[1] + 1)
 }
 
 /// Slab boundaries: quantiles of the chunks' nearest depths, first from −∞, last to +∞.

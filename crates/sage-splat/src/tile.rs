@@ -138,12 +138,14 @@ impl TileState {
     /// Blends one splat into four pixels (vector `v`, first pixel `l`) where `mask` is set.
     #[inline]
     fn blend_vector(&mut self, sp: &SplatLanes, v: usize, l: usize, mask: f32x4, power: f32x4) {
+        // Lanes beyond the splat's 1/255 ellipse (or done) are dropped before the exponential.
+        let reached = mask & !self.done[v] & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
+        if reached.none() {
+            return;
+        }
         let alpha = (sp.opacity * exp4(power)).min(f32x4::splat(MAX_ALPHA));
         let t = self.t[v];
-        let valid = mask
-            & !self.done[v]
-            & power.simd_le(f32x4::ZERO)
-            & alpha.simd_ge(f32x4::splat(MIN_ALPHA));
+        let valid = reached & alpha.simd_ge(f32x4::splat(MIN_ALPHA));
         if valid.none() {
             return;
         }
@@ -179,6 +181,7 @@ impl TileState {
 /// A splat's per-lane constants for [`TileState::blend_vector`].
 struct SplatLanes {
     opacity: f32x4,
+    min_power: f32x4,
     r: f32x4,
     g: f32x4,
     b: f32x4,
@@ -190,6 +193,9 @@ impl SplatLanes {
     fn new(s: &Splat) -> SplatLanes {
         SplatLanes {
             opacity: f32x4::splat(s.opacity),
+            // power ≥ −cutoff/2 ⟺ inside the ellipse where alpha can reach 1/255 (the cutoff
+            // errs outwards, so no lane that passes the exact alpha test is lost).
+            min_power: f32x4::splat(-0.5 * s.cutoff),
             r: f32x4::splat(s.color[0]),
             g: f32x4::splat(s.color[1]),
             b: f32x4::splat(s.color[2]),
