@@ -40,6 +40,21 @@ pub fn sh_degree_for_rest_len(n: usize) -> Option<u8> {
 /// `Y_0^0`: the constant SH basis value, linking `f_dc` to colour (`rgb = 0.5 + SH_C0 · f_dc`).
 pub const SH_C0: f32 = 0.282_094_8;
 
+fn spread_bits(v: u32) -> u64 {
+    let mut x = (v & 0x1f_ffff) as u64;
+    x = (x | x << 32) & 0x1f_0000_0000_ffff;
+    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+    (x | x << 2) & 0x1249_2492_4924_9249
+}
+
+/// The 63-bit Morton code of a point in the unit cube (clamped).
+pub fn morton_code(unit: Vec3) -> u64 {
+    let q = unit.clamp(Vec3::ZERO, Vec3::ONE) * 2_097_151.0;
+    spread_bits(q.x as u32) | spread_bits(q.y as u32) << 1 | spread_bits(q.z as u32) << 2
+}
+
 /// One Gaussian at full precision: what readers produce and writers consume.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gaussian {
@@ -406,6 +421,58 @@ impl Gaussians {
         Ok(())
     }
 
+    /// The order that visits the Gaussians along a Z-order (Morton) curve over their bounds, 21
+    /// bits per axis; ties keep index order. Renderers chunk Gaussians in this order, and a store
+    /// already in it is read sequentially.
+    pub fn morton_order(&self) -> Vec<u32> {
+        let bounds = self.bounds();
+        let (lo, size) = if bounds.is_empty() {
+            (Vec3::ZERO, Vec3::ONE)
+        } else {
+            (bounds.min, bounds.size().max(Vec3::splat(1e-6)))
+        };
+        let inv = Vec3::ONE / size;
+        let mut keyed: Vec<(u64, u32)> = (0..self.len() as u32)
+            .into_par_iter()
+            .map(|i| {
+                (
+                    morton_code((Vec3::from_array(self.positions[i as usize]) - lo) * inv),
+                    i,
+                )
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        keyed.into_iter().map(|(_, i)| i).collect()
+    }
+
+    /// The store with Gaussian `order[j]` moved to position `j` (`order` must be a permutation).
+    pub fn permuted(&self, order: &[u32]) -> Gaussians {
+        let pick = |v: &Vec<_>| order.iter().map(|&i| v[i as usize]).collect();
+        let k3 = sh_rest_count(self.sh_degree) * 3;
+        Gaussians {
+            sh_degree: self.sh_degree,
+            positions: order.iter().map(|&i| self.positions[i as usize]).collect(),
+            rotations: order.iter().map(|&i| self.rotations[i as usize]).collect(),
+            log_scales: order.iter().map(|&i| self.log_scales[i as usize]).collect(),
+            opacity_logits: order
+                .iter()
+                .map(|&i| self.opacity_logits[i as usize])
+                .collect(),
+            sh_dc: order.iter().map(|&i| self.sh_dc[i as usize]).collect(),
+            sh_steps: if k3 > 0 {
+                pick(&self.sh_steps)
+            } else {
+                Vec::new()
+            },
+            sh_codes: order
+                .iter()
+                .flat_map(|&i| &self.sh_codes[i as usize * k3..(i as usize + 1) * k3])
+                .copied()
+                .collect(),
+            instances: order.iter().map(|&i| self.instances[i as usize]).collect(),
+        }
+    }
+
     /// The axis-aligned bounds of the centres.
     pub fn bounds(&self) -> sage_core::Aabb {
         sage_core::Aabb::from_points(self.positions.iter().map(|p| Vec3::from_array(*p)))
@@ -481,6 +548,36 @@ mod tests {
     fn sh3_costs_93_bytes_per_gaussian() {
         let s = Gaussians::with_len(1000, 3).unwrap();
         assert_eq!(s.heap_bytes(), 93_000);
+    }
+
+    #[test]
+    fn permuting_by_morton_order_keeps_every_gaussian() {
+        let items: Vec<Gaussian> = (0..300)
+            .map(|i| {
+                let mut sh_rest = [[0.0; 3]; 15];
+                sh_rest[0] = [i as f32 * 0.01, 0.0, -0.5];
+                Gaussian {
+                    position: Vec3::new((i * 7 % 13) as f32, (i % 5) as f32, 0.5),
+                    sh_rest,
+                    instance: i,
+                    ..Gaussian::default()
+                }
+            })
+            .collect();
+        let g = Gaussians::from_gaussians(&items, 1).unwrap();
+        let order = g.morton_order();
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..300).collect::<Vec<u32>>());
+        let p = g.permuted(&order);
+        for (j, &i) in order.iter().enumerate() {
+            assert_eq!(p.get(j), g.get(i as usize));
+        }
+        assert_eq!(
+            p.morton_order(),
+            (0..300).collect::<Vec<u32>>(),
+            "a sorted store is its own order"
+        );
     }
 
     #[test]

@@ -23,41 +23,10 @@ pub struct SplatIndex {
     pub bounds: Vec<Aabb>,
 }
 
-fn spread_bits(v: u32) -> u64 {
-    let mut x = (v & 0x1f_ffff) as u64;
-    x = (x | x << 32) & 0x1f_0000_0000_ffff;
-    x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-    x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-    x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-    (x | x << 2) & 0x1249_2492_4924_9249
-}
-
-fn morton(p: Vec3, lo: Vec3, inv_size: Vec3) -> u64 {
-    let q = ((p - lo) * inv_size).clamp(Vec3::ZERO, Vec3::ONE) * 2_097_151.0;
-    spread_bits(q.x as u32) | spread_bits(q.y as u32) << 1 | spread_bits(q.z as u32) << 2
-}
-
 impl SplatIndex {
     /// Builds the index of `g` (deterministic: ties in Morton code keep index order).
     pub fn build(g: &Gaussians) -> SplatIndex {
-        let bounds = g.bounds();
-        let (lo, size) = if bounds.is_empty() {
-            (Vec3::ZERO, Vec3::ONE)
-        } else {
-            (bounds.min, bounds.size().max(Vec3::splat(1e-6)))
-        };
-        let inv = Vec3::ONE / size;
-        let mut keyed: Vec<(u64, u32)> = (0..g.len() as u32)
-            .into_par_iter()
-            .map(|i| {
-                (
-                    morton(Vec3::from_array(g.positions[i as usize]), lo, inv),
-                    i,
-                )
-            })
-            .collect();
-        keyed.par_sort_unstable();
-        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
+        let order = g.morton_order();
         let bounds = order
             .par_chunks(CHUNK)
             .map(|ids| {

@@ -312,7 +312,6 @@ impl Renderer {
         }
     }
 
-
     fn project_slab(
         &mut self,
         g: &Gaussians,
@@ -325,7 +324,11 @@ impl Renderer {
         let candidates: Vec<u32> = self
             .views
             .iter()
-            .filter(|v| v.z_min < hi && v.z_max >= lo && !rect_finished(&self.finished_sum, grid.tiles_x, &v.tiles))
+            .filter(|v| {
+                v.z_min < hi
+                    && v.z_max >= lo
+                    && !rect_finished(&self.finished_sum, grid.tiles_x, &v.tiles)
+            })
             .map(|v| v.chunk)
             .collect();
         let k = sh_rest_count(g.sh_degree());
@@ -550,7 +553,9 @@ impl Renderer {
 /// the summed-area table `sum` of a grid `tiles_x` wide.
 fn rect_finished(sum: &[u32], tiles_x: usize, r: &[usize; 4]) -> bool {
     let w = tiles_x + 1;
-    let total = sum[(r[3] + 1) * w + r[2] + 1] + sum[r[1] * w + r[0]] - sum[r[1] * w + r[2] + 1] - sum[(r[3] + 1) * w + r[0]];
+    let total = sum[(r[3] + 1) * w + r[2] + 1] + sum[r[1] * w + r[0]]
+        - sum[r[1] * w + r[2] + 1]
+        - sum[(r[3] + 1) * w + r[0]];
     total as usize == (r[2] - r[0] + 1) * (r[3] - r[1] + 1)
 }
 

@@ -139,7 +139,8 @@ impl TileState {
     #[inline]
     fn blend_vector(&mut self, sp: &SplatLanes, v: usize, l: usize, mask: f32x4, power: f32x4) {
         // Lanes beyond the splat's 1/255 ellipse (or done) are dropped before the exponential.
-        let reached = mask & !self.done[v] & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
+        let reached =
+            mask & !self.done[v] & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
         if reached.none() {
             return;
         }
