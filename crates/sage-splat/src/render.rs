@@ -99,7 +99,7 @@ pub struct Renderer {
     views: Vec<ChunkView>,
     splats: Vec<Splat>,
     per_chunk: Vec<u32>,
-    entries: Vec<(u32, u32)>,
+    blocks: Vec<Vec<(u32, u32)>>,
     tile_entries: Vec<(u32, u32)>,
     tile_start: Vec<u32>,
     tiles: Vec<TileState>,
@@ -208,7 +208,7 @@ impl Renderer {
             views: Vec::new(),
             splats: Vec::new(),
             per_chunk: Vec::new(),
-            entries: Vec::new(),
+            blocks: Vec::new(),
             tile_entries: Vec::new(),
             tile_start: Vec::new(),
             tiles: Vec::new(),
@@ -427,12 +427,16 @@ impl Renderer {
         let (w, h) = (camera.width as f32, camera.height as f32);
         let (tiles_x, tiles_y) = (grid.tiles_x, grid.tiles_y);
         let tiles = &self.tiles;
-        let blocks: Vec<Vec<(u32, u32)>> = self
-            .splats
-            .par_chunks(4096)
+        let n_blocks = self.splats.len().div_ceil(4096);
+        if self.blocks.len() < n_blocks {
+            self.blocks.resize_with(n_blocks, Vec::new);
+        }
+        self.blocks[..n_blocks]
+            .par_iter_mut()
+            .zip(self.splats.par_chunks(4096))
             .enumerate()
-            .map(|(b, splats)| {
-                let mut out = Vec::new();
+            .for_each(|(b, (out, splats))| {
+                out.clear();
                 for (j, s) in splats.iter().enumerate() {
                     let x0 = ((s.x - s.radius).max(0.0) / TILE as f32) as usize;
                     let y0 = ((s.y - s.radius).max(0.0) / TILE as f32) as usize;
@@ -455,18 +459,15 @@ impl Renderer {
                         }
                     }
                 }
-                out
-            })
-            .collect();
-        self.entries.clear();
-        for b in &blocks {
-            self.entries.extend_from_slice(b);
-        }
-        self.stats.tile_entries += self.entries.len();
+            });
+        // Counting sort by tile over the blocks in order (so ties keep splat order).
+        let blocks = &self.blocks[..n_blocks];
+        let total: usize = blocks.iter().map(Vec::len).sum();
+        self.stats.tile_entries += total;
         let n_tiles = grid.tiles();
         self.tile_start.clear();
         self.tile_start.resize(n_tiles + 1, 0);
-        for &(t, _) in &self.entries {
+        for &(t, _) in blocks.iter().flatten() {
             self.tile_start[t as usize + 1] += 1;
         }
         for t in 0..n_tiles {
@@ -474,8 +475,8 @@ impl Renderer {
         }
         let mut cursor: Vec<u32> = self.tile_start[..n_tiles].to_vec();
         self.tile_entries.clear();
-        self.tile_entries.resize(self.entries.len(), (0, 0));
-        for &(t, s) in &self.entries {
+        self.tile_entries.resize(total, (0, 0));
+        for &(t, s) in blocks.iter().flatten() {
             let slot = &mut cursor[t as usize];
             self.tile_entries[*slot as usize] = (self.splats[s as usize].depth.to_bits(), s);
             *slot += 1;
@@ -525,14 +526,15 @@ impl Renderer {
             for ly in 0..th {
                 for lx in 0..tw {
                     let (l, p) = (ly * TILE + lx, (y0 + ly) * width + x0 + lx);
-                    let t_final = lane(&s.t, l);
+                    let t_final = lane(&s.t, l).abs();
                     for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
                         let v = lane(sum, l) + t_final * options.background[c];
                         out.rgb_f32[p * 3 + c] = v;
                         out.rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
                     }
                     out.alpha[p] = 1.0 - t_final;
-                    let w = lane(&s.w, l);
+                    // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
+                    let w = 1.0 - t_final;
                     let hit = w > 0.0;
                     out.depth_expected[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
                     out.depth_median[p] = lane(&s.median, l);

@@ -20,7 +20,8 @@ const VECTORS: usize = TILE_PIXELS / 4;
 /// (vector `ly * 4 + lx / 4`, lane `lx % 4`).
 #[derive(Clone)]
 pub struct TileState {
-    /// Transmittance.
+    /// Transmittance, negated once the pixel reached the floor (so "done" costs no extra lane
+    /// state: live pixels have t ≥ 1e-4 > 0, and the magnitude is the final transmittance).
     pub t: [f32x4; VECTORS],
     /// Σ w · red.
     pub r: [f32x4; VECTORS],
@@ -30,14 +31,10 @@ pub struct TileState {
     pub b: [f32x4; VECTORS],
     /// Σ w · z.
     pub wz: [f32x4; VECTORS],
-    /// Σ w.
-    pub w: [f32x4; VECTORS],
     /// z where transmittance first fell to 0.5 or below (0 until then).
     pub median: [f32x4; VECTORS],
     /// The largest weight so far.
     pub best_w: [f32x4; VECTORS],
-    /// All-ones lanes for pixels that reached the transmittance floor.
-    pub done: [f32x4; VECTORS],
     /// Instance of the largest weight, per pixel (`ly * 16 + lx`).
     pub instance: [u32; TILE_PIXELS],
     /// Pixels of the tile inside the image that are not done.
@@ -60,10 +57,8 @@ impl TileState {
             g: zero,
             b: zero,
             wz: zero,
-            w: zero,
             median: zero,
             best_w: zero,
-            done: zero,
             instance: [0; TILE_PIXELS],
             remaining: pixels,
         }
@@ -139,13 +134,15 @@ impl TileState {
     #[inline]
     fn blend_vector(&mut self, sp: &SplatLanes, v: usize, l: usize, mask: f32x4, power: f32x4) {
         // Lanes beyond the splat's 1/255 ellipse (or done) are dropped before the exponential.
-        let reached =
-            mask & !self.done[v] & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
+        let t = self.t[v];
+        let reached = mask
+            & t.simd_gt(f32x4::ZERO)
+            & power.simd_ge(sp.min_power)
+            & power.simd_le(f32x4::ZERO);
         if reached.none() {
             return;
         }
         let alpha = (sp.opacity * exp4(power)).min(f32x4::splat(MAX_ALPHA));
-        let t = self.t[v];
         let valid = reached & alpha.simd_ge(f32x4::splat(MIN_ALPHA));
         if valid.none() {
             return;
@@ -153,7 +150,6 @@ impl TileState {
         let next = t * (f32x4::ONE - alpha);
         let saturated = valid & next.simd_lt(f32x4::splat(MIN_TRANSMITTANCE));
         if saturated.any() {
-            self.done[v] |= saturated;
             self.remaining -= saturated.to_bitmask().count_ones() as usize;
         }
         let blend = valid & !saturated;
@@ -162,7 +158,6 @@ impl TileState {
         self.g[v] += w * sp.g;
         self.b[v] += w * sp.b;
         self.wz[v] += w * sp.depth;
-        self.w[v] += w;
         let crosses = blend & t.simd_gt(f32x4::splat(0.5)) & next.simd_le(f32x4::splat(0.5));
         self.median[v] = crosses.select(sp.depth, self.median[v]);
         let better = blend & w.simd_gt(self.best_w[v]);
@@ -175,7 +170,7 @@ impl TileState {
                 }
             }
         }
-        self.t[v] = blend.select(next, t);
+        self.t[v] = blend.select(next, saturated.select(-t, t));
     }
 }
 
