@@ -521,32 +521,45 @@ impl Renderer {
             instance: vec![0; n],
             semantic: vec![0; n],
         };
-        for (t, s) in self.tiles.iter().enumerate() {
-            let (x0, y0, tw, th) = grid.tile_rect(t);
-            for ly in 0..th {
-                for lx in 0..tw {
-                    let (l, p) = (ly * TILE + lx, (y0 + ly) * width + x0 + lx);
-                    let t_final = lane(&s.t, l).abs();
-                    for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
-                        let v = lane(sum, l) + t_final * options.background[c];
-                        out.rgb_f32[p * 3 + c] = v;
-                        out.rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        // One tile row (16 image rows) per task: each owns a contiguous band of every image.
+        let band = TILE * width;
+        (
+            out.rgb.par_chunks_mut(band * 3),
+            out.rgb_f32.par_chunks_mut(band * 3),
+            out.alpha.par_chunks_mut(band),
+            out.depth_expected.par_chunks_mut(band),
+            out.depth_median.par_chunks_mut(band),
+            out.instance.par_chunks_mut(band),
+            out.semantic.par_chunks_mut(band),
+        )
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(ty, (rgb, rgb_f32, alpha, depth, median, instance, semantic))| {
+                for tx in 0..grid.tiles_x {
+                    let t = ty * grid.tiles_x + tx;
+                    let s = &self.tiles[t];
+                    let (x0, _, tw, th) = grid.tile_rect(t);
+                    for ly in 0..th {
+                        for lx in 0..tw {
+                            let (l, p) = (ly * TILE + lx, ly * width + x0 + lx);
+                            let t_final = lane(&s.t, l).abs();
+                            for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
+                                let v = lane(sum, l) + t_final * options.background[c];
+                                rgb_f32[p * 3 + c] = v;
+                                rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                            }
+                            alpha[p] = 1.0 - t_final;
+                            // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
+                            let w = 1.0 - t_final;
+                            let hit = w > 0.0;
+                            depth[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
+                            median[p] = lane(&s.median, l);
+                            instance[p] = s.instance[l];
+                            semantic[p] = if hit { categories.get(s.instance[l] as usize).copied().unwrap_or(0) } else { 0 };
+                        }
                     }
-                    out.alpha[p] = 1.0 - t_final;
-                    // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
-                    let w = 1.0 - t_final;
-                    let hit = w > 0.0;
-                    out.depth_expected[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
-                    out.depth_median[p] = lane(&s.median, l);
-                    out.instance[p] = s.instance[l];
-                    out.semantic[p] = if hit {
-                        categories.get(s.instance[l] as usize).copied().unwrap_or(0)
-                    } else {
-                        0
-                    };
                 }
-            }
-        }
+            });
         out
     }
 }
