@@ -534,32 +534,39 @@ impl Renderer {
         )
             .into_par_iter()
             .enumerate()
-            .for_each(|(ty, (rgb, rgb_f32, alpha, depth, median, instance, semantic))| {
-                for tx in 0..grid.tiles_x {
-                    let t = ty * grid.tiles_x + tx;
-                    let s = &self.tiles[t];
-                    let (x0, _, tw, th) = grid.tile_rect(t);
-                    for ly in 0..th {
-                        for lx in 0..tw {
-                            let (l, p) = (ly * TILE + lx, ly * width + x0 + lx);
-                            let t_final = lane(&s.t, l).abs();
-                            for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
-                                let v = lane(sum, l) + t_final * options.background[c];
-                                rgb_f32[p * 3 + c] = v;
-                                rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+            .for_each(
+                |(ty, (rgb, rgb_f32, alpha, depth, median, instance, semantic))| {
+                    for tx in 0..grid.tiles_x {
+                        let t = ty * grid.tiles_x + tx;
+                        let s = &self.tiles[t];
+                        let (x0, _, tw, th) = grid.tile_rect(t);
+                        for ly in 0..th {
+                            for lx in 0..tw {
+                                let (l, p) = (ly * TILE + lx, ly * width + x0 + lx);
+                                let t_final = lane(&s.t, l).abs();
+                                for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
+                                    let v = lane(sum, l) + t_final * options.background[c];
+                                    rgb_f32[p * 3 + c] = v;
+                                    rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                                }
+                                alpha[p] = 1.0 - t_final;
+                                // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
+                                let w = 1.0 - t_final;
+                                let hit = w > 0.0;
+                                depth[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
+                                median[p] = lane(&s.median, l);
+                                let id = lane(&s.instance, l).to_bits();
+                                instance[p] = id;
+                                semantic[p] = if hit {
+                                    categories.get(id as usize).copied().unwrap_or(0)
+                                } else {
+                                    0
+                                };
                             }
-                            alpha[p] = 1.0 - t_final;
-                            // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
-                            let w = 1.0 - t_final;
-                            let hit = w > 0.0;
-                            depth[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
-                            median[p] = lane(&s.median, l);
-                            instance[p] = s.instance[l];
-                            semantic[p] = if hit { categories.get(s.instance[l] as usize).copied().unwrap_or(0) } else { 0 };
                         }
                     }
-                }
-            });
+                },
+            );
         out
     }
 }

@@ -35,8 +35,9 @@ pub struct TileState {
     pub median: [f32x4; VECTORS],
     /// The largest weight so far.
     pub best_w: [f32x4; VECTORS],
-    /// Instance of the largest weight, per pixel (`ly * 16 + lx`).
-    pub instance: [u32; TILE_PIXELS],
+    /// Instance of the largest weight: the id's bits in each lane (read with `to_bits`), so
+    /// lanes are chosen with the same bitwise select as the floats.
+    pub instance: [f32x4; VECTORS],
     /// Pixels of the tile inside the image that are not done.
     pub remaining: usize,
 }
@@ -59,7 +60,7 @@ impl TileState {
             wz: zero,
             median: zero,
             best_w: zero,
-            instance: [0; TILE_PIXELS],
+            instance: zero,
             remaining: pixels,
         }
     }
@@ -118,21 +119,15 @@ impl TileState {
                     let in_range = lx.simd_ge(first_f) & lx.simd_lt(last_f);
                     let dx = f32x4::splat(sp.x - x0 as f32 - 0.5) - lx;
                     let power = row_part - (f32x4::splat(0.5 * a) * dx + b_dy) * dx;
-                    self.blend_vector(
-                        &splat,
-                        ly * ROW_VECTORS + gx,
-                        ly * TILE + gx * 4,
-                        in_range,
-                        power,
-                    );
+                    self.blend_vector(&splat, ly * ROW_VECTORS + gx, in_range, power);
                 }
             }
         }
     }
 
-    /// Blends one splat into four pixels (vector `v`, first pixel `l`) where `mask` is set.
+    /// Blends one splat into four pixels (vector `v`) where `mask` is set.
     #[inline]
-    fn blend_vector(&mut self, sp: &SplatLanes, v: usize, l: usize, mask: f32x4, power: f32x4) {
+    fn blend_vector(&mut self, sp: &SplatLanes, v: usize, mask: f32x4, power: f32x4) {
         // Lanes beyond the splat's 1/255 ellipse (or done) are dropped before the exponential.
         let t = self.t[v];
         let reached = mask
@@ -161,15 +156,8 @@ impl TileState {
         let crosses = blend & t.simd_gt(f32x4::splat(0.5)) & next.simd_le(f32x4::splat(0.5));
         self.median[v] = crosses.select(sp.depth, self.median[v]);
         let better = blend & w.simd_gt(self.best_w[v]);
-        if better.any() {
-            self.best_w[v] = better.select(w, self.best_w[v]);
-            let bits = better.to_bitmask();
-            for k in 0..4 {
-                if bits & (1 << k) != 0 {
-                    self.instance[l + k] = sp.instance;
-                }
-            }
-        }
+        self.best_w[v] = better.select(w, self.best_w[v]);
+        self.instance[v] = better.select(sp.instance, self.instance[v]);
         self.t[v] = blend.select(next, saturated.select(-t, t));
     }
 }
@@ -182,7 +170,7 @@ struct SplatLanes {
     g: f32x4,
     b: f32x4,
     depth: f32x4,
-    instance: u32,
+    instance: f32x4,
 }
 
 impl SplatLanes {
@@ -196,7 +184,7 @@ impl SplatLanes {
             g: f32x4::splat(s.color[1]),
             b: f32x4::splat(s.color[2]),
             depth: f32x4::splat(s.depth),
-            instance: s.instance,
+            instance: f32x4::splat(f32::from_bits(s.instance)),
         }
     }
 }
