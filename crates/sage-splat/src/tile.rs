@@ -115,25 +115,27 @@ impl TileState {
                 let row_part = f32x4::splat(-0.5 * c * dy * dy);
                 let b_dy = f32x4::splat(b * dy);
                 for gx in first / 4..=(last - 1) / 4 {
+                    let v = ly * ROW_VECTORS + gx;
                     let lx = lane_x + f32x4::splat((gx * 4) as f32);
-                    let in_range = lx.simd_ge(first_f) & lx.simd_lt(last_f);
+                    // Live lanes: inside the square and not yet at the floor (done pixels hold −T).
+                    let live = lx.simd_ge(first_f) & lx.simd_lt(last_f) & self.t[v].simd_gt(f32x4::ZERO);
+                    if live.none() {
+                        continue;
+                    }
                     let dx = f32x4::splat(sp.x - x0 as f32 - 0.5) - lx;
                     let power = row_part - (f32x4::splat(0.5 * a) * dx + b_dy) * dx;
-                    self.blend_vector(&splat, ly * ROW_VECTORS + gx, in_range, power);
+                    self.blend_vector(&splat, v, live, power);
                 }
             }
         }
     }
 
-    /// Blends one splat into four pixels (vector `v`) where `mask` is set.
+    /// Blends one splat into the live lanes (`live`) of vector `v`.
     #[inline]
-    fn blend_vector(&mut self, sp: &SplatLanes, v: usize, mask: f32x4, power: f32x4) {
-        // Lanes beyond the splat's 1/255 ellipse (or done) are dropped before the exponential.
+    fn blend_vector(&mut self, sp: &SplatLanes, v: usize, live: f32x4, power: f32x4) {
+        // Lanes beyond the splat's 1/255 ellipse are dropped before the exponential.
         let t = self.t[v];
-        let reached = mask
-            & t.simd_gt(f32x4::ZERO)
-            & power.simd_ge(sp.min_power)
-            & power.simd_le(f32x4::ZERO);
+        let reached = live & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
         if reached.none() {
             return;
         }
