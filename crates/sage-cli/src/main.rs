@@ -14,7 +14,7 @@ use std::process::ExitCode;
 
 /// sage3d: executable 3D Gaussian Splatting scenes for vision-and-language navigation.
 #[derive(Parser)]
-#[command(name = "sage3d", version, about, long_about = None)]
+#[command(name = "sage3d", version)]
 struct Cli {
     /// Worker threads (default: all cores).
     #[arg(long, global = true)]
@@ -25,7 +25,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the main job on the embedded default: synthesise a scene and describe it.
+    /// Run the main job on the embedded default: synthesise a scene, render it, describe it.
     Demo(scene_cmd::DemoArgs),
     /// Scene folders: synthesise one, describe one.
     #[command(subcommand)]
