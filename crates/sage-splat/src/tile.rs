@@ -118,7 +118,8 @@ impl TileState {
                     let v = ly * ROW_VECTORS + gx;
                     let lx = lane_x + f32x4::splat((gx * 4) as f32);
                     // Live lanes: inside the square and not yet at the floor (done pixels hold −T).
-                    let live = lx.simd_ge(first_f) & lx.simd_lt(last_f) & self.t[v].simd_gt(f32x4::ZERO);
+                    let live =
+                        lx.simd_ge(first_f) & lx.simd_lt(last_f) & self.t[v].simd_gt(f32x4::ZERO);
                     if live.none() {
                         continue;
                     }
