@@ -33,6 +33,9 @@ pub struct RenderBenchArgs {
     /// Resolutions as WxH.
     #[arg(long, value_delimiter = ',', default_value = "224x224,640x480")]
     sizes: Vec<String>,
+    /// Camera pitch in degrees (0: level, as the SAGE-Bench camera).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pitch: f32,
 }
 
 #[derive(Args)]
@@ -224,12 +227,13 @@ fn render(a: RenderBenchArgs) -> Result<()> {
     let eye = crate::render_cmd::default_eye(&scene);
     println!("machine          {}", machine::describe());
     println!(
-        "scene            {} Gaussians (SH degree {}), camera at ({:.2}, {:.2}, {:.2}) in the largest room",
+        "scene            {} Gaussians (SH degree {}), camera at ({:.2}, {:.2}, {:.2}) in the largest room, pitch {}°, HFOV 90°",
         scene.gaussians.len(),
         scene.gaussians.sh_degree(),
         eye.x,
         eye.y,
-        eye.z
+        eye.z,
+        a.pitch
     );
     println!(
         "index            built in {index_ms:.0} ms, {:.1} bytes/Gaussian",
@@ -246,7 +250,7 @@ fn render(a: RenderBenchArgs) -> Result<()> {
                     intrinsics,
                     eye,
                     std::f32::consts::TAU * f as f32 / frames as f32,
-                    -0.1,
+                    a.pitch.to_radians(),
                 )
             })
             .collect();

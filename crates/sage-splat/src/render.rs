@@ -100,7 +100,7 @@ pub struct Renderer {
     splats: Vec<Splat>,
     per_chunk: Vec<u32>,
     blocks: Vec<Vec<(u32, u32)>>,
-    tile_entries: Vec<(u32, u32)>,
+    tile_entries: Vec<u64>,
     tile_start: Vec<u32>,
     tiles: Vec<TileState>,
     finished_sum: Vec<u32>,
@@ -421,7 +421,7 @@ impl Renderer {
         self.stats.splats += write;
     }
 
-    /// Fills `tile_entries` with (depth bits, splat) grouped by unfinished tile, each tile sorted
+    /// Fills `tile_entries` with depth-bits << 32 | splat, grouped by unfinished tile, each tile sorted
     /// front to back (ties by splat index), and `tile_start` with each tile's range.
     fn bin(&mut self, camera: &Camera, grid: &Grid) {
         let (w, h) = (camera.width as f32, camera.height as f32);
@@ -475,13 +475,14 @@ impl Renderer {
         }
         let mut cursor: Vec<u32> = self.tile_start[..n_tiles].to_vec();
         self.tile_entries.clear();
-        self.tile_entries.resize(total, (0, 0));
+        self.tile_entries.resize(total, 0);
         for &(t, s) in blocks.iter().flatten() {
             let slot = &mut cursor[t as usize];
-            self.tile_entries[*slot as usize] = (self.splats[s as usize].depth.to_bits(), s);
+            // Depth bits high, splat index low: one integer sorts by depth, then index.
+            self.tile_entries[*slot as usize] = (self.splats[s as usize].depth.to_bits() as u64) << 32 | s as u64;
             *slot += 1;
         }
-        let mut rest: &mut [(u32, u32)] = &mut self.tile_entries;
+        let mut rest: &mut [u64] = &mut self.tile_entries;
         let mut slices = Vec::with_capacity(n_tiles);
         for t in 0..n_tiles {
             let len = (self.tile_start[t + 1] - self.tile_start[t]) as usize;

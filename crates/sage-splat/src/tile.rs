@@ -75,7 +75,7 @@ impl TileState {
         self.remaining == 0
     }
 
-    /// Blends `list` (splat indices into `splats`, already front to back) into the tile whose
+    /// Blends `list` (depth-bits << 32 | splat index, already front to back) into the tile whose
     /// top-left pixel is (x0, y0) and whose in-image size is tw × th.
     ///
     /// Each splat visits, row by row, only the pixel centres inside its 1/255 ellipse (the
@@ -84,14 +84,15 @@ impl TileState {
     pub fn blend(
         &mut self,
         splats: &[Splat],
-        list: &[(u32, u32)],
+        list: &[u64],
         x0: usize,
         y0: usize,
         tw: usize,
         th: usize,
     ) {
         let lane_x = f32x4::new([0.0, 1.0, 2.0, 3.0]);
-        for &(_, si) in list {
+        for &entry in list {
+            let si = entry as u32;
             if self.remaining == 0 {
                 return;
             }
