@@ -555,7 +555,7 @@ impl Renderer {
                                 let w = 1.0 - t_final;
                                 let hit = w > 0.0;
                                 depth[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
-                                median[p] = lane(&s.median, l);
+                                median[p] = if t_final <= 0.5 { lane(&s.median, l) } else { 0.0 };
                                 let id = lane(&s.instance, l).to_bits();
                                 instance[p] = id;
                                 semantic[p] = if hit {

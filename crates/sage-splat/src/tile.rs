@@ -31,7 +31,8 @@ pub struct TileState {
     pub b: [f32x4; VECTORS],
     /// Σ w · z.
     pub wz: [f32x4; VECTORS],
-    /// z where transmittance first fell to 0.5 or below (0 until then).
+    /// z of the last splat blended while transmittance was above 0.5: the median depth once
+    /// transmittance ends at or below 0.5.
     pub median: [f32x4; VECTORS],
     /// The largest weight so far.
     pub best_w: [f32x4; VECTORS],
@@ -157,8 +158,10 @@ impl TileState {
         self.g[v] += w * sp.g;
         self.b[v] += w * sp.b;
         self.wz[v] += w * sp.depth;
-        let crosses = blend & t.simd_gt(f32x4::splat(0.5)) & next.simd_le(f32x4::splat(0.5));
-        self.median[v] = crosses.select(sp.depth, self.median[v]);
+        // Transmittance only falls, so the last splat blended while T was still above 0.5 is
+        // the one that crossed it — provided T ends at or below 0.5 (checked when assembling).
+        let above = blend & t.simd_gt(f32x4::splat(0.5));
+        self.median[v] = above.select(sp.depth, self.median[v]);
         let better = blend & w.simd_gt(self.best_w[v]);
         self.best_w[v] = better.select(w, self.best_w[v]);
         self.instance[v] = better.select(sp.instance, self.instance[v]);
