@@ -145,7 +145,7 @@ pub fn render_to_dir(
     write_images(out, &image)?;
     write_legend(&out.join("legend.json"), scene, &image)?;
     let record = serde_json::json!({
-        "camera": {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy, "cx": camera.cx, "cy": camera.cy,
+        "camera": {"width": camera.intrinsics.width, "height": camera.intrinsics.height, "fx": camera.intrinsics.fx, "fy": camera.intrinsics.fy, "cx": camera.intrinsics.cx, "cy": camera.intrinsics.cy,
                    "c2w_row_major": camera.c2w().transpose().to_cols_array_2d(), "near": camera.near, "far": camera.far},
         "files": {
             "rgb.png": "colour, 8-bit",
@@ -165,8 +165,8 @@ pub fn render_to_dir(
     }
     eprintln!(
         "rendered {}x{} in {:.1} ms ({} splats) -> {}",
-        camera.width,
-        camera.height,
+        camera.intrinsics.width,
+        camera.intrinsics.height,
         stats.cull_ms + stats.project_ms + stats.sort_ms + stats.raster_ms,
         stats.splats,
         out.display()
@@ -295,21 +295,13 @@ fn write_turntable(
         forward.y.atan2(forward.x),
         forward.z.clamp(-1.0, 1.0).asin(),
     );
-    let intrinsics = Intrinsics {
-        width: camera.width,
-        height: camera.height,
-        fx: camera.fx,
-        fy: camera.fy,
-        cx: camera.cx,
-        cy: camera.cy,
-    };
     let mut images = Vec::with_capacity(frames);
     for f in 0..frames {
         let yaw = yaw0 + std::f32::consts::TAU * f as f32 / frames as f32;
         let cam = Camera {
             near: camera.near,
             far: camera.far,
-            ..Camera::from_yaw_pitch(intrinsics, camera.position, yaw, pitch)
+            ..Camera::from_yaw_pitch(camera.intrinsics, camera.position, yaw, pitch)
         };
         let image = renderer.render(
             &scene.gaussians,
@@ -327,7 +319,10 @@ fn write_turntable(
         )?;
         images.push(image.rgb);
     }
-    let (w, h) = (camera.width as u16, camera.height as u16);
+    let (w, h) = (
+        camera.intrinsics.width as u16,
+        camera.intrinsics.height as u16,
+    );
     sage_scene::fsutil::write_atomic(&dir.join("turntable.gif"), |out| {
         let mut enc = gif::Encoder::new(out, w, h, &[]).map_err(std::io::Error::other)?;
         enc.set_repeat(gif::Repeat::Infinite)

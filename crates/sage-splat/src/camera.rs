@@ -9,32 +9,7 @@ pub const DEFAULT_NEAR: f32 = 0.1;
 /// Far plane used when none is given (metres).
 pub const DEFAULT_FAR: f32 = 100.0;
 
-/// A pinhole camera: image size, intrinsics, pose and clip range.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Camera {
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Focal length along x, pixels.
-    pub fx: f32,
-    /// Focal length along y, pixels.
-    pub fy: f32,
-    /// Principal point x, pixels (pixel i covers [i, i+1)).
-    pub cx: f32,
-    /// Principal point y, pixels.
-    pub cy: f32,
-    /// Camera-to-world rotation: columns are the camera's right, down and forward axes in W.
-    pub rotation: Mat3,
-    /// Camera centre in W.
-    pub position: Vec3,
-    /// Near clip distance (along the optical axis).
-    pub near: f32,
-    /// Far clip distance.
-    pub far: f32,
-}
-
-/// The intrinsics part of a camera.
+/// Image size and pinhole intrinsics (pixel i covers [i, i+1)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Intrinsics {
     /// Image width in pixels.
@@ -49,6 +24,21 @@ pub struct Intrinsics {
     pub cx: f32,
     /// Principal point y.
     pub cy: f32,
+}
+
+/// A pinhole camera: image size and intrinsics, pose, clip range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Image size, focal lengths and principal point.
+    pub intrinsics: Intrinsics,
+    /// Camera-to-world rotation: columns are the camera's right, down and forward axes in W.
+    pub rotation: Mat3,
+    /// Camera centre in W.
+    pub position: Vec3,
+    /// Near clip distance (along the optical axis).
+    pub near: f32,
+    /// Far clip distance.
+    pub far: f32,
 }
 
 impl Intrinsics {
@@ -91,21 +81,8 @@ pub fn rotation_from_yaw_pitch(yaw: f32, pitch: f32) -> Mat3 {
 impl Camera {
     /// A camera from intrinsics and a camera-to-world rotation and position.
     pub fn new(intrinsics: Intrinsics, rotation: Mat3, position: Vec3) -> Camera {
-        let Intrinsics {
-            width,
-            height,
-            fx,
-            fy,
-            cx,
-            cy,
-        } = intrinsics;
         Camera {
-            width,
-            height,
-            fx,
-            fy,
-            cx,
-            cy,
+            intrinsics,
             rotation,
             position,
             near: DEFAULT_NEAR,
@@ -160,18 +137,29 @@ impl Camera {
 
     /// The pixel coordinates (continuous, pixel centres at +0.5) of a camera-space point.
     pub fn project(&self, c: Vec3) -> (f32, f32) {
-        (self.fx * c.x / c.z + self.cx, self.fy * c.y / c.z + self.cy)
+        (
+            self.intrinsics.fx * c.x / c.z + self.intrinsics.cx,
+            self.intrinsics.fy * c.y / c.z + self.intrinsics.cy,
+        )
     }
 
     /// Checks sizes, focal lengths and clip range.
     pub fn validate(&self) -> Result<()> {
-        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+        if self.intrinsics.width == 0
+            || self.intrinsics.height == 0
+            || self.intrinsics.width > 16384
+            || self.intrinsics.height > 16384
+        {
             return Err(Error::invalid(format!(
                 "image size must be 1-16384 pixels, got {}x{}",
-                self.width, self.height
+                self.intrinsics.width, self.intrinsics.height
             )));
         }
-        if !(self.fx > 0.0 && self.fy > 0.0 && self.fx.is_finite() && self.fy.is_finite()) {
+        if !(self.intrinsics.fx > 0.0
+            && self.intrinsics.fy > 0.0
+            && self.intrinsics.fx.is_finite()
+            && self.intrinsics.fy.is_finite())
+        {
             return Err(Error::invalid("focal lengths must be positive and finite"));
         }
         if !(self.near > 0.0 && self.far > self.near) {

@@ -76,10 +76,10 @@ fn box_reaches(b: &Aabb, n: Vec3, d: f32) -> bool {
 /// by the 1.3× Jacobian clamp margin of the projection so no contributing splat is lost.
 fn frustum_planes(c: &Camera) -> [(Vec3, f32); 6] {
     let (right, down, fwd) = (c.rotation.x_axis, c.rotation.y_axis, c.rotation.z_axis);
-    let tan_l = (c.cx / c.fx) * 1.3 + 0.05;
-    let tan_r = ((c.width as f32 - c.cx) / c.fx) * 1.3 + 0.05;
-    let tan_t = (c.cy / c.fy) * 1.3 + 0.05;
-    let tan_b = ((c.height as f32 - c.cy) / c.fy) * 1.3 + 0.05;
+    let tan_l = (c.intrinsics.cx / c.intrinsics.fx) * 1.3 + 0.05;
+    let tan_r = ((c.intrinsics.width as f32 - c.intrinsics.cx) / c.intrinsics.fx) * 1.3 + 0.05;
+    let tan_t = (c.intrinsics.cy / c.intrinsics.fy) * 1.3 + 0.05;
+    let tan_b = ((c.intrinsics.height as f32 - c.intrinsics.cy) / c.intrinsics.fy) * 1.3 + 0.05;
     let side = |n: Vec3| (n.normalize(), n.normalize().dot(c.position));
     [
         (fwd, fwd.dot(c.position) + c.near),

@@ -108,14 +108,22 @@ pub fn project(
     if !(t.z >= camera.near && t.z <= camera.far) {
         return None;
     }
-    let lim_x = 1.3 * (camera.width as f32 * 0.5) / camera.fx;
-    let lim_y = 1.3 * (camera.height as f32 * 0.5) / camera.fy;
+    let lim_x = 1.3 * (camera.intrinsics.width as f32 * 0.5) / camera.intrinsics.fx;
+    let lim_y = 1.3 * (camera.intrinsics.height as f32 * 0.5) / camera.intrinsics.fy;
     let tx = (t.x / t.z).clamp(-lim_x, lim_x) * t.z;
     let ty = (t.y / t.z).clamp(-lim_y, lim_y) * t.z;
     let inv_z = 1.0 / t.z;
     // Rows of J · W (the Jacobian of the pinhole at the clamped mean, times world→camera).
-    let j0 = Vec3::new(camera.fx * inv_z, 0.0, -camera.fx * tx * inv_z * inv_z);
-    let j1 = Vec3::new(0.0, camera.fy * inv_z, -camera.fy * ty * inv_z * inv_z);
+    let j0 = Vec3::new(
+        camera.intrinsics.fx * inv_z,
+        0.0,
+        -camera.intrinsics.fx * tx * inv_z * inv_z,
+    );
+    let j1 = Vec3::new(
+        0.0,
+        camera.intrinsics.fy * inv_z,
+        -camera.intrinsics.fy * ty * inv_z * inv_z,
+    );
     let w = w2c.transpose();
     let r0 = w * j0;
     let r1 = w * j1;
@@ -136,7 +144,10 @@ pub fn project(
     let lambda = mid + (mid * mid - det).max(0.1).sqrt();
     let radius = (cutoff * lambda).sqrt();
     let (x, y) = camera.project(t);
-    let (w_px, h_px) = (camera.width as f32, camera.height as f32);
+    let (w_px, h_px) = (
+        camera.intrinsics.width as f32,
+        camera.intrinsics.height as f32,
+    );
     if x + radius < 0.0 || x - radius > w_px || y + radius < 0.0 || y - radius > h_px {
         return None;
     }

@@ -122,7 +122,10 @@ struct Grid {
 
 impl Grid {
     fn new(camera: &Camera) -> Grid {
-        let (width, height) = (camera.width as usize, camera.height as usize);
+        let (width, height) = (
+            camera.intrinsics.width as usize,
+            camera.intrinsics.height as usize,
+        );
         Grid {
             width,
             height,
@@ -334,11 +337,14 @@ impl Renderer {
         let k = sh_rest_count(g.sh_degree());
         let order = &self.index.order;
         let finished = &self.finished_sum;
-        let focal = camera.fx.max(camera.fy);
-        let (width, height) = (camera.width as f32, camera.height as f32);
+        let focal = camera.intrinsics.fx.max(camera.intrinsics.fy);
+        let (width, height) = (
+            camera.intrinsics.width as f32,
+            camera.intrinsics.height as f32,
+        );
         let (lim_x, lim_y) = (
-            1.3 * width * 0.5 / camera.fx,
-            1.3 * height * 0.5 / camera.fy,
+            1.3 * width * 0.5 / camera.intrinsics.fx,
+            1.3 * height * 0.5 / camera.intrinsics.fy,
         );
         self.splats
             .resize(candidates.len() * CHUNK, Splat::default());
@@ -424,7 +430,10 @@ impl Renderer {
     /// Fills `tile_entries` with depth-bits << 32 | splat, grouped by unfinished tile, each tile sorted
     /// front to back (ties by splat index), and `tile_start` with each tile's range.
     fn bin(&mut self, camera: &Camera, grid: &Grid) {
-        let (w, h) = (camera.width as f32, camera.height as f32);
+        let (w, h) = (
+            camera.intrinsics.width as f32,
+            camera.intrinsics.height as f32,
+        );
         let (tiles_x, tiles_y) = (grid.tiles_x, grid.tiles_y);
         let tiles = &self.tiles;
         let n_blocks = self.splats.len().div_ceil(4096);
@@ -451,8 +460,12 @@ impl Renderer {
                                 continue;
                             }
                             let (px0, py0) = ((tx * TILE) as f32 + 0.5, (ty * TILE) as f32 + 0.5);
-                            let px1 = ((tx + 1) * TILE).min(camera.width as usize) as f32 - 0.5;
-                            let py1 = ((ty + 1) * TILE).min(camera.height as usize) as f32 - 0.5;
+                            let px1 = ((tx + 1) * TILE).min(camera.intrinsics.width as usize)
+                                as f32
+                                - 0.5;
+                            let py1 = ((ty + 1) * TILE).min(camera.intrinsics.height as usize)
+                                as f32
+                                - 0.5;
                             if single || s.reaches_rect(px0, py0, px1, py1) {
                                 out.push((t as u32, (b * 4096 + j) as u32));
                             }
@@ -479,7 +492,8 @@ impl Renderer {
         for &(t, s) in blocks.iter().flatten() {
             let slot = &mut cursor[t as usize];
             // Depth bits high, splat index low: one integer sorts by depth, then index.
-            self.tile_entries[*slot as usize] = (self.splats[s as usize].depth.to_bits() as u64) << 32 | s as u64;
+            self.tile_entries[*slot as usize] =
+                (self.splats[s as usize].depth.to_bits() as u64) << 32 | s as u64;
             *slot += 1;
         }
         let mut rest: &mut [u64] = &mut self.tile_entries;
@@ -555,7 +569,11 @@ impl Renderer {
                                 let w = 1.0 - t_final;
                                 let hit = w > 0.0;
                                 depth[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
-                                median[p] = if t_final <= 0.5 { lane(&s.median, l) } else { 0.0 };
+                                median[p] = if t_final <= 0.5 {
+                                    lane(&s.median, l)
+                                } else {
+                                    0.0
+                                };
                                 let id = lane(&s.instance, l).to_bits();
                                 instance[p] = id;
                                 semantic[p] = if hit {

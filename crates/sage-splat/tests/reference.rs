@@ -62,13 +62,21 @@ fn reference_project(g: &Gaussian, degree: u8, cam: &Camera) -> Option<RefSplat>
             sigma[i][j] = (0..3).map(|k| r[i][k] * s[k] * s[k] * r[j][k]).sum();
         }
     }
-    let lim_x = 1.3 * (cam.width as f32 / 2.0) / cam.fx;
-    let lim_y = 1.3 * (cam.height as f32 / 2.0) / cam.fy;
+    let lim_x = 1.3 * (cam.intrinsics.width as f32 / 2.0) / cam.intrinsics.fx;
+    let lim_y = 1.3 * (cam.intrinsics.height as f32 / 2.0) / cam.intrinsics.fy;
     let tx = (t[0] / t[2]).clamp(-lim_x, lim_x) * t[2];
     let ty = (t[1] / t[2]).clamp(-lim_y, lim_y) * t[2];
     let jac = [
-        [cam.fx / t[2], 0.0, -cam.fx * tx / (t[2] * t[2])],
-        [0.0, cam.fy / t[2], -cam.fy * ty / (t[2] * t[2])],
+        [
+            cam.intrinsics.fx / t[2],
+            0.0,
+            -cam.intrinsics.fx * tx / (t[2] * t[2]),
+        ],
+        [
+            0.0,
+            cam.intrinsics.fy / t[2],
+            -cam.intrinsics.fy * ty / (t[2] * t[2]),
+        ],
     ];
     // M = J · W, W the world→camera rotation (rows = camera axes).
     let mut m = [[0.0f32; 3]; 2];
@@ -98,7 +106,10 @@ fn reference_project(g: &Gaussian, degree: u8, cam: &Camera) -> Option<RefSplat>
     let k = sh_rest_count(degree);
     let dir = (g.position - cam.position).normalize();
     Some(RefSplat {
-        mean: (cam.fx * t[0] / t[2] + cam.cx, cam.fy * t[1] / t[2] + cam.cy),
+        mean: (
+            cam.intrinsics.fx * t[0] / t[2] + cam.intrinsics.cx,
+            cam.intrinsics.fy * t[1] / t[2] + cam.intrinsics.cy,
+        ),
         inv,
         opacity: 1.0 / (1.0 + (-g.opacity_logit).exp()),
         color: sh::color(g.sh_dc, &g.sh_rest[..k], dir),
@@ -119,7 +130,10 @@ fn reference_render(gs: &Gaussians, cam: &Camera, bg: [f32; 3]) -> Reference {
     let splats: Vec<RefSplat> = (0..gs.len())
         .filter_map(|i| reference_project(&gs.get(i), gs.sh_degree(), cam))
         .collect();
-    let (w, h) = (cam.width as usize, cam.height as usize);
+    let (w, h) = (
+        cam.intrinsics.width as usize,
+        cam.intrinsics.height as usize,
+    );
     let mut out = Reference {
         rgb: vec![0.0; w * h * 3],
         depth: vec![0.0; w * h],
@@ -353,9 +367,9 @@ fn edge_cases_match_the_reference() {
     // Centres exactly on tile borders (x = 16, 32 px and y = 16 px at depth 2 m).
     for px in [16.0f32, 32.0, 48.0] {
         let d = 2.0;
-        let y_world = -(px - 32.0) / cam.fx * d;
+        let y_world = -(px - 32.0) / cam.intrinsics.fx * d;
         g.push(&Gaussian {
-            position: Vec3::new(d, y_world, 1.0 - (16.0 - 24.0) / cam.fy * d),
+            position: Vec3::new(d, y_world, 1.0 - (16.0 - 24.0) / cam.intrinsics.fy * d),
             log_scale: Vec3::splat(-3.5),
             ..base
         });
