@@ -586,30 +586,31 @@ struct Shared {
 
 fn shared_walls(rooms: &[RoomCell]) -> Vec<Shared> {
     let mut out = Vec::new();
-    let close = |a: f32, b: f32| (a - b).abs() < 1e-3;
     for i in 0..rooms.len() {
         for j in 0..rooms.len() {
             let (ri, rj) = (rooms[i].rect, rooms[j].rect);
-            if close(ri.max.x, rj.min.x) {
-                let span = [ri.min.y.max(rj.min.y), ri.max.y.min(rj.max.y)];
-                if span[1] > span[0] {
+            // Room j right of room i (a wall along Y), then above it (a wall along X).
+            let sides = [
+                (
+                    ri.max.x,
+                    rj.min.x,
+                    Axis::Y,
+                    [ri.min.y.max(rj.min.y), ri.max.y.min(rj.max.y)],
+                ),
+                (
+                    ri.max.y,
+                    rj.min.y,
+                    Axis::X,
+                    [ri.min.x.max(rj.min.x), ri.max.x.min(rj.max.x)],
+                ),
+            ];
+            for (edge, other, axis, span) in sides {
+                if (edge - other).abs() < 1e-3 && span[1] > span[0] {
                     out.push(Shared {
                         a: i,
                         b: j,
-                        axis: Axis::Y,
-                        line: ri.max.x,
-                        span,
-                    });
-                }
-            }
-            if close(ri.max.y, rj.min.y) {
-                let span = [ri.min.x.max(rj.min.x), ri.max.x.min(rj.max.x)];
-                if span[1] > span[0] {
-                    out.push(Shared {
-                        a: i,
-                        b: j,
-                        axis: Axis::X,
-                        line: ri.max.y,
+                        axis,
+                        line: edge,
                         span,
                     });
                 }
