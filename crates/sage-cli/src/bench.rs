@@ -240,6 +240,7 @@ fn render(a: RenderBenchArgs) -> Result<()> {
         renderer.index().heap_bytes() as f64 / scene.gaussians.len().max(1) as f64
     );
     let options = RenderOptions::default();
+    let n = scene.gaussians.len().max(1) as f64;
     for size in &a.sizes {
         let (w, h) = parse_size(size)?;
         let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
@@ -295,6 +296,14 @@ fn render(a: RenderBenchArgs) -> Result<()> {
             col(4),
             col(5),
             col(6)
+        );
+    }
+    if let Some(rss) = machine::resident_bytes() {
+        println!(
+            "resident         {:.1} bytes/Gaussian: the whole process (scene {:.1} + index {:.1} + frame buffers and the rest)",
+            rss as f64 / n,
+            scene.gaussians.heap_bytes() as f64 / n,
+            renderer.index().heap_bytes() as f64 / n
         );
     }
     Ok(())
