@@ -98,6 +98,7 @@ pub struct Renderer {
     visible: Vec<u32>,
     views: Vec<ChunkView>,
     splats: Vec<Splat>,
+    scratch: Vec<Splat>,
     per_chunk: Vec<u32>,
     blocks: Vec<Vec<(u32, u32)>>,
     tile_entries: Vec<u64>,
@@ -210,6 +211,7 @@ impl Renderer {
             visible: Vec::new(),
             views: Vec::new(),
             splats: Vec::new(),
+            scratch: Vec::new(),
             per_chunk: Vec::new(),
             blocks: Vec::new(),
             tile_entries: Vec::new(),
@@ -334,97 +336,42 @@ impl Renderer {
             })
             .map(|v| v.chunk)
             .collect();
-        let k = sh_rest_count(g.sh_degree());
-        let order = &self.index.order;
-        let finished = &self.finished_sum;
-        let focal = camera.intrinsics.fx.max(camera.intrinsics.fy);
-        let (width, height) = (
-            camera.intrinsics.width as f32,
-            camera.intrinsics.height as f32,
-        );
-        let (lim_x, lim_y) = (
-            1.3 * width * 0.5 / camera.intrinsics.fx,
-            1.3 * height * 0.5 / camera.intrinsics.fy,
-        );
-        self.splats
-            .resize(candidates.len() * CHUNK, Splat::default());
-        self.per_chunk.clear();
-        self.per_chunk.resize(candidates.len(), 0);
-        let projected: usize = self
-            .splats
-            .par_chunks_mut(CHUNK)
-            .zip(self.per_chunk.par_iter_mut())
-            .zip(candidates.par_iter())
-            .map(|((out, count), &chunk)| {
-                let c = chunk as usize;
-                let ids = &order[c * CHUNK..((c + 1) * CHUNK).min(order.len())];
-                let mut rest = [[0.0f32; 3]; 15];
-                let (mut n, mut tried) = (0, 0);
-                for &i in ids {
-                    let i = i as usize;
-                    let position = Vec3::from_array(g.positions[i]);
-                    let t = *w2c * (position - camera.position);
-                    // Slab membership by camera-space z, then a cheap screen test of the centre
-                    // with the largest reach the Gaussian can have, before any costly work.
-                    if !(t.z >= lo && t.z < hi && t.z >= camera.near && t.z <= camera.far) {
-                        continue;
-                    }
-                    tried += 1;
-                    let max_log_scale = g.log_scales[i]
-                        .iter()
-                        .fold(f32::NEG_INFINITY, |m, v| m.max(*v));
-                    // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
-                    let (sx, sy) = (
-                        (t.x / t.z).clamp(-lim_x, lim_x),
-                        (t.y / t.z).clamp(-lim_y, lim_y),
-                    );
-                    let stretch = (2.0 + sx * sx + sy * sy).sqrt();
-                    let reach = MAX_SIGMAS * exp_fast(max_log_scale) * focal * stretch / t.z + 1.0;
-                    let (u, v) = camera.project(t);
-                    if u < -reach || v < -reach || u > width + reach || v > height + reach {
-                        continue;
-                    }
-                    // Nothing to add where every tile the splat can reach is already opaque.
-                    let tile = |p: f32, n: usize| ((p / TILE as f32).max(0.0) as usize).min(n - 1);
-                    let rect = [
-                        tile(u - reach, grid.tiles_x),
-                        tile(v - reach, grid.tiles_y),
-                        tile(u + reach, grid.tiles_x),
-                        tile(v + reach, grid.tiles_y),
-                    ];
-                    if rect_finished(finished, grid.tiles_x, &rect) {
-                        continue;
-                    }
-                    let opacity = sigmoid(g.opacity_logits[i]);
-                    if opacity < MIN_ALPHA {
-                        continue;
-                    }
-                    if k > 0 {
-                        g.sh_rest_into(i, &mut rest);
-                    }
-                    let dir = (position - camera.position).normalize_or_zero();
-                    let color = sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..k], dir);
-                    let sigma = covariance(g.rotation(i), Vec3::from_array(g.log_scales[i]));
-                    if let Some(s) =
-                        project(camera, w2c, position, sigma, opacity, color, g.instances[i])
-                    {
-                        out[n] = s;
-                        n += 1;
-                    }
-                }
-                *count = n as u32;
-                tried
-            })
-            .sum();
-        self.stats.projected += projected;
-        let mut write = 0;
-        for (c, &n) in self.per_chunk.iter().enumerate() {
-            let from = c * CHUNK;
-            self.splats.copy_within(from..from + n as usize, write);
-            write += n as usize;
+        let ctx = SlabProjection {
+            g,
+            camera,
+            w2c,
+            grid,
+            order: &self.index.order,
+            finished: &self.finished_sum,
+            sh_rest: sh_rest_count(g.sh_degree()),
+            lo,
+            hi,
+        };
+        // Chunks are projected a batch at a time into fixed slots, then compacted in chunk
+        // order: scratch memory stays bounded however many chunks a slab touches.
+        self.splats.clear();
+        for batch in candidates.chunks(PROJECT_BATCH) {
+            self.scratch.resize(batch.len() * CHUNK, Splat::default());
+            self.per_chunk.clear();
+            self.per_chunk.resize(batch.len(), 0);
+            let examined: usize = self
+                .scratch
+                .par_chunks_mut(CHUNK)
+                .zip(self.per_chunk.par_iter_mut())
+                .zip(batch.par_iter())
+                .map(|((out, count), &chunk)| {
+                    let (n, examined) = ctx.chunk(chunk as usize, out);
+                    *count = n as u32;
+                    examined
+                })
+                .sum();
+            self.stats.projected += examined;
+            for (c, &n) in self.per_chunk.iter().enumerate() {
+                self.splats
+                    .extend_from_slice(&self.scratch[c * CHUNK..c * CHUNK + n as usize]);
+            }
         }
-        self.splats.truncate(write);
-        self.stats.splats += write;
+        self.stats.splats += self.splats.len();
     }
 
     /// Fills `tile_entries` with depth-bits << 32 | splat, grouped by unfinished tile, each tile sorted
@@ -587,6 +534,96 @@ impl Renderer {
                 },
             );
         out
+    }
+}
+
+/// Chunks projected per parallel batch (bounds the scratch slots to 64 × 256 splats).
+const PROJECT_BATCH: usize = 64;
+
+/// Everything the projection of one slab needs, shared by the parallel chunk tasks.
+struct SlabProjection<'a> {
+    g: &'a Gaussians,
+    camera: &'a Camera,
+    w2c: &'a Mat3,
+    grid: &'a Grid,
+    order: &'a [u32],
+    finished: &'a [u32],
+    sh_rest: usize,
+    lo: f32,
+    hi: f32,
+}
+
+impl SlabProjection<'_> {
+    /// Projects the Gaussians of `chunk` whose depth is in the slab into `out`; returns how
+    /// many splats it wrote and how many Gaussians it examined.
+    fn chunk(&self, chunk: usize, out: &mut [Splat]) -> (usize, usize) {
+        let (g, camera, grid) = (self.g, self.camera, self.grid);
+        let k = camera.intrinsics;
+        let focal = k.fx.max(k.fy);
+        let (width, height) = (k.width as f32, k.height as f32);
+        let (lim_x, lim_y) = (1.3 * width * 0.5 / k.fx, 1.3 * height * 0.5 / k.fy);
+        let ids = &self.order[chunk * CHUNK..((chunk + 1) * CHUNK).min(self.order.len())];
+        let mut rest = [[0.0f32; 3]; 15];
+        let (mut n, mut examined) = (0, 0);
+        for &i in ids {
+            let i = i as usize;
+            let position = Vec3::from_array(g.positions[i]);
+            let t = *self.w2c * (position - camera.position);
+            // Slab membership by camera-space z, then a cheap screen test of the centre with the
+            // largest reach the Gaussian can have, before any costly work.
+            if !(t.z >= self.lo && t.z < self.hi && t.z >= camera.near && t.z <= camera.far) {
+                continue;
+            }
+            examined += 1;
+            let max_log_scale = g.log_scales[i]
+                .iter()
+                .fold(f32::NEG_INFINITY, |m, v| m.max(*v));
+            // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
+            let (sx, sy) = (
+                (t.x / t.z).clamp(-lim_x, lim_x),
+                (t.y / t.z).clamp(-lim_y, lim_y),
+            );
+            let stretch = (2.0 + sx * sx + sy * sy).sqrt();
+            let reach = MAX_SIGMAS * exp_fast(max_log_scale) * focal * stretch / t.z + 1.0;
+            let (u, v) = camera.project(t);
+            if u < -reach || v < -reach || u > width + reach || v > height + reach {
+                continue;
+            }
+            // Nothing to add where every tile the splat can reach is already opaque.
+            let tile = |p: f32, n: usize| ((p / TILE as f32).max(0.0) as usize).min(n - 1);
+            let rect = [
+                tile(u - reach, grid.tiles_x),
+                tile(v - reach, grid.tiles_y),
+                tile(u + reach, grid.tiles_x),
+                tile(v + reach, grid.tiles_y),
+            ];
+            if rect_finished(self.finished, grid.tiles_x, &rect) {
+                continue;
+            }
+            let opacity = sigmoid(g.opacity_logits[i]);
+            if opacity < MIN_ALPHA {
+                continue;
+            }
+            if self.sh_rest > 0 {
+                g.sh_rest_into(i, &mut rest);
+            }
+            let dir = (position - camera.position).normalize_or_zero();
+            let color = sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..self.sh_rest], dir);
+            let sigma = covariance(g.rotation(i), Vec3::from_array(g.log_scales[i]));
+            if let Some(s) = project(
+                camera,
+                self.w2c,
+                position,
+                sigma,
+                opacity,
+                color,
+                g.instances[i],
+            ) {
+                out[n] = s;
+                n += 1;
+            }
+        }
+        (n, examined)
     }
 }
 
