@@ -279,14 +279,14 @@ fn render(a: RenderBenchArgs) -> Result<()> {
                 s.project_ms,
                 s.sort_ms,
                 s.raster_ms,
-                s.projected as f64,
+                s.examined as f64,
                 s.splats as f64,
             ]);
         }
         let col = |k: usize| median(rows.iter().map(|r| r[k]).collect());
         let worst = rows.iter().map(|r| r[0]).fold(0.0, f64::max);
         println!(
-            "{w}x{h:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians projected, {:.0} splats",
+            "{w}x{h:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians examined, {:.0} splats",
             col(0),
             worst,
             1e3 / col(0),

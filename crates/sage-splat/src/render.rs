@@ -74,8 +74,9 @@ pub struct RenderStats {
     pub raster_ms: f64,
     /// Chunks that passed frustum culling.
     pub visible_chunks: usize,
-    /// Gaussians projected (summed over slabs).
-    pub projected: usize,
+    /// Gaussians examined in visible chunks: inside the depth range of a slab, before the
+    /// screen, finished-tile and opacity tests (summed over slabs).
+    pub examined: usize,
     /// Splats after projection.
     pub splats: usize,
     /// (splat, tile) pairs.
@@ -365,7 +366,7 @@ impl Renderer {
                     examined
                 })
                 .sum();
-            self.stats.projected += examined;
+            self.stats.examined += examined;
             for (c, &n) in self.per_chunk.iter().enumerate() {
                 self.splats
                     .extend_from_slice(&self.scratch[c * CHUNK..c * CHUNK + n as usize]);
