@@ -76,62 +76,55 @@ pub fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + exp_fast(-x))
 }
 
-/// The world-space covariance R S Sᵀ Rᵀ as a symmetric matrix.
-pub fn covariance(rotation: Quat, log_scale: Vec3) -> Mat3 {
+/// The covariance factor M = R S (columns: the Gaussian's axes scaled by its standard
+/// deviations), so that Σ = M Mᵀ.
+pub fn scaled_axes(rotation: Quat, log_scale: Vec3) -> Mat3 {
     let r = Mat3::from_quat(rotation.normalize());
-    let s = Vec3::new(
-        exp_fast(log_scale.x),
-        exp_fast(log_scale.y),
-        exp_fast(log_scale.z),
-    );
-    let m = Mat3::from_cols(r.x_axis * s.x, r.y_axis * s.y, r.z_axis * s.z);
-    m * m.transpose()
+    Mat3::from_cols(
+        r.x_axis * exp_fast(log_scale.x),
+        r.y_axis * exp_fast(log_scale.y),
+        r.z_axis * exp_fast(log_scale.z),
+    )
 }
 
-/// Projects a Gaussian; `None` when it is culled (centre nearer than the near plane or beyond
-/// the far plane, degenerate, too transparent, or wholly off screen). `color` is evaluated by
-/// the caller from the view direction.
-#[allow(clippy::too_many_arguments)]
+/// Projects a Gaussian whose centre is `t` in camera coordinates and whose covariance factor is
+/// `m` (see [`scaled_axes`]); `None` when it is culled (centre nearer than the near plane or
+/// beyond the far plane, degenerate, too transparent, or wholly off screen). `color` is
+/// evaluated by the caller from the view direction.
 pub fn project(
     camera: &Camera,
-    w2c: &Mat3,
-    position: Vec3,
-    sigma: Mat3,
+    t: Vec3,
+    m: Mat3,
     opacity: f32,
     color: [f32; 3],
     instance: u32,
 ) -> Option<Splat> {
-    if opacity < MIN_ALPHA {
+    if opacity < MIN_ALPHA || !(t.z >= camera.near && t.z <= camera.far) {
         return None;
     }
-    let t = *w2c * (position - camera.position);
-    if !(t.z >= camera.near && t.z <= camera.far) {
-        return None;
-    }
-    let lim_x = 1.3 * (camera.intrinsics.width as f32 * 0.5) / camera.intrinsics.fx;
-    let lim_y = 1.3 * (camera.intrinsics.height as f32 * 0.5) / camera.intrinsics.fy;
-    let tx = (t.x / t.z).clamp(-lim_x, lim_x) * t.z;
-    let ty = (t.y / t.z).clamp(-lim_y, lim_y) * t.z;
+    let k = camera.intrinsics;
+    let lim_x = 1.3 * (k.width as f32 * 0.5) / k.fx;
+    let lim_y = 1.3 * (k.height as f32 * 0.5) / k.fy;
     let inv_z = 1.0 / t.z;
-    // Rows of J · W (the Jacobian of the pinhole at the clamped mean, times world→camera).
-    let j0 = Vec3::new(
-        camera.intrinsics.fx * inv_z,
-        0.0,
-        -camera.intrinsics.fx * tx * inv_z * inv_z,
+    let (sx, sy) = (
+        (t.x * inv_z).clamp(-lim_x, lim_x),
+        (t.y * inv_z).clamp(-lim_y, lim_y),
     );
-    let j1 = Vec3::new(
-        0.0,
-        camera.intrinsics.fy * inv_z,
-        -camera.intrinsics.fy * ty * inv_z * inv_z,
-    );
-    let w = w2c.transpose();
-    let r0 = w * j0;
-    let r1 = w * j1;
-    let s_r0 = sigma * r0;
-    let s_r1 = sigma * r1;
-    let a = r0.dot(s_r0) + LOW_PASS;
-    let b = r0.dot(s_r1);
-    let c = r1.dot(s_r1) + LOW_PASS;
+    // Rows of J·W: the pinhole Jacobian at the clamped mean times world→camera, whose rows are
+    // the camera's right, down and forward axes.
+    let [right, down, forward] = [
+        camera.rotation.x_axis,
+        camera.rotation.y_axis,
+        camera.rotation.z_axis,
+    ];
+    let r0 = (right - forward * sx) * (k.fx * inv_z);
+    let r1 = (down - forward * sy) * (k.fy * inv_z);
+    // Σ' = (J W) M Mᵀ (J W)ᵀ: with u = Mᵀ r, its entries are dot products of u0 and u1.
+    let u0 = Vec3::new(m.x_axis.dot(r0), m.y_axis.dot(r0), m.z_axis.dot(r0));
+    let u1 = Vec3::new(m.x_axis.dot(r1), m.y_axis.dot(r1), m.z_axis.dot(r1));
+    let a = u0.dot(u0) + LOW_PASS;
+    let b = u0.dot(u1);
+    let c = u1.dot(u1) + LOW_PASS;
     let det = a * c - b * b;
     if det <= 0.0 || !det.is_finite() {
         return None;
@@ -144,10 +137,7 @@ pub fn project(
     let lambda = mid + (mid * mid - det).max(0.1).sqrt();
     let radius = (cutoff * lambda).sqrt();
     let (x, y) = camera.project(t);
-    let (w_px, h_px) = (
-        camera.intrinsics.width as f32,
-        camera.intrinsics.height as f32,
-    );
+    let (w_px, h_px) = (k.width as f32, k.height as f32);
     if x + radius < 0.0 || x - radius > w_px || y + radius < 0.0 || y - radius > h_px {
         return None;
     }

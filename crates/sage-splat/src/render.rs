@@ -17,7 +17,7 @@
 
 use crate::camera::Camera;
 use crate::index::{CHUNK, MAX_SIGMAS, SplatIndex};
-use crate::project::{MIN_ALPHA, Splat, covariance, exp_fast, project, sigmoid};
+use crate::project::{MIN_ALPHA, Splat, exp_fast, project, scaled_axes, sigmoid};
 use crate::sh;
 use crate::tile::{TILE, TileState, lane};
 use glam::{Mat3, Vec3};
@@ -610,16 +610,8 @@ impl SlabProjection<'_> {
             }
             let dir = (position - camera.position).normalize_or_zero();
             let color = sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..self.sh_rest], dir);
-            let sigma = covariance(g.rotation(i), Vec3::from_array(g.log_scales[i]));
-            if let Some(s) = project(
-                camera,
-                self.w2c,
-                position,
-                sigma,
-                opacity,
-                color,
-                g.instances[i],
-            ) {
+            let m = scaled_axes(g.rotation(i), Vec3::from_array(g.log_scales[i]));
+            if let Some(s) = project(camera, t, m, opacity, color, g.instances[i]) {
                 out[n] = s;
                 n += 1;
             }
