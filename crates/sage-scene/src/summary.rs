@@ -133,13 +133,17 @@ impl std::fmt::Display for SceneSummary {
         for (t, a) in &self.rooms {
             writeln!(f, "            {t} ({a:.1} m²)")?;
         }
-        let doors: Vec<String> = self.doors.iter().map(|(s, n)| format!("{n} {s}")).collect();
+        let states: Vec<String> = self.doors.iter().map(|(s, n)| format!("{n} {s}")).collect();
+        let states = if states.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", states.join(", "))
+        };
         writeln!(
             f,
-            "structure   {} walls, {} doors ({}), {} windows",
+            "structure   {} walls, {} doors{states}, {} windows",
             self.walls,
             self.doors.values().sum::<usize>(),
-            doors.join(", "),
             self.windows
         )?;
         match self.occupancy {
