@@ -4,7 +4,7 @@
 use clap::Args;
 use glam::Vec3;
 use sage_core::{Error, Result};
-use sage_scene::fsutil::{write_json, write_npy_f32, write_png};
+use sage_scene::fsutil::{write_json, write_npy_f32, write_png, write_rgb_png};
 use sage_scene::{InstanceKind, Scene};
 use sage_splat::{Camera, CameraSpec, Intrinsics, RenderOptions, RenderOutput, Renderer};
 use std::collections::BTreeMap;
@@ -200,14 +200,7 @@ fn colorize(ids: impl Iterator<Item = u32>) -> Vec<u8> {
 
 fn write_images(dir: &Path, image: &RenderOutput) -> Result<()> {
     let (w, h) = (image.width, image.height);
-    write_png(
-        &dir.join("rgb.png"),
-        w,
-        h,
-        png::ColorType::Rgb,
-        png::BitDepth::Eight,
-        &image.rgb,
-    )?;
+    write_rgb_png(&dir.join("rgb.png"), w, h, &image.rgb)?;
     write_npy_f32(&dir.join("depth.npy"), &[h, w], &image.depth_expected)?;
     write_npy_f32(&dir.join("depth_median.npy"), &[h, w], &image.depth_median)?;
     write_npy_f32(&dir.join("alpha.npy"), &[h, w], &image.alpha)?;
@@ -224,20 +217,16 @@ fn write_images(dir: &Path, image: &RenderOutput) -> Result<()> {
         png::BitDepth::Sixteen,
         &mm,
     )?;
-    write_png(
+    write_rgb_png(
         &dir.join("instance.png"),
         w,
         h,
-        png::ColorType::Rgb,
-        png::BitDepth::Eight,
         &colorize(image.instance.iter().copied()),
     )?;
-    write_png(
+    write_rgb_png(
         &dir.join("semantic.png"),
         w,
         h,
-        png::ColorType::Rgb,
-        png::BitDepth::Eight,
         &colorize(image.semantic.iter().map(|&c| c as u32)),
     )
 }
@@ -309,12 +298,10 @@ fn write_turntable(
             &cam,
             options,
         )?;
-        write_png(
+        write_rgb_png(
             &folder.join(format!("rgb_{f:03}.png")),
             image.width,
             image.height,
-            png::ColorType::Rgb,
-            png::BitDepth::Eight,
             &image.rgb,
         )?;
         images.push(image.rgb);

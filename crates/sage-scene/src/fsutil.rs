@@ -63,6 +63,18 @@ pub fn write_png(
     })
 }
 
+/// Writes an 8-bit RGB image (`height × width × 3` bytes, rows top to bottom) as PNG.
+pub fn write_rgb_png(path: &Path, width: usize, height: usize, rgb: &[u8]) -> Result<()> {
+    write_png(
+        path,
+        width,
+        height,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        rgb,
+    )
+}
+
 /// Writes a little-endian float32 array in NumPy's `.npy` format (version 1.0), atomically.
 pub fn write_npy_f32(path: &Path, shape: &[usize], data: &[f32]) -> Result<()> {
     let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
