@@ -1,0 +1,607 @@
+//! Agents: ground robots as vertical capsules and a UAV as a sphere, moved kinematically through
+//! the world by collide-and-slide shape casts, with a contact report per step (SPEC §6).
+//!
+//! The profiles are kinematic approximations of the named robots (a body shape, speed limits
+//! and a camera height), not models of their legs, wheels or rotors.
+
+use crate::world::World;
+use glam::{Vec2, Vec3};
+use rapier3d::parry::query::ShapeCastOptions;
+use rapier3d::prelude::*;
+use sage_core::{Error, InstanceId, Pose, Result, wrap_angle};
+use serde::Serialize;
+use std::fmt;
+use std::str::FromStr;
+
+/// The gap kept between an agent and what it touches (m): shape casts stop this short.
+pub const SKIN: f32 = 0.002;
+/// Distance within which a body counts as touched (m).
+pub const TOUCH: f32 = 2.0 * SKIN + 1e-3;
+/// Penetration deeper than this (m) is reported and recovered from.
+pub const PENETRATION_EPSILON: f32 = 0.01;
+/// Steps without progress while commanded to move before an agent counts as stuck.
+pub const STUCK_STEPS: u32 = 5;
+/// Progress below this fraction of the commanded translation counts as none.
+const NO_PROGRESS: f32 = 0.05;
+/// Slide iterations per step (each handles one more contact plane).
+const SLIDE_ITERATIONS: usize = 4;
+
+/// Ground robot or UAV.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AgentKind {
+    /// A vertical capsule on the floor plane.
+    Ground,
+    /// A sphere with 6-DoF velocity commands.
+    Uav,
+}
+
+/// The body and limits of an agent.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AgentProfile {
+    /// Name (`wheeled`, `go2`, `g1`, `h1`, `uav`).
+    pub name: &'static str,
+    /// Ground robot or UAV.
+    pub kind: AgentKind,
+    /// Capsule or sphere radius (m).
+    pub radius: f32,
+    /// Top of the body above its pose (m); for the UAV, the sphere's diameter.
+    pub height: f32,
+    /// Free height under a ground robot's capsule (m): what it steps over.
+    pub clearance: f32,
+    /// Camera above the pose (m); the UAV's camera is at its centre.
+    pub camera_height: f32,
+    /// Top horizontal speed (m/s).
+    pub max_speed: f32,
+    /// Top vertical speed (m/s; UAV only).
+    pub max_climb: f32,
+    /// Top yaw rate (rad/s).
+    pub max_yaw_rate: f32,
+    /// Lowest and highest altitude of the UAV's centre (m).
+    pub altitude: [f32; 2],
+}
+
+impl AgentProfile {
+    /// All profiles, in a fixed order.
+    pub fn all() -> [AgentProfile; 5] {
+        let ground =
+            |name, radius, height, clearance, camera_height, max_speed, yaw: f32| AgentProfile {
+                name,
+                kind: AgentKind::Ground,
+                radius,
+                height,
+                clearance,
+                camera_height,
+                max_speed,
+                max_climb: 0.0,
+                max_yaw_rate: yaw.to_radians(),
+                altitude: [0.0, 0.0],
+            };
+        [
+            ground("wheeled", 0.20, 1.30, 0.03, 1.20, 1.0, 90.0),
+            ground("go2", 0.28, 0.62, 0.05, 0.35, 2.5, 120.0),
+            ground("g1", 0.25, 1.32, 0.08, 1.20, 1.5, 90.0),
+            ground("h1", 0.30, 1.80, 0.10, 1.65, 2.0, 90.0),
+            AgentProfile {
+                name: "uav",
+                kind: AgentKind::Uav,
+                radius: 0.25,
+                height: 0.5,
+                clearance: 0.0,
+                camera_height: 0.0,
+                max_speed: 3.0,
+                max_climb: 1.5,
+                max_yaw_rate: 90f32.to_radians(),
+                altitude: [0.3, 10.0],
+            },
+        ]
+    }
+}
+
+impl FromStr for AgentProfile {
+    type Err = Error;
+
+    /// A profile by name (`wheeled`, `go2`, `g1`, `h1`, `uav`).
+    fn from_str(s: &str) -> Result<AgentProfile> {
+        AgentProfile::all()
+            .into_iter()
+            .find(|p| p.name.eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "unknown agent profile '{s}' (expected wheeled, go2, g1, h1 or uav)"
+                ))
+            })
+    }
+}
+
+/// One command to an agent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Command {
+    /// Move `distance` metres along the heading (negative: backwards); no speed limit applies.
+    Forward {
+        /// Metres.
+        distance: f32,
+    },
+    /// Turn by `angle` radians (counter-clockwise positive).
+    Turn {
+        /// Radians.
+        angle: f32,
+    },
+    /// Do nothing this step.
+    Stop,
+    /// Ground velocity in the body frame (x forward, y left) and yaw rate, held for `dt`.
+    Ground {
+        /// Forward speed (m/s).
+        vx: f32,
+        /// Leftward speed (m/s).
+        vy: f32,
+        /// Yaw rate (rad/s).
+        wz: f32,
+        /// Duration (s).
+        dt: f32,
+    },
+    /// UAV velocity: body-frame horizontal, world vertical, yaw rate, held for `dt`.
+    Uav {
+        /// Forward speed (m/s).
+        vx: f32,
+        /// Leftward speed (m/s).
+        vy: f32,
+        /// Upward speed (m/s).
+        vz: f32,
+        /// Yaw rate (rad/s).
+        wz: f32,
+        /// Duration (s).
+        dt: f32,
+    },
+}
+
+impl fmt::Display for Command {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Command::Forward { distance } => write!(f, "forward:{distance}"),
+            Command::Turn { angle } => write!(f, "turn:{}", angle.to_degrees()),
+            Command::Stop => f.write_str("stop"),
+            Command::Ground { vx, vy, wz, dt } => {
+                write!(f, "vel:{vx}:{vy}:{}:{dt}", wz.to_degrees())
+            }
+            Command::Uav { vx, vy, vz, wz, dt } => {
+                write!(f, "uav:{vx}:{vy}:{vz}:{}:{dt}", wz.to_degrees())
+            }
+        }
+    }
+}
+
+impl FromStr for Command {
+    type Err = Error;
+
+    /// Parses `forward:D`, `turn:DEG`, `stop`, `vel:VX:VY:WZDEG:DT` or `uav:VX:VY:VZ:WZDEG:DT`.
+    fn from_str(s: &str) -> Result<Command> {
+        let mut it = s.trim().split(':');
+        let word = it.next().unwrap_or("").to_ascii_lowercase();
+        let nums = it
+            .map(|x| x.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
+            .collect::<Option<Vec<f32>>>()
+            .ok_or_else(|| Error::invalid(format!("command '{s}': a number is not finite")))?;
+        let cmd = match (word.as_str(), nums.as_slice()) {
+            ("forward", [d]) => Command::Forward { distance: *d },
+            ("turn", [a]) => Command::Turn {
+                angle: a.to_radians(),
+            },
+            ("stop", []) => Command::Stop,
+            ("vel", [vx, vy, w, dt]) if *dt >= 0.0 => Command::Ground {
+                vx: *vx,
+                vy: *vy,
+                wz: w.to_radians(),
+                dt: *dt,
+            },
+            ("uav", [vx, vy, vz, w, dt]) if *dt >= 0.0 => Command::Uav {
+                vx: *vx,
+                vy: *vy,
+                vz: *vz,
+                wz: w.to_radians(),
+                dt: *dt,
+            },
+            _ => {
+                return Err(Error::invalid(format!(
+                    "command '{s}': expected forward:D, turn:DEG, stop, vel:VX:VY:WZDEG:DT or \
+                     uav:VX:VY:VZ:WZDEG:DT (dt >= 0)"
+                )));
+            }
+        };
+        Ok(cmd)
+    }
+}
+
+/// One body touched during a step.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Touch {
+    /// Instance id of the body (floor and ceiling: of the room below or above).
+    pub instance: InstanceId,
+    /// Signed distance at the end of the step (m; negative = penetration).
+    pub distance: f32,
+}
+
+/// What happened in one step (SPEC §6).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepReport {
+    /// Pose after the step.
+    pub pose: Pose,
+    /// Commanded translation this step (after speed and altitude limits), m.
+    pub commanded: Vec3,
+    /// Translation achieved by the slide (before any recovery), m.
+    pub achieved: Vec3,
+    /// Bodies touched during or at the end of the step, by instance id (sorted, unique).
+    pub touched: Vec<Touch>,
+    /// Deepest penetration at the end of the step, before recovery (m, ≥ 0).
+    pub penetration: f32,
+    /// Collision intensity c(t) ∈ [0, 1]: the fraction of the commanded translation that
+    /// contact prevented (see [`collision_intensity`]).
+    pub intensity: f32,
+    /// Contact this step and none the step before.
+    pub contact_onset: bool,
+    /// Steps in a row without progress while commanded to move.
+    pub no_progress_steps: u32,
+    /// `no_progress_steps` ≥ [`STUCK_STEPS`].
+    pub stuck: bool,
+    /// Penetration exceeded [`PENETRATION_EPSILON`].
+    pub interpenetrating: bool,
+    /// The agent was pushed to the nearest free pose; by this offset (m).
+    pub recovery: Option<Vec3>,
+}
+
+/// c(t) = clamp(1 − (a · d) / |d|², 0, 1) for commanded translation d and achieved a, when the
+/// step touched something; 0 otherwise. A step with no commanded translation is 1 when contact
+/// blocked its rotation; capsules and spheres turn freely about Z, so it is 0 for them.
+pub fn collision_intensity(commanded: Vec3, achieved: Vec3, touched: bool) -> f32 {
+    let d2 = commanded.length_squared();
+    if !touched || d2 < 1e-12 {
+        return 0.0;
+    }
+    (1.0 - achieved.dot(commanded) / d2).clamp(0.0, 1.0)
+}
+
+/// An agent in a world.
+#[derive(Debug, Clone)]
+pub struct Agent {
+    /// Its body and limits.
+    pub profile: AgentProfile,
+    /// Position (ground robots: on the floor; UAV: its centre) and heading.
+    pub pose: Pose,
+    shape: SharedShape,
+    /// The shape's centre above the pose.
+    lift: f32,
+    no_progress: u32,
+    was_touching: bool,
+}
+
+impl Agent {
+    /// An agent of `profile` at `pose` (a UAV's altitude is clamped to its limits).
+    pub fn new(profile: AgentProfile, pose: Pose) -> Agent {
+        let (shape, lift) = match profile.kind {
+            AgentKind::Ground => {
+                let half = ((profile.height - profile.clearance) * 0.5 - profile.radius).max(0.0);
+                (
+                    SharedShape::capsule_z(half, profile.radius),
+                    profile.clearance + profile.radius + half,
+                )
+            }
+            AgentKind::Uav => (SharedShape::ball(profile.radius), 0.0),
+        };
+        let mut pose = pose;
+        if profile.kind == AgentKind::Uav {
+            pose.position.z = pose
+                .position
+                .z
+                .clamp(profile.altitude[0], profile.altitude[1]);
+        }
+        Agent {
+            profile,
+            pose,
+            shape,
+            lift,
+            no_progress: 0,
+            was_touching: false,
+        }
+    }
+
+    /// The collision shape's centre.
+    pub fn centre(&self) -> Vec3 {
+        self.pose.position + Vec3::Z * self.lift
+    }
+
+    /// The camera position.
+    pub fn camera(&self) -> Vec3 {
+        self.pose.position + Vec3::Z * self.profile.camera_height
+    }
+
+    /// The commanded translation and rotation of `cmd` from the current pose, after limits.
+    fn resolve(&self, cmd: &Command) -> Result<(Vec3, f32, f32)> {
+        let p = &self.profile;
+        let fwd = self.pose.forward();
+        let left = -self.pose.right();
+        let planar = |vx: f32, vy: f32, dt: f32| {
+            let v = Vec2::new(vx, vy);
+            let v = if v.length() > p.max_speed {
+                v * (p.max_speed / v.length())
+            } else {
+                v
+            };
+            (fwd * v.x + left * v.y) * dt
+        };
+        let yaw = |wz: f32, dt: f32| wz.clamp(-p.max_yaw_rate, p.max_yaw_rate) * dt;
+        Ok(match (*cmd, p.kind) {
+            (Command::Forward { distance }, _) => ((fwd * distance).extend(0.0), 0.0, 0.0),
+            (Command::Turn { angle }, _) => (Vec3::ZERO, angle, 0.0),
+            (Command::Stop, _) => (Vec3::ZERO, 0.0, 0.0),
+            (Command::Ground { vx, vy, wz, dt }, AgentKind::Ground) => {
+                (planar(vx, vy, dt).extend(0.0), yaw(wz, dt), dt)
+            }
+            (Command::Uav { vx, vy, vz, wz, dt }, AgentKind::Uav) => {
+                let z = self.pose.position.z;
+                let target = (z + vz.clamp(-p.max_climb, p.max_climb) * dt)
+                    .clamp(p.altitude[0], p.altitude[1]);
+                (planar(vx, vy, dt).extend(target - z), yaw(wz, dt), dt)
+            }
+            (c, k) => {
+                return Err(Error::invalid(format!(
+                    "command {c} does not apply to a {k:?} agent ({})",
+                    p.name
+                )));
+            }
+        })
+    }
+
+    /// Executes one command: wakes the rigid bodies for its duration when any is awake, slides
+    /// the body along what it hits, then reports contacts, c(t), stuck and penetration, and
+    /// pushes the agent out of any deep penetration.
+    ///
+    /// # Errors
+    ///
+    /// A ground command to a UAV or a UAV command to a ground robot.
+    pub fn step(&mut self, world: &mut World, cmd: &Command) -> Result<StepReport> {
+        let (commanded, turn, dt) = self.resolve(cmd)?;
+        world.advance(dt);
+        let planar = self.profile.kind == AgentKind::Ground;
+        let qp = world.physics.query_pipeline();
+        let mut hits: Vec<ColliderHandle> = Vec::new();
+        let start = self.centre();
+        let end = slide(&qp, &*self.shape, start, commanded, planar, &mut hits);
+        let achieved = end - start;
+        self.pose.position += achieved;
+        self.pose.yaw = wrap_angle(self.pose.yaw + turn);
+        let contacts = contacts_at(&qp, &*self.shape, end);
+        let penetration = contacts
+            .iter()
+            .map(|c| -c.1)
+            .fold(0.0f32, f32::max)
+            .max(0.0);
+        let at = self.pose.position.truncate();
+        let mut touched: Vec<Touch> = contacts
+            .iter()
+            .map(|&(h, d)| Touch {
+                instance: world.instance_at(h, at),
+                distance: d,
+            })
+            .chain(hits.iter().map(|&h| Touch {
+                instance: world.instance_at(h, at),
+                distance: SKIN,
+            }))
+            .collect();
+        touched.sort_by(|a, b| {
+            a.instance
+                .cmp(&b.instance)
+                .then(a.distance.total_cmp(&b.distance))
+        });
+        touched.dedup_by_key(|t| t.instance);
+        let touching = !touched.is_empty();
+        let intensity = collision_intensity(commanded, achieved, touching);
+        let moving = commanded.length() > 1e-6;
+        // Steps without commanded translation (turns, stops) neither count nor reset.
+        if moving {
+            if achieved.dot(commanded) < NO_PROGRESS * commanded.length_squared() {
+                self.no_progress += 1;
+            } else {
+                self.no_progress = 0;
+            }
+        }
+        let interpenetrating = penetration > PENETRATION_EPSILON;
+        let recovery = if interpenetrating {
+            let free = nearest_free(&qp, &*self.shape, end, planar, self.profile.radius);
+            free.map(|p| {
+                self.pose.position += p - end;
+                p - end
+            })
+        } else {
+            None
+        };
+        let report = StepReport {
+            pose: self.pose,
+            commanded,
+            achieved,
+            touched,
+            penetration,
+            intensity,
+            contact_onset: touching && !self.was_touching,
+            no_progress_steps: self.no_progress,
+            stuck: self.no_progress >= STUCK_STEPS,
+            interpenetrating,
+            recovery,
+        };
+        self.was_touching = touching;
+        Ok(report)
+    }
+}
+
+/// Collide and slide: sweeps `shape` from `start` along `desired`, stopping [`SKIN`] short of
+/// each obstacle and continuing with the part of the motion tangent to it; returns the end
+/// centre. `planar` keeps the motion horizontal.
+fn slide(
+    qp: &QueryPipeline,
+    shape: &dyn Shape,
+    start: Vec3,
+    desired: Vec3,
+    planar: bool,
+    hits: &mut Vec<ColliderHandle>,
+) -> Vec3 {
+    let mut pos = start;
+    let mut remaining = desired;
+    let mut planes: Vec<Vec3> = Vec::new();
+    let options = |max| ShapeCastOptions {
+        max_time_of_impact: max,
+        target_distance: SKIN,
+        stop_at_penetration: false,
+        compute_impact_geometry_on_penetration: true,
+    };
+    for _ in 0..SLIDE_ITERATIONS {
+        let len = remaining.length();
+        if len < 1e-6 {
+            break;
+        }
+        let dir = remaining / len;
+        let Some((handle, hit)) =
+            qp.cast_shape(&Pose3::from_translation(pos), dir, shape, options(len))
+        else {
+            pos += remaining;
+            break;
+        };
+        let toi = hit.time_of_impact.clamp(0.0, len);
+        pos += dir * toi;
+        hits.push(handle);
+        let mut n = hit.normal1;
+        if planar {
+            n.z = 0.0;
+        }
+        let Some(n) = n.try_normalize() else { break };
+        planes.push(n);
+        remaining -= dir * toi;
+        // Remove the motion into every plane met so far (two planes: move along their crease).
+        for _ in 0..2 {
+            for &p in &planes {
+                let into = remaining.dot(p);
+                if into < 0.0 {
+                    remaining -= p * into;
+                }
+            }
+        }
+        if planes.iter().any(|p| remaining.dot(*p) < -1e-6) {
+            break;
+        }
+    }
+    pos
+}
+
+/// Colliders within [`TOUCH`] of `shape` at `centre`, with their signed distances.
+fn contacts_at(qp: &QueryPipeline, shape: &dyn Shape, centre: Vec3) -> Vec<(ColliderHandle, f32)> {
+    let pose = Pose3::from_translation(centre);
+    let aabb = shape.compute_aabb(&pose).loosened(TOUCH);
+    qp.intersect_aabb_conservative(aabb)
+        .filter_map(|(h, c)| {
+            let pos12 = pose.inv_mul(c.position());
+            let contact = qp
+                .dispatcher
+                .contact(&pos12, shape, c.shape(), TOUCH)
+                .ok()
+                .flatten()?;
+            Some((h, contact.dist))
+        })
+        .collect()
+}
+
+/// The nearest pose to `centre` where `shape` penetrates nothing by more than
+/// [`PENETRATION_EPSILON`]: first by pushing out along contact normals, then by searching rings
+/// of candidates (16 directions, steps of a quarter radius, up to 2 m). `None` when no free pose
+/// is found.
+fn nearest_free(
+    qp: &QueryPipeline,
+    shape: &dyn Shape,
+    centre: Vec3,
+    planar: bool,
+    radius: f32,
+) -> Option<Vec3> {
+    let deepest = |p: Vec3| -> Option<(f32, Vec3)> {
+        let pose = Pose3::from_translation(p);
+        let aabb = shape.compute_aabb(&pose);
+        qp.intersect_aabb_conservative(aabb)
+            .filter_map(|(_, c)| {
+                let pos12 = pose.inv_mul(c.position());
+                let k = qp
+                    .dispatcher
+                    .contact(&pos12, shape, c.shape(), 0.0)
+                    .ok()??;
+                (k.dist < -PENETRATION_EPSILON).then_some((-k.dist, k.normal1))
+            })
+            .max_by(|a, b| a.0.total_cmp(&b.0))
+    };
+    let mut p = centre;
+    for _ in 0..8 {
+        let Some((depth, normal)) = deepest(p) else {
+            return Some(p);
+        };
+        let mut n = normal;
+        if planar {
+            n.z = 0.0;
+        }
+        let n = n.try_normalize()?;
+        p -= n * (depth + SKIN);
+    }
+    let step = (radius * 0.25).max(0.02);
+    let rings = (2.0 / step).ceil() as usize;
+    for ring in 1..=rings {
+        let r = step * ring as f32;
+        for k in 0..16 {
+            let a = std::f32::consts::TAU * k as f32 / 16.0;
+            let candidate = centre + Vec3::new(a.cos() * r, a.sin() * r, 0.0);
+            if deepest(candidate).is_none() {
+                return Some(candidate);
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commands_round_trip_through_text() {
+        for s in [
+            "forward:0.25",
+            "turn:15",
+            "stop",
+            "vel:0.5:0:30:1",
+            "uav:1:0:0.5:0:0.5",
+        ] {
+            let c: Command = s.parse().unwrap();
+            let back: Command = c.to_string().parse().unwrap();
+            assert_eq!(c, back, "{s}");
+        }
+        assert!("forward".parse::<Command>().is_err());
+        assert!("vel:1:0:0:-1".parse::<Command>().is_err());
+        assert!("turn:NaN".parse::<Command>().is_err());
+    }
+
+    #[test]
+    fn profiles_parse_and_fit_their_bodies() {
+        for p in AgentProfile::all() {
+            assert_eq!(p.name.parse::<AgentProfile>().unwrap(), p);
+            assert!(
+                p.height >= p.clearance + 2.0 * p.radius - 1e-6,
+                "{}",
+                p.name
+            );
+            assert!(p.camera_height <= p.height);
+        }
+        assert!("tank".parse::<AgentProfile>().is_err());
+    }
+
+    #[test]
+    fn intensity_follows_its_formula() {
+        let d = Vec3::X;
+        assert_eq!(collision_intensity(d, d, false), 0.0);
+        assert_eq!(collision_intensity(d, Vec3::ZERO, true), 1.0);
+        assert!((collision_intensity(d, Vec3::new(0.75, 0.4, 0.0), true) - 0.25).abs() < 1e-6);
+        assert_eq!(collision_intensity(Vec3::ZERO, Vec3::ZERO, true), 0.0);
+    }
+}

@@ -1,0 +1,376 @@
+//! The collision bodies of a scene: convex parts per object (decomposed from its mesh, or its
+//! oriented box), wall pieces extruded from the floorplan with door and window openings cut out,
+//! and floor and ceiling slabs.
+
+use crate::decompose::{Decomposer, HullCache, cache_key};
+use crate::hull::ConvexPart;
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use sage_core::{Error, InstanceId, Obb, Result};
+use sage_scene::{HoleKind, InstanceKind, PhysicsRole, RigidBody, Scene, Wall};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Thickness of the floor and ceiling slabs (m).
+pub const SLAB: f32 = 0.2;
+/// How far a hole's centre may lie off a wall's centre line, beyond half their thicknesses,
+/// and still be cut from that wall (m).
+const HOLE_SNAP: f32 = 0.05;
+
+/// What a body stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BodyKind {
+    /// `scene.objects[i]`.
+    Object(usize),
+    /// The solid pieces of `floorplan.walls[i]`.
+    Wall(usize),
+    /// The floor slab under the whole plan (top at z = 0).
+    Floor,
+    /// The ceiling slab over the whole plan (bottom at the ceiling height).
+    Ceiling,
+}
+
+/// Where a body's parts came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PartSource {
+    /// Decomposed now and written to the cache.
+    Decomposed,
+    /// Read from the cache.
+    Cached,
+    /// The object's oriented box (no mesh).
+    Box,
+    /// Boxes extruded from the floorplan.
+    Structure,
+}
+
+/// One collision body: convex parts in world coordinates and what they belong to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Body {
+    /// What it stands for.
+    pub kind: BodyKind,
+    /// The instance id reported in contacts (0 for floor and ceiling, resolved per room).
+    pub instance: InstanceId,
+    /// A readable name: category and id (`chair_12`, `wall_3`, `floor`).
+    pub name: String,
+    /// The semantic category.
+    pub category: String,
+    /// Physics role (structure is static).
+    pub role: PhysicsRole,
+    /// Rigid-body parameters.
+    pub rigid_body: RigidBody,
+    /// The oriented box (objects) or bounds (structure).
+    pub obb: Obb,
+    /// Convex parts, world frame.
+    pub parts: Vec<ConvexPart>,
+    /// Where the parts came from.
+    pub source: PartSource,
+}
+
+/// Decomposition quality of one object with a mesh.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ObjectQuality {
+    /// Dense instance id.
+    pub instance: u32,
+    /// Category.
+    pub category: String,
+    /// Number of convex parts.
+    pub hulls: usize,
+    /// Volume enclosed by the mesh (|signed volume|, m³).
+    pub mesh_volume: f32,
+    /// Sum of the parts' volumes (overlaps counted twice), m³.
+    pub hull_volume: f32,
+    /// Where the parts came from.
+    pub source: PartSource,
+}
+
+/// What [`SceneBodies::build`] did.
+#[derive(Debug, Clone, Serialize, PartialEq, Default)]
+pub struct BuildReport {
+    /// The decomposer settings.
+    pub decomposer: String,
+    /// The cache folder.
+    pub cache_dir: String,
+    /// Objects decomposed now.
+    pub decomposed: usize,
+    /// Objects read from the cache.
+    pub cached: usize,
+    /// Objects given their oriented box.
+    pub boxes: usize,
+    /// Wall pieces after cutting openings.
+    pub wall_pieces: usize,
+    /// Openings cut.
+    pub openings_cut: usize,
+    /// Total convex parts of all bodies.
+    pub parts: usize,
+    /// Per-object quality, in object order.
+    pub objects: Vec<ObjectQuality>,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+impl BuildReport {
+    /// Σ hull volume / Σ mesh volume over objects with meshes (1 = exact; > 1 = fattened).
+    pub fn volume_ratio(&self) -> f32 {
+        let (h, m) = self.objects.iter().fold((0.0, 0.0), |(h, m), o| {
+            (h + o.hull_volume, m + o.mesh_volume)
+        });
+        if m > 0.0 { h / m } else { 1.0 }
+    }
+
+    /// Mean convex parts per object with a mesh.
+    pub fn mean_hulls(&self) -> f32 {
+        let n = self.objects.len().max(1) as f32;
+        self.objects.iter().map(|o| o.hulls as f32).sum::<f32>() / n
+    }
+}
+
+/// All collision bodies of a scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneBodies {
+    /// Bodies: objects in order, then walls, floor, ceiling.
+    pub bodies: Vec<Body>,
+    /// The floor instance id of each room (for contacts with the floor slab).
+    pub floor_ids: Vec<InstanceId>,
+    /// The ceiling instance id of each room.
+    pub ceiling_ids: Vec<InstanceId>,
+    /// The ceiling height, metres.
+    pub ceiling_height: f32,
+}
+
+impl SceneBodies {
+    /// Builds every body of `scene`, decomposing meshes missing from `cache` (in parallel) and
+    /// storing them.
+    ///
+    /// # Errors
+    ///
+    /// Bad settings, an unreadable or damaged cache entry (named), a failed write, or a CoACD
+    /// entry that has not been made yet.
+    pub fn build(
+        scene: &Scene,
+        decomposer: &Decomposer,
+        cache: &HullCache,
+    ) -> Result<(SceneBodies, BuildReport)> {
+        decomposer.validate()?;
+        let start = Instant::now();
+        let mut report = BuildReport {
+            decomposer: decomposer.describe(),
+            cache_dir: cache.dir().display().to_string(),
+            ..BuildReport::default()
+        };
+        let object_parts = scene
+            .objects
+            .par_iter()
+            .map(|o| object_parts(o.mesh.as_ref(), &o.obb, decomposer, cache))
+            .collect::<Vec<_>>();
+        let mut bodies = Vec::new();
+        for (oi, (o, parts)) in scene.objects.iter().zip(object_parts).enumerate() {
+            let (parts, source) = parts.map_err(|e| {
+                e.within(format!(
+                    "object {} (ins_id {}, {})",
+                    o.id.0, o.ins_id, o.category
+                ))
+            })?;
+            match source {
+                PartSource::Decomposed => report.decomposed += 1,
+                PartSource::Cached => report.cached += 1,
+                _ => report.boxes += 1,
+            }
+            if let Some(mesh) = &o.mesh
+                && source != PartSource::Box
+            {
+                report.objects.push(ObjectQuality {
+                    instance: o.id.0,
+                    category: o.category.clone(),
+                    hulls: parts.len(),
+                    mesh_volume: mesh.signed_volume().abs(),
+                    hull_volume: parts.iter().map(ConvexPart::volume).sum(),
+                    source,
+                });
+            }
+            bodies.push(Body {
+                kind: BodyKind::Object(oi),
+                instance: o.id,
+                name: format!("{}_{}", o.category, o.id.0),
+                category: o.category.clone(),
+                role: o.role,
+                rigid_body: o.rigid_body,
+                obb: o.obb,
+                parts,
+                source,
+            });
+        }
+        let ids = &scene.instances.kinds;
+        let id_of = |k: InstanceKind| {
+            ids.iter()
+                .position(|x| *x == k)
+                .map_or(InstanceId::NONE, |i| InstanceId(i as u32))
+        };
+        for (wi, wall) in scene.floorplan.walls.iter().enumerate() {
+            let (parts, cut) = wall_pieces(wall, scene);
+            report.wall_pieces += parts.len();
+            report.openings_cut += cut;
+            bodies.push(Body {
+                kind: BodyKind::Wall(wi),
+                instance: id_of(InstanceKind::Wall(wi)),
+                name: format!("wall_{wi}"),
+                category: "wall".into(),
+                role: PhysicsRole::Static,
+                rigid_body: RigidBody::default(),
+                obb: wall.obb(),
+                parts,
+                source: PartSource::Structure,
+            });
+        }
+        let bounds = scene.bounds();
+        let ceiling_height = scene.floorplan.ceiling_height();
+        if !bounds.is_empty() {
+            let (lo, hi) = (bounds.min.truncate(), bounds.max.truncate());
+            let slab = |z0: f32, kind: BodyKind, name: &str| {
+                let obb = Obb {
+                    center: ((lo + hi) * 0.5).extend(z0 + SLAB * 0.5),
+                    half_extents: ((hi - lo) * 0.5 + Vec2::splat(0.5)).extend(SLAB * 0.5),
+                    yaw: 0.0,
+                };
+                Body {
+                    kind,
+                    instance: InstanceId::NONE,
+                    name: name.into(),
+                    category: name.into(),
+                    role: PhysicsRole::Static,
+                    rigid_body: RigidBody::default(),
+                    obb,
+                    parts: ConvexPart::from_obb(&obb).into_iter().collect(),
+                    source: PartSource::Structure,
+                }
+            };
+            bodies.push(slab(-SLAB, BodyKind::Floor, "floor"));
+            bodies.push(slab(ceiling_height, BodyKind::Ceiling, "ceiling"));
+        }
+        report.parts = bodies.iter().map(|b| b.parts.len()).sum();
+        report.seconds = start.elapsed().as_secs_f64();
+        let rooms = scene.floorplan.rooms.len();
+        Ok((
+            SceneBodies {
+                bodies,
+                floor_ids: (0..rooms).map(|r| id_of(InstanceKind::Floor(r))).collect(),
+                ceiling_ids: (0..rooms)
+                    .map(|r| id_of(InstanceKind::Ceiling(r)))
+                    .collect(),
+                ceiling_height,
+            },
+            report,
+        ))
+    }
+}
+
+/// The parts of one object: cached or decomposed hulls of its mesh, else its box.
+fn object_parts(
+    mesh: Option<&sage_scene::TriMesh>,
+    obb: &Obb,
+    decomposer: &Decomposer,
+    cache: &HullCache,
+) -> Result<(Vec<ConvexPart>, PartSource)> {
+    let boxed = || {
+        ConvexPart::from_obb(obb)
+            .map(|p| (vec![p], PartSource::Box))
+            .ok_or_else(|| Error::invalid("the oriented box has no volume and no mesh is given"))
+    };
+    let Some(mesh) = mesh.filter(|m| !m.triangles.is_empty()) else {
+        return boxed();
+    };
+    let key = cache_key(mesh, decomposer);
+    if let Some(parts) = cache.load(key)? {
+        return Ok((parts, PartSource::Cached));
+    }
+    let parts = decomposer.run(mesh)?;
+    if parts.is_empty() {
+        // A mesh too thin to voxelise (a flat rug): its box is the honest body.
+        let boxed = boxed()?;
+        cache.store(key, &boxed.0)?;
+        return Ok((boxed.0, PartSource::Decomposed));
+    }
+    cache.store(key, &parts)?;
+    Ok((parts, PartSource::Decomposed))
+}
+
+/// The solid boxes of a wall after cutting the door and window holes that lie in it, and the
+/// number of holes cut.
+///
+/// Along the wall, the holes' extents split the wall into intervals; in each interval the solid
+/// height is [0, height] minus the union of the covering holes' height ranges.
+pub fn wall_pieces(wall: &Wall, scene: &Scene) -> (Vec<ConvexPart>, usize) {
+    let len = wall.length();
+    let dir = wall.direction();
+    if len <= 1e-6 {
+        return (Vec::new(), 0);
+    }
+    let normal = dir.perp();
+    let mut holes: Vec<(f32, f32, f32, f32)> = Vec::new();
+    for h in &scene.floorplan.holes {
+        let (lo, hi) = h.bounds();
+        let centre = ((lo + hi) * 0.5).truncate();
+        let off = (centre - wall.start).dot(normal).abs();
+        if off > (wall.thickness + h.thickness) * 0.5 + HOLE_SNAP {
+            continue;
+        }
+        let along = h
+            .profile
+            .iter()
+            .map(|p| (p.truncate() - wall.start).dot(dir));
+        let (a0, a1) = along.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), t| {
+            (a.min(t), b.max(t))
+        });
+        let (a0, a1) = (a0.max(0.0), a1.min(len));
+        if a1 - a0 > 1e-4 && hi.z > lo.z {
+            let top = if h.kind == HoleKind::Door && hi.z >= wall.height {
+                wall.height
+            } else {
+                hi.z
+            };
+            holes.push((a0, a1, lo.z.max(0.0), top.min(wall.height)));
+        }
+    }
+    let mut cuts: Vec<f32> = vec![0.0, len];
+    for &(a0, a1, _, _) in &holes {
+        cuts.extend([a0, a1]);
+    }
+    cuts.sort_by(f32::total_cmp);
+    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-5);
+    let mut parts = Vec::new();
+    for w in cuts.windows(2) {
+        let (s0, s1) = (w[0], w[1]);
+        let mid = (s0 + s1) * 0.5;
+        let mut gaps: Vec<(f32, f32)> = holes
+            .iter()
+            .filter(|h| h.0 <= mid && mid <= h.1)
+            .map(|h| (h.2, h.3))
+            .collect();
+        gaps.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut z = 0.0f32;
+        let mut solid = Vec::new();
+        for (g0, g1) in gaps {
+            if g0 > z {
+                solid.push((z, g0));
+            }
+            z = z.max(g1);
+        }
+        if wall.height > z {
+            solid.push((z, wall.height));
+        }
+        for (z0, z1) in solid {
+            if z1 - z0 < 1e-4 {
+                continue;
+            }
+            let c = wall.start + dir * mid;
+            let obb = Obb {
+                center: Vec3::new(c.x, c.y, (z0 + z1) * 0.5),
+                half_extents: Vec3::new((s1 - s0) * 0.5, wall.thickness * 0.5, (z1 - z0) * 0.5),
+                yaw: dir.y.atan2(dir.x),
+            };
+            parts.extend(ConvexPart::from_obb(&obb));
+        }
+    }
+    (parts, holes.len())
+}
