@@ -1,0 +1,136 @@
+//! The clearance-aware cost of moving through a cell (SPEC §7): clearance from the exact distance
+//! transform, the robot radius as a hard inflation, a narrow-passage penalty and an area
+//! preference.
+//!
+//! A cell's clearance `c` is the distance from its centre to the nearest non-free cell's centre
+//! minus half a cell (the distance to that cell's near edge). A cell is navigable when it is free
+//! and `c ≥ robot_radius`. Its cost multiplier is
+//!
+//! `(1 + narrow_weight · max(0, 1 − (c − robot_radius) / narrow_distance)) · area_weight(room)`
+//!
+//! so a step costs its length times the mean multiplier of its two cells.
+
+use crate::edt;
+use crate::grid::{NO_ROOM, NavGrid};
+use sage_core::{Error, Result};
+use sage_scene::Floorplan;
+use sage_scene::occupancy::FREE;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Parameters of the cost function.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CostParams {
+    /// Robot radius, metres: the hard inflation and the safety distance (default 0.2).
+    pub robot_radius: f32,
+    /// Extra cost factor at zero margin (clearance = radius); 0 turns the penalty off (default 2).
+    pub narrow_weight: f32,
+    /// Margin beyond the radius over which the penalty fades to 0, metres (default 0.3).
+    pub narrow_distance: f32,
+    /// Cost factor per room type (lower case, as in `structure.json`); unlisted types get
+    /// `default_area_weight`.
+    pub area_weights: BTreeMap<String, f32>,
+    /// Cost factor of rooms not listed and of cells outside every room (default 1).
+    pub default_area_weight: f32,
+}
+
+impl Default for CostParams {
+    fn default() -> Self {
+        CostParams {
+            robot_radius: 0.2,
+            narrow_weight: 2.0,
+            narrow_distance: 0.3,
+            area_weights: BTreeMap::new(),
+            default_area_weight: 1.0,
+        }
+    }
+}
+
+impl CostParams {
+    /// The parameters with the penalty off and every area weight 1: cost = path length.
+    pub fn length_only(robot_radius: f32) -> CostParams {
+        CostParams {
+            robot_radius,
+            narrow_weight: 0.0,
+            ..CostParams::default()
+        }
+    }
+
+    /// Checks the ranges: radius ≥ 0, weights ≥ 0, area weights > 0, distance > 0.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str, v: f32| Error::invalid(format!("cost: {what} out of range: {v}"));
+        if !(self.robot_radius >= 0.0 && self.robot_radius < 10.0) {
+            return Err(bad("robot_radius (0-10 m)", self.robot_radius));
+        }
+        if !(self.narrow_weight >= 0.0 && self.narrow_weight.is_finite()) {
+            return Err(bad("narrow_weight (>= 0)", self.narrow_weight));
+        }
+        if !(self.narrow_distance > 0.0 && self.narrow_distance.is_finite()) {
+            return Err(bad("narrow_distance (> 0)", self.narrow_distance));
+        }
+        for (k, &w) in &self.area_weights {
+            if !(w > 0.0 && w.is_finite()) {
+                return Err(bad(&format!("area_weights[{k}] (> 0)"), w));
+            }
+        }
+        if !(self.default_area_weight > 0.0 && self.default_area_weight.is_finite()) {
+            return Err(bad("default_area_weight (> 0)", self.default_area_weight));
+        }
+        Ok(())
+    }
+}
+
+/// Clearance (metres) of every cell: 0 on non-free cells, infinite when nothing blocks.
+pub fn clearance(grid: &NavGrid) -> Vec<f32> {
+    let blocked: Vec<bool> = grid.cells.iter().map(|&v| v != FREE).collect();
+    edt::squared_distance(grid.width, grid.height, &blocked)
+        .into_iter()
+        .map(|d2| (d2.sqrt() * grid.cell - 0.5 * grid.cell).max(0.0))
+        .collect()
+}
+
+/// The navigable mask: free, clearance ≥ radius, and not on the grid border (so that searches
+/// never step outside).
+pub fn navigable(grid: &NavGrid, clearance: &[f32], radius: f32) -> Vec<bool> {
+    let (w, h) = (grid.width, grid.height);
+    (0..w * h)
+        .map(|k| {
+            let (i, j) = (k % w, k / w);
+            let inner = i > 0 && j > 0 && i + 1 < w && j + 1 < h;
+            inner && grid.cells[k] == FREE && clearance[k] >= radius
+        })
+        .collect()
+}
+
+/// The cost multiplier of every cell (see the module docs); non-navigable cells get 1.
+pub fn multipliers(
+    grid: &NavGrid,
+    clearance: &[f32],
+    floorplan: &Floorplan,
+    params: &CostParams,
+) -> Vec<f32> {
+    let room_weight: Vec<f32> = floorplan
+        .rooms
+        .iter()
+        .map(|r| {
+            *params
+                .area_weights
+                .get(&r.room_type.to_lowercase())
+                .unwrap_or(&params.default_area_weight)
+        })
+        .collect();
+    (0..grid.cells.len())
+        .map(|k| {
+            let margin = clearance[k] - params.robot_radius;
+            let narrow = (1.0 - margin / params.narrow_distance).clamp(0.0, 1.0);
+            let area = match grid.rooms[k] {
+                NO_ROOM => params.default_area_weight,
+                r => room_weight
+                    .get(r as usize)
+                    .copied()
+                    .unwrap_or(params.default_area_weight),
+            };
+            (1.0 + params.narrow_weight * narrow) * area
+        })
+        .collect()
+}

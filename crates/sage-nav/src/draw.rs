@@ -1,0 +1,267 @@
+//! A small RGB canvas for the map images: filled polygons, lines, discs and a 5×7 bitmap font
+//! for the legend (upper-case letters, digits and a few signs), so the PNGs explain themselves
+//! without a font library.
+
+use glam::Vec2;
+use sage_core::Result;
+use std::path::Path;
+
+/// An RGB image with a world-to-pixel mapping (x right, y up; row 0 at the top).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Canvas {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Rows top to bottom, 3 bytes per pixel.
+    pub rgb: Vec<u8>,
+    origin: Vec2,
+    top: f32,
+    scale: f32,
+}
+
+impl Canvas {
+    /// A canvas of `width × height` pixels filled with `background`, whose pixel (0, map_rows)
+    /// bottom-left corner is world `origin` at `scale` metres per pixel over `map_rows` rows.
+    pub fn new(
+        width: usize,
+        height: usize,
+        background: [u8; 3],
+        origin: Vec2,
+        scale: f32,
+        map_rows: usize,
+    ) -> Canvas {
+        Canvas {
+            width,
+            height,
+            rgb: background.repeat(width * height),
+            origin,
+            top: origin.y + map_rows as f32 * scale,
+            scale,
+        }
+    }
+
+    /// The pixel coordinates (continuous) of world point `p`.
+    pub fn to_pixel(&self, p: Vec2) -> Vec2 {
+        Vec2::new(
+            (p.x - self.origin.x) / self.scale,
+            (self.top - p.y) / self.scale,
+        )
+    }
+
+    /// Sets pixel (x, y) when inside the image.
+    pub fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
+        if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
+            let k = (y as usize * self.width + x as usize) * 3;
+            self.rgb[k..k + 3].copy_from_slice(&c);
+        }
+    }
+
+    /// Fills a world polygon (even-odd rule over pixel centres).
+    pub fn fill_polygon(&mut self, poly: &[Vec2], c: [u8; 3]) {
+        if poly.len() < 3 {
+            for w in poly.windows(2) {
+                self.line(w[0], w[1], c, 1);
+            }
+            return;
+        }
+        let px: Vec<Vec2> = poly.iter().map(|p| self.to_pixel(*p)).collect();
+        let lo = px.iter().fold(f32::INFINITY, |m, p| m.min(p.y)).max(0.0) as usize;
+        let hi =
+            (px.iter().fold(f32::NEG_INFINITY, |m, p| m.max(p.y)).ceil() as usize).min(self.height);
+        let mut xs = Vec::new();
+        for y in lo..hi {
+            let yc = y as f32 + 0.5;
+            xs.clear();
+            for e in 0..px.len() {
+                let (a, b) = (px[e], px[(e + 1) % px.len()]);
+                if (a.y > yc) != (b.y > yc) {
+                    xs.push(a.x + (yc - a.y) / (b.y - a.y) * (b.x - a.x));
+                }
+            }
+            xs.sort_by(f32::total_cmp);
+            for pair in xs.chunks_exact(2) {
+                let x0 = (pair[0] - 0.5).ceil().max(0.0) as i64;
+                let x1 = (pair[1] - 0.5).floor() as i64;
+                for x in x0..=x1 {
+                    self.put(x, y as i64, c);
+                }
+            }
+        }
+        // Thin shapes still show: their outline is drawn too.
+        for e in 0..poly.len() {
+            self.line(poly[e], poly[(e + 1) % poly.len()], c, 1);
+        }
+    }
+
+    /// Draws a world segment `thickness` pixels wide.
+    pub fn line(&mut self, a: Vec2, b: Vec2, c: [u8; 3], thickness: i64) {
+        let (pa, pb) = (self.to_pixel(a), self.to_pixel(b));
+        let steps = (pa.distance(pb).ceil() as usize).max(1);
+        let r = thickness / 2;
+        for s in 0..=steps {
+            let p = pa.lerp(pb, s as f32 / steps as f32);
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    self.put(p.x as i64 + dx, p.y as i64 + dy, c);
+                }
+            }
+        }
+    }
+
+    /// Draws a filled disc of `radius` pixels at world point `p`.
+    pub fn disc(&mut self, p: Vec2, radius: i64, c: [u8; 3]) {
+        let q = self.to_pixel(p);
+        for dy in -radius..=radius {
+            for dx in -radius..=radius {
+                if dx * dx + dy * dy <= radius * radius {
+                    self.put(q.x as i64 + dx, q.y as i64 + dy, c);
+                }
+            }
+        }
+    }
+
+    /// Writes `text` (upper-cased) with its top-left at pixel (x, y), glyphs scaled by `scale`.
+    pub fn text(&mut self, x: i64, y: i64, text: &str, c: [u8; 3], scale: i64) {
+        for (n, ch) in text.chars().enumerate() {
+            let rows = glyph(ch.to_ascii_uppercase());
+            let gx = x + n as i64 * 6 * scale;
+            for (r, bits) in rows.iter().enumerate() {
+                for col in 0..5 {
+                    if bits & (0x10 >> col) != 0 {
+                        for sy in 0..scale {
+                            for sx in 0..scale {
+                                self.put(gx + col * scale + sx, y + r as i64 * scale + sy, c);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Draws a legend column at pixel x = `x`: a swatch and a label per entry.
+    pub fn legend(&mut self, x: i64, title: &str, entries: &[([u8; 3], String)]) {
+        let ink = [20, 20, 20];
+        self.text(x, 8, title, ink, 2);
+        for (n, (c, label)) in entries.iter().enumerate() {
+            let y = 34 + n as i64 * LEGEND_ROW;
+            for dy in 0..12 {
+                for dx in 0..12 {
+                    self.put(x + dx, y + dy, *c);
+                }
+            }
+            self.text(x + 18, y - 1, label, ink, 2);
+        }
+    }
+
+    /// Saves the canvas as an RGB PNG (atomically).
+    pub fn save_png(&self, path: &Path) -> Result<()> {
+        sage_scene::fsutil::write_rgb_png(path, self.width, self.height, &self.rgb)
+    }
+}
+
+/// Pixel height of one legend row.
+pub const LEGEND_ROW: i64 = 18;
+
+/// Pixel width the legend needs for labels of up to `chars` characters.
+pub fn legend_width(chars: usize) -> usize {
+    30 + chars * 12
+}
+
+/// Pixel height the legend needs for `rows` entries.
+pub fn legend_height(rows: usize) -> usize {
+    40 + rows * LEGEND_ROW as usize
+}
+
+/// A distinct, stable colour per index (golden-ratio hues).
+pub fn palette(index: usize) -> [u8; 3] {
+    let h = ((index as f32 + 1.0) * 0.618_034).fract() * 6.0;
+    let (s, v) = (0.6, 0.9);
+    let f = h.fract();
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    let rgb = match h as u32 {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    };
+    rgb.map(|c| (c * 255.0).round() as u8)
+}
+
+/// The 5×7 bitmap of a character (rows top to bottom, bit 4 = leftmost column).
+fn glyph(c: char) -> [u8; 7] {
+    match c {
+        'A' => [0x0E, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
+        'B' => [0x1E, 0x11, 0x11, 0x1E, 0x11, 0x11, 0x1E],
+        'C' => [0x0E, 0x11, 0x10, 0x10, 0x10, 0x11, 0x0E],
+        'D' => [0x1E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x1E],
+        'E' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x1F],
+        'F' => [0x1F, 0x10, 0x10, 0x1E, 0x10, 0x10, 0x10],
+        'G' => [0x0E, 0x11, 0x10, 0x17, 0x11, 0x11, 0x0F],
+        'H' => [0x11, 0x11, 0x11, 0x1F, 0x11, 0x11, 0x11],
+        'I' => [0x0E, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E],
+        'J' => [0x07, 0x02, 0x02, 0x02, 0x02, 0x12, 0x0C],
+        'K' => [0x11, 0x12, 0x14, 0x18, 0x14, 0x12, 0x11],
+        'L' => [0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F],
+        'M' => [0x11, 0x1B, 0x15, 0x15, 0x11, 0x11, 0x11],
+        'N' => [0x11, 0x11, 0x19, 0x15, 0x13, 0x11, 0x11],
+        'O' => [0x0E, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
+        'P' => [0x1E, 0x11, 0x11, 0x1E, 0x10, 0x10, 0x10],
+        'Q' => [0x0E, 0x11, 0x11, 0x11, 0x15, 0x12, 0x0D],
+        'R' => [0x1E, 0x11, 0x11, 0x1E, 0x14, 0x12, 0x11],
+        'S' => [0x0F, 0x10, 0x10, 0x0E, 0x01, 0x01, 0x1E],
+        'T' => [0x1F, 0x04, 0x04, 0x04, 0x04, 0x04, 0x04],
+        'U' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
+        'V' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x0A, 0x04],
+        'W' => [0x11, 0x11, 0x11, 0x15, 0x15, 0x15, 0x0A],
+        'X' => [0x11, 0x11, 0x0A, 0x04, 0x0A, 0x11, 0x11],
+        'Y' => [0x11, 0x11, 0x11, 0x0A, 0x04, 0x04, 0x04],
+        'Z' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x10, 0x1F],
+        '0' => [0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E],
+        '1' => [0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E],
+        '2' => [0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F],
+        '3' => [0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E],
+        '4' => [0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02],
+        '5' => [0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E],
+        '6' => [0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E],
+        '7' => [0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08],
+        '8' => [0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E],
+        '9' => [0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C],
+        '_' => [0, 0, 0, 0, 0, 0, 0x1F],
+        '-' => [0, 0, 0, 0x1F, 0, 0, 0],
+        '.' => [0, 0, 0, 0, 0, 0x0C, 0x0C],
+        ':' => [0, 0x0C, 0x0C, 0, 0x0C, 0x0C, 0],
+        '(' => [0x02, 0x04, 0x08, 0x08, 0x08, 0x04, 0x02],
+        ')' => [0x08, 0x04, 0x02, 0x02, 0x02, 0x04, 0x08],
+        '/' => [0, 0x01, 0x02, 0x04, 0x08, 0x10, 0],
+        ' ' => [0; 7],
+        _ => [0x0E, 0x11, 0x01, 0x02, 0x04, 0, 0x04],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn polygon_fill_covers_its_area() {
+        let mut c = Canvas::new(20, 20, [0; 3], Vec2::ZERO, 0.1, 20);
+        c.fill_polygon(
+            &[
+                Vec2::new(0.5, 0.5),
+                Vec2::new(1.5, 0.5),
+                Vec2::new(1.5, 1.5),
+                Vec2::new(0.5, 1.5),
+            ],
+            [255, 0, 0],
+        );
+        let red = c.rgb.chunks_exact(3).filter(|p| p[0] == 255).count();
+        // 10×10 pixels inside, plus the outline drawn on the boundary pixels.
+        assert!((100..=121).contains(&red), "{red}");
+        // World y up = image row down: (1.0, 1.0) is at row 10, column 10.
+        assert_eq!(c.to_pixel(Vec2::new(1.0, 1.0)), Vec2::new(10.0, 10.0));
+    }
+}

@@ -1,0 +1,27 @@
+//! `sage-nav`: where an agent can go in a scene, and the reference paths of the benchmark.
+//!
+//! From a [`sage_scene::Scene`] this crate builds the 2-D semantic top-down map
+//! ([`semantic_map`]), the occupancy grid of an agent's height slab ([`grid`]), its exact
+//! Euclidean distance transform ([`edt`]), a clearance-aware cost ([`cost`]) and an array-based
+//! A* / Dijkstra ([`astar`]); [`pathfinder`] wraps them in a Habitat-like API, [`path`] turns grid
+//! paths into smooth, resampled trajectories, [`sampling`] draws start–goal pairs over rooms,
+//! functional areas and objects, and [`trajectory`] generates, writes and resumes whole datasets.
+//! SPEC §5 and §7; the conventions are documented in `docs/navigation.md`.
+
+pub mod astar;
+pub mod cost;
+pub mod draw;
+pub mod edt;
+pub mod grid;
+pub mod path;
+pub mod pathfinder;
+pub mod sampling;
+pub mod semantic_map;
+pub mod trajectory;
+
+pub use cost::CostParams;
+pub use grid::{GridParams, GridSource, NavGrid};
+pub use pathfinder::{NavPath, PathFinder};
+pub use sampling::{EndpointKind, SamplingParams};
+pub use semantic_map::{MapItem, SemanticMap};
+pub use trajectory::{Trajectory, TrajectoryParams, TrajectorySet};
