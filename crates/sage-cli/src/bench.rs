@@ -17,6 +17,9 @@ pub enum BenchCommand {
     /// Render a ≥1M-Gaussian synthetic home from cameras inside its largest room at 224×224
     /// and 640×480; report the median frame time and its breakdown.
     Render(RenderBenchArgs),
+    /// Step one agent through a 200-object synthetic home, physics only (no rendering), and
+    /// report steps per second.
+    Physics(crate::physics_cmd::PhysicsBenchArgs),
 }
 
 #[derive(Args)]
@@ -58,6 +61,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Load(a) => load(a),
         BenchCommand::Render(a) => render(a),
+        BenchCommand::Physics(a) => crate::physics_cmd::bench(a),
     }
 }
 

@@ -5,6 +5,7 @@
 
 mod bench;
 mod machine;
+mod physics_cmd;
 mod render_cmd;
 mod scene_cmd;
 mod splat_cmd;
@@ -35,6 +36,12 @@ enum Command {
     /// 3DGS PLY files: convert between the standard and compressed layouts.
     #[command(subcommand)]
     Splat(splat_cmd::SplatCommand),
+    /// Physics: collision bodies and their quality, the CoACD work list, driving an agent.
+    #[command(subcommand)]
+    Physics(physics_cmd::PhysicsCommand),
+    /// Export a scene to another format (USDA for Isaac Sim / Omniverse).
+    #[command(subcommand)]
+    Export(physics_cmd::ExportCommand),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -55,6 +62,8 @@ fn main() -> ExitCode {
         Command::Scene(c) => scene_cmd::run(c),
         Command::Render(a) => render_cmd::run(a),
         Command::Splat(c) => splat_cmd::run(c),
+        Command::Physics(c) => physics_cmd::run(c),
+        Command::Export(c) => physics_cmd::run_export(c),
         Command::Bench(c) => bench::run(c),
     };
     match result {

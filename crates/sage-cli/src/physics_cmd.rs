@@ -1,0 +1,502 @@
+//! `sage3d physics …` and `sage3d export usd`: collision bodies and their quality, the CoACD
+//! work list, driving an agent, the hybrid USDA scene, and the physics benchmark.
+
+use crate::machine;
+use clap::{Args, Subcommand};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sage_core::{Error, Pose, Result, Vec3};
+use sage_physics::usd::{SplatAsset, write_usda};
+use sage_physics::{
+    Agent, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, World,
+    WorldOptions, cache_key, default_cache_dir,
+};
+use sage_scene::Scene;
+use sage_scene::fsutil::write_json;
+use sage_scene::scene::files;
+use sage_scene::synth::{SceneKind, SynthConfig};
+use std::path::{Component, Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Subcommand)]
+pub enum PhysicsCommand {
+    /// Build the collision bodies of a scene (decomposing meshes not yet in the cache) and
+    /// report the decomposition quality: hull counts and hull volume against mesh volume.
+    Build(BuildArgs),
+    /// List the object meshes whose hulls are not yet cached, with their cache paths, as JSON
+    /// (the work list of python/tools/coacd_cache.py).
+    Pending(PendingArgs),
+    /// Drive an agent through a scene with a list of commands; print one JSON report per step.
+    Drive(DriveArgs),
+}
+
+#[derive(Subcommand)]
+pub enum ExportCommand {
+    /// Write the hybrid scene as USDA: collision parts with UsdPhysics schemas, rigid bodies and
+    /// joints, semantic labels, the Gaussians referenced as a PLY asset.
+    Usd(UsdArgs),
+}
+
+/// How bodies are decomposed and where the hulls are cached.
+#[derive(Args, Clone)]
+pub struct DecompArgs {
+    /// Hull cache folder (default: SCENE/.sage3d/collision).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Decomposer: vhacd (in process) or coacd (hulls made offline by python/tools/coacd_cache.py).
+    #[arg(long, default_value = "vhacd")]
+    backend: String,
+    /// V-HACD voxel resolution.
+    #[arg(long, default_value_t = 64)]
+    resolution: u32,
+    /// V-HACD maximum concavity.
+    #[arg(long, default_value_t = 0.01)]
+    concavity: f32,
+    /// CoACD concavity threshold.
+    #[arg(long, default_value_t = 0.05)]
+    threshold: f32,
+    /// Most convex parts per object (CoACD: 0 for no cap).
+    #[arg(long, default_value_t = 32)]
+    max_hulls: u32,
+}
+
+impl DecompArgs {
+    fn decomposer(&self) -> Result<Decomposer> {
+        let d = match self.backend.to_ascii_lowercase().as_str() {
+            "vhacd" => Decomposer::Vhacd {
+                resolution: self.resolution,
+                concavity: self.concavity,
+                max_hulls: self.max_hulls,
+            },
+            "coacd" => Decomposer::Coacd {
+                threshold: self.threshold,
+                max_hulls: self.max_hulls,
+            },
+            other => {
+                return Err(Error::invalid(format!(
+                    "--backend: unknown decomposer '{other}' (expected vhacd or coacd)"
+                )));
+            }
+        };
+        d.validate()?;
+        Ok(d)
+    }
+
+    fn cache(&self, scene_dir: &Path) -> HullCache {
+        HullCache::new(
+            self.cache
+                .clone()
+                .unwrap_or_else(|| default_cache_dir(scene_dir)),
+        )
+    }
+
+    /// Loads the scene and builds its bodies.
+    fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
+        let (scene, _) = Scene::load(scene_dir)?;
+        let (bodies, report) =
+            SceneBodies::build(&scene, &self.decomposer()?, &self.cache(scene_dir))?;
+        Ok((scene, bodies, report))
+    }
+}
+
+#[derive(Args)]
+pub struct BuildArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    #[command(flatten)]
+    decomp: DecompArgs,
+    /// Print the full report as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+pub struct PendingArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    #[command(flatten)]
+    decomp: DecompArgs,
+    /// Output JSON file.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+pub struct DriveArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    #[command(flatten)]
+    decomp: DecompArgs,
+    /// Agent profile: wheeled, go2, g1, h1 or uav.
+    #[arg(long, default_value = "wheeled")]
+    agent: String,
+    /// Start position X,Y,Z (metres, world frame; ground robots: Z of the floor).
+    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    position: Vec<f32>,
+    /// Start heading, degrees counter-clockwise from +X.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    yaw: f32,
+    /// Commands: forward:D, turn:DEG, stop, vel:VX:VY:WZDEG:DT, uav:VX:VY:VZ:WZDEG:DT.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        required = true,
+        allow_hyphen_values = true
+    )]
+    commands: Vec<String>,
+    /// Put doors on revolute joints instead of fixing them at their state's angle.
+    #[arg(long)]
+    articulated_doors: bool,
+}
+
+#[derive(Args)]
+pub struct UsdArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    /// Output `.usda` file.
+    out: PathBuf,
+    #[command(flatten)]
+    decomp: DecompArgs,
+}
+
+pub fn run(cmd: PhysicsCommand) -> Result<()> {
+    match cmd {
+        PhysicsCommand::Build(a) => build(a),
+        PhysicsCommand::Pending(a) => pending(a),
+        PhysicsCommand::Drive(a) => drive(a),
+    }
+}
+
+pub fn run_export(cmd: ExportCommand) -> Result<()> {
+    match cmd {
+        ExportCommand::Usd(a) => export_usd(a),
+    }
+}
+
+fn build(a: BuildArgs) -> Result<()> {
+    let (scene, bodies, report) = a.decomp.bodies(&a.scene)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).map_err(|e| Error::invalid(e.to_string()))?
+        );
+        return Ok(());
+    }
+    println!(
+        "scene            {} ({} objects)",
+        scene.name,
+        scene.objects.len()
+    );
+    println!("decomposer       {}", report.decomposer);
+    println!("cache            {}", report.cache_dir);
+    println!(
+        "objects          {} decomposed, {} from cache, {} as boxes (no mesh)",
+        report.decomposed, report.cached, report.boxes
+    );
+    println!(
+        "hulls            {} in all; {:.1} per meshed object",
+        report.parts,
+        report.mean_hulls()
+    );
+    println!(
+        "volume           hulls / meshes = {:.3} (1 = exact, > 1 = fattened)",
+        report.volume_ratio()
+    );
+    let mut worst: Vec<_> = report
+        .objects
+        .iter()
+        .filter(|o| o.mesh_volume > 0.0)
+        .collect();
+    worst.sort_by(|x, y| {
+        (y.hull_volume / y.mesh_volume).total_cmp(&(x.hull_volume / x.mesh_volume))
+    });
+    for o in worst.iter().take(5) {
+        println!(
+            "  worst          {}_{}: {} hulls, {:.4} m³ hulls / {:.4} m³ mesh = {:.2}",
+            o.category,
+            o.instance,
+            o.hulls,
+            o.hull_volume,
+            o.mesh_volume,
+            o.hull_volume / o.mesh_volume
+        );
+    }
+    println!(
+        "structure        {} wall pieces, {} openings cut, floor and ceiling slabs (ceiling at {:.2} m)",
+        report.wall_pieces, report.openings_cut, bodies.ceiling_height
+    );
+    println!("time             {:.2} s", report.seconds);
+    Ok(())
+}
+
+fn pending(a: PendingArgs) -> Result<()> {
+    let (scene, _) = Scene::load(&a.scene)?;
+    let decomposer = a.decomp.decomposer()?;
+    let cache = a.decomp.cache(&a.scene);
+    let mut meshes = Vec::new();
+    for o in &scene.objects {
+        let Some(mesh) = o.mesh.as_ref().filter(|m| !m.triangles.is_empty()) else {
+            continue;
+        };
+        let key = cache_key(mesh, &decomposer);
+        if cache.path(key).is_file() {
+            continue;
+        }
+        meshes.push(serde_json::json!({
+            "instance": o.id.0,
+            "ins_id": o.ins_id,
+            "key": format!("{key:032x}"),
+            "cache_file": cache.path(key),
+            "vertices": mesh.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+            "triangles": mesh.triangles,
+        }));
+    }
+    let count = meshes.len();
+    let doc = serde_json::json!({
+        "decomposer": decomposer.describe(),
+        "settings": match decomposer {
+            Decomposer::Coacd { threshold, max_hulls } =>
+                serde_json::json!({"threshold": threshold, "max_hulls": max_hulls}),
+            Decomposer::Vhacd { resolution, concavity, max_hulls } =>
+                serde_json::json!({"resolution": resolution, "concavity": concavity, "max_hulls": max_hulls}),
+        },
+        "cache_dir": cache.dir(),
+        "meshes": meshes,
+    });
+    write_json(&a.out, &doc)?;
+    println!("{count} meshes without cached hulls -> {}", a.out.display());
+    Ok(())
+}
+
+fn drive(a: DriveArgs) -> Result<()> {
+    let profile: AgentProfile = a.agent.parse()?;
+    let commands = a
+        .commands
+        .iter()
+        .map(|c| c.parse::<Command>())
+        .collect::<Result<Vec<_>>>()?;
+    let position = match a.position.as_slice() {
+        [x, y, z] => Vec3::new(*x, *y, *z),
+        [] => Err(Error::invalid("--position X,Y,Z is required"))?,
+        _ => Err(Error::invalid("--position takes three numbers X,Y,Z"))?,
+    };
+    let (scene, bodies, _) = a.decomp.bodies(&a.scene)?;
+    let options = WorldOptions {
+        articulated_doors: a.articulated_doors,
+        ..WorldOptions::default()
+    };
+    let mut world = World::new(&scene, bodies, &options);
+    let mut agent = Agent::new(profile, Pose::new(position, a.yaw.to_radians()));
+    for (i, c) in commands.iter().enumerate() {
+        let report = agent.step(&mut world, c)?;
+        let mut line = serde_json::to_value(&report).map_err(|e| Error::invalid(e.to_string()))?;
+        line["step"] = serde_json::json!(i);
+        line["command"] = serde_json::json!(c.to_string());
+        println!("{line}");
+    }
+    Ok(())
+}
+
+/// `target` relative to the folder `base` (both made absolute), or `target` as given when no
+/// relative path exists (another drive).
+fn relative_path(target: &Path, base: &Path) -> String {
+    let (Ok(t), Ok(b)) = (target.canonicalize(), base.canonicalize()) else {
+        return target.display().to_string();
+    };
+    let tc: Vec<Component> = t.components().collect();
+    let bc: Vec<Component> = b.components().collect();
+    let common = tc.iter().zip(&bc).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return t.display().to_string();
+    }
+    let mut rel = PathBuf::new();
+    for _ in common..bc.len() {
+        rel.push("..");
+    }
+    for c in &tc[common..] {
+        rel.push(c);
+    }
+    let s = rel.display().to_string();
+    if s.starts_with("..") {
+        s
+    } else {
+        format!("./{s}")
+    }
+}
+
+fn export_usd(a: UsdArgs) -> Result<()> {
+    let (scene, bodies, report) = a.decomp.bodies(&a.scene)?;
+    let out_dir = match a.out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+    let splats = [files::COMPRESSED_PLY, files::STANDARD_PLY]
+        .iter()
+        .map(|f| a.scene.join(f))
+        .find(|p| p.is_file())
+        .map(|p| SplatAsset {
+            path: relative_path(&p, &out_dir),
+            count: scene.gaussians.len(),
+            sh_degree: scene.gaussians.sh_degree(),
+        });
+    write_usda(&a.out, &scene.name, &bodies, splats.as_ref())?;
+    println!(
+        "{} -> {} ({} bodies, {} collision parts; {} decomposed, {} from cache)",
+        a.scene.display(),
+        a.out.display(),
+        bodies.bodies.len(),
+        report.parts,
+        report.decomposed,
+        report.cached
+    );
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct PhysicsBenchArgs {
+    /// Scene folder (default: generate a home with --objects objects).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Objects in the generated scene (doors and windows included).
+    #[arg(long, default_value_t = 200)]
+    objects: usize,
+    /// Hull cache (default: SCENE/.sage3d/collision, or a folder in the system temp dir for a
+    /// generated scene, so repeated runs reuse it).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Agent profile.
+    #[arg(long, default_value = "wheeled")]
+    agent: String,
+    /// Agent steps per timed run.
+    #[arg(long, default_value_t = 100_000)]
+    steps: usize,
+    /// Timed runs (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Seed of the generated scene and of the command sequence.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+/// A seeded command mix: mostly 0.25 m forward steps and 15° turns, some velocity commands.
+fn command_sequence(n: usize, seed: u64, uav: bool) -> Vec<Command> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| match rng.random_range(0..10) {
+            0..=4 => Command::Forward { distance: 0.25 },
+            5 | 6 => Command::Turn {
+                angle: if rng.random() { 15f32 } else { -15f32 }.to_radians(),
+            },
+            _ if uav => Command::Uav {
+                vx: rng.random_range(0.0..1.0),
+                vy: rng.random_range(-0.3..0.3),
+                vz: rng.random_range(-0.5..0.5),
+                wz: rng.random_range(-0.5..0.5),
+                dt: 0.2,
+            },
+            _ => Command::Ground {
+                vx: rng.random_range(0.0..1.0),
+                vy: 0.0,
+                wz: rng.random_range(-0.8..0.8),
+                dt: 0.25,
+            },
+        })
+        .collect()
+}
+
+pub fn bench(a: PhysicsBenchArgs) -> Result<()> {
+    let profile: AgentProfile = a.agent.parse()?;
+    let (scene, cache) = match &a.scene {
+        Some(dir) => (
+            Scene::load(dir)?.0,
+            HullCache::new(a.cache.clone().unwrap_or_else(|| default_cache_dir(dir))),
+        ),
+        None => {
+            let config = SynthConfig {
+                seed: a.seed,
+                kind: SceneKind::Home,
+                rooms: (a.objects / 14).clamp(1, 64),
+                objects: a.objects,
+                gaussians: 20_000,
+                ..SynthConfig::default()
+            };
+            eprintln!("generating a {}-object home …", a.objects);
+            let scene = sage_scene::synth::generate(&config)?;
+            let dir = a
+                .cache
+                .clone()
+                .unwrap_or_else(|| std::env::temp_dir().join("sage3d-bench-physics-hulls"));
+            (scene, HullCache::new(dir))
+        }
+    };
+    let (bodies, report) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
+    let parts = report.parts;
+    let mut world = World::new(&scene, bodies, &WorldOptions::default());
+    let room = scene
+        .floorplan
+        .rooms
+        .iter()
+        .max_by(|x, y| x.profile.area().total_cmp(&y.profile.area()))
+        .ok_or_else(|| Error::invalid("the scene has no rooms to start the agent in"))?;
+    let z = if profile.kind == sage_physics::AgentKind::Uav {
+        1.2
+    } else {
+        0.0
+    };
+    let start = Pose::new(room.profile.centroid().extend(z), 0.0);
+    let commands = command_sequence(
+        a.steps.max(1),
+        a.seed,
+        profile.kind == sage_physics::AgentKind::Uav,
+    );
+    let mut rates = Vec::new();
+    let (mut touching, mut stuck, mut recovered) = (0usize, 0usize, 0usize);
+    for run in 0..a.repeat.max(1) {
+        let mut agent = Agent::new(profile.clone(), start);
+        agent.step(&mut world, &Command::Stop)?;
+        let t0 = Instant::now();
+        for c in &commands {
+            let r = agent.step(&mut world, c)?;
+            if run == 0 {
+                touching += usize::from(!r.touched.is_empty());
+                stuck += usize::from(r.stuck);
+                recovered += usize::from(r.recovery.is_some());
+            }
+        }
+        rates.push(commands.len() as f64 / t0.elapsed().as_secs_f64());
+    }
+    rates.sort_by(f64::total_cmp);
+    let n = commands.len() as f64;
+    println!("machine          {}", machine::describe());
+    println!(
+        "scene            {} ({} objects, {} walls, {} collision parts)",
+        scene.name,
+        scene.objects.len(),
+        scene.floorplan.walls.len(),
+        parts
+    );
+    println!(
+        "bodies           built in {:.2} s ({} decomposed, {} from cache {})",
+        report.seconds, report.decomposed, report.cached, report.cache_dir
+    );
+    println!(
+        "agent            {} ({} steps per run, {} runs; seeded mix of forward, turn, velocity)",
+        profile.name,
+        commands.len(),
+        rates.len()
+    );
+    println!(
+        "steps/s          median {:.0}, best {:.0} ({:.2} µs per step)",
+        rates[rates.len() / 2],
+        rates[rates.len() - 1],
+        1e6 / rates[rates.len() / 2]
+    );
+    println!(
+        "contacts         {:.1} % of steps touching, {:.1} % stuck, {} recoveries",
+        100.0 * touching as f64 / n,
+        100.0 * stuck as f64 / n,
+        recovered
+    );
+    Ok(())
+}
