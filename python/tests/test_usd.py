@@ -97,3 +97,37 @@ def test_gaussians_are_referenced_as_the_scene_ply(exported):
     resolved = asset.resolvedPath
     assert resolved and resolved.endswith("3dgs_compressed.ply")
     assert (scene_dir / "3dgs_compressed.ply").samefile(resolved)
+
+
+def test_coacd_cache_files_are_read_by_sage3d(small_scene, sage3d, tmp_path):
+    """The CoACD tool's writer makes files sage3d accepts. CoACD itself is optional, so each
+    pending mesh gets one stand-in hull (its axis-aligned box) through the tool's encoder; then
+    `physics build --backend coacd` reads every entry from the cache and nothing is pending."""
+    import importlib.util
+    import pathlib
+
+    spec = importlib.util.spec_from_file_location(
+        "coacd_cache", pathlib.Path(__file__).resolve().parents[1] / "tools" / "coacd_cache.py"
+    )
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    cache = tmp_path / "hulls"
+    todo = tmp_path / "todo.json"
+    args = ["--backend", "coacd", "--cache", cache]
+    assert sage3d("physics", "build", small_scene, *args, check=False).returncode != 0
+    sage3d("physics", "pending", small_scene, *args, "--out", todo)
+    pending = json.loads(todo.read_text())
+    assert pending["decomposer"].startswith("coacd;") and pending["meshes"]
+    for m in pending["meshes"]:
+        lo = [min(v[k] for v in m["vertices"]) for k in range(3)]
+        hi = [max(v[k] for v in m["vertices"]) for k in range(3)]
+        corners = [[(lo, hi)[(i >> k) & 1][k] for k in range(3)] for i in range(8)]
+        faces = [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                 [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]]
+        tool.write_atomic(m["cache_file"], tool.encode(m["key"], [(corners, faces)]))
+    report = json.loads(sage3d("physics", "build", small_scene, *args, "--json").stdout)
+    assert report["cached"] == len(pending["meshes"]) and report["decomposed"] == 0
+    assert all(o["hulls"] == 1 and o["source"] == "cached" for o in report["objects"])
+    again = tmp_path / "again.json"
+    sage3d("physics", "pending", small_scene, *args, "--out", again)
+    assert json.loads(again.read_text())["meshes"] == []

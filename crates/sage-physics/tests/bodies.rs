@@ -1,0 +1,214 @@
+//! Collision bodies of a synthetic scene: decomposition quality, the cache, walls with their
+//! openings cut, and the doors of the generator in their three states.
+
+use glam::Vec3;
+use sage_core::Pose;
+use sage_physics::{
+    Agent, BodyKind, Command, Decomposer, HullCache, PartSource, SceneBodies, World, WorldOptions,
+};
+use sage_scene::synth::{SceneKind, SynthConfig, generate};
+use sage_scene::{DoorState, HoleKind, Scene};
+
+/// A coarse V-HACD: the tests exercise the pipeline, not the decomposer's fine quality.
+const COARSE: Decomposer = Decomposer::Vhacd {
+    resolution: 24,
+    concavity: 0.02,
+    max_hulls: 16,
+};
+
+fn scene() -> Scene {
+    generate(&SynthConfig {
+        seed: 5,
+        kind: SceneKind::Home,
+        rooms: 4,
+        objects: 24,
+        gaussians: 2000,
+        ..SynthConfig::default()
+    })
+    .unwrap()
+}
+
+#[test]
+fn hulls_cover_the_meshes_and_come_back_from_the_cache() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let cache = HullCache::new(dir.path());
+    let (first, r1) = SceneBodies::build(&scene, &COARSE, &cache).unwrap();
+    let meshed = scene.objects.iter().filter(|o| o.mesh.is_some()).count();
+    assert_eq!(r1.decomposed, meshed);
+    assert_eq!(r1.cached, 0);
+    assert_eq!(r1.objects.len(), meshed);
+    for o in &r1.objects {
+        assert!(o.hulls >= 1 && o.hulls <= 16, "{o:?}");
+        // Hulls of a voxelised surface never fall far short of the volume it encloses.
+        assert!(o.hull_volume > 0.6 * o.mesh_volume, "{o:?}");
+    }
+    let ratio = r1.volume_ratio();
+    assert!(ratio > 0.9 && ratio < 2.0, "{ratio}");
+    // Every mesh vertex lies inside or near its object's hull set (at most one coarse voxel out).
+    for (b, o) in first.bodies.iter().zip(&scene.objects) {
+        let mesh = o.mesh.as_ref().unwrap();
+        let cell = o.obb.half_extents.max_element() * 2.0 / 24.0;
+        let lo = b
+            .parts
+            .iter()
+            .flat_map(|p| p.vertices.iter())
+            .fold(Vec3::INFINITY, |m, v| m.min(*v));
+        let hi = b
+            .parts
+            .iter()
+            .flat_map(|p| p.vertices.iter())
+            .fold(Vec3::NEG_INFINITY, |m, v| m.max(*v));
+        for v in &mesh.positions {
+            assert!(
+                v.cmpge(lo - Vec3::splat(2.0 * cell)).all()
+                    && v.cmple(hi + Vec3::splat(2.0 * cell)).all()
+            );
+        }
+    }
+    let (second, r2) = SceneBodies::build(&scene, &COARSE, &cache).unwrap();
+    assert_eq!((r2.decomposed, r2.cached), (0, meshed));
+    let parts = |b: &SceneBodies| b.bodies.iter().map(|b| b.parts.clone()).collect::<Vec<_>>();
+    assert!(
+        parts(&first) == parts(&second),
+        "cached hulls differ from the computed ones"
+    );
+    assert!(
+        second
+            .bodies
+            .iter()
+            .take(meshed)
+            .all(|b| b.source == PartSource::Cached)
+    );
+    // Other settings are another key.
+    let finer = Decomposer::Vhacd {
+        resolution: 20,
+        concavity: 0.02,
+        max_hulls: 16,
+    };
+    let empty = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        cache.path(sage_physics::cache_key(
+            scene.objects[0].mesh.as_ref().unwrap(),
+            &COARSE,
+        )),
+        empty.path().join("x.hulls"),
+    )
+    .unwrap();
+    let (_, r3) = SceneBodies::build(&scene, &finer, &HullCache::new(empty.path())).unwrap();
+    assert_eq!(r3.cached, 0);
+}
+
+#[test]
+fn a_damaged_cache_entry_is_an_error_naming_the_file_and_object() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let cache = HullCache::new(dir.path());
+    let mesh = scene.objects[3].mesh.as_ref().unwrap();
+    let path = cache.path(sage_physics::cache_key(mesh, &COARSE));
+    std::fs::write(&path, b"SAGEHULL\x01\0\0\0short").unwrap();
+    let e = SceneBodies::build(&scene, &COARSE, &cache)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&path.display().to_string()) && e.contains("object 4"),
+        "{e}"
+    );
+}
+
+#[test]
+fn walls_are_cut_at_every_opening() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let (bodies, report) =
+        SceneBodies::build(&scene, &COARSE, &HullCache::new(dir.path())).unwrap();
+    assert!(report.openings_cut >= scene.floorplan.holes.len());
+    let world = World::new(&scene, bodies, &WorldOptions::default());
+    let qp = world.physics.query_pipeline();
+    let walls_hit = |p: Vec3| {
+        qp.intersect_point(p)
+            .filter(|(h, _)| matches!(world.body_of(*h).map(|b| b.kind), Some(BodyKind::Wall(_))))
+            .count()
+    };
+    for hole in &scene.floorplan.holes {
+        let (lo, hi) = hole.bounds();
+        let centre = (lo + hi) * 0.5;
+        assert_eq!(
+            walls_hit(centre),
+            0,
+            "{:?} hole at {centre} is not open",
+            hole.kind
+        );
+        if hole.kind == HoleKind::Door {
+            assert_eq!(
+                walls_hit(centre.truncate().extend(0.3)),
+                0,
+                "door sill at {centre}"
+            );
+        }
+        // Beside the opening, along the wall, the wall is solid.
+        let along = (hole.profile[1] - hole.profile[0]).truncate().normalize();
+        let beside = centre.truncate() + along * ((hi - lo).truncate().length() * 0.5 + 0.1);
+        let inside_plan = scene.floorplan.walls.iter().any(|w| {
+            let t = (beside - w.start).dot(w.direction());
+            t > 0.05
+                && t < w.length() - 0.05
+                && (beside - w.start).perp_dot(w.direction()).abs() < 0.01
+        });
+        if inside_plan {
+            assert!(
+                walls_hit(beside.extend(1.0)) > 0,
+                "no wall beside the hole at {beside}"
+            );
+        }
+    }
+}
+
+#[test]
+fn synthetic_doors_block_by_state() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let (bodies, _) = SceneBodies::build(&scene, &COARSE, &HullCache::new(dir.path())).unwrap();
+    let mut world = World::new(&scene, bodies, &WorldOptions::default());
+    let mut seen = Vec::new();
+    for hole in scene.floorplan.doors() {
+        let (lo, hi) = hole.bounds();
+        let centre = ((lo + hi) * 0.5).truncate();
+        let along = (hole.profile[1] - hole.profile[0]).truncate().normalize();
+        let normal = along.perp();
+        let state = hole.state.unwrap_or(DoorState::Closed);
+        // Cross the doorway both ways through its middle; a door that blocks stops at least
+        // one crossing short (the leaf is on one side of the wall or in the opening).
+        let crossed = [1.0f32, -1.0].map(|s| {
+            let start = centre - normal * s * 1.0;
+            let yaw = (normal * s).y.atan2((normal * s).x);
+            let mut a = Agent::new(
+                "wheeled".parse().unwrap(),
+                Pose::new(start.extend(0.0), yaw),
+            );
+            a.step(&mut world, &Command::Stop).unwrap();
+            let from = a.pose.position.truncate();
+            for _ in 0..8 {
+                a.step(&mut world, &Command::Forward { distance: 0.25 })
+                    .unwrap();
+            }
+            (a.pose.position.truncate() - from).dot(normal * s)
+        });
+        seen.push(state);
+        match state {
+            DoorState::Closed => assert!(
+                crossed.iter().all(|&d| d < 1.0),
+                "closed door crossed: {crossed:?}"
+            ),
+            DoorState::Open => assert!(
+                crossed.iter().all(|&d| d > 1.5),
+                "open door blocked: {crossed:?}"
+            ),
+            DoorState::HalfOpen => {}
+        }
+    }
+    assert!(
+        seen.contains(&DoorState::Closed) && seen.contains(&DoorState::Open),
+        "{seen:?}"
+    );
+}
