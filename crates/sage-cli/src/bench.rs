@@ -17,6 +17,9 @@ pub enum BenchCommand {
     /// Render a ≥1M-Gaussian synthetic home from cameras inside its largest room at 224×224
     /// and 640×480; report the median frame time and its breakdown.
     Render(RenderBenchArgs),
+    /// Plan trajectories in a 20 × 20 m synthetic home: grid and EDT once, then sampling, A*,
+    /// shortcut and resampling per trajectory, in parallel; report trajectories per second.
+    Nav(crate::nav_cmd::NavBenchArgs),
     /// Step one agent through a 200-object synthetic home, physics only (no rendering), and
     /// report steps per second.
     Physics(crate::physics_cmd::PhysicsBenchArgs),
@@ -61,6 +64,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Load(a) => load(a),
         BenchCommand::Render(a) => render(a),
+        BenchCommand::Nav(a) => crate::nav_cmd::bench(a),
         BenchCommand::Physics(a) => crate::physics_cmd::bench(a),
     }
 }

@@ -5,6 +5,7 @@
 
 mod bench;
 mod machine;
+mod nav_cmd;
 mod physics_cmd;
 mod render_cmd;
 mod scene_cmd;
@@ -42,6 +43,9 @@ enum Command {
     /// Export a scene to another format (USDA for Isaac Sim / Omniverse).
     #[command(subcommand)]
     Export(physics_cmd::ExportCommand),
+    /// Navigation: semantic top-down maps, occupancy grids, trajectories.
+    #[command(subcommand)]
+    Nav(nav_cmd::NavCommand),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -64,6 +68,7 @@ fn main() -> ExitCode {
         Command::Splat(c) => splat_cmd::run(c),
         Command::Physics(c) => physics_cmd::run(c),
         Command::Export(c) => physics_cmd::run_export(c),
+        Command::Nav(c) => nav_cmd::run(c),
         Command::Bench(c) => bench::run(c),
     };
     match result {

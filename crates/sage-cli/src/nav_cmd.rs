@@ -1,0 +1,340 @@
+//! `sage3d nav …` and `sage3d bench nav`: semantic maps, occupancy grids and trajectories.
+
+use crate::machine;
+use clap::{Args, Subcommand};
+use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use sage_core::{Error, Result};
+use sage_nav::sampling::Endpoints;
+use sage_nav::trajectory::{self, Prepared, TrajectoryParams};
+use sage_nav::{GridParams, NavGrid, PathFinder, SemanticMap};
+use sage_scene::Scene;
+use sage_scene::fsutil::write_json;
+use sage_scene::synth::{SceneKind, SynthConfig};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Subcommand)]
+pub enum NavCommand {
+    /// Write a scene's semantic top-down map (JSON + PNG with legend) and its occupancy grid
+    /// (InteriorGS occupancy.png/json) for an agent height.
+    Map(MapArgs),
+    /// Generate trajectories for a scene, or for every scene folder inside a folder (parallel
+    /// over scenes, resumable: complete scenes with the same settings are skipped).
+    Trajectories(TrajectoriesArgs),
+}
+
+/// Grid and robot settings shared by the commands.
+#[derive(Args, Clone)]
+pub struct GridArgs {
+    /// Cell size, metres.
+    #[arg(long, default_value_t = 0.05)]
+    cell: f32,
+    /// Agent height: the top of the obstacle slab, metres.
+    #[arg(long, default_value_t = 1.2)]
+    agent_height: f32,
+    /// Robot radius (hard inflation and safety distance), metres.
+    #[arg(long, default_value_t = 0.2)]
+    radius: f32,
+}
+
+impl GridArgs {
+    fn grid(&self) -> GridParams {
+        GridParams {
+            cell: self.cell,
+            agent_height: self.agent_height,
+            ..GridParams::default()
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct MapArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    /// Output folder (default: SCENE/nav).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    #[command(flatten)]
+    grid: GridArgs,
+}
+
+#[derive(Args)]
+pub struct TrajectoriesArgs {
+    /// A scene folder, or a folder of scene folders.
+    scenes: PathBuf,
+    /// Trajectories per scene.
+    #[arg(long, default_value_t = 100)]
+    count: usize,
+    /// Seed (each scene mixes in a hash of its name).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output folder: one sub-folder per scene, and sage3d_run.json (default: SCENES/nav for a
+    /// scene, SCENES/../nav_trajectories for a folder of scenes).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Resampling step, metres.
+    #[arg(long, default_value_t = 0.25)]
+    step: f32,
+    /// Narrow-passage penalty weight (0: off).
+    #[arg(long, default_value_t = 2.0)]
+    narrow_weight: f32,
+    /// Least straight-line start–goal distance, metres.
+    #[arg(long, default_value_t = 2.0)]
+    min_distance: f32,
+    /// Shares of short / medium / long paths (SPEC §9 bins), e.g. 0.4,0.4,0.2 (default: free).
+    #[arg(long, value_delimiter = ',')]
+    length_mix: Option<Vec<f32>>,
+    /// Weights of room, object and area endpoints, e.g. 1,2,1.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,1")]
+    kinds: Vec<f32>,
+    #[command(flatten)]
+    grid: GridArgs,
+}
+
+#[derive(Args)]
+pub struct NavBenchArgs {
+    /// Trajectories to plan.
+    #[arg(long, default_value_t = 4000)]
+    count: usize,
+    /// Seed of the scene and of the sampling.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Rooms of the generated home (about 15 m² each; 27 make about 20 × 20 m).
+    #[arg(long, default_value_t = 27)]
+    rooms: usize,
+    /// Scene folder to use instead of a generated home.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+}
+
+pub fn run(cmd: NavCommand) -> Result<()> {
+    match cmd {
+        NavCommand::Map(a) => map(a),
+        NavCommand::Trajectories(a) => trajectories(a),
+    }
+}
+
+fn map(a: MapArgs) -> Result<()> {
+    let (scene, _) = Scene::load(&a.scene)?;
+    let out = a.out.unwrap_or_else(|| a.scene.join("nav"));
+    let grid_params = a.grid.grid();
+    let (grid, source) = NavGrid::from_scene(&scene, &grid_params)?;
+    let map = SemanticMap::build(&scene);
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    map.save_json(&out.join("semantic_map.json"))?;
+    map.draw(&grid, &[])
+        .0
+        .save_png(&out.join("semantic_map.png"))?;
+    grid.to_occupancy((grid_params.slab_bottom, grid_params.agent_height))?
+        .save(&out)?;
+    let (free, occupied, unknown) = grid.counts();
+    write_json(
+        &out.join("sage3d_run.json"),
+        &serde_json::json!({
+            "tool": "sage3d",
+            "version": env!("CARGO_PKG_VERSION"),
+            "command": "nav map",
+            "seed": null,
+            "config": {
+                "cell": grid_params.cell,
+                "agent_height": grid_params.agent_height,
+                "slab_bottom": grid_params.slab_bottom,
+                "margin": grid_params.margin,
+                "grid_source": source.as_str(),
+            },
+            "inputs": trajectory::input_hashes(&a.scene),
+        }),
+    )?;
+    println!(
+        "{}: {} items, {} walls, {} doors, {} rooms; grid {} x {} at {} m from {} ({free} free, {occupied} occupied, {unknown} unknown) -> {}",
+        scene.name,
+        map.items.len(),
+        map.walls.len(),
+        map.doors.len(),
+        map.rooms.len(),
+        grid.width,
+        grid.height,
+        grid.cell,
+        source.as_str(),
+        out.display()
+    );
+    Ok(())
+}
+
+fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {
+    let mut p = TrajectoryParams {
+        count: a.count,
+        seed: a.seed,
+        step: a.step,
+        grid: a.grid.grid(),
+        ..TrajectoryParams::default()
+    };
+    p.cost.robot_radius = a.grid.radius;
+    p.cost.narrow_weight = a.narrow_weight;
+    p.sampling.min_distance = a.min_distance;
+    p.sampling.length_mix = a.length_mix.clone();
+    p.sampling.kind_weights = match a.kinds.as_slice() {
+        [r, o, ar] => [*r, *o, *ar],
+        other => {
+            return Err(Error::invalid(format!(
+                "--kinds needs three weights (room,object,area), got {other:?}"
+            )));
+        }
+    };
+    p.validate()?;
+    Ok(p)
+}
+
+fn trajectories(a: TrajectoriesArgs) -> Result<()> {
+    let params = trajectory_params(&a)?;
+    let dirs = trajectory::scene_dirs(&a.scenes)?;
+    let single = dirs.len() == 1 && dirs[0] == a.scenes;
+    let out = a.out.clone().unwrap_or_else(|| {
+        if single {
+            a.scenes.join("nav")
+        } else {
+            a.scenes.with_file_name("nav_trajectories")
+        }
+    });
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let bar = ProgressBar::new(dirs.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let outcomes: Vec<_> = dirs
+        .par_iter()
+        .progress_with(bar.clone())
+        .map(|dir| {
+            let name = dir
+                .file_name()
+                .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
+            let target = if single { out.clone() } else { out.join(name) };
+            trajectory::run_scene(dir, &target, &params)
+        })
+        .collect();
+    bar.finish_and_clear();
+    let count = |s: &str| outcomes.iter().filter(|o| o.status == s).count();
+    let total: usize = outcomes.iter().map(|o| o.trajectories).sum();
+    for o in outcomes.iter().filter(|o| o.status == "skipped") {
+        eprintln!(
+            "skipped {}: {}",
+            o.scene.display(),
+            o.reason.as_deref().unwrap_or("")
+        );
+    }
+    write_json(
+        &out.join("sage3d_run.json"),
+        &serde_json::json!({
+            "tool": "sage3d",
+            "version": env!("CARGO_PKG_VERSION"),
+            "command": "nav trajectories",
+            "seed": params.seed,
+            "config": params,
+            "scenes": outcomes,
+        }),
+    )?;
+    println!(
+        "{} scenes: {} done, {} already complete, {} skipped; {total} trajectories in {} ({:.1} s)",
+        outcomes.len(),
+        count("done"),
+        count("resumed"),
+        count("skipped"),
+        out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// `sage3d bench nav`: grid and EDT once, then many trajectories in parallel (SPEC §12).
+pub fn bench(a: NavBenchArgs) -> Result<()> {
+    let scene = match &a.scene {
+        Some(dir) => Scene::load(dir)?.0,
+        None => {
+            eprintln!("generating a {}-room home …", a.rooms);
+            sage_scene::synth::generate(&SynthConfig {
+                seed: a.seed,
+                kind: SceneKind::Home,
+                rooms: a.rooms,
+                objects: a.rooms * 12,
+                gaussians: 1000,
+                ..SynthConfig::default()
+            })?
+        }
+    };
+    let params = TrajectoryParams {
+        count: a.count,
+        seed: a.seed,
+        ..TrajectoryParams::default()
+    };
+    let t = Instant::now();
+    let (grid, source) = NavGrid::from_scene(&scene, &params.grid)?;
+    let grid_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let finder = PathFinder::new(grid, &scene.floorplan, params.cost.clone())?;
+    let edt_ms = t.elapsed().as_secs_f64() * 1e3;
+    let t = Instant::now();
+    let map = SemanticMap::build(&scene);
+    let endpoints = Endpoints::collect(&map, &finder, &params.sampling);
+    let endpoints_ms = t.elapsed().as_secs_f64() * 1e3;
+    let prep = Prepared {
+        finder,
+        source,
+        map,
+        endpoints,
+    };
+    // A short warm-up run sizes every thread's search buffers.
+    let warm = TrajectoryParams {
+        count: 64,
+        ..params.clone()
+    };
+    trajectory::generate(&scene.name, &prep, &warm)?;
+    let t = Instant::now();
+    let (set, times) = trajectory::generate(&scene.name, &prep, &params)?;
+    let wall = t.elapsed().as_secs_f64();
+    let g = &prep.finder.grid;
+    let size = g.size();
+    let n = set.trajectories.len().max(1) as f64;
+    let per = |d: std::time::Duration| d.as_secs_f64() * 1e3 / n;
+    let (free, occupied, unknown) = g.counts();
+    println!("machine          {}", machine::describe());
+    println!(
+        "scene            {} ({} rooms, {} objects), grid {:.1} x {:.1} m = {} x {} cells at {} m ({free} free, {occupied} occupied, {unknown} unknown; {} navigable)",
+        scene.name,
+        scene.floorplan.rooms.len(),
+        scene.objects.len(),
+        size.x,
+        size.y,
+        g.width,
+        g.height,
+        g.cell,
+        prep.finder.navigable_cells().len()
+    );
+    println!(
+        "once per scene   grid {grid_ms:.0} ms (rasterise meshes, walls) + EDT/costs/islands {edt_ms:.0} ms + map/endpoints {endpoints_ms:.0} ms ({} endpoints: {:?} rooms/objects/areas)",
+        prep.endpoints.list.len(),
+        prep.endpoints.counts()
+    );
+    println!(
+        "trajectories     {} in {:.2} s = {:.0} trajectories/s on {} threads ({} candidates, mean length {:.1} m, {:?})",
+        set.trajectories.len(),
+        wall,
+        set.trajectories.len() as f64 / wall,
+        rayon::current_num_threads(),
+        set.report.candidates,
+        set.report.mean_length,
+        set.report.by_length
+    );
+    println!(
+        "per trajectory   CPU ms: sampling {:.3} + A* {:.3} + shortcut {:.3} + resample {:.3} + geodesic {:.3} (summed over threads; {} planned for {} kept)",
+        per(times.sampling),
+        per(times.astar),
+        per(times.shortcut),
+        per(times.resample),
+        per(times.geodesic),
+        times.planned,
+        set.trajectories.len()
+    );
+    Ok(())
+}
