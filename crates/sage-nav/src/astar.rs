@@ -31,15 +31,6 @@ impl Graph<'_> {
         }
     }
 
-    /// Octile distance between two cells, in cells.
-    pub fn octile(&self, a: usize, b: usize) -> f32 {
-        let (ax, ay) = ((a % self.width) as i64, (a / self.width) as i64);
-        let (bx, by) = ((b % self.width) as i64, (b / self.width) as i64);
-        let (dx, dy) = ((ax - bx).unsigned_abs(), (ay - by).unsigned_abs());
-        let (lo, hi) = (dx.min(dy) as f32, dx.max(dy) as f32);
-        hi + (SQRT_2 - 1.0) * lo
-    }
-
     /// Calls `f(neighbour, cost)` for every legal step out of navigable cell `k`.
     #[inline]
     fn neighbours(&self, k: usize, mut f: impl FnMut(usize, f32)) {
@@ -94,12 +85,18 @@ impl Ord for Node {
     }
 }
 
+/// Per-cell scratch of a [`Search`], kept together so a relaxation touches one cache line.
+#[derive(Debug, Clone, Copy, Default)]
+struct Slot {
+    g: f32,
+    parent: u32,
+    stamp: u32,
+}
+
 /// Reusable search state (see the module docs).
 #[derive(Debug, Default)]
 pub struct Search {
-    g: Vec<f32>,
-    parent: Vec<u32>,
-    stamp: Vec<u32>,
+    slots: Vec<Slot>,
     generation: u32,
     heap: BinaryHeap<Node>,
     /// Cells expanded by the last query.
@@ -113,14 +110,12 @@ impl Search {
     }
 
     fn begin(&mut self, cells: usize) {
-        if self.stamp.len() < cells {
-            self.g.resize(cells, 0.0);
-            self.parent.resize(cells, 0);
-            self.stamp.resize(cells, 0);
+        if self.slots.len() < cells {
+            self.slots.resize(cells, Slot::default());
         }
         self.generation = self.generation.wrapping_add(1);
         if self.generation == 0 {
-            self.stamp.fill(0);
+            self.slots.iter_mut().for_each(|s| s.stamp = 0);
             self.generation = 1;
         }
         self.heap.clear();
@@ -128,17 +123,20 @@ impl Search {
     }
 
     fn cost(&self, k: usize) -> f32 {
-        if self.stamp[k] == self.generation {
-            self.g[k]
+        let s = self.slots[k];
+        if s.stamp == self.generation {
+            s.g
         } else {
             f32::INFINITY
         }
     }
 
     fn open(&mut self, k: usize, g: f32, f: f32, parent: usize) {
-        self.stamp[k] = self.generation;
-        self.g[k] = g;
-        self.parent[k] = parent as u32;
+        self.slots[k] = Slot {
+            g,
+            parent: parent as u32,
+            stamp: self.generation,
+        };
         self.heap.push(Node {
             f,
             g,
@@ -153,8 +151,19 @@ impl Search {
         if !(graph.passable[start] && graph.passable[goal]) {
             return None;
         }
-        let h = |k: usize| graph.octile(k, goal) * graph.min_weight;
-        self.open(start, 0.0, h(start), start);
+        let w = graph.width;
+        let (gx, gy) = ((goal % w) as i32, (goal / w) as i32);
+        let scale = graph.min_weight;
+        // The octile distance to the goal from cell coordinates (no division per neighbour).
+        let h = |x: i32, y: i32| {
+            let (dx, dy) = (
+                (x - gx).unsigned_abs() as f32,
+                (y - gy).unsigned_abs() as f32,
+            );
+            (dx.max(dy) + (SQRT_2 - 1.0) * dx.min(dy)) * scale
+        };
+        let w32 = w as i32;
+        self.open(start, 0.0, h((start % w) as i32, (start / w) as i32), start);
         while let Some(node) = self.heap.pop() {
             let k = node.cell as usize;
             if node.g > self.cost(k) {
@@ -164,10 +173,15 @@ impl Search {
                 return Some(node.g);
             }
             self.expanded += 1;
+            let (x, y) = ((k % w) as i32, (k / w) as i32);
             graph.neighbours(k, |m, c| {
                 let g = node.g + c;
                 if g < self.cost(m) {
-                    self.open(m, g, g + h(m), k);
+                    let d = m as i32 - k as i32;
+                    // m = k + dx + dy·w with dx, dy in −1..=1.
+                    let dy = (d + w32 + 1).div_euclid(w32) - 1;
+                    let dx = d - dy * w32;
+                    self.open(m, g, g + h(x + dx, y + dy), k);
                 }
             });
         }
@@ -218,8 +232,8 @@ impl Search {
         out.clear();
         let mut k = goal;
         out.push(k);
-        while self.parent[k] as usize != k {
-            k = self.parent[k] as usize;
+        while self.slots[k].parent as usize != k {
+            k = self.slots[k].parent as usize;
             out.push(k);
         }
         out.reverse();
