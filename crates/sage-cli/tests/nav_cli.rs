@@ -1,0 +1,134 @@
+//! `sage3d nav map` and `sage3d nav trajectories` end to end: outputs, byte-identical reruns
+//! across thread counts, resume over a folder of scenes, and a clear error for a bad folder.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn sage3d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sage3d"))
+        .args(args)
+        .output()
+        .expect("sage3d runs")
+}
+
+fn ok(args: &[&str]) -> String {
+    let out = sage3d(args);
+    assert!(
+        out.status.success(),
+        "sage3d {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+fn synth(dir: &Path, seed: &str) {
+    ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        seed,
+        "--rooms",
+        "3",
+        "--objects",
+        "30",
+        "--gaussians",
+        "2000",
+        "--layout",
+        "standard",
+        "--out",
+        s(dir),
+    ]);
+}
+
+#[test]
+fn map_writes_json_png_and_occupancy() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    synth(&scene, "1");
+    let printed = ok(&["nav", "map", s(&scene)]);
+    assert!(printed.contains("items"), "{printed}");
+    let out = scene.join("nav");
+    for f in [
+        "semantic_map.json",
+        "semantic_map.png",
+        "occupancy.png",
+        "occupancy.json",
+        "sage3d_run.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let map: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("semantic_map.json")).unwrap()).unwrap();
+    let first = &map["items"][0];
+    for key in [
+        "item_id",
+        "category",
+        "instance_id",
+        "room",
+        "polygon",
+        "bbox_m",
+        "min_z",
+        "max_z",
+    ] {
+        assert!(first.get(key).is_some(), "{key} missing");
+    }
+}
+
+#[test]
+fn trajectories_resume_over_a_folder_and_match_across_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    synth(&scenes.join("s1"), "1");
+    synth(&scenes.join("s2"), "2");
+    let out_a = dir.path().join("a");
+    let out_b = dir.path().join("b");
+    let args = |out: &Path, threads: &str| {
+        vec![
+            "--threads".to_string(),
+            threads.to_string(),
+            "nav".into(),
+            "trajectories".into(),
+            s(&scenes).into(),
+            "--count".into(),
+            "8".into(),
+            "--seed".into(),
+            "5".into(),
+            "--out".into(),
+            s(out).into(),
+        ]
+    };
+    let run = |out: &Path, threads: &str| {
+        let a = args(out, threads);
+        ok(&a.iter().map(String::as_str).collect::<Vec<_>>())
+    };
+    let first = run(&out_a, "1");
+    assert!(first.contains("2 done"), "{first}");
+    run(&out_b, "2");
+    for scene in ["s1", "s2"] {
+        let a = std::fs::read(out_a.join(scene).join("trajectories.json")).unwrap();
+        let b = std::fs::read(out_b.join(scene).join("trajectories.json")).unwrap();
+        assert_eq!(a, b, "{scene} differs across thread counts");
+        assert!(out_a.join(scene).join("trajectories.png").is_file());
+    }
+    // A crash that lost one scene's output: the rerun redoes that scene only.
+    std::fs::remove_file(out_a.join("s2").join("trajectories.json")).unwrap();
+    let again = run(&out_a, "2");
+    assert!(again.contains("1 done, 1 already complete"), "{again}");
+    let record: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_a.join("sage3d_run.json")).unwrap()).unwrap();
+    assert_eq!(record["seed"], 5);
+    assert!(record["scenes"][0]["inputs"]["structure.json"].is_string());
+}
+
+#[test]
+fn a_folder_without_scenes_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sage3d(&["nav", "trajectories", s(dir.path()), "--count", "2"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("neither a scene folder"), "{err}");
+}
