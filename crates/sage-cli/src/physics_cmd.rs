@@ -131,7 +131,7 @@ pub struct DriveArgs {
     #[arg(long, default_value = "wheeled")]
     agent: String,
     /// Start position X,Y,Z (metres, world frame; ground robots: Z of the floor).
-    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     position: Vec<f32>,
     /// Start heading, degrees counter-clockwise from +X.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -379,30 +379,35 @@ pub struct PhysicsBenchArgs {
     seed: u64,
 }
 
-/// A seeded command mix: mostly 0.25 m forward steps and 15° turns, some velocity commands.
-fn command_sequence(n: usize, seed: u64, uav: bool) -> Vec<Command> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..n)
-        .map(|_| match rng.random_range(0..10) {
-            0..=4 => Command::Forward { distance: 0.25 },
-            5 | 6 => Command::Turn {
-                angle: if rng.random() { 15f32 } else { -15f32 }.to_radians(),
-            },
-            _ if uav => Command::Uav {
-                vx: rng.random_range(0.0..1.0),
-                vy: rng.random_range(-0.3..0.3),
-                vz: rng.random_range(-0.5..0.5),
-                wz: rng.random_range(-0.5..0.5),
-                dt: 0.2,
-            },
-            _ => Command::Ground {
-                vx: rng.random_range(0.0..1.0),
-                vy: 0.0,
-                wz: rng.random_range(-0.8..0.8),
-                dt: 0.25,
-            },
-        })
-        .collect()
+/// The next command of a seeded wandering agent: mostly 0.25 m forward steps, 15° turns and
+/// velocity commands; after a step that contact mostly blocked (c > 0.5), a turn of 90–180°, so
+/// the walk explores the scene instead of pressing into a corner.
+fn wander(rng: &mut ChaCha8Rng, blocked: bool, uav: bool) -> Command {
+    let sign = if rng.random() { 1.0f32 } else { -1.0 };
+    if blocked {
+        return Command::Turn {
+            angle: sign * rng.random_range(90f32..180.0).to_radians(),
+        };
+    }
+    match rng.random_range(0..10) {
+        0..=5 => Command::Forward { distance: 0.25 },
+        6 => Command::Turn {
+            angle: sign * 15f32.to_radians(),
+        },
+        _ if uav => Command::Uav {
+            vx: rng.random_range(0.0..1.0),
+            vy: rng.random_range(-0.3..0.3),
+            vz: rng.random_range(-0.5..0.5),
+            wz: rng.random_range(-0.5..0.5),
+            dt: 0.2,
+        },
+        _ => Command::Ground {
+            vx: rng.random_range(0.0..1.0),
+            vy: 0.0,
+            wz: rng.random_range(-0.8..0.8),
+            dt: 0.25,
+        },
+    }
 }
 
 pub fn bench(a: PhysicsBenchArgs) -> Result<()> {
@@ -445,29 +450,30 @@ pub fn bench(a: PhysicsBenchArgs) -> Result<()> {
         0.0
     };
     let start = Pose::new(room.profile.centroid().extend(z), 0.0);
-    let commands = command_sequence(
-        a.steps.max(1),
-        a.seed,
-        profile.kind == sage_physics::AgentKind::Uav,
-    );
+    let uav = profile.kind == sage_physics::AgentKind::Uav;
+    let steps = a.steps.max(1);
     let mut rates = Vec::new();
     let (mut touching, mut stuck, mut recovered) = (0usize, 0usize, 0usize);
     for run in 0..a.repeat.max(1) {
         let mut agent = Agent::new(profile.clone(), start);
         agent.step(&mut world, &Command::Stop)?;
+        // Every run replays the same seeded walk.
+        let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
+        let mut blocked = false;
         let t0 = Instant::now();
-        for c in &commands {
-            let r = agent.step(&mut world, c)?;
+        for _ in 0..steps {
+            let r = agent.step(&mut world, &wander(&mut rng, blocked, uav))?;
+            blocked = r.intensity > 0.5;
             if run == 0 {
                 touching += usize::from(!r.touched.is_empty());
                 stuck += usize::from(r.stuck);
                 recovered += usize::from(r.recovery.is_some());
             }
         }
-        rates.push(commands.len() as f64 / t0.elapsed().as_secs_f64());
+        rates.push(steps as f64 / t0.elapsed().as_secs_f64());
     }
     rates.sort_by(f64::total_cmp);
-    let n = commands.len() as f64;
+    let n = steps as f64;
     println!("machine          {}", machine::describe());
     println!(
         "scene            {} ({} objects, {} walls, {} collision parts)",
@@ -481,9 +487,9 @@ pub fn bench(a: PhysicsBenchArgs) -> Result<()> {
         report.seconds, report.decomposed, report.cached, report.cache_dir
     );
     println!(
-        "agent            {} ({} steps per run, {} runs; seeded mix of forward, turn, velocity)",
+        "agent            {} ({} steps per run, {} runs; seeded wander: forward, turn, velocity; turn away when blocked)",
         profile.name,
-        commands.len(),
+        steps,
         rates.len()
     );
     println!(
