@@ -294,11 +294,11 @@ impl Renderer {
         self.tiles.truncate(n);
         self.tiles.par_iter_mut().enumerate().for_each(|(t, s)| {
             let (_, _, tw, th) = grid.tile_rect(t);
-            s.reset(tw * th);
+            s.reset(tw, th);
         });
         for t in self.tiles.len()..n {
             let (_, _, tw, th) = grid.tile_rect(t);
-            self.tiles.push(TileState::new(tw * th));
+            self.tiles.push(TileState::new(tw, th));
         }
     }
 
@@ -464,8 +464,8 @@ impl Renderer {
             .for_each(|(t, state)| {
                 let list = &entries[start[t] as usize..start[t + 1] as usize];
                 if !list.is_empty() {
-                    let (x0, y0, tw, th) = grid.tile_rect(t);
-                    state.blend(splats, list, x0, y0, tw, th);
+                    let (x0, y0, _, _) = grid.tile_rect(t);
+                    state.blend(splats, list, x0, y0);
                 }
             });
     }
