@@ -1,8 +1,8 @@
 //! One 16×16 tile's blending state and the front-to-back compositing of splats into it.
 
+use crate::fastmath::exp4;
 use crate::project::{MAX_ALPHA, MIN_ALPHA, Splat};
-use wide::bytemuck::cast;
-use wide::{f32x4, i32x4};
+use wide::f32x4;
 
 /// Tile edge in pixels.
 pub const TILE: usize = 16;
@@ -240,38 +240,4 @@ impl SplatLanes {
 #[inline]
 fn floor_index(x: f32) -> usize {
     x.clamp(0.0, TILE as f32) as i32 as usize
-}
-
-/// e^x, four lanes, for x ≤ 0 down to about −87 (relative error below 5e-6): 2^(x log₂e) split
-/// at the nearest integer, the fraction in [−½, ½] by a degree-5 polynomial.
-#[inline]
-pub fn exp4(x: f32x4) -> f32x4 {
-    let y = (x * f32x4::splat(std::f32::consts::LOG2_E)).max(f32x4::splat(-126.0));
-    let n = y.round_int();
-    let f = y - f32x4::from_i32x4(n);
-    let p = f32x4::ONE
-        + f * (f32x4::splat(std::f32::consts::LN_2)
-            + f * (f32x4::splat(0.240_226_5)
-                + f * (f32x4::splat(0.055_504_11)
-                    + f * (f32x4::splat(0.009_618_129) + f * f32x4::splat(0.001_333_355_8)))));
-    let scale: f32x4 = cast((n + i32x4::splat(127)) << 23);
-    scale * p
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn exp4_is_accurate_where_it_is_used() {
-        let mut x = -20.0f32;
-        while x <= 0.0 {
-            let got = exp4(f32x4::new([x, x - 1e-3, x - 2e-3, x - 3e-3])).to_array();
-            for (k, g) in got.iter().enumerate() {
-                let want = (x - k as f32 * 1e-3).exp();
-                assert!((g - want).abs() <= want * 5e-6, "exp({x}) = {g} vs {want}");
-            }
-            x += 0.004;
-        }
-    }
 }
