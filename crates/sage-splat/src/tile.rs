@@ -173,14 +173,11 @@ impl TileState {
     #[inline]
     fn blend_vector(&mut self, sp: &SplatLanes, ly: usize, gx: usize, live: f32x4, power: f32x4) {
         let v = ly * ROW_VECTORS + gx;
-        // Lanes beyond the splat's 1/255 ellipse are dropped before the exponential.
         let t = self.t[v];
-        let reached = live & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
-        if reached.none() {
-            return;
-        }
+        // The row interval already keeps lanes within the 1/255 ellipse, so the exact alpha
+        // test is the only one (power ≤ 0 guards against rounding in the conic).
         let alpha = (sp.opacity * exp4(power)).min(f32x4::splat(MAX_ALPHA));
-        let valid = reached & alpha.simd_ge(f32x4::splat(MIN_ALPHA));
+        let valid = live & alpha.simd_ge(f32x4::splat(MIN_ALPHA)) & power.simd_le(f32x4::ZERO);
         if valid.none() {
             return;
         }
@@ -211,7 +208,6 @@ impl TileState {
 /// A splat's per-lane constants for [`TileState::blend_vector`].
 struct SplatLanes {
     opacity: f32x4,
-    min_power: f32x4,
     r: f32x4,
     g: f32x4,
     b: f32x4,
@@ -223,9 +219,6 @@ impl SplatLanes {
     fn new(s: &Splat) -> SplatLanes {
         SplatLanes {
             opacity: f32x4::splat(s.opacity),
-            // power ≥ −cutoff/2 ⟺ inside the ellipse where alpha can reach 1/255 (the cutoff
-            // errs outwards, so no lane that passes the exact alpha test is lost).
-            min_power: f32x4::splat(-0.5 * s.cutoff),
             r: f32x4::splat(s.color[0]),
             g: f32x4::splat(s.color[1]),
             b: f32x4::splat(s.color[2]),
