@@ -25,7 +25,7 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result};
 use sage_scene::Gaussians;
-use sage_scene::gaussians::sh_rest_count;
+use sage_scene::gaussians::{LOG_SCALE_STEP, sh_rest_count};
 use std::time::Instant;
 use wide::f32x4;
 
@@ -344,7 +344,6 @@ impl Renderer {
             camera,
             w2c,
             grid,
-            order: &self.index.order,
             finished: &self.finished_sum,
             sh_rest: sh_rest_count(g.sh_degree()),
             lo,
@@ -549,7 +548,6 @@ struct SlabProjection<'a> {
     camera: &'a Camera,
     w2c: &'a Mat3,
     grid: &'a Grid,
-    order: &'a [u32],
     finished: &'a [u32],
     sh_rest: usize,
     lo: f32,
@@ -560,12 +558,12 @@ impl SlabProjection<'_> {
     /// Projects the Gaussians of `chunk` whose depth is in the slab into `out`; returns how
     /// many splats it wrote and how many Gaussians it examined.
     fn chunk(&self, chunk: usize, out: &mut [Splat]) -> (usize, usize) {
-        let ids = &self.order[chunk * CHUNK..((chunk + 1) * CHUNK).min(self.order.len())];
+        let ids = chunk * CHUNK..((chunk + 1) * CHUNK).min(self.g.len());
         // Cheap scalar tests first, then the costly projection four survivors at a time.
         let mut pending = [Survivor::default(); 4];
         let (mut waiting, mut n, mut examined) = (0, 0, 0);
-        for &i in ids {
-            if let Some(s) = self.survivor(i as usize, &mut examined) {
+        for i in ids {
+            if let Some(s) = self.survivor(i, &mut examined) {
                 pending[waiting] = s;
                 waiting += 1;
                 if waiting == 4 {
@@ -591,9 +589,7 @@ impl SlabProjection<'_> {
             return None;
         }
         *examined += 1;
-        let max_log_scale = g.log_scales[i]
-            .iter()
-            .fold(f32::NEG_INFINITY, |m, v| m.max(*v));
+        let max_log_scale = g.max_log_scale(i);
         // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
         let (width, height) = (k.width as f32, k.height as f32);
         let (lim_x, lim_y) = (1.3 * width * 0.5 / k.fx, 1.3 * height * 0.5 / k.fy);
@@ -618,7 +614,7 @@ impl SlabProjection<'_> {
         if rect_finished(self.finished, grid.tiles_x, &rect) {
             return None;
         }
-        let opacity = sigmoid(g.opacity_logits[i]);
+        let opacity = sigmoid(g.opacity_logit(i));
         (opacity >= MIN_ALPHA).then_some(Survivor {
             index: i as u32,
             t,
@@ -640,7 +636,9 @@ impl SlabProjection<'_> {
                 f32x4::new(lanes.map(|s| s.t.z)),
             ],
             rotation: [0, 1, 2, 3].map(|c| f32x4::new(quats.map(|q| f32::from(q[c])))),
-            log_scale: [0, 1, 2].map(|c| f32x4::new(log_scales.map(|l| l[c]))),
+            log_scale: [0, 1, 2].map(|c| {
+                f32x4::new(log_scales.map(|l| f32::from(l[c]))) * f32x4::splat(LOG_SCALE_STEP)
+            }),
             opacity: f32x4::new(lanes.map(|s| s.opacity)),
         };
         let f = project4(self.camera, &input);
