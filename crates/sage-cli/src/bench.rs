@@ -42,6 +42,9 @@ pub struct RenderBenchArgs {
     /// Camera pitch in degrees (0: level, as the SAGE-Bench camera).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pitch: f32,
+    /// Give the scene SH degree 3 (bands 2–3 filled from a seeded hash), the memory worst case.
+    #[arg(long)]
+    sh3: bool,
 }
 
 #[derive(Args)]
@@ -77,29 +80,33 @@ fn load(a: LoadArgs) -> Result<()> {
             std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
             let file = dir.join("bench.compressed.ply");
             eprintln!("generating a {}-Gaussian scene …", a.gaussians);
-            let result = generate(&file, a.gaussians, a.sh3)
-                .and_then(|()| measure_in_fresh_process(&file, a.repeat));
+            let result = generate(&file, a.gaussians, a.sh3).and_then(|()| {
+                let repeat = a.repeat.to_string();
+                bench_in_fresh_process(&[
+                    "load".as_ref(),
+                    "--repeat".as_ref(),
+                    repeat.as_ref(),
+                    "--input".as_ref(),
+                    file.as_os_str(),
+                ])
+            });
             let _ = std::fs::remove_dir_all(&dir);
             result
         }
     }
 }
 
-/// Runs the measurement in a new process, so that memory freed by the generator does not hide
-/// the loader's real resident growth.
-fn measure_in_fresh_process(file: &Path, repeat: usize) -> Result<()> {
+/// Runs `sage3d bench ARGS…` in a new process with this process's thread count, so that
+/// memory freed by a generator does not hide (or inflate) the measured resident figures.
+fn bench_in_fresh_process(args: &[&std::ffi::OsStr]) -> Result<()> {
     let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
     let status = std::process::Command::new(&exe)
         .args([
             "--threads",
             &rayon::current_num_threads().to_string(),
             "bench",
-            "load",
-            "--repeat",
-            &repeat.to_string(),
-            "--input",
         ])
-        .arg(file)
+        .args(args)
         .status()
         .map_err(|e| Error::io(&exe, e))?;
     if status.success() {
@@ -213,26 +220,57 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn render(a: RenderBenchArgs) -> Result<()> {
-    use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
-    let scene = match &a.scene {
-        Some(dir) => sage_scene::Scene::load(dir)?.0,
-        None => {
-            eprintln!("generating a {}-Gaussian home …", a.gaussians);
-            let config = SynthConfig {
-                seed: 1,
-                kind: SceneKind::Home,
-                rooms: 16,
-                objects: 400,
-                gaussians: a.gaussians,
-                ..SynthConfig::default()
+    match (&a.scene, a.sh3) {
+        (Some(dir), false) => measure_render(&sage_scene::Scene::load(dir)?.0, &a),
+        (given, sh3) => {
+            // Generated or converted scenes are written to a temporary folder and measured
+            // from a fresh process, so the resident figure is that of a scene loaded from disk.
+            let mut scene = match given {
+                Some(dir) => sage_scene::Scene::load(dir)?.0,
+                None => {
+                    eprintln!("generating a {}-Gaussian home …", a.gaussians);
+                    sage_scene::synth::generate(&SynthConfig {
+                        seed: 1,
+                        kind: SceneKind::Home,
+                        rooms: 16,
+                        objects: 400,
+                        gaussians: a.gaussians,
+                        ..SynthConfig::default()
+                    })?
+                }
             };
-            sage_scene::synth::generate(&config)?
+            if sh3 {
+                scene.gaussians = to_sh3(&scene.gaussians)?;
+            }
+            let dir = std::env::temp_dir().join(format!("sage3d-bench-{}", std::process::id()));
+            let result = scene.save(&dir, SplatLayout::Compressed).and_then(|()| {
+                drop(scene);
+                let (frames, sizes, pitch) =
+                    (a.frames.to_string(), a.sizes.join(","), a.pitch.to_string());
+                bench_in_fresh_process(&[
+                    "render".as_ref(),
+                    "--frames".as_ref(),
+                    frames.as_ref(),
+                    "--sizes".as_ref(),
+                    sizes.as_ref(),
+                    "--pitch".as_ref(),
+                    pitch.as_ref(),
+                    "--scene".as_ref(),
+                    dir.as_os_str(),
+                ])
+            });
+            let _ = std::fs::remove_dir_all(&dir);
+            result
         }
-    };
+    }
+}
+
+fn measure_render(scene: &sage_scene::Scene, a: &RenderBenchArgs) -> Result<()> {
+    use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
     let start = Instant::now();
     let mut renderer = Renderer::new(&scene.gaussians);
     let index_ms = start.elapsed().as_secs_f64() * 1e3;
-    let eye = crate::render_cmd::default_eye(&scene);
+    let eye = crate::render_cmd::default_eye(scene);
     println!("machine          {}", machine::describe());
     println!(
         "scene            {} Gaussians (SH degree {}), camera at ({:.2}, {:.2}, {:.2}) in the largest room, pitch {}°, HFOV 90°",

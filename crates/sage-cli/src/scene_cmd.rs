@@ -230,6 +230,7 @@ fn info(dir: &Path, json: bool) -> Result<()> {
             "files": report.files,
             "missing": report.missing,
             "layout": report.splat_layout.map(|l| l.as_str()),
+            "morton_reordered": report.morton_reordered,
             "warnings": report.warnings,
             "load_seconds": elapsed,
         });
@@ -245,7 +246,12 @@ fn info(dir: &Path, json: bool) -> Result<()> {
         println!("missing     {}", report.missing.join(", "));
     }
     if let Some(l) = report.splat_layout {
-        println!("layout      {} PLY", l.as_str());
+        let note = if report.morton_reordered {
+            " (Gaussians sorted into Morton order for rendering)"
+        } else {
+            ""
+        };
+        println!("layout      {} PLY{note}", l.as_str());
     }
     for w in &report.warnings {
         println!("warning     {w}");

@@ -1,13 +1,13 @@
 //! The Gaussians of a scene in a compact structure of arrays.
 //!
-//! Layout and precision (per Gaussian, SH degree 3: 93 bytes; degree 0: 46):
+//! Layout and precision (per Gaussian, SH degree 3: 85 bytes; degree 1: 49; degree 0: 38):
 //!
 //! | field | storage | bytes | precision |
 //! |---|---|---|---|
 //! | position | `[f32; 3]` | 12 | exact |
 //! | rotation (w, x, y, z), unit | `[i16; 4]` snorm16 | 8 | ≤ 1.6e-5 per component |
-//! | log-scale | `[f32; 3]` | 12 | exact |
-//! | opacity logit | `f32` | 4 | exact |
+//! | log-scale | `[i16; 3]` in steps of 1/2048, range ±16 | 6 | ±1/4096: scale within 0.025 % |
+//! | opacity logit | `i16` in steps of 1/1024, range ±32 | 2 | ±1/2048: opacity within 1.3e-4 |
 //! | SH degree 0 (`f_dc`) | `[f16; 3]` | 6 | relative 2⁻¹¹ (≪ 1/255 in colour) |
 //! | SH degrees 1–3 (`f_rest`) | `i8` codes × per-Gaussian `f16` step | 45 + 2 | ≤ ½ step, step = max\|coeff\| / 127 |
 //! | instance id | `u32` | 4 | exact |
@@ -100,6 +100,25 @@ impl Gaussian {
     }
 }
 
+/// The step of stored log-scales: 1/2048 keeps scales within 0.025 % over e^±16.
+pub const LOG_SCALE_STEP: f32 = 1.0 / 2048.0;
+/// The step of stored opacity logits: 1/1024 keeps opacity within 1.3e-4 over logits ±32.
+pub const OPACITY_LOGIT_STEP: f32 = 1.0 / 1024.0;
+/// The code stored for a value that was not finite, so that [`Gaussians::validate`] can name it.
+const NOT_FINITE: i16 = i16::MIN;
+
+/// `v` in units of `step`, rounded to the nearest code and clamped to ±32767; NaN and
+/// infinities become [`NOT_FINITE`].
+fn fixed16(v: f32, step: f32) -> i16 {
+    if v.is_finite() {
+        // Half away from zero without the library call; the cast saturates.
+        let x = v / step;
+        (x + 0.5f32.copysign(x)).clamp(-32767.0, 32767.0) as i16
+    } else {
+        NOT_FINITE
+    }
+}
+
 /// Inverse of the sigmoid, clamped so that 0 and 1 stay finite.
 pub fn opacity_to_logit(alpha: f32) -> f32 {
     let a = alpha.clamp(1e-6, 1.0 - 1e-6);
@@ -114,10 +133,11 @@ pub struct Gaussians {
     pub positions: Vec<[f32; 3]>,
     /// Unit quaternions (w, x, y, z) as snorm16.
     pub rotations: Vec<[i16; 4]>,
-    /// Natural-log scales.
-    pub log_scales: Vec<[f32; 3]>,
-    /// Opacity logits.
-    pub opacity_logits: Vec<f32>,
+    /// Natural-log scales in units of [`LOG_SCALE_STEP`] (read with [`Gaussians::log_scale`]).
+    pub log_scales: Vec<[i16; 3]>,
+    /// Opacity logits in units of [`OPACITY_LOGIT_STEP`] (read with
+    /// [`Gaussians::opacity_logit`]).
+    pub opacity_logits: Vec<i16>,
     /// SH degree-0 coefficients.
     pub sh_dc: Vec<[f16; 3]>,
     /// Per-Gaussian step of the higher-order SH codes (empty at degree 0).
@@ -133,8 +153,8 @@ pub struct GaussiansSliceMut<'a> {
     sh_degree: u8,
     positions: &'a mut [[f32; 3]],
     rotations: &'a mut [[i16; 4]],
-    log_scales: &'a mut [[f32; 3]],
-    opacity_logits: &'a mut [f32],
+    log_scales: &'a mut [[i16; 3]],
+    opacity_logits: &'a mut [i16],
     sh_dc: &'a mut [[f16; 3]],
     sh_steps: &'a mut [f16],
     sh_codes: &'a mut [i8],
@@ -180,8 +200,8 @@ impl GaussiansSliceMut<'_> {
         let q = g.rotation.normalize();
         let q = if q.is_finite() { q } else { Quat::IDENTITY };
         self.rotations[j] = [snorm16(q.w), snorm16(q.x), snorm16(q.y), snorm16(q.z)];
-        self.log_scales[j] = g.log_scale.to_array();
-        self.opacity_logits[j] = g.opacity_logit;
+        self.log_scales[j] = g.log_scale.to_array().map(|v| fixed16(v, LOG_SCALE_STEP));
+        self.opacity_logits[j] = fixed16(g.opacity_logit, OPACITY_LOGIT_STEP);
         self.sh_dc[j] = g.sh_dc.map(f16::from_f32);
         self.instances[j] = g.instance;
         let k = sh_rest_count(self.sh_degree);
@@ -212,8 +232,8 @@ impl Gaussians {
         let k = sh_rest_count(sh_degree);
         g.positions = vec![[0.0; 3]; n];
         g.rotations = vec![[32767, 0, 0, 0]; n];
-        g.log_scales = vec![[0.0; 3]; n];
-        g.opacity_logits = vec![0.0; n];
+        g.log_scales = vec![[0; 3]; n];
+        g.opacity_logits = vec![0; n];
         g.sh_dc = vec![[f16::ZERO; 3]; n];
         g.instances = vec![0; n];
         if k > 0 {
@@ -257,8 +277,8 @@ impl Gaussians {
         let k = sh_rest_count(self.sh_degree);
         self.positions.push([0.0; 3]);
         self.rotations.push([0; 4]);
-        self.log_scales.push([0.0; 3]);
-        self.opacity_logits.push(0.0);
+        self.log_scales.push([0; 3]);
+        self.opacity_logits.push(0);
         self.sh_dc.push([f16::ZERO; 3]);
         self.instances.push(0);
         if k > 0 {
@@ -368,6 +388,25 @@ impl Gaussians {
         }
     }
 
+    /// The natural-log scale of Gaussian `i`.
+    #[inline]
+    pub fn log_scale(&self, i: usize) -> Vec3 {
+        Vec3::from_array(self.log_scales[i].map(|c| f32::from(c) * LOG_SCALE_STEP))
+    }
+
+    /// The largest natural-log scale of Gaussian `i` (its longest axis).
+    #[inline]
+    pub fn max_log_scale(&self, i: usize) -> f32 {
+        let [x, y, z] = self.log_scales[i];
+        f32::from(x.max(y).max(z)) * LOG_SCALE_STEP
+    }
+
+    /// The opacity logit of Gaussian `i`.
+    #[inline]
+    pub fn opacity_logit(&self, i: usize) -> f32 {
+        f32::from(self.opacity_logits[i]) * OPACITY_LOGIT_STEP
+    }
+
     /// Gaussian `i` at the store's precision.
     pub fn get(&self, i: usize) -> Gaussian {
         let mut sh_rest = [[0.0; 3]; 15];
@@ -375,8 +414,8 @@ impl Gaussians {
         Gaussian {
             position: Vec3::from_array(self.positions[i]),
             rotation: self.rotation(i),
-            log_scale: Vec3::from_array(self.log_scales[i]),
-            opacity_logit: self.opacity_logits[i],
+            log_scale: self.log_scale(i),
+            opacity_logit: self.opacity_logit(i),
             sh_dc: self.sh_dc[i].map(f16::to_f32),
             sh_rest,
             instance: self.instances[i],
@@ -408,10 +447,10 @@ impl Gaussians {
             if !self.positions[i].iter().all(|v| v.is_finite()) {
                 return bad(i, "position");
             }
-            if !self.log_scales[i].iter().all(|v| v.is_finite()) {
+            if self.log_scales[i].contains(&NOT_FINITE) {
                 return bad(i, "scale");
             }
-            if !self.opacity_logits[i].is_finite() {
+            if self.opacity_logits[i] == NOT_FINITE {
                 return bad(i, "opacity");
             }
             if !self.sh_dc[i].iter().all(|v| v.is_finite()) {
@@ -443,6 +482,18 @@ impl Gaussians {
             .collect();
         keyed.par_sort_unstable();
         keyed.into_iter().map(|(_, i)| i).collect()
+    }
+
+    /// Puts the Gaussians in [`Gaussians::morton_order`] (no copy when already in it) and
+    /// says whether any moved: renderers chunk consecutive Gaussians, so this order makes their
+    /// chunks compact.
+    pub fn sort_morton(&mut self) -> bool {
+        let order = self.morton_order();
+        if order.iter().enumerate().all(|(j, &i)| i as usize == j) {
+            return false;
+        }
+        *self = self.permuted(&order);
+        true
     }
 
     /// The store with Gaussian `order[j]` moved to position `j` (`order` must be a permutation).
@@ -515,8 +566,9 @@ mod tests {
             s.push(&g);
             let r = s.get(0);
             prop_assert_eq!(r.position, g.position);
-            prop_assert_eq!(r.log_scale, g.log_scale);
-            prop_assert_eq!(r.opacity_logit, g.opacity_logit);
+            // Half a step, plus the rounding of the product.
+            prop_assert!((r.log_scale - g.log_scale).abs().max_element() <= LOG_SCALE_STEP * 0.501);
+            prop_assert!((r.opacity_logit - g.opacity_logit).abs() <= OPACITY_LOGIT_STEP * 0.501);
             prop_assert_eq!(r.instance, g.instance);
             let q = g.rotation.normalize();
             prop_assert!((r.rotation.dot(q).abs() - 1.0).abs() < 1e-4);
@@ -545,9 +597,31 @@ mod tests {
     }
 
     #[test]
-    fn sh3_costs_93_bytes_per_gaussian() {
-        let s = Gaussians::with_len(1000, 3).unwrap();
-        assert_eq!(s.heap_bytes(), 93_000);
+    fn bytes_per_gaussian_are_as_documented() {
+        for (degree, bytes) in [(0, 38), (1, 49), (3, 85)] {
+            let s = Gaussians::with_len(1000, degree).unwrap();
+            assert_eq!(s.heap_bytes(), bytes * 1000);
+        }
+    }
+
+    #[test]
+    fn values_beyond_the_fixed_range_clamp_and_non_finite_ones_are_reported() {
+        let mut s = Gaussians::new(0).unwrap();
+        s.push(&Gaussian {
+            log_scale: Vec3::new(-40.0, 40.0, 0.0),
+            opacity_logit: 100.0,
+            ..Gaussian::default()
+        });
+        assert_eq!(s.log_scale(0).x, -32767.0 * LOG_SCALE_STEP);
+        assert_eq!(s.log_scale(0).y, 32767.0 * LOG_SCALE_STEP);
+        assert!(s.opacity_logit(0) > 31.9);
+        s.validate().unwrap();
+        s.push(&Gaussian {
+            log_scale: Vec3::new(0.0, f32::NAN, 0.0),
+            ..Gaussian::default()
+        });
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("vertex[1].scale"), "{e}");
     }
 
     #[test]

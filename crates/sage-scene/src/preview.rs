@@ -33,14 +33,11 @@ pub fn plan_view(gaussians: &Gaussians, metres_per_pixel: f32, cut_z: f32) -> Rg
     let min_logit = -(1.0f32 / 0.1 - 1.0).ln();
     for i in 0..gaussians.len() {
         let p = Vec3::from_array(gaussians.positions[i]);
-        if p.z > cut_z || gaussians.opacity_logits[i] < min_logit {
+        if p.z > cut_z || gaussians.opacity_logit(i) < min_logit {
             continue;
         }
         // Each Gaussian covers a square of about its largest standard deviation.
-        let sigma = gaussians.log_scales[i]
-            .iter()
-            .fold(f32::NEG_INFINITY, |m, s| m.max(*s))
-            .exp();
+        let sigma = gaussians.max_log_scale(i).exp();
         let reach = ((sigma / scale).round() as isize).clamp(0, 4);
         let c = (((p.x - bounds.min.x) / scale) as isize).min(width as isize - 1);
         let r = (((bounds.max.y - p.y) / scale) as isize).min(height as isize - 1);

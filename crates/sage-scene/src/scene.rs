@@ -47,6 +47,9 @@ pub struct LoadReport {
     pub missing: Vec<String>,
     /// The layout of the Gaussian file.
     pub splat_layout: Option<SplatLayout>,
+    /// True when the Gaussians were reordered on load (a standard PLY not in Morton order; see
+    /// [`Scene::load`]).
+    pub morton_reordered: bool,
     /// Objects that came with a mesh.
     pub meshes: usize,
     /// Non-fatal oddities (entries skipped and why).
@@ -103,6 +106,10 @@ impl Scene {
 
     /// Loads a scene folder: the Gaussians (either layout, detected from the header), labels,
     /// structure, occupancy, `objects.json` and meshes, whichever exist.
+    ///
+    /// Gaussians keep the file's order, except that a standard-layout PLY not in Morton order
+    /// is sorted into it ([`Gaussians::sort_morton`], reported in
+    /// [`LoadReport::morton_reordered`]) so that the renderer's chunks are compact.
     pub fn load(dir: &Path) -> Result<(Scene, LoadReport)> {
         if !dir.is_dir() {
             return Err(Error::invalid(format!(
@@ -125,8 +132,13 @@ impl Scene {
         let gaussians = match &splat_path {
             Some(p) => {
                 note(&p.file_name().unwrap_or_default().to_string_lossy(), true);
-                let (g, layout) = ply::read_splats_file(p)?;
+                let (mut g, layout) = ply::read_splats_file(p)?;
                 report.splat_layout = Some(layout);
+                // Compressed files are spatially chunked by construction; standard ones may be
+                // in any order (training output is), which would make render chunks loose.
+                if layout == SplatLayout::Standard {
+                    report.morton_reordered = g.sort_morton();
+                }
                 g
             }
             None => {

@@ -147,3 +147,22 @@ fn objects_json_mesh_paths_are_honoured_and_checked() {
         "{e}"
     );
 }
+
+#[test]
+fn a_shuffled_standard_ply_is_loaded_in_morton_order() {
+    let scene = generate(&small()).unwrap();
+    let n = scene.gaussians.len() as u32;
+    // Reverse the order: same Gaussians, far from Morton order.
+    let reversed: Vec<u32> = (0..n).rev().collect();
+    let mut shuffled = scene.clone();
+    shuffled.gaussians = scene.gaussians.permuted(&reversed);
+    let dir = tempfile::tempdir().unwrap();
+    shuffled.save(dir.path(), SplatLayout::Standard).unwrap();
+    let (back, report) = Scene::load(dir.path()).unwrap();
+    assert!(report.morton_reordered);
+    assert_eq!(back.gaussians.positions, scene.gaussians.positions);
+    assert_eq!(back.gaussians.instances, scene.gaussians.instances);
+    // Already sorted files load as they are.
+    scene.save(dir.path(), SplatLayout::Standard).unwrap();
+    assert!(!Scene::load(dir.path()).unwrap().1.morton_reordered);
+}

@@ -1,5 +1,11 @@
-//! The spatial index that makes large scenes cheap: Gaussians grouped, in Morton order, into
-//! chunks of 256 whose bounds (centres grown by the largest splat reach) are frustum-culled.
+//! The spatial index that makes large scenes cheap: consecutive runs of 256 Gaussians (chunks)
+//! whose bounds (centres grown by the largest splat reach) are frustum-culled.
+//!
+//! Chunks are compact when the Gaussians are stored in Morton order, as
+//! [`sage_scene::Scene::load`] and the synthetic generator keep them
+//! ([`sage_scene::Gaussians::into_morton_order`]); any other order renders the same images,
+//! only culling gets coarser. No permutation is stored, so the index costs about 0.1 byte per
+//! Gaussian.
 
 use crate::camera::Camera;
 use glam::Vec3;
@@ -17,37 +23,30 @@ pub const MAX_SIGMAS: f32 = 3.33;
 /// Chunks of spatially close Gaussians with conservative bounds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SplatIndex {
-    /// Gaussian indices in Morton order; chunk `c` is `order[c*256 .. (c+1)*256]`.
-    pub order: Vec<u32>,
-    /// Per chunk: the bounds of everything its Gaussians can touch.
+    /// Per chunk (Gaussians `c*256 .. (c+1)*256`): the bounds of everything they can touch.
     pub bounds: Vec<Aabb>,
 }
 
 impl SplatIndex {
-    /// Builds the index of `g` (deterministic: ties in Morton code keep index order).
+    /// Builds the index of `g`.
     pub fn build(g: &Gaussians) -> SplatIndex {
-        let order = g.morton_order();
-        let bounds = order
-            .par_chunks(CHUNK)
-            .map(|ids| {
-                ids.iter().fold(Aabb::EMPTY, |b, &i| {
-                    let i = i as usize;
-                    let reach = g.log_scales[i]
-                        .iter()
-                        .fold(f32::NEG_INFINITY, |m, s| m.max(*s))
-                        .exp()
-                        * MAX_SIGMAS;
+        let chunks = g.len().div_ceil(CHUNK);
+        let bounds = (0..chunks)
+            .into_par_iter()
+            .map(|c| {
+                (c * CHUNK..((c + 1) * CHUNK).min(g.len())).fold(Aabb::EMPTY, |b, i| {
+                    let reach = g.max_log_scale(i).exp() * MAX_SIGMAS;
                     let p = Vec3::from_array(g.positions[i]);
                     b.grow(p - Vec3::splat(reach)).grow(p + Vec3::splat(reach))
                 })
             })
             .collect();
-        SplatIndex { order, bounds }
+        SplatIndex { bounds }
     }
 
     /// Heap bytes of the index.
     pub fn heap_bytes(&self) -> usize {
-        std::mem::size_of_val(self.order.as_slice()) + std::mem::size_of_val(self.bounds.as_slice())
+        std::mem::size_of_val(self.bounds.as_slice())
     }
 
     /// Appends to `out` the chunks whose bounds meet the camera's view volume.

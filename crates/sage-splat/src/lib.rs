@@ -20,6 +20,7 @@
 //! ```
 
 pub mod camera;
+pub mod fastmath;
 pub mod index;
 pub mod project;
 pub mod render;

@@ -1,9 +1,10 @@
-//! EWA projection of one Gaussian into a screen-space splat (the standard 3DGS formation):
-//! 3-D covariance from rotation and scale, the pinhole Jacobian with the 1.3× frustum-edge
-//! clamp, a 0.3 px² low-pass, and an opacity-aware screen radius.
+//! EWA projection of Gaussians into screen-space splats (the standard 3DGS formation), four at
+//! a time: 3-D covariance from rotation and scale, the pinhole Jacobian with the 1.3×
+//! frustum-edge clamp, a 0.3 px² low-pass, and an opacity-aware screen radius.
 
 use crate::camera::Camera;
-use glam::{Mat3, Quat, Vec3};
+use crate::fastmath::{exp4, ln4};
+use wide::f32x4;
 
 /// The low-pass added to the 2-D covariance diagonal (px²).
 pub const LOW_PASS: f32 = 0.3;
@@ -35,123 +36,114 @@ pub struct Splat {
     pub cutoff: f32,
 }
 
-/// e^x for |x| ≤ 87 with relative error below 2e-5: 2^(x log₂e) split into an exponent and a
-/// degree-6 polynomial of the fraction; far cheaper than the library call in the projection.
-#[inline]
-pub fn exp_fast(x: f32) -> f32 {
-    let y = (x * std::f32::consts::LOG2_E).clamp(-126.0, 126.0);
-    // floor without a library call: truncate, then step down for negative fractions.
-    let t = y as i32;
-    let n = if (t as f32) > y { t - 1 } else { t };
-    let f = y - n as f32;
-    let p = 1.0
-        + f * (std::f32::consts::LN_2
-            + f * (0.240_226_5
-                + f * (0.055_504_11
-                    + f * (0.009_618_129 + f * (0.001_333_355_8 + f * 0.000_154_035_3)))));
-    f32::from_bits(((n + 127) as u32) << 23) * p
+/// Four Gaussians to project, one per lane.
+#[derive(Debug, Clone, Copy)]
+pub struct Gaussians4 {
+    /// Centres in camera coordinates (x, y, z).
+    pub t: [f32x4; 3],
+    /// Rotations as (w, x, y, z), of any non-zero length.
+    pub rotation: [f32x4; 4],
+    /// Natural logarithms of the standard deviations along the local axes.
+    pub log_scale: [f32x4; 3],
+    /// Opacities after the sigmoid.
+    pub opacity: f32x4,
 }
 
-/// ln x for positive normal x, absolute error below 1e-4: the exponent plus a polynomial of the
-/// mantissa around 1 (cheaper than the library call in the projection).
-#[inline]
-pub fn ln_fast(x: f32) -> f32 {
-    let bits = x.to_bits();
-    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
-    // Mantissa in [√½, √2): ln m = 2 atanh(s), s = (m − 1)/(m + 1), |s| ≤ 0.172.
-    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
-    let mut e = exponent as f32;
-    if m > std::f32::consts::SQRT_2 {
-        m *= 0.5;
-        e += 1.0;
-    }
-    let s = (m - 1.0) / (m + 1.0);
-    let s2 = s * s;
-    e * std::f32::consts::LN_2 + 2.0 * s * (1.0 + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0))))
+/// Four projected Gaussians' screen-space footprints, one per lane (see [`Splat`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Footprints4 {
+    /// Centres in pixels.
+    pub x: f32x4,
+    /// Centres in pixels.
+    pub y: f32x4,
+    /// Inverse 2-D covariances (a, b, c).
+    pub conic: [f32x4; 3],
+    /// Screen radii (pixels).
+    pub radius: f32x4,
+    /// Mahalanobis cut-offs.
+    pub cutoff: f32x4,
+    /// Bit `k` set when lane `k` survived: centre within the clip range, opacity at least
+    /// 1/255, a non-degenerate covariance, and a footprint that reaches the image.
+    pub visible: u32,
 }
 
-/// The logistic sigmoid 1 / (1 + e^−x), through [`exp_fast`].
-#[inline]
-pub fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + exp_fast(-x))
-}
-
-/// The covariance factor M = R S (columns: the Gaussian's axes scaled by its standard
-/// deviations), so that Σ = M Mᵀ.
-pub fn scaled_axes(rotation: Quat, log_scale: Vec3) -> Mat3 {
-    let r = Mat3::from_quat(rotation.normalize());
-    Mat3::from_cols(
-        r.x_axis * exp_fast(log_scale.x),
-        r.y_axis * exp_fast(log_scale.y),
-        r.z_axis * exp_fast(log_scale.z),
-    )
-}
-
-/// Projects a Gaussian whose centre is `t` in camera coordinates and whose covariance factor is
-/// `m` (see [`scaled_axes`]); `None` when it is culled (centre nearer than the near plane or
-/// beyond the far plane, degenerate, too transparent, or wholly off screen). `color` is
-/// evaluated by the caller from the view direction.
-pub fn project(
-    camera: &Camera,
-    t: Vec3,
-    m: Mat3,
-    opacity: f32,
-    color: [f32; 3],
-    instance: u32,
-) -> Option<Splat> {
-    if opacity < MIN_ALPHA || !(t.z >= camera.near && t.z <= camera.far) {
-        return None;
-    }
+/// EWA projection of four Gaussians at once: Σ = R S² Rᵀ, the pinhole Jacobian J at the
+/// mean with the 1.3× frustum-edge clamp, Σ' = J W Σ Wᵀ Jᵀ + 0.3 I, its inverse (the conic)
+/// and the radius of the square outside which alpha < 1/255.
+pub fn project4(camera: &Camera, g: &Gaussians4) -> Footprints4 {
     let k = camera.intrinsics;
-    let lim_x = 1.3 * (k.width as f32 * 0.5) / k.fx;
-    let lim_y = 1.3 * (k.height as f32 * 0.5) / k.fy;
-    let inv_z = 1.0 / t.z;
-    let (sx, sy) = (
-        (t.x * inv_z).clamp(-lim_x, lim_x),
-        (t.y * inv_z).clamp(-lim_y, lim_y),
-    );
-    // Rows of J·W: the pinhole Jacobian at the clamped mean times world→camera, whose rows are
-    // the camera's right, down and forward axes.
-    let [right, down, forward] = [
+    let splat = f32x4::splat;
+    let [tx, ty, tz] = g.t;
+    let lim_x = splat(1.3 * (k.width as f32 * 0.5) / k.fx);
+    let lim_y = splat(1.3 * (k.height as f32 * 0.5) / k.fy);
+    let inv_z = f32x4::ONE / tz;
+    let sx = (tx * inv_z).max(-lim_x).min(lim_x);
+    let sy = (ty * inv_z).max(-lim_y).min(lim_y);
+    // Rows of J·W: the Jacobian at the clamped mean times world→camera, whose rows are the
+    // camera's right, down and forward axes.
+    let (right, down, forward) = (
         camera.rotation.x_axis,
         camera.rotation.y_axis,
         camera.rotation.z_axis,
-    ];
-    let r0 = (right - forward * sx) * (k.fx * inv_z);
-    let r1 = (down - forward * sy) * (k.fy * inv_z);
-    // Σ' = (J W) M Mᵀ (J W)ᵀ: with u = Mᵀ r, its entries are dot products of u0 and u1.
-    let u0 = Vec3::new(m.x_axis.dot(r0), m.y_axis.dot(r0), m.z_axis.dot(r0));
-    let u1 = Vec3::new(m.x_axis.dot(r1), m.y_axis.dot(r1), m.z_axis.dot(r1));
-    let a = u0.dot(u0) + LOW_PASS;
-    let b = u0.dot(u1);
-    let c = u1.dot(u1) + LOW_PASS;
-    let det = a * c - b * b;
-    if det <= 0.0 || !det.is_finite() {
-        return None;
+    );
+    let (fx_z, fy_z) = (splat(k.fx) * inv_z, splat(k.fy) * inv_z);
+    let r0 = [0, 1, 2].map(|i| (splat(right[i]) - splat(forward[i]) * sx) * fx_z);
+    let r1 = [0, 1, 2].map(|i| (splat(down[i]) - splat(forward[i]) * sy) * fy_z);
+    // With the rotation's columns R_j and variances s_j², Σ' = Σ_j s_j² (R_j·r0, R_j·r1)ᵀ(…).
+    let axes = rotation_columns(g.rotation);
+    let (mut a, mut b, mut c) = (splat(LOW_PASS), f32x4::ZERO, splat(LOW_PASS));
+    for (axis, log_scale) in axes.iter().zip(g.log_scale) {
+        let variance = exp4(log_scale + log_scale);
+        let d0 = axis[0] * r0[0] + axis[1] * r0[1] + axis[2] * r0[2];
+        let d1 = axis[0] * r1[0] + axis[1] * r1[1] + axis[2] * r1[2];
+        a += variance * d0 * d0;
+        b += variance * d0 * d1;
+        c += variance * d1 * d1;
     }
-    let inv_det = 1.0 / det;
+    let det = a * c - b * b;
+    let inv_det = f32x4::ONE / det;
     // A hair above 2 ln(255 o): the cutoff only bounds where pixels are visited (each one
     // still checks alpha ≥ 1/255 exactly), so rounding must err outwards.
-    let cutoff = 2.0 * ln_fast(255.0 * opacity) + 1e-3;
-    let mid = 0.5 * (a + c);
-    let lambda = mid + (mid * mid - det).max(0.1).sqrt();
+    let cutoff = splat(2.0) * ln4(splat(255.0) * g.opacity.max(splat(MIN_ALPHA))) + splat(1e-3);
+    let mid = splat(0.5) * (a + c);
+    let lambda = mid + (mid * mid - det).max(splat(0.1)).sqrt();
     let radius = (cutoff * lambda).sqrt();
-    let (x, y) = camera.project(t);
-    let (w_px, h_px) = (k.width as f32, k.height as f32);
-    if x + radius < 0.0 || x - radius > w_px || y + radius < 0.0 || y - radius > h_px {
-        return None;
-    }
-    Some(Splat {
+    let x = splat(k.fx) * tx * inv_z + splat(k.cx);
+    let y = splat(k.fy) * ty * inv_z + splat(k.cy);
+    let (w_px, h_px) = (splat(k.width as f32), splat(k.height as f32));
+    let visible = tz.simd_ge(splat(camera.near))
+        & tz.simd_le(splat(camera.far))
+        & g.opacity.simd_ge(splat(MIN_ALPHA))
+        & det.simd_gt(f32x4::ZERO)
+        & det.simd_lt(splat(f32::INFINITY))
+        & (x + radius).simd_ge(f32x4::ZERO)
+        & (x - radius).simd_le(w_px)
+        & (y + radius).simd_ge(f32x4::ZERO)
+        & (y - radius).simd_le(h_px);
+    Footprints4 {
         x,
         y,
         conic: [c * inv_det, -b * inv_det, a * inv_det],
-        opacity,
-        color,
-        depth: t.z,
-        instance,
         radius,
         cutoff,
-    })
+        visible: visible.to_bitmask(),
+    }
+}
+
+/// The columns of the rotation matrices of four quaternions (w, x, y, z), normalised first.
+fn rotation_columns([w, x, y, z]: [f32x4; 4]) -> [[f32x4; 3]; 3] {
+    let inv_norm = f32x4::ONE / (w * w + x * x + y * y + z * z).sqrt();
+    let (w, x, y, z) = (w * inv_norm, x * inv_norm, y * inv_norm, z * inv_norm);
+    let (x2, y2, z2) = (x + x, y + y, z + z);
+    let (xx, xy, xz) = (x * x2, x * y2, x * z2);
+    let (yy, yz, zz) = (y * y2, y * z2, z * z2);
+    let (wx, wy, wz) = (w * x2, w * y2, w * z2);
+    let one = f32x4::ONE;
+    [
+        [one - (yy + zz), xy + wz, xz - wy],
+        [xy - wz, one - (xx + zz), yz + wx],
+        [xz + wy, yz - wx, one - (xx + yy)],
+    ]
 }
 
 impl Splat {
@@ -185,30 +177,58 @@ impl Splat {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::Intrinsics;
     use proptest::prelude::*;
 
-    #[test]
-    fn ln_fast_is_accurate() {
-        let mut x = 1e-3f32;
-        while x < 1e3 {
-            assert!(
-                (ln_fast(x) - x.ln()).abs() < 1e-4,
-                "ln({x}) = {} vs {}",
-                ln_fast(x),
-                x.ln()
-            );
-            x *= 1.001;
+    /// Lane `k` of `g` copied into all four lanes.
+    fn broadcast(g: &Gaussians4, k: usize) -> Gaussians4 {
+        let one = |v: f32x4| f32x4::splat(v.to_array()[k]);
+        Gaussians4 {
+            t: g.t.map(one),
+            rotation: g.rotation.map(one),
+            log_scale: g.log_scale.map(one),
+            opacity: one(g.opacity),
         }
     }
 
     #[test]
-    fn exp_fast_is_accurate() {
-        let mut x = -30.0f32;
-        while x <= 30.0 {
-            let (a, b) = (exp_fast(x), x.exp());
-            assert!((a - b).abs() <= b * 2e-5, "exp({x}) = {a} vs {b}");
-            x += 0.001;
+    fn lanes_are_projected_independently() {
+        let cam = crate::Camera::from_yaw_pitch(
+            Intrinsics::from_hfov(64, 48, 90.0).unwrap(),
+            glam::Vec3::ZERO,
+            0.0,
+            0.0,
+        );
+        // A regular splat, one behind the camera, a degenerate rotation, one far off screen.
+        let g = Gaussians4 {
+            t: [
+                f32x4::new([0.1, 0.0, 0.2, 40.0]),
+                f32x4::new([-0.2, 0.0, 0.1, 0.0]),
+                f32x4::new([2.0, -1.0, 3.0, 2.0]),
+            ],
+            rotation: [
+                f32x4::new([1.0, 1.0, 0.0, 1.0]),
+                f32x4::new([0.2, 0.0, 0.0, 0.0]),
+                f32x4::new([-0.4, 0.0, 0.0, 0.0]),
+                f32x4::new([0.1, 0.0, 0.0, 0.0]),
+            ],
+            log_scale: [f32x4::splat(-3.0), f32x4::splat(-2.5), f32x4::splat(-4.0)],
+            opacity: f32x4::splat(0.8),
+        };
+        let all = project4(&cam, &g);
+        assert_eq!(all.visible, 0b0001);
+        let alone = project4(&cam, &broadcast(&g, 0));
+        assert_eq!(alone.visible, 0b1111);
+        for (x, y) in [
+            (all.x, alone.x),
+            (all.radius, alone.radius),
+            (all.conic[1], alone.conic[1]),
+        ] {
+            assert_eq!(x.to_array()[0], y.to_array()[0]);
         }
+        // The centre lands where the pinhole model puts it.
+        let expected_x = cam.intrinsics.fx * 0.1 / 2.0 + cam.intrinsics.cx;
+        assert!((all.x.to_array()[0] - expected_x).abs() < 1e-4);
     }
 
     fn splat(a: f32, b: f32, c: f32) -> Splat {

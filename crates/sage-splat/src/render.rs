@@ -16,16 +16,18 @@
 //! count (all orders are by depth, then by a deterministic splat index).
 
 use crate::camera::Camera;
+use crate::fastmath::{exp_fast, sigmoid};
 use crate::index::{CHUNK, MAX_SIGMAS, SplatIndex};
-use crate::project::{MIN_ALPHA, Splat, exp_fast, project, scaled_axes, sigmoid};
+use crate::project::{Gaussians4, MIN_ALPHA, Splat, project4};
 use crate::sh;
 use crate::tile::{TILE, TileState, lane};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result};
 use sage_scene::Gaussians;
-use sage_scene::gaussians::sh_rest_count;
+use sage_scene::gaussians::{LOG_SCALE_STEP, sh_rest_count};
 use std::time::Instant;
+use wide::f32x4;
 
 /// Depth slabs per frame (at most).
 const SLABS: usize = 8;
@@ -294,11 +296,11 @@ impl Renderer {
         self.tiles.truncate(n);
         self.tiles.par_iter_mut().enumerate().for_each(|(t, s)| {
             let (_, _, tw, th) = grid.tile_rect(t);
-            s.reset(tw * th);
+            s.reset(tw, th);
         });
         for t in self.tiles.len()..n {
             let (_, _, tw, th) = grid.tile_rect(t);
-            self.tiles.push(TileState::new(tw * th));
+            self.tiles.push(TileState::new(tw, th));
         }
     }
 
@@ -342,7 +344,6 @@ impl Renderer {
             camera,
             w2c,
             grid,
-            order: &self.index.order,
             finished: &self.finished_sum,
             sh_rest: sh_rest_count(g.sh_degree()),
             lo,
@@ -464,8 +465,8 @@ impl Renderer {
             .for_each(|(t, state)| {
                 let list = &entries[start[t] as usize..start[t + 1] as usize];
                 if !list.is_empty() {
-                    let (x0, y0, tw, th) = grid.tile_rect(t);
-                    state.blend(splats, list, x0, y0, tw, th);
+                    let (x0, y0, _, _) = grid.tile_rect(t);
+                    state.blend(splats, list, x0, y0);
                 }
             });
     }
@@ -547,7 +548,6 @@ struct SlabProjection<'a> {
     camera: &'a Camera,
     w2c: &'a Mat3,
     grid: &'a Grid,
-    order: &'a [u32],
     finished: &'a [u32],
     sh_rest: usize,
     lo: f32,
@@ -558,66 +558,131 @@ impl SlabProjection<'_> {
     /// Projects the Gaussians of `chunk` whose depth is in the slab into `out`; returns how
     /// many splats it wrote and how many Gaussians it examined.
     fn chunk(&self, chunk: usize, out: &mut [Splat]) -> (usize, usize) {
-        let (g, camera, grid) = (self.g, self.camera, self.grid);
-        let k = camera.intrinsics;
-        let focal = k.fx.max(k.fy);
-        let (width, height) = (k.width as f32, k.height as f32);
-        let (lim_x, lim_y) = (1.3 * width * 0.5 / k.fx, 1.3 * height * 0.5 / k.fy);
-        let ids = &self.order[chunk * CHUNK..((chunk + 1) * CHUNK).min(self.order.len())];
-        let mut rest = [[0.0f32; 3]; 15];
-        let (mut n, mut examined) = (0, 0);
-        for &i in ids {
-            let i = i as usize;
-            let position = Vec3::from_array(g.positions[i]);
-            let t = *self.w2c * (position - camera.position);
-            // Slab membership by camera-space z, then a cheap screen test of the centre with the
-            // largest reach the Gaussian can have, before any costly work.
-            if !(t.z >= self.lo && t.z < self.hi && t.z >= camera.near && t.z <= camera.far) {
-                continue;
+        let ids = chunk * CHUNK..((chunk + 1) * CHUNK).min(self.g.len());
+        // Cheap scalar tests first, then the costly projection four survivors at a time.
+        let mut pending = [Survivor::default(); 4];
+        let (mut waiting, mut n, mut examined) = (0, 0, 0);
+        for i in ids {
+            if let Some(s) = self.survivor(i, &mut examined) {
+                pending[waiting] = s;
+                waiting += 1;
+                if waiting == 4 {
+                    n += self.project_group(&pending, &mut out[n..]);
+                    waiting = 0;
+                }
             }
-            examined += 1;
-            let max_log_scale = g.log_scales[i]
-                .iter()
-                .fold(f32::NEG_INFINITY, |m, v| m.max(*v));
-            // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
-            let (sx, sy) = (
-                (t.x / t.z).clamp(-lim_x, lim_x),
-                (t.y / t.z).clamp(-lim_y, lim_y),
-            );
-            let stretch = (2.0 + sx * sx + sy * sy).sqrt();
-            let reach = MAX_SIGMAS * exp_fast(max_log_scale) * focal * stretch / t.z + 1.0;
-            let (u, v) = camera.project(t);
-            if u < -reach || v < -reach || u > width + reach || v > height + reach {
-                continue;
-            }
-            // Nothing to add where every tile the splat can reach is already opaque.
-            let tile = |p: f32, n: usize| ((p / TILE as f32).max(0.0) as usize).min(n - 1);
-            let rect = [
-                tile(u - reach, grid.tiles_x),
-                tile(v - reach, grid.tiles_y),
-                tile(u + reach, grid.tiles_x),
-                tile(v + reach, grid.tiles_y),
-            ];
-            if rect_finished(self.finished, grid.tiles_x, &rect) {
-                continue;
-            }
-            let opacity = sigmoid(g.opacity_logits[i]);
-            if opacity < MIN_ALPHA {
-                continue;
-            }
-            if self.sh_rest > 0 {
-                g.sh_rest_into(i, &mut rest);
-            }
-            let dir = (position - camera.position).normalize_or_zero();
-            let color = sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..self.sh_rest], dir);
-            let m = scaled_axes(g.rotation(i), Vec3::from_array(g.log_scales[i]));
-            if let Some(s) = project(camera, t, m, opacity, color, g.instances[i]) {
-                out[n] = s;
-                n += 1;
-            }
+        }
+        if waiting > 0 {
+            n += self.project_group(&pending[..waiting], &mut out[n..]);
         }
         (n, examined)
     }
+
+    /// Gaussian `i` with its camera-space centre and opacity if it may add to the slab: centre
+    /// depth inside it, on or near the screen by its largest possible reach, over unfinished
+    /// tiles, and not too transparent. Counts it in `examined` once its depth is in the slab.
+    fn survivor(&self, i: usize, examined: &mut usize) -> Option<Survivor> {
+        let (g, camera, grid) = (self.g, self.camera, self.grid);
+        let k = camera.intrinsics;
+        let t = *self.w2c * (Vec3::from_array(g.positions[i]) - camera.position);
+        if !(t.z >= self.lo && t.z < self.hi && t.z >= camera.near && t.z <= camera.far) {
+            return None;
+        }
+        *examined += 1;
+        let max_log_scale = g.max_log_scale(i);
+        // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
+        let (width, height) = (k.width as f32, k.height as f32);
+        let (lim_x, lim_y) = (1.3 * width * 0.5 / k.fx, 1.3 * height * 0.5 / k.fy);
+        let (sx, sy) = (
+            (t.x / t.z).clamp(-lim_x, lim_x),
+            (t.y / t.z).clamp(-lim_y, lim_y),
+        );
+        let stretch = (2.0 + sx * sx + sy * sy).sqrt();
+        let reach = MAX_SIGMAS * exp_fast(max_log_scale) * k.fx.max(k.fy) * stretch / t.z + 1.0;
+        let (u, v) = camera.project(t);
+        if u < -reach || v < -reach || u > width + reach || v > height + reach {
+            return None;
+        }
+        // Nothing to add where every tile the splat can reach is already opaque.
+        let tile = |p: f32, n: usize| ((p / TILE as f32).max(0.0) as i32 as usize).min(n - 1);
+        let rect = [
+            tile(u - reach, grid.tiles_x),
+            tile(v - reach, grid.tiles_y),
+            tile(u + reach, grid.tiles_x),
+            tile(v + reach, grid.tiles_y),
+        ];
+        if rect_finished(self.finished, grid.tiles_x, &rect) {
+            return None;
+        }
+        let opacity = sigmoid(g.opacity_logit(i));
+        (opacity >= MIN_ALPHA).then_some(Survivor {
+            index: i as u32,
+            t,
+            opacity,
+        })
+    }
+
+    /// Projects up to four survivors into the front of `out`; returns how many splats it wrote.
+    fn project_group(&self, group: &[Survivor], out: &mut [Splat]) -> usize {
+        let g = self.g;
+        // Short groups repeat their last member; the extra lanes are ignored.
+        let lanes = [0, 1, 2, 3].map(|k| group[k.min(group.len() - 1)]);
+        let quats = lanes.map(|s| g.rotations[s.index as usize]);
+        let log_scales = lanes.map(|s| g.log_scales[s.index as usize]);
+        let input = Gaussians4 {
+            t: [
+                f32x4::new(lanes.map(|s| s.t.x)),
+                f32x4::new(lanes.map(|s| s.t.y)),
+                f32x4::new(lanes.map(|s| s.t.z)),
+            ],
+            rotation: [0, 1, 2, 3].map(|c| f32x4::new(quats.map(|q| f32::from(q[c])))),
+            log_scale: [0, 1, 2].map(|c| {
+                f32x4::new(log_scales.map(|l| f32::from(l[c]))) * f32x4::splat(LOG_SCALE_STEP)
+            }),
+            opacity: f32x4::new(lanes.map(|s| s.opacity)),
+        };
+        let f = project4(self.camera, &input);
+        let (x, y, radius, cutoff) = (
+            f.x.to_array(),
+            f.y.to_array(),
+            f.radius.to_array(),
+            f.cutoff.to_array(),
+        );
+        let conic = f.conic.map(|v| v.to_array());
+        let mut rest = [[0.0f32; 3]; 15];
+        let mut n = 0;
+        for (k, s) in group.iter().enumerate() {
+            if f.visible >> k & 1 == 0 {
+                continue;
+            }
+            let i = s.index as usize;
+            if self.sh_rest > 0 {
+                g.sh_rest_into(i, &mut rest);
+            }
+            let dir = (Vec3::from_array(g.positions[i]) - self.camera.position).normalize_or_zero();
+            out[n] = Splat {
+                x: x[k],
+                y: y[k],
+                conic: [conic[0][k], conic[1][k], conic[2][k]],
+                opacity: s.opacity,
+                color: sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..self.sh_rest], dir),
+                depth: s.t.z,
+                instance: g.instances[i],
+                radius: radius[k],
+                cutoff: cutoff[k],
+            };
+            n += 1;
+        }
+        n
+    }
+}
+
+/// A Gaussian that passed the cheap tests of a slab, waiting for projection.
+#[derive(Debug, Clone, Copy, Default)]
+struct Survivor {
+    index: u32,
+    t: Vec3,
+    opacity: f32,
 }
 
 /// True when every tile of the rectangle `r` ([x0, y0, x1, y1], inclusive) is finished, from

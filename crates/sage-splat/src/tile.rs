@@ -1,8 +1,8 @@
 //! One 16×16 tile's blending state and the front-to-back compositing of splats into it.
 
+use crate::fastmath::exp4;
 use crate::project::{MAX_ALPHA, MIN_ALPHA, Splat};
-use wide::bytemuck::cast;
-use wide::{f32x4, i32x4};
+use wide::f32x4;
 
 /// Tile edge in pixels.
 pub const TILE: usize = 16;
@@ -15,6 +15,29 @@ pub const MIN_TRANSMITTANCE: f32 = 1e-4;
 const ROW_VECTORS: usize = TILE / 4;
 /// Vectors per tile.
 const VECTORS: usize = TILE_PIXELS / 4;
+/// Pixels beyond a row's exact ellipse interval still visited: rounding must err outwards,
+/// since each visited pixel is then tested exactly.
+const ROW_SLACK: f32 = 1e-3;
+/// Each lane's offset within its vector.
+const LANE_X: f32x4 = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+/// Lane masks (all bits set in selected lanes) for each 4-bit pattern of live pixels.
+const LANE_MASKS: [f32x4; 16] = {
+    let mut masks = [f32x4::ZERO; 16];
+    let mut bits = 0;
+    while bits < 16 {
+        let mut lanes = [0.0f32; 4];
+        let mut l = 0;
+        while l < 4 {
+            if bits >> l & 1 == 1 {
+                lanes[l] = f32::from_bits(u32::MAX);
+            }
+            l += 1;
+        }
+        masks[bits] = f32x4::new(lanes);
+        bits += 1;
+    }
+    masks
+};
 
 /// Per-pixel accumulators of one tile, kept across depth slabs, four pixels to a vector
 /// (vector `ly * 4 + lx / 4`, lane `lx % 4`).
@@ -39,6 +62,8 @@ pub struct TileState {
     /// Instance of the largest weight: the id's bits in each lane (read with `to_bits`), so
     /// lanes are chosen with the same bitwise select as the floats.
     pub instance: [f32x4; VECTORS],
+    /// Per tile row, bit `lx` set while pixel `lx` is inside the image and not done.
+    pub live: [u16; TILE],
     /// Pixels of the tile inside the image that are not done.
     pub remaining: usize,
 }
@@ -50,9 +75,13 @@ pub fn lane(v: &[f32x4; VECTORS], l: usize) -> f32 {
 }
 
 impl TileState {
-    /// A fresh tile holding `pixels` image pixels (edge tiles hold fewer than 256).
-    pub fn new(pixels: usize) -> TileState {
+    /// A fresh tile whose in-image part is `width` × `height` pixels (edge tiles are smaller
+    /// than 16 × 16).
+    pub fn new(width: usize, height: usize) -> TileState {
         let zero = [f32x4::ZERO; VECTORS];
+        let row = ((1u32 << width.min(TILE)) - 1) as u16;
+        let mut live = [0u16; TILE];
+        live[..height.min(TILE)].fill(row);
         TileState {
             t: [f32x4::ONE; VECTORS],
             r: zero,
@@ -62,13 +91,14 @@ impl TileState {
             median: zero,
             best_w: zero,
             instance: zero,
-            remaining: pixels,
+            live,
+            remaining: width.min(TILE) * height.min(TILE),
         }
     }
 
-    /// Resets to fresh for a tile of `pixels` pixels.
-    pub fn reset(&mut self, pixels: usize) {
-        *self = TileState::new(pixels);
+    /// Resets to fresh for a tile of `width` × `height` in-image pixels.
+    pub fn reset(&mut self, width: usize, height: usize) {
+        *self = TileState::new(width, height);
     }
 
     /// True when every pixel reached the transmittance floor.
@@ -77,80 +107,86 @@ impl TileState {
     }
 
     /// Blends `list` (depth-bits << 32 | splat index, already front to back) into the tile whose
-    /// top-left pixel is (x0, y0) and whose in-image size is tw × th.
+    /// top-left pixel is (x0, y0).
     ///
     /// Each splat visits, row by row, only the pixel centres inside its 1/255 ellipse (the
-    /// exact interval of the quadratic form, widened by a hair so no boundary pixel is lost),
-    /// four pixels at a time.
-    pub fn blend(
-        &mut self,
-        splats: &[Splat],
-        list: &[u64],
-        x0: usize,
-        y0: usize,
-        tw: usize,
-        th: usize,
-    ) {
-        let lane_x = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+    /// exact interval of the quadratic form, widened by a hair so no boundary pixel is lost)
+    /// that are still live, four pixels at a time.
+    pub fn blend(&mut self, splats: &[Splat], list: &[u64], x0: usize, y0: usize) {
         for &entry in list {
-            let si = entry as u32;
             if self.remaining == 0 {
                 return;
             }
-            let sp = &splats[si as usize];
+            let sp = &splats[entry as u32 as usize];
             let [a, b, c] = sp.conic;
-            // Float-to-int casts truncate; with the max(0) first they floor (floorf and ceilf
-            // are library calls on baseline x86-64, too slow for this loop).
-            let ly0 = ((sp.y - sp.radius - y0 as f32 - 0.5).max(0.0) as usize).min(th);
-            let ly1 = ((sp.y + sp.radius - y0 as f32 + 1.5).max(0.0) as usize).min(th);
-            let splat = SplatLanes::new(sp);
-            // Columns of the splat's square, as whole vectors; lanes outside the ellipse fail the
-            // alpha test, which is cheaper than solving for each row's exact interval.
-            let first = ((sp.x - sp.radius - x0 as f32 - 0.5).max(0.0) as usize).min(tw);
-            let last = ((sp.x + sp.radius - x0 as f32 + 0.5).max(0.0) as usize + 1).min(tw);
-            if first >= last {
+            let (cx, cy) = (sp.x - x0 as f32 - 0.5, sp.y - y0 as f32 - 0.5);
+            // Per row dy the pixels with a dx² + 2b dx dy + c dy² ≤ cutoff (dx = cx − lx) are
+            // lx ∈ mid ± half with mid = cx + (b/a) dy, half = √(disc)/a and
+            // disc = a·cutoff − (ac − b²) dy², which is ≥ 0 for |dy| ≤ √(a·cutoff / (ac − b²)).
+            let det = a * c - b * b;
+            let (k0, inv_a, slope) = (a * sp.cutoff, 1.0 / a, b / a);
+            let reach_y = (k0 / det).sqrt() + ROW_SLACK;
+            if cy + reach_y < 0.0 {
                 continue;
             }
-            let (first_f, last_f) = (f32x4::splat(first as f32), f32x4::splat(last as f32));
+            let ly0 = floor_index(cy - reach_y + 1.0);
+            let ly1 = (floor_index(cy + reach_y) + 1).min(TILE);
+            let splat = SplatLanes::new(sp);
             for ly in ly0..ly1 {
-                let dy = sp.y - ((y0 + ly) as f32 + 0.5);
+                let live_row = self.live[ly];
+                if live_row == 0 {
+                    continue;
+                }
+                let dy = cy - ly as f32;
+                let disc = k0 - det * dy * dy;
+                let half = disc.max(0.0).sqrt() * inv_a + ROW_SLACK;
+                let mid = cx + slope * dy;
+                if mid + half < 0.0 {
+                    continue;
+                }
+                let first = floor_index(mid - half + 1.0);
+                let last = floor_index(mid + half).min(TILE - 1);
+                if first > last {
+                    continue;
+                }
+                let span = (u32::MAX >> (31 - last)) & !((1u32 << first) - 1);
+                let row_bits = u32::from(live_row) & span;
+                if row_bits == 0 {
+                    continue;
+                }
                 let row_part = f32x4::splat(-0.5 * c * dy * dy);
                 let b_dy = f32x4::splat(b * dy);
-                for gx in first / 4..=(last - 1) / 4 {
-                    let v = ly * ROW_VECTORS + gx;
-                    let lx = lane_x + f32x4::splat((gx * 4) as f32);
-                    // Live lanes: inside the square and not yet at the floor (done pixels hold −T).
-                    let live =
-                        lx.simd_ge(first_f) & lx.simd_lt(last_f) & self.t[v].simd_gt(f32x4::ZERO);
-                    if live.none() {
+                for gx in first / 4..=last / 4 {
+                    let bits = (row_bits >> (gx * 4)) & 0xf;
+                    if bits == 0 {
                         continue;
                     }
-                    let dx = f32x4::splat(sp.x - x0 as f32 - 0.5) - lx;
+                    let dx = f32x4::splat(cx - (gx * 4) as f32) - LANE_X;
                     let power = row_part - (f32x4::splat(0.5 * a) * dx + b_dy) * dx;
-                    self.blend_vector(&splat, v, live, power);
+                    self.blend_vector(&splat, ly, gx, LANE_MASKS[bits as usize], power);
                 }
             }
         }
     }
 
-    /// Blends one splat into the live lanes (`live`) of vector `v`.
+    /// Blends one splat into the live lanes (`live`) of vector `gx` of row `ly`.
     #[inline]
-    fn blend_vector(&mut self, sp: &SplatLanes, v: usize, live: f32x4, power: f32x4) {
-        // Lanes beyond the splat's 1/255 ellipse are dropped before the exponential.
+    fn blend_vector(&mut self, sp: &SplatLanes, ly: usize, gx: usize, live: f32x4, power: f32x4) {
+        let v = ly * ROW_VECTORS + gx;
         let t = self.t[v];
-        let reached = live & power.simd_ge(sp.min_power) & power.simd_le(f32x4::ZERO);
-        if reached.none() {
-            return;
-        }
+        // The row interval already keeps lanes within the 1/255 ellipse, so the exact alpha
+        // test is the only one (power ≤ 0 guards against rounding in the conic).
         let alpha = (sp.opacity * exp4(power)).min(f32x4::splat(MAX_ALPHA));
-        let valid = reached & alpha.simd_ge(f32x4::splat(MIN_ALPHA));
+        let valid = live & alpha.simd_ge(f32x4::splat(MIN_ALPHA)) & power.simd_le(f32x4::ZERO);
         if valid.none() {
             return;
         }
         let next = t * (f32x4::ONE - alpha);
         let saturated = valid & next.simd_lt(f32x4::splat(MIN_TRANSMITTANCE));
         if saturated.any() {
-            self.remaining -= saturated.to_bitmask().count_ones() as usize;
+            let bits = saturated.to_bitmask();
+            self.remaining -= bits.count_ones() as usize;
+            self.live[ly] &= !((bits as u16) << (gx * 4));
         }
         let blend = valid & !saturated;
         let w = (alpha * t) & blend;
@@ -172,7 +208,6 @@ impl TileState {
 /// A splat's per-lane constants for [`TileState::blend_vector`].
 struct SplatLanes {
     opacity: f32x4,
-    min_power: f32x4,
     r: f32x4,
     g: f32x4,
     b: f32x4,
@@ -184,9 +219,6 @@ impl SplatLanes {
     fn new(s: &Splat) -> SplatLanes {
         SplatLanes {
             opacity: f32x4::splat(s.opacity),
-            // power ≥ −cutoff/2 ⟺ inside the ellipse where alpha can reach 1/255 (the cutoff
-            // errs outwards, so no lane that passes the exact alpha test is lost).
-            min_power: f32x4::splat(-0.5 * s.cutoff),
             r: f32x4::splat(s.color[0]),
             g: f32x4::splat(s.color[1]),
             b: f32x4::splat(s.color[2]),
@@ -196,36 +228,9 @@ impl SplatLanes {
     }
 }
 
-/// e^x, four lanes, for x ≤ 0 down to about −87 (relative error below 5e-6): 2^(x log₂e) split
-/// at the nearest integer, the fraction in [−½, ½] by a degree-5 polynomial.
+/// ⌊x⌋ clamped to 0 … 16 (a pixel index within a tile, or one past the end), without the
+/// library call: truncation floors once x is clamped to be non-negative.
 #[inline]
-pub fn exp4(x: f32x4) -> f32x4 {
-    let y = (x * f32x4::splat(std::f32::consts::LOG2_E)).max(f32x4::splat(-126.0));
-    let n = y.round_int();
-    let f = y - f32x4::from_i32x4(n);
-    let p = f32x4::ONE
-        + f * (f32x4::splat(std::f32::consts::LN_2)
-            + f * (f32x4::splat(0.240_226_5)
-                + f * (f32x4::splat(0.055_504_11)
-                    + f * (f32x4::splat(0.009_618_129) + f * f32x4::splat(0.001_333_355_8)))));
-    let scale: f32x4 = cast((n + i32x4::splat(127)) << 23);
-    scale * p
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn exp4_is_accurate_where_it_is_used() {
-        let mut x = -20.0f32;
-        while x <= 0.0 {
-            let got = exp4(f32x4::new([x, x - 1e-3, x - 2e-3, x - 3e-3])).to_array();
-            for (k, g) in got.iter().enumerate() {
-                let want = (x - k as f32 * 1e-3).exp();
-                assert!((g - want).abs() <= want * 5e-6, "exp({x}) = {g} vs {want}");
-            }
-            x += 0.004;
-        }
-    }
+fn floor_index(x: f32) -> usize {
+    x.clamp(0.0, TILE as f32) as i32 as usize
 }

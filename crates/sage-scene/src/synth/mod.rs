@@ -193,8 +193,8 @@ pub fn generate(config: &SynthConfig) -> Result<Scene> {
     }
     // Stored along a Morton curve, as splat-transform stores InteriorGS files: compressed chunks
     // stay tight and renderers read the store sequentially.
-    let sampled = surfaces::sample(&patches, config.gaussians, rng.next_u64())?;
-    let gaussians = sampled.permuted(&sampled.morton_order());
+    let mut gaussians = surfaces::sample(&patches, config.gaussians, rng.next_u64())?;
+    gaussians.sort_morton();
     let occupancy = occupancy::build(&layout, &items, config.cell)?;
     let mut scene = Scene {
         name: config.scene_name(),
