@@ -179,19 +179,7 @@ pub fn id_color(id: u32) -> [u8; 3] {
     if id == 0 {
         return [0, 0, 0];
     }
-    let h = (id as f32 * 0.618_034).fract() * 6.0;
-    let (s, v) = (0.65, 0.95);
-    let f = h.fract();
-    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
-    let rgb = match h as u32 {
-        0 => [v, t, p],
-        1 => [q, v, p],
-        2 => [p, v, t],
-        3 => [p, q, v],
-        4 => [t, p, v],
-        _ => [v, p, q],
-    };
-    rgb.map(|c| (c * 255.0).round() as u8)
+    sage_scene::palette::distinct_color(id)
 }
 
 fn colorize(ids: impl Iterator<Item = u32>) -> Vec<u8> {

@@ -1,24 +1,10 @@
 //! The `sage3d` binary end to end: synth, info, convert, demo and bad input.
 
+mod common;
+
+use common::{ok, sage3d};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn sage3d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sage3d"))
-        .args(args)
-        .output()
-        .expect("sage3d runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = sage3d(args);
-    assert!(
-        out.status.success(),
-        "sage3d {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn testdata(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

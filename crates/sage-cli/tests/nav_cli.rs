@@ -1,25 +1,11 @@
 //! `sage3d nav map` and `sage3d nav trajectories` end to end: outputs, byte-identical reruns
 //! across thread counts, resume over a folder of scenes, and a clear error for a bad folder.
 
+mod common;
+
+use common::{ok, sage3d};
+
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn sage3d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sage3d"))
-        .args(args)
-        .output()
-        .expect("sage3d runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = sage3d(args);
-    assert!(
-        out.status.success(),
-        "sage3d {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")

@@ -1,14 +1,9 @@
 //! `sage3d physics drive`: one JSON report per step on a synthetic scene, and bad input refused
 //! with a message naming the flag or command.
 
-use std::process::{Command, Output};
+mod common;
 
-fn sage3d(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sage3d"))
-        .args(args)
-        .output()
-        .expect("run sage3d")
-}
+use common::sage3d;
 
 #[test]
 fn drive_prints_a_report_per_step_and_refuses_bad_commands() {

@@ -174,21 +174,9 @@ pub fn legend_height(rows: usize) -> usize {
     40 + rows * LEGEND_ROW as usize
 }
 
-/// A distinct, stable colour per index (golden-ratio hues).
+/// A distinct, stable colour per index.
 pub fn palette(index: usize) -> [u8; 3] {
-    let h = ((index as f32 + 1.0) * 0.618_034).fract() * 6.0;
-    let (s, v) = (0.6, 0.9);
-    let f = h.fract();
-    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
-    let rgb = match h as u32 {
-        0 => [v, t, p],
-        1 => [q, v, p],
-        2 => [p, v, t],
-        3 => [p, q, v],
-        4 => [t, p, v],
-        _ => [v, p, q],
-    };
-    rgb.map(|c| (c * 255.0).round() as u8)
+    sage_scene::palette::distinct_color(index as u32 + 1)
 }
 
 /// The 5×7 bitmap of a character (rows top to bottom, bit 4 = leftmost column).

@@ -17,6 +17,7 @@ pub mod instances;
 pub mod mesh;
 pub mod object;
 pub mod occupancy;
+pub mod palette;
 pub mod ply;
 pub mod preview;
 pub mod scene;

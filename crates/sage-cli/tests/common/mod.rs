@@ -1,0 +1,24 @@
+//! Helpers shared by the CLI tests: run the built `sage3d` binary.
+
+#![allow(dead_code)] // each test file uses its own subset
+
+use std::process::{Command, Output};
+
+/// Runs `sage3d ARGS…` and returns its output, whatever the exit status.
+pub fn sage3d(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sage3d"))
+        .args(args)
+        .output()
+        .expect("sage3d runs")
+}
+
+/// Runs `sage3d ARGS…`, asserts success and returns standard output.
+pub fn ok(args: &[&str]) -> String {
+    let out = sage3d(args);
+    assert!(
+        out.status.success(),
+        "sage3d {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
