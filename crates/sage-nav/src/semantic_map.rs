@@ -259,16 +259,18 @@ impl SemanticMap {
         legend.extend(extra_legend.iter().cloned());
         legend.extend(categories.iter().map(|c| (colour_of(c), c.to_string())));
         let chars = legend.iter().map(|(_, l)| l.len()).max().unwrap_or(8);
-        let map_w = grid.width;
+        // Whole pixels per cell, so that a typical floor plan is drawn about 800 pixels across.
+        let zoom = (MAP_PIXELS / grid.width.max(grid.height).max(1)).clamp(1, 8);
+        let (map_w, map_h) = (grid.width * zoom, grid.height * zoom);
         let width = map_w + draw::legend_width(chars);
-        let height = grid.height.max(draw::legend_height(legend.len()));
+        let height = map_h.max(draw::legend_height(legend.len()));
         let mut canvas = Canvas::new(
             width,
             height,
             [255, 255, 255],
             grid.origin,
-            grid.cell,
-            grid.height,
+            grid.cell / zoom as f32,
+            map_h,
         );
         for j in 0..grid.height {
             for i in 0..grid.width {
@@ -277,7 +279,12 @@ impl SemanticMap {
                     (_, crate::grid::NO_ROOM) => OUTSIDE,
                     (_, r) => room_tint(r as usize),
                 };
-                canvas.put(i as i64, (grid.height - 1 - j) as i64, c);
+                let (x0, y0) = (i * zoom, (grid.height - 1 - j) * zoom);
+                for y in y0..y0 + zoom {
+                    for x in x0..x0 + zoom {
+                        canvas.put(x as i64, y as i64, c);
+                    }
+                }
             }
         }
         for item in self.items.iter().filter(|i| i.state.is_none()) {
@@ -298,6 +305,8 @@ impl SemanticMap {
     }
 }
 
+/// Target size of the map part of the images (pixels along the longer side).
+const MAP_PIXELS: usize = 800;
 /// Walls in the PNG.
 const WALL: [u8; 3] = [30, 30, 30];
 /// Occupied slab cells in the PNG.
