@@ -93,8 +93,21 @@ impl DecompArgs {
     /// Loads the scene and builds its bodies.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
         let (scene, _) = Scene::load(scene_dir)?;
-        let (bodies, report) =
-            SceneBodies::build(&scene, &self.decomposer()?, &self.cache(scene_dir))?;
+        // Hidden when standard error is not a terminal.
+        let bar = indicatif::ProgressBar::new(scene.objects.len() as u64).with_style(
+            indicatif::ProgressStyle::with_template(
+                "collision bodies {bar:40} {pos}/{len} objects {elapsed}",
+            )
+            .expect("static template"),
+        );
+        let built = SceneBodies::build_with_progress(
+            &scene,
+            &self.decomposer()?,
+            &self.cache(scene_dir),
+            &|| bar.inc(1),
+        );
+        bar.finish_and_clear();
+        let (bodies, report) = built?;
         Ok((scene, bodies, report))
     }
 }

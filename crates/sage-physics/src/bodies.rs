@@ -152,6 +152,17 @@ impl SceneBodies {
         decomposer: &Decomposer,
         cache: &HullCache,
     ) -> Result<(SceneBodies, BuildReport)> {
+        Self::build_with_progress(scene, decomposer, cache, &|| {})
+    }
+
+    /// [`SceneBodies::build`], calling `object_done` after each object's parts are ready (from
+    /// worker threads), for progress bars: a cold decomposition takes seconds per object.
+    pub fn build_with_progress(
+        scene: &Scene,
+        decomposer: &Decomposer,
+        cache: &HullCache,
+        object_done: &(dyn Fn() + Sync),
+    ) -> Result<(SceneBodies, BuildReport)> {
         decomposer.validate()?;
         let start = Instant::now();
         let mut report = BuildReport {
@@ -162,7 +173,11 @@ impl SceneBodies {
         let object_parts = scene
             .objects
             .par_iter()
-            .map(|o| object_parts(o.mesh.as_ref(), &o.obb, decomposer, cache))
+            .map(|o| {
+                let parts = object_parts(o.mesh.as_ref(), &o.obb, decomposer, cache);
+                object_done();
+                parts
+            })
             .collect::<Vec<_>>();
         let mut bodies = Vec::new();
         for (oi, (o, parts)) in scene.objects.iter().zip(object_parts).enumerate() {
