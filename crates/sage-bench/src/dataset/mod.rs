@@ -1,0 +1,1 @@
+//! Datasets: from scenes to episodes, splits and files.
