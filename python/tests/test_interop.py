@@ -23,8 +23,11 @@ def test_convert_compressed_to_standard_matches_splat_transform(sage3d, tmp_path
         ours = vertex_table(out)
         tool = vertex_table(TESTDATA / f"{stem}.decompressed.ply")
         assert len(ours) == len(tool)
-        for name in ["x", "y", "z", "scale_0", "scale_1", "scale_2"]:
+        for name in ["x", "y", "z"]:
             np.testing.assert_allclose(ours[name], tool[name], atol=1e-4, err_msg=name)
+        # sage3d keeps log-scales in steps of 1/2048 (docs/scene-format.md): half a step more.
+        for name in ["scale_0", "scale_1", "scale_2"]:
+            np.testing.assert_allclose(ours[name], tool[name], atol=1e-4 + 1 / 4096, err_msg=name)
         for name in ["f_dc_0", "f_dc_1", "f_dc_2"]:
             np.testing.assert_allclose(ours[name], tool[name], atol=2e-3, err_msg=name)
         alpha = lambda logit: 1.0 / (1.0 + np.exp(-np.clip(logit, -30, 30)))
