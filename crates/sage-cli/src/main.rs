@@ -4,6 +4,7 @@
 //! function, prints or writes the result. See `sage3d --help`.
 
 mod bench;
+mod data_cmd;
 mod machine;
 mod nav_cmd;
 mod physics_cmd;
@@ -46,6 +47,9 @@ enum Command {
     /// Navigation: semantic top-down maps, occupancy grids, trajectories.
     #[command(subcommand)]
     Nav(nav_cmd::NavCommand),
+    /// Benchmark datasets: instructions, episodes, splits and their files.
+    #[command(subcommand)]
+    Data(data_cmd::DataCommand),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -69,6 +73,7 @@ fn main() -> ExitCode {
         Command::Physics(c) => physics_cmd::run(c),
         Command::Export(c) => physics_cmd::run_export(c),
         Command::Nav(c) => nav_cmd::run(c),
+        Command::Data(c) => data_cmd::run(c),
         Command::Bench(c) => bench::run(c),
     };
     match result {

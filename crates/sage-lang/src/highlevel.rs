@@ -180,7 +180,7 @@ fn lookup<'a>(table: &'a [(&str, &'a [&'a str])], keys: &[String]) -> Vec<&'a st
 fn goal_phrase(tm: &TextMap, goal: &EndRef, style: Style, rng: &mut impl Rng) -> Option<String> {
     if goal.kind == EndpointKind::Object && style != Style::Any {
         let k = tm.object_index(&goal.reference)?;
-        return Some(refexp::describe_random(tm, k, style, rng)?.render(tm));
+        return Some(refexp::describe_random(tm, k, style, rng)?.render());
     }
     if style != Style::Any {
         return None;

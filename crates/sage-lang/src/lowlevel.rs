@@ -134,7 +134,7 @@ pub fn end_phrase(tm: &TextMap, end: &EndRef) -> Option<String> {
         EndpointKind::Room => refexp::room_phrase(tm, room_index(&end.reference)?),
         EndpointKind::Object => {
             let k = tm.object_index(&end.reference)?;
-            Some(refexp::describe(tm, k, Style::Any)?.render(tm))
+            Some(refexp::describe(tm, k, Style::Any)?.render())
         }
         EndpointKind::Area => refexp::area_phrase(tm, &end.reference),
     }

@@ -104,7 +104,7 @@ impl Description {
     }
 
     /// The text, with its article (`the red chair in the kitchen`).
-    pub fn render(&self, tm: &TextMap) -> String {
+    pub fn render(&self) -> String {
         let mut s = String::from("the ");
         if let Some(a) = &self.attribute {
             s.push_str(&a.word);
@@ -115,7 +115,7 @@ impl Description {
             s.push(' ');
             s.push_str(kind.phrase());
             s.push(' ');
-            s.push_str(&landmark.render(tm));
+            s.push_str(&landmark.render());
         }
         if let Some(rt) = &self.room_type {
             s.push_str(" in the ");

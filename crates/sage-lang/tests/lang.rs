@@ -78,8 +78,8 @@ fn every_description_picks_out_exactly_its_object() {
                 let d = refexp::describe(&tm, k, style);
                 let r = refexp::describe_random(&tm, k, style, &mut rng);
                 for d in d.iter().chain(r.iter()) {
-                    assert_eq!(d.extension(&tm), vec![k], "{}", d.render(&tm));
-                    assert!(d.render(&tm).contains(&tm.objects[k].noun));
+                    assert_eq!(d.extension(&tm), vec![k], "{}", d.render());
+                    assert!(d.render().contains(&tm.objects[k].noun));
                     match style {
                         Style::Relation => assert!(d.has_relation()),
                         Style::Attribute => assert!(d.attribute.is_some()),
@@ -108,7 +108,7 @@ fn a_category_with_one_instance_is_said_bare_and_ambiguous_ones_are_qualified() 
             .count();
         if let Some(d) = refexp::describe(&tm, k, Style::Any) {
             let bare = d.attribute.is_none() && d.room_type.is_none() && d.relation.is_none();
-            assert_eq!(bare, n == 1, "{} ({n} of them)", d.render(&tm));
+            assert_eq!(bare, n == 1, "{} ({n} of them)", d.render());
         }
     }
 }

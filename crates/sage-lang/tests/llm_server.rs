@@ -24,8 +24,11 @@ struct ServerState {
     bodies: Mutex<Vec<serde_json::Value>>,
 }
 
-/// Reads one HTTP/1.1 request: (path, headers lower-cased, body).
-fn read_request(stream: &mut TcpStream) -> Option<(String, Vec<(String, String)>, Vec<u8>)> {
+/// Header names (lower case) and values.
+type Headers = Vec<(String, String)>;
+
+/// Reads one HTTP/1.1 request: (path, headers, body).
+fn read_request(stream: &mut TcpStream) -> Option<(String, Headers, Vec<u8>)> {
     let mut reader = BufReader::new(stream.try_clone().ok()?);
     let mut line = String::new();
     reader.read_line(&mut line).ok()?;

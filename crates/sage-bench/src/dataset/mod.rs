@@ -1,1 +1,15 @@
 //! Datasets: from scenes to episodes, splits and files.
+//!
+//! [`episode`] is the record of one episode (SPEC §9), [`slices`] its complexity tags,
+//! [`split`] the train / val / test assignment with the three unseen test sets, [`selector`] the
+//! balanced test selection, [`formats`] the files (JSONL, GVLN, R2R-VLNCE) and [`build`] the
+//! whole pipeline over a folder of scenes.
+
+pub mod build;
+pub mod episode;
+pub mod formats;
+pub mod selector;
+pub mod slices;
+pub mod split;
+
+pub use episode::{Episode, Goal, StartPose, Task};

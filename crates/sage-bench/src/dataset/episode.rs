@@ -1,0 +1,89 @@
+//! One episode of the benchmark (SPEC §9), W frame.
+
+use crate::dataset::slices::Slices;
+use sage_core::Pose;
+use sage_lang::{Action, InstructionType, Level, SingleGoalKind, Source};
+use serde::{Deserialize, Serialize};
+
+/// Task of an episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Task {
+    /// Vision-and-language navigation to a goal.
+    Vln,
+    /// Explore without a goal.
+    Nogoal,
+}
+
+/// A start pose: position (W, floor z) and heading (radians, +x counter-clockwise).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StartPose {
+    /// `[x, y, z]`, metres.
+    pub position: [f32; 3],
+    /// Heading, radians.
+    pub yaw: f32,
+}
+
+impl StartPose {
+    /// As a [`Pose`].
+    pub fn pose(&self) -> Pose {
+        Pose::new(self.position.into(), self.yaw)
+    }
+}
+
+/// The goal of a VLN episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Goal {
+    /// What the goal is (`sofa_2`, `room_3`, `dining_area_1`; empty for Base-Action).
+    #[serde(rename = "ref")]
+    pub reference: String,
+    /// `object`, `room`, `area` or `pose` (Base-Action: the pose the motion ends at).
+    pub kind: String,
+    /// Goal point `[x, y, z]` (the reference path's end), metres.
+    pub position: [f32; 3],
+}
+
+/// One episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Episode {
+    /// Unique id: `{scene}-t{trajectory}-{k}`, `{scene}-b{i}` or `{scene}-n{i}`.
+    pub episode_id: String,
+    /// Scene name.
+    pub scene: String,
+    /// `vln` or `nogoal`.
+    pub task: Task,
+    /// Index of the trajectory in the scene (`None` for Base-Action and no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trajectory_id: Option<usize>,
+    /// Instruction text.
+    pub instruction: String,
+    /// `high` or `low` (`None` for no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<Level>,
+    /// Instruction type.
+    pub instruction_type: InstructionType,
+    /// Single-Goal subtype.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subtype: Option<SingleGoalKind>,
+    /// Who wrote the instruction.
+    pub source: Source,
+    /// Start reference (`chair_3`, `room_2`, …), if the start is one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_ref: Option<String>,
+    /// Start pose.
+    pub start: StartPose,
+    /// Goal (`None` for no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goal: Option<Goal>,
+    /// Dense reference path `[x, y, z]`, W frame (every 0.25 m; the replayed motion for
+    /// Base-Action; the start alone for no-goal).
+    pub reference_path: Vec<[f32; 3]>,
+    /// Ground-truth actions (0 STOP, 1 FORWARD, 2 LEFT, 3 RIGHT), ending with STOP.
+    pub actions: Vec<Action>,
+    /// Length of the reference path, metres.
+    pub path_length: f32,
+    /// Geodesic distance start → goal, metres (0 for no-goal).
+    pub geodesic_distance: f32,
+    /// Complexity slices.
+    pub slices: Slices,
+}

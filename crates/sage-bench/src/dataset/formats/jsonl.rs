@@ -1,0 +1,33 @@
+//! Our episode file: one JSON episode per line, W frame (Z up, metres, headings in radians).
+
+use crate::dataset::episode::Episode;
+use sage_core::{Error, Result, ResultExt};
+use std::io::Write;
+use std::path::Path;
+
+/// Writes `episodes`, one per line (atomically).
+pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
+    sage_scene::fsutil::write_atomic(path, |w| {
+        for e in episodes {
+            serde_json::to_writer(&mut *w, e).map_err(std::io::Error::other)?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })
+}
+
+/// Reads episodes; an error names the file and line.
+pub fn read(path: &Path) -> Result<Vec<Episode>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .map_err(|e| {
+                    Error::format(format!("line {}", i + 1), format!("not an episode: {e}"))
+                })
+                .in_file(path)
+        })
+        .collect()
+}

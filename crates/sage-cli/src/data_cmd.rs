@@ -1,0 +1,163 @@
+//! `sage3d data …`: benchmark datasets (instructions, episodes, splits, files).
+
+use clap::{Args, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
+use sage_bench::dataset::split::SplitParams;
+use sage_core::{Error, Result};
+use sage_lang::llm::LlmConfig;
+use sage_scene::fsutil::write_json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Subcommand)]
+pub enum DataCommand {
+    /// Build a dataset over a folder of scenes: trajectories, instructions (grammar or LLM),
+    /// episodes, splits, JSONL / GVLN / R2R-VLNCE files and a summary (parallel, resumable).
+    Build(BuildArgs),
+}
+
+#[derive(Args)]
+pub struct BuildArgs {
+    /// A scene folder, or a folder of scene folders.
+    scenes: PathBuf,
+    /// Output dataset folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Trajectories per scene (each gives a Single-Goal and up to five high-level episodes).
+    #[arg(long, default_value_t = 20)]
+    per_scene: usize,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Base-Action episodes per scene (default: a quarter of --per-scene).
+    #[arg(long)]
+    base_actions: Option<usize>,
+    /// No-goal episodes per scene.
+    #[arg(long, default_value_t = 1)]
+    nogoal: usize,
+    /// High-level instructions kept per type and trajectory.
+    #[arg(long, default_value_t = 1)]
+    high_per_type: usize,
+    /// Size of the balanced test selection (0: none).
+    #[arg(long, default_value_t = 1000)]
+    balanced: usize,
+    /// Share of scenes held out for the scene-unseen test set.
+    #[arg(long, default_value_t = 0.15)]
+    scene_unseen: f32,
+    /// Share of scenes for validation.
+    #[arg(long, default_value_t = 0.1)]
+    val: f32,
+    /// OpenAI-compatible base URL for high-level instructions (default: the offline grammar).
+    #[arg(long)]
+    llm_url: Option<String>,
+    /// LLM model name.
+    #[arg(long, default_value = "gpt-4o-mini")]
+    llm_model: String,
+    /// Environment variable holding the LLM API key.
+    #[arg(long, default_value = "OPENAI_API_KEY")]
+    llm_key_env: String,
+    /// LLM requests in flight at most.
+    #[arg(long, default_value_t = 4)]
+    llm_concurrency: usize,
+    /// LLM answer cache (default: OUT/llm_cache).
+    #[arg(long)]
+    llm_cache: Option<PathBuf>,
+}
+
+pub fn run(cmd: DataCommand) -> Result<()> {
+    match cmd {
+        DataCommand::Build(a) => data_build(a),
+    }
+}
+
+fn data_build(a: BuildArgs) -> Result<()> {
+    let mut params = SceneParams::new(a.per_scene, a.seed);
+    if let Some(b) = a.base_actions {
+        params.base_actions = b;
+    }
+    params.nogoal = a.nogoal;
+    params.high_per_type = a.high_per_type;
+    params.llm = a.llm_url.as_ref().map(|url| LlmConfig {
+        base_url: url.clone(),
+        model: a.llm_model.clone(),
+        api_key_env: a.llm_key_env.clone(),
+        concurrency: a.llm_concurrency,
+        cache_dir: Some(
+            a.llm_cache
+                .clone()
+                .unwrap_or_else(|| a.out.join("llm_cache")),
+        ),
+        ..LlmConfig::default()
+    });
+    params.validate()?;
+    let assemble = AssembleParams {
+        seed: a.seed,
+        split: SplitParams {
+            scene_unseen: a.scene_unseen,
+            val: a.val,
+            ..SplitParams::default()
+        },
+        balanced: a.balanced,
+    };
+    if !(0.0..=1.0).contains(&a.scene_unseen) || !(0.0..=1.0).contains(&a.val) {
+        return Err(Error::invalid(
+            "--scene-unseen and --val must be shares between 0 and 1",
+        ));
+    }
+    let dirs = sage_nav::trajectory::scene_dirs(&a.scenes)?;
+    std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
+    let bar = ProgressBar::new(dirs.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let (outcomes, summary) = build::build(&dirs, &a.out, &params, &assemble, &|o| {
+        bar.set_message(o.scene.clone());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    let secs = start.elapsed().as_secs_f64();
+    for o in outcomes.iter().filter(|o| o.status == "skipped") {
+        eprintln!("skipped {}: {}", o.scene, o.reason.as_deref().unwrap_or(""));
+    }
+    let inputs: std::collections::BTreeMap<String, _> = dirs
+        .iter()
+        .map(|d| {
+            (
+                d.file_name()
+                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                sage_nav::trajectory::input_hashes(d),
+            )
+        })
+        .collect();
+    write_json(
+        &a.out.join("sage3d_run.json"),
+        &serde_json::json!({
+            "tool": "sage3d",
+            "version": env!("CARGO_PKG_VERSION"),
+            "command": "data build",
+            "seed": a.seed,
+            "config": {"scene": params, "assemble": assemble},
+            "inputs": inputs,
+        }),
+    )?;
+    print!("{}", summary.table());
+    let count = |s: &str| outcomes.iter().filter(|o| o.status == s).count();
+    let made: usize = outcomes
+        .iter()
+        .filter(|o| o.status == "done")
+        .map(|o| o.episodes)
+        .sum();
+    println!(
+        "{} scenes: {} done, {} already complete, {} skipped; {made} new episodes in {secs:.1} s ({:.1} episodes/s on {} threads) -> {}",
+        outcomes.len(),
+        count("done"),
+        count("resumed"),
+        count("skipped"),
+        made as f64 / secs.max(1e-9),
+        rayon::current_num_threads(),
+        a.out.display()
+    );
+    Ok(())
+}
