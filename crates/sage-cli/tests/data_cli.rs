@@ -34,21 +34,61 @@ fn build_writes_the_dataset_deterministically_and_resumes() {
     let scenes = dir.path().join("scenes");
     for seed in ["1", "2", "3"] {
         let out = scenes.join(format!("home{seed}"));
-        ok(&["scene", "synth", "--seed", seed, "--rooms", "3", "--objects", "30", "--gaussians", "1000", "--out", s(&out)]);
+        ok(&[
+            "scene",
+            "synth",
+            "--seed",
+            seed,
+            "--rooms",
+            "3",
+            "--objects",
+            "30",
+            "--gaussians",
+            "1000",
+            "--out",
+            s(&out),
+        ]);
     }
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
     let args = |out: &Path, threads: &str| {
-        vec!["--threads".to_string(), threads.into(), "data".into(), "build".into(), s(&scenes).into(), "--out".into(), s(out).into(), "--per-scene".into(), "4".into(), "--seed".into(), "5".into(), "--balanced".into(), "10".into()]
+        vec![
+            "--threads".to_string(),
+            threads.into(),
+            "data".into(),
+            "build".into(),
+            s(&scenes).into(),
+            "--out".into(),
+            s(out).into(),
+            "--per-scene".into(),
+            "4".into(),
+            "--seed".into(),
+            "5".into(),
+            "--balanced".into(),
+            "10".into(),
+        ]
     };
     let run = |v: Vec<String>| ok(&v.iter().map(String::as_str).collect::<Vec<_>>());
     let printed = run(args(&a, "1"));
-    assert!(printed.contains("3 scenes: 3 done") && printed.contains("validator|"), "{printed}");
+    assert!(
+        printed.contains("3 scenes: 3 done") && printed.contains("validator|"),
+        "{printed}"
+    );
     run(args(&b, "2"));
     assert_eq!(tree(&a), tree(&b));
-    for f in ["summary.json", "summary.txt", "splits.json", "sage3d_run.json", "episodes/train.jsonl", "gvln/train.json", "r2r/train/train.json.gz", "r2r/train/train_gt.json.gz"] {
+    for f in [
+        "summary.json",
+        "summary.txt",
+        "splits.json",
+        "sage3d_run.json",
+        "episodes/train.jsonl",
+        "gvln/train.json",
+        "r2r/train/train.json.gz",
+        "r2r/train/train_gt.json.gz",
+    ] {
         assert!(a.join(f).is_file(), "{f}");
     }
-    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(a.join("summary.json")).unwrap()).unwrap();
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(a.join("summary.json")).unwrap()).unwrap();
     assert!(summary["episodes"].as_u64().unwrap() > 10);
     assert!(summary["by_type"]["Single-Goal"].as_u64().unwrap() > 0);
     let again = run(args(&a, "2"));
@@ -59,7 +99,13 @@ fn build_writes_the_dataset_deterministically_and_resumes() {
 #[test]
 fn build_names_a_folder_without_scenes() {
     let dir = tempfile::tempdir().unwrap();
-    let out = sage3d(&["data", "build", s(dir.path()), "--out", s(&dir.path().join("o"))]);
+    let out = sage3d(&[
+        "data",
+        "build",
+        s(dir.path()),
+        "--out",
+        s(&dir.path().join("o")),
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("neither a scene folder"), "{err}");

@@ -28,8 +28,6 @@ pub enum RejectReason {
     UnknownType,
     /// An LLM answer whose `start` / `end` are not the ones asked for.
     EndpointMismatch,
-    /// An LLM answer that is not the JSON array asked for.
-    Unparsable,
     /// The same text twice for one trajectory.
     Duplicate,
 }
@@ -46,7 +44,6 @@ impl RejectReason {
             RejectReason::MissingFeature => "missing_feature",
             RejectReason::UnknownType => "unknown_type",
             RejectReason::EndpointMismatch => "endpoint_mismatch",
-            RejectReason::Unparsable => "unparsable",
             RejectReason::Duplicate => "duplicate",
         }
     }
