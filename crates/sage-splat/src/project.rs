@@ -1,6 +1,6 @@
 //! EWA projection of Gaussians into screen-space splats (the standard 3DGS formation), four at
 //! a time: 3-D covariance from rotation and scale, the pinhole Jacobian with the 1.3×
-//! frustum-edge clamp, a 0.3 px² low-pass, and an opacity-aware screen radius.
+//! frustum-edge clamp, a 0.3 px² low-pass, and the opacity-aware screen box of the 1/255 ellipse.
 
 use crate::camera::Camera;
 use crate::fastmath::{exp4, ln4};
@@ -30,8 +30,9 @@ pub struct Splat {
     pub depth: f32,
     /// Instance id.
     pub instance: u32,
-    /// Half-width of the screen square outside which alpha < 1/255 (pixels).
-    pub radius: f32,
+    /// Half-width and half-height (pixels) of the box around the ellipse outside which
+    /// alpha < 1/255: sqrt(cutoff · Σ'ₓₓ) and sqrt(cutoff · Σ'ᵧᵧ).
+    pub extent: [f32; 2],
     /// Mahalanobis distance² at which alpha falls to 1/255: 2 ln(255 · opacity).
     pub cutoff: f32,
 }
@@ -58,8 +59,8 @@ pub struct Footprints4 {
     pub y: f32x4,
     /// Inverse 2-D covariances (a, b, c).
     pub conic: [f32x4; 3],
-    /// Screen radii (pixels).
-    pub radius: f32x4,
+    /// Half-width and half-height of the 1/255 ellipse's box (pixels).
+    pub extent: [f32x4; 2],
     /// Mahalanobis cut-offs.
     pub cutoff: f32x4,
     /// Bit `k` set when lane `k` survived: centre within the clip range, opacity at least
@@ -69,7 +70,7 @@ pub struct Footprints4 {
 
 /// EWA projection of four Gaussians at once: Σ = R S² Rᵀ, the pinhole Jacobian J at the
 /// mean with the 1.3× frustum-edge clamp, Σ' = J W Σ Wᵀ Jᵀ + 0.3 I, its inverse (the conic)
-/// and the radius of the square outside which alpha < 1/255.
+/// and the box outside which alpha < 1/255.
 pub fn project4(camera: &Camera, g: &Gaussians4) -> Footprints4 {
     let k = camera.intrinsics;
     let splat = f32x4::splat;
@@ -105,9 +106,7 @@ pub fn project4(camera: &Camera, g: &Gaussians4) -> Footprints4 {
     // A hair above 2 ln(255 o): the cutoff only bounds where pixels are visited (each one
     // still checks alpha ≥ 1/255 exactly), so rounding must err outwards.
     let cutoff = splat(2.0) * ln4(splat(255.0) * g.opacity.max(splat(MIN_ALPHA))) + splat(1e-3);
-    let mid = splat(0.5) * (a + c);
-    let lambda = mid + (mid * mid - det).max(splat(0.1)).sqrt();
-    let radius = (cutoff * lambda).sqrt();
+    let extent = [(cutoff * a).sqrt(), (cutoff * c).sqrt()];
     let x = splat(k.fx) * tx * inv_z + splat(k.cx);
     let y = splat(k.fy) * ty * inv_z + splat(k.cy);
     let (w_px, h_px) = (splat(k.width as f32), splat(k.height as f32));
@@ -116,15 +115,15 @@ pub fn project4(camera: &Camera, g: &Gaussians4) -> Footprints4 {
         & g.opacity.simd_ge(splat(MIN_ALPHA))
         & det.simd_gt(f32x4::ZERO)
         & det.simd_lt(splat(f32::INFINITY))
-        & (x + radius).simd_ge(f32x4::ZERO)
-        & (x - radius).simd_le(w_px)
-        & (y + radius).simd_ge(f32x4::ZERO)
-        & (y - radius).simd_le(h_px);
+        & (x + extent[0]).simd_ge(f32x4::ZERO)
+        & (x - extent[0]).simd_le(w_px)
+        & (y + extent[1]).simd_ge(f32x4::ZERO)
+        & (y - extent[1]).simd_le(h_px);
     Footprints4 {
         x,
         y,
         conic: [c * inv_det, -b * inv_det, a * inv_det],
-        radius,
+        extent,
         cutoff,
         visible: visible.to_bitmask(),
     }
@@ -221,7 +220,7 @@ mod tests {
         assert_eq!(alone.visible, 0b1111);
         for (x, y) in [
             (all.x, alone.x),
-            (all.radius, alone.radius),
+            (all.extent[0], alone.extent[0]),
             (all.conic[1], alone.conic[1]),
         ] {
             assert_eq!(x.to_array()[0], y.to_array()[0]);

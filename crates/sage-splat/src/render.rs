@@ -396,10 +396,11 @@ impl Renderer {
             .for_each(|(b, (out, splats))| {
                 out.clear();
                 for (j, s) in splats.iter().enumerate() {
-                    let x0 = ((s.x - s.radius).max(0.0) / TILE as f32) as usize;
-                    let y0 = ((s.y - s.radius).max(0.0) / TILE as f32) as usize;
-                    let x1 = (((s.x + s.radius).min(w - 1.0)).max(0.0) / TILE as f32) as usize;
-                    let y1 = (((s.y + s.radius).min(h - 1.0)).max(0.0) / TILE as f32) as usize;
+                    let [ex, ey] = s.extent;
+                    let x0 = ((s.x - ex).max(0.0) / TILE as f32) as usize;
+                    let y0 = ((s.y - ey).max(0.0) / TILE as f32) as usize;
+                    let x1 = (((s.x + ex).min(w - 1.0)).max(0.0) / TILE as f32) as usize;
+                    let y1 = (((s.y + ey).min(h - 1.0)).max(0.0) / TILE as f32) as usize;
                     let (x1, y1) = (x1.min(tiles_x - 1), y1.min(tiles_y - 1));
                     let single = x0 == x1 && y0 == y1;
                     for ty in y0.min(tiles_y - 1)..=y1 {
@@ -642,12 +643,8 @@ impl SlabProjection<'_> {
             opacity: f32x4::new(lanes.map(|s| s.opacity)),
         };
         let f = project4(self.camera, &input);
-        let (x, y, radius, cutoff) = (
-            f.x.to_array(),
-            f.y.to_array(),
-            f.radius.to_array(),
-            f.cutoff.to_array(),
-        );
+        let (x, y, cutoff) = (f.x.to_array(), f.y.to_array(), f.cutoff.to_array());
+        let extent = f.extent.map(|v| v.to_array());
         let conic = f.conic.map(|v| v.to_array());
         let mut rest = [[0.0f32; 3]; 15];
         let mut n = 0;
@@ -668,7 +665,7 @@ impl SlabProjection<'_> {
                 color: sh::color(g.sh_dc[i].map(|v| v.to_f32()), &rest[..self.sh_rest], dir),
                 depth: s.t.z,
                 instance: g.instances[i],
-                radius: radius[k],
+                extent: [extent[0][k], extent[1][k]],
                 cutoff: cutoff[k],
             };
             n += 1;

@@ -109,62 +109,44 @@ impl TileState {
     /// Blends `list` (depth-bits << 32 | splat index, already front to back) into the tile whose
     /// top-left pixel is (x0, y0).
     ///
-    /// Each splat visits, row by row, only the pixel centres inside its 1/255 ellipse (the
-    /// exact interval of the quadratic form, widened by a hair so no boundary pixel is lost)
-    /// that are still live, four pixels at a time.
+    /// Each splat visits, row by row, only the pixel centres inside its 1/255 ellipse
+    /// ([`RowSpans`]) that are still live, four pixels at a time. The rows' intervals are
+    /// solved together before any pixel is touched: they do not depend on the pixel state, so
+    /// their square roots stay off the blending's critical path.
     pub fn blend(&mut self, splats: &[Splat], list: &[u64], x0: usize, y0: usize) {
+        let origin = (x0 as f32 + 0.5, y0 as f32 + 0.5);
         for &entry in list {
             if self.remaining == 0 {
                 return;
             }
             let sp = &splats[entry as u32 as usize];
-            let [a, b, c] = sp.conic;
-            let (cx, cy) = (sp.x - x0 as f32 - 0.5, sp.y - y0 as f32 - 0.5);
-            // Per row dy the pixels with a dx² + 2b dx dy + c dy² ≤ cutoff (dx = cx − lx) are
-            // lx ∈ mid ± half with mid = cx + (b/a) dy, half = √(disc)/a and
-            // disc = a·cutoff − (ac − b²) dy², which is ≥ 0 for |dy| ≤ √(a·cutoff / (ac − b²)).
-            let det = a * c - b * b;
-            let (k0, inv_a, slope) = (a * sp.cutoff, 1.0 / a, b / a);
-            let reach_y = (k0 / det).sqrt() + ROW_SLACK;
-            if cy + reach_y < 0.0 {
+            self.blend_splat(sp, &RowSpans::of(sp, origin), origin);
+        }
+    }
+
+    /// Blends one splat into the live pixels of `span`, four at a time.
+    fn blend_splat(&mut self, sp: &Splat, span: &RowSpans, origin: (f32, f32)) {
+        let [a, b, c] = sp.conic;
+        let (cx, cy) = (sp.x - origin.0, sp.y - origin.1);
+        let splat = SplatLanes::new(sp);
+        for ly in span.first_row as usize..span.end_row as usize {
+            let row_bits = u32::from(self.live[ly] & span.bits[ly]);
+            if row_bits == 0 {
                 continue;
             }
-            let ly0 = floor_index(cy - reach_y + 1.0);
-            let ly1 = (floor_index(cy + reach_y) + 1).min(TILE);
-            let splat = SplatLanes::new(sp);
-            for ly in ly0..ly1 {
-                let live_row = self.live[ly];
-                if live_row == 0 {
+            let dy = cy - ly as f32;
+            let first = row_bits.trailing_zeros() as usize;
+            let last = 31 - row_bits.leading_zeros() as usize;
+            let row_part = f32x4::splat(-0.5 * c * dy * dy);
+            let b_dy = f32x4::splat(b * dy);
+            for gx in first / 4..=last / 4 {
+                let bits = (row_bits >> (gx * 4)) & 0xf;
+                if bits == 0 {
                     continue;
                 }
-                let dy = cy - ly as f32;
-                let disc = k0 - det * dy * dy;
-                let half = disc.max(0.0).sqrt() * inv_a + ROW_SLACK;
-                let mid = cx + slope * dy;
-                if mid + half < 0.0 {
-                    continue;
-                }
-                let first = floor_index(mid - half + 1.0);
-                let last = floor_index(mid + half).min(TILE - 1);
-                if first > last {
-                    continue;
-                }
-                let span = (u32::MAX >> (31 - last)) & !((1u32 << first) - 1);
-                let row_bits = u32::from(live_row) & span;
-                if row_bits == 0 {
-                    continue;
-                }
-                let row_part = f32x4::splat(-0.5 * c * dy * dy);
-                let b_dy = f32x4::splat(b * dy);
-                for gx in first / 4..=last / 4 {
-                    let bits = (row_bits >> (gx * 4)) & 0xf;
-                    if bits == 0 {
-                        continue;
-                    }
-                    let dx = f32x4::splat(cx - (gx * 4) as f32) - LANE_X;
-                    let power = row_part - (f32x4::splat(0.5 * a) * dx + b_dy) * dx;
-                    self.blend_vector(&splat, ly, gx, LANE_MASKS[bits as usize], power);
-                }
+                let dx = f32x4::splat(cx - (gx * 4) as f32) - LANE_X;
+                let power = row_part - (f32x4::splat(0.5 * a) * dx + b_dy) * dx;
+                self.blend_vector(&splat, ly, gx, LANE_MASKS[bits as usize], power);
             }
         }
     }
@@ -225,6 +207,71 @@ impl SplatLanes {
             depth: f32x4::splat(s.depth),
             instance: f32x4::splat(f32::from_bits(s.instance)),
         }
+    }
+}
+
+/// The pixels of a tile that a splat's 1/255 ellipse covers: rows `first_row..end_row`, and
+/// per row a bit per pixel centre inside the ellipse.
+#[derive(Clone, Copy)]
+struct RowSpans {
+    first_row: u8,
+    end_row: u8,
+    bits: [u16; TILE],
+}
+
+impl RowSpans {
+    const EMPTY: RowSpans = RowSpans {
+        first_row: 0,
+        end_row: 0,
+        bits: [0; TILE],
+    };
+
+    /// The span of `sp` in the tile whose first pixel centre is `origin`.
+    ///
+    /// In row dy the pixels with a dx² + 2b dx dy + c dy² ≤ cutoff (dx = cx − lx) are
+    /// lx ∈ mid ± half with mid = cx + (b/a) dy, half = √(disc)/a and
+    /// disc = a·cutoff − (ac − b²) dy², widened by a hair so that no boundary pixel is lost
+    /// (each covered pixel is then tested exactly). Four rows are solved at a time.
+    fn of(sp: &Splat, origin: (f32, f32)) -> RowSpans {
+        let [a, b, c] = sp.conic;
+        let (cx, cy) = (sp.x - origin.0, sp.y - origin.1);
+        let reach_y = sp.extent[1] + ROW_SLACK;
+        let mut span = RowSpans::EMPTY;
+        if cy + reach_y < 0.0 {
+            return span;
+        }
+        let first_row = floor_index(cy - reach_y + 1.0);
+        let end_row = (floor_index(cy + reach_y) + 1).min(TILE);
+        span.first_row = first_row as u8;
+        span.end_row = end_row.max(first_row) as u8;
+        let (det, inv_a) = (a * c - b * b, 1.0 / a);
+        let splat = f32x4::splat;
+        let mut ly = first_row;
+        while ly < end_row {
+            let dy = splat(cy) - (splat(ly as f32) + LANE_X);
+            let disc = splat(a * sp.cutoff) - splat(det) * dy * dy;
+            let half = disc.max(f32x4::ZERO).sqrt() * splat(inv_a) + splat(ROW_SLACK);
+            let mid = splat(cx) + splat(b * inv_a) * dy;
+            let lo = (mid - half + f32x4::ONE)
+                .max(f32x4::ZERO)
+                .min(splat(TILE as f32));
+            let (lo, hi) = (lo.to_array(), (mid + half).to_array());
+            let inside = disc.simd_ge(f32x4::ZERO).to_bitmask();
+            for k in 0..4 {
+                let row = ly + k;
+                if row >= end_row || inside >> k & 1 == 0 || hi[k] < 0.0 {
+                    continue;
+                }
+                // Truncation floors here: both bounds are non-negative.
+                let first = lo[k] as usize;
+                let last = hi[k].min((TILE - 1) as f32) as usize;
+                if first <= last {
+                    span.bits[row] = ((u32::MAX >> (31 - last)) & !((1u32 << first) - 1)) as u16;
+                }
+            }
+            ly += 4;
+        }
+        span
     }
 }
 
