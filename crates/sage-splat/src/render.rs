@@ -348,6 +348,11 @@ impl Renderer {
             sh_rest: sh_rest_count(g.sh_degree()),
             lo,
             hi,
+            lim: (
+                1.3 * camera.intrinsics.width as f32 * 0.5 / camera.intrinsics.fx,
+                1.3 * camera.intrinsics.height as f32 * 0.5 / camera.intrinsics.fy,
+            ),
+            reach_scale: MAX_SIGMAS * camera.intrinsics.fx.max(camera.intrinsics.fy),
         };
         // Chunks are projected a batch at a time into fixed slots, then compacted in chunk
         // order: scratch memory stays bounded however many chunks a slab touches.
@@ -553,6 +558,10 @@ struct SlabProjection<'a> {
     sh_rest: usize,
     lo: f32,
     hi: f32,
+    /// x/z and y/z limits of the Jacobian clamp.
+    lim: (f32, f32),
+    /// 3.33 σ in pixels per metre of σ at unit depth (the larger focal length).
+    reach_scale: f32,
 }
 
 impl SlabProjection<'_> {
@@ -590,17 +599,14 @@ impl SlabProjection<'_> {
             return None;
         }
         *examined += 1;
-        let max_log_scale = g.max_log_scale(i);
         // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
+        let inv_z = 1.0 / t.z;
+        let (sx, sy) = (t.x * inv_z, t.y * inv_z);
+        let (cx, cy) = (sx.clamp(-self.lim.0, self.lim.0), sy.clamp(-self.lim.1, self.lim.1));
+        let stretch = (2.0 + cx * cx + cy * cy).sqrt();
+        let reach = self.reach_scale * exp_fast(g.max_log_scale(i)) * stretch * inv_z + 1.0;
+        let (u, v) = (k.fx * sx + k.cx, k.fy * sy + k.cy);
         let (width, height) = (k.width as f32, k.height as f32);
-        let (lim_x, lim_y) = (1.3 * width * 0.5 / k.fx, 1.3 * height * 0.5 / k.fy);
-        let (sx, sy) = (
-            (t.x / t.z).clamp(-lim_x, lim_x),
-            (t.y / t.z).clamp(-lim_y, lim_y),
-        );
-        let stretch = (2.0 + sx * sx + sy * sy).sqrt();
-        let reach = MAX_SIGMAS * exp_fast(max_log_scale) * k.fx.max(k.fy) * stretch / t.z + 1.0;
-        let (u, v) = camera.project(t);
         if u < -reach || v < -reach || u > width + reach || v > height + reach {
             return None;
         }
