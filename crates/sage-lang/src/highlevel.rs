@@ -150,10 +150,10 @@ const NEEDS: &[(&str, &[&str])] = &[
     ("checkout", &["I'm ready to pay, [go to|head to]"]),
     ("counter", &["I'm ready to pay, [go to|head to]"]),
 ];
-/// Needs that fit any goal.
+/// Needs that fit any goal (`{at}`: `in` for rooms, else `by` / `near`).
 const NEEDS_ANY: &[&str] = &[
-    "I think I left my phone by",
-    "I may have dropped my keys near",
+    "I think I left my phone {at}",
+    "I may have dropped my keys {at}",
 ];
 
 /// The words a goal is known by: its category words, area name words or room name words.
@@ -247,7 +247,13 @@ pub fn generate(
             if needs.is_empty() || rng.random_bool(0.15) {
                 needs = NEEDS_ANY.to_vec();
             }
-            let need = fill(needs.choose(rng)?, &BTreeMap::new(), rng)?;
+            let at = if goal.kind == EndpointKind::Room {
+                "in"
+            } else {
+                "[by|near]"
+            };
+            let at_slot: BTreeMap<&str, String> = [("at", fill(at, &BTreeMap::new(), rng)?)].into();
+            let need = fill(needs.choose(rng)?, &at_slot, rng)?;
             slots.insert("need", need);
             slots.insert("goal", goal_phrase(tm, goal, Style::Any, rng)?);
             if needs == NEEDS_ANY {
