@@ -602,7 +602,10 @@ impl SlabProjection<'_> {
         // ‖J‖ ≤ (f/z)·sqrt(2 + (x/z)² + (y/z)²) (Frobenius bound), +1 px for the low-pass.
         let inv_z = 1.0 / t.z;
         let (sx, sy) = (t.x * inv_z, t.y * inv_z);
-        let (cx, cy) = (sx.clamp(-self.lim.0, self.lim.0), sy.clamp(-self.lim.1, self.lim.1));
+        let (cx, cy) = (
+            sx.clamp(-self.lim.0, self.lim.0),
+            sy.clamp(-self.lim.1, self.lim.1),
+        );
         let stretch = (2.0 + cx * cx + cy * cy).sqrt();
         let reach = self.reach_scale * exp_fast(g.max_log_scale(i)) * stretch * inv_z + 1.0;
         let (u, v) = (k.fx * sx + k.cx, k.fy * sy + k.cy);
