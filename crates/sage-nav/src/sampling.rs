@@ -12,7 +12,8 @@
 //! - A **room** endpoint is any navigable cell of the room with clearance ≥ `room_clearance`
 //!   (all its navigable cells when none has that much), drawn uniformly.
 //!
-//! Doors and windows are never endpoints.
+//! Doors and windows are never endpoints, nor are objects whose base is above
+//! `max_object_base` (ceiling lamps, pictures hung high): nobody is sent to stand beside those.
 
 use crate::pathfinder::PathFinder;
 use crate::semantic_map::{SemanticMap, convex_hull};
@@ -87,6 +88,9 @@ pub struct SamplingParams {
     pub length_mix: Option<Vec<f32>>,
     /// Candidate pairs tried per wanted trajectory before giving up (default 50).
     pub attempts_per_trajectory: usize,
+    /// Highest base (lowest point above the floor) an object endpoint may have, metres
+    /// (default 1.2, the agent's height).
+    pub max_object_base: f32,
 }
 
 impl Default for SamplingParams {
@@ -102,6 +106,7 @@ impl Default for SamplingParams {
             length_edges: vec![8.4, 29.0],
             length_mix: None,
             attempts_per_trajectory: 50,
+            max_object_base: 1.2,
         }
     }
 }
@@ -209,7 +214,8 @@ impl Endpoints {
         let objects = map
             .items
             .iter()
-            .filter(|i| !(i.category.contains("door") || i.category.contains("window")));
+            .filter(|i| !(i.category.contains("door") || i.category.contains("window")))
+            .filter(|i| i.min_z <= params.max_object_base);
         for item in objects.clone() {
             let polygon = item.footprint_polygon();
             let stands = ring_stands(pf, &polygon, params);

@@ -473,15 +473,18 @@ fn endpoints_stand_beside_their_objects_at_a_safe_distance() {
             }
         }
     }
-    // Item ids of object endpoints are those of the semantic map.
+    // Item ids of object endpoints are those of the semantic map, and nobody is sent to an
+    // object hung above the agent (a ceiling lamp) though the scene has some.
     let map = SemanticMap::build(&scene);
+    assert!(map.items.iter().any(|i| i.min_z > sp.max_object_base));
     for e in prep
         .endpoints
         .list
         .iter()
         .filter(|e| e.kind == sage_nav::EndpointKind::Object)
     {
-        assert!(map.item(&e.reference).is_some(), "{}", e.reference);
+        let item = map.item(&e.reference).unwrap();
+        assert!(item.min_z <= sp.max_object_base, "{}", e.reference);
     }
     let _: &Endpoints = &prep.endpoints;
 }
