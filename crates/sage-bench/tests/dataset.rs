@@ -12,6 +12,7 @@ use sage_core::frame::SageFrame;
 use sage_core::wrap_angle;
 use sage_lang::InstructionType;
 use sage_lang::actions::{ActionSpace, replay};
+use sage_scene::fsutil::read_tree;
 use sage_scene::synth::{SynthConfig, generate};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -52,25 +53,6 @@ fn params() -> (SceneParams, AssembleParams) {
     )
 }
 
-fn files(root: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(root).unwrap().display().to_string(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
-
 fn build_with(threads: usize, out: &Path) -> Vec<build::SceneOutcome> {
     let (p, a) = params();
     let pool = rayon::ThreadPoolBuilder::new()
@@ -92,7 +74,7 @@ fn same_bytes_with_one_and_two_threads_and_resume_redoes_only_missing_scenes() {
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     build_with(1, a.path());
     build_with(2, b.path());
-    let (fa, fb) = (files(a.path()), files(b.path()));
+    let (fa, fb) = (read_tree(a.path()).unwrap(), read_tree(b.path()).unwrap());
     assert!(fa.len() > 20);
     assert_eq!(fa.keys().collect::<Vec<_>>(), fb.keys().collect::<Vec<_>>());
     for (k, v) in &fa {
@@ -104,7 +86,7 @@ fn same_bytes_with_one_and_two_threads_and_resume_redoes_only_missing_scenes() {
     let outcomes = build_with(2, b.path());
     let status: Vec<&str> = outcomes.iter().map(|o| o.status.as_str()).collect();
     assert_eq!(status, ["resumed", "resumed", "done", "resumed", "resumed"]);
-    assert_eq!(files(b.path()), fa);
+    assert_eq!(read_tree(b.path()).unwrap(), fa);
     // Other settings redo every scene.
     let (mut p, a2) = params();
     p.nogoal = 2;

@@ -2,9 +2,9 @@
 
 mod common;
 
-use common::{ok, sage3d};
+use common::{ok, s, sage3d};
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 fn testdata(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -12,10 +12,6 @@ fn testdata(name: &str) -> String {
         .join(name)
         .display()
         .to_string()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
 }
 
 #[test]

@@ -3,30 +3,9 @@
 
 mod common;
 
-use common::{ok, sage3d};
-use std::collections::BTreeMap;
+use common::{ok, s, sage3d};
+use sage_scene::fsutil::read_tree;
 use std::path::Path;
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
-
-fn tree(root: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                let k = p.strip_prefix(root).unwrap().display().to_string();
-                out.insert(k, std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
 
 #[test]
 fn build_writes_the_dataset_deterministically_and_resumes() {
@@ -74,7 +53,7 @@ fn build_writes_the_dataset_deterministically_and_resumes() {
         "{printed}"
     );
     run(args(&b, "2"));
-    assert_eq!(tree(&a), tree(&b));
+    assert_eq!(read_tree(&a).unwrap(), read_tree(&b).unwrap());
     for f in [
         "summary.json",
         "summary.txt",
@@ -93,7 +72,7 @@ fn build_writes_the_dataset_deterministically_and_resumes() {
     assert!(summary["by_type"]["Single-Goal"].as_u64().unwrap() > 0);
     let again = run(args(&a, "2"));
     assert!(again.contains("3 already complete"), "{again}");
-    assert_eq!(tree(&a), tree(&b));
+    assert_eq!(read_tree(&a).unwrap(), read_tree(&b).unwrap());
 }
 
 #[test]

@@ -3,13 +3,9 @@
 
 mod common;
 
-use common::{ok, sage3d};
+use common::{ok, s, sage3d};
 
 use std::path::Path;
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
-}
 
 fn synth(dir: &Path, seed: &str) {
     ok(&[

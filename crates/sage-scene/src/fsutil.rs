@@ -98,3 +98,27 @@ pub fn write_npy_f32(path: &Path, shape: &[usize], data: &[f32]) -> Result<()> {
         Ok(())
     })
 }
+
+/// Every file under `root` (recursively) with its bytes, keyed by its path relative to `root`:
+/// what "the same seed gives the same bytes" is checked against.
+pub fn read_tree(root: &Path) -> Result<std::collections::BTreeMap<String, Vec<u8>>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).map_err(|e| Error::io(&dir, e))? {
+            let path = entry.map_err(|e| Error::io(&dir, e))?.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                let key = path
+                    .strip_prefix(root)
+                    .unwrap_or(&path)
+                    .display()
+                    .to_string();
+                let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+                out.insert(key, bytes);
+            }
+        }
+    }
+    Ok(out)
+}
