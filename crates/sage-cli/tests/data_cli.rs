@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{ok, s, sage3d};
+use common::{ok, s, sage3d, small_scene};
 use sage_scene::fsutil::read_tree;
 use std::path::Path;
 
@@ -12,21 +12,7 @@ fn build_writes_the_dataset_deterministically_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let scenes = dir.path().join("scenes");
     for seed in ["1", "2", "3"] {
-        let out = scenes.join(format!("home{seed}"));
-        ok(&[
-            "scene",
-            "synth",
-            "--seed",
-            seed,
-            "--rooms",
-            "3",
-            "--objects",
-            "30",
-            "--gaussians",
-            "1000",
-            "--out",
-            s(&out),
-        ]);
+        small_scene(&scenes.join(format!("home{seed}")), seed, "1000");
     }
     let (a, b) = (dir.path().join("a"), dir.path().join("b"));
     let args = |out: &Path, threads: &str| {

@@ -3,34 +3,15 @@
 
 mod common;
 
-use common::{ok, s, sage3d};
+use common::{ok, s, sage3d, small_scene};
 
 use std::path::Path;
-
-fn synth(dir: &Path, seed: &str) {
-    ok(&[
-        "scene",
-        "synth",
-        "--seed",
-        seed,
-        "--rooms",
-        "3",
-        "--objects",
-        "30",
-        "--gaussians",
-        "2000",
-        "--layout",
-        "standard",
-        "--out",
-        s(dir),
-    ]);
-}
 
 #[test]
 fn map_writes_json_png_and_occupancy() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("home");
-    synth(&scene, "1");
+    small_scene(&scene, "1", "2000");
     let printed = ok(&["nav", "map", s(&scene)]);
     assert!(printed.contains("items"), "{printed}");
     let out = scene.join("nav");
@@ -64,8 +45,8 @@ fn map_writes_json_png_and_occupancy() {
 fn trajectories_resume_over_a_folder_and_match_across_threads() {
     let dir = tempfile::tempdir().unwrap();
     let scenes = dir.path().join("scenes");
-    synth(&scenes.join("s1"), "1");
-    synth(&scenes.join("s2"), "2");
+    small_scene(&scenes.join("s1"), "1", "2000");
+    small_scene(&scenes.join("s2"), "2", "2000");
     let out_a = dir.path().join("a");
     let out_b = dir.path().join("b");
     let args = |out: &Path, threads: &str| {

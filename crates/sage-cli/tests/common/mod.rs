@@ -28,3 +28,21 @@ pub fn ok(args: &[&str]) -> String {
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")
 }
+
+/// Writes a small synthetic scene (3 rooms, 30 objects, `gaussians` Gaussians) into `dir`.
+pub fn small_scene(dir: &Path, seed: &str, gaussians: &str) {
+    ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        seed,
+        "--rooms",
+        "3",
+        "--objects",
+        "30",
+        "--gaussians",
+        gaussians,
+        "--out",
+        s(dir),
+    ]);
+}
