@@ -5,3 +5,4 @@
 //! scenes into a dataset. Conventions are documented in `docs/dataset.md`.
 
 pub mod dataset;
+pub mod metrics;

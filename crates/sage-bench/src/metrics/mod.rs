@@ -1,0 +1,411 @@
+//! The SAGE-Bench and VLN-CE metrics (SPEC §10) as pure functions of a per-episode record.
+//!
+//! An environment run fills an [`EpisodeRecord`] (positions, headings, contacts, c(t), the
+//! geodesic distances only a path finder can give); [`evaluate`] turns it into
+//! [`EpisodeMetrics`] under one [`Mode`]; [`aggregate`] averages episodes. Every formula and
+//! every difference between the modes is written down in `docs/metrics.md`. Distances are taken
+//! in the floor plane.
+//!
+//! - [`distance`]: path length, goal region, reference-path distance, success tests, SPL;
+//! - [`dtw`]: exact DTW, nDTW, SDTW;
+//! - [`collision`]: CR, ICP and the published collision window;
+//! - [`smoothness`]: PS and the published variant;
+//! - [`nogoal`]: Episode Time and Explored Area.
+
+pub mod collision;
+pub mod distance;
+pub mod dtw;
+pub mod nogoal;
+pub mod smoothness;
+
+use crate::dataset::Task;
+use distance::{GoalRegion, OfficialGoal, OfficialTest};
+use sage_core::{Error, Result, Vec2};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::str::FromStr;
+
+/// Which definitions produce the numbers (SPEC §10.1).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Mode {
+    /// SPEC §10: goal regions, geodesic NE and L*, c(t) from physics.
+    #[default]
+    Sage,
+    /// VLN-CE as coded: geodesic distance to the goal point, strict 3.0 m success.
+    Vlnce,
+    /// The published SAGE-3D code's behaviour, for comparison with numbers it produced.
+    SageOfficial,
+}
+
+impl Mode {
+    /// The mode's name as written in files and flags.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mode::Sage => "sage",
+            Mode::Vlnce => "vlnce",
+            Mode::SageOfficial => "sage-official",
+        }
+    }
+}
+
+impl fmt::Display for Mode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Mode {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Mode> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "sage" => Ok(Mode::Sage),
+            "vlnce" => Ok(Mode::Vlnce),
+            "sage-official" => Ok(Mode::SageOfficial),
+            _ => Err(Error::invalid(format!(
+                "unknown metric mode '{s}' (expected sage, vlnce or sage-official)"
+            ))),
+        }
+    }
+}
+
+/// What one step did (STOP is a step).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepRecord {
+    /// Agent position after the step `[x, y, z]`, W frame.
+    pub position: [f32; 3],
+    /// Heading after the step, radians.
+    pub yaw: f32,
+    /// Simulated seconds since reset, after the step.
+    pub time: f32,
+    /// Commanded translation length, metres.
+    pub commanded: f32,
+    /// Achieved translation along the command, metres.
+    pub achieved: f32,
+    /// The agent touches something after the step.
+    pub contact: bool,
+    /// Collision intensity c(t) ∈ [0, 1] (SPEC §6).
+    pub intensity: f32,
+    /// Geodesic distance to the goal point after the step (mode `vlnce`); `None` when
+    /// unreachable or not computed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geodesic_to_goal_point: Option<f32>,
+}
+
+/// Geodesic distances that need the scene's path finder.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Geodesics {
+    /// L*: start to goal region (SPEC §10), metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_to_region: Option<f32>,
+    /// Final position to goal region (NE), metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub final_to_region: Option<f32>,
+    /// d0: start to goal point (mode `vlnce`), metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_to_point: Option<f32>,
+}
+
+/// Everything the metrics of one episode need: the record an evaluator stores per episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeRecord {
+    /// Episode id.
+    pub episode_id: String,
+    /// `vln` or `nogoal`.
+    pub task: Task,
+    /// Start position `[x, y, z]`.
+    pub start: [f32; 3],
+    /// Start heading, radians.
+    pub start_yaw: f32,
+    /// The steps, in order.
+    pub steps: Vec<StepRecord>,
+    /// The agent called STOP (its last step).
+    pub stop_called: bool,
+    /// The reference path `[x, y, z]`, W frame (dense, as the episode stores it).
+    pub reference_path: Vec<[f32; 3]>,
+    /// The goal region (VLN episodes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goal: Option<GoalRegion>,
+    /// Geodesic distances from the path finder.
+    #[serde(default)]
+    pub geodesics: Geodesics,
+    /// The published code's goal test (mode `sage-official`).
+    pub official_goal: OfficialGoal,
+}
+
+/// The metrics of one episode; `None` where the metric is not defined for the task or mode.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeMetrics {
+    /// Navigation error, metres.
+    pub ne: Option<f64>,
+    /// Success.
+    pub sr: Option<f64>,
+    /// Oracle success.
+    pub osr: Option<f64>,
+    /// Success weighted by path length.
+    pub spl: Option<f64>,
+    /// Trajectory length, metres.
+    pub tl: Option<f64>,
+    /// Collision count.
+    pub cr: Option<f64>,
+    /// Continuous success ratio.
+    pub csr: Option<f64>,
+    /// Integrated collision penalty.
+    pub icp: Option<f64>,
+    /// Path smoothness.
+    pub ps: Option<f64>,
+    /// Normalised DTW.
+    pub ndtw: Option<f64>,
+    /// Success-weighted nDTW.
+    pub sdtw: Option<f64>,
+    /// NoGoal: simulated seconds survived.
+    pub episode_time: Option<f64>,
+    /// NoGoal: explored floor area, m².
+    pub explored_area: Option<f64>,
+    /// NoGoal: explored 0.5 m cells.
+    pub explored_cells: Option<f64>,
+    /// NoGoal, mode `sage-official`: cells / 400, capped at 1.
+    pub coverage: Option<f64>,
+    /// Steps taken (STOP included).
+    pub steps: Option<f64>,
+}
+
+impl EpisodeMetrics {
+    /// The metrics by name, in a fixed order (names as in the paper's tables, lower case).
+    pub fn named(&self) -> [(&'static str, Option<f64>); 16] {
+        [
+            ("ne", self.ne),
+            ("sr", self.sr),
+            ("osr", self.osr),
+            ("spl", self.spl),
+            ("tl", self.tl),
+            ("cr", self.cr),
+            ("csr", self.csr),
+            ("icp", self.icp),
+            ("ps", self.ps),
+            ("ndtw", self.ndtw),
+            ("sdtw", self.sdtw),
+            ("episode_time", self.episode_time),
+            ("explored_area", self.explored_area),
+            ("explored_cells", self.explored_cells),
+            ("coverage", self.coverage),
+            ("steps", self.steps),
+        ]
+    }
+}
+
+fn xy(p: &[f32; 3]) -> [f64; 2] {
+    [f64::from(p[0]), f64::from(p[1])]
+}
+
+fn flag(b: bool) -> f64 {
+    if b { 1.0 } else { 0.0 }
+}
+
+/// The metrics of one episode under `mode`.
+///
+/// # Errors
+///
+/// An `invalid` error naming the episode when a VLN record has no goal region.
+pub fn evaluate(rec: &EpisodeRecord, mode: Mode) -> Result<EpisodeMetrics> {
+    let start = xy(&rec.start);
+    let trace: Vec<[f64; 2]> = std::iter::once(start)
+        .chain(rec.steps.iter().map(|s| xy(&s.position)))
+        .collect();
+    let moves: Vec<(f64, f64)> = rec
+        .steps
+        .iter()
+        .map(|s| (f64::from(s.commanded), f64::from(s.achieved)))
+        .collect();
+    let headings: Vec<f64> = rec.steps.iter().map(|s| f64::from(s.yaw)).collect();
+    let tl = distance::path_length(&trace);
+    // The published code samples once at reset, then before and after every step.
+    let official_samples: Vec<[f64; 2]> = std::iter::once(start)
+        .chain(trace.windows(2).flat_map(|w| [w[0], w[1]]))
+        .collect();
+    let mut m = EpisodeMetrics {
+        tl: Some(tl),
+        steps: Some(rec.steps.len() as f64),
+        ..EpisodeMetrics::default()
+    };
+    match mode {
+        Mode::Sage => {
+            let contact: Vec<bool> = rec.steps.iter().map(|s| s.contact).collect();
+            m.cr = Some(collision::collision_events(&contact) as f64);
+            m.icp = Some(collision::mean(
+                rec.steps.iter().map(|s| f64::from(s.intensity)),
+            ));
+            m.ps = Some(smoothness::path_smoothness(&headings));
+        }
+        Mode::Vlnce => {
+            m.cr = Some(collision::blocked_moves(&moves) as f64);
+            m.icp = Some(collision::mean(
+                rec.steps.iter().map(|s| f64::from(s.intensity)),
+            ));
+            m.ps = Some(smoothness::path_smoothness(&headings));
+        }
+        Mode::SageOfficial => {
+            m.icp = Some(collision::official_icp(&moves));
+            m.ps = Some(smoothness::official_path_smoothness(&official_samples));
+        }
+    }
+    match rec.task {
+        Task::Vln => vln_metrics(rec, mode, &trace, &official_samples, &mut m)?,
+        Task::Nogoal => {
+            m.episode_time = Some(rec.steps.last().map_or(0.0, |s| f64::from(s.time)));
+            let cells = match mode {
+                Mode::SageOfficial => nogoal::visited_cells(&official_samples, true),
+                _ => nogoal::visited_cells(&trace, false),
+            };
+            m.explored_cells = Some(cells as f64);
+            m.explored_area = Some(nogoal::explored_area(cells));
+            if mode == Mode::SageOfficial {
+                m.coverage = Some((cells as f64 / nogoal::OFFICIAL_COVERAGE_CELLS).min(1.0));
+            }
+        }
+    }
+    Ok(m)
+}
+
+fn vln_metrics(
+    rec: &EpisodeRecord,
+    mode: Mode,
+    trace: &[[f64; 2]],
+    samples: &[[f64; 2]],
+    m: &mut EpisodeMetrics,
+) -> Result<()> {
+    let goal = rec.goal.as_ref().ok_or_else(|| {
+        Error::invalid(format!(
+            "episode {}: a vln record needs a goal",
+            rec.episode_id
+        ))
+    })?;
+    let last = *trace.last().unwrap_or(&trace[0]);
+    let tl = m.tl.unwrap_or(0.0);
+    let reference: Vec<[f64; 2]> = rec.reference_path.iter().map(xy).collect();
+    let agent = dtw::dedup_trace(trace);
+    let opt = |v: Option<f32>| v.map_or(f64::INFINITY, f64::from);
+    let (success, ndtw) = match mode {
+        Mode::Sage => {
+            let r = distance::SAGE_SUCCESS_DISTANCE;
+            let success = rec.stop_called && goal.distance(&last) <= r;
+            m.ne = Some(opt(rec.geodesics.final_to_region));
+            m.osr = Some(flag(trace[1..].iter().any(|p| goal.distance(p) <= r)));
+            m.spl = Some(distance::spl(
+                success,
+                opt(rec.geodesics.start_to_region),
+                tl,
+            ));
+            m.csr = Some(collision::mean(rec.steps.iter().zip(&trace[1..]).map(
+                |(s, p)| {
+                    flag(
+                        s.intensity == 0.0
+                            && distance::point_polyline(p, &reference) <= distance::CSR_TOLERANCE,
+                    )
+                },
+            )));
+            let pts: Vec<Vec2> = reference
+                .iter()
+                .map(|p| Vec2::new(p[0] as f32, p[1] as f32))
+                .collect();
+            let resampled: Vec<[f64; 2]> = sage_nav::path::resample(&pts, 0.25)
+                .iter()
+                .map(|p| [f64::from(p.x), f64::from(p.y)])
+                .collect();
+            let d = dtw::dtw(&resampled, &agent, dtw::euclidean);
+            (
+                success,
+                dtw::ndtw_from(d, resampled.len(), dtw::DTW_THRESHOLD),
+            )
+        }
+        Mode::Vlnce => {
+            let r = distance::VLNCE_SUCCESS_DISTANCE;
+            let d_final = rec
+                .steps
+                .last()
+                .map_or(rec.geodesics.start_to_point, |s| s.geodesic_to_goal_point);
+            let success = rec.stop_called && opt(d_final) < r;
+            m.ne = Some(opt(d_final));
+            let oracle = std::iter::once(rec.geodesics.start_to_point)
+                .chain(rec.steps.iter().map(|s| s.geodesic_to_goal_point))
+                .any(|d| opt(d) < r);
+            m.osr = Some(flag(oracle));
+            m.spl = Some(distance::spl(
+                success,
+                opt(rec.geodesics.start_to_point),
+                tl,
+            ));
+            let d = dtw::dtw(&reference, &agent, dtw::euclidean);
+            (
+                success,
+                dtw::ndtw_from(d, reference.len(), dtw::DTW_THRESHOLD),
+            )
+        }
+        Mode::SageOfficial => {
+            let g = reference.last().copied().unwrap_or(goal.point);
+            let og = &rec.official_goal;
+            let success = og.passes(OfficialTest::Success, &last, &g);
+            m.ne = Some(dtw::euclidean(&last, &g));
+            m.osr = Some(flag(
+                samples
+                    .iter()
+                    .any(|p| og.passes(OfficialTest::Oracle, p, &g)),
+            ));
+            m.spl = Some(distance::spl(success, dtw::euclidean(&trace[0], &g), tl));
+            m.csr = Some(collision::mean(
+                samples
+                    .iter()
+                    .map(|p| flag(og.passes(OfficialTest::Continuous, p, &g))),
+            ));
+            m.sr = Some(flag(success));
+            return Ok(());
+        }
+    };
+    m.sr = Some(flag(success));
+    m.ndtw = Some(ndtw);
+    m.sdtw = Some(flag(success) * ndtw);
+    Ok(())
+}
+
+/// Means of each metric over episodes (over those that define it), with the episode count.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Aggregate {
+    /// Episodes aggregated.
+    pub episodes: usize,
+    /// The mode that produced the numbers.
+    pub mode: Mode,
+    /// Metric name → mean.
+    pub means: BTreeMap<String, f64>,
+}
+
+/// The mean of each metric over `episodes`.
+pub fn aggregate<'a>(
+    mode: Mode,
+    episodes: impl IntoIterator<Item = &'a EpisodeMetrics>,
+) -> Aggregate {
+    let mut sums: BTreeMap<&'static str, (f64, usize)> = BTreeMap::new();
+    let mut n = 0;
+    for e in episodes {
+        n += 1;
+        for (name, v) in e.named() {
+            if let Some(v) = v {
+                let s = sums.entry(name).or_default();
+                s.0 += v;
+                s.1 += 1;
+            }
+        }
+    }
+    Aggregate {
+        episodes: n,
+        mode,
+        means: sums
+            .into_iter()
+            .map(|(k, (s, c))| (k.to_string(), s / c as f64))
+            .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,225 @@
+//! Whole-episode cases computed by hand, one per mode, plus the NoGoal case.
+
+use super::distance::LabelledBox;
+use super::*;
+use std::f64::consts::FRAC_PI_2;
+
+fn step(x: f32, y: f32, yaw: f64, motion: (f32, f32), touch: (bool, f32), geo: f32) -> StepRecord {
+    let ((cmd, ach), (contact, c)) = (motion, touch);
+    StepRecord {
+        position: [x, y, 0.0],
+        yaw: yaw as f32,
+        time: 0.0,
+        commanded: cmd,
+        achieved: ach,
+        contact,
+        intensity: c,
+        geodesic_to_goal_point: Some(geo),
+    }
+}
+
+/// Forward 1 m, turn left, forward blocked after 0.25 m (c = 0.75, touching), turn right (still
+/// touching), forward 1 m, STOP. Reference (0,0)→(2,0); goal: a 1 m square at x ∈ [2.5, 3.5].
+fn vln_record(official_goal: OfficialGoal) -> EpisodeRecord {
+    let h = (1.0f32).hypot(0.25);
+    EpisodeRecord {
+        episode_id: "e".into(),
+        task: Task::Vln,
+        start: [0.0, 0.0, 0.0],
+        start_yaw: 0.0,
+        steps: vec![
+            step(1.0, 0.0, 0.0, (1.0, 1.0), (false, 0.0), 1.0),
+            step(1.0, 0.0, FRAC_PI_2, (0.0, 0.0), (false, 0.0), 1.0),
+            step(1.0, 0.25, FRAC_PI_2, (1.0, 0.25), (true, 0.75), h),
+            step(1.0, 0.25, 0.0, (0.0, 0.0), (true, 0.0), h),
+            step(2.0, 0.25, 0.0, (1.0, 1.0), (false, 0.0), 0.25),
+            step(2.0, 0.25, 0.0, (0.0, 0.0), (false, 0.0), 0.25),
+        ],
+        stop_called: true,
+        reference_path: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]],
+        goal: Some(GoalRegion {
+            point: [2.0, 0.0],
+            footprint: Some(vec![[2.5, -0.5], [3.5, -0.5], [3.5, 0.5], [2.5, 0.5]]),
+        }),
+        geodesics: Geodesics {
+            start_to_region: Some(2.5),
+            final_to_region: Some(0.5),
+            start_to_point: Some(2.0),
+        },
+        official_goal,
+    }
+}
+
+fn close(a: Option<f64>, b: f64) {
+    let a = a.expect("metric defined");
+    assert!((a - b).abs() < 1e-6, "{a} != {b}");
+}
+
+#[test]
+fn sage_mode_by_hand() {
+    let m = evaluate(&vln_record(OfficialGoal::NoMap), Mode::Sage).unwrap();
+    close(m.tl, 2.25);
+    // Final (2, 0.25) is 0.5 m from the square and STOP was called.
+    close(m.sr, 1.0);
+    close(m.osr, 1.0);
+    close(m.ne, 0.5);
+    // L* = 2.5 ≥ L = 2.25.
+    close(m.spl, 1.0);
+    // Contacts F F T T F F: one onset.
+    close(m.cr, 1.0);
+    close(m.icp, 0.75 / 6.0);
+    // Every step within 1 m of the reference; only step 3 has c > 0.
+    close(m.csr, 5.0 / 6.0);
+    // Heading changes π/2, 0, π/2, 0, 0 → 1 − 1/5.
+    close(m.ps, 0.8);
+    // Reference resampled to 9 points; agent trace (0,0) (1,0) (1,.25) (2,.25); the optimal
+    // alignment costs .25 + .5 + .25 + 0 + .25 + |(.5,.25)| + |(.25,.25)| + .25.
+    let d = 1.5 + 0.5f64.hypot(0.25) + 0.25f64.hypot(0.25);
+    close(m.ndtw, (-d / 27.0).exp());
+    close(m.sdtw, (-d / 27.0).exp());
+    assert_eq!(m.episode_time, None);
+    close(m.steps, 6.0);
+}
+
+#[test]
+fn sage_mode_needs_stop_and_radius() {
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.stop_called = false;
+    let m = evaluate(&r, Mode::Sage).unwrap();
+    close(m.sr, 0.0);
+    close(m.spl, 0.0);
+    close(m.sdtw, 0.0);
+    close(m.osr, 1.0);
+    // Ending 1.0 m from the square succeeds (≤), 1.01 m does not.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.steps.last_mut().unwrap().position = [1.5, 0.25, 0.0];
+    close(evaluate(&r, Mode::Sage).unwrap().sr, 1.0);
+    r.steps.last_mut().unwrap().position = [1.49, 0.25, 0.0];
+    close(evaluate(&r, Mode::Sage).unwrap().sr, 0.0);
+}
+
+#[test]
+fn vlnce_mode_by_hand() {
+    let m = evaluate(&vln_record(OfficialGoal::NoMap), Mode::Vlnce).unwrap();
+    close(m.ne, 0.25);
+    close(m.sr, 1.0);
+    close(m.osr, 1.0);
+    // d0 = 2.0 (geodesic to the point), L = 2.25.
+    close(m.spl, 2.0 / 2.25);
+    // One blocked translation.
+    close(m.cr, 1.0);
+    // Dense reference as given (3 points): (0,0)(1,1)(1,2)(2,3) costs 0 + 0 + .25 + .25.
+    close(m.ndtw, (-0.5f64 / 9.0).exp());
+    // Success is strict: exactly 3.0 m fails.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.steps.last_mut().unwrap().geodesic_to_goal_point = Some(3.0);
+    let m = evaluate(&r, Mode::Vlnce).unwrap();
+    close(m.sr, 0.0);
+    close(m.ne, 3.0);
+    // Unreachable counts as infinitely far.
+    r.steps.last_mut().unwrap().geodesic_to_goal_point = None;
+    assert_eq!(evaluate(&r, Mode::Vlnce).unwrap().ne, Some(f64::INFINITY));
+}
+
+#[test]
+fn official_mode_by_hand() {
+    let table = LabelledBox {
+        label: "table".into(),
+        min: [2.5, -0.5],
+        max: [3.5, 0.5],
+    };
+    let r = vln_record(OfficialGoal::Map {
+        chosen: Some(table),
+    });
+    let m = evaluate(&r, Mode::SageOfficial).unwrap();
+    // 13 samples: reset, then before/after each of the 6 steps.
+    close(m.sr, 1.0);
+    close(m.ne, 0.25);
+    close(m.osr, 1.0);
+    // L* is the straight line start → last reference point (2 m).
+    close(m.spl, 2.0 / 2.25);
+    // Box grown by 1.5 m starts at x = 1.0: the two samples at the start fail.
+    close(m.csr, 11.0 / 13.0);
+    // Step 3 achieves 25 % → counter 1 seen by samples 6–9; windows cover samples 6–11.
+    close(m.icp, 6.0 / 13.0);
+    // Non-zero displacements (1,0) (0,.25) (1,0): a = |(−1,.25)| twice.
+    close(m.ps, 1.0 / (1.0 + 10.0 * 1.0f64.hypot(0.25)));
+    assert_eq!(m.cr, None);
+    assert_eq!(m.ndtw, None);
+    // Without a map the 0.5 m radius applies (strict): 0.25 m passes, 0.5 m fails.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 1.0);
+    r.steps.last_mut().unwrap().position = [2.0, 0.5, 0.0];
+    close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 0.0);
+}
+
+#[test]
+fn nogoal_by_hand() {
+    let mut steps = vec![
+        step(0.35, 0.1, 0.0, (0.25, 0.25), (false, 0.0), 0.0),
+        step(0.6, 0.1, 0.0, (0.25, 0.25), (false, 0.0), 0.0),
+        step(0.6, 0.1, 1.0, (0.0, 0.0), (false, 0.0), 0.0),
+        step(0.6, -0.2, 1.0, (0.3, 0.3), (true, 0.2), 0.0),
+    ];
+    for (k, s) in steps.iter_mut().enumerate() {
+        s.time = k as f32 + 1.0;
+        s.geodesic_to_goal_point = None;
+    }
+    let r = EpisodeRecord {
+        episode_id: "n".into(),
+        task: Task::Nogoal,
+        start: [0.1, 0.1, 0.0],
+        start_yaw: 0.0,
+        steps,
+        stop_called: false,
+        reference_path: vec![[0.1, 0.1, 0.0]],
+        goal: None,
+        geodesics: Geodesics::default(),
+        official_goal: OfficialGoal::NoMap,
+    };
+    let m = evaluate(&r, Mode::Sage).unwrap();
+    close(m.episode_time, 4.0);
+    // Cells (0,0) (0,0) (1,0) (1,0) (1,−1).
+    close(m.explored_cells, 3.0);
+    close(m.explored_area, 0.75);
+    close(m.cr, 1.0);
+    assert_eq!(m.sr, None);
+    assert_eq!(m.coverage, None);
+    let m = evaluate(&r, Mode::SageOfficial).unwrap();
+    // Truncation folds y = −0.2 into row 0.
+    close(m.explored_cells, 2.0);
+    close(m.coverage, 2.0 / 400.0);
+}
+
+#[test]
+fn vln_without_goal_is_an_error() {
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.goal = None;
+    let e = evaluate(&r, Mode::Sage).unwrap_err();
+    assert!(e.message().contains("episode e"));
+}
+
+#[test]
+fn modes_parse_and_aggregate() {
+    for m in [Mode::Sage, Mode::Vlnce, Mode::SageOfficial] {
+        assert_eq!(m.as_str().parse::<Mode>().unwrap(), m);
+    }
+    assert!("habitat".parse::<Mode>().is_err());
+    let a = evaluate(&vln_record(OfficialGoal::NoMap), Mode::Sage).unwrap();
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.stop_called = false;
+    let b = evaluate(&r, Mode::Sage).unwrap();
+    let agg = aggregate(Mode::Sage, [&a, &b]);
+    assert_eq!(agg.episodes, 2);
+    assert_eq!(agg.means["sr"], 0.5);
+    assert_eq!(agg.means["tl"], 2.25);
+    assert!(!agg.means.contains_key("episode_time"));
+}
+
+#[test]
+fn record_round_trips_as_json() {
+    let r = vln_record(OfficialGoal::Map { chosen: None });
+    let text = serde_json::to_string(&r).unwrap();
+    let back: EpisodeRecord = serde_json::from_str(&text).unwrap();
+    assert_eq!(back, r);
+}
