@@ -1,0 +1,263 @@
+//! Agents: the [`Agent`] trait (observation → action) and the local baselines of SPEC §11 —
+//! random, forward-only and the shortest-path oracle — plus [`run_episode`], the loop that
+//! drives one episode.
+//!
+//! The baselines act in the discrete action space. Remote agents (model servers) implement the
+//! same trait.
+
+use crate::config::ActionSpace;
+use crate::env::{Action, Env, Observation};
+use crate::episode::{EnvEpisode, EpisodeTrace};
+use glam::Vec2;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sage_core::{Error, Result, wrap_angle};
+
+/// Something that chooses actions from observations.
+pub trait Agent {
+    /// A short name for reports (`random`, `forward`, `oracle`, …).
+    fn name(&self) -> &str;
+
+    /// Prepares for `episode` in `env` (which has just been reset to it). Privileged agents
+    /// (the oracle) may read the scene through `env`; others only their own state.
+    ///
+    /// # Errors
+    ///
+    /// The agent cannot act in this environment (wrong action space, no path, …).
+    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()>;
+
+    /// The next action after `obs`.
+    ///
+    /// # Errors
+    ///
+    /// The agent failed to decide (for remote agents: after its retries).
+    fn act(&mut self, obs: &Observation) -> Result<Action>;
+}
+
+/// Runs `episode` in `env` with `agent` to its end and returns the trace.
+///
+/// # Errors
+///
+/// A reset, agent or step error.
+pub fn run_episode(
+    env: &mut Env,
+    agent: &mut dyn Agent,
+    episode: &EnvEpisode,
+) -> Result<EpisodeTrace> {
+    let mut obs = env.reset(episode)?;
+    agent
+        .reset(env, episode)
+        .map_err(|e| e.within(format!("agent {} on episode {}", agent.name(), episode.id)))?;
+    while !env.done() {
+        let action = agent.act(&obs)?;
+        obs = env.step(action)?.0;
+    }
+    Ok(env.trace().expect("an episode ran").clone())
+}
+
+/// The discrete steps of `env`, or an error naming the agent.
+fn discrete(env: &Env, agent: &str) -> Result<(f32, f32)> {
+    match env.config().actions {
+        ActionSpace::Discrete {
+            forward, turn_deg, ..
+        } => Ok((forward, turn_deg.to_radians())),
+        _ => Err(Error::invalid(format!(
+            "the {agent} agent needs the discrete action space"
+        ))),
+    }
+}
+
+/// FNV-1a of a string: a stable per-episode seed component, independent of run order.
+fn fnv1a(s: &str) -> u64 {
+    s.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// Uniform FORWARD / LEFT / RIGHT, and STOP with a fixed probability per step; seeded per
+/// episode from its seed and the episode id, so results do not depend on episode order or
+/// thread count.
+#[derive(Debug, Clone)]
+pub struct RandomAgent {
+    seed: u64,
+    stop_probability: f64,
+    rng: ChaCha8Rng,
+}
+
+impl RandomAgent {
+    /// A random agent; `stop_probability` ∈ [0, 1] per step.
+    ///
+    /// # Errors
+    ///
+    /// A probability outside [0, 1].
+    pub fn new(seed: u64, stop_probability: f64) -> Result<RandomAgent> {
+        if !(0.0..=1.0).contains(&stop_probability) {
+            return Err(Error::invalid(format!(
+                "random agent: stop probability {stop_probability} is not in [0, 1]"
+            )));
+        }
+        Ok(RandomAgent {
+            seed,
+            stop_probability,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+        })
+    }
+}
+
+impl Agent for RandomAgent {
+    fn name(&self) -> &str {
+        "random"
+    }
+
+    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
+        discrete(env, "random")?;
+        self.rng = ChaCha8Rng::seed_from_u64(self.seed ^ fnv1a(&episode.id));
+        Ok(())
+    }
+
+    fn act(&mut self, _obs: &Observation) -> Result<Action> {
+        if self.rng.random_bool(self.stop_probability) {
+            return Ok(Action::Stop);
+        }
+        Ok([Action::MoveForward, Action::TurnLeft, Action::TurnRight][self.rng.random_range(0..3)])
+    }
+}
+
+/// Moves forward every step; calls STOP after `stop_after` steps when given (otherwise the
+/// episode ends by the task's rules).
+#[derive(Debug, Clone, Default)]
+pub struct ForwardAgent {
+    stop_after: Option<usize>,
+    taken: usize,
+}
+
+impl ForwardAgent {
+    /// A forward-only agent.
+    pub fn new(stop_after: Option<usize>) -> ForwardAgent {
+        ForwardAgent {
+            stop_after,
+            taken: 0,
+        }
+    }
+}
+
+impl Agent for ForwardAgent {
+    fn name(&self) -> &str {
+        "forward"
+    }
+
+    fn reset(&mut self, env: &Env, _episode: &EnvEpisode) -> Result<()> {
+        discrete(env, "forward")?;
+        self.taken = 0;
+        Ok(())
+    }
+
+    fn act(&mut self, _obs: &Observation) -> Result<Action> {
+        self.taken += 1;
+        Ok(match self.stop_after {
+            Some(n) if self.taken > n => Action::Stop,
+            _ => Action::MoveForward,
+        })
+    }
+}
+
+/// Follows the shortest path to the goal point with discrete actions: turn toward the next
+/// waypoint until it is within half a turn step, else move forward; STOP within `stop_radius`
+/// of the goal point. When a forward move makes no progress it replans from where it stands.
+#[derive(Clone, Default)]
+pub struct OracleAgent {
+    waypoints: Vec<Vec2>,
+    next: usize,
+    goal: Vec2,
+    forward: f32,
+    turn: f32,
+    last: Option<(Action, Vec2)>,
+    replans: usize,
+    stop_radius: f32,
+    scene: Option<std::sync::Arc<crate::SceneContext>>,
+}
+
+/// Replans allowed per episode before the oracle gives up and calls STOP.
+const MAX_REPLANS: usize = 20;
+
+impl OracleAgent {
+    /// An oracle that stops within `stop_radius` metres of the goal point.
+    pub fn new(stop_radius: f32) -> OracleAgent {
+        OracleAgent {
+            stop_radius,
+            ..OracleAgent::default()
+        }
+    }
+
+    fn plan(&mut self, from: Vec2) -> Result<()> {
+        let ctx = self.scene.as_ref().expect("set at reset");
+        let pf = &ctx.pathfinder;
+        let start = if pf.is_navigable(from) {
+            from
+        } else {
+            pf.snap_point(from, 1.0).ok_or_else(|| {
+                Error::invalid(format!(
+                    "oracle: no navigable cell within 1 m of ({:.2}, {:.2})",
+                    from.x, from.y
+                ))
+            })?
+        };
+        self.waypoints = pf.find_path(start, self.goal)?.waypoints;
+        self.next = 1.min(self.waypoints.len() - 1);
+        Ok(())
+    }
+}
+
+impl Agent for OracleAgent {
+    fn name(&self) -> &str {
+        "oracle"
+    }
+
+    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
+        let (forward, turn) = discrete(env, "oracle")?;
+        let goal = episode
+            .goal
+            .as_ref()
+            .ok_or_else(|| Error::invalid("oracle: the episode has no goal"))?;
+        self.goal = goal.point.truncate();
+        self.forward = forward;
+        self.turn = turn;
+        self.last = None;
+        self.replans = 0;
+        self.scene = Some(env.context().clone());
+        self.plan(episode.start.position.truncate())
+    }
+
+    fn act(&mut self, obs: &Observation) -> Result<Action> {
+        let at = obs.pose.position.truncate();
+        if at.distance(self.goal) <= self.stop_radius {
+            return Ok(Action::Stop);
+        }
+        if let Some((Action::MoveForward, before)) = self.last
+            && at.distance(before) < 0.1 * self.forward
+        {
+            self.replans += 1;
+            if self.replans > MAX_REPLANS || self.plan(at).is_err() {
+                return Ok(Action::Stop);
+            }
+        }
+        // Skip waypoints already reached (closer than half a step).
+        while self.next + 1 < self.waypoints.len()
+            && at.distance(self.waypoints[self.next]) < 0.5 * self.forward
+        {
+            self.next += 1;
+        }
+        let target = self.waypoints[self.next];
+        let d = target - at;
+        let error = wrap_angle(d.y.atan2(d.x) - obs.pose.yaw);
+        let action = if error > 0.5 * self.turn {
+            Action::TurnLeft
+        } else if error < -0.5 * self.turn {
+            Action::TurnRight
+        } else {
+            Action::MoveForward
+        };
+        self.last = Some((action, at));
+        Ok(action)
+    }
+}

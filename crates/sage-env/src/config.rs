@@ -1,0 +1,273 @@
+//! Environment settings: action space, sensors, task limits, and the named presets (SPEC §11,
+//! §13).
+
+use sage_core::{Error, Result};
+use sage_physics::AgentProfile;
+use serde::{Deserialize, Serialize};
+
+/// What actions the agent may send (STOP is allowed in every space).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ActionSpace {
+    /// `stop / move_forward / turn_left / turn_right / look_up / look_down`.
+    Discrete {
+        /// Forward step, metres.
+        forward: f32,
+        /// Turn step, degrees.
+        turn_deg: f32,
+        /// Camera tilt step, degrees.
+        look_deg: f32,
+        /// Simulated seconds one discrete action takes.
+        seconds: f32,
+    },
+    /// Ground velocity `(vx, vy, ω, dt)` in the body frame.
+    Ground {
+        /// Longest accepted `dt`, seconds.
+        max_dt: f32,
+    },
+    /// UAV velocity `(vx, vy, vz, ω, dt)`.
+    Uav {
+        /// Longest accepted `dt`, seconds.
+        max_dt: f32,
+    },
+}
+
+impl Default for ActionSpace {
+    fn default() -> Self {
+        ActionSpace::Discrete {
+            forward: 0.25,
+            turn_deg: 15.0,
+            look_deg: 30.0,
+            seconds: 1.0,
+        }
+    }
+}
+
+/// The camera and which images it produces.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SensorConfig {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Horizontal field of view, degrees.
+    pub hfov_deg: f32,
+    /// Camera above the agent's pose, metres; `None`: the agent profile's camera height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera_height: Option<f32>,
+    /// Depth image size `[width, height]` when it differs from the colour image (a second
+    /// render at that size).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth_size: Option<[u32; 2]>,
+    /// Produce the RGB image.
+    pub rgb: bool,
+    /// Produce the depth image (median depth, metres).
+    pub depth: bool,
+    /// Produce the category-id image.
+    pub semantic: bool,
+    /// Produce the instance-id image.
+    pub instance: bool,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        SensorConfig {
+            width: 224,
+            height: 224,
+            hfov_deg: 90.0,
+            camera_height: None,
+            depth_size: None,
+            rgb: true,
+            depth: true,
+            semantic: false,
+            instance: false,
+        }
+    }
+}
+
+impl SensorConfig {
+    /// True when any image is requested (otherwise steps render nothing).
+    pub fn renders(&self) -> bool {
+        self.rgb || self.depth || self.semantic || self.instance
+    }
+}
+
+/// Task limits (SPEC §10).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TaskConfig {
+    /// Steps after which an episode is cut (STOP included).
+    pub max_steps: usize,
+    /// VLN success radius around the goal region, metres (`≤`).
+    pub success_distance: f32,
+    /// NoGoal: simulated seconds after which the episode ends.
+    pub nogoal_time_limit: f32,
+}
+
+impl Default for TaskConfig {
+    fn default() -> Self {
+        TaskConfig {
+            max_steps: 500,
+            success_distance: 1.0,
+            nogoal_time_limit: 120.0,
+        }
+    }
+}
+
+/// Everything an [`crate::Env`] is set up with.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnvConfig {
+    /// Agent profile name (`wheeled`, `go2`, `g1`, `h1`, `uav`).
+    pub agent: String,
+    /// The action space.
+    pub actions: ActionSpace,
+    /// The camera.
+    pub sensors: SensorConfig,
+    /// The task limits.
+    pub task: TaskConfig,
+}
+
+impl Default for EnvConfig {
+    /// The SAGE-Bench set-up: wheeled robot, camera at 1.2 m, RGB and depth, HFOV 90°,
+    /// 0.25 m / 15°, 500 steps.
+    fn default() -> Self {
+        EnvConfig {
+            agent: "wheeled".into(),
+            actions: ActionSpace::default(),
+            sensors: SensorConfig::default(),
+            task: TaskConfig::default(),
+        }
+    }
+}
+
+impl EnvConfig {
+    /// A named preset: `sage` (the default) or `vlnce` (224×224 RGB, 256×256 depth, HFOV 90,
+    /// 0.25 m / 15°, 500 steps, camera at 1.25 m as in VLN-CE's agent).
+    ///
+    /// # Errors
+    ///
+    /// An `invalid` error for an unknown name.
+    pub fn preset(name: &str) -> Result<EnvConfig> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "sage" => Ok(EnvConfig::default()),
+            "vlnce" => Ok(EnvConfig {
+                sensors: SensorConfig {
+                    camera_height: Some(1.25),
+                    depth_size: Some([256, 256]),
+                    ..SensorConfig::default()
+                },
+                ..EnvConfig::default()
+            }),
+            _ => Err(Error::invalid(format!(
+                "unknown environment preset '{name}' (expected sage or vlnce)"
+            ))),
+        }
+    }
+
+    /// The agent profile named by [`EnvConfig::agent`].
+    ///
+    /// # Errors
+    ///
+    /// An unknown profile name.
+    pub fn profile(&self) -> Result<AgentProfile> {
+        self.agent.parse().map_err(|e: Error| e.within("agent"))
+    }
+
+    /// Checks every range, naming the field at fault.
+    ///
+    /// # Errors
+    ///
+    /// An `invalid` error naming the field.
+    pub fn validate(&self) -> Result<()> {
+        let profile = self.profile()?;
+        let bad = |field: &str, why: &str| Err(Error::invalid(format!("{field}: {why}")));
+        let s = &self.sensors;
+        if !(1..=8192).contains(&s.width) || !(1..=8192).contains(&s.height) {
+            return bad("sensors.width/height", "expected 1–8192 pixels");
+        }
+        if let Some([w, h]) = s.depth_size
+            && (!(1..=8192).contains(&w) || !(1..=8192).contains(&h))
+        {
+            return bad("sensors.depth_size", "expected 1–8192 pixels");
+        }
+        if !(s.hfov_deg > 0.0 && s.hfov_deg < 180.0) {
+            return bad("sensors.hfov_deg", "expected 0 < hfov < 180 degrees");
+        }
+        if s.camera_height
+            .is_some_and(|h| !(h.is_finite() && h >= 0.0))
+        {
+            return bad("sensors.camera_height", "expected a finite height >= 0 m");
+        }
+        let t = &self.task;
+        if t.max_steps == 0 {
+            return bad("task.max_steps", "expected at least 1");
+        }
+        if !(t.success_distance.is_finite() && t.success_distance >= 0.0) {
+            return bad("task.success_distance", "expected a finite distance >= 0 m");
+        }
+        if !(t.nogoal_time_limit.is_finite() && t.nogoal_time_limit > 0.0) {
+            return bad("task.nogoal_time_limit", "expected a finite time > 0 s");
+        }
+        let uav = profile.kind == sage_physics::AgentKind::Uav;
+        match self.actions {
+            ActionSpace::Discrete {
+                forward,
+                turn_deg,
+                look_deg,
+                seconds,
+            } => {
+                let ok = [forward, turn_deg, look_deg]
+                    .iter()
+                    .all(|v| v.is_finite() && *v >= 0.0)
+                    && seconds.is_finite()
+                    && seconds >= 0.0;
+                if !ok {
+                    return bad(
+                        "actions",
+                        "discrete steps and seconds must be finite and >= 0",
+                    );
+                }
+            }
+            ActionSpace::Ground { max_dt } | ActionSpace::Uav { max_dt } => {
+                if !(max_dt.is_finite() && max_dt > 0.0) {
+                    return bad("actions.max_dt", "expected a finite time > 0 s");
+                }
+                let wants_uav = matches!(self.actions, ActionSpace::Uav { .. });
+                if wants_uav != uav {
+                    return bad(
+                        "actions",
+                        "the UAV action space needs the uav profile and the ground space a ground robot",
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_and_validation() {
+        let d = EnvConfig::preset("sage").unwrap();
+        assert_eq!(d, EnvConfig::default());
+        d.validate().unwrap();
+        let v = EnvConfig::preset("VLNCE").unwrap();
+        assert_eq!(v.sensors.depth_size, Some([256, 256]));
+        v.validate().unwrap();
+        assert!(EnvConfig::preset("habitat").is_err());
+        let mut c = EnvConfig::default();
+        c.sensors.hfov_deg = 180.0;
+        assert!(c.validate().unwrap_err().message().contains("hfov_deg"));
+        let mut c = EnvConfig {
+            actions: ActionSpace::Uav { max_dt: 1.0 },
+            ..EnvConfig::default()
+        };
+        assert!(c.validate().unwrap_err().message().contains("uav"));
+        c.agent = "uav".into();
+        c.validate().unwrap();
+        c.agent = "robot".into();
+        assert!(c.validate().is_err());
+    }
+}

@@ -1,0 +1,71 @@
+//! What a scene contributes to every episode run in it, built once.
+
+use sage_core::{Error, Polygon2, Result};
+use sage_nav::{CostParams, GridParams, PathFinder, SemanticMap};
+use sage_physics::{SceneBodies, World, WorldOptions};
+use sage_scene::Scene;
+
+/// A loaded scene with its semantic map, collision bodies and path finder.
+///
+/// Immutable once built: share it (`Arc`) between the environments of all worker threads. What
+/// changes during an episode (the physics world with its movable bodies, the renderer's buffers)
+/// lives in each [`crate::Env`].
+pub struct SceneContext {
+    /// The scene.
+    pub scene: Scene,
+    /// The semantic map (item ids and footprints of goal objects).
+    pub semantic: SemanticMap,
+    /// Collision bodies, from which each episode's world is built.
+    pub bodies: SceneBodies,
+    /// How the physics world is assembled.
+    pub world_options: WorldOptions,
+    /// The navigable grid for geodesic distances and the oracle.
+    pub pathfinder: PathFinder,
+}
+
+impl SceneContext {
+    /// Assembles a context from a scene and its bodies (built with the caller's decomposer and
+    /// hull cache), planning on a grid of `grid` with `cost`.
+    ///
+    /// # Errors
+    ///
+    /// No navigable space in the scene, or bad grid or cost parameters.
+    pub fn new(
+        scene: Scene,
+        bodies: SceneBodies,
+        grid: &GridParams,
+        cost: CostParams,
+    ) -> Result<SceneContext> {
+        let (pathfinder, _) = PathFinder::from_scene(&scene, grid, cost)?;
+        let semantic = SemanticMap::build(&scene);
+        Ok(SceneContext {
+            scene,
+            semantic,
+            bodies,
+            world_options: WorldOptions::default(),
+            pathfinder,
+        })
+    }
+
+    /// A fresh physics world (movable bodies at their scene poses).
+    pub fn world(&self) -> World {
+        World::new(&self.scene, self.bodies.clone(), &self.world_options)
+    }
+
+    /// The footprint of the object with item id `item`.
+    ///
+    /// # Errors
+    ///
+    /// An `invalid` error when the scene has no such object.
+    pub fn footprint(&self, item: &str) -> Result<Polygon2> {
+        self.semantic
+            .item(item)
+            .map(|i| i.footprint_polygon())
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "goal object '{item}' is not an object of scene {}",
+                    self.scene.name
+                ))
+            })
+    }
+}

@@ -1,0 +1,521 @@
+//! The environment loop: reset, step, observations and termination.
+
+use crate::config::{ActionSpace, EnvConfig};
+use crate::context::SceneContext;
+use crate::episode::{EnvEpisode, EnvTask, EpisodeTrace, TraceGeodesics};
+use glam::{Vec2, Vec3};
+use sage_core::{Error, Polygon2, Pose, Result};
+use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
+use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+
+/// Largest camera tilt reachable with look actions (degrees).
+const MAX_PITCH_DEG: f32 = 60.0;
+
+/// One action. STOP is valid in every action space; the others only in theirs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Action {
+    /// End the episode.
+    Stop,
+    /// Discrete: move forward one step.
+    MoveForward,
+    /// Discrete: turn left (counter-clockwise) one step.
+    TurnLeft,
+    /// Discrete: turn right one step.
+    TurnRight,
+    /// Discrete: tilt the camera up one step.
+    LookUp,
+    /// Discrete: tilt the camera down one step.
+    LookDown,
+    /// Ground velocity in the body frame (x forward, y left), yaw rate, held for `dt`.
+    Velocity {
+        /// m/s.
+        vx: f32,
+        /// m/s.
+        vy: f32,
+        /// rad/s.
+        wz: f32,
+        /// s.
+        dt: f32,
+    },
+    /// UAV velocity: body-frame horizontal, world vertical, yaw rate, held for `dt`.
+    Fly {
+        /// m/s.
+        vx: f32,
+        /// m/s.
+        vy: f32,
+        /// m/s.
+        vz: f32,
+        /// rad/s.
+        wz: f32,
+        /// s.
+        dt: f32,
+    },
+}
+
+impl Action {
+    /// The discrete action with VLN-CE's index: 0 STOP, 1 FORWARD, 2 LEFT, 3 RIGHT, 4 LOOK_UP,
+    /// 5 LOOK_DOWN.
+    pub fn from_index(i: u8) -> Option<Action> {
+        [
+            Action::Stop,
+            Action::MoveForward,
+            Action::TurnLeft,
+            Action::TurnRight,
+            Action::LookUp,
+            Action::LookDown,
+        ]
+        .get(usize::from(i))
+        .copied()
+    }
+}
+
+/// Why an episode ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// The agent called STOP.
+    Stop,
+    /// The step limit was reached.
+    MaxSteps,
+    /// NoGoal: a collision event.
+    Collision,
+    /// NoGoal: the simulated time limit was reached.
+    TimeLimit,
+}
+
+/// The rendered images, row-major `height × width` (RGB × 3); absent when not configured.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Images {
+    /// Colour image width.
+    pub width: usize,
+    /// Colour image height.
+    pub height: usize,
+    /// RGB, 8-bit.
+    pub rgb: Option<Vec<u8>>,
+    /// Depth size `(width, height)` (the colour size unless configured otherwise).
+    pub depth_size: (usize, usize),
+    /// Median depth along the optical axis, metres (0 where nothing is hit).
+    pub depth: Option<Vec<f32>>,
+    /// Category ids.
+    pub semantic: Option<Vec<u16>>,
+    /// Instance ids.
+    pub instance: Option<Vec<u32>>,
+}
+
+/// What the agent perceives after a reset or a step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// Images (`None` when no image is configured).
+    pub images: Option<Images>,
+    /// Agent pose.
+    pub pose: Pose,
+    /// Camera pitch, radians (up positive).
+    pub pitch: f32,
+    /// Bodies touched after the last step (none at reset).
+    pub contacts: Vec<Touch>,
+    /// The episode's instruction.
+    pub instruction: Arc<str>,
+    /// Simulated seconds since reset.
+    pub time: f32,
+    /// Steps taken.
+    pub step: usize,
+}
+
+/// What one step did (the per-step record of an episode).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepInfo {
+    /// The action.
+    pub action: Action,
+    /// Pose after the step.
+    pub pose: Pose,
+    /// Camera pitch after the step, radians.
+    pub pitch: f32,
+    /// Simulated seconds since reset, after the step.
+    pub time: f32,
+    /// Commanded translation length, metres.
+    pub commanded: f32,
+    /// Achieved translation along the command, metres.
+    pub achieved: f32,
+    /// Instance ids of the bodies touched.
+    pub touched: Vec<u32>,
+    /// Collision intensity c(t) (SPEC §6).
+    pub intensity: f32,
+    /// Contact began this step after a step without.
+    pub collision: bool,
+    /// No progress for several commanded moves.
+    pub stuck: bool,
+    /// Euclidean distance from the agent to the goal region (VLN).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance_to_goal: Option<f32>,
+    /// Set on the step that ended the episode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub termination: Option<Termination>,
+}
+
+/// A running episode's state.
+struct Running {
+    body: Body,
+    world: World,
+    pitch: f32,
+    time: f32,
+    instruction: Arc<str>,
+    region: Option<Polygon2>,
+    trace: EpisodeTrace,
+}
+
+impl Running {
+    /// Euclidean distance from `at` to the goal region (0 inside the footprint); `None`
+    /// without a goal.
+    fn goal_distance(&self, at: Vec2) -> Option<f32> {
+        let goal = self.trace.episode.goal.as_ref()?;
+        Some(match &self.region {
+            Some(r) if r.contains(at) => 0.0,
+            Some(r) => r.distance_to_boundary(at),
+            None => at.distance(goal.point.truncate()),
+        })
+    }
+}
+
+/// The executable environment over one scene; one per worker thread.
+pub struct Env {
+    ctx: Arc<SceneContext>,
+    config: EnvConfig,
+    profile: AgentProfile,
+    renderer: Option<Renderer>,
+    state: Option<Running>,
+}
+
+impl Env {
+    /// An environment over `ctx` with `config` (validated). The renderer's index is built here
+    /// when the sensors produce images.
+    ///
+    /// # Errors
+    ///
+    /// A bad configuration, naming the field.
+    pub fn new(ctx: Arc<SceneContext>, config: EnvConfig) -> Result<Env> {
+        config.validate()?;
+        let profile = config.profile()?;
+        let renderer = config
+            .sensors
+            .renders()
+            .then(|| Renderer::new(&ctx.scene.gaussians));
+        Ok(Env {
+            ctx,
+            config,
+            profile,
+            renderer,
+            state: None,
+        })
+    }
+
+    /// The configuration in force.
+    pub fn config(&self) -> &EnvConfig {
+        &self.config
+    }
+
+    /// The scene context.
+    pub fn context(&self) -> &Arc<SceneContext> {
+        &self.ctx
+    }
+
+    /// Starts `episode`: a fresh physics world, the agent at the start pose, time 0.
+    ///
+    /// # Errors
+    ///
+    /// A VLN episode without a goal, a goal object missing from the scene, or a render error.
+    pub fn reset(&mut self, episode: &EnvEpisode) -> Result<Observation> {
+        let region = match (&episode.task, &episode.goal) {
+            (EnvTask::Vln, None) => {
+                return Err(Error::invalid(format!(
+                    "episode {}: a vln episode needs a goal",
+                    episode.id
+                )));
+            }
+            (_, Some(g)) => match &g.object {
+                Some(item) => Some(
+                    self.ctx
+                        .footprint(item)
+                        .map_err(|e| e.within(format!("episode {}", episode.id)))?,
+                ),
+                None => None,
+            },
+            (EnvTask::Nogoal, None) => None,
+        };
+        let body = Body::new(self.profile.clone(), episode.start);
+        let trace = EpisodeTrace {
+            episode: episode.clone(),
+            goal_footprint: region
+                .as_ref()
+                .map(|r| r.points.iter().map(|p| [p.x, p.y]).collect()),
+            steps: Vec::new(),
+            termination: None,
+            geodesics: TraceGeodesics::default(),
+        };
+        self.state = Some(Running {
+            body,
+            world: self.ctx.world(),
+            pitch: 0.0,
+            time: 0.0,
+            instruction: Arc::from(episode.instruction.as_str()),
+            region,
+            trace,
+        });
+        self.observe(Vec::new())
+    }
+
+    /// True when the current episode has ended (or none was started).
+    pub fn done(&self) -> bool {
+        self.state
+            .as_ref()
+            .is_none_or(|s| s.trace.termination.is_some())
+    }
+
+    /// The current episode's trace so far.
+    pub fn trace(&self) -> Option<&EpisodeTrace> {
+        self.state.as_ref().map(|s| &s.trace)
+    }
+
+    /// The agent's current pose.
+    pub fn pose(&self) -> Option<Pose> {
+        self.state.as_ref().map(|s| s.body.pose)
+    }
+
+    /// Applies `action`, advances simulated time, checks termination and observes.
+    ///
+    /// # Errors
+    ///
+    /// No running episode, an episode that has ended, an action outside the action space, a
+    /// non-finite or out-of-range velocity, or a render error.
+    pub fn step(&mut self, action: Action) -> Result<(Observation, StepInfo)> {
+        if self.done() {
+            return Err(Error::invalid(
+                "step called with no running episode (reset first, and not after the end)",
+            ));
+        }
+        let (command, seconds, tilt) = self.command(action)?;
+        let task = self.config.task;
+        let s = self.state.as_mut().expect("checked by done()");
+        let report = s.body.step(&mut s.world, &command)?;
+        s.time += seconds;
+        s.pitch = (s.pitch + tilt).clamp(-MAX_PITCH_DEG.to_radians(), MAX_PITCH_DEG.to_radians());
+        let commanded = report.commanded.length();
+        let achieved = if commanded > 0.0 {
+            report.achieved.dot(report.commanded) / commanded
+        } else {
+            0.0
+        };
+        let distance_to_goal = s.goal_distance(s.body.pose.position.truncate());
+        let steps = s.trace.steps.len() + 1;
+        let termination = if action == Action::Stop {
+            Some(Termination::Stop)
+        } else if s.trace.episode.task == EnvTask::Nogoal && report.contact_onset {
+            Some(Termination::Collision)
+        } else if s.trace.episode.task == EnvTask::Nogoal && s.time >= task.nogoal_time_limit {
+            Some(Termination::TimeLimit)
+        } else if steps >= task.max_steps {
+            Some(Termination::MaxSteps)
+        } else {
+            None
+        };
+        let info = StepInfo {
+            action,
+            pose: s.body.pose,
+            pitch: s.pitch,
+            time: s.time,
+            commanded,
+            achieved,
+            touched: report.touched.iter().map(|t| t.instance.0).collect(),
+            intensity: report.intensity,
+            collision: report.contact_onset,
+            stuck: report.stuck,
+            distance_to_goal,
+            termination,
+        };
+        s.trace.steps.push(info.clone());
+        if termination.is_some() {
+            s.trace.termination = termination;
+            s.trace.geodesics = geodesics(&self.ctx, &s.trace, s.region.as_ref());
+        }
+        let obs = self.observe(report.touched)?;
+        Ok((obs, info))
+    }
+
+    /// True when the task's success test passes now: within the success distance of the goal
+    /// region (the agent must still call STOP for the episode to succeed).
+    pub fn within_success_distance(&self) -> bool {
+        let Some(s) = &self.state else {
+            return false;
+        };
+        s.goal_distance(s.body.pose.position.truncate())
+            .is_some_and(|d| d <= self.config.task.success_distance)
+    }
+
+    /// The physics command, simulated seconds and camera tilt of `action`.
+    fn command(&self, action: Action) -> Result<(Command, f32, f32)> {
+        let outside = || {
+            Err(Error::invalid(format!(
+                "action {action:?} is not in the {} action space",
+                match self.config.actions {
+                    ActionSpace::Discrete { .. } => "discrete",
+                    ActionSpace::Ground { .. } => "ground",
+                    ActionSpace::Uav { .. } => "uav",
+                }
+            )))
+        };
+        let check_dt = |dt: f32, max_dt: f32, values: &[f32]| {
+            if values.iter().all(|v| v.is_finite()) && dt >= 0.0 && dt <= max_dt {
+                Ok(())
+            } else {
+                Err(Error::invalid(format!(
+                    "action {action:?}: velocities must be finite and 0 <= dt <= {max_dt}"
+                )))
+            }
+        };
+        match (self.config.actions, action) {
+            (ActionSpace::Discrete { seconds, .. }, Action::Stop) => {
+                Ok((Command::Stop, seconds, 0.0))
+            }
+            (_, Action::Stop) => Ok((Command::Stop, 0.0, 0.0)),
+            (
+                ActionSpace::Discrete {
+                    forward,
+                    turn_deg,
+                    look_deg,
+                    seconds,
+                },
+                a,
+            ) => {
+                let turn = turn_deg.to_radians();
+                let look = look_deg.to_radians();
+                match a {
+                    Action::MoveForward => {
+                        Ok((Command::Forward { distance: forward }, seconds, 0.0))
+                    }
+                    Action::TurnLeft => Ok((Command::Turn { angle: turn }, seconds, 0.0)),
+                    Action::TurnRight => Ok((Command::Turn { angle: -turn }, seconds, 0.0)),
+                    Action::LookUp => Ok((Command::Stop, seconds, look)),
+                    Action::LookDown => Ok((Command::Stop, seconds, -look)),
+                    _ => outside(),
+                }
+            }
+            (ActionSpace::Ground { max_dt }, Action::Velocity { vx, vy, wz, dt }) => {
+                check_dt(dt, max_dt, &[vx, vy, wz])?;
+                Ok((Command::Ground { vx, vy, wz, dt }, dt, 0.0))
+            }
+            (ActionSpace::Uav { max_dt }, Action::Fly { vx, vy, vz, wz, dt }) => {
+                check_dt(dt, max_dt, &[vx, vy, vz, wz])?;
+                Ok((Command::Uav { vx, vy, vz, wz, dt }, dt, 0.0))
+            }
+            _ => outside(),
+        }
+    }
+
+    /// Renders the configured images from the agent's camera.
+    fn observe(&mut self, contacts: Vec<Touch>) -> Result<Observation> {
+        let s = self.state.as_ref().expect("an episode is running");
+        let sensors = self.config.sensors;
+        let height = sensors.camera_height.unwrap_or(self.profile.camera_height);
+        let eye = if self.profile.kind == AgentKind::Uav {
+            s.body.pose.position
+        } else {
+            s.body.pose.position + Vec3::Z * height
+        };
+        let (yaw, pitch) = (s.body.pose.yaw, s.pitch);
+        let images = match self.renderer.as_mut() {
+            None => None,
+            Some(renderer) => {
+                let scene = &self.ctx.scene;
+                let categories = &scene.instances.category_ids;
+                let camera = |w: u32, h: u32| -> Result<Camera> {
+                    Ok(Camera::from_yaw_pitch(
+                        Intrinsics::from_hfov(w, h, sensors.hfov_deg)?,
+                        eye,
+                        yaw,
+                        pitch,
+                    ))
+                };
+                let options = RenderOptions::default();
+                let main = renderer.render(
+                    &scene.gaussians,
+                    categories,
+                    &camera(sensors.width, sensors.height)?,
+                    &options,
+                )?;
+                let (depth_size, depth) = match sensors.depth_size {
+                    Some([w, h]) if sensors.depth && (w, h) != (sensors.width, sensors.height) => {
+                        let d = renderer.render(
+                            &scene.gaussians,
+                            categories,
+                            &camera(w, h)?,
+                            &options,
+                        )?;
+                        ((d.width, d.height), Some(d.depth_median))
+                    }
+                    _ => (
+                        (main.width, main.height),
+                        sensors.depth.then(|| main.depth_median.clone()),
+                    ),
+                };
+                Some(Images {
+                    width: main.width,
+                    height: main.height,
+                    depth_size,
+                    depth,
+                    rgb: sensors.rgb.then_some(main.rgb),
+                    semantic: sensors.semantic.then_some(main.semantic),
+                    instance: sensors.instance.then_some(main.instance),
+                })
+            }
+        };
+        Ok(Observation {
+            images,
+            pose: s.body.pose,
+            pitch,
+            contacts,
+            instruction: s.instruction.clone(),
+            time: s.time,
+            step: s.trace.steps.len(),
+        })
+    }
+}
+
+/// The geodesic distances of a finished VLN episode (SPEC §10): to the goal region within
+/// 1.0 m of its footprint (or the goal point), and to the goal point per step.
+fn geodesics(
+    ctx: &SceneContext,
+    trace: &EpisodeTrace,
+    region: Option<&Polygon2>,
+) -> TraceGeodesics {
+    let Some(goal) = &trace.episode.goal else {
+        return TraceGeodesics::default();
+    };
+    let pf = &ctx.pathfinder;
+    let point = goal.point.truncate();
+    let start = trace.episode.start.position.truncate();
+    let last = trace
+        .steps
+        .last()
+        .map_or(start, |s| s.pose.position.truncate());
+    let to_region = |p: Vec2| match region {
+        Some(r) => pf.geodesic_distance_to_region(p, r, 1.0),
+        None => pf.geodesic_distance(p, point),
+    };
+    let field = pf.geodesic_field(point).ok();
+    TraceGeodesics {
+        start_to_region: to_region(start),
+        final_to_region: to_region(last),
+        start_to_point: field.as_ref().and_then(|f| f.distance_to(start)),
+        steps_to_point: trace
+            .steps
+            .iter()
+            .map(|s| {
+                field
+                    .as_ref()
+                    .and_then(|f| f.distance_to(s.pose.position.truncate()))
+            })
+            .collect(),
+    }
+}

@@ -1,0 +1,110 @@
+//! What the environment needs of an episode, and what it hands back when the episode ends.
+//!
+//! [`EnvEpisode`] is the part of a dataset episode (SPEC §9) that drives the environment: the
+//! benchmark converts its own episode records into it, so this crate never depends on the
+//! benchmark crate.
+
+use crate::env::{StepInfo, Termination};
+use glam::Vec3;
+use sage_core::Pose;
+use sage_nav::{EndpointKind, Trajectory};
+use serde::{Deserialize, Serialize};
+
+/// The task of an episode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EnvTask {
+    /// Reach the goal and STOP there.
+    Vln,
+    /// Move as long as possible without a collision.
+    Nogoal,
+}
+
+/// The goal of a VLN episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnvGoal {
+    /// The goal point (the reference path's end), W frame.
+    pub point: Vec3,
+    /// The end object's item id (`sofa_2`) when the goal is an object: its footprint is then
+    /// the goal region.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub object: Option<String>,
+}
+
+/// One episode as the environment runs it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnvEpisode {
+    /// Episode id.
+    pub id: String,
+    /// The task.
+    pub task: EnvTask,
+    /// The instruction shown to the agent.
+    pub instruction: String,
+    /// Start pose (floor position, heading).
+    pub start: Pose,
+    /// The goal (VLN).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goal: Option<EnvGoal>,
+    /// The dense reference path, W frame.
+    #[serde(default)]
+    pub reference_path: Vec<Vec3>,
+}
+
+/// Geodesic distances of a finished VLN episode (metres; `None` when unreachable).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TraceGeodesics {
+    /// Start to the goal region (L*).
+    pub start_to_region: Option<f32>,
+    /// Final position to the goal region (NE).
+    pub final_to_region: Option<f32>,
+    /// Start to the goal point (VLN-CE's d0).
+    pub start_to_point: Option<f32>,
+    /// Each step's position to the goal point (VLN-CE's distance_to_goal).
+    pub steps_to_point: Vec<Option<f32>>,
+}
+
+/// A finished (or running) episode: everything the metrics need.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeTrace {
+    /// The episode.
+    pub episode: EnvEpisode,
+    /// The goal region's footprint when the goal is an object of the scene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goal_footprint: Option<Vec<[f32; 2]>>,
+    /// The steps taken.
+    pub steps: Vec<StepInfo>,
+    /// Why the episode ended (`None` while it runs).
+    pub termination: Option<Termination>,
+    /// Geodesic distances from the scene's path finder.
+    pub geodesics: TraceGeodesics,
+}
+
+impl EnvEpisode {
+    /// A VLN episode along a planned trajectory of `sage_nav` (its start pose, goal object or
+    /// point and reference path), with `instruction`: what tests and benchmarks run when no
+    /// dataset is at hand.
+    pub fn from_trajectory(id: impl Into<String>, t: &Trajectory, instruction: &str) -> EnvEpisode {
+        let object = (t.goal.kind == EndpointKind::Object).then(|| t.goal.reference.clone());
+        EnvEpisode {
+            id: id.into(),
+            task: EnvTask::Vln,
+            instruction: instruction.to_string(),
+            start: Pose::new(
+                Vec3::from(t.start.point),
+                t.headings.first().copied().unwrap_or(0.0),
+            ),
+            goal: Some(EnvGoal {
+                point: Vec3::from(t.goal.point),
+                object,
+            }),
+            reference_path: t.points.iter().map(|&p| Vec3::from(p)).collect(),
+        }
+    }
+}
+
+impl EpisodeTrace {
+    /// True when the agent called STOP.
+    pub fn stop_called(&self) -> bool {
+        self.termination == Some(Termination::Stop)
+    }
+}

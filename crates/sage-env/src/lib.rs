@@ -1,0 +1,24 @@
+//! `sage-env`: the executable environment E_exec of sage3d (SPEC §1, §10, §11).
+//!
+//! A [`SceneContext`] loads what a scene needs once (Gaussians, semantic map, collision bodies,
+//! path finder) and is shared by reference count; an [`Env`] over it serves any number of
+//! episodes: [`Env::reset`] puts the agent at an episode's start, [`Env::step`] applies one
+//! [`Action`] through the physics agent, advances simulated time, renders the configured
+//! sensors and applies the task's termination rules (`vln`, `nogoal`). [`agents`] holds the
+//! [`agents::Agent`] trait (observation → action) and the local baselines. Conventions are
+//! documented in `docs/environment.md`.
+//!
+//! The environment does not depend on the benchmark crate: episodes come in as [`EnvEpisode`]
+//! (the part of a dataset episode the environment uses), and a finished episode comes out as an
+//! [`EpisodeTrace`] that the benchmark turns into metrics.
+
+pub mod agents;
+pub mod config;
+pub mod context;
+pub mod env;
+pub mod episode;
+
+pub use config::{ActionSpace, EnvConfig, SensorConfig, TaskConfig};
+pub use context::SceneContext;
+pub use env::{Action, Env, Images, Observation, StepInfo, Termination};
+pub use episode::{EnvEpisode, EnvGoal, EnvTask, EpisodeTrace};
