@@ -23,6 +23,9 @@ pub enum BenchCommand {
     /// Step one agent through a 200-object synthetic home, physics only (no rendering), and
     /// report steps per second.
     Physics(crate::physics_cmd::PhysicsBenchArgs),
+    /// Step the environment with a seeded random agent in a 200-object, 1M-Gaussian synthetic
+    /// home: steps per second without rendering and with RGB + depth at 224×224 and 640×480.
+    Env(crate::env_cmd::EnvBenchArgs),
 }
 
 #[derive(Args)]
@@ -69,6 +72,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Render(a) => render(a),
         BenchCommand::Nav(a) => crate::nav_cmd::bench(a),
         BenchCommand::Physics(a) => crate::physics_cmd::bench(a),
+        BenchCommand::Env(a) => crate::env_cmd::bench(a),
     }
 }
 
@@ -202,7 +206,7 @@ fn to_sh3(g: &sage_scene::Gaussians) -> Result<sage_scene::Gaussians> {
     sage_scene::Gaussians::from_gaussians(&items, 3)
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32)> {
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (w, h) = s
         .split_once('x')
         .ok_or_else(|| Error::invalid(format!("size '{s}' is not WxH")))?;

@@ -5,6 +5,7 @@
 
 mod bench;
 mod data_cmd;
+mod env_cmd;
 mod machine;
 mod nav_cmd;
 mod physics_cmd;
@@ -50,6 +51,9 @@ enum Command {
     /// Benchmark datasets: instructions, episodes, splits and their files.
     #[command(subcommand)]
     Data(data_cmd::DataCommand),
+    /// The executable environment: drive an episode with a baseline agent.
+    #[command(subcommand)]
+    Env(env_cmd::EnvCommand),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -74,6 +78,7 @@ fn main() -> ExitCode {
         Command::Export(c) => physics_cmd::run_export(c),
         Command::Nav(c) => nav_cmd::run(c),
         Command::Data(c) => data_cmd::run(c),
+        Command::Env(c) => env_cmd::run(c),
         Command::Bench(c) => bench::run(c),
     };
     match result {

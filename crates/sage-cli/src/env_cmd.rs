@@ -1,0 +1,391 @@
+//! `sage3d env run` (drive one episode with a baseline agent, one JSON line per step, then its
+//! metrics) and `sage3d bench env` (environment steps per second with and without rendering).
+//!
+//! This is also where a dataset episode becomes an environment episode and a finished trace
+//! becomes the metrics' record: the environment crate does not know the benchmark crate.
+
+use crate::machine;
+use clap::{Args, Subcommand};
+use glam::{Vec2, Vec3};
+use sage_bench::dataset::{Episode, Task};
+use sage_bench::metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
+use sage_bench::metrics::{self, EpisodeRecord, Geodesics, Mode, StepRecord};
+use sage_core::{Error, Result};
+use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent, run_episode};
+use sage_env::{
+    Env, EnvConfig, EnvEpisode, EnvGoal, EnvTask, EpisodeTrace, SceneContext, SensorConfig,
+};
+use sage_nav::{GridParams, TrajectoryParams};
+use sage_physics::{Decomposer, HullCache, SceneBodies, default_cache_dir};
+use sage_scene::Scene;
+use sage_scene::synth::{SceneKind, SynthConfig};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Subcommand)]
+pub enum EnvCommand {
+    /// Run one episode of a dataset in its scene with a baseline agent; print each step as a
+    /// JSON line, then the episode's metrics.
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// Scene folder.
+    scene: PathBuf,
+    /// Dataset episodes (JSONL, as `sage3d data build` writes them).
+    #[arg(long)]
+    episodes: PathBuf,
+    /// Episode id (default: the first episode of this scene).
+    #[arg(long)]
+    episode: Option<String>,
+    /// Agent: oracle, forward or random.
+    #[arg(long, default_value = "oracle")]
+    agent: String,
+    /// Seed of the random agent.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Environment preset: sage or vlnce.
+    #[arg(long, default_value = "sage")]
+    preset: String,
+    /// Metric mode: sage, vlnce or sage-official.
+    #[arg(long, default_value = "sage")]
+    mode: String,
+    /// Render the preset's images at every step (only their sizes are printed).
+    #[arg(long)]
+    render: bool,
+    /// Hull cache folder (default: beside the scene).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+}
+
+pub fn run(cmd: EnvCommand) -> Result<()> {
+    match cmd {
+        EnvCommand::Run(a) => run_one(a),
+    }
+}
+
+/// The agent named `name`.
+fn agent(name: &str, seed: u64) -> Result<Box<dyn Agent>> {
+    Ok(match name {
+        "oracle" => Box::new(OracleAgent::new(0.25)),
+        "forward" => Box::new(ForwardAgent::new(None)),
+        "random" => Box::new(RandomAgent::new(seed, 0.02)?),
+        _ => {
+            return Err(Error::invalid(format!(
+                "--agent '{name}': expected oracle, forward or random"
+            )));
+        }
+    })
+}
+
+/// The environment's view of a dataset episode: an object goal names its item id, so the
+/// object's footprint becomes the goal region.
+pub fn env_episode(e: &Episode) -> EnvEpisode {
+    EnvEpisode {
+        id: e.episode_id.clone(),
+        task: match e.task {
+            Task::Vln => EnvTask::Vln,
+            Task::Nogoal => EnvTask::Nogoal,
+        },
+        instruction: e.instruction.clone(),
+        start: e.start.pose(),
+        goal: e.goal.as_ref().map(|g| EnvGoal {
+            point: Vec3::from(g.position),
+            object: (g.kind == "object").then(|| g.reference.clone()),
+        }),
+        reference_path: e.reference_path.iter().map(|&p| Vec3::from(p)).collect(),
+    }
+}
+
+/// The metrics' record of a finished trace; the published code's goal box is chosen among
+/// the scene's semantic-map objects and walls.
+pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
+    let f = |v: Vec2| [f64::from(v.x), f64::from(v.y)];
+    let boxes: Vec<LabelledBox> = ctx
+        .semantic
+        .items
+        .iter()
+        .map(|i| (i.category.clone(), &i.polygon))
+        .chain(
+            ctx.semantic
+                .walls
+                .iter()
+                .map(|w| ("wall".to_string(), &w.polygon)),
+        )
+        .map(|(label, poly)| {
+            let lo = poly.iter().fold(Vec2::INFINITY, |m, p| m.min(*p));
+            let hi = poly.iter().fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
+            LabelledBox {
+                label,
+                min: f(lo),
+                max: f(hi),
+            }
+        })
+        .collect();
+    let e = &t.episode;
+    let goal = e.goal.as_ref().map(|g| GoalRegion {
+        point: f(g.point.truncate()),
+        footprint: t.goal_footprint.as_ref().map(|p| {
+            p.iter()
+                .map(|q| [f64::from(q[0]), f64::from(q[1])])
+                .collect()
+        }),
+    });
+    let official_goal = OfficialGoal::Map {
+        chosen: e
+            .reference_path
+            .last()
+            .or(e.goal.as_ref().map(|g| &g.point))
+            .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
+    };
+    EpisodeRecord {
+        episode_id: e.id.clone(),
+        task: match e.task {
+            EnvTask::Vln => Task::Vln,
+            EnvTask::Nogoal => Task::Nogoal,
+        },
+        start: e.start.position.to_array(),
+        start_yaw: e.start.yaw,
+        steps: t
+            .steps
+            .iter()
+            .enumerate()
+            .map(|(k, s)| StepRecord {
+                position: s.pose.position.to_array(),
+                yaw: s.pose.yaw,
+                time: s.time,
+                commanded: s.commanded,
+                achieved: s.achieved,
+                contact: !s.touched.is_empty(),
+                intensity: s.intensity,
+                geodesic_to_goal_point: t.geodesics.steps_to_point.get(k).copied().flatten(),
+            })
+            .collect(),
+        stop_called: t.stop_called(),
+        reference_path: e.reference_path.iter().map(|p| p.to_array()).collect(),
+        goal,
+        geodesics: Geodesics {
+            start_to_region: t.geodesics.start_to_region,
+            final_to_region: t.geodesics.final_to_region,
+            start_to_point: t.geodesics.start_to_point,
+        },
+        official_goal,
+    }
+}
+
+/// Loads a scene folder with its bodies (hulls cached in `cache` or beside the scene).
+fn context(dir: &std::path::Path, cache: Option<PathBuf>) -> Result<SceneContext> {
+    let (scene, _) = Scene::load(dir)?;
+    let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
+    let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
+    let params = TrajectoryParams::default();
+    SceneContext::new(scene, bodies, &params.grid, params.cost)
+}
+
+fn run_one(a: RunArgs) -> Result<()> {
+    let mode: Mode = a.mode.parse().map_err(|e: Error| e.within("--mode"))?;
+    let mut config = EnvConfig::preset(&a.preset).map_err(|e| e.within("--preset"))?;
+    if !a.render {
+        config.sensors = SensorConfig {
+            rgb: false,
+            depth: false,
+            semantic: false,
+            instance: false,
+            ..config.sensors
+        };
+    }
+    let mut agent = agent(&a.agent, a.seed)?;
+    let ctx = Arc::new(context(&a.scene, a.cache)?);
+    let episodes = sage_bench::dataset::formats::jsonl::read(&a.episodes)?;
+    let episode = episodes
+        .iter()
+        .find(|e| match &a.episode {
+            Some(id) => &e.episode_id == id,
+            None => e.scene == ctx.scene.name,
+        })
+        .ok_or_else(|| {
+            Error::invalid(match &a.episode {
+                Some(id) => format!("no episode '{id}'"),
+                None => format!("no episode of scene {}", ctx.scene.name),
+            })
+            .in_file(&a.episodes)
+        })?;
+    if episode.scene != ctx.scene.name {
+        return Err(Error::invalid(format!(
+            "episode {} is in scene {}, not {}",
+            episode.episode_id, episode.scene, ctx.scene.name
+        )));
+    }
+    let mut env = Env::new(ctx.clone(), config)?;
+    let trace = run_episode(&mut env, agent.as_mut(), &env_episode(episode))?;
+    for s in &trace.steps {
+        println!("{}", json(s)?);
+    }
+    let m = metrics::evaluate(&metric_record(&ctx, &trace), mode)?;
+    println!(
+        "{}",
+        json(&serde_json::json!({
+            "episode": trace.episode.id,
+            "agent": agent.name(),
+            "termination": trace.termination,
+            "mode": mode,
+            "metrics": m,
+        }))?
+    );
+    Ok(())
+}
+
+fn json(v: &impl serde::Serialize) -> Result<String> {
+    serde_json::to_string(v).map_err(|e| Error::invalid(e.to_string()))
+}
+
+#[derive(Args)]
+pub struct EnvBenchArgs {
+    /// Objects in the generated home.
+    #[arg(long, default_value_t = 200)]
+    objects: usize,
+    /// Gaussians in the generated home.
+    #[arg(long, default_value_t = 1_000_000)]
+    gaussians: usize,
+    /// Seed of the scene, the episodes and the random agent.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Steps without rendering.
+    #[arg(long, default_value_t = 20_000)]
+    steps: usize,
+    /// Steps per rendered resolution.
+    #[arg(long, default_value_t = 200)]
+    render_steps: usize,
+    /// Resolutions as WxH (RGB + depth each).
+    #[arg(long, value_delimiter = ',', default_value = "224x224,640x480")]
+    sizes: Vec<String>,
+    /// Hull cache folder.
+    #[arg(long)]
+    cache: Option<PathBuf>,
+}
+
+/// Steps/s of a seeded random agent over the episodes, cycling them: resets, agent, physics,
+/// trace and (when configured) rendering all count.
+fn measure(
+    ctx: &Arc<SceneContext>,
+    config: EnvConfig,
+    episodes: &[EnvEpisode],
+    steps: usize,
+    seed: u64,
+) -> Result<(f64, usize)> {
+    let mut env = Env::new(ctx.clone(), config)?;
+    let mut agent = RandomAgent::new(seed, 0.0)?;
+    let mut done = 0;
+    let mut resets = 0;
+    let t0 = Instant::now();
+    'outer: for e in episodes.iter().cycle() {
+        let mut obs = env.reset(e)?;
+        agent.reset(&env, e)?;
+        resets += 1;
+        while !env.done() {
+            obs = env.step(agent.act(&obs)?)?.0;
+            done += 1;
+            if done == steps {
+                break 'outer;
+            }
+        }
+    }
+    Ok((done as f64 / t0.elapsed().as_secs_f64(), resets))
+}
+
+pub fn bench(a: EnvBenchArgs) -> Result<()> {
+    let sizes = a
+        .sizes
+        .iter()
+        .map(|s| crate::bench::parse_size(s))
+        .collect::<Result<Vec<_>>>()?;
+    let config = SynthConfig {
+        seed: a.seed,
+        kind: SceneKind::Home,
+        rooms: (a.objects / 14).clamp(1, 64),
+        objects: a.objects,
+        gaussians: a.gaussians,
+        ..SynthConfig::default()
+    };
+    eprintln!(
+        "generating a {}-object home of {} Gaussians …",
+        a.objects, a.gaussians
+    );
+    let scene = sage_scene::synth::generate(&config)?;
+    let cache = HullCache::new(
+        a.cache
+            .unwrap_or_else(|| std::env::temp_dir().join("sage3d-bench-env-hulls")),
+    );
+    let (bodies, report) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
+    let params = TrajectoryParams {
+        count: 16,
+        seed: a.seed,
+        ..TrajectoryParams::default()
+    };
+    let prep = sage_nav::trajectory::prepare(&scene, &params)?;
+    let (set, _) = sage_nav::trajectory::generate(&scene.name, &prep, &params)?;
+    let episodes: Vec<EnvEpisode> = set
+        .trajectories
+        .iter()
+        .map(|t| EnvEpisode::from_trajectory(format!("t{}", t.id), t, "go to the goal"))
+        .collect();
+    if episodes.is_empty() {
+        return Err(Error::invalid(
+            "the generated home has no trajectory to run",
+        ));
+    }
+    let (name, objects, gaussians) = (
+        scene.name.clone(),
+        scene.objects.len(),
+        scene.gaussians.len(),
+    );
+    let ctx = Arc::new(SceneContext::new(
+        scene,
+        bodies,
+        &GridParams::default(),
+        params.cost.clone(),
+    )?);
+    let blind = EnvConfig {
+        sensors: SensorConfig {
+            rgb: false,
+            depth: false,
+            ..SensorConfig::default()
+        },
+        ..EnvConfig::default()
+    };
+    println!("machine          {}", machine::describe());
+    println!(
+        "scene            {name} ({objects} objects, {gaussians} Gaussians; {} collision parts, bodies in {:.2} s)",
+        report.parts, report.seconds
+    );
+    println!(
+        "episodes         {} planned trajectories, cycled; seeded random agent (forward / left / right), 500-step limit",
+        episodes.len()
+    );
+    let (rate, resets) = measure(&ctx, blind, &episodes, a.steps, a.seed)?;
+    println!(
+        "no rendering     {rate:.0} steps/s ({:.2} µs per step; {} steps, {resets} resets)",
+        1e6 / rate,
+        a.steps
+    );
+    for (w, h) in sizes {
+        let cfg = EnvConfig {
+            sensors: SensorConfig {
+                width: w,
+                height: h,
+                ..SensorConfig::default()
+            },
+            ..EnvConfig::default()
+        };
+        let (rate, _) = measure(&ctx, cfg, &episodes, a.render_steps, a.seed)?;
+        println!(
+            "{:<16} {rate:.1} steps/s ({:.1} ms per step; RGB + depth, HFOV 90, {} steps)",
+            format!("{w}x{h}"),
+            1e3 / rate,
+            a.render_steps
+        );
+    }
+    Ok(())
+}
