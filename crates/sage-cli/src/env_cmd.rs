@@ -21,7 +21,7 @@ use sage_scene::Scene;
 use sage_scene::synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 #[derive(Subcommand)]
 pub enum EnvCommand {
@@ -266,33 +266,50 @@ pub struct EnvBenchArgs {
     cache: Option<PathBuf>,
 }
 
-/// Steps/s of a seeded random agent over the episodes, cycling them: resets, agent, physics,
-/// trace and (when configured) rendering all count.
+/// What [`measure`] found.
+struct Rate {
+    /// Steps per second of `act` + `step` (physics, trace, observation, rendering when set).
+    steps_per_s: f64,
+    /// Episode resets done.
+    resets: usize,
+    /// Mean milliseconds per reset (fresh physics world, first observation).
+    reset_ms: f64,
+}
+
+/// Runs `steps` steps of a seeded random agent over the episodes, cycling them; steps and
+/// resets are timed apart.
 fn measure(
     ctx: &Arc<SceneContext>,
     config: EnvConfig,
     episodes: &[EnvEpisode],
     steps: usize,
     seed: u64,
-) -> Result<(f64, usize)> {
+) -> Result<Rate> {
     let mut env = Env::new(ctx.clone(), config)?;
     let mut agent = RandomAgent::new(seed, 0.0)?;
-    let mut done = 0;
-    let mut resets = 0;
-    let t0 = Instant::now();
+    let (mut done, mut resets) = (0, 0);
+    let (mut stepping, mut resetting) = (Duration::ZERO, Duration::ZERO);
     'outer: for e in episodes.iter().cycle() {
+        let t0 = Instant::now();
         let mut obs = env.reset(e)?;
         agent.reset(&env, e)?;
+        resetting += t0.elapsed();
         resets += 1;
         while !env.done() {
+            let t0 = Instant::now();
             obs = env.step(agent.act(&obs)?)?.0;
+            stepping += t0.elapsed();
             done += 1;
             if done == steps {
                 break 'outer;
             }
         }
     }
-    Ok((done as f64 / t0.elapsed().as_secs_f64(), resets))
+    Ok(Rate {
+        steps_per_s: done as f64 / stepping.as_secs_f64(),
+        resets,
+        reset_ms: resetting.as_secs_f64() * 1e3 / resets as f64,
+    })
 }
 
 pub fn bench(a: EnvBenchArgs) -> Result<()> {
@@ -364,11 +381,14 @@ pub fn bench(a: EnvBenchArgs) -> Result<()> {
         "episodes         {} planned trajectories, cycled; seeded random agent (forward / left / right), 500-step limit",
         episodes.len()
     );
-    let (rate, resets) = measure(&ctx, blind, &episodes, a.steps, a.seed)?;
+    let r = measure(&ctx, blind, &episodes, a.steps, a.seed)?;
     println!(
-        "no rendering     {rate:.0} steps/s ({:.2} µs per step; {} steps, {resets} resets)",
-        1e6 / rate,
-        a.steps
+        "no rendering     {:.0} steps/s ({:.2} µs per step; {} steps); reset {:.2} ms ({} resets)",
+        r.steps_per_s,
+        1e6 / r.steps_per_s,
+        a.steps,
+        r.reset_ms,
+        r.resets
     );
     for (w, h) in sizes {
         let cfg = EnvConfig {
@@ -379,12 +399,14 @@ pub fn bench(a: EnvBenchArgs) -> Result<()> {
             },
             ..EnvConfig::default()
         };
-        let (rate, _) = measure(&ctx, cfg, &episodes, a.render_steps, a.seed)?;
+        let r = measure(&ctx, cfg, &episodes, a.render_steps, a.seed)?;
         println!(
-            "{:<16} {rate:.1} steps/s ({:.1} ms per step; RGB + depth, HFOV 90, {} steps)",
+            "{:<16} {:.1} steps/s ({:.1} ms per step; RGB + depth, HFOV 90, {} steps); reset {:.1} ms",
             format!("{w}x{h}"),
-            1e3 / rate,
-            a.render_steps
+            r.steps_per_s,
+            1e3 / r.steps_per_s,
+            a.render_steps,
+            r.reset_ms
         );
     }
     Ok(())

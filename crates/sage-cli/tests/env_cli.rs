@@ -96,3 +96,30 @@ fn oracle_runs_a_dataset_episode_and_scores_it() {
     ]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("no episode 'nope'"));
 }
+
+#[test]
+fn bench_env_reports_each_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = ok(&[
+        "bench",
+        "env",
+        "--objects",
+        "30",
+        "--gaussians",
+        "2000",
+        "--steps",
+        "300",
+        "--render-steps",
+        "3",
+        "--sizes",
+        "16x12",
+        "--cache",
+        s(dir.path()),
+    ]);
+    assert!(out.contains("machine"), "{out}");
+    assert!(
+        out.contains("no rendering") && out.contains("steps/s"),
+        "{out}"
+    );
+    assert!(out.contains("16x12"), "{out}");
+}
