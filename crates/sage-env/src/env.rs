@@ -5,6 +5,7 @@ use crate::context::SceneContext;
 use crate::episode::{EnvEpisode, EnvTask, EpisodeTrace, TraceGeodesics};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Polygon2, Pose, Result};
+use sage_nav::PathFinder;
 use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
 use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
 use serde::{Deserialize, Serialize};
@@ -482,8 +483,22 @@ impl Env {
     }
 }
 
+/// How far a position off the navigable grid (an agent pressed against an obstacle, inside the
+/// grid's safety inflation) is snapped to the nearest navigable cell for geodesic distances.
+pub const SNAP_DISTANCE: f32 = 0.5;
+
+/// `p` on the navigable grid: itself when navigable, else the nearest navigable cell centre
+/// within [`SNAP_DISTANCE`]; with the gap between the two.
+fn snapped(pf: &PathFinder, p: Vec2) -> Option<(Vec2, f32)> {
+    if pf.is_navigable(p) {
+        return Some((p, 0.0));
+    }
+    pf.snap_point(p, SNAP_DISTANCE).map(|q| (q, p.distance(q)))
+}
+
 /// The geodesic distances of a finished VLN episode (SPEC §10): to the goal region within
-/// 1.0 m of its footprint (or the goal point), and to the goal point per step.
+/// 1.0 m of its footprint (or to the goal point), and to the goal point per step. A position
+/// off the navigable grid is snapped to it and the gap added.
 fn geodesics(
     ctx: &SceneContext,
     trace: &EpisodeTrace,
@@ -499,23 +514,27 @@ fn geodesics(
         .steps
         .last()
         .map_or(start, |s| s.pose.position.truncate());
-    let to_region = |p: Vec2| match region {
-        Some(r) => pf.geodesic_distance_to_region(p, r, 1.0),
-        None => pf.geodesic_distance(p, point),
+    let to_region = |p: Vec2| {
+        let (q, gap) = snapped(pf, p)?;
+        let d = match region {
+            Some(r) => pf.geodesic_distance_to_region(q, r, 1.0),
+            None => pf.geodesic_distance(q, point),
+        };
+        d.map(|d| d + gap)
     };
-    let field = pf.geodesic_field(point).ok();
+    let field = snapped(pf, point).and_then(|(q, _)| pf.geodesic_field(q).ok());
+    let to_point = |p: Vec2| {
+        let (q, gap) = snapped(pf, p)?;
+        field.as_ref()?.distance_to(q).map(|d| d + gap)
+    };
     TraceGeodesics {
         start_to_region: to_region(start),
         final_to_region: to_region(last),
-        start_to_point: field.as_ref().and_then(|f| f.distance_to(start)),
+        start_to_point: to_point(start),
         steps_to_point: trace
             .steps
             .iter()
-            .map(|s| {
-                field
-                    .as_ref()
-                    .and_then(|f| f.distance_to(s.pose.position.truncate()))
-            })
+            .map(|s| to_point(s.pose.position.truncate()))
             .collect(),
     }
 }

@@ -146,6 +146,14 @@ fn termination_rules() {
     assert_eq!(trace.steps.len(), 5);
     assert_eq!(trace.termination, Some(Termination::MaxSteps));
     assert!(env.step(Action::MoveForward).is_err());
+    // Pressed against whatever it faces, the agent still gets finite geodesic distances.
+    let mut long = cfg.clone();
+    long.task.max_steps = 40;
+    let mut env40 = Env::new(f.ctx.clone(), long).unwrap();
+    let trace = run_episode(&mut env40, &mut ForwardAgent::new(None), &f.episodes[0]).unwrap();
+    assert!(trace.steps.iter().any(|s| s.intensity > 0.5));
+    assert!(trace.geodesics.final_to_region.is_some());
+    assert!(trace.geodesics.steps_to_point.iter().all(Option::is_some));
     // STOP ends at once and counts as a step.
     let trace = run_episode(&mut env, &mut ForwardAgent::new(Some(2)), e).unwrap();
     assert_eq!(trace.steps.len(), 3);
