@@ -99,3 +99,49 @@ mod tests {
         assert_eq!(dedup_trace(&t), vec![[0.0, 0.0], [1.0, 0.0], [0.0, 0.0]]);
     }
 }
+
+#[cfg(test)]
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// DTW by enumerating every monotone alignment path (small inputs only).
+    fn brute(r: &[[f64; 2]], q: &[[f64; 2]], i: usize, j: usize) -> f64 {
+        let c = euclidean(&q[i], &r[j]);
+        if i + 1 == q.len() && j + 1 == r.len() {
+            return c;
+        }
+        let mut best = f64::INFINITY;
+        if i + 1 < q.len() {
+            best = best.min(brute(r, q, i + 1, j));
+        }
+        if j + 1 < r.len() {
+            best = best.min(brute(r, q, i, j + 1));
+        }
+        if i + 1 < q.len() && j + 1 < r.len() {
+            best = best.min(brute(r, q, i + 1, j + 1));
+        }
+        c + best
+    }
+
+    fn points(n: usize) -> impl Strategy<Value = Vec<[f64; 2]>> {
+        proptest::collection::vec((-5i32..5, -5i32..5), 1..n).prop_map(|v| {
+            v.into_iter()
+                .map(|(x, y)| [f64::from(x) * 0.5, f64::from(y) * 0.5])
+                .collect()
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn dynamic_programme_matches_enumeration(r in points(6), q in points(6)) {
+            let d = dtw(&r, &q, euclidean);
+            prop_assert!((d - brute(&r, &q, 0, 0)).abs() < 1e-9);
+            // Symmetric cost: swapping the sequences changes nothing.
+            prop_assert!((d - dtw(&q, &r, euclidean)).abs() < 1e-9);
+            let n = ndtw_from(d, r.len(), DTW_THRESHOLD);
+            prop_assert!(n > 0.0 && n <= 1.0);
+            prop_assert_eq!(n == 1.0, d == 0.0);
+        }
+    }
+}

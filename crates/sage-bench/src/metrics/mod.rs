@@ -208,8 +208,15 @@ fn flag(b: bool) -> f64 {
 ///
 /// # Errors
 ///
-/// An `invalid` error naming the episode when a VLN record has no goal region.
+/// An `invalid` error naming the episode when a VLN record has no goal region, or when it says
+/// STOP was called but holds no step (STOP is a step).
 pub fn evaluate(rec: &EpisodeRecord, mode: Mode) -> Result<EpisodeMetrics> {
+    if rec.stop_called && rec.steps.is_empty() {
+        return Err(Error::invalid(format!(
+            "episode {}: stop_called is set but there is no step (STOP is a step)",
+            rec.episode_id
+        )));
+    }
     let start = xy(&rec.start);
     let trace: Vec<[f64; 2]> = std::iter::once(start)
         .chain(rec.steps.iter().map(|s| xy(&s.position)))

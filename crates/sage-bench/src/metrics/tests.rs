@@ -197,6 +197,10 @@ fn vln_without_goal_is_an_error() {
     r.goal = None;
     let e = evaluate(&r, Mode::Sage).unwrap_err();
     assert!(e.message().contains("episode e"));
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.steps.clear();
+    let e = evaluate(&r, Mode::Vlnce).unwrap_err();
+    assert!(e.message().contains("no step"));
 }
 
 #[test]
@@ -222,4 +226,87 @@ fn record_round_trips_as_json() {
     let text = serde_json::to_string(&r).unwrap();
     let back: EpisodeRecord = serde_json::from_str(&text).unwrap();
     assert_eq!(back, r);
+}
+
+mod properties {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn record() -> impl Strategy<Value = EpisodeRecord> {
+        let step = (
+            (-8i32..8, -8i32..8, -6i32..7),
+            (0u8..5, 0u8..5),
+            (any::<bool>(), 0u8..5),
+            proptest::option::of(0u8..20),
+        )
+            .prop_map(|((x, y, yaw), (cmd, ach), (contact, c), geo)| {
+                let cmd = f32::from(cmd) * 0.1;
+                StepRecord {
+                    position: [x as f32 * 0.25, y as f32 * 0.25, 0.0],
+                    yaw: yaw as f32 * 0.5,
+                    time: 0.0,
+                    commanded: cmd,
+                    achieved: cmd.min(f32::from(ach) * 0.1),
+                    contact,
+                    intensity: f32::from(c) * 0.25,
+                    geodesic_to_goal_point: geo.map(|g| f32::from(g) * 0.5),
+                }
+            });
+        (
+            proptest::collection::vec(step, 0..12),
+            any::<bool>(),
+            proptest::collection::vec((-8i32..8, -8i32..8), 1..6),
+        )
+            .prop_map(|(steps, stop_called, path)| {
+                let reference_path: Vec<[f32; 3]> = path
+                    .iter()
+                    .map(|&(x, y)| [x as f32 * 0.5, y as f32 * 0.5, 0.0])
+                    .collect();
+                let end = reference_path[reference_path.len() - 1];
+                EpisodeRecord {
+                    episode_id: "p".into(),
+                    task: Task::Vln,
+                    start: [0.0, 0.0, 0.0],
+                    start_yaw: 0.0,
+                    steps,
+                    stop_called,
+                    reference_path,
+                    goal: Some(GoalRegion {
+                        point: [f64::from(end[0]), f64::from(end[1])],
+                        footprint: None,
+                    }),
+                    geodesics: Geodesics {
+                        start_to_region: Some(2.0),
+                        final_to_region: Some(1.0),
+                        start_to_point: Some(2.0),
+                    },
+                    official_goal: OfficialGoal::NoMap,
+                }
+            })
+    }
+
+    proptest! {
+        #[test]
+        fn metrics_stay_in_range(r in record()) {
+            if r.stop_called && r.steps.is_empty() {
+                prop_assert!(evaluate(&r, Mode::Sage).is_err());
+                return Ok(());
+            }
+            for mode in [Mode::Sage, Mode::Vlnce, Mode::SageOfficial] {
+                let m = evaluate(&r, mode).unwrap();
+                let sr = m.sr.unwrap();
+                prop_assert!(sr == 0.0 || sr == 1.0);
+                prop_assert!(sr <= m.osr.unwrap());
+                prop_assert!(m.spl.unwrap() <= sr && m.spl.unwrap() >= 0.0);
+                for v in [m.csr, m.icp, m.ps, m.ndtw].into_iter().flatten() {
+                    prop_assert!((0.0..=1.0).contains(&v), "{mode}: {v}");
+                }
+                if let (Some(s), Some(n)) = (m.sdtw, m.ndtw) {
+                    prop_assert!(s <= n);
+                }
+                prop_assert!(m.tl.unwrap() >= 0.0);
+                prop_assert!(m.cr.unwrap_or(0.0) <= r.steps.len() as f64);
+            }
+        }
+    }
 }
