@@ -163,7 +163,8 @@ impl Agent for ForwardAgent {
 
 /// Follows the shortest path to the goal point with discrete actions: turn toward the next
 /// waypoint until it is within half a turn step, else move forward; STOP within `stop_radius`
-/// of the goal point. When a forward move makes no progress it replans from where it stands.
+/// of the goal point. When a forward move makes no progress it replans from where it stands;
+/// with no path to the goal (at reset or after replanning) it calls STOP.
 #[derive(Clone, Default)]
 pub struct OracleAgent {
     waypoints: Vec<Vec2>,
@@ -225,12 +226,16 @@ impl Agent for OracleAgent {
         self.last = None;
         self.replans = 0;
         self.scene = Some(env.context().clone());
-        self.plan(episode.start.position.truncate())
+        // An unreachable goal is the episode's property, not a fault: the oracle then stops.
+        if self.plan(episode.start.position.truncate()).is_err() {
+            self.waypoints.clear();
+        }
+        Ok(())
     }
 
     fn act(&mut self, obs: &Observation) -> Result<Action> {
         let at = obs.pose.position.truncate();
-        if at.distance(self.goal) <= self.stop_radius {
+        if self.waypoints.is_empty() || at.distance(self.goal) <= self.stop_radius {
             return Ok(Action::Stop);
         }
         if let Some((Action::MoveForward, before)) = self.last

@@ -102,7 +102,16 @@ fn oracle_reaches_every_reachable_goal() {
         assert!(g.start_to_region.is_some() && g.start_to_point.is_some());
         assert_eq!(g.steps_to_point.len(), trace.steps.len());
         assert!(g.final_to_region.unwrap() <= 1.0 + 1e-3);
+        assert!(env.within_success_distance());
     }
+    // A goal outside the scene cannot be planned to: the oracle stops at once.
+    let mut far = f.episodes[0].clone();
+    far.goal.as_mut().unwrap().point = glam::Vec3::new(1e3, 1e3, 0.0);
+    far.goal.as_mut().unwrap().object = None;
+    let trace = run_episode(&mut env, &mut oracle, &far).unwrap();
+    assert_eq!(trace.steps.len(), 1);
+    assert!(trace.stop_called() && !env.within_success_distance());
+    assert_eq!(trace.geodesics.final_to_region, None);
 }
 
 #[test]
@@ -277,6 +286,22 @@ fn rollout(threads: usize) -> Vec<(String, Vec<u8>)> {
             })
             .collect()
     })
+}
+
+#[test]
+fn an_episode_does_not_depend_on_the_one_before() {
+    let f = fixture();
+    let run = |env: &mut Env, e: &EnvEpisode| {
+        let mut agent = RandomAgent::new(5, 0.0).unwrap();
+        run_episode(env, &mut agent, e).unwrap().steps
+    };
+    let mut cfg = blind();
+    cfg.task.max_steps = 60;
+    let mut used = Env::new(f.ctx.clone(), cfg.clone()).unwrap();
+    run(&mut used, &f.episodes[1]);
+    let after = run(&mut used, &f.episodes[2]);
+    let mut fresh = Env::new(f.ctx.clone(), cfg).unwrap();
+    assert_eq!(after, run(&mut fresh, &f.episodes[2]));
 }
 
 #[test]
