@@ -52,7 +52,8 @@ pub struct RunArgs {
     /// Metric mode: sage, vlnce or sage-official.
     #[arg(long, default_value = "sage")]
     mode: String,
-    /// Render the preset's images at every step (only their sizes are printed).
+    /// Render the preset's images at every step, as an agent receiving them would (they are
+    /// not written; without this flag the run is blind, which the baselines do not need).
     #[arg(long)]
     render: bool,
     /// Hull cache folder (default: beside the scene).

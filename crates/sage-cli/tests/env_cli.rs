@@ -57,6 +57,18 @@ fn oracle_runs_a_dataset_episode_and_scores_it() {
     assert_eq!(m["sr"], 1.0, "{out}");
     assert_eq!(m["steps"].as_f64().unwrap() as usize, steps.len());
     assert!(m["spl"].as_f64().unwrap() > 0.5);
+    // Rendering the observations does not change the motion.
+    let rendered = ok(&[
+        "env",
+        "run",
+        s(&scene),
+        "--episodes",
+        s(&episodes),
+        "--episode",
+        id,
+        "--render",
+    ]);
+    assert_eq!(rendered, out);
     // The same run scored as VLN-CE and as the published code.
     for mode in ["vlnce", "sage-official"] {
         let out = ok(&[
