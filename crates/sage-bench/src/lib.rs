@@ -1,8 +1,10 @@
-//! `sage-bench`: the benchmark data of sage3d (SPEC §9).
+//! `sage-bench`: the benchmark of sage3d — its data and its scores (SPEC §9 and §10).
 //!
 //! [`dataset`] holds episodes, slices, splits, the balanced test selector, the file formats
 //! (our JSONL, SAGE-Bench GVLN JSON, R2R-VLNCE) and the `build` pipeline that turns a folder of
-//! scenes into a dataset. Conventions are documented in `docs/dataset.md`.
+//! scenes into a dataset (`docs/dataset.md`). [`metrics`] scores one episode's record — NE, SR,
+//! OSR, SPL, TL, CR, CSR, ICP, PS, nDTW, SDTW and the NoGoal measures — in the modes `sage`,
+//! `vlnce` and `sage-official`, and aggregates them (`docs/metrics.md`).
 
 pub mod dataset;
 pub mod metrics;
