@@ -33,17 +33,11 @@ fn oracle_runs_a_dataset_episode_and_scores_it() {
     )
     .unwrap();
     let id = first["episode_id"].as_str().unwrap();
-    let out = ok(&[
-        "env",
-        "run",
-        s(&scene),
-        "--episodes",
-        s(&episodes),
-        "--episode",
-        id,
-        "--agent",
-        "oracle",
-    ]);
+    // `sage3d env run SCENE --episodes FILE` followed by `extra`.
+    let base = ["env", "run", s(&scene), "--episodes", s(&episodes)];
+    let run = |extra: &[&str]| sage3d(&[&base[..], extra].concat());
+    let run_ok = |extra: &[&str]| ok(&[&base[..], extra].concat());
+    let out = run_ok(&["--episode", id, "--agent", "oracle"]);
     let lines: Vec<serde_json::Value> = out
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
@@ -58,54 +52,19 @@ fn oracle_runs_a_dataset_episode_and_scores_it() {
     assert_eq!(m["steps"].as_f64().unwrap() as usize, steps.len());
     assert!(m["spl"].as_f64().unwrap() > 0.5);
     // Rendering the observations does not change the motion.
-    let rendered = ok(&[
-        "env",
-        "run",
-        s(&scene),
-        "--episodes",
-        s(&episodes),
-        "--episode",
-        id,
-        "--render",
-    ]);
+    let rendered = run_ok(&["--episode", id, "--render"]);
     assert_eq!(rendered, out);
     // The same run scored as VLN-CE and as the published code.
     for mode in ["vlnce", "sage-official"] {
-        let out = ok(&[
-            "env",
-            "run",
-            s(&scene),
-            "--episodes",
-            s(&episodes),
-            "--episode",
-            id,
-            "--mode",
-            mode,
-        ]);
+        let out = run_ok(&["--episode", id, "--mode", mode]);
         let last: serde_json::Value = serde_json::from_str(out.lines().last().unwrap()).unwrap();
         assert_eq!(last["mode"], mode);
         assert!(last["metrics"]["ne"].as_f64().unwrap() < 1.5, "{out}");
     }
-    let bad = sage3d(&[
-        "env",
-        "run",
-        s(&scene),
-        "--episodes",
-        s(&episodes),
-        "--agent",
-        "genius",
-    ]);
+    let bad = run(&["--agent", "genius"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--agent 'genius'"));
-    let bad = sage3d(&[
-        "env",
-        "run",
-        s(&scene),
-        "--episodes",
-        s(&episodes),
-        "--episode",
-        "nope",
-    ]);
+    let bad = run(&["--episode", "nope"]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("no episode 'nope'"));
 }
 
