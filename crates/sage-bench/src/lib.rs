@@ -4,7 +4,10 @@
 //! (our JSONL, SAGE-Bench GVLN JSON, R2R-VLNCE) and the `build` pipeline that turns a folder of
 //! scenes into a dataset (`docs/dataset.md`). [`metrics`] scores one episode's record — NE, SR,
 //! OSR, SPL, TL, CR, CSR, ICP, PS, nDTW, SDTW and the NoGoal measures — in the modes `sage`,
-//! `vlnce` and `sage-official`, and aggregates them (`docs/metrics.md`).
+//! `vlnce` and `sage-official`, and aggregates them (`docs/metrics.md`). [`eval`] runs an agent over
+//! a dataset split in the environment, resumably, and summarises the scores per slice
+//! (`docs/evaluation.md`).
 
 pub mod dataset;
+pub mod eval;
 pub mod metrics;

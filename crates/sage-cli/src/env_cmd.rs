@@ -1,23 +1,18 @@
 //! `sage3d env run` (drive one episode with a baseline agent, one JSON line per step, then its
 //! metrics) and `sage3d bench env` (environment steps per second with and without rendering).
 //!
-//! This is also where a dataset episode becomes an environment episode and a finished trace
-//! becomes the metrics' record: the environment crate does not know the benchmark crate.
+//! Dataset episodes become environment episodes, and traces metric records, through
+//! `sage_bench::eval::convert`, as in the evaluator.
 
 use crate::machine;
 use clap::{Args, Subcommand};
-use glam::{Vec2, Vec3};
-use sage_bench::dataset::{Episode, Task};
-use sage_bench::metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
-use sage_bench::metrics::{self, EpisodeRecord, Geodesics, Mode, StepRecord};
+use sage_bench::eval::convert::{AgentKind, env_episode, load_context, metric_record};
+use sage_bench::metrics::{self, Mode};
 use sage_core::{Error, Result};
-use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent, run_episode};
-use sage_env::{
-    Env, EnvConfig, EnvEpisode, EnvGoal, EnvTask, EpisodeTrace, SceneContext, SensorConfig,
-};
+use sage_env::agents::{Agent, RandomAgent, run_episode};
+use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
 use sage_nav::{GridParams, TrajectoryParams};
-use sage_physics::{Decomposer, HullCache, SceneBodies, default_cache_dir};
-use sage_scene::Scene;
+use sage_physics::{Decomposer, HullCache, SceneBodies};
 use sage_scene::synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -67,124 +62,6 @@ pub fn run(cmd: EnvCommand) -> Result<()> {
     }
 }
 
-/// The agent named `name`.
-fn agent(name: &str, seed: u64) -> Result<Box<dyn Agent>> {
-    Ok(match name {
-        "oracle" => Box::new(OracleAgent::new(0.25)),
-        "forward" => Box::new(ForwardAgent::new(None)),
-        "random" => Box::new(RandomAgent::new(seed, 0.02)?),
-        _ => {
-            return Err(Error::invalid(format!(
-                "--agent '{name}': expected oracle, forward or random"
-            )));
-        }
-    })
-}
-
-/// The environment's view of a dataset episode: an object goal names its item id, so the
-/// object's footprint becomes the goal region.
-pub fn env_episode(e: &Episode) -> EnvEpisode {
-    EnvEpisode {
-        id: e.episode_id.clone(),
-        task: match e.task {
-            Task::Vln => EnvTask::Vln,
-            Task::Nogoal => EnvTask::Nogoal,
-        },
-        instruction: e.instruction.clone(),
-        start: e.start.pose(),
-        goal: e.goal.as_ref().map(|g| EnvGoal {
-            point: Vec3::from(g.position),
-            object: (g.kind == "object").then(|| g.reference.clone()),
-        }),
-        reference_path: e.reference_path.iter().map(|&p| Vec3::from(p)).collect(),
-    }
-}
-
-/// The metrics' record of a finished trace; the published code's goal box is chosen among
-/// the scene's semantic-map objects and walls.
-pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
-    let f = |v: Vec2| [f64::from(v.x), f64::from(v.y)];
-    let boxes: Vec<LabelledBox> = ctx
-        .semantic
-        .items
-        .iter()
-        .map(|i| (i.category.clone(), &i.polygon))
-        .chain(
-            ctx.semantic
-                .walls
-                .iter()
-                .map(|w| ("wall".to_string(), &w.polygon)),
-        )
-        .map(|(label, poly)| {
-            let lo = poly.iter().fold(Vec2::INFINITY, |m, p| m.min(*p));
-            let hi = poly.iter().fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
-            LabelledBox {
-                label,
-                min: f(lo),
-                max: f(hi),
-            }
-        })
-        .collect();
-    let e = &t.episode;
-    let goal = e.goal.as_ref().map(|g| GoalRegion {
-        point: f(g.point.truncate()),
-        footprint: t.goal_footprint.as_ref().map(|p| {
-            p.iter()
-                .map(|q| [f64::from(q[0]), f64::from(q[1])])
-                .collect()
-        }),
-    });
-    let official_goal = OfficialGoal::Map {
-        chosen: e
-            .reference_path
-            .last()
-            .or(e.goal.as_ref().map(|g| &g.point))
-            .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
-    };
-    EpisodeRecord {
-        episode_id: e.id.clone(),
-        task: match e.task {
-            EnvTask::Vln => Task::Vln,
-            EnvTask::Nogoal => Task::Nogoal,
-        },
-        start: e.start.position.to_array(),
-        start_yaw: e.start.yaw,
-        steps: t
-            .steps
-            .iter()
-            .enumerate()
-            .map(|(k, s)| StepRecord {
-                position: s.pose.position.to_array(),
-                yaw: s.pose.yaw,
-                time: s.time,
-                commanded: s.commanded,
-                achieved: s.achieved,
-                contact: !s.touched.is_empty(),
-                intensity: s.intensity,
-                geodesic_to_goal_point: t.geodesics.steps_to_point.get(k).copied().flatten(),
-            })
-            .collect(),
-        stop_called: t.stop_called(),
-        reference_path: e.reference_path.iter().map(|p| p.to_array()).collect(),
-        goal,
-        geodesics: Geodesics {
-            start_to_region: t.geodesics.start_to_region,
-            final_to_region: t.geodesics.final_to_region,
-            start_to_point: t.geodesics.start_to_point,
-        },
-        official_goal,
-    }
-}
-
-/// Loads a scene folder with its bodies (hulls cached in `cache` or beside the scene).
-fn context(dir: &std::path::Path, cache: Option<PathBuf>) -> Result<SceneContext> {
-    let (scene, _) = Scene::load(dir)?;
-    let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
-    let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
-    let params = TrajectoryParams::default();
-    SceneContext::new(scene, bodies, &params.grid, params.cost)
-}
-
 fn run_one(a: RunArgs) -> Result<()> {
     let mode: Mode = a.mode.parse().map_err(|e: Error| e.within("--mode"))?;
     let mut config = EnvConfig::preset(&a.preset).map_err(|e| e.within("--preset"))?;
@@ -197,8 +74,12 @@ fn run_one(a: RunArgs) -> Result<()> {
             ..config.sensors
         };
     }
-    let mut agent = agent(&a.agent, a.seed)?;
-    let ctx = Arc::new(context(&a.scene, a.cache)?);
+    let mut agent = a
+        .agent
+        .parse::<AgentKind>()
+        .map_err(|e| e.within(format!("--agent '{}'", a.agent)))?
+        .build(a.seed)?;
+    let ctx = Arc::new(load_context(&a.scene, a.cache)?);
     let episodes = sage_bench::dataset::formats::jsonl::read(&a.episodes)?;
     let episode = episodes
         .iter()

@@ -6,6 +6,7 @@
 mod bench;
 mod data_cmd;
 mod env_cmd;
+mod eval_cmd;
 mod machine;
 mod nav_cmd;
 mod physics_cmd;
@@ -54,6 +55,8 @@ enum Command {
     /// The executable environment: drive an episode with a baseline agent.
     #[command(subcommand)]
     Env(env_cmd::EnvCommand),
+    /// Evaluate an agent on a dataset split: per-episode records, resumable, summary per slice.
+    Eval(eval_cmd::EvalArgs),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -79,6 +82,7 @@ fn main() -> ExitCode {
         Command::Nav(c) => nav_cmd::run(c),
         Command::Data(c) => data_cmd::run(c),
         Command::Env(c) => env_cmd::run(c),
+        Command::Eval(a) => eval_cmd::run(a),
         Command::Bench(c) => bench::run(c),
     };
     match result {

@@ -1,0 +1,301 @@
+//! The evaluator (SPEC §10, `docs/evaluation.md`): runs an agent over a dataset split and
+//! scores every episode.
+//!
+//! Episodes are grouped by scene so each scene's [`SceneContext`](sage_env::SceneContext)
+//! loads once and is shared; scenes and the episodes within them run in parallel. Each finished
+//! episode is appended to `RUN/episodes.jsonl` as one flushed line, so a crashed run resumes by
+//! skipping the ids already recorded ([`records`]); the summary is computed from the records
+//! sorted by episode id, so it does not depend on the thread count or finishing order
+//! ([`summary`]). [`convert`] bridges dataset episodes, environment traces and metric records.
+
+pub mod convert;
+pub mod records;
+pub mod summary;
+
+use crate::dataset::slices::Slices;
+use crate::dataset::{Episode, Task};
+use crate::metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
+use convert::{AgentKind, env_episode, load_context, metric_record};
+use rayon::prelude::*;
+use sage_core::{Error, Result, ResultExt};
+use sage_env::agents::run_episode;
+use sage_env::{Env, EnvConfig, SensorConfig, Termination};
+use sage_lang::{InstructionType, Level};
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+pub use summary::Summary;
+
+/// The per-episode records file of a run folder.
+pub const RECORDS_FILE: &str = "episodes.jsonl";
+/// The aggregate file of a run folder.
+pub const SUMMARY_FILE: &str = "summary.json";
+/// The run record of a run folder.
+pub const RUN_FILE: &str = "sage3d_run.json";
+
+/// What an evaluation runs; a run folder only resumes a run with the same settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalSettings {
+    /// Dataset folder (holds `episodes/{split}.jsonl`).
+    pub dataset: PathBuf,
+    /// One scene folder or a folder of scene folders, named as the episodes' `scene`.
+    pub scenes: PathBuf,
+    /// Dataset split.
+    pub split: String,
+    /// The agent.
+    pub agent: AgentKind,
+    /// Metric mode.
+    pub mode: Mode,
+    /// Seed of the agent (each episode mixes in its id).
+    pub seed: u64,
+    /// Environment preset (`sage` or `vlnce`).
+    pub preset: String,
+}
+
+/// One finished episode: the line appended to `RUN/episodes.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalRecord {
+    /// Episode id.
+    pub episode_id: String,
+    /// Scene name.
+    pub scene: String,
+    /// `vln` or `nogoal`.
+    pub task: Task,
+    /// Instruction level (absent for no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<Level>,
+    /// Instruction type.
+    pub instruction_type: InstructionType,
+    /// Complexity slices.
+    pub slices: Slices,
+    /// The agent's name.
+    pub agent: String,
+    /// Why the episode ended (absent when it failed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub termination: Option<Termination>,
+    /// The metrics in the run's mode (absent when it failed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<EpisodeMetrics>,
+    /// Why the episode failed (agent, reset or metric error); the run goes on without it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Everything the metrics need, so any mode can be recomputed and paths drawn later.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record: Option<EpisodeRecord>,
+}
+
+/// What [`run`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOutcome {
+    /// Episodes in the split.
+    pub total: usize,
+    /// Episodes already recorded when the run started.
+    pub resumed: usize,
+    /// Episodes run now.
+    pub ran: usize,
+    /// The aggregate written to `RUN/summary.json`.
+    pub summary: Summary,
+}
+
+/// The episodes file of `split` in `dataset`.
+///
+/// # Errors
+///
+/// An `invalid` error listing the dataset's splits when `split` has no file, or the file's
+/// read error.
+pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
+    let dir = dataset.join("episodes");
+    if !dir.is_dir() {
+        return Err(Error::invalid(
+            "not a dataset folder (no episodes/ in it; make one with `sage3d data build`)",
+        )
+        .in_file(dataset));
+    }
+    let file = dir.join(format!("{split}.jsonl"));
+    if !file.is_file() {
+        let mut splits: Vec<String> = std::fs::read_dir(&dir)
+            .map_err(|e| Error::io(&dir, e))?
+            .filter_map(|e| e.ok())
+            .filter_map(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .strip_suffix(".jsonl")
+                    .map(str::to_string)
+            })
+            .collect();
+        splits.sort();
+        return Err(Error::invalid(format!(
+            "unknown split '{split}' (this dataset has: {})",
+            splits.join(", ")
+        ))
+        .in_file(dataset));
+    }
+    let episodes = crate::dataset::formats::jsonl::read(&file)?;
+    Ok((file, episodes))
+}
+
+/// The environment of an evaluation: the preset without images, which the local baselines do
+/// not read (rendering does not change the motion).
+fn env_config(preset: &str) -> Result<EnvConfig> {
+    let config = EnvConfig::preset(preset)?;
+    Ok(EnvConfig {
+        sensors: SensorConfig {
+            rgb: false,
+            depth: false,
+            semantic: false,
+            instance: false,
+            ..config.sensors
+        },
+        ..config
+    })
+}
+
+/// Runs one episode to its record; a failure is recorded, not returned.
+fn run_one(
+    ctx: &Arc<sage_env::SceneContext>,
+    config: &EnvConfig,
+    settings: &EvalSettings,
+    e: &Episode,
+) -> EvalRecord {
+    let mut rec = EvalRecord {
+        episode_id: e.episode_id.clone(),
+        scene: e.scene.clone(),
+        task: e.task,
+        level: e.level,
+        instruction_type: e.instruction_type,
+        slices: e.slices.clone(),
+        agent: settings.agent.to_string(),
+        termination: None,
+        metrics: None,
+        error: None,
+        record: None,
+    };
+    let result = (|| {
+        let mut env = Env::new(ctx.clone(), config.clone())?;
+        let mut agent = settings.agent.build(settings.seed)?;
+        let trace = run_episode(&mut env, agent.as_mut(), &env_episode(e))?;
+        let record = metric_record(ctx, &trace);
+        let m = metrics::evaluate(&record, settings.mode)?;
+        Ok::<_, Error>((trace.termination, m, record))
+    })();
+    match result {
+        Ok((termination, m, record)) => {
+            rec.termination = termination;
+            rec.metrics = Some(m);
+            rec.record = Some(record);
+        }
+        Err(err) => rec.error = Some(err.to_string()),
+    }
+    rec
+}
+
+/// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
+/// run) and writes the run record.
+fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> Result<()> {
+    let path = out.join(RUN_FILE);
+    if path.is_file() {
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let old: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| Error::format("sage3d_run.json", e.to_string()).in_file(&path))?;
+        // The folders may be named from another working directory; the hash says which data.
+        let run_of = |v: Option<&serde_json::Value>| {
+            let mut v = v.cloned().unwrap_or_default();
+            if let Some(o) = v.as_object_mut() {
+                o.remove("dataset");
+                o.remove("scenes");
+            }
+            v
+        };
+        let same = run_of(old.get("settings"))
+            == run_of(serde_json::to_value(settings).ok().as_ref())
+            && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(dataset_hash);
+        if !same {
+            return Err(Error::invalid(
+                "this run folder holds a run with other settings or another dataset; use a new --out",
+            )
+            .in_file(&path));
+        }
+    }
+    sage_scene::fsutil::write_json(
+        &path,
+        &serde_json::json!({
+            "tool": "sage3d",
+            "version": env!("CARGO_PKG_VERSION"),
+            "command": "eval",
+            "seed": settings.seed,
+            "settings": settings,
+            "dataset_hash": dataset_hash,
+        }),
+    )
+}
+
+/// Runs (or resumes) an evaluation into `out`, calling `on_done(record, to_run)` after each
+/// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`.
+///
+/// # Errors
+///
+/// Bad settings (unknown split or preset, scene missing), a run folder of another run, a
+/// corrupt records file, a scene that cannot be loaded or a write error. An episode's own
+/// failure is recorded on it instead.
+pub fn run(
+    settings: &EvalSettings,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+) -> Result<RunOutcome> {
+    let config = env_config(&settings.preset).within("preset")?;
+    let (file, episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+    let dataset_hash = format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes));
+    let dirs: BTreeMap<String, PathBuf> = sage_nav::trajectory::scene_dirs(&settings.scenes)?
+        .into_iter()
+        .map(|d| {
+            let name = d
+                .file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+            (name, d)
+        })
+        .collect();
+    if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
+        return Err(Error::invalid(format!(
+            "scene '{}' of episode {} is not among the scenes",
+            e.scene, e.episode_id
+        ))
+        .in_file(&settings.scenes));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    claim_run_folder(out, settings, &dataset_hash)?;
+    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    let records_path = out.join(RECORDS_FILE);
+    let done = records::resume(&records_path, &ids)?;
+    let mut groups: BTreeMap<&str, Vec<&Episode>> = BTreeMap::new();
+    for e in episodes
+        .iter()
+        .filter(|e| !done.contains(e.episode_id.as_str()))
+    {
+        groups.entry(e.scene.as_str()).or_default().push(e);
+    }
+    let ran: usize = groups.values().map(Vec::len).sum();
+    let writer = Mutex::new(records::Appender::open(&records_path)?);
+    groups.par_iter().try_for_each(|(scene, eps)| {
+        let ctx = Arc::new(load_context(&dirs[*scene], None).within(format!("scene {scene}"))?);
+        eps.par_iter().try_for_each(|e| {
+            let rec = run_one(&ctx, &config, settings, e);
+            writer
+                .lock()
+                .map_err(|_| Error::invalid("records writer poisoned"))?
+                .append(&rec)?;
+            on_done(&rec, ran);
+            Ok::<_, Error>(())
+        })
+    })?;
+    let all = records::read(&records_path, &ids)?;
+    let summary = Summary::of(settings, &all);
+    sage_scene::fsutil::write_json(&out.join(SUMMARY_FILE), &summary)?;
+    Ok(RunOutcome {
+        total: episodes.len(),
+        resumed: done.len(),
+        ran,
+        summary,
+    })
+}

@@ -1,0 +1,205 @@
+//! The per-episode records file (`RUN/episodes.jsonl`): appending flushed lines, and reading it
+//! back on resume.
+//!
+//! A crash can only cut the last line short (every line is written whole and flushed before
+//! the next starts), so on resume an unfinished or unreadable last line is dropped and the file
+//! rewritten without it; any other bad line, an id outside the split or an id recorded twice is
+//! an error naming the line, because it means the file is not this run's.
+
+use super::EvalRecord;
+use sage_core::{Error, Result};
+use std::collections::BTreeSet;
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The records file opened for appending.
+#[derive(Debug)]
+pub struct Appender {
+    path: PathBuf,
+    file: File,
+}
+
+impl Appender {
+    /// Opens (creating) `path` for appending.
+    ///
+    /// # Errors
+    ///
+    /// The file cannot be opened.
+    pub fn open(path: &Path) -> Result<Appender> {
+        let file = File::options()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|e| Error::io(path, e))?;
+        Ok(Appender {
+            path: path.to_path_buf(),
+            file,
+        })
+    }
+
+    /// Appends `rec` as one line and flushes it, so a crash loses at most this line.
+    ///
+    /// # Errors
+    ///
+    /// The write fails.
+    pub fn append(&mut self, rec: &EvalRecord) -> Result<()> {
+        let mut line = serde_json::to_vec(rec).map_err(|e| Error::invalid(e.to_string()))?;
+        line.push(b'\n');
+        self.file
+            .write_all(&line)
+            .and_then(|()| self.file.flush())
+            .map_err(|e| Error::io(&self.path, e))
+    }
+}
+
+/// The records of `text` and the byte length of the lines they came from; `tolerate_tail`
+/// drops an unfinished or unreadable last line instead of failing on it.
+fn parse(
+    path: &Path,
+    text: &str,
+    ids: &BTreeSet<&str>,
+    tolerate_tail: bool,
+) -> Result<(Vec<EvalRecord>, usize)> {
+    let mut records = Vec::new();
+    let mut seen = BTreeSet::new();
+    let mut kept = 0;
+    let lines: Vec<&str> = text.split_inclusive('\n').collect();
+    for (k, line) in lines.iter().enumerate() {
+        let last = k + 1 == lines.len();
+        let whole = line.ends_with('\n');
+        let where_ = format!("line {}", k + 1);
+        let parsed = if whole {
+            serde_json::from_str::<EvalRecord>(line)
+                .map_err(|e| Error::format(where_.clone(), e.to_string()).in_file(path))
+        } else {
+            Err(Error::format(where_.clone(), "unfinished line").in_file(path))
+        };
+        let rec = match parsed {
+            Ok(rec) => rec,
+            Err(_) if last && tolerate_tail => break,
+            Err(e) => return Err(e),
+        };
+        if !ids.contains(rec.episode_id.as_str()) {
+            return Err(Error::format(
+                where_,
+                format!("episode {} is not in this split", rec.episode_id),
+            )
+            .in_file(path));
+        }
+        if !seen.insert(rec.episode_id.clone()) {
+            return Err(Error::format(
+                where_,
+                format!("episode {} is recorded twice", rec.episode_id),
+            )
+            .in_file(path));
+        }
+        kept += line.len();
+        records.push(rec);
+    }
+    Ok((records, kept))
+}
+
+fn read_text(path: &Path) -> Result<String> {
+    match std::fs::read_to_string(path) {
+        Ok(t) => Ok(t),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(String::new()),
+        Err(e) => Err(Error::io(path, e)),
+    }
+}
+
+/// Prepares `path` for a resumed run: drops a cut-short last line (rewriting the file without
+/// it) and returns the ids already recorded.
+///
+/// # Errors
+///
+/// An unreadable file, a bad line other than the last, an id outside `ids` or recorded twice.
+pub fn resume(path: &Path, ids: &BTreeSet<&str>) -> Result<BTreeSet<String>> {
+    let text = read_text(path)?;
+    let (records, kept) = parse(path, &text, ids, true)?;
+    if kept < text.len() {
+        sage_scene::fsutil::write_atomic(path, |w| w.write_all(&text.as_bytes()[..kept]))?;
+    }
+    Ok(records.into_iter().map(|r| r.episode_id).collect())
+}
+
+/// Every record of `path`, sorted by episode id.
+///
+/// # Errors
+///
+/// As [`resume`], and a cut-short last line is an error here too.
+pub fn read(path: &Path, ids: &BTreeSet<&str>) -> Result<Vec<EvalRecord>> {
+    let text = read_text(path)?;
+    let (mut records, _) = parse(path, &text, ids, false)?;
+    records.sort_by(|a, b| a.episode_id.cmp(&b.episode_id));
+    Ok(records)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::Task;
+    use crate::dataset::slices::Slices;
+    use sage_lang::InstructionType;
+
+    fn rec(id: &str) -> EvalRecord {
+        EvalRecord {
+            episode_id: id.into(),
+            scene: "home1".into(),
+            task: Task::Vln,
+            level: None,
+            instruction_type: InstructionType::SingleGoal,
+            slices: Slices {
+                assets: "few".into(),
+                path: "short".into(),
+            },
+            agent: "oracle".into(),
+            termination: None,
+            metrics: None,
+            error: Some("no path".into()),
+            record: None,
+        }
+    }
+
+    #[test]
+    fn a_cut_last_line_is_dropped_and_other_damage_is_an_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("episodes.jsonl");
+        let ids: BTreeSet<&str> = ["a", "b", "c"].into();
+        {
+            let mut w = Appender::open(&path).unwrap();
+            w.append(&rec("b")).unwrap();
+            w.append(&rec("a")).unwrap();
+        }
+        let whole = std::fs::read_to_string(&path).unwrap();
+        let cut = &whole[..whole.len() - 10];
+        std::fs::write(&path, cut).unwrap();
+        let done = resume(&path, &ids).unwrap();
+        assert_eq!(done, BTreeSet::from(["b".to_string()]));
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            whole.lines().next().unwrap().to_string() + "\n"
+        );
+        Appender::open(&path).unwrap().append(&rec("a")).unwrap();
+        let all = read(&path, &ids).unwrap();
+        assert_eq!(all, vec![rec("a"), rec("b")]);
+        // A damaged line before the last, a duplicate, a foreign id: errors naming the line.
+        for (text, needle) in [
+            (format!("{{oops\n{whole}"), "line 1"),
+            (
+                format!("{whole}{}\n", whole.lines().next().unwrap()),
+                "line 3: episode b is recorded twice",
+            ),
+            (whole.replace("\"a\"", "\"z\""), "not in this split"),
+        ] {
+            std::fs::write(&path, &text).unwrap();
+            let e = resume(&path, &ids).map(|_| ()).unwrap_err().to_string();
+            assert!(e.contains(needle), "{e}");
+        }
+        assert!(
+            resume(&dir.path().join("none.jsonl"), &ids)
+                .unwrap()
+                .is_empty()
+        );
+    }
+}

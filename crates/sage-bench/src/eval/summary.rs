@@ -1,0 +1,144 @@
+//! The aggregate of a run: metric means overall and per slice of the three axes (task,
+//! instruction level and type, scene assets and path length), and their text tables.
+//!
+//! Computed from the records sorted by episode id, so the sums (and the bytes of
+//! `summary.json`) do not depend on the order episodes finished in.
+
+use super::{EvalRecord, EvalSettings};
+use crate::metrics::{Aggregate, Mode, aggregate};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+/// The slice axes, in table order.
+pub const AXES: [&str; 5] = ["task", "level", "instruction_type", "assets", "path"];
+
+/// `RUN/summary.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// The agent.
+    pub agent: String,
+    /// Dataset split.
+    pub split: String,
+    /// The metric mode the numbers are in.
+    pub mode: Mode,
+    /// Episodes recorded.
+    pub episodes: usize,
+    /// Ids of episodes that failed (recorded with an error, left out of the means).
+    pub failed: Vec<String>,
+    /// Means over every scored episode.
+    pub overall: Aggregate,
+    /// Axis → slice value → means over the scored episodes of that slice.
+    pub slices: BTreeMap<String, BTreeMap<String, Aggregate>>,
+}
+
+/// The value of `rec` on `axis` (`none` where it has none).
+fn slice_of(rec: &EvalRecord, axis: &str) -> String {
+    let name = |v: serde_json::Value| v.as_str().unwrap_or("none").to_string();
+    match axis {
+        "task" => name(serde_json::to_value(rec.task).unwrap_or_default()),
+        "level" => name(serde_json::to_value(rec.level).unwrap_or_default()),
+        "instruction_type" => name(serde_json::to_value(rec.instruction_type).unwrap_or_default()),
+        "assets" => rec.slices.assets.clone(),
+        _ => rec.slices.path.clone(),
+    }
+}
+
+impl Summary {
+    /// The summary of `records` (sorted by episode id) of a run with `settings`.
+    pub fn of(settings: &EvalSettings, records: &[EvalRecord]) -> Summary {
+        let scored: Vec<&EvalRecord> = records.iter().filter(|r| r.metrics.is_some()).collect();
+        let mode = settings.mode;
+        let means =
+            |rs: &[&EvalRecord]| aggregate(mode, rs.iter().filter_map(|r| r.metrics.as_ref()));
+        let slices = AXES
+            .iter()
+            .map(|axis| {
+                let mut by: BTreeMap<String, Vec<&EvalRecord>> = BTreeMap::new();
+                for r in &scored {
+                    by.entry(slice_of(r, axis)).or_default().push(r);
+                }
+                let aggs = by.into_iter().map(|(k, rs)| (k, means(&rs))).collect();
+                (axis.to_string(), aggs)
+            })
+            .collect();
+        Summary {
+            agent: settings.agent.to_string(),
+            split: settings.split.clone(),
+            mode,
+            episodes: records.len(),
+            failed: records
+                .iter()
+                .filter(|r| r.metrics.is_none())
+                .map(|r| r.episode_id.clone())
+                .collect(),
+            overall: means(&scored),
+            slices,
+        }
+    }
+
+    /// Short text tables: the overall row, then one block per axis.
+    pub fn table(&self) -> String {
+        const COLS: [&str; 9] = [
+            "sr",
+            "osr",
+            "spl",
+            "ne",
+            "tl",
+            "cr",
+            "ndtw",
+            "episode_time",
+            "explored_area",
+        ];
+        let mut t = String::new();
+        let _ = writeln!(
+            t,
+            "agent {} · split {} · mode {} · {} episodes ({} failed)",
+            self.agent,
+            self.split,
+            self.mode,
+            self.episodes,
+            self.failed.len()
+        );
+        let header = |t: &mut String, axis: &str| {
+            let _ = write!(t, "{axis:<22} {:>5}", "n");
+            for c in COLS {
+                let _ = write!(t, " {:>8}", short(c));
+            }
+            t.push('\n');
+        };
+        let row = |t: &mut String, name: &str, a: &Aggregate| {
+            let _ = write!(t, "{name:<22} {:>5}", a.episodes);
+            for c in COLS {
+                match a.means.get(c) {
+                    Some(v) => {
+                        let _ = write!(t, " {v:>8.3}");
+                    }
+                    None => {
+                        let _ = write!(t, " {:>8}", "-");
+                    }
+                }
+            }
+            t.push('\n');
+        };
+        header(&mut t, "");
+        row(&mut t, "overall", &self.overall);
+        for axis in AXES {
+            t.push('\n');
+            header(&mut t, axis);
+            for (name, a) in self.slices.get(axis).into_iter().flatten() {
+                row(&mut t, name, a);
+            }
+        }
+        t
+    }
+}
+
+/// A column's heading.
+fn short(metric: &str) -> &str {
+    match metric {
+        "episode_time" => "time",
+        "explored_area" => "area",
+        m => m,
+    }
+}
