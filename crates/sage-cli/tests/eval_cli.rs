@@ -194,5 +194,25 @@ fn bad_input_gives_clear_errors() {
         e.contains("--agent 'genius'") && e.contains("random, forward, oracle"),
         "{e}"
     );
+    // The episodes' scene is not among the scenes given.
+    let others = dir.path().join("others");
+    small_scene(&others.join("office9"), "3", "1000");
+    let out = sage3d(&[
+        "eval",
+        s(&data),
+        "--scenes",
+        s(&others),
+        "--split",
+        "train",
+        "--agent",
+        "oracle",
+        "--out",
+        s(&run),
+    ]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && e.contains("scene 'home1'") && e.contains("not among the scenes"),
+        "{e}"
+    );
     assert!(!run.exists(), "no run folder for bad input");
 }
