@@ -3,26 +3,13 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_scene};
+use common::{ok, s, sage3d, small_dataset};
 
 #[test]
 fn oracle_runs_a_dataset_episode_and_scores_it() {
     let dir = tempfile::tempdir().unwrap();
-    let scenes = dir.path().join("scenes");
+    let (scenes, data) = small_dataset(dir.path());
     let scene = scenes.join("home1");
-    small_scene(&scene, "1", "1000");
-    let data = dir.path().join("data");
-    ok(&[
-        "data",
-        "build",
-        s(&scenes),
-        "--out",
-        s(&data),
-        "--per-scene",
-        "3",
-        "--seed",
-        "2",
-    ]);
     let episodes = data.join("episodes/train.jsonl");
     let first: serde_json::Value = serde_json::from_str(
         std::fs::read_to_string(&episodes)

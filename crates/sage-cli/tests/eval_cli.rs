@@ -4,27 +4,8 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_scene};
+use common::{ok, s, sage3d, small_dataset, small_scene};
 use std::path::Path;
-
-/// A one-scene dataset: returns (scenes folder, dataset folder).
-fn dataset(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
-    let scenes = dir.join("scenes");
-    small_scene(&scenes.join("home1"), "1", "1000");
-    let data = dir.join("data");
-    ok(&[
-        "data",
-        "build",
-        s(&scenes),
-        "--out",
-        s(&data),
-        "--per-scene",
-        "3",
-        "--seed",
-        "2",
-    ]);
-    (scenes, data)
-}
 
 /// `sage3d --threads N eval DATA --scenes SCENES --split train --out RUN` and `extra`.
 fn eval(threads: &str, data: &Path, scenes: &Path, run: &Path, extra: &[&str]) -> String {
@@ -62,7 +43,7 @@ fn ids(run: &Path) -> Vec<String> {
 #[test]
 fn oracle_solves_the_vln_episodes_independent_of_threads_and_resumes_exactly() {
     let dir = tempfile::tempdir().unwrap();
-    let (scenes, data) = dataset(dir.path());
+    let (scenes, data) = small_dataset(dir.path());
     let n_episodes = read(&data.join("episodes/train.jsonl")).lines().count();
     let one = dir.path().join("one");
     let out = eval("1", &data, &scenes, &one, &["--agent", "oracle"]);
@@ -161,7 +142,7 @@ fn oracle_solves_the_vln_episodes_independent_of_threads_and_resumes_exactly() {
 #[test]
 fn bad_input_gives_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
-    let (scenes, data) = dataset(dir.path());
+    let (scenes, data) = small_dataset(dir.path());
     let run = dir.path().join("run");
     let err = |dataset: &Path, split: &str, agent: &str| {
         let out = sage3d(&[

@@ -46,3 +46,23 @@ pub fn small_scene(dir: &Path, seed: &str, gaussians: &str) {
         s(dir),
     ]);
 }
+
+/// A one-scene dataset under `dir` (`scenes/home1` and `data/`, 3 trajectories, seed 2);
+/// returns (scenes folder, dataset folder).
+pub fn small_dataset(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let scenes = dir.join("scenes");
+    small_scene(&scenes.join("home1"), "1", "1000");
+    let data = dir.join("data");
+    ok(&[
+        "data",
+        "build",
+        s(&scenes),
+        "--out",
+        s(&data),
+        "--per-scene",
+        "3",
+        "--seed",
+        "2",
+    ]);
+    (scenes, data)
+}
