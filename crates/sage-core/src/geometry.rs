@@ -266,6 +266,12 @@ impl Polygon2 {
 
     /// Distance from `p` to the nearest edge (0 on the outline).
     pub fn distance_to_boundary(&self, p: Vec2) -> f32 {
+        self.nearest_boundary_point(p)
+            .map_or(f32::INFINITY, |q| p.distance(q))
+    }
+
+    /// The point of the outline nearest to `p` (`None` for a polygon without vertices).
+    pub fn nearest_boundary_point(&self, p: Vec2) -> Option<Vec2> {
         self.edges()
             .map(|(a, b)| {
                 let ab = b - a;
@@ -274,9 +280,9 @@ impl Polygon2 {
                 } else {
                     0.0
                 };
-                p.distance(a + ab * t)
+                a + ab * t
             })
-            .fold(f32::INFINITY, f32::min)
+            .min_by(|q, r| p.distance_squared(*q).total_cmp(&p.distance_squared(*r)))
     }
 
     /// The area centroid (the vertex mean for degenerate polygons).

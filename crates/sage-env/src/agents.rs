@@ -11,7 +11,7 @@ use crate::episode::{EnvEpisode, EpisodeTrace};
 use glam::Vec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sage_core::{Error, Result, wrap_angle};
+use sage_core::{Error, Polygon2, Result, wrap_angle};
 
 /// Something that chooses actions from observations.
 pub trait Agent {
@@ -175,8 +175,18 @@ pub struct OracleAgent {
     last: Option<(Action, Vec2)>,
     replans: usize,
     stop_radius: f32,
+    /// The goal object's footprint, when the episode names one.
+    region: Option<Polygon2>,
+    /// The task's success distance to the goal region.
+    success: f32,
+    /// Past the end point, closing in on an object goal's footprint.
+    approaching: bool,
     scene: Option<std::sync::Arc<crate::SceneContext>>,
 }
+
+/// How far inside the success distance of an object goal the oracle stops, metres: its end
+/// point may be sampled at the very edge of that distance.
+const SUCCESS_MARGIN: f32 = 0.05;
 
 /// Replans allowed per episode before the oracle gives up and calls STOP.
 const MAX_REPLANS: usize = 20;
@@ -221,6 +231,12 @@ impl Agent for OracleAgent {
             .as_ref()
             .ok_or_else(|| Error::invalid("oracle: the episode has no goal"))?;
         self.goal = goal.point.truncate();
+        self.region = goal
+            .object
+            .as_ref()
+            .and_then(|id| env.context().footprint(id).ok());
+        self.success = env.config().task.success_distance;
+        self.approaching = false;
         self.forward = forward;
         self.turn = turn;
         self.last = None;
@@ -235,12 +251,26 @@ impl Agent for OracleAgent {
 
     fn act(&mut self, obs: &Observation) -> Result<Action> {
         let at = obs.pose.position.truncate();
-        if self.waypoints.is_empty() || at.distance(self.goal) <= self.stop_radius {
+        let blocked = matches!(self.last, Some((Action::MoveForward, before)) if at.distance(before) < 0.1 * self.forward);
+        if self.waypoints.is_empty() {
             return Ok(Action::Stop);
         }
-        if let Some((Action::MoveForward, before)) = self.last
-            && at.distance(before) < 0.1 * self.forward
-        {
+        if self.approaching || at.distance(self.goal) <= self.stop_radius {
+            self.approaching = true;
+            // At the end point: done, unless an object goal is still not well inside the
+            // success distance; then step straight towards its footprint (contact stops it).
+            let target = match &self.region {
+                Some(r) if !blocked && !r.contains(at) => r
+                    .nearest_boundary_point(at)
+                    .filter(|q| at.distance(*q) > self.success - SUCCESS_MARGIN),
+                _ => None,
+            };
+            return Ok(match target {
+                Some(q) => self.head_for(q, at, obs.pose.yaw),
+                None => Action::Stop,
+            });
+        }
+        if blocked {
             self.replans += 1;
             if self.replans > MAX_REPLANS || self.plan(at).is_err() {
                 return Ok(Action::Stop);
@@ -252,9 +282,15 @@ impl Agent for OracleAgent {
         {
             self.next += 1;
         }
-        let target = self.waypoints[self.next];
+        Ok(self.head_for(self.waypoints[self.next], at, obs.pose.yaw))
+    }
+}
+
+impl OracleAgent {
+    /// Turns towards `target` until it is within half a turn step, else moves forward.
+    fn head_for(&mut self, target: Vec2, at: Vec2, yaw: f32) -> Action {
         let d = target - at;
-        let error = wrap_angle(d.y.atan2(d.x) - obs.pose.yaw);
+        let error = wrap_angle(d.y.atan2(d.x) - yaw);
         let action = if error > 0.5 * self.turn {
             Action::TurnLeft
         } else if error < -0.5 * self.turn {
@@ -263,6 +299,6 @@ impl Agent for OracleAgent {
             Action::MoveForward
         };
         self.last = Some((action, at));
-        Ok(action)
+        action
     }
 }

@@ -104,6 +104,33 @@ fn oracle_reaches_every_reachable_goal() {
         assert!(g.final_to_region.unwrap() <= 1.0 + 1e-3);
         assert!(env.within_success_distance());
     }
+    // An end point at the edge of the success distance: the oracle closes in on the footprint
+    // instead of stopping just outside it.
+    let mut edge_cases = 0;
+    for e in f
+        .episodes
+        .iter()
+        .filter(|e| e.goal.as_ref().unwrap().object.is_some())
+    {
+        let goal = e.goal.as_ref().unwrap();
+        let region = f.ctx.footprint(goal.object.as_ref().unwrap()).unwrap();
+        let end = goal.point.truncate();
+        let near = region.nearest_boundary_point(end).unwrap();
+        let out = near + (end - near).normalize() * 1.12;
+        if !f.ctx.pathfinder.is_navigable(out) || region.distance_to_boundary(out) < 1.1 {
+            continue;
+        }
+        let mut moved = e.clone();
+        moved.goal.as_mut().unwrap().point = out.extend(0.0);
+        let trace = run_episode(&mut env, &mut oracle, &moved).unwrap();
+        assert!(trace.stop_called(), "{}", e.id);
+        assert!(env.within_success_distance(), "{}: stopped outside", e.id);
+        edge_cases += 1;
+    }
+    assert!(
+        edge_cases > 0,
+        "no object goal with room behind its end point"
+    );
     // A goal outside the scene cannot be planned to: the oracle stops at once.
     let mut far = f.episodes[0].clone();
     far.goal.as_mut().unwrap().point = glam::Vec3::new(1e3, 1e3, 0.0);
