@@ -6,7 +6,7 @@ use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
 use sage_core::{Error, Result};
 use sage_lang::llm::LlmConfig;
-use sage_scene::fsutil::write_json;
+use sage_scene::fsutil::write_run_record;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -131,13 +131,11 @@ fn data_build(a: BuildArgs) -> Result<()> {
             )
         })
         .collect();
-    write_json(
-        &a.out.join("sage3d_run.json"),
-        &serde_json::json!({
-            "tool": "sage3d",
-            "version": env!("CARGO_PKG_VERSION"),
-            "command": "data build",
-            "seed": a.seed,
+    write_run_record(
+        &a.out,
+        "data build",
+        Some(a.seed),
+        serde_json::json!({
             "config": {"scene": params, "assemble": assemble},
             "inputs": inputs,
         }),

@@ -9,7 +9,7 @@ use sage_nav::sampling::Endpoints;
 use sage_nav::trajectory::{self, Prepared, TrajectoryParams};
 use sage_nav::{GridParams, NavGrid, PathFinder, SemanticMap};
 use sage_scene::Scene;
-use sage_scene::fsutil::write_json;
+use sage_scene::fsutil::write_run_record;
 use sage_scene::synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -129,13 +129,11 @@ fn map(a: MapArgs) -> Result<()> {
     grid.to_occupancy((grid_params.slab_bottom, grid_params.agent_height))?
         .save(&out)?;
     let (free, occupied, unknown) = grid.counts();
-    write_json(
-        &out.join("sage3d_run.json"),
-        &serde_json::json!({
-            "tool": "sage3d",
-            "version": env!("CARGO_PKG_VERSION"),
-            "command": "nav map",
-            "seed": null,
+    write_run_record(
+        &out,
+        "nav map",
+        None,
+        serde_json::json!({
             "config": {
                 "cell": grid_params.cell,
                 "agent_height": grid_params.agent_height,
@@ -224,13 +222,11 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
             o.reason.as_deref().unwrap_or("")
         );
     }
-    write_json(
-        &out.join("sage3d_run.json"),
-        &serde_json::json!({
-            "tool": "sage3d",
-            "version": env!("CARGO_PKG_VERSION"),
-            "command": "nav trajectories",
-            "seed": params.seed,
+    write_run_record(
+        &out,
+        "nav trajectories",
+        Some(params.seed),
+        serde_json::json!({
             "config": params,
             "scenes": outcomes,
         }),

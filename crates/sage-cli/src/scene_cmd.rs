@@ -200,11 +200,7 @@ fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout) -> Result<S
 
 /// Records how the folder was made (SPEC §13): resolved config, seed, version.
 fn write_run_record(out: &Path, config: &SynthConfig, layout: SplatLayout) -> Result<()> {
-    let record = serde_json::json!({
-        "tool": "sage3d",
-        "version": env!("CARGO_PKG_VERSION"),
-        "command": "scene synth",
-        "seed": config.seed,
+    let details = serde_json::json!({
         "config": {
             "kind": config.kind.as_str(),
             "rooms": config.rooms,
@@ -216,7 +212,7 @@ fn write_run_record(out: &Path, config: &SynthConfig, layout: SplatLayout) -> Re
         },
         "inputs": [],
     });
-    sage_scene::fsutil::write_json(&out.join("sage3d_run.json"), &record)
+    sage_scene::fsutil::write_run_record(out, "scene synth", Some(config.seed), details)
 }
 
 fn info(dir: &Path, json: bool) -> Result<()> {

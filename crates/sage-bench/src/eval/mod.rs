@@ -21,6 +21,7 @@ use sage_core::{Error, Result, ResultExt};
 use sage_env::agents::run_episode;
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_lang::{InstructionType, Level};
+use sage_scene::fsutil::RUN_RECORD;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -31,8 +32,6 @@ pub use summary::Summary;
 pub const RECORDS_FILE: &str = "episodes.jsonl";
 /// The aggregate file of a run folder.
 pub const SUMMARY_FILE: &str = "summary.json";
-/// The run record of a run folder.
-pub const RUN_FILE: &str = "sage3d_run.json";
 
 /// What an evaluation runs; a run folder only resumes a run with the same settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -193,7 +192,7 @@ fn run_one(
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
 /// run) and writes the run record.
 fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> Result<()> {
-    let path = out.join(RUN_FILE);
+    let path = out.join(RUN_RECORD);
     if path.is_file() {
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         let old: serde_json::Value = serde_json::from_str(&text)
@@ -217,13 +216,11 @@ fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> 
             .in_file(&path));
         }
     }
-    sage_scene::fsutil::write_json(
-        &path,
-        &serde_json::json!({
-            "tool": "sage3d",
-            "version": env!("CARGO_PKG_VERSION"),
-            "command": "eval",
-            "seed": settings.seed,
+    sage_scene::fsutil::write_run_record(
+        out,
+        "eval",
+        Some(settings.seed),
+        serde_json::json!({
             "settings": settings,
             "dataset_hash": dataset_hash,
         }),
