@@ -5,10 +5,12 @@
 
 mod bench;
 mod data_cmd;
+mod demo_cmd;
 mod env_cmd;
 mod eval_cmd;
 mod machine;
 mod nav_cmd;
+mod overview;
 mod physics_cmd;
 mod render_cmd;
 mod scene_cmd;
@@ -30,8 +32,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the main job on the embedded default: synthesise a scene, render it, describe it.
-    Demo(scene_cmd::DemoArgs),
+    /// The main job on synthetic scenes, end to end: scenes, maps, physics, dataset, evaluation
+    /// of the baseline agents, reports (each step printed as the subcommand it runs).
+    Demo(demo_cmd::DemoArgs),
     /// Scene folders: synthesise one, describe one.
     #[command(subcommand)]
     Scene(scene_cmd::SceneCommand),
@@ -72,8 +75,29 @@ fn main() -> ExitCode {
         eprintln!("error: cannot set up {n} threads: {e}");
         return ExitCode::FAILURE;
     }
-    let result = match cli.command {
-        Command::Demo(a) => scene_cmd::demo(a),
+    match dispatch(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs `sage3d ARGV…` in this process (the demo runs its steps so).
+///
+/// # Errors
+///
+/// ARGV does not parse (clap's message), or the subcommand's own error.
+pub(crate) fn run_subcommand(argv: &[String]) -> sage_core::Result<()> {
+    let cli = Cli::try_parse_from(std::iter::once("sage3d").chain(argv.iter().map(String::as_str)))
+        .map_err(|e| sage_core::Error::invalid(e.to_string()))?;
+    dispatch(cli.command)
+}
+
+fn dispatch(command: Command) -> sage_core::Result<()> {
+    match command {
+        Command::Demo(a) => demo_cmd::run(a),
         Command::Scene(c) => scene_cmd::run(c),
         Command::Render(a) => render_cmd::run(a),
         Command::Splat(c) => splat_cmd::run(c),
@@ -84,12 +108,5 @@ fn main() -> ExitCode {
         Command::Env(c) => env_cmd::run(c),
         Command::Eval(a) => eval_cmd::run(a),
         Command::Bench(c) => bench::run(c),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::FAILURE
-        }
     }
 }

@@ -1,4 +1,4 @@
-//! `sage3d scene …` and `sage3d demo`: synthesise and describe scene folders.
+//! `sage3d scene …`: synthesise and describe scene folders.
 
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -82,17 +82,6 @@ pub struct PreviewArgs {
     resolution: f32,
 }
 
-#[derive(Args)]
-pub struct DemoArgs {
-    /// Where to write the demo scene (with preview.png, the plan view, and view/, a
-    /// first-person render with a turntable).
-    #[arg(long, default_value = "scenes/demo")]
-    out: PathBuf,
-    /// Random seed.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-}
-
 pub fn run(cmd: SceneCommand) -> Result<()> {
     match cmd {
         SceneCommand::Synth(a) => {
@@ -121,31 +110,6 @@ pub fn run(cmd: SceneCommand) -> Result<()> {
             write_preview(&scene, &out, a.resolution)
         }
     }
-}
-
-pub fn demo(a: DemoArgs) -> Result<()> {
-    let config = SynthConfig {
-        seed: a.seed,
-        ..SynthConfig::default()
-    };
-    let scene = synthesize(&config, &a.out, SplatLayout::Compressed)?;
-    write_preview(&scene, &a.out.join("preview.png"), 0.02)?;
-    let eye = crate::render_cmd::default_eye(&scene);
-    let camera = sage_splat::Camera::from_yaw_pitch(
-        sage_splat::Intrinsics::from_hfov(640, 480, 90.0)?,
-        eye,
-        0.0,
-        -0.1,
-    );
-    crate::render_cmd::render_to_dir(
-        &scene,
-        &camera,
-        &sage_splat::RenderOptions::default(),
-        &a.out.join("view"),
-        Some(24),
-    )?;
-    println!("Loading it back as any InteriorGS folder would be loaded:\n");
-    info(&a.out, false)
 }
 
 /// Writes the plan view of `scene` and says where.

@@ -153,13 +153,60 @@ fn bad_input_is_a_clear_error_and_leaves_no_output() {
 }
 
 #[test]
-fn demo_runs_on_the_embedded_default() {
+fn demo_runs_the_whole_pipeline_and_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
-    let printed = ok(&["demo", "--out", s(&out)]);
+    let args = [
+        "demo",
+        "--out",
+        s(&out),
+        "--scenes",
+        "1",
+        "--per-scene",
+        "3",
+        "--gaussians",
+        "20000",
+        "--agents",
+        "oracle,forward",
+    ];
+    // One scene lands in train: the default split is empty, and the demo says what to do.
+    let empty = sage3d(&args);
+    assert!(!empty.status.success());
+    let e = String::from_utf8_lossy(&empty.stderr);
     assert!(
-        printed.contains("Loading it back") && printed.contains("objects"),
-        "{printed}"
+        e.contains("split is empty") && e.contains("--split train"),
+        "{e}"
+    );
+    let printed = ok(&[&args[..], &["--split", "train"]].concat());
+    let rows: Vec<&str> = printed
+        .lines()
+        .filter(|l| l.starts_with("oracle") || l.starts_with("forward"))
+        .collect();
+    assert_eq!(rows.len(), 2, "{printed}");
+    // The oracle reaches its goals; forward-only never calls STOP at one.
+    let sr = |row: &str| {
+        row.split_whitespace()
+            .nth(2)
+            .unwrap()
+            .parse::<f64>()
+            .unwrap()
+    };
+    assert!(sr(rows[0]) > 0.9 && sr(rows[1]) == 0.0, "{printed}");
+    for f in [
+        "overview.png",
+        "scenes/home_0/nav/semantic_map.png",
+        "dataset/episodes/train.jsonl",
+        "runs/oracle/summary.json",
+        "runs/forward/episodes.jsonl",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    // A second run keeps everything: no episode is run twice.
+    let records = std::fs::read_to_string(out.join("runs/oracle/episodes.jsonl")).unwrap();
+    ok(&[&args[..], &["--split", "train"]].concat());
+    assert_eq!(
+        std::fs::read_to_string(out.join("runs/oracle/episodes.jsonl")).unwrap(),
+        records
     );
 }
 

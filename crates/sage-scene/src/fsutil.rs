@@ -41,6 +41,18 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     })
 }
 
+/// Reads a JSON file into `T`; a parse error names the file, line and column.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| {
+        Error::format(
+            format!("line {} column {}", e.line(), e.column()),
+            e.to_string(),
+        )
+        .in_file(path)
+    })
+}
+
 /// The file in which a command records how its output folder was made (SPEC §13).
 pub const RUN_RECORD: &str = "sage3d_run.json";
 
