@@ -35,6 +35,10 @@ pub struct DemoArgs {
     /// Dataset split the agents are evaluated on.
     #[arg(long, default_value = "test_balanced")]
     split: String,
+    /// Run the pipeline on these scenes instead of synthetic ones: a folder of scene folders
+    /// (InteriorGS or ours). Maps go to SCENE/nav, collision hulls to SCENE/.sage3d.
+    #[arg(long)]
+    from: Option<PathBuf>,
 }
 
 /// One step of the demo: a title and the subcommand that does it.
@@ -71,13 +75,26 @@ fn plan(a: &DemoArgs) -> Result<Vec<Step>> {
     if a.agents.is_empty() {
         return Err(Error::invalid("--agents names no agent"));
     }
-    let scenes = a.out.join("scenes");
+    let scenes = scenes_folder(a);
     let dataset = a.out.join("dataset");
     let mut steps = Vec::new();
-    for k in 0..a.scenes {
-        let (name, kind) = scene_name(k);
-        let dir = scenes.join(&name);
-        if !dir.join(RUN_RECORD).is_file() {
+    let dirs: Vec<(String, PathBuf)> = match &a.from {
+        Some(from) => sage_nav::trajectory::scene_dirs(from)?
+            .into_iter()
+            .map(|d| {
+                (
+                    d.file_name().unwrap_or_default().to_string_lossy().into(),
+                    d,
+                )
+            })
+            .collect(),
+        None => (0..a.scenes)
+            .map(|k| (scene_name(k).0, scenes.join(scene_name(k).0)))
+            .collect(),
+    };
+    for (k, (name, dir)) in dirs.iter().enumerate() {
+        if a.from.is_none() && !dir.join(RUN_RECORD).is_file() {
+            let kind = scene_name(k).1;
             steps.push(Step::new(
                 format!("synthesise scene {name}"),
                 &[
@@ -90,17 +107,17 @@ fn plan(a: &DemoArgs) -> Result<Vec<Step>> {
                     "--gaussians",
                     &a.gaussians.to_string(),
                     "--out",
-                    path_arg(&dir),
+                    path_arg(dir),
                 ],
             ));
         }
         steps.push(Step::new(
             format!("semantic map and occupancy of {name}"),
-            &["nav", "map", path_arg(&dir)],
+            &["nav", "map", path_arg(dir)],
         ));
         steps.push(Step::new(
             format!("collision bodies of {name}"),
-            &["physics", "build", path_arg(&dir)],
+            &["physics", "build", path_arg(dir)],
         ));
     }
     steps.push(Step::new(
@@ -138,6 +155,11 @@ fn plan(a: &DemoArgs) -> Result<Vec<Step>> {
         ));
     }
     Ok(steps)
+}
+
+/// Where the scenes are: `--from`, or the synthetic ones under OUT/scenes.
+fn scenes_folder(a: &DemoArgs) -> PathBuf {
+    a.from.clone().unwrap_or_else(|| a.out.join("scenes"))
 }
 
 /// One row per agent: the headline metrics of its run's summary.
@@ -203,7 +225,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     }
     let overview = a.out.join("overview.png");
     crate::overview::write(
-        &a.out.join("scenes"),
+        &scenes_folder(&a),
         &a.out.join("runs").join(&a.agents[0]),
         &overview,
     )?;
@@ -216,7 +238,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
     print!("{}", agents_table(&a.out, &a.agents)?);
     let out = a.out.display();
     println!(
-        "\n  scenes    {out}/scenes/   (InteriorGS layout; semantic maps in */nav/)\n  dataset   {out}/dataset/  (episodes/*.jsonl, R2R and GVLN files)\n  runs      {out}/runs/{{agent}}/  (episodes.jsonl, summary.json, report.html)\n  overview  {}",
+        "\n  scenes    {}/   (semantic maps in */nav/)\n  dataset   {out}/dataset/  (episodes/*.jsonl, R2R and GVLN files)\n  runs      {out}/runs/{{agent}}/  (episodes.jsonl, summary.json, report.html)\n  overview  {}",
+        scenes_folder(&a).display(),
         overview.display()
     );
     Ok(())

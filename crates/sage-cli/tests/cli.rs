@@ -208,6 +208,37 @@ fn demo_runs_the_whole_pipeline_and_resumes() {
         std::fs::read_to_string(out.join("runs/oracle/episodes.jsonl")).unwrap(),
         records
     );
+    // The same pipeline on an InteriorGS folder: no meshes, no objects.json; boxes and the
+    // structure become the physics layer.
+    let real = dir.path().join("interiorgs").join("0001_839920");
+    std::fs::create_dir_all(&real).unwrap();
+    for f in [
+        "3dgs_compressed.ply",
+        "labels.json",
+        "structure.json",
+        "occupancy.png",
+        "occupancy.json",
+    ] {
+        std::fs::copy(out.join("scenes/home_0").join(f), real.join(f)).unwrap();
+    }
+    let out2 = dir.path().join("demo_real");
+    let printed = ok(&[
+        "demo",
+        "--from",
+        s(real.parent().unwrap()),
+        "--out",
+        s(&out2),
+        "--per-scene",
+        "3",
+        "--agents",
+        "oracle",
+        "--split",
+        "train",
+    ]);
+    let row = printed.lines().find(|l| l.starts_with("oracle")).unwrap();
+    assert!(sr(row) > 0.9, "{printed}");
+    assert!(real.join("nav/semantic_map.json").is_file());
+    assert!(out2.join("overview.png").is_file());
 }
 
 #[test]
