@@ -249,7 +249,11 @@ fn command_words(line: &str) -> Option<Vec<String>> {
     } else {
         words.iter().position(|w| w == "sage3d")
     }?;
-    Some(words[start + 1..].to_vec())
+    let mut rest = &words[start + 1..];
+    if rest.first().is_some_and(|w| w == "--threads") {
+        rest = rest.get(2..).unwrap_or_default();
+    }
+    Some(rest.to_vec())
 }
 
 /// The `sage3d …` command lines of the README: in code blocks (continuation lines joined,
