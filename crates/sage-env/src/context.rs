@@ -9,16 +9,14 @@ use sage_scene::Scene;
 ///
 /// Immutable once built: share it (`Arc`) between the environments of all worker threads. What
 /// changes during an episode (the physics world with its movable bodies, the renderer's buffers)
-/// lives in each [`crate::Env`].
+/// lives in each [`crate::Env`], which copies its world from the context's pristine one.
 pub struct SceneContext {
     /// The scene.
     pub scene: Scene,
     /// The semantic map (item ids and footprints of goal objects).
     pub semantic: SemanticMap,
-    /// Collision bodies, from which each episode's world is built.
-    pub bodies: SceneBodies,
-    /// How the physics world is assembled.
-    pub world_options: WorldOptions,
+    /// The physics world at rest, built once; every episode starts from a copy.
+    world: World,
     /// The navigable grid for geodesic distances and the oracle.
     pub pathfinder: PathFinder,
 }
@@ -38,18 +36,19 @@ impl SceneContext {
     ) -> Result<SceneContext> {
         let (pathfinder, _) = PathFinder::from_scene(&scene, grid, cost)?;
         let semantic = SemanticMap::build(&scene);
+        let world = World::new(&scene, bodies, &WorldOptions::default());
         Ok(SceneContext {
             scene,
             semantic,
-            bodies,
-            world_options: WorldOptions::default(),
+            world,
             pathfinder,
         })
     }
 
-    /// A fresh physics world (movable bodies at their scene poses).
+    /// A fresh physics world (movable bodies at their scene poses): a copy of the one built
+    /// with the context.
     pub fn world(&self) -> World {
-        World::new(&self.scene, self.bodies.clone(), &self.world_options)
+        self.world.clone()
     }
 
     /// The footprint of the object with item id `item`.

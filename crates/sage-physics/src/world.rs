@@ -49,6 +49,31 @@ pub fn hinge_of(obb: &Obb) -> Vec3 {
     (obb.center.truncate() - ax * obb.half_extents.x).extend(obb.min_z())
 }
 
+impl Clone for World {
+    /// A copy in the same state, with fresh pipeline workspaces (rapier's pipelines hold only
+    /// scratch memory): much cheaper than building the world again from the bodies' hulls.
+    fn clone(&self) -> World {
+        let p = &self.physics;
+        let mut physics = PhysicsWorld::new();
+        physics.gravity = p.gravity;
+        physics.integration_parameters = p.integration_parameters;
+        physics.islands = p.islands.clone();
+        physics.broad_phase = p.broad_phase.clone();
+        physics.narrow_phase = p.narrow_phase.clone();
+        physics.bodies = p.bodies.clone();
+        physics.colliders = p.colliders.clone();
+        physics.impulse_joints = p.impulse_joints.clone();
+        physics.multibody_joints = p.multibody_joints.clone();
+        physics.soft_bodies = p.soft_bodies.clone();
+        World {
+            physics,
+            bodies: self.bodies.clone(),
+            handles: self.handles.clone(),
+            rooms: self.rooms.clone(),
+        }
+    }
+}
+
 impl World {
     /// Builds the world from a scene's bodies.
     pub fn new(scene: &Scene, bodies: SceneBodies, options: &WorldOptions) -> World {

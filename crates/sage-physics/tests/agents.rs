@@ -345,6 +345,35 @@ fn a_dropped_movable_object_comes_to_rest_on_the_floor() {
 }
 
 #[test]
+fn a_copied_world_evolves_exactly_as_a_freshly_built_one() {
+    let scene = hall(None);
+    let template = world_of(&scene);
+    let body = scene
+        .objects
+        .iter()
+        .position(|o| o.category == "box")
+        .unwrap();
+    let run = |mut world: World| {
+        assert!(world.place_body(body, Vec3::new(2.0, 0.7, 1.5)));
+        let mut trace = Vec::new();
+        for _ in 0..60 {
+            world.advance(1.0 / 30.0);
+            trace.push(world.rigid_body(body).unwrap().translation());
+        }
+        let mut agent = agent("wheeled", 0.5, 0.0, 0.0, 0.0);
+        let report = agent
+            .step(&mut world, &Command::Forward { distance: 0.25 })
+            .unwrap();
+        (trace, agent.pose, report.touched.len())
+    };
+    let fresh = run(world_of(&scene));
+    // The template stays untouched by its copies.
+    assert_eq!(run(template.clone()), fresh);
+    assert_eq!(run(template.clone()), fresh);
+    assert!(!template.has_awake_bodies());
+}
+
+#[test]
 fn an_agent_placed_inside_an_obstacle_is_reported_and_pushed_out() {
     let scene = hall(None);
     let mut world = world_of(&scene);
