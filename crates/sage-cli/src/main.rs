@@ -4,6 +4,7 @@
 //! function, prints or writes the result. See `sage3d --help`.
 
 mod bench;
+mod config;
 mod data_cmd;
 mod demo_cmd;
 mod env_cmd;
@@ -26,6 +27,10 @@ struct Cli {
     /// Worker threads (default: all cores).
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Settings from a TOML file: a table per subcommand (`[data.build]`, `[eval]`) of
+    /// `flag = value`; flags given on the command line win.
+    #[arg(long, global = true, value_name = "FILE.toml")]
+    config: Option<std::path::PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -65,8 +70,34 @@ enum Command {
     Bench(bench::BenchCommand),
 }
 
+/// The command line, with the flags of `--config FILE.toml` added when it is given.
+fn command_line() -> sage_core::Result<Vec<std::ffi::OsString>> {
+    let raw: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let text: Vec<String> = raw
+        .iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let Some(file) = config::config_path(&text) else {
+        return Ok(raw);
+    };
+    let file = std::path::PathBuf::from(file);
+    let toml = std::fs::read_to_string(&file).map_err(|e| sage_core::Error::io(&file, e))?;
+    let path = config::subcommand_path::<Cli>(&text);
+    let added = config::apply(&toml, &file, &path, &text)?;
+    Ok(raw
+        .into_iter()
+        .chain(added[text.len()..].iter().map(Into::into))
+        .collect())
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match command_line() {
+        Ok(argv) => Cli::parse_from(argv),
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()
             .num_threads(n.max(1))

@@ -331,3 +331,42 @@ fn render_writes_every_channel_and_a_turntable() {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+#[test]
+fn a_config_file_supplies_flags_and_the_command_line_wins() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("sage3d.toml");
+    std::fs::write(
+        &config,
+        "[scene.synth]\nrooms = 2\nobjects = 8\ngaussians = 3000\nseed = 5\n",
+    )
+    .unwrap();
+    let scene = dir.path().join("scene");
+    ok(&[
+        "--config",
+        s(&config),
+        "scene",
+        "synth",
+        "--seed",
+        "6",
+        "--out",
+        s(&scene),
+    ]);
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(scene.join("sage3d_run.json")).unwrap())
+            .unwrap();
+    assert_eq!(record["seed"], 6, "{record}");
+    assert_eq!(record["config"]["gaussians"], 3000, "{record}");
+    // A misspelt key is the flag clap does not know; a broken file names its line.
+    std::fs::write(&config, "[scene.synth]\nroomz = 2\n").unwrap();
+    let out = sage3d(&["--config", s(&config), "scene", "synth", "--out", s(&scene)]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("--roomz"), "{e}");
+    std::fs::write(&config, "[scene.synth]\nrooms = \n").unwrap();
+    let out = sage3d(&["--config", s(&config), "scene", "synth", "--out", s(&scene)]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && e.contains("sage3d.toml") && e.contains("line 2"),
+        "{e}"
+    );
+}

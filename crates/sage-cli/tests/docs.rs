@@ -250,7 +250,10 @@ fn command_words(line: &str) -> Option<Vec<String>> {
         words.iter().position(|w| w == "sage3d")
     }?;
     let mut rest = &words[start + 1..];
-    if rest.first().is_some_and(|w| w == "--threads") {
+    while rest
+        .first()
+        .is_some_and(|w| w == "--threads" || w == "--config")
+    {
         rest = rest.get(2..).unwrap_or_default();
     }
     Some(rest.to_vec())
