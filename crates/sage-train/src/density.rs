@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 pub struct DensityParams {
     /// First iteration at which to densify.
     pub from: usize,
-    /// No densification at or after this iteration.
+    /// No densification at or after this iteration, nor in the second half of a fit.
     pub until: usize,
     /// Densify every this many iterations (0: never).
     pub interval: usize,

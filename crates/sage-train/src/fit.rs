@@ -204,6 +204,8 @@ pub fn fit(
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let mut order: Vec<usize> = Vec::new();
     let last = params.iterations.saturating_sub(1).max(1) as f32;
+    // As in 3DGS (15 000 of 30 000), the second half of a fit only refines.
+    let densify_until = density.until.min(params.iterations / 2);
     for it in 0..params.iterations {
         if order.is_empty() {
             order = (0..train.len()).collect();
@@ -222,7 +224,7 @@ pub fn fit(
         }
         let grads = backward(&gaussians, camera, &frame, &d_rgb);
         let step = it + 1;
-        if step < density.until {
+        if step < densify_until {
             for sp in &frame.splats {
                 let i = sp.index as usize;
                 stats.record(i, sp.radius, grads.mean2d[i], w as f32, h as f32);
@@ -230,7 +232,7 @@ pub fn fit(
         }
         let lr = params.lr.per_offset(it as f32 / last, extent);
         adam.step(&mut gaussians.rows, &grads.params, &lr);
-        if step < density.until {
+        if step < densify_until {
             if step >= density.from && density.interval > 0 && step % density.interval == 0 {
                 let prune_large =
                     density.opacity_reset_interval > 0 && step > density.opacity_reset_interval;
