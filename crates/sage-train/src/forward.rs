@@ -40,6 +40,9 @@ pub struct Projected {
     /// Radius of the 3σ circle of the larger axis (pixels): the screen size densification
     /// prunes by.
     pub radius: f32,
+    /// A power below which alpha is certainly under 1/255 (−½ of the 1/255 Mahalanobis
+    /// distance², less a margin): most pixels of a tile are rejected here without an `exp`.
+    pub min_power: f32,
 }
 
 /// The camera quantities every projection of a view shares.
@@ -191,6 +194,7 @@ pub(crate) fn project(p: &Param, index: u32, sh_degree: u8, v: &ViewGeometry) ->
         t,
         extent,
         radius: 3.0 * lambda_max.sqrt(),
+        min_power: -0.5 * cutoff - 1e-3,
     })
 }
 
@@ -343,7 +347,7 @@ impl Projected {
     #[inline]
     pub fn alpha_at(&self, px: f32, py: f32) -> Option<f32> {
         let power = self.power(px, py);
-        if power > 0.0 {
+        if power > 0.0 || power < self.min_power {
             return None;
         }
         let alpha = (self.opacity * power.exp()).min(MAX_ALPHA);
