@@ -10,6 +10,7 @@ mod eval_cmd;
 mod machine;
 mod nav_cmd;
 mod physics_cmd;
+mod recon_cmd;
 mod render_cmd;
 mod scene_cmd;
 mod splat_cmd;
@@ -46,6 +47,10 @@ enum Command {
     /// Export a scene to another format (USDA for Isaac Sim / Omniverse).
     #[command(subcommand)]
     Export(physics_cmd::ExportCommand),
+    /// Reconstruction: plan cameras over a mesh scene, render its views, export them for 3DGS
+    /// training.
+    #[command(subcommand)]
+    Recon(recon_cmd::ReconCommand),
     /// Navigation: semantic top-down maps, occupancy grids, trajectories.
     #[command(subcommand)]
     Nav(nav_cmd::NavCommand),
@@ -79,6 +84,7 @@ fn main() -> ExitCode {
         Command::Splat(c) => splat_cmd::run(c),
         Command::Physics(c) => physics_cmd::run(c),
         Command::Export(c) => physics_cmd::run_export(c),
+        Command::Recon(c) => recon_cmd::run(c),
         Command::Nav(c) => nav_cmd::run(c),
         Command::Data(c) => data_cmd::run(c),
         Command::Env(c) => env_cmd::run(c),

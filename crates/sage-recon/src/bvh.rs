@@ -110,7 +110,7 @@ impl Bvh {
             return None;
         }
         let mut best = (f32::INFINITY, 0usize);
-        let mut stack = vec![0u32];
+        let mut stack = Stack::new();
         while let Some(n) = stack.pop() {
             let node = self.nodes[n as usize];
             if box_distance_sq(&node.bounds, p) >= best.0 {
@@ -129,9 +129,9 @@ impl Bvh {
                 let dl = box_distance_sq(&self.nodes[l as usize].bounds, p);
                 let dr = box_distance_sq(&self.nodes[r as usize].bounds, p);
                 if dl < dr {
-                    stack.extend([r, l]);
+                    stack.push2(r, l);
                 } else {
-                    stack.extend([l, r]);
+                    stack.push2(l, r);
                 }
             }
         }
@@ -147,7 +147,7 @@ impl Bvh {
         let inv = dir.recip();
         let mut best: Option<Hit> = None;
         let mut limit = t_max;
-        let mut stack = vec![0u32];
+        let mut stack = Stack::new();
         while let Some(n) = stack.pop() {
             let node = self.nodes[n as usize];
             if slab(&node.bounds, origin, inv, t_min, limit).is_none() {
@@ -175,8 +175,8 @@ impl Bvh {
                 let el = slab(&self.nodes[l as usize].bounds, origin, inv, t_min, limit);
                 let er = slab(&self.nodes[r as usize].bounds, origin, inv, t_min, limit);
                 match (el, er) {
-                    (Some(a), Some(b)) if a <= b => stack.extend([r, l]),
-                    (Some(_), Some(_)) => stack.extend([l, r]),
+                    (Some(a), Some(b)) if a <= b => stack.push2(r, l),
+                    (Some(_), Some(_)) => stack.push2(l, r),
                     (Some(_), None) => stack.push(l),
                     (None, Some(_)) => stack.push(r),
                     (None, None) => {}
@@ -184,6 +184,38 @@ impl Bvh {
             }
         }
         best
+    }
+}
+
+/// A fixed traversal stack: a query allocates nothing. Median splits make the depth
+/// log2(n / LEAF_SIZE) + 1, and a traversal holds at most one pending node per level.
+struct Stack {
+    items: [u32; 64],
+    len: usize,
+}
+
+impl Stack {
+    fn new() -> Stack {
+        Stack {
+            items: [0; 64],
+            len: 1,
+        }
+    }
+
+    fn pop(&mut self) -> Option<u32> {
+        self.len = self.len.checked_sub(1)?;
+        Some(self.items[self.len])
+    }
+
+    fn push(&mut self, n: u32) {
+        self.items[self.len] = n;
+        self.len += 1;
+    }
+
+    /// Pushes `later` then `first`, so `first` is visited next.
+    fn push2(&mut self, later: u32, first: u32) {
+        self.push(later);
+        self.push(first);
     }
 }
 

@@ -24,6 +24,7 @@ pub mod raster;
 pub mod safety;
 pub mod surfaces;
 pub mod sweep;
+pub mod views;
 pub mod volume;
 
 pub use bvh::Bvh;
