@@ -111,6 +111,51 @@ fn plan_render_export_resume_and_project() {
     assert!((hit["u"].as_f64().unwrap() - 12.0).abs() < 1e-3);
     assert!((hit["v"].as_f64().unwrap() - 8.0).abs() < 1e-3);
     assert!((hit["depth"].as_f64().unwrap() - 2.0).abs() < 1e-4);
+
+    // A short fit: a scene folder with the fitted Gaussians and the original labels, and its
+    // report (sage-train's own tests judge how well it fits).
+    let fitted = tmp.path().join("fitted");
+    let said = ok(&[
+        "recon",
+        "fit",
+        s(&dir),
+        "--iterations",
+        "6",
+        "--points",
+        "1500",
+        "--out",
+        s(&fitted),
+    ]);
+    assert!(said.contains("7 views (2 held out)"), "{said}");
+    let report = json(&fitted.join("fit_report.json"));
+    assert_eq!(report["loss"].as_array().unwrap().len(), 6);
+    assert_eq!(
+        (
+            report["train_views"].as_u64(),
+            report["heldout_views"].as_u64()
+        ),
+        (Some(7), Some(2))
+    );
+    for key in [
+        "initial_heldout_psnr",
+        "final_heldout_psnr",
+        "final_train_psnr",
+    ] {
+        assert!(report[key].as_f64().unwrap().is_finite(), "{key}");
+    }
+    let info = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&ok(&["scene", "info", s(dir), "--json"])).unwrap()
+    };
+    let (before, after) = (info(&scene), info(&fitted));
+    assert_eq!(
+        after["summary"]["gaussians"].as_u64(),
+        report["gaussians"].as_u64()
+    );
+    assert_eq!(
+        after["summary"]["categories"],
+        before["summary"]["categories"]
+    );
+    assert_eq!(after["summary"]["rooms"], before["summary"]["rooms"]);
 }
 
 #[test]
