@@ -156,6 +156,14 @@ fn plan_render_export_resume_and_project() {
         before["summary"]["categories"]
     );
     assert_eq!(after["summary"]["rooms"], before["summary"]["rooms"]);
+
+    // A new plan in the same folder never reuses the old plan's images.
+    plan(&scene, &dir, "volume", "12");
+    let stale = sage3d(&["recon", "render", s(&dir), "--size", "24x16"]);
+    assert!(!stale.status.success());
+    assert!(String::from_utf8_lossy(&stale.stderr).contains("rendered for another plan"));
+    let stale = sage3d(&["recon", "export", s(&dir)]);
+    assert!(String::from_utf8_lossy(&stale.stderr).contains("rendered for another plan"));
 }
 
 #[test]

@@ -97,6 +97,21 @@ impl PlannedView {
     }
 }
 
+/// One offset polygon of a sweep plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlannedRing {
+    /// Room index in the floorplan.
+    pub room: usize,
+    /// Index in the offset schedule, 0 the outermost.
+    pub ring: usize,
+    /// Placements (of nine cameras) along it.
+    pub placements: usize,
+    /// Its length, metres.
+    pub perimeter: f32,
+    /// Its vertices, counter-clockwise, metres.
+    pub points: Vec<[f32; 2]>,
+}
+
 /// A plan file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
@@ -122,9 +137,9 @@ pub struct Plan {
     /// Volume settings (volume plans).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub volume: Option<VolumeParams>,
-    /// The sweep's offset polygons (`room`, `ring`, `placements`, `perimeter`, `points`).
+    /// The sweep's offset polygons.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub rings: Vec<serde_json::Value>,
+    pub rings: Vec<PlannedRing>,
     /// Kept views, in render order.
     pub views: Vec<PlannedView>,
     /// Views dropped by the safety filter.
@@ -183,7 +198,7 @@ pub fn make_plan(
     if !(settings.safety_threshold.is_finite() && settings.safety_threshold >= 0.0) {
         return Err(Error::invalid("safety threshold must be >= 0"));
     }
-    let (poses, rings): (Vec<Pose>, Vec<serde_json::Value>) = match settings.policy {
+    let (poses, rings): (Vec<Pose>, Vec<PlannedRing>) = match settings.policy {
         Policy::Sweep => {
             let s = sweep(
                 &scene.floorplan,
@@ -194,14 +209,12 @@ pub fn make_plan(
             let rings = s
                 .rings
                 .iter()
-                .map(|r| {
-                    serde_json::json!({
-                        "room": r.room,
-                        "ring": r.ring,
-                        "placements": r.placements,
-                        "perimeter": perimeter(&r.polygon),
-                        "points": r.polygon.points.iter().map(|p| [p.x, p.y]).collect::<Vec<_>>(),
-                    })
+                .map(|r| PlannedRing {
+                    room: r.room,
+                    ring: r.ring,
+                    placements: r.placements,
+                    perimeter: perimeter(&r.polygon),
+                    points: r.polygon.points.iter().map(|p| p.to_array()).collect(),
                 })
                 .collect();
             (s.poses, rings)
@@ -314,17 +327,7 @@ pub fn draw_plan(scene: &Scene, plan: &Plan) -> Canvas {
         c.line(wall.start, wall.end, [60, 60, 60], 3);
     }
     for ring in &plan.rings {
-        let pts: Vec<Vec2> = ring["points"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .filter_map(|p| {
-                Some(Vec2::new(
-                    p.get(0)?.as_f64()? as f32,
-                    p.get(1)?.as_f64()? as f32,
-                ))
-            })
-            .collect();
+        let pts: Vec<Vec2> = ring.points.iter().map(|p| Vec2::from_array(*p)).collect();
         for k in 0..pts.len() {
             c.line(pts[k], pts[(k + 1) % pts.len()], [150, 170, 230], 1);
         }

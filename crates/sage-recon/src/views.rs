@@ -38,6 +38,9 @@ pub struct Manifest {
     pub views: usize,
     /// Unit of the depth PNGs.
     pub depth_unit: String,
+    /// FNV-1a hash (hex) of the plan's kept views: images rendered for one plan are never
+    /// taken for another's.
+    pub plan_views_hash: String,
 }
 
 impl Manifest {
@@ -54,6 +57,7 @@ impl Manifest {
             cy: k.cy,
             views: plan.views.len(),
             depth_unit: "mm".to_string(),
+            plan_views_hash: views_hash(plan)?,
         })
     }
 
@@ -68,6 +72,16 @@ impl Manifest {
             cy: self.cy,
         }
     }
+}
+
+/// FNV-1a (64-bit) of the kept views as JSON, in hex.
+fn views_hash(plan: &Plan) -> Result<String> {
+    let bytes = serde_json::to_vec(&plan.views)
+        .map_err(|e| Error::invalid(format!("plan views do not serialise: {e}")))?;
+    let h = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    Ok(format!("{h:016x}"))
 }
 
 /// RGB file of view `k`, relative to the reconstruction folder.
@@ -105,6 +119,10 @@ pub fn prepare(dir: &Path, manifest: &Manifest) -> Result<()> {
     std::fs::create_dir_all(&views).map_err(|e| Error::io(&views, e))?;
     match read_manifest(dir)? {
         Some(m) if m == *manifest => Ok(()),
+        Some(m) if m.plan_views_hash != manifest.plan_views_hash => Err(Error::invalid(
+            "views were rendered for another plan (its views differ from plan.json); remove the views folder to render this one",
+        )
+        .in_file(views.join(MANIFEST))),
         Some(m) => Err(Error::invalid(format!(
             "views already rendered at {}x{} (hfov {}°, {} views); render with the same size or remove the views folder",
             m.width, m.height, m.hfov_deg, m.views
@@ -180,6 +198,12 @@ pub fn export_views(dir: &Path, plan: &Plan) -> Result<Vec<ExportView>> {
         Error::invalid("no rendered views (views/render.json); run `sage3d recon render` first")
             .in_file(dir.join(VIEWS_DIR).join(MANIFEST))
     })?;
+    if manifest.plan_views_hash != views_hash(plan)? {
+        return Err(Error::invalid(
+            "the views were rendered for another plan (its views differ from plan.json); render again",
+        )
+        .in_file(dir.join(VIEWS_DIR).join(MANIFEST)));
+    }
     let missing = pending(dir, plan);
     if let Some(first) = missing.first() {
         return Err(Error::invalid(format!(

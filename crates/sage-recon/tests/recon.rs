@@ -504,3 +504,64 @@ fn plans_and_images_are_the_same_for_a_seed_whatever_the_threads() {
     .unwrap();
     assert_ne!(a.views, other.views);
 }
+
+#[test]
+fn obj_materials_colour_their_triangles() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = box_scene("red");
+    scene.objects[0].mesh = Some(sage_recon::surfaces::obb_mesh(&scene.objects[0].obb));
+    scene
+        .save(dir.path(), sage_scene::SplatLayout::Standard)
+        .unwrap();
+    // Rewrite the object's OBJ as two parts, the second with a blue material.
+    let m = scene.objects[0].mesh.as_ref().unwrap();
+    let mut obj = String::from("mtllib box.mtl\no bottom\n");
+    for p in &m.positions {
+        obj += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for (k, t) in m.triangles.iter().enumerate() {
+        if k == 4 {
+            obj += "o rest\nusemtl blue\n";
+        }
+        obj += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    let meshes = dir.path().join("meshes");
+    std::fs::write(meshes.join("1.obj"), obj).unwrap();
+    std::fs::write(meshes.join("box.mtl"), "newmtl blue\nKd 0.1 0.2 0.9\n").unwrap();
+    let (loaded, _) = Scene::load(dir.path()).unwrap();
+    let with = SceneSurfaces::build(&loaded, Some(dir.path())).unwrap();
+    let without = SceneSurfaces::build(&loaded, None).unwrap();
+    let red = sage_scene::synth::color_rgb("red").unwrap();
+    for t in 0..12 {
+        let n = with.normals[t];
+        assert_eq!(without.colors[t], shade(red, n));
+        let expected = if t < 4 { red } else { [0.1, 0.2, 0.9] };
+        assert_eq!(with.colors[t], shade(expected, n), "triangle {t}");
+    }
+}
+
+#[test]
+fn plan_files_round_trip_and_bad_ones_name_the_field() {
+    let plan = make_plan(
+        scene(),
+        "scene",
+        surfaces(),
+        &PlanSettings {
+            budget: 45,
+            ..PlanSettings::default()
+        },
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("plan.json");
+    plan.save(&path).unwrap();
+    assert_eq!(sage_recon::Plan::load(&path).unwrap(), plan);
+    let mut bad = plan.clone();
+    bad.views.swap(0, 1);
+    bad.save(&path).unwrap();
+    let e = sage_recon::Plan::load(&path).unwrap_err().to_string();
+    assert!(e.contains("plan.json") && e.contains("views[0].id"), "{e}");
+    std::fs::write(&path, "{\"format\": 3}").unwrap();
+    let e = sage_recon::Plan::load(&path).unwrap_err().to_string();
+    assert!(e.contains("plan.json") && e.contains("line 1"), "{e}");
+}
