@@ -49,7 +49,7 @@ pub struct Pose {
     pub pitch: f32,
     /// Index of the room the pose was sampled for.
     pub room: usize,
-    /// Which part of the policy made it (e.g. `ring1/low/left`, `pos12/view3`).
+    /// Which part of the policy made it.
     pub tag: PoseTag,
 }
 

@@ -10,7 +10,7 @@
 //! position gets the six views of [`TEMPLATE`], all turned by one shared random perturbation.
 
 use crate::{Pose, PoseTag, apportion};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Result};
@@ -172,16 +172,17 @@ fn poisson_disk(
     points
 }
 
-/// Where a position's views look: unit forward vectors of the template at zero perturbation.
-pub fn template_forward(view: usize) -> Vec3 {
-    let (yaw, pitch) = TEMPLATE[view];
-    let (y, p) = (yaw.to_radians(), pitch.to_radians());
-    Vec2::new(y.cos(), y.sin()).extend(0.0) * p.cos() + Vec3::Z * p.sin()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec2;
+
+    /// Unit forward vector of template view `view` at zero perturbation.
+    fn template_forward(view: usize) -> Vec3 {
+        let (yaw, pitch) = TEMPLATE[view];
+        let (y, p) = (yaw.to_radians(), pitch.to_radians());
+        Vec2::new(y.cos(), y.sin()).extend(0.0) * p.cos() + Vec3::Z * p.sin()
+    }
 
     #[test]
     fn template_covers_all_four_sides_and_up_and_down() {
