@@ -10,7 +10,7 @@ use crate::volume::{VolumeParams, volume};
 use crate::{Pose, PoseTag};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result, ResultExt};
-use sage_nav::draw::Canvas;
+use sage_nav::draw::{Canvas, legend_height, legend_width};
 use sage_scene::Scene;
 use sage_splat::{Camera, Intrinsics};
 use serde::{Deserialize, Serialize};
@@ -298,7 +298,8 @@ impl Plan {
 const PX_PER_M: f32 = 40.0;
 
 /// Draws the rooms (grey), walls (dark), the sweep's rings (blue), kept views (green) and
-/// dropped views (red), each view with a short tick along its heading.
+/// dropped views (red), each view a dot with a short tick along its heading, and a legend
+/// with the counts.
 pub fn draw_plan(scene: &Scene, plan: &Plan) -> Canvas {
     let mut lo = Vec2::splat(f32::INFINITY);
     let mut hi = Vec2::splat(f32::NEG_INFINITY);
@@ -319,7 +320,24 @@ pub fn draw_plan(scene: &Scene, plan: &Plan) -> Canvas {
         (size.x as usize).clamp(1, 8192),
         (size.y as usize).clamp(1, 8192),
     );
-    let mut c = Canvas::new(w, h, [255, 255, 255], lo, scale, h);
+    let (kept, dropped, ring_ink) = ([20, 160, 40], [220, 30, 30], [150, 170, 230]);
+    let mut legend = vec![
+        (kept, format!("kept {}", plan.views.len())),
+        (dropped, format!("dropped {}", plan.dropped.len())),
+    ];
+    if !plan.rings.is_empty() {
+        legend.push((ring_ink, format!("rings {}", plan.rings.len())));
+    }
+    let chars = legend.iter().map(|e| e.1.len()).max().unwrap_or(0).max(7);
+    let mut c = Canvas::new(
+        w + legend_width(chars),
+        h.max(legend_height(legend.len())),
+        [255, 255, 255],
+        lo,
+        scale,
+        h,
+    );
+    c.legend(w as i64 + 10, "cameras", &legend);
     for r in &scene.floorplan.rooms {
         c.fill_polygon(&r.profile.points, [232, 232, 232]);
     }
@@ -329,7 +347,7 @@ pub fn draw_plan(scene: &Scene, plan: &Plan) -> Canvas {
     for ring in &plan.rings {
         let pts: Vec<Vec2> = ring.points.iter().map(|p| Vec2::from_array(*p)).collect();
         for k in 0..pts.len() {
-            c.line(pts[k], pts[(k + 1) % pts.len()], [150, 170, 230], 1);
+            c.line(pts[k], pts[(k + 1) % pts.len()], ring_ink, 1);
         }
     }
     let mut mark = |v: &PlannedView, colour: [u8; 3]| {
@@ -339,10 +357,10 @@ pub fn draw_plan(scene: &Scene, plan: &Plan) -> Canvas {
         c.disc(p, 2, colour);
     };
     for v in &plan.views {
-        mark(v, [20, 160, 40]);
+        mark(v, kept);
     }
     for v in &plan.dropped {
-        mark(v, [220, 30, 30]);
+        mark(v, dropped);
     }
     c
 }
