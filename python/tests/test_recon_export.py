@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 from PIL import Image
+from plyfile import PlyData
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +23,7 @@ def recon(tmp_path_factory, sage3d):
     plan["views"] = plan["views"][:10]
     (out / "plan.json").write_text(json.dumps(plan))
     sage3d("recon", "render", out, "--size", "40x30")
-    sage3d("recon", "export", out)
+    sage3d("recon", "export", out, "--points", 400)
     return out, plan
 
 
@@ -77,3 +78,18 @@ def test_frames_images_depth_and_split(recon):
     held = [f["file_path"] for i, f in enumerate(meta["frames"]) if i % 8 == 0]
     assert meta["val_filenames"] == held == meta["test_filenames"]
     assert sorted(meta["train_filenames"] + held) == sorted(f["file_path"] for f in meta["frames"])
+
+
+def test_point_cloud_for_splatfacto(recon):
+    out, plan = recon
+    meta = json.loads((out / "transforms.json").read_text())
+    vertex = PlyData.read(str(out / meta["ply_file_path"]))["vertex"]
+    assert vertex.count == 400
+    xyz = np.stack([vertex["x"], vertex["y"], vertex["z"]], axis=1)
+    rgb = np.stack([vertex["red"], vertex["green"], vertex["blue"]], axis=1)
+    assert rgb.dtype == np.uint8 and rgb.max() > 0
+    # On the scene's surfaces, area-weighted: between the floor and the ceiling (2.8 m), with
+    # floor and ceiling both well represented (walls take the largest share).
+    z = xyz[:, 2]
+    assert z.min() >= -1e-4 and z.max() <= 2.8 + 1e-4
+    assert (z < 1e-3).mean() > 0.05 and (z > 2.8 - 1e-3).mean() > 0.05

@@ -5,7 +5,9 @@ use clap::{Args, Subcommand};
 use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
-use sage_recon::export::{TRANSFORMS_FILE, is_heldout, transforms_for, write_transforms};
+use sage_recon::export::{
+    POINTS_FILE, TRANSFORMS_FILE, is_heldout, transforms_for, write_points_ply, write_transforms,
+};
 use sage_recon::plan::{PLAN_FILE, PLAN_PNG, Plan, PlanSettings, Policy, draw_plan, make_plan};
 use sage_recon::sweep::SweepParams;
 use sage_recon::views::{self, Manifest};
@@ -84,6 +86,12 @@ pub struct RenderArgs {
 pub struct ExportArgs {
     /// Reconstruction folder (holds plan.json and the rendered views).
     dir: PathBuf,
+    /// Scene folder for the point cloud (default: the one the plan was made from).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Surface samples written to points3d.ply (0: no point cloud).
+    #[arg(long, default_value_t = 100_000)]
+    points: usize,
 }
 
 #[derive(Args)]
@@ -263,17 +271,25 @@ fn render(a: RenderArgs) -> Result<()> {
 fn export(a: ExportArgs) -> Result<()> {
     let plan = Plan::load(&a.dir.join(PLAN_FILE))?;
     let views = views::export_views(&a.dir, &plan)?;
-    let transforms = transforms_for(&views)?;
+    let mut transforms = transforms_for(&views)?;
+    if a.points > 0 {
+        let scene_dir = a.scene.unwrap_or_else(|| PathBuf::from(&plan.scene_dir));
+        let (_, surfaces) = load_scene(&scene_dir)?;
+        let points = surface_samples(&surfaces, a.points, plan.seed);
+        write_points_ply(&a.dir.join(POINTS_FILE), &points)?;
+        transforms.ply_file_path = Some(POINTS_FILE.to_string());
+    }
     let path = a.dir.join(TRANSFORMS_FILE);
     write_transforms(&path, &transforms)?;
     println!(
-        "wrote {} ({} frames: {} train, {} held out; OPENCV {}x{}, c2w in OpenGL axes, world Z up)",
+        "wrote {} ({} frames: {} train, {} held out; OPENCV {}x{}, c2w in OpenGL axes, world Z up; points: {})",
         path.display(),
         transforms.frames.len(),
         transforms.train_filenames.len(),
         (0..views.len()).filter(|&i| is_heldout(i)).count(),
         transforms.w,
-        transforms.h
+        transforms.h,
+        transforms.ply_file_path.as_deref().unwrap_or("none")
     );
     Ok(())
 }

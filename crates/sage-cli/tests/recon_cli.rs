@@ -72,8 +72,13 @@ fn plan_render_export_resume_and_project() {
     assert!(!mixed.status.success());
     assert!(String::from_utf8_lossy(&mixed.stderr).contains("already rendered at 24x16"));
 
-    ok(&["recon", "export", s(&dir)]);
+    ok(&["recon", "export", s(&dir), "--points", "300"]);
     let t = json(&dir.join("transforms.json"));
+    assert_eq!(t["ply_file_path"], "points3d.ply");
+    let ply = std::fs::read(dir.join("points3d.ply")).unwrap();
+    let header_end = ply.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    assert!(String::from_utf8_lossy(&ply[..header_end]).contains("element vertex 300"));
+    assert_eq!(ply.len() - header_end, 300 * 15);
     assert_eq!(t["camera_model"], "OPENCV");
     assert_eq!((t["w"].as_u64(), t["h"].as_u64()), (Some(24), Some(16)));
     let frames = t["frames"].as_array().unwrap();

@@ -15,6 +15,7 @@ use glam::{Mat3, Mat4, Vec4};
 use sage_core::{Error, Result, ResultExt};
 use sage_splat::{Camera, Intrinsics};
 use serde::{Deserialize, Serialize};
+use std::io::Write;
 use std::path::Path;
 
 /// Every `HELDOUT_EVERY`-th view (0, 8, 16, …) is held out of training.
@@ -85,6 +86,10 @@ pub struct Transforms {
     pub val_filenames: Vec<String>,
     /// Held-out images.
     pub test_filenames: Vec<String>,
+    /// Coloured points to start Gaussians from (nerfstudio's splatfacto reads them), relative
+    /// to the file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ply_file_path: Option<String>,
 }
 
 /// A view to export: its camera and its files (relative to `transforms.json`).
@@ -130,6 +135,7 @@ pub fn transforms_for(views: &[ExportView]) -> Result<Transforms> {
         train_filenames: Vec::new(),
         val_filenames: Vec::new(),
         test_filenames: Vec::new(),
+        ply_file_path: None,
     };
     for (i, v) in views.iter().enumerate() {
         t.frames.push(Frame {
@@ -180,6 +186,28 @@ impl Transforms {
             })
             .collect()
     }
+}
+
+/// The point cloud's file name beside `transforms.json`.
+pub const POINTS_FILE: &str = "points3d.ply";
+
+/// Writes coloured points as a binary PLY (`x, y, z` float, `red, green, blue` uchar), the
+/// layout nerfstudio loads through `ply_file_path` (atomically).
+pub fn write_points_ply(path: &Path, points: &[(glam::Vec3, [f32; 3], glam::Vec3)]) -> Result<()> {
+    sage_scene::fsutil::write_atomic(path, |w| {
+        write!(
+            w,
+            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+            points.len()
+        )?;
+        for (p, rgb, _) in points {
+            for v in p.to_array() {
+                w.write_all(&v.to_le_bytes())?;
+            }
+            w.write_all(&rgb.map(crate::raster::to_u8))?;
+        }
+        Ok(())
+    })
 }
 
 /// Writes `transforms.json` (atomically).
