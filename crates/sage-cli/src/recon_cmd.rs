@@ -306,13 +306,8 @@ fn fit(a: FitArgs) -> Result<()> {
     let scene_dir = a.scene.unwrap_or_else(|| PathBuf::from(&plan.scene_dir));
     let (scene, surfaces) = load_scene(&scene_dir)?;
     let samples = surface_samples(&surfaces, a.points, seed);
-    let area: f32 = surfaces
-        .triangles
-        .iter()
-        .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
-        .sum();
     // The mean distance between samples spread evenly over the area.
-    let spacing = (area / a.points as f32).sqrt();
+    let spacing = (surfaces.area() / a.points as f64).sqrt() as f32;
     let init = sage_train::init_gaussians(&samples, spacing);
     let loaded: Vec<(bool, sage_train::View)> = exported
         .par_iter()

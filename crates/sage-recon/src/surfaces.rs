@@ -158,10 +158,19 @@ impl SceneSurfaces {
         self.triangles.is_empty()
     }
 
+    /// Total surface area, m².
+    pub fn area(&self) -> f64 {
+        self.triangles.iter().map(triangle_area).sum()
+    }
+
     /// The bounding volume hierarchy over these triangles (indices match).
     pub fn bvh(&self) -> Bvh {
         Bvh::build(&self.triangles)
     }
+}
+
+fn triangle_area(t: &[Vec3; 3]) -> f64 {
+    0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64
 }
 
 fn normal(t: &[Vec3; 3]) -> Vec3 {
@@ -231,7 +240,7 @@ pub fn surface_samples(
     let mut cumulative = Vec::with_capacity(surfaces.len());
     let mut total = 0.0f64;
     for t in &surfaces.triangles {
-        total += 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length() as f64;
+        total += triangle_area(t);
         cumulative.push(total);
     }
     if total <= 0.0 {
@@ -290,6 +299,7 @@ mod tests {
             kinds: vec![SurfaceKind::Floor, SurfaceKind::Ceiling],
             colors: vec![[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
         };
+        assert!((s.area() - 2.0).abs() < 1e-9);
         let pts = surface_samples(&s, 4000, 3);
         let upper = pts.iter().filter(|p| p.0.z > 0.5).count() as f32 / 4000.0;
         assert!((upper - 0.75).abs() < 0.03, "{upper}");
