@@ -215,4 +215,13 @@ fn volume_plans_are_the_same_for_a_seed_and_export_needs_rendered_views() {
         s(&a),
     ]);
     assert!(String::from_utf8_lossy(&bad.stderr).contains("expected sweep or volume"));
+    // No floorplan, no cameras: said, and nothing written.
+    std::fs::remove_file(scene.join("structure.json")).unwrap();
+    let c = tmp.path().join("c");
+    let bad = sage3d(&["recon", "plan", s(&scene), "--out", s(&c)]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("no rooms in structure.json"));
+    assert!(!c.exists());
+    let bad = sage3d(&["recon", "render", s(&c)]);
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("plan.json"));
 }
