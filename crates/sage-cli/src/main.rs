@@ -13,6 +13,7 @@ mod machine;
 mod nav_cmd;
 mod overview;
 mod physics_cmd;
+mod recon_cmd;
 mod render_cmd;
 mod scene_cmd;
 mod splat_cmd;
@@ -54,6 +55,10 @@ enum Command {
     /// Export a scene to another format (USDA for Isaac Sim / Omniverse).
     #[command(subcommand)]
     Export(physics_cmd::ExportCommand),
+    /// Reconstruction: plan cameras over a mesh scene, render its views, export them for 3DGS
+    /// training.
+    #[command(subcommand)]
+    Recon(recon_cmd::ReconCommand),
     /// Navigation: semantic top-down maps, occupancy grids, trajectories.
     #[command(subcommand)]
     Nav(nav_cmd::NavCommand),
@@ -134,6 +139,7 @@ fn dispatch(command: Command) -> sage_core::Result<()> {
         Command::Splat(c) => splat_cmd::run(c),
         Command::Physics(c) => physics_cmd::run(c),
         Command::Export(c) => physics_cmd::run_export(c),
+        Command::Recon(c) => recon_cmd::run(c),
         Command::Nav(c) => nav_cmd::run(c),
         Command::Data(c) => data_cmd::run(c),
         Command::Env(c) => env_cmd::run(c),
