@@ -11,6 +11,7 @@ mod machine;
 mod nav_cmd;
 mod physics_cmd;
 mod render_cmd;
+mod report_cmd;
 mod scene_cmd;
 mod splat_cmd;
 
@@ -57,6 +58,8 @@ enum Command {
     Env(env_cmd::EnvCommand),
     /// Evaluate an agent on a dataset split: per-episode records, resumable, summary per slice.
     Eval(eval_cmd::EvalArgs),
+    /// Write an evaluation run's report: report.html (tables, charts, trajectory maps) and PNGs.
+    Report(report_cmd::ReportArgs),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -83,6 +86,7 @@ fn main() -> ExitCode {
         Command::Data(c) => data_cmd::run(c),
         Command::Env(c) => env_cmd::run(c),
         Command::Eval(a) => eval_cmd::run(a),
+        Command::Report(a) => report_cmd::run(a),
         Command::Bench(c) => bench::run(c),
     };
     match result {
