@@ -179,7 +179,11 @@ fn page_is_self_contained_and_its_images_decode_to_the_written_pngs() {
     // Every episode with a record has a map; unsuccessful episodes come first, then by id.
     let recs = records();
     let mut expected: Vec<&EvalRecord> = recs.iter().filter(|r| r.record.is_some()).collect();
-    let success = |r: &EvalRecord| r.metrics.as_ref().and_then(|m| m.sr) == Some(1.0);
+    // Success: SR 1 for VLN; a no-goal episode succeeds unless it ended in a collision.
+    let success = |r: &EvalRecord| match r.metrics.as_ref().and_then(|m| m.sr) {
+        Some(sr) => sr == 1.0,
+        None => r.termination != Some(sage_env::Termination::Collision),
+    };
     expected.sort_by(|a, b| (success(a), &a.episode_id).cmp(&(success(b), &b.episode_id)));
     let names: Vec<String> = expected
         .iter()
@@ -253,22 +257,33 @@ fn maps_show_reference_agent_and_collisions_at_their_world_positions() {
         if let Some(g) = &r.goal {
             markers.push(px(glam::Vec2::new(g.point[0] as f32, g.point[1] as f32)));
         }
-        let clear_of = |q: glam::Vec2, pts: &[glam::Vec2], d: f32| pts.iter().all(|p| p.distance(q) > d);
+        let clear_of =
+            |q: glam::Vec2, pts: &[glam::Vec2], d: f32| pts.iter().all(|p| p.distance(q) > d);
         for s in r.steps.iter().filter(|s| s.contact) {
-            assert_eq!(pixel(&canvas, xy(&s.position)), maps::COLLISION, "{}", rec.episode_id);
+            assert_eq!(
+                pixel(&canvas, xy(&s.position)),
+                maps::COLLISION,
+                "{}",
+                rec.episode_id
+            );
             checked_hits += 1;
         }
         for s in r.steps.iter().filter(|s| !s.contact) {
             let q = px(xy(&s.position));
             if clear_of(q, &hits, 8.0) && clear_of(q, &markers, 10.0) {
-                assert_eq!(pixel(&canvas, xy(&s.position)), maps::AGENT, "{}", rec.episode_id);
+                assert_eq!(
+                    pixel(&canvas, xy(&s.position)),
+                    maps::AGENT,
+                    "{}",
+                    rec.episode_id
+                );
                 checked_agent += 1;
             }
         }
         for p in &r.reference_path {
             let q = px(xy(p));
-            let off_agent = agent.windows(2).all(|w| to_segment(q, w[0], w[1]) > 4.0)
-                && agent.len() > 1;
+            let off_agent =
+                agent.windows(2).all(|w| to_segment(q, w[0], w[1]) > 6.0) && agent.len() > 1;
             if off_agent && clear_of(q, &hits, 8.0) && clear_of(q, &markers, 10.0) {
                 assert_eq!(pixel(&canvas, xy(p)), maps::REFERENCE, "{}", rec.episode_id);
                 checked_ref += 1;
@@ -295,7 +310,10 @@ fn same_inputs_give_the_same_bytes_with_any_thread_count() {
         .build()
         .unwrap();
     let outcome = pool.install(|| report::write(&copy, &f.scenes)).unwrap();
-    assert_eq!(outcome.maps, records().iter().filter(|r| r.record.is_some()).count());
+    assert_eq!(
+        outcome.maps,
+        records().iter().filter(|r| r.record.is_some()).count()
+    );
     let (a, b) = (read_tree(&f.run).unwrap(), read_tree(&copy).unwrap());
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
     for (k, v) in &a {
@@ -319,9 +337,16 @@ fn bad_run_folders_are_errors_naming_the_file() {
     let e = err(run);
     assert!(e.contains("episodes.jsonl") && e.contains("line 2"), "{e}");
     // A record missing: the summary does not count the records.
-    std::fs::write(run.join("episodes.jsonl"), lines.lines().skip(1).collect::<Vec<_>>().join("\n")).unwrap();
+    std::fs::write(
+        run.join("episodes.jsonl"),
+        lines.lines().skip(1).collect::<Vec<_>>().join("\n"),
+    )
+    .unwrap();
     let e = err(run);
-    assert!(e.contains("summary.json") && e.contains("unfinished"), "{e}");
+    assert!(
+        e.contains("summary.json") && e.contains("unfinished"),
+        "{e}"
+    );
     std::fs::remove_file(run.join("summary.json")).unwrap();
     let e = err(run);
     assert!(e.contains("summary.json"), "{e}");

@@ -107,7 +107,9 @@ const CHAR_W: i64 = 12;
 /// Pixel height of a text line.
 const CHAR_H: i64 = 14;
 /// Pixel height of a bar.
-const BAR_H: i64 = 14;
+const BAR_H: i64 = 16;
+/// Pixel gap between the bars of a group, so their value texts do not touch.
+const BAR_GAP: i64 = 4;
 /// Pixel width of the bars' full scale.
 const PLOT_W: i64 = 400;
 const INK: [u8; 3] = [20, 20, 20];
@@ -214,7 +216,7 @@ impl BarChart {
             legend_x += 18 + label.chars().count() as i64 * CHAR_W + 20;
         }
         let top = 60;
-        let block = self.series.len().max(1) as i64 * (BAR_H + 2) + 12;
+        let block = self.series.len().max(1) as i64 * (BAR_H + BAR_GAP) + 12;
         let bottom = top + self.groups.len() as i64 * block;
         let ticks = [0.0, 0.25, 0.5, 0.75, 1.0];
         for t in ticks {
@@ -247,7 +249,7 @@ impl BarChart {
                 colour: INK,
             });
             for (k, (s, v)) in self.series.iter().zip(values).enumerate() {
-                let y = gy + k as i64 * (BAR_H + 2);
+                let y = gy + k as i64 * (BAR_H + BAR_GAP);
                 let (w, text) = match v {
                     Some(v) => {
                         let frac = (v / ends[k]).clamp(0.0, 1.0);
@@ -266,7 +268,7 @@ impl BarChart {
                 }
                 marks.push(Mark::Text {
                     x: x0 + w + 6,
-                    y,
+                    y: y + 1,
                     text,
                     colour: INK,
                 });
@@ -423,7 +425,10 @@ mod tests {
             }
         }
         let svg = chart.to_svg();
-        assert!(svg.contains("width=\"240\"") && svg.contains(">0.250<"), "{svg}");
+        assert!(
+            svg.contains("width=\"240\"") && svg.contains(">0.250<"),
+            "{svg}"
+        );
         assert!(svg.contains("CR (0-5)") && !svg.contains("http"));
     }
 }

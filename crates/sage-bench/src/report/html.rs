@@ -91,7 +91,9 @@ fn field(v: Option<&serde_json::Value>) -> String {
 }
 
 /// The metric columns any of `aggs` holds.
-fn columns<'a>(aggs: impl Iterator<Item = &'a Aggregate> + Clone) -> Vec<(&'static str, &'static str)> {
+fn columns<'a>(
+    aggs: impl Iterator<Item = &'a Aggregate> + Clone,
+) -> Vec<(&'static str, &'static str)> {
     COLUMNS
         .into_iter()
         .filter(|(m, _)| aggs.clone().any(|a| a.means.contains_key(*m)))
@@ -178,7 +180,10 @@ pub fn page(input: &PageInput) -> Result<String> {
         ("scenes", setting("scenes")),
         ("dataset hash", field(run.get("dataset_hash"))),
         ("sage3d version (run)", field(run.get("version"))),
-        ("sage3d version (report)", env!("CARGO_PKG_VERSION").to_string()),
+        (
+            "sage3d version (report)",
+            env!("CARGO_PKG_VERSION").to_string(),
+        ),
         ("episodes recorded", s.episodes.to_string()),
         ("episodes scored", scored.to_string()),
         ("episodes failed", s.failed.len().to_string()),
@@ -200,8 +205,7 @@ pub fn page(input: &PageInput) -> Result<String> {
         let Some(slices) = s.slices.get(axis) else {
             continue;
         };
-        let rows: Vec<(&str, &Aggregate)> =
-            slices.iter().map(|(k, a)| (k.as_str(), a)).collect();
+        let rows: Vec<(&str, &Aggregate)> = slices.iter().map(|(k, a)| (k.as_str(), a)).collect();
         let _ = writeln!(t, "<h3>per {axis}</h3>");
         metric_table(&mut t, axis, &rows);
     }
@@ -282,12 +286,10 @@ pub fn page(input: &PageInput) -> Result<String> {
         .map(|m| (m.record.episode_id.as_str(), m.rel_path.as_str()))
         .collect();
     for r in &files.records {
-        let map = links
-            .get(r.episode_id.as_str())
-            .map_or_else(
-                || "-".to_string(),
-                |path| format!("<a href=\"{}\">map</a>", escape(path)),
-            );
+        let map = links.get(r.episode_id.as_str()).map_or_else(
+            || "-".to_string(),
+            |path| format!("<a href=\"{}\">map</a>", escape(path)),
+        );
         let _ = write!(
             t,
             "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>",

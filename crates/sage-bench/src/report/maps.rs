@@ -51,10 +51,23 @@ fn xy(p: &[f32; 3]) -> Vec2 {
     Vec2::new(p[0], p[1])
 }
 
+/// White under the paths and markers, so they stand out on any category colour.
+const HALO: [u8; 3] = [255, 255, 255];
+
+/// A path `width` pixels wide over a white halo one pixel wider on each side.
 fn polyline(canvas: &mut Canvas, points: &[Vec2], c: [u8; 3], width: i64) {
+    for w in points.windows(2) {
+        canvas.line(w[0], w[1], HALO, width + 2);
+    }
     for w in points.windows(2) {
         canvas.line(w[0], w[1], c, width);
     }
+}
+
+/// A disc over a white ring.
+fn marker(canvas: &mut Canvas, p: Vec2, radius: i64, c: [u8; 3]) {
+    canvas.disc(p, radius + 1, HALO);
+    canvas.disc(p, radius, c);
 }
 
 /// Draws `rec` over `canvas`: the goal region's outline, the reference path, the agent's path
@@ -78,13 +91,23 @@ pub fn overlay(canvas: &mut Canvas, rec: &EpisodeRecord) {
         .map(xy)
         .collect();
     polyline(canvas, &agent, AGENT, AGENT_WIDTH);
-    canvas.disc(xy(&rec.start), MARKER_RADIUS, START);
+    marker(canvas, xy(&rec.start), MARKER_RADIUS, START);
     if let Some(goal) = &rec.goal {
         let g = Vec2::new(goal.point[0] as f32, goal.point[1] as f32);
-        canvas.disc(g, MARKER_RADIUS, GOAL);
+        marker(canvas, g, MARKER_RADIUS, GOAL);
     }
-    for s in rec.steps.iter().filter(|s| s.contact) {
-        canvas.disc(xy(&s.position), COLLISION_RADIUS, COLLISION);
+    // All rings before all discs: a ring never covers a neighbouring collision point.
+    let hits: Vec<Vec2> = rec
+        .steps
+        .iter()
+        .filter(|s| s.contact)
+        .map(|s| xy(&s.position))
+        .collect();
+    for p in &hits {
+        canvas.disc(*p, COLLISION_RADIUS + 1, HALO);
+    }
+    for p in &hits {
+        canvas.disc(*p, COLLISION_RADIUS, COLLISION);
     }
 }
 
