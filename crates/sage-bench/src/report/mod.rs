@@ -245,7 +245,7 @@ pub fn write_with(
                     maps::episode_map(&map, &grid, r).save_png(&maps_dir.join(&name))?;
                     on_map(&r.episode_id, total);
                     Ok(MapFile {
-                        record: *r,
+                        record: r,
                         rel_path: format!("{REPORT_DIR}/{}/{name}", maps::MAPS_DIR),
                     })
                 })
