@@ -52,6 +52,50 @@ fn eval_writes_the_report_and_report_regenerates_the_same_bytes() {
 }
 
 #[test]
+fn failed_episodes_are_listed_with_their_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let run = dir.path().join("run");
+    // The oracle cannot act on a no-goal episode: it is recorded with an error.
+    ok(&[
+        "eval",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--split",
+        "train",
+        "--agent",
+        "oracle",
+        "--out",
+        s(&run),
+    ]);
+    let records = std::fs::read_to_string(run.join("episodes.jsonl")).unwrap();
+    let failed: Vec<serde_json::Value> = records
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|r| r.get("error").is_some())
+        .collect();
+    assert!(!failed.is_empty());
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    assert!(html.contains(&format!("episodes failed</th><td>{}", failed.len())));
+    let section = &html[html.find("<h2>Failed episodes</h2>").unwrap() + 4..];
+    let section = &section[..section.find("<h2>").unwrap()];
+    for r in failed {
+        let id = r["episode_id"].as_str().unwrap();
+        let error = r["error"]
+            .as_str()
+            .unwrap()
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+            .replace('"', "&quot;")
+            .replace('\'', "&#39;");
+        assert!(section.contains(&format!("<tr><td>{id}</td>")), "{section}");
+        assert!(section.contains(&error), "{error} {section}");
+    }
+}
+
+#[test]
 fn bad_run_folders_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path();

@@ -133,20 +133,21 @@ pub fn succeeded(rec: &EvalRecord) -> bool {
     }
 }
 
-/// A file name for an episode id: safe characters kept, others replaced, and a hash of the
-/// id added when anything was replaced so that two ids never share a file.
+/// A file name for an episode id: safe characters kept, others (and a leading dot) replaced,
+/// and a hash of the id added when anything was replaced so that two ids never share a file.
 pub fn map_file_name(episode_id: &str) -> String {
     let safe: String = episode_id
         .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.') {
+        .enumerate()
+        .map(|(k, c)| {
+            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_') || (c == '.' && k > 0) {
                 c
             } else {
                 '_'
             }
         })
         .collect();
-    if safe == episode_id && !safe.starts_with('.') {
+    if safe == episode_id {
         format!("{safe}.png")
     } else {
         let hash = sage_nav::trajectory::fnv1a(episode_id.as_bytes());
@@ -285,4 +286,74 @@ pub fn write_with(
         maps: map_files.len(),
         embedded,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::Task;
+    use crate::dataset::slices::Slices;
+    use crate::metrics::EpisodeMetrics;
+    use sage_lang::InstructionType;
+
+    fn rec(id: &str, sr: Option<f64>, termination: sage_env::Termination) -> EvalRecord {
+        EvalRecord {
+            episode_id: id.into(),
+            scene: "home1".into(),
+            task: if sr.is_some() {
+                Task::Vln
+            } else {
+                Task::Nogoal
+            },
+            level: None,
+            instruction_type: InstructionType::SingleGoal,
+            slices: Slices {
+                assets: "few".into(),
+                path: "short".into(),
+            },
+            agent: "random".into(),
+            termination: Some(termination),
+            metrics: Some(EpisodeMetrics {
+                sr,
+                ..EpisodeMetrics::default()
+            }),
+            error: None,
+            record: None,
+        }
+    }
+
+    #[test]
+    fn gallery_puts_unsuccessful_episodes_first_then_orders_by_id() {
+        use sage_env::Termination::{Collision, MaxSteps, Stop, TimeLimit};
+        let recs = [
+            rec("a", Some(1.0), Stop),
+            rec("b", Some(0.0), Stop),
+            rec("c", None, Collision),
+            rec("d", None, TimeLimit),
+            rec("e", Some(0.0), MaxSteps),
+        ];
+        let maps: Vec<MapFile> = recs
+            .iter()
+            .map(|r| MapFile {
+                record: r,
+                rel_path: r.episode_id.clone(),
+            })
+            .collect();
+        let order: Vec<&str> = gallery_order(&maps)
+            .iter()
+            .map(|m| m.record.episode_id.as_str())
+            .collect();
+        assert_eq!(order, ["b", "c", "e", "a", "d"]);
+    }
+
+    #[test]
+    fn map_file_names_are_safe_and_distinct() {
+        assert_eq!(map_file_name("home1-t3-2"), "home1-t3-2.png");
+        let odd = ["a/b", "a?b", "a_b", ".hidden", "../x"];
+        let names: BTreeSet<String> = odd.iter().map(|id| map_file_name(id)).collect();
+        assert_eq!(names.len(), odd.len());
+        for n in &names {
+            assert!(!n.starts_with('.') && !n.contains('/'), "{n}");
+        }
+    }
 }
