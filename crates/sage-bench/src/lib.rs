@@ -6,8 +6,10 @@
 //! OSR, SPL, TL, CR, CSR, ICP, PS, nDTW, SDTW and the NoGoal measures — in the modes `sage`,
 //! `vlnce` and `sage-official`, and aggregates them (`docs/metrics.md`). [`eval`] runs an agent over
 //! a dataset split in the environment, resumably, and summarises the scores per slice
-//! (`docs/evaluation.md`).
+//! (`docs/evaluation.md`). [`report`] turns a run folder into a self-contained HTML page with the
+//! metric tables, per-slice charts and per-episode trajectory maps.
 
 pub mod dataset;
 pub mod eval;
 pub mod metrics;
+pub mod report;

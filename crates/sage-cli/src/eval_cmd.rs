@@ -1,5 +1,6 @@
 //! `sage3d eval DATASET --scenes SCENES --agent A --out RUN`: run an agent over a dataset split
-//! under a progress bar, resumably, and print the summary tables (`docs/evaluation.md`).
+//! under a progress bar, resumably, print the summary tables and write the run's report
+//! (`docs/evaluation.md`).
 
 use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::eval::{self, EvalSettings};
@@ -71,5 +72,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         rayon::current_num_threads(),
         a.out.display()
     );
+    let report = crate::report_cmd::write_with_bar(&a.out, &settings.scenes)?;
+    println!("{}", crate::report_cmd::describe(&report));
     Ok(())
 }

@@ -15,6 +15,7 @@ mod overview;
 mod physics_cmd;
 mod recon_cmd;
 mod render_cmd;
+mod report_cmd;
 mod scene_cmd;
 mod splat_cmd;
 
@@ -70,6 +71,8 @@ enum Command {
     Env(env_cmd::EnvCommand),
     /// Evaluate an agent on a dataset split: per-episode records, resumable, summary per slice.
     Eval(eval_cmd::EvalArgs),
+    /// Write an evaluation run's report: report.html (tables, charts, trajectory maps) and PNGs.
+    Report(report_cmd::ReportArgs),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -144,6 +147,7 @@ fn dispatch(command: Command) -> sage_core::Result<()> {
         Command::Data(c) => data_cmd::run(c),
         Command::Env(c) => env_cmd::run(c),
         Command::Eval(a) => eval_cmd::run(a),
+        Command::Report(a) => report_cmd::run(a),
         Command::Bench(c) => bench::run(c),
     }
 }

@@ -1,10 +1,11 @@
 //! The demo's overview picture: what the agent sees at the start of an episode, beside the
 //! scene's semantic map with the episode's reference path and the agent's path.
 
-use glam::{Vec2, Vec3};
-use sage_bench::eval::{EvalRecord, RECORDS_FILE};
+use glam::Vec3;
+use sage_bench::eval::EvalRecord;
+use sage_bench::report;
 use sage_core::{Error, Result};
-use sage_nav::{GridParams, NavGrid, SemanticMap};
+use sage_nav::{NavGrid, SemanticMap, TrajectoryParams};
 use sage_scene::Scene;
 use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
 use std::path::Path;
@@ -38,59 +39,25 @@ fn blit(dst: &mut [u8], dst_w: usize, src: &[u8], w: usize, h: usize, x0: usize)
     }
 }
 
-/// Writes `out`: the first-person view at the start of an episode of `run` (its records)
-/// beside the semantic map of its scene (under `scenes`) with the reference path (blue), the
-/// agent's path (orange) and its collisions (red).
+/// Writes `out`: the first-person view at the start of an episode of `run` beside the
+/// episode's map from the run's report (reference path, agent path, collisions, caption).
 ///
 /// # Errors
 ///
 /// The run holds no VLN episode, or its scene, records or image cannot be read or written.
 pub fn write(scenes: &Path, run: &Path, out: &Path) -> Result<()> {
-    let records_path = run.join(RECORDS_FILE);
-    let text = std::fs::read_to_string(&records_path).map_err(|e| Error::io(&records_path, e))?;
-    let records: Vec<EvalRecord> = text
-        .lines()
-        .filter_map(|l| serde_json::from_str(l).ok())
-        .collect();
-    let rec = pick(&records)
-        .ok_or_else(|| Error::invalid("no VLN episode with a path").in_file(&records_path))?;
+    let files = report::read_run(run)?;
+    let rec = pick(&files.records)
+        .ok_or_else(|| Error::invalid("no VLN episode with a path").in_file(run))?;
     let episode = rec.record.as_ref().expect("picked records have one");
     let (scene, _) = Scene::load(&scenes.join(&rec.scene))?;
-    let (grid, _) = NavGrid::from_scene(&scene, &GridParams::default())?;
-    let mut map = SemanticMap::build(&scene)
-        .draw(
-            &grid,
-            &[
-                (REFERENCE, "reference path".into()),
-                (AGENT, format!("{} path", rec.agent)),
-                (COLLISION, "collision".into()),
-            ],
-        )
-        .0;
-    let reference: Vec<Vec2> = episode
-        .reference_path
-        .iter()
-        .map(|p| Vec2::new(p[0], p[1]))
-        .collect();
-    let start = Vec2::new(episode.start[0], episode.start[1]);
-    let agent: Vec<Vec2> = std::iter::once(start)
-        .chain(
-            episode
-                .steps
-                .iter()
-                .map(|s| Vec2::new(s.position[0], s.position[1])),
-        )
-        .collect();
-    draw_path(&mut map, &reference, REFERENCE, 3);
-    draw_path(&mut map, &agent, AGENT, 2);
-    for s in episode.steps.iter().filter(|s| s.contact) {
-        map.disc(Vec2::new(s.position[0], s.position[1]), 4, COLLISION);
-    }
+    let (grid, _) = NavGrid::from_scene(&scene, &TrajectoryParams::default().grid)?;
+    let map = report::maps::episode_map(&SemanticMap::build(&scene), &grid, rec);
     let height = map.height;
     let width = height * 4 / 3;
     let camera = Camera::from_yaw_pitch(
         Intrinsics::from_hfov(width as u32, height as u32, 90.0)?,
-        Vec3::new(start.x, start.y, 1.2),
+        Vec3::new(episode.start[0], episode.start[1], 1.2),
         episode.start_yaw,
         -0.1,
     );
@@ -112,15 +79,4 @@ pub fn write(scenes: &Path, run: &Path, out: &Path) -> Result<()> {
         rec.scene
     );
     Ok(())
-}
-
-const REFERENCE: [u8; 3] = [40, 90, 220];
-const AGENT: [u8; 3] = [245, 140, 20];
-const COLLISION: [u8; 3] = [220, 30, 30];
-
-/// Draws a polyline of world points.
-fn draw_path(canvas: &mut sage_nav::draw::Canvas, points: &[Vec2], c: [u8; 3], thickness: i64) {
-    for w in points.windows(2) {
-        canvas.line(w[0], w[1], c, thickness);
-    }
 }

@@ -1,0 +1,124 @@
+//! `sage3d report` and the report `sage3d eval` writes: eval prints the report's path, a
+//! regenerated report is the same bytes (also with the run's own scenes folder), and bad run
+//! folders give errors naming the file.
+
+mod common;
+
+use common::{ok, s, sage3d, small_dataset};
+
+#[test]
+fn eval_writes_the_report_and_report_regenerates_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let run = dir.path().join("run");
+    let out = ok(&[
+        "eval",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--split",
+        "train",
+        "--agent",
+        "random",
+        "--out",
+        s(&run),
+    ]);
+    let html_path = run.join("report.html");
+    assert!(
+        out.contains(&format!("report: {}", html_path.display())),
+        "{out}"
+    );
+    let html = std::fs::read(&html_path).unwrap();
+    let text = String::from_utf8(html.clone()).unwrap();
+    assert!(text.contains("agent</th><td>random") && text.contains("data:image/png;base64,"));
+    let maps = std::fs::read_dir(run.join("report/maps")).unwrap().count();
+    assert!(maps >= 3, "{maps}");
+    let before = sage_scene::fsutil::read_tree(&run.join("report")).unwrap();
+
+    std::fs::remove_file(&html_path).unwrap();
+    let out = ok(&["report", s(&run), "--scenes", s(&scenes)]);
+    assert!(
+        out.contains("report.html") && out.contains(&format!("{maps} maps")),
+        "{out}"
+    );
+    assert_eq!(std::fs::read(&html_path).unwrap(), html);
+    // Without --scenes the run's own scenes folder is used.
+    ok(&["--threads", "1", "report", s(&run)]);
+    assert_eq!(std::fs::read(&html_path).unwrap(), html);
+    assert_eq!(
+        sage_scene::fsutil::read_tree(&run.join("report")).unwrap(),
+        before
+    );
+}
+
+#[test]
+fn failed_episodes_are_listed_with_their_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let run = dir.path().join("run");
+    // The oracle cannot act on a no-goal episode: it is recorded with an error.
+    ok(&[
+        "eval",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--split",
+        "train",
+        "--agent",
+        "oracle",
+        "--out",
+        s(&run),
+    ]);
+    let records = std::fs::read_to_string(run.join("episodes.jsonl")).unwrap();
+    let failed: Vec<serde_json::Value> = records
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|r| r.get("error").is_some())
+        .collect();
+    assert!(!failed.is_empty());
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    assert!(html.contains(&format!("episodes failed</th><td>{}", failed.len())));
+    let section = &html[html.find("<h2>Failed episodes</h2>").unwrap() + 4..];
+    let section = &section[..section.find("<h2>").unwrap()];
+    for r in failed {
+        let id = r["episode_id"].as_str().unwrap();
+        let error = r["error"]
+            .as_str()
+            .unwrap()
+            .replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+            .replace('"', "&quot;")
+            .replace('\'', "&#39;");
+        assert!(section.contains(&format!("<tr><td>{id}</td>")), "{section}");
+        assert!(section.contains(&error), "{error} {section}");
+    }
+}
+
+#[test]
+fn bad_run_folders_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path();
+    std::fs::write(
+        run.join("sage3d_run.json"),
+        r#"{"tool": "sage3d", "settings": {"scenes": "nowhere"}}"#,
+    )
+    .unwrap();
+    let fails = |args: &[&str]| {
+        let out = sage3d(args);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let e = fails(&["report", s(run), "--scenes", s(run)]);
+    assert!(
+        e.contains("summary.json") && e.contains("sage3d eval"),
+        "{e}"
+    );
+    std::fs::write(run.join("summary.json"), "{\"agent\": 1}").unwrap();
+    let e = fails(&["report", s(run)]);
+    assert!(e.contains("summary.json"), "{e}");
+    std::fs::remove_file(run.join("sage3d_run.json")).unwrap();
+    let e = fails(&["report", s(run)]);
+    assert!(e.contains("sage3d_run.json"), "{e}");
+    assert!(!run.join("report.html").exists());
+}
