@@ -97,6 +97,17 @@ fn evaluate(agent: &str, out: &Path) -> (RunOutcome, BTreeMap<String, EvalRecord
     (outcome, records)
 }
 
+/// The oracle's evaluation (outcome and records), run once per test process.
+fn oracle_run() -> &'static (RunOutcome, BTreeMap<String, EvalRecord>) {
+    static O: OnceLock<(RunOutcome, BTreeMap<String, EvalRecord>)> = OnceLock::new();
+    O.get_or_init(|| {
+        evaluate(
+            "oracle",
+            &tempfile::tempdir().unwrap().path().join("oracle"),
+        )
+    })
+}
+
 /// The oracle's actions per VLN episode, from the environment directly.
 fn oracle_actions() -> BTreeMap<String, Vec<sage_env::Action>> {
     let (_, scenes, data) = fixture();
@@ -131,7 +142,7 @@ fn write_lines(path: &Path, lines: &[Value]) {
 #[test]
 fn replayed_oracle_actions_reproduce_its_metrics_exactly() {
     let dir = tempfile::tempdir().unwrap();
-    let (oracle_outcome, oracle) = evaluate("oracle", &dir.path().join("oracle"));
+    let (oracle_outcome, oracle) = oracle_run();
     let actions = oracle_actions();
     assert!(actions.len() >= 3);
     // Every notation: lower-case names, upper-case names, VLN-CE indices, action objects.
@@ -187,7 +198,7 @@ fn replayed_oracle_actions_reproduce_its_metrics_exactly() {
 #[test]
 fn replayed_oracle_poses_end_where_the_oracle_ended() {
     let dir = tempfile::tempdir().unwrap();
-    let (_, oracle) = evaluate("oracle", &dir.path().join("oracle"));
+    let (_, oracle) = oracle_run();
     let scored: Vec<&EvalRecord> = oracle.values().filter(|r| r.record.is_some()).collect();
     assert!(scored.len() >= 3);
     // Three shapes: [x, y, yaw]; [x, y, z, yaw]; the start pose first (skipped).
