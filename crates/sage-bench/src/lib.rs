@@ -6,9 +6,11 @@
 //! OSR, SPL, TL, CR, CSR, ICP, PS, nDTW, SDTW and the NoGoal measures — in the modes `sage`,
 //! `vlnce` and `sage-official`, and aggregates them (`docs/metrics.md`). [`eval`] runs an agent over
 //! a dataset split in the environment, resumably, and summarises the scores per slice
-//! (`docs/evaluation.md`). [`report`] turns a run folder into a self-contained HTML page with the
-//! metric tables, per-slice charts and per-episode trajectory maps.
+//! (`docs/evaluation.md`); [`agents`] adds the replay and remote (model server) agents it can
+//! run. [`report`] turns a run folder into a self-contained HTML page with the metric tables,
+//! per-slice charts and per-episode trajectory maps.
 
+pub mod agents;
 pub mod dataset;
 pub mod eval;
 pub mod metrics;

@@ -16,7 +16,11 @@ pub struct EvalArgs {
     /// One scene folder or a folder of scene folders, named as the episodes' scenes.
     #[arg(long)]
     scenes: PathBuf,
-    /// Agent: random, forward or oracle.
+    /// Agent: random, forward, oracle; replay:FILE (JSONL of recorded actions or poses per
+    /// episode); socket:HOST:PORT (SAGE socket protocol), http:URL (POST /vln_step) or
+    /// chat:MODEL@BASE_URL (OpenAI-compatible; key from OPENAI_API_KEY), with options
+    /// ?history=8&timeout=60&retries=3&quality=90&repeat=3 (chat also temperature=0.1,
+    /// max_tokens=64). See docs/evaluation.md.
     #[arg(long)]
     agent: String,
     /// Dataset split (`DATASET/episodes/{split}.jsonl`).

@@ -32,6 +32,13 @@ pub trait Agent {
     ///
     /// The agent failed to decide (for remote agents: after its retries).
     fn act(&mut self, obs: &Observation) -> Result<Action>;
+
+    /// The faults the agent recovered from since the last call (for remote agents: failed
+    /// attempts that a retry made good), taken so the evaluator can record them on the
+    /// episode. Local agents have none.
+    fn take_faults(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// Runs `episode` in `env` with `agent` to its end and returns the trace.

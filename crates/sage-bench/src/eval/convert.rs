@@ -1,15 +1,17 @@
 //! The bridge between the benchmark and the environment: a dataset episode becomes an
-//! environment episode, a finished trace becomes the metrics' record, an agent name becomes an
+//! environment episode, a finished trace becomes the metrics' record, an agent spec becomes an
 //! agent, and a scene folder becomes a loaded [`SceneContext`]. The environment crate does not
 //! know the benchmark crate, so these live here.
 
+use crate::agents::remote::{RemoteAgent, RemoteSpec};
+use crate::agents::replay::{ReplayAgent, ReplayFile};
 use crate::dataset::{Episode, Task};
 use crate::metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
 use crate::metrics::{EpisodeRecord, Geodesics, StepRecord};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
 use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent};
-use sage_env::{EnvEpisode, EnvGoal, EnvTask, EpisodeTrace, SceneContext};
+use sage_env::{ActionSpace, EnvEpisode, EnvGoal, EnvTask, EpisodeTrace, SceneContext};
 use sage_nav::TrajectoryParams;
 use sage_physics::{Decomposer, HullCache, SceneBodies, default_cache_dir};
 use sage_scene::Scene;
@@ -17,11 +19,14 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::Arc;
 
-/// The agents an evaluation can name on the command line; new kinds (remote model servers,
-/// replay) slot in as variants.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+/// The agent of an evaluation, as named by `--agent` and stored in the run record as the same
+/// string: `random`, `forward`, `oracle`, `replay:FILE`, `socket:HOST:PORT`, `http:URL` or
+/// `chat:MODEL@BASE_URL`, the remote ones with `?key=value&…` options
+/// ([`RemoteSpec`]). Display writes the canonical string (default options left out), which
+/// parses back to the same kind.
+#[derive(Debug, Clone, PartialEq)]
 pub enum AgentKind {
     /// Uniform FORWARD / LEFT / RIGHT with a small STOP probability, seeded per episode.
     Random,
@@ -29,38 +34,92 @@ pub enum AgentKind {
     Forward,
     /// The shortest-path follower (privileged: reads the scene's path finder).
     Oracle,
+    /// Replays the actions or poses recorded per episode in a JSONL file ([`ReplayFile`]).
+    Replay(PathBuf),
+    /// A model server or chat model queried every step with the recent frames.
+    Remote(RemoteSpec),
 }
 
-impl AgentKind {
-    /// Every kind, in the order error messages list them.
-    pub const ALL: [AgentKind; 3] = [AgentKind::Random, AgentKind::Forward, AgentKind::Oracle];
+/// The kinds as error messages list them.
+const KINDS: &str =
+    "random, forward, oracle, replay:FILE, socket:HOST:PORT, http:URL, chat:MODEL@BASE_URL";
 
-    /// The kind's name as written in flags and files.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            AgentKind::Random => "random",
-            AgentKind::Forward => "forward",
-            AgentKind::Oracle => "oracle",
-        }
+impl AgentKind {
+    /// Reads what the kind needs once (the replay file) and returns the maker of one agent
+    /// per episode.
+    ///
+    /// # Errors
+    ///
+    /// A replay file that cannot be read or has a bad line (naming file and line).
+    pub fn maker(&self) -> Result<AgentMaker> {
+        let replay = match self {
+            AgentKind::Replay(file) => Some(Arc::new(ReplayFile::read(file)?)),
+            _ => None,
+        };
+        Ok(AgentMaker {
+            kind: self.clone(),
+            replay,
+        })
     }
 
-    /// A fresh agent of this kind (`seed` drives the random agent).
+    /// A fresh agent of this kind (`seed` drives the random agent); reads a replay file on
+    /// every call, so runs of many episodes use [`AgentKind::maker`].
+    ///
+    /// # Errors
+    ///
+    /// The agent's own parameter checks, or [`AgentKind::maker`]'s.
+    pub fn build(&self, seed: u64) -> Result<Box<dyn Agent>> {
+        self.maker()?.build(seed)
+    }
+}
+
+/// Makes the agents of one run: a kind with its inputs loaded.
+#[derive(Debug, Clone)]
+pub struct AgentMaker {
+    kind: AgentKind,
+    replay: Option<Arc<ReplayFile>>,
+}
+
+impl AgentMaker {
+    /// A fresh agent for one episode.
     ///
     /// # Errors
     ///
     /// The agent's own parameter checks.
-    pub fn build(self, seed: u64) -> Result<Box<dyn Agent>> {
-        Ok(match self {
-            AgentKind::Random => Box::new(RandomAgent::new(seed, 0.02)?),
-            AgentKind::Forward => Box::new(ForwardAgent::new(None)),
-            AgentKind::Oracle => Box::new(OracleAgent::new(0.25)),
+    pub fn build(&self, seed: u64) -> Result<Box<dyn Agent>> {
+        Ok(match (&self.kind, &self.replay) {
+            (AgentKind::Random, _) => Box::new(RandomAgent::new(seed, 0.02)?),
+            (AgentKind::Forward, _) => Box::new(ForwardAgent::new(None)),
+            (AgentKind::Oracle, _) => Box::new(OracleAgent::new(0.25)),
+            (AgentKind::Replay(_), Some(file)) => Box::new(ReplayAgent::new(file.clone())),
+            (AgentKind::Replay(file), None) => {
+                Box::new(ReplayAgent::new(Arc::new(ReplayFile::read(file)?)))
+            }
+            (AgentKind::Remote(spec), _) => Box::new(RemoteAgent::new(spec.clone())),
         })
+    }
+
+    /// True when the agent reads RGB images (the remote agents); the others run blind.
+    pub fn reads_images(&self) -> bool {
+        matches!(self.kind, AgentKind::Remote(_))
+    }
+
+    /// The action space the agent needs instead of the preset's: the ground-velocity space
+    /// for pose replays and velocity actions.
+    pub fn action_space(&self) -> Option<ActionSpace> {
+        self.replay.as_ref().and_then(|r| r.action_space())
     }
 }
 
 impl fmt::Display for AgentKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
+        match self {
+            AgentKind::Random => f.write_str("random"),
+            AgentKind::Forward => f.write_str("forward"),
+            AgentKind::Oracle => f.write_str("oracle"),
+            AgentKind::Replay(file) => write!(f, "replay:{}", file.display()),
+            AgentKind::Remote(spec) => spec.fmt(f),
+        }
     }
 }
 
@@ -68,17 +127,38 @@ impl FromStr for AgentKind {
     type Err = Error;
 
     fn from_str(s: &str) -> Result<AgentKind> {
-        let name = s.trim().to_ascii_lowercase();
-        AgentKind::ALL
-            .into_iter()
-            .find(|k| k.as_str() == name)
-            .ok_or_else(|| {
-                let valid: Vec<&str> = AgentKind::ALL.iter().map(|k| k.as_str()).collect();
-                Error::invalid(format!(
-                    "unknown agent '{s}' (expected one of: {})",
-                    valid.join(", ")
-                ))
-            })
+        let s = s.trim();
+        let (kind, rest) = match s.split_once(':') {
+            Some((k, r)) => (k.to_ascii_lowercase(), Some(r)),
+            None => (s.to_ascii_lowercase(), None),
+        };
+        match (kind.as_str(), rest) {
+            ("random", None) => Ok(AgentKind::Random),
+            ("forward", None) => Ok(AgentKind::Forward),
+            ("oracle", None) => Ok(AgentKind::Oracle),
+            ("replay", Some(file)) if !file.trim().is_empty() => {
+                Ok(AgentKind::Replay(PathBuf::from(file.trim())))
+            }
+            ("socket" | "http" | "chat", Some(rest)) => {
+                Ok(AgentKind::Remote(RemoteSpec::parse(&kind, rest)?))
+            }
+            _ => Err(Error::invalid(format!(
+                "unknown agent '{s}' (expected one of: {KINDS})"
+            ))),
+        }
+    }
+}
+
+impl Serialize for AgentKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for AgentKind {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<AgentKind, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
     }
 }
 
@@ -196,15 +276,52 @@ mod tests {
     use super::*;
 
     #[test]
-    fn agent_names_round_trip_and_unknown_names_list_the_valid_ones() {
-        for k in AgentKind::ALL {
-            assert_eq!(k.as_str().parse::<AgentKind>().unwrap(), k);
+    fn agent_specs_round_trip_and_unknown_names_list_the_valid_ones() {
+        for spec in [
+            "random",
+            "forward",
+            "oracle",
+            "replay:runs/actions.jsonl",
+            "socket:127.0.0.1:54321",
+            "socket:127.0.0.1:54321?history=4&timeout=0.5&retries=0",
+            "http:http://127.0.0.1:8000/vln_step",
+            "http:http://127.0.0.1:8000/v1/step?quality=75&repeat=1",
+            "chat:qwen2.5-vl@http://127.0.0.1:8000/v1?history=2&temperature=0&max_tokens=16",
+        ] {
+            let k: AgentKind = spec.parse().unwrap();
+            assert_eq!(k.to_string(), spec);
+            let json = serde_json::to_string(&k).unwrap();
+            assert_eq!(json, format!("\"{spec}\""));
+            assert_eq!(serde_json::from_str::<AgentKind>(&json).unwrap(), k);
         }
         assert_eq!(" Oracle ".parse::<AgentKind>().unwrap(), AgentKind::Oracle);
-        let e = "genius".parse::<AgentKind>().unwrap_err().to_string();
-        assert!(
-            e.contains("'genius'") && e.contains("random, forward, oracle"),
-            "{e}"
-        );
+        // Defaults are left out of the canonical string; a bare host gets http:// and /vln_step.
+        let k: AgentKind = "socket:localhost:9?history=8&retries=3".parse().unwrap();
+        assert_eq!(k.to_string(), "socket:localhost:9");
+        let k: AgentKind = "http:127.0.0.1:8000".parse().unwrap();
+        assert_eq!(k.to_string(), "http:http://127.0.0.1:8000/vln_step");
+        for (bad, says) in [
+            (
+                "genius",
+                "random, forward, oracle, replay:FILE, socket:HOST:PORT",
+            ),
+            ("replay:", "replay:FILE"),
+            ("socket:localhost", "HOST:PORT"),
+            ("socket:localhost:99999", "port"),
+            (
+                "socket:h:1?colour=red",
+                "history, timeout, retries, quality, repeat",
+            ),
+            ("socket:h:1?history=0", "history"),
+            ("chat:@http://x", "MODEL@BASE_URL"),
+            ("http:ftp://x", "http://"),
+            (
+                "socket:h:1?temperature=1",
+                "history, timeout, retries, quality, repeat",
+            ),
+        ] {
+            let e = bad.parse::<AgentKind>().unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
     }
 }

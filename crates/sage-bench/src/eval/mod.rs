@@ -15,7 +15,7 @@ pub mod summary;
 use crate::dataset::slices::Slices;
 use crate::dataset::{Episode, Task};
 use crate::metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
-use convert::{AgentKind, env_episode, load_context, metric_record};
+use convert::{AgentKind, AgentMaker, env_episode, load_context, metric_record};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
 use sage_env::agents::run_episode;
@@ -79,6 +79,9 @@ pub struct EvalRecord {
     /// Why the episode failed (agent, reset or metric error); the run goes on without it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// Faults of a remote agent's server that retries made good (or that preceded `error`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faults: Vec<String>,
     /// Everything the metrics need, so any mode can be recomputed and paths drawn later.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub record: Option<EpisodeRecord>,
@@ -134,18 +137,21 @@ pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episo
     Ok((file, episodes))
 }
 
-/// The environment of an evaluation: the preset without images, which the local baselines do
-/// not read (rendering does not change the motion).
-fn env_config(preset: &str) -> Result<EnvConfig> {
+/// The environment of an evaluation: the preset with RGB only (at the preset's size) for
+/// agents that read images (remote models), without images for the others, which do not
+/// read them (rendering does not change the motion); and the action space the agent needs
+/// (ground velocities for pose replays), else the preset's.
+fn env_config(preset: &str, agent: &AgentMaker) -> Result<EnvConfig> {
     let config = EnvConfig::preset(preset)?;
     Ok(EnvConfig {
         sensors: SensorConfig {
-            rgb: false,
+            rgb: agent.reads_images(),
             depth: false,
             semantic: false,
             instance: false,
             ..config.sensors
         },
+        actions: agent.action_space().unwrap_or(config.actions),
         ..config
     })
 }
@@ -155,6 +161,7 @@ fn run_one(
     ctx: &Arc<sage_env::SceneContext>,
     config: &EnvConfig,
     settings: &EvalSettings,
+    maker: &AgentMaker,
     e: &Episode,
 ) -> EvalRecord {
     let mut rec = EvalRecord {
@@ -168,11 +175,13 @@ fn run_one(
         termination: None,
         metrics: None,
         error: None,
+        faults: Vec::new(),
         record: None,
     };
+    let mut agent = None;
     let result = (|| {
         let mut env = Env::new(ctx.clone(), config.clone())?;
-        let mut agent = settings.agent.build(settings.seed)?;
+        let agent = agent.insert(maker.build(settings.seed)?);
         let trace = run_episode(&mut env, agent.as_mut(), &env_episode(e))?;
         let record = metric_record(ctx, &trace);
         let m = metrics::evaluate(&record, settings.mode)?;
@@ -186,6 +195,7 @@ fn run_one(
         }
         Err(err) => rec.error = Some(err.to_string()),
     }
+    rec.faults = agent.map(|mut a| a.take_faults()).unwrap_or_default();
     rec
 }
 
@@ -240,7 +250,8 @@ pub fn run(
     out: &Path,
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
-    let config = env_config(&settings.preset).within("preset")?;
+    let maker = settings.agent.maker()?;
+    let config = env_config(&settings.preset, &maker).within("preset")?;
     let (file, episodes) = split_episodes(&settings.dataset, &settings.split)?;
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let dataset_hash = format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes));
@@ -277,7 +288,7 @@ pub fn run(
     groups.par_iter().try_for_each(|(scene, eps)| {
         let ctx = Arc::new(load_context(&dirs[*scene], None).within(format!("scene {scene}"))?);
         eps.par_iter().try_for_each(|e| {
-            let rec = run_one(&ctx, &config, settings, e);
+            let rec = run_one(&ctx, &config, settings, &maker, e);
             writer
                 .lock()
                 .map_err(|_| Error::invalid("records writer poisoned"))?

@@ -157,6 +157,7 @@ mod tests {
             termination: None,
             metrics: None,
             error: Some("no path".into()),
+            faults: Vec::new(),
             record: None,
         }
     }

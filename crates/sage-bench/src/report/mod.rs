@@ -318,6 +318,7 @@ mod tests {
                 ..EpisodeMetrics::default()
             }),
             error: None,
+            faults: Vec::new(),
             record: None,
         }
     }

@@ -1,0 +1,220 @@
+//! The HTTP protocols: `POST /vln_step` of the SAGE-3D model servers (JSON
+//! `{images, instruction, current_yaw: 0.0}` → `{result: text}`) and OpenAI-compatible chat
+//! completions (the paper's MLLM baselines: instruction and image data URIs in, one action
+//! word out). Plain HTTP; HTTPS when the `tls` feature of `sage-lang` (rustls) is built in.
+
+use super::Transport;
+use sage_core::{Error, Result};
+use std::time::Duration;
+
+/// The system prompt of the chat agent, after the published MLLM baseline server: one action
+/// word per answer.
+pub const CHAT_PROMPT: &str = "You are a robot navigating an indoor scene by following a \
+navigation instruction. You see the current camera image (the last image; earlier images, \
+when given, are the most recent past views). Decide the next action. Answer with exactly one \
+of: MOVE_FORWARD (0.25 m), TURN_LEFT (15 degrees), TURN_RIGHT (15 degrees), STOP (when the \
+goal is reached). Output only the action.";
+
+/// Checks the scheme of `url` (http or https; none given means http) and trims it.
+fn with_scheme(url: &str) -> Result<String> {
+    let url = url.trim();
+    let lower = url.to_ascii_lowercase();
+    if lower.starts_with("http://") || lower.starts_with("https://") {
+        Ok(url.to_string())
+    } else if url.contains("://") || url.is_empty() {
+        Err(Error::invalid(format!(
+            "'{url}': expected an http:// or https:// URL"
+        )))
+    } else {
+        Ok(format!("http://{url}"))
+    }
+}
+
+/// The step URL of an `http:` agent: `/vln_step` appended when `url` names no path.
+///
+/// # Errors
+///
+/// A scheme other than http(s).
+pub fn step_url(url: &str) -> Result<String> {
+    let url = with_scheme(url)?;
+    let after_scheme = url.find("://").map_or(0, |i| i + 3);
+    match url[after_scheme..].find('/') {
+        Some(i) if after_scheme + i + 1 < url.len() => Ok(url),
+        _ => Ok(format!("{}/vln_step", url.trim_end_matches('/'))),
+    }
+}
+
+/// The API base of a `chat:` agent, without a trailing slash.
+///
+/// # Errors
+///
+/// A scheme other than http(s).
+pub fn base_url(url: &str) -> Result<String> {
+    Ok(with_scheme(url)?.trim_end_matches('/').to_string())
+}
+
+/// A ureq agent whose requests may take `timeout` in all and whose HTTP errors are replies.
+fn http_agent(timeout: Duration) -> ureq::Agent {
+    ureq::Agent::config_builder()
+        .timeout_global(Some(timeout))
+        .http_status_as_error(false)
+        .build()
+        .into()
+}
+
+/// POSTs `body` as JSON to `url`; the reply's text when the status is 200, else a fault.
+fn post(
+    agent: &ureq::Agent,
+    url: &str,
+    body: &serde_json::Value,
+    bearer: Option<&str>,
+) -> std::result::Result<String, String> {
+    let mut req = agent.post(url).header("Content-Type", "application/json");
+    if let Some(key) = bearer {
+        req = req.header("Authorization", &format!("Bearer {key}"));
+    }
+    let mut resp = req.send(body.to_string()).map_err(|e| format!("{e}"))?;
+    let status = resp.status().as_u16();
+    let text = resp
+        .body_mut()
+        .read_to_string()
+        .map_err(|e| format!("reading the reply: {e}"))?;
+    if status != 200 {
+        return Err(format!(
+            "HTTP {status}: {}",
+            text.chars().take(200).collect::<String>()
+        ));
+    }
+    Ok(text)
+}
+
+/// A client of a `/vln_step` server (NaVILA, NaVid and the MLLM servers of SAGE-3D).
+pub struct StepClient {
+    url: String,
+    agent: ureq::Agent,
+}
+
+impl StepClient {
+    /// A client POSTing to `url`; each request may take `timeout` in all.
+    pub fn new(url: &str, timeout: Duration) -> StepClient {
+        StepClient {
+            url: url.to_string(),
+            agent: http_agent(timeout),
+        }
+    }
+}
+
+impl Transport for StepClient {
+    fn ask(
+        &mut self,
+        images: &[String],
+        instruction: &str,
+    ) -> std::result::Result<serde_json::Value, String> {
+        let body = serde_json::json!({
+            "images": images,
+            "instruction": instruction,
+            "current_yaw": 0.0,
+        });
+        let text = post(&self.agent, &self.url, &body, None)?;
+        // A body that is not JSON is handed to the text parser as it is.
+        Ok(serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)))
+    }
+}
+
+/// An OpenAI-compatible chat-completions client; the API key comes from `OPENAI_API_KEY`
+/// when set, and is never stored.
+pub struct ChatClient {
+    url: String,
+    model: String,
+    temperature: f32,
+    max_tokens: u32,
+    agent: ureq::Agent,
+}
+
+impl ChatClient {
+    /// A client of `model` at `base_url` (requests go to `BASE_URL/chat/completions`).
+    pub fn new(
+        model: &str,
+        base_url: &str,
+        timeout: Duration,
+        temperature: f32,
+        max_tokens: u32,
+    ) -> ChatClient {
+        ChatClient {
+            url: format!("{base_url}/chat/completions"),
+            model: model.to_string(),
+            temperature,
+            max_tokens,
+            agent: http_agent(timeout),
+        }
+    }
+
+    /// The request body: the system prompt, then the instruction and the images (current
+    /// last) as data URIs.
+    pub fn request(&self, images: &[String], instruction: &str) -> serde_json::Value {
+        let mut content = vec![serde_json::json!({
+            "type": "text",
+            "text": format!("Instruction: {instruction}"),
+        })];
+        content.extend(images.iter().map(|b64| {
+            serde_json::json!({
+                "type": "image_url",
+                "image_url": {"url": format!("data:image/jpeg;base64,{b64}")},
+            })
+        }));
+        serde_json::json!({
+            "model": self.model,
+            "messages": [
+                {"role": "system", "content": CHAT_PROMPT},
+                {"role": "user", "content": content},
+            ],
+            "temperature": self.temperature,
+            "max_tokens": self.max_tokens,
+        })
+    }
+}
+
+impl Transport for ChatClient {
+    fn ask(
+        &mut self,
+        images: &[String],
+        instruction: &str,
+    ) -> std::result::Result<serde_json::Value, String> {
+        let key = std::env::var("OPENAI_API_KEY")
+            .ok()
+            .filter(|k| !k.is_empty());
+        let text = post(
+            &self.agent,
+            &self.url,
+            &self.request(images, instruction),
+            key.as_deref(),
+        )?;
+        let reply: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| format!("the reply is not JSON: {e}"))?;
+        reply
+            .pointer("/choices/0/message/content")
+            .and_then(|c| c.as_str())
+            .map(|c| serde_json::Value::String(c.to_string()))
+            .ok_or_else(|| "the reply has no choices[0].message.content".to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn urls() {
+        assert_eq!(
+            step_url("127.0.0.1:8000").unwrap(),
+            "http://127.0.0.1:8000/vln_step"
+        );
+        assert_eq!(step_url("http://h:1/").unwrap(), "http://h:1/vln_step");
+        assert_eq!(
+            step_url("http://h:1/api/step").unwrap(),
+            "http://h:1/api/step"
+        );
+        assert_eq!(base_url("https://api.x/v1/").unwrap(), "https://api.x/v1");
+        assert!(step_url("ftp://h").is_err());
+    }
+}

@@ -1,0 +1,381 @@
+//! Remote agents: a model server or chat model decides every step from the episode's recent
+//! RGB frames and the instruction (SPEC §11, `docs/evaluation.md`).
+//!
+//! Three protocols carry the same request: [`socket`] (the SAGE-3D socket protocol, 8-byte
+//! big-endian length + JSON `{images, query}`), [`http`] (`POST /vln_step` and OpenAI-compatible
+//! `/chat/completions`). [`frames`] keeps the last `history` frames as base64 JPEGs — the real
+//! recent frames, current last (the published client sent copies of the first frame). [`parse`]
+//! turns a reply into discrete actions; a reply naming several steps ("move forward 75 cm")
+//! is queued and the server is asked again only when the queue is empty. [`retry`] retries
+//! faults (refused, timeout, disconnect, bad framing, garbage); recovered faults are kept for
+//! the episode's record, and a step that fails every attempt fails the episode.
+
+pub mod frames;
+pub mod http;
+pub mod parse;
+pub mod retry;
+pub mod socket;
+
+use frames::FrameHistory;
+use parse::Steps;
+use sage_core::{Error, Result};
+use sage_env::agents::Agent;
+use sage_env::{Action, ActionSpace, Env, EnvEpisode, Observation};
+use std::collections::VecDeque;
+use std::fmt;
+use std::time::Duration;
+
+/// Where the remote agent's decisions come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Protocol {
+    /// The SAGE-3D socket protocol, a new TCP connection per step.
+    Socket {
+        /// Host name or address (IPv6 in brackets).
+        host: String,
+        /// TCP port.
+        port: u16,
+    },
+    /// `POST` of `{images, instruction, current_yaw}` to this URL (NaVILA / NaVid servers).
+    Http {
+        /// Full URL, `/vln_step` appended when it named no path.
+        url: String,
+    },
+    /// OpenAI-compatible `POST BASE_URL/chat/completions` with image data URIs.
+    Chat {
+        /// Model name sent in the request.
+        model: String,
+        /// API base, e.g. `http://127.0.0.1:8000/v1`.
+        base_url: String,
+    },
+}
+
+/// The `?key=value` options of a remote agent.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RemoteOptions {
+    /// Frames sent per request, current last (`history`; 8, chat 1).
+    pub history: usize,
+    /// Seconds allowed for one request, connect to reply (`timeout`; 60).
+    pub timeout_s: f64,
+    /// Further attempts after a fault (`retries`; 3).
+    pub retries: u32,
+    /// JPEG quality 1–100 (`quality`; 90).
+    pub quality: u8,
+    /// Most actions queued from one reply (`repeat`; 3, as NaVid).
+    pub max_repeat: usize,
+    /// Chat sampling temperature (`temperature`; 0.1, as the MLLM baselines).
+    pub temperature: f32,
+    /// Chat answer length limit (`max_tokens`; 64).
+    pub max_tokens: u32,
+}
+
+impl RemoteOptions {
+    /// The defaults of a protocol (chat models see the current image only).
+    pub fn defaults(protocol: &Protocol) -> RemoteOptions {
+        RemoteOptions {
+            history: if matches!(protocol, Protocol::Chat { .. }) {
+                1
+            } else {
+                8
+            },
+            timeout_s: 60.0,
+            retries: 3,
+            quality: 90,
+            max_repeat: 3,
+            temperature: 0.1,
+            max_tokens: 64,
+        }
+    }
+
+    /// The option names a protocol accepts, in canonical order.
+    fn keys(protocol: &Protocol) -> &'static [&'static str] {
+        const COMMON: [&str; 5] = ["history", "timeout", "retries", "quality", "repeat"];
+        const CHAT: [&str; 7] = [
+            "history",
+            "timeout",
+            "retries",
+            "quality",
+            "repeat",
+            "temperature",
+            "max_tokens",
+        ];
+        match protocol {
+            Protocol::Chat { .. } => &CHAT,
+            _ => &COMMON,
+        }
+    }
+
+    /// The value of option `key` as written in the canonical string.
+    fn value(&self, key: &str) -> String {
+        match key {
+            "history" => self.history.to_string(),
+            "timeout" => self.timeout_s.to_string(),
+            "retries" => self.retries.to_string(),
+            "quality" => self.quality.to_string(),
+            "repeat" => self.max_repeat.to_string(),
+            "temperature" => self.temperature.to_string(),
+            _ => self.max_tokens.to_string(),
+        }
+    }
+
+    /// Sets option `key` from its text, checking its range.
+    fn set(&mut self, key: &str, v: &str) -> Result<()> {
+        let bad = |want: &str| Error::invalid(format!("option {key}={v}: expected {want}"));
+        let int = |lo: u64, hi: u64| {
+            v.parse::<u64>()
+                .ok()
+                .filter(|n| (lo..=hi).contains(n))
+                .ok_or_else(|| bad(&format!("an integer in {lo}..={hi}")))
+        };
+        match key {
+            "history" => self.history = int(1, 64)? as usize,
+            "timeout" => {
+                self.timeout_s = v
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|t| t.is_finite() && *t > 0.0 && *t <= 86_400.0)
+                    .ok_or_else(|| bad("seconds > 0"))?;
+            }
+            "retries" => self.retries = int(0, 100)? as u32,
+            "quality" => self.quality = int(1, 100)? as u8,
+            "repeat" => self.max_repeat = int(1, 100)? as usize,
+            "temperature" => {
+                self.temperature = v
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|t| t.is_finite() && (0.0..=2.0).contains(t))
+                    .ok_or_else(|| bad("a number in 0..=2"))?;
+            }
+            _ => self.max_tokens = int(1, 100_000)? as u32,
+        }
+        Ok(())
+    }
+
+    /// The time allowed for one request.
+    pub fn timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.timeout_s)
+    }
+}
+
+/// A remote agent as named on the command line: protocol, address and options.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RemoteSpec {
+    /// The protocol and address.
+    pub protocol: Protocol,
+    /// The options.
+    pub options: RemoteOptions,
+}
+
+impl RemoteSpec {
+    /// Parses the part after `socket:`, `http:` or `chat:` (`kind`).
+    ///
+    /// # Errors
+    ///
+    /// A malformed address, an unknown option (the valid ones listed) or a value out of range.
+    pub fn parse(kind: &str, rest: &str) -> Result<RemoteSpec> {
+        let (address, query) = match rest.split_once('?') {
+            Some((a, q)) => (a.trim(), Some(q)),
+            None => (rest.trim(), None),
+        };
+        let protocol = match kind {
+            "socket" => {
+                let (host, port) = address
+                    .rsplit_once(':')
+                    .filter(|(h, _)| !h.is_empty())
+                    .ok_or_else(|| {
+                        Error::invalid(format!("socket:{rest}: expected socket:HOST:PORT"))
+                    })?;
+                let port = port.parse::<u16>().ok().filter(|p| *p > 0).ok_or_else(|| {
+                    Error::invalid(format!("socket:{rest}: port '{port}' is not 1–65535"))
+                })?;
+                Protocol::Socket {
+                    host: host.to_string(),
+                    port,
+                }
+            }
+            "http" => Protocol::Http {
+                url: http::step_url(address)?,
+            },
+            _ => {
+                let (model, base) = address
+                    .split_once('@')
+                    .filter(|(m, b)| !m.trim().is_empty() && !b.trim().is_empty())
+                    .ok_or_else(|| {
+                        Error::invalid(format!("chat:{rest}: expected chat:MODEL@BASE_URL"))
+                    })?;
+                Protocol::Chat {
+                    model: model.trim().to_string(),
+                    base_url: http::base_url(base)?,
+                }
+            }
+        };
+        let mut options = RemoteOptions::defaults(&protocol);
+        let keys = RemoteOptions::keys(&protocol);
+        for pair in query.into_iter().flat_map(|q| q.split('&')) {
+            if pair.is_empty() {
+                continue;
+            }
+            let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
+            let k = k.trim().to_ascii_lowercase();
+            if !keys.contains(&k.as_str()) {
+                return Err(Error::invalid(format!(
+                    "{kind} agent: unknown option '{k}' (expected: {})",
+                    keys.join(", ")
+                )));
+            }
+            options.set(&k, v.trim())?;
+        }
+        Ok(RemoteSpec { protocol, options })
+    }
+
+    /// The server's address for messages: `HOST:PORT`, the URL, or `MODEL@BASE_URL`.
+    pub fn server(&self) -> String {
+        match &self.protocol {
+            Protocol::Socket { host, port } => format!("{host}:{port}"),
+            Protocol::Http { url } => url.clone(),
+            Protocol::Chat { model, base_url } => format!("{model}@{base_url}"),
+        }
+    }
+}
+
+impl fmt::Display for RemoteSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kind = match self.protocol {
+            Protocol::Socket { .. } => "socket",
+            Protocol::Http { .. } => "http",
+            Protocol::Chat { .. } => "chat",
+        };
+        write!(f, "{kind}:{}", self.server())?;
+        let defaults = RemoteOptions::defaults(&self.protocol);
+        let mut sep = '?';
+        for key in RemoteOptions::keys(&self.protocol) {
+            let v = self.options.value(key);
+            if v != defaults.value(key) {
+                write!(f, "{sep}{key}={v}")?;
+                sep = '&';
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One request to a server: the frames (base64 JPEGs, current last) and the instruction; the
+/// reply as JSON (chat and non-JSON HTTP bodies as a JSON string), or the fault.
+trait Transport: Send {
+    fn ask(
+        &mut self,
+        images: &[String],
+        instruction: &str,
+    ) -> std::result::Result<serde_json::Value, String>;
+}
+
+/// An agent whose decisions come from a remote model (see the module doc).
+pub struct RemoteAgent {
+    spec: RemoteSpec,
+    name: String,
+    transport: Box<dyn Transport>,
+    frames: FrameHistory,
+    queue: VecDeque<Action>,
+    steps: Steps,
+    instruction: String,
+    faults: Vec<String>,
+}
+
+impl RemoteAgent {
+    /// An agent speaking `spec`'s protocol (connections are opened per request).
+    pub fn new(spec: RemoteSpec) -> RemoteAgent {
+        let o = &spec.options;
+        let transport: Box<dyn Transport> = match &spec.protocol {
+            Protocol::Socket { host, port } => {
+                Box::new(socket::SocketClient::new(host, *port, o.timeout()))
+            }
+            Protocol::Http { url } => Box::new(http::StepClient::new(url, o.timeout())),
+            Protocol::Chat { model, base_url } => Box::new(http::ChatClient::new(
+                model,
+                base_url,
+                o.timeout(),
+                o.temperature,
+                o.max_tokens,
+            )),
+        };
+        RemoteAgent {
+            name: spec.to_string(),
+            frames: FrameHistory::new(o.history, o.quality),
+            steps: Steps {
+                forward: 0.25,
+                turn_deg: 15.0,
+                max_repeat: o.max_repeat,
+            },
+            spec,
+            transport,
+            queue: VecDeque::new(),
+            instruction: String::new(),
+            faults: Vec::new(),
+        }
+    }
+}
+
+impl Agent for RemoteAgent {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
+        let ActionSpace::Discrete {
+            forward, turn_deg, ..
+        } = env.config().actions
+        else {
+            return Err(Error::invalid(
+                "remote agents need the discrete action space",
+            ));
+        };
+        if !env.config().sensors.rgb {
+            return Err(Error::invalid(
+                "remote agents need RGB images (the environment renders none)",
+            ));
+        }
+        self.steps.forward = forward;
+        self.steps.turn_deg = turn_deg;
+        self.frames.clear();
+        self.queue.clear();
+        self.faults.clear();
+        self.instruction = episode.instruction.clone();
+        Ok(())
+    }
+
+    fn act(&mut self, obs: &Observation) -> Result<Action> {
+        self.frames.push(obs)?;
+        if let Some(a) = self.queue.pop_front() {
+            return Ok(a);
+        }
+        let images = self.frames.frames();
+        let (transport, steps, instruction) = (&mut self.transport, &self.steps, &self.instruction);
+        let outcome = retry::with_retries(self.spec.options.retries, || {
+            let reply = transport.ask(&images, instruction)?;
+            parse::parse_reply(&reply, steps)
+        });
+        let step = obs.step;
+        self.faults.extend(
+            outcome
+                .faults
+                .iter()
+                .enumerate()
+                .map(|(i, f)| format!("step {step}, attempt {}: {f}", i + 1)),
+        );
+        match outcome.value {
+            Some(actions) => {
+                self.queue.extend(actions);
+                Ok(self.queue.pop_front().unwrap_or(Action::Stop))
+            }
+            None => Err(Error::invalid(format!(
+                "{}: no usable reply at step {step} after {} attempts: {}",
+                self.spec.server(),
+                outcome.faults.len(),
+                outcome.faults.last().map_or("", String::as_str)
+            ))),
+        }
+    }
+
+    fn take_faults(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.faults)
+    }
+}
