@@ -360,7 +360,6 @@ fn fit(a: FitArgs) -> Result<()> {
         "gaussians": report.gaussians,
         "heldout_curve": report.heldout_curve,
         "loss": report.loss,
-        "seconds": seconds,
     });
     write_json(&a.out.join(FIT_REPORT), &details)?;
     write_run_record(

@@ -4,6 +4,8 @@
 //! convolution with zero padding, C₁ = 0.01², C₂ = 0.03², averaged over pixels and channels.
 //! Images are interleaved RGB, `height × width × 3`, in 0–1.
 
+use rayon::prelude::*;
+
 /// The default weight λ of the D-SSIM term (as in 3DGS).
 pub const SSIM_WEIGHT: f32 = 0.2;
 
@@ -54,61 +56,85 @@ fn blur(plane: &[f32], w: usize, h: usize, win: &[f32; WINDOW]) -> Vec<f32> {
 }
 
 /// Mean SSIM of `pred` against `target` and, when `grad` is given, adds `scale` × ∂SSIM/∂pred
-/// into it.
+/// into it. Channels are computed in parallel and combined in order.
 pub fn ssim(
     pred: &[f32],
     target: &[f32],
     w: usize,
     h: usize,
-    mut grad: Option<(&mut [f32], f32)>,
+    grad: Option<(&mut [f32], f32)>,
 ) -> f32 {
     let win = window();
     let n = (w * h * 3) as f32;
-    let mut total = 0.0f64;
-    for c in 0..3 {
-        let x: Vec<f32> = pred.iter().skip(c).step_by(3).copied().collect();
-        let y: Vec<f32> = target.iter().skip(c).step_by(3).copied().collect();
-        let prod =
-            |a: &[f32], b: &[f32]| -> Vec<f32> { a.iter().zip(b).map(|(p, q)| p * q).collect() };
-        let mu_x = blur(&x, w, h, &win);
-        let mu_y = blur(&y, w, h, &win);
-        let e_xx = blur(&prod(&x, &x), w, h, &win);
-        let e_yy = blur(&prod(&y, &y), w, h, &win);
-        let e_xy = blur(&prod(&x, &y), w, h, &win);
-        // Per pixel ∂S/∂(μx, E[x²], E[xy]).
-        let mut g1 = vec![0.0f32; w * h];
-        let mut g2 = vec![0.0f32; w * h];
-        let mut g3 = vec![0.0f32; w * h];
-        for i in 0..w * h {
-            let (mx, my) = (mu_x[i], mu_y[i]);
-            let sxx = e_xx[i] - mx * mx;
-            let syy = e_yy[i] - my * my;
-            let sxy = e_xy[i] - mx * my;
-            let a1 = 2.0 * mx * my + C1;
-            let a2 = 2.0 * sxy + C2;
-            let b1 = mx * mx + my * my + C1;
-            let b2 = sxx + syy + C2;
-            let s = a1 * a2 / (b1 * b2);
-            total += s as f64;
-            let d_sxy = 2.0 * a1 / (b1 * b2);
-            let d_sxx = -s / b2;
-            let d_mx = 2.0 * my * a2 / (b1 * b2) - s * 2.0 * mx / b1;
-            g1[i] = d_mx - 2.0 * mx * d_sxx - my * d_sxy;
-            g2[i] = d_sxx;
-            g3[i] = d_sxy;
-        }
-        if let Some((out, scale)) = grad.as_mut() {
-            let (b1, b2, b3) = (
-                blur(&g1, w, h, &win),
-                blur(&g2, w, h, &win),
-                blur(&g3, w, h, &win),
-            );
-            for i in 0..w * h {
-                out[i * 3 + c] += *scale / n * (b1[i] + 2.0 * x[i] * b2[i] + y[i] * b3[i]);
+    let want_grad = grad.is_some();
+    let channels: Vec<(f64, Vec<f32>)> = (0..3)
+        .into_par_iter()
+        .map(|c| ssim_channel(pred, target, c, w, h, &win, want_grad))
+        .collect();
+    if let Some((out, scale)) = grad {
+        for (c, (_, g)) in channels.iter().enumerate() {
+            for (i, v) in g.iter().enumerate() {
+                out[i * 3 + c] += scale / n * v;
             }
         }
     }
-    (total / n as f64) as f32
+    (channels.iter().map(|(t, _)| t).sum::<f64>() / n as f64) as f32
+}
+
+/// Channel `c`'s SSIM summed over its pixels and, when `want_grad`, ∂(that sum)/∂pred per
+/// pixel.
+fn ssim_channel(
+    pred: &[f32],
+    target: &[f32],
+    c: usize,
+    w: usize,
+    h: usize,
+    win: &[f32; WINDOW],
+    want_grad: bool,
+) -> (f64, Vec<f32>) {
+    let x: Vec<f32> = pred.iter().skip(c).step_by(3).copied().collect();
+    let y: Vec<f32> = target.iter().skip(c).step_by(3).copied().collect();
+    let prod = |a: &[f32], b: &[f32]| -> Vec<f32> { a.iter().zip(b).map(|(p, q)| p * q).collect() };
+    let mu_x = blur(&x, w, h, win);
+    let mu_y = blur(&y, w, h, win);
+    let e_xx = blur(&prod(&x, &x), w, h, win);
+    let e_yy = blur(&prod(&y, &y), w, h, win);
+    let e_xy = blur(&prod(&x, &y), w, h, win);
+    // Per pixel ∂S/∂(μx, E[x²], E[xy]).
+    let mut g1 = vec![0.0f32; w * h];
+    let mut g2 = vec![0.0f32; w * h];
+    let mut g3 = vec![0.0f32; w * h];
+    let mut total = 0.0f64;
+    for i in 0..w * h {
+        let (mx, my) = (mu_x[i], mu_y[i]);
+        let sxx = e_xx[i] - mx * mx;
+        let syy = e_yy[i] - my * my;
+        let sxy = e_xy[i] - mx * my;
+        let a1 = 2.0 * mx * my + C1;
+        let a2 = 2.0 * sxy + C2;
+        let b1 = mx * mx + my * my + C1;
+        let b2 = sxx + syy + C2;
+        let s = a1 * a2 / (b1 * b2);
+        total += s as f64;
+        let d_sxy = 2.0 * a1 / (b1 * b2);
+        let d_sxx = -s / b2;
+        let d_mx = 2.0 * my * a2 / (b1 * b2) - s * 2.0 * mx / b1;
+        g1[i] = d_mx - 2.0 * mx * d_sxx - my * d_sxy;
+        g2[i] = d_sxx;
+        g3[i] = d_sxy;
+    }
+    if !want_grad {
+        return (total, Vec::new());
+    }
+    let (b1, b2, b3) = (
+        blur(&g1, w, h, win),
+        blur(&g2, w, h, win),
+        blur(&g3, w, h, win),
+    );
+    let grad = (0..w * h)
+        .map(|i| b1[i] + 2.0 * x[i] * b2[i] + y[i] * b3[i])
+        .collect();
+    (total, grad)
 }
 
 /// (1 − λ)·L1 + λ·(1 − SSIM) of `pred` against `target` (`w × h` RGB) and its gradient with
