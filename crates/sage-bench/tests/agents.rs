@@ -6,16 +6,15 @@
 //! framing, that the images are JPEGs of the configured size and are the real recent frames,
 //! and that faults are retried and recorded, or fail the episode while the run goes on.
 
+mod common;
+
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
 use sage_bench::eval::convert::{env_episode, load_context};
 use sage_bench::eval::{self, EvalRecord, EvalSettings, RunOutcome};
 use sage_bench::metrics::Mode;
 use sage_env::agents::{OracleAgent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig};
-use sage_scene::synth::{SynthConfig, generate};
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -30,36 +29,8 @@ fn fixture() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
     static F: OnceLock<(tempfile::TempDir, PathBuf, PathBuf)> = OnceLock::new();
     F.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let scenes = dir.path().join("scenes");
-        let scene = generate(&SynthConfig {
-            seed: 1,
-            rooms: 3,
-            objects: 30,
-            gaussians: 1000,
-            ..SynthConfig::default()
-        })
-        .unwrap();
-        let home = scenes.join("home1");
-        scene
-            .save(&home, sage_scene::SplatLayout::Compressed)
-            .unwrap();
-        let data = dir.path().join("data");
-        let assemble = AssembleParams {
-            seed: 2,
-            split: SplitParams::default(),
-            balanced: 0,
-        };
-        build::build(
-            std::slice::from_ref(&home),
-            &data,
-            &SceneParams::new(3, 2),
-            &assemble,
-            &|_| {},
-        )
-        .unwrap();
-        // Fill the hull cache beside the scene once: the tests' runs then only read it
-        // (fsutil's temporary names are per process, so two threads writing one cache
-        // file at once would collide).
+        let (scenes, home, data) = common::small_dataset(dir.path(), 0);
+        // Fill the hull cache beside the scene once: the tests' runs then only read it.
         load_context(&home, None).unwrap();
         (dir, scenes, data)
     })

@@ -4,15 +4,14 @@
 //! path and the collisions where the records put them; same inputs give the same bytes; bad run
 //! folders give errors naming the file.
 
+mod common;
+
 use base64::Engine;
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
 use sage_bench::eval::{self, EvalRecord, EvalSettings, Summary};
 use sage_bench::metrics::Mode;
 use sage_bench::report::{self, maps};
 use sage_nav::draw::Canvas;
 use sage_scene::fsutil::read_tree;
-use sage_scene::synth::{SynthConfig, generate};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -27,32 +26,7 @@ fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let scenes = dir.path().join("scenes");
-        let scene = generate(&SynthConfig {
-            seed: 1,
-            rooms: 3,
-            objects: 30,
-            gaussians: 1000,
-            ..SynthConfig::default()
-        })
-        .unwrap();
-        scene
-            .save(&scenes.join("home1"), sage_scene::SplatLayout::Compressed)
-            .unwrap();
-        let data = dir.path().join("data");
-        let assemble = AssembleParams {
-            seed: 2,
-            split: SplitParams::default(),
-            balanced: 4,
-        };
-        build::build(
-            &[scenes.join("home1")],
-            &data,
-            &SceneParams::new(3, 2),
-            &assemble,
-            &|_| {},
-        )
-        .unwrap();
+        let (scenes, _, data) = common::small_dataset(dir.path(), 4);
         let run = dir.path().join("run");
         let settings = EvalSettings {
             dataset: data,

@@ -125,8 +125,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
         .iter()
         .map(|d| {
             (
-                d.file_name()
-                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                sage_nav::trajectory::scene_name(d),
                 sage_nav::trajectory::input_hashes(d),
             )
         })

@@ -79,14 +79,8 @@ fn plan(a: &DemoArgs) -> Result<Vec<Step>> {
     let dataset = a.out.join("dataset");
     let mut steps = Vec::new();
     let dirs: Vec<(String, PathBuf)> = match &a.from {
-        Some(from) => sage_nav::trajectory::scene_dirs(from)?
+        Some(from) => sage_nav::trajectory::scene_dirs_by_name(from)?
             .into_iter()
-            .map(|d| {
-                (
-                    d.file_name().unwrap_or_default().to_string_lossy().into(),
-                    d,
-                )
-            })
             .collect(),
         None => (0..a.scenes)
             .map(|k| (scene_name(k).0, scenes.join(scene_name(k).0)))

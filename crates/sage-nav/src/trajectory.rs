@@ -555,6 +555,24 @@ pub fn scene_dirs(root: &Path) -> Result<Vec<PathBuf>> {
     Ok(dirs)
 }
 
+/// The folder name of a scene folder (how episodes name their scene).
+pub fn scene_name(dir: &Path) -> String {
+    dir.file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+}
+
+/// [`scene_dirs`] keyed by [`scene_name`].
+///
+/// # Errors
+///
+/// As [`scene_dirs`].
+pub fn scene_dirs_by_name(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
+    Ok(scene_dirs(root)?
+        .into_iter()
+        .map(|d| (scene_name(&d), d))
+        .collect())
+}
+
 /// FNV-1a, 64 bits: a cheap, stable fingerprint for run records (not for security).
 pub fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {

@@ -412,11 +412,6 @@ pub struct SceneOutcome {
     pub reason: Option<String>,
 }
 
-fn scene_name(dir: &Path) -> String {
-    dir.file_name()
-        .map_or_else(|| "scene".into(), |n| n.to_string_lossy().into_owned())
-}
-
 /// Builds (or resumes) one scene's file.
 pub fn run_scene(
     dir: &Path,
@@ -424,7 +419,7 @@ pub fn run_scene(
     params: &SceneParams,
     client: Option<&LlmClient>,
 ) -> SceneOutcome {
-    let name = scene_name(dir);
+    let name = sage_nav::trajectory::scene_name(dir);
     let file = scene_file(out, &name);
     let outcome = |status: &str, n: usize, reason: Option<String>| SceneOutcome {
         scene: name.clone(),
@@ -726,7 +721,10 @@ pub fn build(
             o
         })
         .collect();
-    let names: Vec<String> = dirs.iter().map(|d| scene_name(d)).collect();
+    let names: Vec<String> = dirs
+        .iter()
+        .map(|d| sage_nav::trajectory::scene_name(d))
+        .collect();
     let summary = assemble(out, &names, assemble_params, &params.space)?;
     Ok((outcomes, summary))
 }

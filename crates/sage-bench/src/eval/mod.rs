@@ -255,15 +255,7 @@ pub fn run(
     let (file, episodes) = split_episodes(&settings.dataset, &settings.split)?;
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let dataset_hash = format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes));
-    let dirs: BTreeMap<String, PathBuf> = sage_nav::trajectory::scene_dirs(&settings.scenes)?
-        .into_iter()
-        .map(|d| {
-            let name = d
-                .file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-            (name, d)
-        })
-        .collect();
+    let dirs = sage_nav::trajectory::scene_dirs_by_name(&settings.scenes)?;
     if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
         return Err(Error::invalid(format!(
             "scene '{}' of episode {} is not among the scenes",

@@ -215,15 +215,7 @@ pub fn write_with(
     let dirs: BTreeMap<String, PathBuf> = if by_scene.is_empty() {
         BTreeMap::new()
     } else {
-        sage_nav::trajectory::scene_dirs(scenes_dir)?
-            .into_iter()
-            .map(|d| {
-                let name = d
-                    .file_name()
-                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-                (name, d)
-            })
-            .collect()
+        sage_nav::trajectory::scene_dirs_by_name(scenes_dir)?
     };
     if let Some(scene) = by_scene.keys().find(|s| !dirs.contains_key(**s)) {
         return Err(Error::invalid(format!(
