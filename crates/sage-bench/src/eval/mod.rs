@@ -18,7 +18,7 @@ use crate::metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
 use convert::{AgentKind, env_episode, load_context, metric_record};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
-use sage_env::agents::run_episode;
+use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_lang::{InstructionType, Level};
 use sage_scene::fsutil::RUN_RECORD;
@@ -150,11 +150,26 @@ fn env_config(preset: &str) -> Result<EnvConfig> {
     })
 }
 
+/// What [`run_with`] takes from its caller instead of deriving it from the settings: the
+/// environment, the agents and the episodes of the split to run. [`run`] fills it from the
+/// settings; other front ends (the Python package) bring their own agents or run one shard.
+pub struct Runner<'a> {
+    /// The environment every episode runs in.
+    pub config: EnvConfig,
+    /// The agent's name in the records, the summary and the run record.
+    pub agent_name: String,
+    /// A fresh agent for each episode.
+    pub agent: &'a (dyn Fn() -> Result<Box<dyn Agent>> + Sync),
+    /// Which episodes of the split this run covers (`None`: all); the records, resume and
+    /// summary then concern those alone.
+    pub shard: Option<&'a (dyn Fn(&Episode) -> bool + Sync)>,
+}
+
 /// Runs one episode to its record; a failure is recorded, not returned.
 fn run_one(
     ctx: &Arc<sage_env::SceneContext>,
-    config: &EnvConfig,
-    settings: &EvalSettings,
+    runner: &Runner,
+    mode: Mode,
     e: &Episode,
 ) -> EvalRecord {
     let mut rec = EvalRecord {
@@ -164,18 +179,18 @@ fn run_one(
         level: e.level,
         instruction_type: e.instruction_type,
         slices: e.slices.clone(),
-        agent: settings.agent.to_string(),
+        agent: runner.agent_name.clone(),
         termination: None,
         metrics: None,
         error: None,
         record: None,
     };
     let result = (|| {
-        let mut env = Env::new(ctx.clone(), config.clone())?;
-        let mut agent = settings.agent.build(settings.seed)?;
+        let mut env = Env::new(ctx.clone(), runner.config.clone())?;
+        let mut agent = (runner.agent)()?;
         let trace = run_episode(&mut env, agent.as_mut(), &env_episode(e))?;
         let record = metric_record(ctx, &trace);
-        let m = metrics::evaluate(&record, settings.mode)?;
+        let m = metrics::evaluate(&record, mode)?;
         Ok::<_, Error>((trace.termination, m, record))
     })();
     match result {
@@ -191,7 +206,7 @@ fn run_one(
 
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
 /// run) and writes the run record.
-fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> Result<()> {
+fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str) -> Result<()> {
     let path = out.join(RUN_RECORD);
     if path.is_file() {
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
@@ -206,8 +221,7 @@ fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> 
             }
             v
         };
-        let same = run_of(old.get("settings"))
-            == run_of(serde_json::to_value(settings).ok().as_ref())
+        let same = run_of(old.get("settings")) == run_of(Some(settings))
             && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(dataset_hash);
         if !same {
             return Err(Error::invalid(
@@ -219,7 +233,7 @@ fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> 
     sage_scene::fsutil::write_run_record(
         out,
         "eval",
-        Some(settings.seed),
+        settings.get("seed").and_then(serde_json::Value::as_u64),
         serde_json::json!({
             "settings": settings,
             "dataset_hash": dataset_hash,
@@ -240,8 +254,31 @@ pub fn run(
     out: &Path,
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
-    let config = env_config(&settings.preset).within("preset")?;
-    let (file, episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    let runner = Runner {
+        config: env_config(&settings.preset).within("preset")?,
+        agent_name: settings.agent.to_string(),
+        agent: &|| settings.agent.build(settings.seed),
+        shard: None,
+    };
+    run_with(settings, &runner, out, on_done)
+}
+
+/// [`run`] with the environment, agents and shard given by `runner` (the settings still name
+/// the dataset, scenes, split, mode, seed and preset).
+///
+/// # Errors
+///
+/// As [`run`].
+pub fn run_with(
+    settings: &EvalSettings,
+    runner: &Runner,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+) -> Result<RunOutcome> {
+    let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    if let Some(keep) = runner.shard {
+        episodes.retain(|e| keep(e));
+    }
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let dataset_hash = format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes));
     let dirs: BTreeMap<String, PathBuf> = sage_nav::trajectory::scene_dirs(&settings.scenes)?
@@ -261,7 +298,10 @@ pub fn run(
         .in_file(&settings.scenes));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    claim_run_folder(out, settings, &dataset_hash)?;
+    let mut recorded =
+        serde_json::to_value(settings).map_err(|e| Error::invalid(format!("settings: {e}")))?;
+    recorded["agent"] = runner.agent_name.clone().into();
+    claim_run_folder(out, &recorded, &dataset_hash)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let records_path = out.join(RECORDS_FILE);
     let done = records::resume(&records_path, &ids)?;
@@ -277,7 +317,7 @@ pub fn run(
     groups.par_iter().try_for_each(|(scene, eps)| {
         let ctx = Arc::new(load_context(&dirs[*scene], None).within(format!("scene {scene}"))?);
         eps.par_iter().try_for_each(|e| {
-            let rec = run_one(&ctx, &config, settings, e);
+            let rec = run_one(&ctx, runner, settings.mode, e);
             writer
                 .lock()
                 .map_err(|_| Error::invalid("records writer poisoned"))?
@@ -287,7 +327,10 @@ pub fn run(
         })
     })?;
     let all = records::read(&records_path, &ids)?;
-    let summary = Summary::of(settings, &all);
+    let summary = Summary {
+        agent: runner.agent_name.clone(),
+        ..Summary::of(settings, &all)
+    };
     sage_scene::fsutil::write_json(&out.join(SUMMARY_FILE), &summary)?;
     Ok(RunOutcome {
         total: episodes.len(),
