@@ -27,24 +27,28 @@ def scenes(tmp_path_factory, sage3d):
     return root
 
 
-BUILD = ["--per-scene", 2, "--seed", 5, "--balanced", 6]
+@pytest.fixture(scope="module")
+def cli_data(scenes, sage3d, tmp_path_factory):
+    out = tmp_path_factory.mktemp("raydata") / "cli"
+    sage3d("data", "build", scenes, "--out", out, "--per-scene", 2, "--seed", 5, "--balanced", 6)
+    return out
 
 
-def test_generate_equals_data_build(local_ray, scenes, sage3d, tmp_path):
+def files(root):
+    return sorted(p.relative_to(root) for p in root.rglob("*") if p.is_file() and p.name != "sage3d_run.json")
+
+
+def test_generate_equals_data_build(local_ray, scenes, cli_data, tmp_path):
     from sage3d import distributed
 
-    sage3d("data", "build", scenes, "--out", tmp_path / "cli", *BUILD)
     result = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)
     assert [o["status"] for o in result["scenes"]] == ["done"] * 3
-    cli_files = sorted(p.relative_to(tmp_path / "cli") for p in (tmp_path / "cli").rglob("*")
-                       if p.is_file() and p.name != "sage3d_run.json")
-    ray_files = sorted(p.relative_to(tmp_path / "ray") for p in (tmp_path / "ray").rglob("*")
-                       if p.is_file() and p.name != "sage3d_run.json")
-    assert ray_files == cli_files
-    for rel in cli_files:
-        assert (tmp_path / "ray" / rel).read_bytes() == (tmp_path / "cli" / rel).read_bytes(), rel
-    run = lambda d: {k: v for k, v in json.loads((d / "sage3d_run.json").read_text()).items()}
-    assert run(tmp_path / "ray")["config"] == run(tmp_path / "cli")["config"]
+    assert files(tmp_path / "ray") == files(cli_data)
+    for rel in files(cli_data):
+        assert (tmp_path / "ray" / rel).read_bytes() == (cli_data / rel).read_bytes(), rel
+    run = lambda d: json.loads((d / "sage3d_run.json").read_text())  # noqa: E731
+    assert run(tmp_path / "ray")["config"] == run(cli_data)["config"]
+    assert run(tmp_path / "ray")["inputs"] == run(cli_data)["inputs"]
     again = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)
     assert [o["status"] for o in again["scenes"]] == ["resumed"] * 3
 
@@ -57,18 +61,17 @@ class Forward:
 
 
 @pytest.mark.parametrize("agent", ["oracle", Forward()], ids=["builtin", "python"])
-def test_evaluate_equals_cli_eval(local_ray, scenes, sage3d, tmp_path, agent):
+def test_evaluate_equals_cli_eval(local_ray, scenes, cli_data, sage3d, tmp_path, agent):
     from sage3d import distributed
 
-    data = tmp_path / "data"
-    sage3d("data", "build", scenes, "--out", data, *BUILD)
     name = sg.evaluation.agent_name(agent)
-    sage3d("eval", data, "--scenes", scenes, "--agent", name, "--split", "train", "--out", tmp_path / "cli")
+    sage3d("eval", cli_data, "--scenes", scenes, "--agent", name, "--split", "test_balanced",
+           "--out", tmp_path / "cli")
     kwargs = {"sensors": []} if not isinstance(agent, str) else {}
-    summary = distributed.evaluate(data, scenes, agent, tmp_path / "ray", split="train", **kwargs)
+    summary = distributed.evaluate(cli_data, scenes, agent, tmp_path / "ray", split="test_balanced", **kwargs)
     assert (tmp_path / "ray" / "summary.json").read_bytes() == (tmp_path / "cli" / "summary.json").read_bytes()
     assert summary == json.loads((tmp_path / "cli" / "summary.json").read_text())
-    lines = lambda d: (d / "episodes.jsonl").read_text().splitlines()
+    lines = lambda d: (d / "episodes.jsonl").read_text().splitlines()  # noqa: E731
     ray_lines = lines(tmp_path / "ray")
     assert ray_lines == sorted(lines(tmp_path / "cli"), key=lambda l: json.loads(l)["episode_id"])
     assert [json.loads(l)["episode_id"] for l in ray_lines] == sorted(json.loads(l)["episode_id"] for l in ray_lines)

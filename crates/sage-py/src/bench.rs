@@ -149,14 +149,24 @@ pub fn evaluate<'py>(
     .py()?;
     to_py(
         py,
-        &serde_json::json!({
-            "total": outcome.total,
-            "resumed": outcome.resumed,
-            "ran": outcome.ran,
-            "summary": outcome.summary,
-            "table": outcome.summary.table(),
-        }),
+        &Evaluated {
+            total: outcome.total,
+            resumed: outcome.resumed,
+            ran: outcome.ran,
+            table: outcome.summary.table(),
+            summary: outcome.summary,
+        },
     )
+}
+
+/// What [`evaluate`] returns to Python.
+#[derive(serde::Serialize)]
+struct Evaluated {
+    total: usize,
+    resumed: usize,
+    ran: usize,
+    summary: Summary,
+    table: String,
 }
 
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
@@ -264,6 +274,7 @@ fn scene_params(
 /// file's text (for a driver without a shared file system).
 #[pyfunction]
 #[pyo3(signature = (scene_dir, out, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1))]
+#[allow(clippy::too_many_arguments)]
 pub fn build_scene<'py>(
     py: Python<'py>,
     scene_dir: PathBuf,

@@ -26,39 +26,37 @@ impl<T> PyResultExt<T> for sage_core::Result<T> {
     }
 }
 
-/// A JSON value as the equivalent Python object (dict, list, str, float, int, bool, None).
-pub fn json_to_py<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyAny>> {
-    use serde_json::Value;
-    Ok(match v {
-        Value::Null => py.None().into_bound(py),
-        Value::Bool(b) => b.into_pyobject(py)?.to_owned().into_any(),
-        Value::Number(n) => match (n.as_i64(), n.as_u64()) {
-            (Some(i), _) => i.into_pyobject(py)?.into_any(),
-            (None, Some(u)) => u.into_pyobject(py)?.into_any(),
-            _ => n.as_f64().unwrap_or(f64::NAN).into_pyobject(py)?.into_any(),
-        },
-        Value::String(s) => s.into_pyobject(py)?.into_any(),
-        Value::Array(items) => {
-            let list = PyList::empty(py);
-            for item in items {
-                list.append(json_to_py(py, item)?)?;
-            }
-            list.into_any()
-        }
-        Value::Object(map) => {
-            let dict = PyDict::new(py);
-            for (k, item) in map {
-                dict.set_item(k, json_to_py(py, item)?)?;
-            }
-            dict.into_any()
-        }
-    })
+/// Any serialisable value as a Python object (dict, list, str, float, int, bool, None) through
+/// its JSON text, parsed by Python's `json`: numbers come out as the files print them (an `f32`
+/// as its shortest decimal, an `f64` exactly), so an episode or summary read here equals the
+/// same one read from sage3d's files with `json`.
+pub fn to_py<'py>(py: Python<'py>, value: &impl Serialize) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(value).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
 }
 
-/// Any serialisable value as a Python object, through its JSON form.
-pub fn to_py<'py>(py: Python<'py>, value: &impl Serialize) -> PyResult<Bound<'py, PyAny>> {
-    let v = serde_json::to_value(value).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    json_to_py(py, &v)
+/// Removes, at any depth, the dict entries whose value is `None`: an undefined value becomes an
+/// absent key, so every key keeps one type across steps and episodes (Gymnasium's vector info
+/// batching types its arrays by the first value it sees).
+pub fn drop_none(obj: &Bound<'_, PyAny>) -> PyResult<()> {
+    if let Ok(d) = obj.cast::<PyDict>() {
+        let mut none = Vec::new();
+        for (k, v) in d.iter() {
+            if v.is_none() {
+                none.push(k);
+            } else {
+                drop_none(&v)?;
+            }
+        }
+        for k in none {
+            d.del_item(k)?;
+        }
+    } else if let Ok(l) = obj.cast::<PyList>() {
+        for v in l.iter() {
+            drop_none(&v)?;
+        }
+    }
+    Ok(())
 }
 
 /// Parses `text` (JSON written by the Python side) as `T`, naming `what` on failure.

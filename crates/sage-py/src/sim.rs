@@ -7,21 +7,22 @@
 //! success distance; NoGoal pays the metres achieved along the command, minus the slack.
 //! `terminated` is STOP or a NoGoal collision, `truncated` the step or time limit.
 
-use crate::convert::{PyResultExt, array, from_json, json_to_py, to_py};
+use crate::convert::{PyResultExt, array, drop_none, from_json, to_py};
 use numpy::ndarray::{Ix1, Ix2, Ix3, Ix4};
 use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 use rayon::prelude::*;
 use sage_bench::dataset::Episode;
 use sage_bench::eval::convert::{env_episode, metric_record};
-use sage_bench::metrics::{self, Mode};
+use sage_bench::metrics::{self, EpisodeMetrics, Mode};
 use sage_core::{Error, Result};
 use sage_env::{
     Action, ActionSpace, Env, EnvConfig, EnvEpisode, Observation, SceneContext, StepInfo,
     Termination,
 };
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 use std::sync::Arc;
 
 /// Reward per step for existing (Habitat's slack reward).
@@ -68,7 +69,8 @@ struct Outcome {
     reward: f32,
     terminated: bool,
     truncated: bool,
-    info: Value,
+    /// The info dict as JSON text.
+    info: String,
 }
 
 /// One environment over a [`Pool`]: the environments of the scenes it has visited (built on
@@ -161,7 +163,7 @@ impl Core {
 
     /// The info dict: episode, pose, contacts, this step's record, the metrics so far, and the
     /// episode's metrics (in the configured mode) once it has ended.
-    fn info(&mut self, step: Option<&StepInfo>, obs: &Observation) -> Result<Value> {
+    fn info(&mut self, step: Option<&StepInfo>, obs: &Observation) -> Result<String> {
         let (mode, last_distance) = (self.mode, self.last_distance);
         let k = self.running.unwrap_or_default();
         let pool = self.pool.clone();
@@ -182,55 +184,85 @@ impl Core {
             })
             .sum();
         let metrics = match trace.termination {
-            Some(_) => {
-                let record = metric_record(ctx, trace);
-                serde_json::to_value(metrics::evaluate(&record, mode)?)
-                    .map_err(|e| Error::invalid(e.to_string()))?
-            }
-            None => Value::Null,
+            Some(_) => Some(metrics::evaluate(&metric_record(ctx, trace), mode)?),
+            None => None,
         };
         let p = obs.pose;
-        let mut info = json!({
-            "episode_id": episode.episode_id,
-            "scene": episode.scene,
-            "episode_index": k,
-            "step": obs.step,
-            "time": obs.time,
-            "pose": [p.position.x, p.position.y, p.position.z, p.yaw],
-            "pitch": obs.pitch,
-            "contacts": obs.contacts.iter().map(|c| json!({
-                "instance": c.instance.0,
-                "distance": c.distance,
-            })).collect::<Vec<_>>(),
-            "step_info": step,
-            "within_success_distance": within,
-            "metrics_so_far": {
-                "steps": trace.steps.len(),
-                "path_length": path_length,
-                "collisions": trace.steps.iter().filter(|s| s.collision).count(),
-                "contact_steps": trace.steps.iter().filter(|s| !s.touched.is_empty()).count(),
-                "distance_to_goal": trace.steps.last().map_or(last_distance, |s| s.distance_to_goal),
+        serde_json::to_string(&Info {
+            episode_id: &episode.episode_id,
+            scene: &episode.scene,
+            episode_index: k,
+            step: obs.step,
+            time: obs.time,
+            pose: [p.position.x, p.position.y, p.position.z, p.yaw],
+            pitch: obs.pitch,
+            contacts: obs
+                .contacts
+                .iter()
+                .map(|c| Contact {
+                    instance: c.instance.0,
+                    distance: c.distance,
+                })
+                .collect(),
+            step_info: step,
+            within_success_distance: within,
+            metrics_so_far: SoFar {
+                steps: trace.steps.len(),
+                path_length,
+                collisions: trace.steps.iter().filter(|s| s.collision).count(),
+                contact_steps: trace.steps.iter().filter(|s| !s.touched.is_empty()).count(),
+                distance_to_goal: trace
+                    .steps
+                    .last()
+                    .map_or(last_distance, |s| s.distance_to_goal),
             },
-            "termination": trace.termination,
-            "metrics": metrics,
-        });
-        drop_nulls(&mut info);
-        Ok(info)
+            termination: trace.termination,
+            metrics,
+        })
+        .map_err(|e| Error::invalid(format!("info: {e}")))
     }
 }
 
-/// Removes the entries whose value is null, at any depth: an undefined value is an absent key,
-/// so every key keeps one type across steps and episodes (Gymnasium's vector info batching
-/// types its arrays by the first value it sees).
-fn drop_nulls(v: &mut Value) {
-    match v {
-        Value::Object(map) => {
-            map.retain(|_, x| !x.is_null());
-            map.values_mut().for_each(drop_nulls);
-        }
-        Value::Array(items) => items.iter_mut().for_each(drop_nulls),
-        _ => {}
-    }
+/// The info dict of a reset or step (documented in `docs/python.md`).
+#[derive(Serialize)]
+struct Info<'a> {
+    episode_id: &'a str,
+    scene: &'a str,
+    episode_index: usize,
+    step: usize,
+    time: f32,
+    pose: [f32; 4],
+    pitch: f32,
+    contacts: Vec<Contact>,
+    step_info: Option<&'a StepInfo>,
+    within_success_distance: bool,
+    metrics_so_far: SoFar,
+    termination: Option<Termination>,
+    metrics: Option<EpisodeMetrics>,
+}
+
+/// A body touched after the step.
+#[derive(Serialize)]
+struct Contact {
+    instance: u32,
+    distance: f32,
+}
+
+/// Running totals of the episode.
+#[derive(Serialize)]
+struct SoFar {
+    steps: usize,
+    path_length: f32,
+    collisions: usize,
+    contact_steps: usize,
+    distance_to_goal: Option<f32>,
+}
+
+/// An info dict from its JSON text, undefined values dropped (see [`drop_none`]).
+fn info_to_py<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    let info = py.import("json")?.call_method1("loads", (text,))?;
+    drop_none(&info)?;
+    Ok(info)
 }
 
 /// The Euclidean distance from the episode's start to its goal region (the footprint of its
@@ -352,8 +384,17 @@ fn pool(
     }))
 }
 
+/// The agent profile's limits that bound the continuous action spaces.
+#[derive(Serialize)]
+struct Limits {
+    name: &'static str,
+    max_speed: f32,
+    max_yaw_rate: f32,
+    camera_height: f32,
+}
+
 /// Resolves a preset plus JSON overrides for Python callers (the Gymnasium wrappers read
-/// spaces from it), with the agent profile's limits.
+/// spaces from it), with the agent profile's limits under `profile`.
 #[pyfunction]
 #[pyo3(signature = (preset="sage", overrides="{}"))]
 pub fn env_config<'py>(
@@ -363,14 +404,20 @@ pub fn env_config<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let config = resolve_config(preset, &from_json(overrides, "overrides")?).py()?;
     let profile = config.profile().py()?;
-    let mut v = serde_json::to_value(&config).map_err(|e| PyValueError::new_err(e.to_string()))?;
-    v["profile"] = json!({
-        "name": profile.name,
-        "max_speed": profile.max_speed,
-        "max_yaw_rate": profile.max_yaw_rate,
-        "camera_height": profile.camera_height,
-    });
-    json_to_py(py, &v)
+    let out = to_py(py, &config)?;
+    out.set_item(
+        "profile",
+        to_py(
+            py,
+            &Limits {
+                name: profile.name,
+                max_speed: profile.max_speed,
+                max_yaw_rate: profile.max_yaw_rate,
+                camera_height: profile.camera_height,
+            },
+        )?,
+    )?;
+    Ok(out)
 }
 
 fn mode_of(mode: &str) -> PyResult<Mode> {
@@ -422,7 +469,7 @@ impl Sim {
     ) -> PyResult<(Bound<'py, PyDict>, Bound<'py, PyAny>)> {
         let core = &mut self.core;
         let out = py.detach(|| core.reset(index)).py()?;
-        Ok((obs_to_py(py, out.obs)?, json_to_py(py, &out.info)?))
+        Ok((obs_to_py(py, out.obs)?, info_to_py(py, &out.info)?))
     }
 
     /// Applies one action; returns `(obs, reward, terminated, truncated, info)`.
@@ -440,7 +487,7 @@ impl Sim {
             out.reward,
             out.terminated,
             out.truncated,
-            json_to_py(py, &out.info)?,
+            info_to_py(py, &out.info)?,
         ))
     }
 }
@@ -493,7 +540,10 @@ impl VecSim {
         let rewards: Vec<f32> = outs.iter().map(|o| o.reward).collect();
         let terminated: Vec<bool> = outs.iter().map(|o| o.terminated).collect();
         let truncated: Vec<bool> = outs.iter().map(|o| o.truncated).collect();
-        let infos: Vec<Value> = outs.iter().map(|o| o.info.clone()).collect();
+        let infos = PyList::empty(py);
+        for o in &outs {
+            infos.append(info_to_py(py, &o.info)?)?;
+        }
         let obs = PyDict::new(py);
         let first = &outs[0].obs;
         if let Some(im) = &first.images {
@@ -533,7 +583,7 @@ impl VecSim {
             array(py, Ix1(n), rewards)?,
             array(py, Ix1(n), terminated)?,
             array(py, Ix1(n), truncated)?,
-            json_to_py(py, &Value::Array(infos))?,
+            infos.into_any(),
         ))
     }
 }
