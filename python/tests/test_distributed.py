@@ -3,6 +3,7 @@ the dataset of `sage3d data build`, and evaluation with one task per scene gives
 summary of `sage3d eval`."""
 
 import json
+import pathlib
 
 import pytest
 
@@ -13,7 +14,10 @@ ray = pytest.importorskip("ray", reason="Ray is not installed for this Python")
 
 @pytest.fixture(scope="module")
 def local_ray():
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # The workers import the agent class of this module by name, as a cluster imports a user's.
+    here = str(pathlib.Path(__file__).parent)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
+             runtime_env={"env_vars": {"PYTHONPATH": here}})
     yield
     ray.shutdown()
 

@@ -136,7 +136,7 @@ pub fn evaluate<'py>(
         let keep = |e: &sage_bench::dataset::Episode| {
             scenes_only
                 .as_ref()
-                .is_none_or(|s| s.iter().any(|n| *n == e.scene))
+                .is_none_or(|s| s.contains(&e.scene))
         };
         let runner = Runner {
             config,
@@ -198,7 +198,10 @@ pub fn merge_eval<'py>(
 fn merge(settings: &EvalSettings, agent: &str, shards: &[String], out: &Path) -> Result<Summary> {
     let (file, episodes) = eval::split_episodes(&settings.dataset, &settings.split)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
-    let mut all: BTreeMap<String, EvalRecord> = BTreeMap::new();
+    // Lines are kept as the shards wrote them: parsing and printing again would move some
+    // floats by an ulp (serde_json's parser is not exactly rounding), and the summary is
+    // computed from the parsed records as `sage3d eval` computes it from its file.
+    let mut all: BTreeMap<String, (&str, EvalRecord)> = BTreeMap::new();
     for (i, text) in shards.iter().enumerate() {
         for (line, l) in text
             .lines()
@@ -217,20 +220,20 @@ fn merge(settings: &EvalSettings, agent: &str, shards: &[String], out: &Path) ->
                     ),
                 ));
             }
-            if all.insert(rec.episode_id.clone(), rec).is_some() {
+            if all.insert(rec.episode_id.clone(), (l, rec)).is_some() {
                 return Err(Error::format(at(), "episode recorded by two shards"));
             }
         }
     }
-    let records: Vec<EvalRecord> = all.into_values().collect();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     write_atomic(&out.join(RECORDS_FILE), |w| {
-        for r in &records {
-            serde_json::to_writer(&mut *w, r).map_err(std::io::Error::other)?;
+        for (line, _) in all.values() {
+            w.write_all(line.trim_end().as_bytes())?;
             w.write_all(b"\n")?;
         }
         Ok(())
     })?;
+    let records: Vec<EvalRecord> = all.into_values().map(|(_, r)| r).collect();
     let summary = Summary {
         agent: agent.to_string(),
         ..Summary::of(settings, &records)
