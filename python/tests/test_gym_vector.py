@@ -16,7 +16,7 @@ SMALL = {"synth": {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}, "
 @pytest.fixture(scope="module", autouse=True)
 def cache(tmp_path_factory):
     mp = pytest.MonkeyPatch()
-    mp.setenv("SAGE3D_CACHE", str(tmp_path_factory.mktemp("cache")))
+    mp.setenv("SAGE3D_CACHE", str(tmp_path_factory.getbasetemp() / "sage3d-cache"))
     yield
     mp.undo()
 

@@ -681,3 +681,37 @@ impl VecSim {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn overrides_merge_key_by_key_over_the_preset_and_are_validated() {
+        let c = resolve_config(
+            "vlnce",
+            &json!({"sensors": {"width": 32, "semantic": true}, "task": {"max_steps": 7}}),
+        )
+        .unwrap();
+        let base = EnvConfig::preset("vlnce").unwrap();
+        assert_eq!(
+            (c.sensors.width, c.sensors.height),
+            (32, base.sensors.height)
+        );
+        assert!(c.sensors.semantic && c.sensors.rgb);
+        assert_eq!(c.sensors.depth_size, base.sensors.depth_size);
+        assert_eq!(c.task.max_steps, 7);
+        assert_eq!(c.task.success_distance, base.task.success_distance);
+        let ground = resolve_config(
+            "sage",
+            &json!({"actions": {"kind": "ground", "max_dt": 0.5}}),
+        );
+        assert_eq!(ground.unwrap().actions, ActionSpace::Ground { max_dt: 0.5 });
+        let e = resolve_config("sage", &json!({"sensors": {"hfov_deg": 200.0}})).unwrap_err();
+        assert!(e.to_string().contains("hfov_deg"), "{e}");
+        let e = resolve_config("sage", &json!({"sensors": {"width": "wide"}})).unwrap_err();
+        assert!(e.to_string().contains("environment config"), "{e}");
+        assert!(resolve_config("habitat", &json!({})).is_err());
+    }
+}

@@ -135,7 +135,7 @@ def observation_space(config: dict, instructions: Iterable[str]) -> spaces.Dict:
     d["pose"] = spaces.Box(-np.inf, np.inf, (4,), np.float32)
     texts = list(instructions)
     charset = frozenset(string.printable).union(*texts)
-    d["instruction"] = spaces.Text(max(1024, *(len(t) for t in texts)), min_length=0, charset=charset)
+    d["instruction"] = spaces.Text(max([1024, *map(len, texts)]), min_length=0, charset=charset)
     return spaces.Dict(d)
 
 
