@@ -77,7 +77,9 @@ def test_evaluate_equals_cli_eval(local_ray, scenes, cli_data, sage3d, tmp_path,
     assert summary == json.loads((tmp_path / "cli" / "summary.json").read_text())
     lines = lambda d: (d / "episodes.jsonl").read_text().splitlines()  # noqa: E731
     ray_lines = lines(tmp_path / "ray")
-    assert ray_lines == sorted(lines(tmp_path / "cli"), key=lambda l: json.loads(l)["episode_id"])
-    assert [json.loads(l)["episode_id"] for l in ray_lines] == sorted(json.loads(l)["episode_id"] for l in ray_lines)
+    by_id = lambda line: json.loads(line)["episode_id"]  # noqa: E731
+    # The same records, one line each, sorted by episode id (the CLI's are in finishing order).
+    assert ray_lines == sorted(lines(tmp_path / "cli"), key=by_id)
+    assert [by_id(line) for line in ray_lines] == sorted(map(by_id, ray_lines))
     shards = sorted(p.name for p in (tmp_path / "ray" / "shards").iterdir())
-    assert shards == sorted({json.loads(l)["scene"] for l in ray_lines})
+    assert shards == sorted({json.loads(line)["scene"] for line in ray_lines})

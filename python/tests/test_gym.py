@@ -81,7 +81,7 @@ def test_same_seed_same_episodes_observations_rewards_and_infos():
     same(a, rollout(make(), seed=7))
     other = rollout(make(), seed=8)
     assert any(x[4]["episode_id"] != y[4]["episode_id"] or not np.array_equal(x[0]["rgb"], y[0]["rgb"])
-               for x, y in zip(a, other))
+               for x, y in zip(a, other, strict=False))
 
 
 def test_info_has_pose_contacts_metrics_so_far_and_final_metrics():
