@@ -113,11 +113,17 @@ impl Core {
             .episodes
             .get(k)
             .ok_or_else(|| Error::invalid(format!("episode index {k} out of range")))?;
-        if self.envs[*scene].is_none() {
-            self.envs[*scene] = Some(Env::new(pool.scenes[*scene].clone(), self.config.clone())?);
+        let slot = &mut self.envs[*scene];
+        if slot.is_none() {
+            *slot = Some(Env::new(pool.scenes[*scene].clone(), self.config.clone())?);
         }
+        // A failed reset leaves no running episode (not the previous one, half replaced).
+        self.running = None;
+        let obs = slot
+            .as_mut()
+            .ok_or_else(|| Error::invalid("no environment for the scene"))?
+            .reset(episode)?;
         self.running = Some(k);
-        let obs = self.env()?.reset(episode)?;
         self.last_distance = start_distance(&pool.scenes[*scene], episode);
         let info = self.info(None, &obs)?;
         Ok(Outcome {
