@@ -197,3 +197,28 @@ fn bad_input_gives_clear_errors() {
     );
     assert!(!run.exists(), "no run folder for bad input");
 }
+
+#[test]
+fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    std::fs::write(scenes.join("home1/structure.json"), "{\"rooms\": 3}").unwrap();
+    let run = dir.path().join("run");
+    eval("2", &data, &scenes, &run, &["--agent", "forward"]);
+    let records: Vec<serde_json::Value> = read(&run.join("episodes.jsonl"))
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(!records.is_empty());
+    for r in &records {
+        let e = r["error"].as_str().unwrap();
+        assert!(
+            e.contains("structure.json") && e.contains("scene home1"),
+            "{e}"
+        );
+        assert!(r.get("metrics").is_none());
+    }
+    let summary: serde_json::Value =
+        serde_json::from_str(&read(&run.join("summary.json"))).unwrap();
+    assert_eq!(summary["failed"].as_array().unwrap().len(), records.len());
+}

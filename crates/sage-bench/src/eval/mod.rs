@@ -18,7 +18,7 @@ use crate::metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
 use convert::{AgentKind, AgentMaker, env_episode, load_context, metric_record};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
-use sage_env::agents::run_episode;
+use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_lang::{InstructionType, Level};
 use sage_scene::fsutil::RUN_RECORD;
@@ -141,7 +141,7 @@ pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episo
 /// agents that read images (remote models), without images for the others, which do not
 /// read them (rendering does not change the motion); and the action space the agent needs
 /// (ground velocities for pose replays), else the preset's.
-fn env_config(preset: &str, agent: &AgentMaker) -> Result<EnvConfig> {
+pub fn env_config(preset: &str, agent: &AgentMaker) -> Result<EnvConfig> {
     let config = EnvConfig::preset(preset)?;
     Ok(EnvConfig {
         sensors: SensorConfig {
@@ -156,35 +156,54 @@ fn env_config(preset: &str, agent: &AgentMaker) -> Result<EnvConfig> {
     })
 }
 
-/// Runs one episode to its record; a failure is recorded, not returned.
-fn run_one(
-    ctx: &Arc<sage_env::SceneContext>,
-    config: &EnvConfig,
-    settings: &EvalSettings,
-    maker: &AgentMaker,
-    e: &Episode,
-) -> EvalRecord {
-    let mut rec = EvalRecord {
+/// What [`run_with`] takes from its caller instead of deriving it from the settings: the
+/// environment, the agents and the episodes of the split to run. [`run`] fills it from the
+/// settings; other front ends (the Python package) bring their own agents or run one shard.
+pub struct Runner<'a> {
+    /// The environment every episode runs in.
+    pub config: EnvConfig,
+    /// The agent's name in the records, the summary and the run record.
+    pub agent_name: String,
+    /// A fresh agent for each episode.
+    pub agent: &'a (dyn Fn() -> Result<Box<dyn Agent>> + Sync),
+    /// Which episodes of the split this run covers (`None`: all); the records, resume and
+    /// summary then concern those alone.
+    pub shard: Option<&'a (dyn Fn(&Episode) -> bool + Sync)>,
+}
+
+/// The record of episode `e` before it runs: its tags, no outcome yet.
+fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
+    EvalRecord {
         episode_id: e.episode_id.clone(),
         scene: e.scene.clone(),
         task: e.task,
         level: e.level,
         instruction_type: e.instruction_type,
         slices: e.slices.clone(),
-        agent: settings.agent.to_string(),
+        agent: runner.agent_name.clone(),
         termination: None,
         metrics: None,
         error: None,
         faults: Vec::new(),
         record: None,
-    };
+    }
+}
+
+/// Runs one episode to its record; a failure is recorded, not returned.
+fn run_one(
+    ctx: &Arc<sage_env::SceneContext>,
+    runner: &Runner,
+    mode: Mode,
+    e: &Episode,
+) -> EvalRecord {
+    let mut rec = blank_record(runner, e);
     let mut agent = None;
     let result = (|| {
-        let mut env = Env::new(ctx.clone(), config.clone())?;
-        let agent = agent.insert(maker.build(settings.seed)?);
+        let mut env = Env::new(ctx.clone(), runner.config.clone())?;
+        let agent = agent.insert((runner.agent)()?);
         let trace = run_episode(&mut env, agent.as_mut(), &env_episode(e))?;
         let record = metric_record(ctx, &trace);
-        let m = metrics::evaluate(&record, settings.mode)?;
+        let m = metrics::evaluate(&record, mode)?;
         Ok::<_, Error>((trace.termination, m, record))
     })();
     match result {
@@ -201,7 +220,7 @@ fn run_one(
 
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
 /// run) and writes the run record.
-fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> Result<()> {
+fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str) -> Result<()> {
     let path = out.join(RUN_RECORD);
     if path.is_file() {
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
@@ -216,8 +235,7 @@ fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> 
             }
             v
         };
-        let same = run_of(old.get("settings"))
-            == run_of(serde_json::to_value(settings).ok().as_ref())
+        let same = run_of(old.get("settings")) == run_of(Some(settings))
             && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(dataset_hash);
         if !same {
             return Err(Error::invalid(
@@ -229,7 +247,7 @@ fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> 
     sage_scene::fsutil::write_run_record(
         out,
         "eval",
-        Some(settings.seed),
+        settings.get("seed").and_then(serde_json::Value::as_u64),
         serde_json::json!({
             "settings": settings,
             "dataset_hash": dataset_hash,
@@ -243,16 +261,39 @@ fn claim_run_folder(out: &Path, settings: &EvalSettings, dataset_hash: &str) -> 
 /// # Errors
 ///
 /// Bad settings (unknown split or preset, scene missing), a run folder of another run, a
-/// corrupt records file, a scene that cannot be loaded or a write error. An episode's own
-/// failure is recorded on it instead.
+/// corrupt records file or a write error. An episode's own failure (a scene that cannot be
+/// loaded, an agent or a metric error) is recorded on it instead.
 pub fn run(
     settings: &EvalSettings,
     out: &Path,
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
     let maker = settings.agent.maker()?;
-    let config = env_config(&settings.preset, &maker).within("preset")?;
-    let (file, episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    let runner = Runner {
+        config: env_config(&settings.preset, &maker).within("preset")?,
+        agent_name: settings.agent.to_string(),
+        agent: &|| maker.build(settings.seed),
+        shard: None,
+    };
+    run_with(settings, &runner, out, on_done)
+}
+
+/// [`run`] with the environment, agents and shard given by `runner` (the settings still name
+/// the dataset, scenes, split, mode, seed and preset).
+///
+/// # Errors
+///
+/// As [`run`].
+pub fn run_with(
+    settings: &EvalSettings,
+    runner: &Runner,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+) -> Result<RunOutcome> {
+    let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    if let Some(keep) = runner.shard {
+        episodes.retain(|e| keep(e));
+    }
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let dataset_hash = format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes));
     let dirs = sage_nav::trajectory::scene_dirs_by_name(&settings.scenes)?;
@@ -264,7 +305,10 @@ pub fn run(
         .in_file(&settings.scenes));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    claim_run_folder(out, settings, &dataset_hash)?;
+    let mut recorded =
+        serde_json::to_value(settings).map_err(|e| Error::invalid(format!("settings: {e}")))?;
+    recorded["agent"] = runner.agent_name.clone().into();
+    claim_run_folder(out, &recorded, &dataset_hash)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let records_path = out.join(RECORDS_FILE);
     let done = records::resume(&records_path, &ids)?;
@@ -278,9 +322,18 @@ pub fn run(
     let ran: usize = groups.values().map(Vec::len).sum();
     let writer = Mutex::new(records::Appender::open(&records_path)?);
     groups.par_iter().try_for_each(|(scene, eps)| {
-        let ctx = Arc::new(load_context(&dirs[*scene], None).within(format!("scene {scene}"))?);
+        // A scene that cannot be loaded fails its episodes, with the reason; the run goes on.
+        let ctx = load_context(&dirs[*scene], None)
+            .within(format!("scene {scene}"))
+            .map(Arc::new);
         eps.par_iter().try_for_each(|e| {
-            let rec = run_one(&ctx, &config, settings, &maker, e);
+            let rec = match &ctx {
+                Ok(ctx) => run_one(ctx, runner, settings.mode, e),
+                Err(err) => EvalRecord {
+                    error: Some(err.to_string()),
+                    ..blank_record(runner, e)
+                },
+            };
             writer
                 .lock()
                 .map_err(|_| Error::invalid("records writer poisoned"))?
@@ -290,7 +343,10 @@ pub fn run(
         })
     })?;
     let all = records::read(&records_path, &ids)?;
-    let summary = Summary::of(settings, &all);
+    let summary = Summary {
+        agent: runner.agent_name.clone(),
+        ..Summary::of(settings, &all)
+    };
     sage_scene::fsutil::write_json(&out.join(SUMMARY_FILE), &summary)?;
     Ok(RunOutcome {
         total: episodes.len(),

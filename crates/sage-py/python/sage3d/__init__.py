@@ -1,0 +1,43 @@
+"""sage3d from Python: executable 3D Gaussian Splatting scenes for vision-and-language navigation.
+
+- ``make_env()`` / ``gymnasium.make("SageVLN-v0")``: a Gymnasium environment with NumPy
+  observations (a synthetic scene when no data is given), ``make_vec_env()`` its vector form.
+- ``Scene.load(dir)`` / ``synth_scene()``: scenes with their path finder (``scene.pathfinder``).
+- ``load_dataset(dir)``: datasets written by ``sage3d data build``; episodes by split and slice.
+- ``evaluate(...)``: the evaluator of ``sage3d eval`` with built-in or Python agents.
+- ``sage3d.distributed``: dataset generation and evaluation sharded over a Ray cluster.
+"""
+
+import gymnasium
+
+from ._sage3d import PathFinder, Scene, __version__, env_config
+from .dataset import Dataset, filter_episodes, load_dataset
+from .env import SageEnv, cache_dir, make_env, synth_scene
+from .evaluation import evaluate
+from .vector import SageVectorEnv, make_vec_env
+
+__all__ = [
+    "Dataset",
+    "PathFinder",
+    "SageEnv",
+    "SageVectorEnv",
+    "Scene",
+    "__version__",
+    "cache_dir",
+    "env_config",
+    "evaluate",
+    "filter_episodes",
+    "load_dataset",
+    "make_env",
+    "make_vec_env",
+    "synth_scene",
+]
+
+for _id, _task in (("SageVLN-v0", "vln"), ("SageNoGoal-v0", "nogoal")):
+    if _id not in gymnasium.registry:
+        gymnasium.register(
+            id=_id,
+            entry_point="sage3d.env:SageEnv",
+            vector_entry_point="sage3d.vector:SageVectorEnv",
+            kwargs={"task": _task},
+        )

@@ -1,0 +1,66 @@
+"""Datasets written by ``sage3d data build``: splits, episodes and slice filters."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Iterator
+
+from . import _sage3d
+
+#: Episode fields a filter may name; ``assets`` and ``path`` are the complexity slices.
+FILTER_KEYS = ("task", "level", "instruction_type", "subtype", "source", "scene", "assets", "path")
+
+
+def _value(episode: dict, key: str):
+    if key in ("assets", "path"):
+        return episode["slices"][key]
+    return episode.get(key)
+
+
+def filter_episodes(episodes: Iterable[dict], **filters) -> list[dict]:
+    """The episodes whose fields match every filter.
+
+    A filter value is one value or a collection of accepted values: ``task="vln"``,
+    ``level="high"``, ``instruction_type=["Single-Goal", "Relative-Location"]``,
+    ``assets="many"``, ``path="long"`` (the slices), ``scene=...``. ``None`` matches episodes
+    without the field (no-goal episodes have no level).
+    """
+    unknown = set(filters) - set(FILTER_KEYS)
+    if unknown:
+        raise ValueError(f"unknown episode filter {sorted(unknown)} (expected some of {list(FILTER_KEYS)})")
+    accept = {
+        k: {v} if v is None or isinstance(v, str) else set(v) for k, v in filters.items()
+    }
+    return [e for e in episodes if all(_value(e, k) in ok for k, ok in accept.items())]
+
+
+class Dataset:
+    """A dataset folder: ``episodes/{split}.jsonl``, ``splits.json``, ``summary.json``."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = os.fspath(path)
+        self.splits = _sage3d.list_splits(self.path)
+
+    def episodes(self, split: str = "train", **filters) -> list[dict]:
+        """The episodes of ``split`` (dicts in the JSONL schema), filtered as
+        :func:`filter_episodes`."""
+        return filter_episodes(_sage3d.read_split(self.path, split), **filters)
+
+    def __iter__(self) -> Iterator[tuple[str, list[dict]]]:
+        """``(split, episodes)`` for every split, in name order."""
+        for split in self.splits:
+            yield split, self.episodes(split)
+
+    def summary(self) -> dict:
+        """The dataset's ``summary.json`` (counts per split, type and slice)."""
+        with open(os.path.join(self.path, "summary.json")) as f:
+            return json.load(f)
+
+    def __repr__(self) -> str:
+        return f"Dataset({self.path!r}, splits={self.splits})"
+
+
+def load_dataset(path: str | os.PathLike) -> Dataset:
+    """Opens a dataset folder written by ``sage3d data build``."""
+    return Dataset(path)

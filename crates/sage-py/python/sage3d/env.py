@@ -1,0 +1,236 @@
+"""The Gymnasium environment over sage3d scenes (``SageVLN-v0``, ``SageNoGoal-v0``).
+
+Episodes come from a dataset folder (``dataset=``, ``scenes=``), from one scene folder or
+:class:`~sage3d.Scene` (episodes made as ``sage3d data build`` makes them), or, with neither, from
+a small synthetic home generated once and cached under :func:`cache_dir`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import string
+import tempfile
+from collections.abc import Iterable
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from . import _sage3d
+from .dataset import Dataset, filter_episodes
+
+#: The renderer's far plane (metres): the largest depth an image holds (0 where nothing is hit).
+DEPTH_FAR = 100.0
+#: Image sensors in observation order.
+SENSORS = ("rgb", "depth", "semantic", "instance")
+#: Seconds a ground or UAV velocity action may last at most (``actions.max_dt``).
+MAX_DT = 1.0
+
+
+def cache_dir() -> str:
+    """Where synthetic scenes and their collision hulls are cached: ``$SAGE3D_CACHE``, else
+    ``sage3d-cache`` in the system's temporary folder."""
+    return os.environ.get("SAGE3D_CACHE") or os.path.join(tempfile.gettempdir(), "sage3d-cache")
+
+
+def synth_scene(seed: int = 0, kind: str = "home", rooms: int = 4, objects: int = 40,
+                gaussians: int = 60_000, cache: str | None = None) -> _sage3d.Scene:
+    """A synthetic scene, generated on first use and then loaded from the cache (keyed by
+    kind, seed and sizes; collision hulls are cached beside it)."""
+    root = os.path.join(cache or cache_dir(), "synth")
+    return _sage3d.Scene.synth(root, seed=seed, kind=kind, rooms=rooms, objects=objects,
+                               gaussians=gaussians)
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def config_overrides(width: int | None = None, height: int | None = None,
+                     sensors: Iterable[str] | None = None, actions: str = "discrete",
+                     max_steps: int | None = None, hfov: float | None = None,
+                     config: dict | None = None) -> dict:
+    """The environment settings over the preset (``EnvConfig`` fields, as JSON) from the
+    keyword arguments of :class:`SageEnv`; ``config`` is merged last, key by key."""
+    o: dict = {}
+    s: dict = {}
+    if width is not None:
+        s["width"] = int(width)
+    if height is not None:
+        s["height"] = int(height)
+    if hfov is not None:
+        s["hfov_deg"] = float(hfov)
+    if sensors is not None:
+        sensors = set(sensors)
+        unknown = sensors - set(SENSORS)
+        if unknown:
+            raise ValueError(f"unknown sensors {sorted(unknown)} (expected some of {list(SENSORS)})")
+        s.update({k: k in sensors for k in SENSORS})
+    if s:
+        o["sensors"] = s
+    if actions == "ground":
+        o["actions"] = {"kind": "ground", "max_dt": MAX_DT}
+    elif actions == "uav":
+        o["actions"] = {"kind": "uav", "max_dt": MAX_DT}
+        o["agent"] = "uav"
+    elif actions != "discrete":
+        raise ValueError(f"unknown action space {actions!r} (expected discrete, ground or uav)")
+    if max_steps is not None:
+        o["task"] = {"max_steps": int(max_steps)}
+    return _merge(o, config or {})
+
+
+def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", episodes=None,
+                 task: str | None = None, filters: dict | None = None, num_episodes: int = 8,
+                 seed: int = 0, synth: dict | None = None):
+    """The scenes and episodes an environment draws from: ``(scenes, episodes, scene_of)``,
+    episode ``i`` running in ``scenes[scene_of[i]]``."""
+    filters = dict(filters or {})
+    if task is not None:
+        filters["task"] = task
+    if dataset is not None:
+        if scenes is None:
+            raise ValueError("dataset= needs scenes= (the scene folder, or the folder of scene folders)")
+        eps = Dataset(dataset).episodes(split, **filters)
+        dirs = {os.path.basename(d): d for d in _sage3d.scene_dirs(os.fspath(scenes))}
+        names = sorted({e["scene"] for e in eps})
+        missing = [n for n in names if n not in dirs]
+        if missing:
+            raise ValueError(f"scenes {missing} of the dataset are not in {os.fspath(scenes)!r}")
+        loaded = [_sage3d.Scene.load(dirs[n]) for n in names]
+        index = {n: i for i, n in enumerate(names)}
+        scene_of = [index[e["scene"]] for e in eps]
+    else:
+        if scene is None:
+            scene = synth_scene(**(synth or {}))
+        elif not isinstance(scene, _sage3d.Scene):
+            scene = _sage3d.Scene.load(os.fspath(scene))
+        eps = episodes if episodes is not None else scene.episodes(count=num_episodes, seed=seed)
+        eps = filter_episodes(eps, **filters)
+        loaded, scene_of = [scene], [0] * len(eps)
+    if not eps:
+        raise ValueError(f"no episodes match (split {split!r}, filters {filters})")
+    return loaded, eps, scene_of
+
+
+def observation_space(config: dict, instructions: Iterable[str]) -> spaces.Dict:
+    """The Dict observation space of a resolved config (:func:`sage3d.env_config`): the
+    configured images as Box, ``pose`` ``[x, y, z, yaw]`` and the ``instruction`` as Text."""
+    s = config["sensors"]
+    h, w = s["height"], s["width"]
+    dw, dh = s.get("depth_size") or (w, h)
+    d = {}
+    if s["rgb"]:
+        d["rgb"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
+    if s["depth"]:
+        d["depth"] = spaces.Box(0.0, DEPTH_FAR, (dh, dw), np.float32)
+    if s["semantic"]:
+        d["semantic"] = spaces.Box(0, np.iinfo(np.uint16).max, (h, w), np.uint16)
+    if s["instance"]:
+        d["instance"] = spaces.Box(0, np.iinfo(np.uint32).max, (h, w), np.uint32)
+    d["pose"] = spaces.Box(-np.inf, np.inf, (4,), np.float32)
+    texts = list(instructions)
+    charset = frozenset(string.printable).union(*texts)
+    d["instruction"] = spaces.Text(max([1024, *map(len, texts)]), min_length=0, charset=charset)
+    return spaces.Dict(d)
+
+
+def action_space(config: dict, look: bool = False) -> spaces.Space:
+    """Discrete(4) (STOP, FORWARD, LEFT, RIGHT) or Discrete(6) with LOOK_UP / LOOK_DOWN;
+    for velocities a Box ``[stop, vx, vy, wz, dt]`` (UAV: ``[stop, vx, vy, vz, wz, dt]``),
+    ``stop >= 0.5`` calling STOP, within the agent profile's limits."""
+    a = config["actions"]
+    if a["kind"] == "discrete":
+        return spaces.Discrete(6 if look else 4)
+    p = config["profile"]
+    v, wz, dt = p["max_speed"], p["max_yaw_rate"], a["max_dt"]
+    if a["kind"] == "ground":
+        low, high = [0, -v, -v, -wz, 0], [1, v, v, wz, dt]
+    else:
+        low, high = [0, -v, -v, -v, -wz, 0], [1, v, v, v, wz, dt]
+    return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
+
+
+class SageEnv(gym.Env):
+    """A sage3d environment as a Gymnasium 1.x ``Env``.
+
+    ``reset(seed=, options=)`` picks an episode with the env's seeded generator, or the one named
+    by ``options={"episode_id": ...}`` / ``{"episode_index": i}``; ``step(action)`` returns
+    ``(obs, reward, terminated, truncated, info)``. Observations are NumPy arrays that own the
+    rendered buffers. ``info`` holds the episode, pose, contacts, the step record, metrics so far
+    and, once the episode has ended, its metrics (mode ``mode``). The environment does not reset
+    itself; the vector form does (next-step autoreset).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, render_mode: str | None = None, *, scene=None, dataset=None, scenes=None,
+                 split: str = "train", episodes=None, task: str | None = None,
+                 filters: dict | None = None, num_episodes: int = 8, seed: int = 0,
+                 synth: dict | None = None, preset: str = "sage", width: int | None = None,
+                 height: int | None = None, sensors: Iterable[str] | None = None,
+                 actions: str = "discrete", look: bool = False, max_steps: int | None = None,
+                 hfov: float | None = None, config: dict | None = None, mode: str = "sage"):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
+        self.render_mode = render_mode
+        if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
+            sensors = [*sensors, "rgb"]
+        overrides = config_overrides(width, height, sensors, actions, max_steps, hfov, config)
+        self.config = _sage3d.env_config(preset, _json(overrides))
+        pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
+                                                  filters, num_episodes, seed, synth)
+        self.scenes = pool_scenes
+        self._sim = _sage3d.Sim(pool_scenes, _json(eps), scene_of, preset, _json(overrides), mode)
+        self._ids = {e["episode_id"]: i for i, e in enumerate(eps)}
+        self.observation_space = observation_space(self.config, (e["instruction"] for e in eps))
+        self.action_space = action_space(self.config, look)
+        self._last = None
+
+    @property
+    def episodes(self) -> list[dict]:
+        """The episodes this environment draws from (dataset schema)."""
+        return self._sim.episodes()
+
+    def _index(self, options: dict | None) -> int:
+        options = options or {}
+        if "episode_id" in options:
+            try:
+                return self._ids[options["episode_id"]]
+            except KeyError:
+                raise ValueError(f"episode {options['episode_id']!r} is not among this env's episodes") from None
+        if "episode_index" in options:
+            return int(options["episode_index"])
+        return int(self.np_random.integers(len(self._ids)))
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        obs, info = self._sim.reset(self._index(options))
+        self._last = obs
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self._sim.step(action)
+        self._last = obs
+        return obs, float(reward), terminated, truncated, info
+
+    def render(self):
+        """The last RGB observation (``render_mode="rgb_array"``), an ``(H, W, 3)`` uint8 array."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array'")
+            return None
+        return None if self._last is None else self._last["rgb"]
+
+
+def _json(value) -> str:
+    return json.dumps(value)
+
+
+def make_env(task: str | None = None, render_mode: str | None = None, **kwargs) -> SageEnv:
+    """A :class:`SageEnv` (``task="vln"`` or ``"nogoal"`` keeps those episodes only; with no
+    scene or dataset, a cached synthetic home)."""
+    return SageEnv(render_mode=render_mode, task=task, **kwargs)

@@ -1,0 +1,72 @@
+"""The evaluator of ``sage3d eval`` from Python, with built-in or Python agents."""
+
+from __future__ import annotations
+
+import copy
+import os
+
+from . import _sage3d
+from .env import _json, config_overrides
+
+
+def agent_name(agent) -> str:
+    """The name an agent is recorded under: a built-in name itself, else the agent's ``name``
+    attribute, else its class name."""
+    if isinstance(agent, str):
+        return agent
+    name = getattr(agent, "name", None)
+    if isinstance(name, str) and name:
+        return name
+    return agent.__name__ if isinstance(agent, type) else type(agent).__name__
+
+
+def agent_factory(agent):
+    """What the evaluator calls once per episode for a fresh agent: a class (or any callable
+    without ``act``) is called; an agent object is deep-copied, so episodes running in
+    parallel never share its state."""
+    if isinstance(agent, str):
+        return agent
+    if isinstance(agent, type) or not hasattr(agent, "act"):
+        return agent
+    return _Copies(agent)
+
+
+class _Copies:
+    """A picklable factory of deep copies of one agent object (Ray ships it to workers)."""
+
+    def __init__(self, agent):
+        self.agent = agent
+
+    def __call__(self):
+        return copy.deepcopy(self.agent)
+
+
+def overrides_json(width=None, height=None, sensors=None, config=None) -> str | None:
+    """The environment settings a run asks for over its preset, as JSON; ``None`` when it asks
+    for none (then built-in agents run blind, as in ``sage3d eval``)."""
+    if all(v is None for v in (width, height, sensors, config)):
+        return None
+    return _json(config_overrides(width, height, sensors, config=config))
+
+
+def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: str = "sage",
+             seed: int = 0, preset: str = "sage", width: int | None = None,
+             height: int | None = None, sensors=None, config: dict | None = None,
+             scenes_only: list[str] | None = None) -> dict:
+    """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
+    resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json`` and
+    ``sage3d_run.json`` as ``sage3d eval`` writes them.
+
+    ``agent`` is ``"random"``, ``"forward"`` or ``"oracle"`` (then exactly the CLI's run), or a
+    Python agent: an object (or class) with ``act(obs) -> action`` and optionally
+    ``reset(episode)``; it sees the observations of :class:`~sage3d.SageEnv` (the preset's
+    images, resized by ``width``/``height``) and answers actions as ``SageEnv.step`` takes them.
+    Each episode gets a fresh agent (the class called, or a deep copy of the object). Episodes
+    run in parallel; Python agents decide one at a time under the GIL while rendering and
+    physics run in parallel. ``scenes_only`` runs only the episodes of those scenes (a shard).
+    """
+    overrides = overrides_json(width, height, sensors, config)
+    return _sage3d.evaluate(
+        os.fspath(dataset), os.fspath(scenes), os.fspath(out), agent_factory(agent),
+        agent_name=None if isinstance(agent, str) else agent_name(agent), split=split,
+        mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only)

@@ -1,0 +1,108 @@
+"""Several sage3d environments stepped in parallel in Rust in one call (GIL released), as a
+Gymnasium ``VectorEnv`` with next-step autoreset."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from . import _sage3d
+from .env import _json, action_space, config_overrides, episode_pool, observation_space
+
+
+class SageVectorEnv(VectorEnv):
+    """``num_envs`` environments over one episode pool (the keyword arguments of
+    :class:`~sage3d.SageEnv`), stepped together by rayon.
+
+    Sub-environment ``i`` draws its episodes with a generator seeded ``seed + i`` at
+    ``reset(seed=seed)``, as ``gymnasium.vector.SyncVectorEnv`` seeds its copies, so the two give
+    the same episodes, observations and rewards. Autoreset is ``NEXT_STEP``: the step after a
+    sub-environment's episode ends resets it (reward 0, not terminated, its action ignored).
+    Observations are stacked along a first axis; ``instruction`` is a tuple of strings.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4, "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 2, render_mode: str | None = None, *, scene=None,
+                 dataset=None, scenes=None, split: str = "train", episodes=None,
+                 task: str | None = None, filters: dict | None = None, num_episodes: int = 8,
+                 seed: int = 0, synth: dict | None = None, preset: str = "sage",
+                 width: int | None = None, height: int | None = None,
+                 sensors: Iterable[str] | None = None, actions: str = "discrete",
+                 look: bool = False, max_steps: int | None = None, hfov: float | None = None,
+                 config: dict | None = None, mode: str = "sage"):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
+        self.render_mode = render_mode
+        if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
+            sensors = [*sensors, "rgb"]
+        overrides = config_overrides(width, height, sensors, actions, max_steps, hfov, config)
+        self.config = _sage3d.env_config(preset, _json(overrides))
+        pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
+                                                  filters, num_episodes, seed, synth)
+        self.scenes = pool_scenes
+        self._sim = _sage3d.VecSim(num_envs, pool_scenes, _json(eps), scene_of, preset,
+                                   _json(overrides), mode)
+        self.num_envs = num_envs
+        self.single_observation_space = observation_space(self.config, (e["instruction"] for e in eps))
+        self.single_action_space = action_space(self.config, look)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self._rngs = [seeding.np_random(None)[0] for _ in range(num_envs)]
+        self._autoreset = np.zeros(num_envs, dtype=bool)
+        self._last = None
+
+    def _draw(self, i: int) -> int:
+        return int(self._rngs[i].integers(self._sim.num_episodes()))
+
+    def _batch(self, obs: dict, infos: list[dict]):
+        obs["instruction"] = tuple(obs["instruction"])
+        self._last = obs
+        vector_infos: dict = {}
+        for i, info in enumerate(infos):
+            vector_infos = self._add_info(vector_infos, info, i)
+        return obs, vector_infos
+
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Resets every sub-environment; ``seed`` an int (sub-environment ``i`` gets
+        ``seed + i``) or one per sub-environment; ``options={"episode_index": [...]}`` picks
+        the episodes."""
+        if seed is not None:
+            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"expected {self.num_envs} seeds, got {len(seeds)}")
+            for i, s in enumerate(seeds):
+                if s is not None:
+                    self._rngs[i] = seeding.np_random(s)[0]
+        options = options or {}
+        if "episode_index" in options:
+            indices = [int(k) for k in options["episode_index"]]
+        else:
+            indices = [self._draw(i) for i in range(self.num_envs)]
+        obs, infos = self._sim.reset(indices)
+        self._autoreset[:] = False
+        return self._batch(obs, infos)
+
+    def step(self, actions):
+        resets = [self._draw(i) if done else None for i, done in enumerate(self._autoreset)]
+        obs, rewards, terminated, truncated, infos = self._sim.step(list(actions), resets)
+        self._autoreset = terminated | truncated
+        obs, infos = self._batch(obs, infos)
+        return obs, rewards.astype(np.float64), terminated, truncated, infos
+
+    def render(self):
+        """The last RGB observations, ``(num_envs, H, W, 3)`` uint8 (``render_mode="rgb_array"``)."""
+        if self.render_mode is None or self._last is None:
+            return None
+        return self._last["rgb"]
+
+
+def make_vec_env(num_envs: int = 2, task: str | None = None, render_mode: str | None = None,
+                 **kwargs) -> SageVectorEnv:
+    """A :class:`SageVectorEnv` of ``num_envs`` sub-environments (keyword arguments as
+    :func:`sage3d.make_env`)."""
+    return SageVectorEnv(num_envs, render_mode=render_mode, task=task, **kwargs)

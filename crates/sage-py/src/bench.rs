@@ -1,0 +1,359 @@
+//! The benchmark from Python: dataset splits, the evaluator (built-in or Python agents, all
+//! episodes or one shard), and the per-scene and merge steps that `sage3d.distributed` runs as
+//! Ray tasks. Files are the CLI's: `sage3d eval` and `sage3d data build` write the same.
+
+use crate::agent::PyAgent;
+use crate::convert::{PyResultExt, from_json, to_py};
+use crate::sim::resolve_config;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
+use sage_bench::dataset::split::SplitParams;
+use sage_bench::eval::convert::AgentKind;
+use sage_bench::eval::{
+    self, EvalRecord, EvalSettings, RECORDS_FILE, Runner, SUMMARY_FILE, Summary,
+};
+use sage_core::{Error, Result};
+use sage_env::agents::Agent;
+use sage_scene::fsutil::{write_atomic, write_json, write_run_record};
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The episodes of `split` in a dataset folder, as dicts (the JSONL schema).
+#[pyfunction]
+pub fn read_split<'py>(
+    py: Python<'py>,
+    dataset: PathBuf,
+    split: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (_, episodes) = py.detach(|| eval::split_episodes(&dataset, split)).py()?;
+    to_py(py, &episodes)
+}
+
+/// The split names of a dataset folder (its `episodes/*.jsonl`), sorted.
+#[pyfunction]
+pub fn list_splits(dataset: PathBuf) -> PyResult<Vec<String>> {
+    let dir = dataset.join("episodes");
+    let entries = std::fs::read_dir(&dir)
+        .map_err(|e| Error::io(&dir, e))
+        .py()?;
+    let mut names: Vec<String> = entries
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .strip_suffix(".jsonl")
+                .map(str::to_string)
+        })
+        .collect();
+    names.sort();
+    Ok(names)
+}
+
+/// The scene folders under `root` (itself when it is one), sorted by name.
+#[pyfunction]
+pub fn scene_dirs(root: PathBuf) -> PyResult<Vec<PathBuf>> {
+    sage_nav::trajectory::scene_dirs(&root).py()
+}
+
+/// The settings of an evaluation. `agent` is the recorded name; a Python agent has no
+/// built-in kind, and its kind here only fills the field that [`Runner::agent_name`]
+/// overrides in every file.
+fn settings(
+    dataset: PathBuf,
+    scenes: PathBuf,
+    split: &str,
+    agent: &str,
+    mode: &str,
+    seed: u64,
+    preset: &str,
+) -> PyResult<EvalSettings> {
+    Ok(EvalSettings {
+        dataset,
+        scenes,
+        split: split.to_string(),
+        agent: agent.parse().unwrap_or(AgentKind::Forward),
+        mode: mode.parse().py()?,
+        seed,
+        preset: preset.to_string(),
+    })
+}
+
+/// Runs (or resumes) an evaluation into `out` and returns `{total, resumed, ran, summary,
+/// table}`. `agent` is a built-in name (`random`, `forward`, `oracle`) or a Python factory
+/// called once per episode for a fresh agent object (see [`PyAgent`]) reported as
+/// `agent_name`. With a built-in agent and no `overrides` or `scenes_only`, this is exactly
+/// `sage3d eval`; otherwise the environment is `preset` with `overrides` (JSON; a Python agent
+/// sees the preset's images) and only the episodes of the scenes in `scenes_only` run.
+#[pyfunction]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate<'py>(
+    py: Python<'py>,
+    dataset: PathBuf,
+    scenes: PathBuf,
+    out: PathBuf,
+    agent: &Bound<'py, PyAny>,
+    agent_name: Option<String>,
+    split: &str,
+    mode: &str,
+    seed: u64,
+    preset: &str,
+    overrides: Option<&str>,
+    scenes_only: Option<Vec<String>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let builtin: Option<AgentKind> = match agent.extract::<String>() {
+        Ok(name) => Some(name.parse().py()?),
+        Err(_) => None,
+    };
+    let name = match (&builtin, agent_name) {
+        (Some(kind), _) => kind.to_string(),
+        (None, Some(n)) => n,
+        (None, None) => return Err(PyValueError::new_err("a Python agent needs agent_name")),
+    };
+    let settings = settings(dataset, scenes, split, &name, mode, seed, preset)?;
+    let factory = agent.clone().unbind();
+    let outcome = if builtin.is_some() && overrides.is_none() && scenes_only.is_none() {
+        py.detach(|| eval::run(&settings, &out, &|_, _| {}))
+    } else {
+        let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
+        let config = match (&maker, overrides) {
+            // A built-in agent sees what it sees under `sage3d eval`.
+            (Some(maker), None) => eval::env_config(preset, maker).py()?,
+            _ => {
+                resolve_config(preset, &from_json(overrides.unwrap_or("{}"), "overrides")?).py()?
+            }
+        };
+        let make = || -> Result<Box<dyn Agent>> {
+            match &maker {
+                Some(maker) => maker.build(seed),
+                None => Python::attach(|py| {
+                    let obj = factory.bind(py).call0()?.unbind();
+                    Ok::<_, PyErr>(Box::new(PyAgent::new(obj, name.clone())) as Box<dyn Agent>)
+                })
+                .map_err(|e| Error::invalid(format!("python agent {name}: {e}"))),
+            }
+        };
+        let keep = |e: &sage_bench::dataset::Episode| {
+            scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene))
+        };
+        let runner = Runner {
+            config,
+            agent_name: name.clone(),
+            agent: &make,
+            shard: Some(&keep),
+        };
+        py.detach(|| eval::run_with(&settings, &runner, &out, &|_, _| {}))
+    }
+    .py()?;
+    to_py(
+        py,
+        &Evaluated {
+            total: outcome.total,
+            resumed: outcome.resumed,
+            ran: outcome.ran,
+            table: outcome.summary.table(),
+            summary: outcome.summary,
+        },
+    )
+}
+
+/// What [`evaluate`] returns to Python.
+#[derive(serde::Serialize)]
+struct Evaluated {
+    total: usize,
+    resumed: usize,
+    ran: usize,
+    summary: Summary,
+    table: String,
+}
+
+/// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
+/// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
+/// `sage3d_run.json`, as one `sage3d eval` over the union writes them (up to line order).
+/// Returns the summary. An episode recorded by two shards is an error.
+#[pyfunction]
+#[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage"))]
+#[allow(clippy::too_many_arguments)]
+pub fn merge_eval<'py>(
+    py: Python<'py>,
+    dataset: PathBuf,
+    scenes: PathBuf,
+    out: PathBuf,
+    agent_name: String,
+    shards: Vec<String>,
+    split: &str,
+    mode: &str,
+    seed: u64,
+    preset: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let settings = settings(dataset, scenes, split, &agent_name, mode, seed, preset)?;
+    let summary = py
+        .detach(|| merge(&settings, &agent_name, &shards, &out))
+        .py()?;
+    to_py(py, &summary)
+}
+
+fn merge(settings: &EvalSettings, agent: &str, shards: &[String], out: &Path) -> Result<Summary> {
+    let (file, episodes) = eval::split_episodes(&settings.dataset, &settings.split)?;
+    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    // Lines are kept as the shards wrote them: parsing and printing again would move some
+    // floats by an ulp (serde_json's parser is not exactly rounding), and the summary is
+    // computed from the parsed records as `sage3d eval` computes it from its file.
+    let mut all: BTreeMap<String, (&str, EvalRecord)> = BTreeMap::new();
+    for (i, text) in shards.iter().enumerate() {
+        for (line, l) in text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty())
+        {
+            let at = || format!("shard {i}, line {}", line + 1);
+            let rec: EvalRecord =
+                serde_json::from_str(l).map_err(|e| Error::format(at(), e.to_string()))?;
+            if !ids.contains(rec.episode_id.as_str()) {
+                return Err(Error::format(
+                    at(),
+                    format!(
+                        "episode {} is not in split {}",
+                        rec.episode_id, settings.split
+                    ),
+                ));
+            }
+            if all.insert(rec.episode_id.clone(), (l, rec)).is_some() {
+                return Err(Error::format(at(), "episode recorded by two shards"));
+            }
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    write_atomic(&out.join(RECORDS_FILE), |w| {
+        for (line, _) in all.values() {
+            w.write_all(line.trim_end().as_bytes())?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })?;
+    let records: Vec<EvalRecord> = all.into_values().map(|(_, r)| r).collect();
+    let summary = Summary {
+        agent: agent.to_string(),
+        ..Summary::of(settings, &records)
+    };
+    write_json(&out.join(SUMMARY_FILE), &summary)?;
+    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+    let mut recorded = serde_json::to_value(settings).map_err(|e| Error::invalid(e.to_string()))?;
+    recorded["agent"] = agent.into();
+    write_run_record(
+        out,
+        "eval",
+        Some(settings.seed),
+        serde_json::json!({
+            "settings": recorded,
+            "dataset_hash": format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes)),
+        }),
+    )?;
+    Ok(summary)
+}
+
+/// The per-scene settings of a dataset build (`sage3d data build`'s flags).
+fn scene_params(
+    per_scene: usize,
+    seed: u64,
+    base_actions: Option<usize>,
+    nogoal: usize,
+    high_per_type: usize,
+) -> Result<SceneParams> {
+    let mut params = SceneParams::new(per_scene, seed);
+    if let Some(b) = base_actions {
+        params.base_actions = b;
+    }
+    params.nogoal = nogoal;
+    params.high_per_type = high_per_type;
+    params.validate()?;
+    Ok(params)
+}
+
+/// Builds (or resumes) one scene's episode file `out/scenes/{scene}.json` as `sage3d data
+/// build` does (the offline grammar); returns `{scene, status, episodes, reason?}` and the
+/// file's text (for a driver without a shared file system).
+#[pyfunction]
+#[pyo3(signature = (scene_dir, out, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1))]
+#[allow(clippy::too_many_arguments)]
+pub fn build_scene<'py>(
+    py: Python<'py>,
+    scene_dir: PathBuf,
+    out: PathBuf,
+    per_scene: usize,
+    seed: u64,
+    base_actions: Option<usize>,
+    nogoal: usize,
+    high_per_type: usize,
+) -> PyResult<(Bound<'py, PyAny>, Option<String>)> {
+    let params = scene_params(per_scene, seed, base_actions, nogoal, high_per_type).py()?;
+    let (outcome, text) = py.detach(|| {
+        let o = build::run_scene(&scene_dir, &out, &params, None);
+        let text = std::fs::read_to_string(build::scene_file(&out, &o.scene)).ok();
+        (o, text)
+    });
+    Ok((to_py(py, &outcome)?, text))
+}
+
+/// Assembles a dataset from its scene files (`out/scenes/*.json`, one per name in `scenes`):
+/// splits, balanced test selection, JSONL / GVLN / R2R files and the summary, then the run
+/// record, as `sage3d data build` ends. Returns the summary.
+#[pyfunction]
+#[pyo3(signature = (out, scenes, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1, balanced=1000, scene_unseen=0.15, val=0.1))]
+#[allow(clippy::too_many_arguments)]
+pub fn assemble_dataset<'py>(
+    py: Python<'py>,
+    out: PathBuf,
+    scenes: Vec<PathBuf>,
+    per_scene: usize,
+    seed: u64,
+    base_actions: Option<usize>,
+    nogoal: usize,
+    high_per_type: usize,
+    balanced: usize,
+    scene_unseen: f32,
+    val: f32,
+) -> PyResult<Bound<'py, PyAny>> {
+    if !(0.0..=1.0).contains(&scene_unseen) || !(0.0..=1.0).contains(&val) {
+        return Err(PyValueError::new_err(
+            "scene_unseen and val must be shares between 0 and 1",
+        ));
+    }
+    let params = scene_params(per_scene, seed, base_actions, nogoal, high_per_type).py()?;
+    let assemble = AssembleParams {
+        seed,
+        split: SplitParams {
+            scene_unseen,
+            val,
+            ..SplitParams::default()
+        },
+        balanced,
+    };
+    let name = |d: &Path| {
+        d.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+    };
+    let summary = py
+        .detach(|| {
+            let names: Vec<String> = scenes.iter().map(|d| name(d)).collect();
+            let summary = build::assemble(&out, &names, &assemble, &params.space)?;
+            let inputs: BTreeMap<String, _> = scenes
+                .iter()
+                .map(|d| (name(d), sage_nav::trajectory::input_hashes(d)))
+                .collect();
+            write_run_record(
+                &out,
+                "data build",
+                Some(seed),
+                serde_json::json!({
+                    "config": {"scene": params, "assemble": assemble},
+                    "inputs": inputs,
+                }),
+            )?;
+            Ok::<_, Error>(summary)
+        })
+        .py()?;
+    to_py(py, &summary)
+}

@@ -1,0 +1,281 @@
+//! Scenes as Python objects: a loaded [`SceneContext`] (from a folder, or synthesised and
+//! cached) and its path finder with Habitat's query names.
+
+use crate::convert::{PyResultExt, array, point, to_py};
+use glam::Vec2;
+use numpy::ndarray::Ix1;
+use pyo3::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use sage_bench::dataset::build::{SceneParams, scene_episodes};
+use sage_bench::eval::convert::load_context;
+use sage_core::{Error, Result};
+use sage_env::SceneContext;
+use sage_scene::SplatLayout;
+use sage_scene::synth::{SceneKind, SynthConfig};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// A scene with everything its episodes share: Gaussians, semantic map, collision bodies and
+/// path finder, loaded once (`Scene.load` or `Scene.synth`).
+#[pyclass(name = "Scene", module = "sage3d._sage3d", frozen)]
+pub struct PyScene {
+    /// The loaded context, shared with every environment over the scene.
+    pub ctx: Arc<SceneContext>,
+    /// The scene folder.
+    pub dir: PathBuf,
+}
+
+/// Writes the synthetic scene of `config` under `cache` unless it is already there; returns its
+/// folder. The folder appears whole or not at all (written beside it, then renamed), so
+/// processes that synthesise the same scene at once do not see each other's half.
+fn synth_folder(config: &SynthConfig, cache: &Path) -> Result<PathBuf> {
+    let dir = cache.join(format!(
+        "{}-r{}-o{}-g{}",
+        config.scene_name(),
+        config.rooms,
+        config.objects,
+        config.gaussians
+    ));
+    if dir.join("structure.json").is_file() {
+        return Ok(dir);
+    }
+    let scene = sage_scene::synth::generate(config)?;
+    std::fs::create_dir_all(cache).map_err(|e| Error::io(cache, e))?;
+    let tmp = cache.join(format!(
+        ".{}.tmp{}",
+        dir.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        std::process::id()
+    ));
+    scene.save(&tmp, SplatLayout::Compressed)?;
+    if std::fs::rename(&tmp, &dir).is_err() {
+        // Another process renamed its copy first; both are the same bytes.
+        let _ = std::fs::remove_dir_all(&tmp);
+        if !dir.join("structure.json").is_file() {
+            return Err(
+                Error::invalid("could not move the synthesised scene into place").in_file(&dir),
+            );
+        }
+    }
+    Ok(dir)
+}
+
+#[pymethods]
+impl PyScene {
+    /// Loads a scene folder (InteriorGS layout) with its collision bodies (hulls cached in
+    /// `cache`, by default beside the scene) and path finder.
+    #[staticmethod]
+    #[pyo3(signature = (path, cache=None))]
+    fn load(py: Python<'_>, path: PathBuf, cache: Option<PathBuf>) -> PyResult<PyScene> {
+        let ctx = py.detach(|| load_context(&path, cache)).py()?;
+        Ok(PyScene {
+            ctx: Arc::new(ctx),
+            dir: path,
+        })
+    }
+
+    /// A synthetic scene (`sage_scene::synth`) written once under `cache` (keyed by kind, seed
+    /// and sizes) and loaded from there, so later calls and other processes reuse the folder and
+    /// its collision hulls.
+    #[staticmethod]
+    #[pyo3(signature = (cache, seed=0, kind="home", rooms=4, objects=40, gaussians=60_000))]
+    fn synth(
+        py: Python<'_>,
+        cache: PathBuf,
+        seed: u64,
+        kind: &str,
+        rooms: usize,
+        objects: usize,
+        gaussians: usize,
+    ) -> PyResult<PyScene> {
+        let config = SynthConfig {
+            seed,
+            kind: kind.parse::<SceneKind>().py()?,
+            rooms,
+            objects,
+            gaussians,
+            ..SynthConfig::default()
+        };
+        let (dir, ctx) = py
+            .detach(|| {
+                let dir = synth_folder(&config, &cache)?;
+                let ctx = load_context(&dir, None)?;
+                Ok::<_, Error>((dir, ctx))
+            })
+            .py()?;
+        Ok(PyScene {
+            ctx: Arc::new(ctx),
+            dir,
+        })
+    }
+
+    /// The scene's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.ctx.scene.name.clone()
+    }
+
+    /// The scene folder.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.dir.clone()
+    }
+
+    /// Number of objects (the asset count of the slices).
+    #[getter]
+    fn num_objects(&self) -> usize {
+        self.ctx.scene.objects.len()
+    }
+
+    /// Number of Gaussians.
+    #[getter]
+    fn num_gaussians(&self) -> usize {
+        self.ctx.scene.gaussians.len()
+    }
+
+    /// The scene's path finder (a fresh sampler seeded with 0).
+    #[getter]
+    fn pathfinder(&self) -> PyPathFinder {
+        PyPathFinder {
+            ctx: self.ctx.clone(),
+            rng: Mutex::new(ChaCha8Rng::seed_from_u64(0)),
+        }
+    }
+
+    /// Benchmark episodes of this scene made as `sage3d data build` makes them (planned
+    /// trajectories, grammar instructions, Base-Action and no-goal episodes): `count`
+    /// trajectories from `seed`. A list of episode dicts (the dataset's JSONL schema).
+    #[pyo3(signature = (count=8, seed=0))]
+    fn episodes<'py>(
+        &self,
+        py: Python<'py>,
+        count: usize,
+        seed: u64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let params = SceneParams::new(count, seed);
+        let (_, episodes) = py
+            .detach(|| scene_episodes(&self.ctx.scene, &params, None))
+            .py()?;
+        to_py(py, &episodes)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Scene(name={:?}, objects={}, gaussians={}, path={:?})",
+            self.ctx.scene.name,
+            self.ctx.scene.objects.len(),
+            self.ctx.scene.gaussians.len(),
+            self.dir
+        )
+    }
+}
+
+/// The path finder of a scene (Habitat's names): shortest paths, geodesic distances,
+/// navigability, snapping and seeded sampling on the clearance-aware navigable grid. Points are
+/// `[x, y]` or `[x, y, z]` in the W frame (z ignored).
+#[pyclass(name = "PathFinder", module = "sage3d._sage3d", frozen)]
+pub struct PyPathFinder {
+    ctx: Arc<SceneContext>,
+    rng: Mutex<ChaCha8Rng>,
+}
+
+impl PyPathFinder {
+    fn xy<'py>(py: Python<'py>, p: Vec2) -> PyResult<Bound<'py, PyAny>> {
+        array(py, Ix1(2), vec![p.x, p.y])
+    }
+}
+
+#[pymethods]
+impl PyPathFinder {
+    /// The cheapest path from `start` to `goal` (clearance-aware costs, line-of-sight
+    /// shortcut) as an `(N, 2)` float32 array of waypoints, first the start, last the goal.
+    /// Raises `ValueError` when an end is not navigable or the two are not connected.
+    fn find_path<'py>(
+        &self,
+        py: Python<'py>,
+        start: Vec<f32>,
+        goal: Vec<f32>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (a, b) = (point(&start, "start")?, point(&goal, "goal")?);
+        let path = py.detach(|| self.ctx.pathfinder.find_path(a, b)).py()?;
+        let n = path.waypoints.len();
+        let flat = path.waypoints.iter().flat_map(|p| [p.x, p.y]).collect();
+        array(py, numpy::ndarray::Ix2(n, 2), flat)
+    }
+
+    /// The geodesic distance between two points in metres; `inf` when either is not
+    /// navigable or they are not connected (as Habitat).
+    fn geodesic_distance(&self, py: Python<'_>, a: Vec<f32>, b: Vec<f32>) -> PyResult<f32> {
+        let (a, b) = (point(&a, "a")?, point(&b, "b")?);
+        Ok(py
+            .detach(|| self.ctx.pathfinder.geodesic_distance(a, b))
+            .unwrap_or(f32::INFINITY))
+    }
+
+    /// True when the point lies on the navigable grid.
+    fn is_navigable(&self, p: Vec<f32>) -> PyResult<bool> {
+        Ok(self.ctx.pathfinder.is_navigable(point(&p, "point")?))
+    }
+
+    /// The navigable cell centre nearest to `p` within `max_distance` metres (`p` itself's
+    /// cell when navigable), or `None`.
+    #[pyo3(signature = (p, max_distance=0.5))]
+    fn snap_point<'py>(
+        &self,
+        py: Python<'py>,
+        p: Vec<f32>,
+        max_distance: f32,
+    ) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let q = self
+            .ctx
+            .pathfinder
+            .snap_point(point(&p, "point")?, max_distance);
+        q.map(|q| Self::xy(py, q)).transpose()
+    }
+
+    /// Reseeds the sampler of [`Self::sample_navigable_point`].
+    fn seed(&self, seed: u64) -> PyResult<()> {
+        *self.rng.lock().map_err(|_| poisoned())? = ChaCha8Rng::seed_from_u64(seed);
+        Ok(())
+    }
+
+    /// A navigable cell centre drawn uniformly with the path finder's seeded sampler
+    /// (`seed()`), from one island when given.
+    #[pyo3(signature = (island=None))]
+    fn sample_navigable_point<'py>(
+        &self,
+        py: Python<'py>,
+        island: Option<u32>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let mut rng = self.rng.lock().map_err(|_| poisoned())?;
+        let p = self
+            .ctx
+            .pathfinder
+            .sample_navigable_point(&mut *rng, island)
+            .ok_or_else(|| {
+                pyo3::exceptions::PyValueError::new_err(format!("no island {island:?}"))
+            })?;
+        Self::xy(py, p)
+    }
+
+    /// The island (connected component) of a navigable point, or `None`.
+    fn island(&self, p: Vec<f32>) -> PyResult<Option<u32>> {
+        Ok(self.ctx.pathfinder.island(point(&p, "point")?))
+    }
+
+    /// Area of each island in m², indexed by island id.
+    fn island_areas(&self) -> Vec<f32> {
+        self.ctx.pathfinder.island_areas()
+    }
+
+    /// Grid cell size in metres.
+    #[getter]
+    fn cell_size(&self) -> f32 {
+        self.ctx.pathfinder.grid.cell
+    }
+}
+
+fn poisoned() -> PyErr {
+    pyo3::exceptions::PyRuntimeError::new_err("path finder sampler poisoned by an earlier panic")
+}

@@ -1,0 +1,85 @@
+"""`sage3d.distributed` on a local Ray instance: dataset generation with one task per scene gives
+the dataset of `sage3d data build`, and evaluation with one task per scene gives the records and
+summary of `sage3d eval`."""
+
+import json
+import pathlib
+
+import pytest
+
+import sage3d as sg
+
+ray = pytest.importorskip("ray", reason="Ray is not installed for this Python")
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    # The workers import the agent class of this module by name, as a cluster imports a user's.
+    here = str(pathlib.Path(__file__).parent)
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
+             runtime_env={"env_vars": {"PYTHONPATH": here}})
+    yield
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory, sage3d):
+    root = tmp_path_factory.mktemp("rayscenes")
+    for seed in (11, 12, 13):
+        sage3d("scene", "synth", "--seed", seed, "--out", root / f"home{seed}", "--rooms", 3,
+               "--objects", 25, "--gaussians", 2000)
+    return root
+
+
+@pytest.fixture(scope="module")
+def cli_data(scenes, sage3d, tmp_path_factory):
+    out = tmp_path_factory.mktemp("raydata") / "cli"
+    sage3d("data", "build", scenes, "--out", out, "--per-scene", 2, "--seed", 5, "--balanced", 6)
+    return out
+
+
+def files(root):
+    return sorted(p.relative_to(root) for p in root.rglob("*") if p.is_file() and p.name != "sage3d_run.json")
+
+
+def test_generate_equals_data_build(local_ray, scenes, cli_data, tmp_path):
+    from sage3d import distributed
+
+    result = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)
+    assert [o["status"] for o in result["scenes"]] == ["done"] * 3
+    assert files(tmp_path / "ray") == files(cli_data)
+    for rel in files(cli_data):
+        assert (tmp_path / "ray" / rel).read_bytes() == (cli_data / rel).read_bytes(), rel
+    run = lambda d: json.loads((d / "sage3d_run.json").read_text())  # noqa: E731
+    assert run(tmp_path / "ray")["config"] == run(cli_data)["config"]
+    assert run(tmp_path / "ray")["inputs"] == run(cli_data)["inputs"]
+    again = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)
+    assert [o["status"] for o in again["scenes"]] == ["resumed"] * 3
+
+
+class Forward:
+    name = "forward"
+
+    def act(self, obs):
+        return 1
+
+
+@pytest.mark.parametrize("agent", ["oracle", Forward()], ids=["builtin", "python"])
+def test_evaluate_equals_cli_eval(local_ray, scenes, cli_data, sage3d, tmp_path, agent):
+    from sage3d import distributed
+
+    name = sg.evaluation.agent_name(agent)
+    sage3d("eval", cli_data, "--scenes", scenes, "--agent", name, "--split", "test_balanced",
+           "--out", tmp_path / "cli")
+    kwargs = {"sensors": []} if not isinstance(agent, str) else {}
+    summary = distributed.evaluate(cli_data, scenes, agent, tmp_path / "ray", split="test_balanced", **kwargs)
+    assert (tmp_path / "ray" / "summary.json").read_bytes() == (tmp_path / "cli" / "summary.json").read_bytes()
+    assert summary == json.loads((tmp_path / "cli" / "summary.json").read_text())
+    lines = lambda d: (d / "episodes.jsonl").read_text().splitlines()  # noqa: E731
+    ray_lines = lines(tmp_path / "ray")
+    by_id = lambda line: json.loads(line)["episode_id"]  # noqa: E731
+    # The same records, one line each, sorted by episode id (the CLI's are in finishing order).
+    assert ray_lines == sorted(lines(tmp_path / "cli"), key=by_id)
+    assert [by_id(line) for line in ray_lines] == sorted(map(by_id, ray_lines))
+    shards = sorted(p.name for p in (tmp_path / "ray" / "shards").iterdir())
+    assert shards == sorted({json.loads(line)["scene"] for line in ray_lines})

@@ -1,0 +1,171 @@
+"""The Gymnasium environment of the sage3d package on a small synthetic home: Gymnasium's own
+checker, observation types and spaces, zero-copy arrays, determinism by seed, rewards and the
+info dict, the registered ids and the continuous action space."""
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import sage3d
+
+SYNTH = {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}
+SMALL = {"synth": SYNTH, "width": 32, "height": 24, "num_episodes": 4, "seed": 1}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def cache(tmp_path_factory):
+    """Synthetic scenes of this test session go to a fresh cache, shared by its modules."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SAGE3D_CACHE", str(tmp_path_factory.getbasetemp() / "sage3d-cache"))
+    yield
+    mp.undo()
+
+
+def make(**kw):
+    return sage3d.make_env(**{**SMALL, **kw})
+
+
+def test_gymnasium_env_checker_passes():
+    env = make(render_mode="rgb_array", sensors=["rgb", "depth", "semantic", "instance"])
+    check_env(env, skip_render_check=False)
+
+
+def test_observations_are_typed_arrays_in_the_space_that_own_the_rust_buffers():
+    env = make(sensors=["rgb", "depth", "semantic", "instance"], config={"sensors": {"depth_size": [16, 12]}})
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert obs["rgb"].shape == (24, 32, 3) and obs["rgb"].dtype == np.uint8
+    assert obs["depth"].shape == (12, 16) and obs["depth"].dtype == np.float32
+    assert obs["semantic"].shape == (24, 32) and obs["semantic"].dtype == np.uint16
+    assert obs["instance"].shape == (24, 32) and obs["instance"].dtype == np.uint32
+    assert obs["pose"].dtype == np.float32 and obs["pose"].shape == (4,)
+    assert isinstance(obs["instruction"], str) and obs["instruction"]
+    for key in ("rgb", "depth", "semantic", "instance"):
+        a = obs[key]
+        # Not a copy: NumPy does not own the memory, and its base is the Rust container
+        # (an ndarray base would mean NumPy made a view of its own copy).
+        assert not a.flags.owndata and a.base is not None and not isinstance(a.base, np.ndarray)
+        assert a.flags.c_contiguous and a.flags.writeable
+    # The camera sees something: depth hits within the far plane, several colours.
+    assert (obs["depth"] > 0).any() and obs["depth"].max() <= 100
+    assert len(np.unique(obs["rgb"].reshape(-1, 3), axis=0)) > 4
+    np.testing.assert_allclose(obs["pose"], info["pose"], rtol=1e-6)
+
+
+def rollout(env, seed, steps=12):
+    obs, info = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    out = [(obs, 0.0, False, False, info)]
+    for _ in range(steps):
+        a = env.action_space.sample()
+        obs, r, term, trunc, info = env.step(a)
+        out.append((obs, r, term, trunc, info))
+        if term or trunc:
+            obs, info = env.reset()
+            out.append((obs, 0.0, False, False, info))
+    return out
+
+
+def same(a, b):
+    for (o1, r1, t1, u1, i1), (o2, r2, t2, u2, i2) in zip(a, b, strict=True):
+        assert o1.keys() == o2.keys()
+        for k in o1:
+            np.testing.assert_array_equal(o1[k], o2[k])
+        assert (r1, t1, u1) == (r2, t2, u2)
+        assert i1 == i2
+
+
+def test_same_seed_same_episodes_observations_rewards_and_infos():
+    a = rollout(make(), seed=7)
+    same(a, rollout(make(), seed=7))
+    other = rollout(make(), seed=8)
+    assert any(x[4]["episode_id"] != y[4]["episode_id"] or not np.array_equal(x[0]["rgb"], y[0]["rgb"])
+               for x, y in zip(a, other, strict=False))
+
+
+def test_info_has_pose_contacts_metrics_so_far_and_final_metrics():
+    env = make(task="vln")
+    obs, info = env.reset(seed=0)
+    assert info["contacts"] == [] and info["step"] == 0 and "metrics" not in info
+    d0 = info["metrics_so_far"]["distance_to_goal"]
+    assert d0 > 0
+    start = np.array(info["pose"][:2])
+    total = 0.0
+    for _ in range(3):
+        obs, r, term, trunc, info = env.step(1)  # FORWARD
+        total += r
+        assert not term and not trunc
+    moved = np.linalg.norm(np.array(info["pose"][:2]) - start)
+    assert info["metrics_so_far"]["steps"] == 3
+    assert info["metrics_so_far"]["path_length"] == pytest.approx(moved, abs=1e-4)
+    assert info["step_info"]["action"] == {"type": "move_forward"}
+    assert all({"instance", "distance"} <= set(c) for c in info["contacts"])
+    obs, r, term, trunc, info = env.step(0)  # STOP
+    assert term and not trunc and info["termination"] == "stop"
+    m = info["metrics"]
+    assert set(m) >= {"sr", "spl", "ne", "tl"} and m["tl"] == pytest.approx(moved, abs=1e-3)
+    # VLN reward: progress towards the goal region (Euclidean) minus 0.01 per step, plus 2.5 on
+    # a successful STOP.
+    success = 2.5 if info["within_success_distance"] else 0.0
+    final = info["step_info"]["distance_to_goal"]
+    assert total + r == pytest.approx(d0 - final - 4 * 0.01 + success, abs=1e-4)
+    with pytest.raises(ValueError, match="reset first"):
+        env.step(1)
+
+
+def test_registered_ids_and_tasks():
+    env = gymnasium.make("SageNoGoal-v0", **SMALL)
+    assert {e["task"] for e in env.unwrapped.episodes} == {"nogoal"}
+    obs, _ = env.reset(seed=0)
+    assert "avoid colliding" in obs["instruction"]
+    # NoGoal pays the metres moved (less the slack): forward in free space pays about 0.24.
+    _, r, *_ = env.step(1)
+    assert -0.02 < r <= 0.25 - 0.01 + 1e-6
+    vln = gymnasium.make("SageVLN-v0", **SMALL)
+    assert {e["task"] for e in vln.unwrapped.episodes} == {"vln"}
+    assert vln.action_space == gymnasium.spaces.Discrete(4)
+    assert make(look=True).action_space == gymnasium.spaces.Discrete(6)
+
+
+def test_episode_options_and_render():
+    env = make(render_mode="rgb_array")
+    target = env.episodes[2]
+    obs, info = env.reset(options={"episode_id": target["episode_id"]})
+    assert info["episode_id"] == target["episode_id"] and obs["instruction"] == target["instruction"]
+    np.testing.assert_allclose(obs["pose"][:3], target["start"]["position"], atol=1e-5)
+    frame = env.render()
+    assert frame.shape == (24, 32, 3) and frame.dtype == np.uint8
+    np.testing.assert_array_equal(frame, obs["rgb"])
+    with pytest.raises(ValueError, match="not among"):
+        env.reset(options={"episode_id": "nope"})
+
+
+def test_continuous_ground_actions():
+    env = make(actions="ground", sensors=[])
+    assert env.action_space.shape == (5,)
+    assert set(env.observation_space.spaces) == {"pose", "instruction"}
+    obs, info = env.reset(seed=3)
+    start, yaw = obs["pose"][:2].copy(), obs["pose"][3]
+    obs, r, term, trunc, info = env.step(np.array([0.0, 0.5, 0.0, 0.0, 0.4], np.float32))
+    moved = np.linalg.norm(obs["pose"][:2] - start)
+    assert moved == pytest.approx(info["step_info"]["achieved"], abs=1e-3)
+    assert info["step_info"]["commanded"] == pytest.approx(0.2, abs=1e-5)
+    assert info["time"] == pytest.approx(0.4)
+    assert obs["pose"][3] == pytest.approx(yaw, abs=1e-5)
+    obs, r, term, trunc, info = env.step([1.0, 0, 0, 0, 0])
+    assert term and info["termination"] == "stop"
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="5 numbers"):
+        env.step([0.0, 1.0])
+
+
+def test_bad_settings_are_clear_errors():
+    with pytest.raises(ValueError, match="hfov"):
+        make(hfov=190)
+    with pytest.raises(ValueError, match="unknown sensors"):
+        make(sensors=["lidar"])
+    with pytest.raises(ValueError, match="0-5"):
+        env = make()
+        env.reset(seed=0)
+        env.step(9)
