@@ -20,7 +20,7 @@ use crate::fastmath::{exp_fast, sigmoid};
 use crate::index::{CHUNK, MAX_SIGMAS, SplatIndex};
 use crate::project::{Gaussians4, MIN_ALPHA, Splat, project4};
 use crate::sh;
-use crate::tile::{TILE, TileState, lane};
+use crate::tile::{TILE, TileGrid, TileState, lane};
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result};
@@ -115,47 +115,8 @@ fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
 }
 
-/// The frame's tile grid.
-#[derive(Debug, Clone, Copy)]
-struct Grid {
-    width: usize,
-    height: usize,
-    tiles_x: usize,
-    tiles_y: usize,
-}
-
-impl Grid {
-    fn new(camera: &Camera) -> Grid {
-        let (width, height) = (
-            camera.intrinsics.width as usize,
-            camera.intrinsics.height as usize,
-        );
-        Grid {
-            width,
-            height,
-            tiles_x: width.div_ceil(TILE),
-            tiles_y: height.div_ceil(TILE),
-        }
-    }
-
-    fn tiles(&self) -> usize {
-        self.tiles_x * self.tiles_y
-    }
-
-    /// Top-left pixel and in-image size of tile `t`.
-    fn tile_rect(&self, t: usize) -> (usize, usize, usize, usize) {
-        let (x0, y0) = ((t % self.tiles_x) * TILE, (t / self.tiles_x) * TILE);
-        (
-            x0,
-            y0,
-            TILE.min(self.width - x0),
-            TILE.min(self.height - y0),
-        )
-    }
-}
-
 /// Depth range and a conservative tile rectangle (grown by one tile) of a chunk's bounds.
-fn chunk_view(chunk: u32, b: &Aabb, camera: &Camera, w2c: &Mat3, grid: &Grid) -> ChunkView {
+fn chunk_view(chunk: u32, b: &Aabb, camera: &Camera, w2c: &Mat3, grid: &TileGrid) -> ChunkView {
     let corners = (0..8).map(|k| {
         let p = Vec3::new(
             if k & 1 == 0 { b.min.x } else { b.max.x },
@@ -253,7 +214,7 @@ impl Renderer {
         }
         camera.validate()?;
         self.stats = RenderStats::default();
-        let grid = Grid::new(camera);
+        let grid = TileGrid::new(camera);
         let w2c = camera.rotation.transpose();
 
         let start = Instant::now();
@@ -291,7 +252,7 @@ impl Renderer {
         Ok(out)
     }
 
-    fn reset_tiles(&mut self, grid: &Grid) {
+    fn reset_tiles(&mut self, grid: &TileGrid) {
         let n = grid.tiles();
         self.tiles.truncate(n);
         self.tiles.par_iter_mut().enumerate().for_each(|(t, s)| {
@@ -305,7 +266,7 @@ impl Renderer {
     }
 
     /// Summed-area table of finished tiles, for O(1) "is this rectangle all finished" queries.
-    fn update_finished(&mut self, grid: &Grid) {
+    fn update_finished(&mut self, grid: &TileGrid) {
         let (nx, ny) = (grid.tiles_x, grid.tiles_y);
         self.finished_sum.clear();
         self.finished_sum.resize((nx + 1) * (ny + 1), 0);
@@ -325,7 +286,7 @@ impl Renderer {
         g: &Gaussians,
         camera: &Camera,
         w2c: &Mat3,
-        grid: &Grid,
+        grid: &TileGrid,
         lo: f32,
         hi: f32,
     ) {
@@ -383,7 +344,7 @@ impl Renderer {
 
     /// Fills `tile_entries` with depth-bits << 32 | splat, grouped by unfinished tile, each tile sorted
     /// front to back (ties by splat index), and `tile_start` with each tile's range.
-    fn bin(&mut self, camera: &Camera, grid: &Grid) {
+    fn bin(&mut self, camera: &Camera, grid: &TileGrid) {
         let (w, h) = (
             camera.intrinsics.width as f32,
             camera.intrinsics.height as f32,
@@ -463,7 +424,7 @@ impl Renderer {
         slices.into_par_iter().for_each(|s| s.sort_unstable());
     }
 
-    fn blend(&mut self, grid: &Grid) {
+    fn blend(&mut self, grid: &TileGrid) {
         let (splats, entries, start) = (&self.splats, &self.tile_entries, &self.tile_start);
         self.tiles
             .par_iter_mut()
@@ -477,7 +438,12 @@ impl Renderer {
             });
     }
 
-    fn assemble(&self, grid: &Grid, categories: &[u16], options: &RenderOptions) -> RenderOutput {
+    fn assemble(
+        &self,
+        grid: &TileGrid,
+        categories: &[u16],
+        options: &RenderOptions,
+    ) -> RenderOutput {
         let (width, height) = (grid.width, grid.height);
         let n = width * height;
         let mut out = RenderOutput {
@@ -553,7 +519,7 @@ struct SlabProjection<'a> {
     g: &'a Gaussians,
     camera: &'a Camera,
     w2c: &'a Mat3,
-    grid: &'a Grid,
+    grid: &'a TileGrid,
     finished: &'a [u32],
     sh_rest: usize,
     lo: f32,

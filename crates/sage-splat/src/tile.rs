@@ -1,5 +1,6 @@
 //! One 16×16 tile's blending state and the front-to-back compositing of splats into it.
 
+use crate::camera::Camera;
 use crate::fastmath::exp4;
 use crate::project::{MAX_ALPHA, MIN_ALPHA, Splat};
 use wide::f32x4;
@@ -10,6 +11,57 @@ pub const TILE: usize = 16;
 pub const TILE_PIXELS: usize = TILE * TILE;
 /// Blending stops once transmittance would fall below this.
 pub const MIN_TRANSMITTANCE: f32 = 1e-4;
+
+/// A frame's grid of tiles (the last row and column may be cut by the image edge).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TileGrid {
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+    /// Tiles across.
+    pub tiles_x: usize,
+    /// Tiles down.
+    pub tiles_y: usize,
+}
+
+impl TileGrid {
+    /// The grid of `camera`'s image.
+    pub fn new(camera: &Camera) -> TileGrid {
+        let (width, height) = (
+            camera.intrinsics.width as usize,
+            camera.intrinsics.height as usize,
+        );
+        TileGrid {
+            width,
+            height,
+            tiles_x: width.div_ceil(TILE),
+            tiles_y: height.div_ceil(TILE),
+        }
+    }
+
+    /// Number of tiles.
+    pub fn tiles(&self) -> usize {
+        self.tiles_x * self.tiles_y
+    }
+
+    /// Top-left pixel and in-image size of tile `t`.
+    pub fn tile_rect(&self, t: usize) -> (usize, usize, usize, usize) {
+        let (x0, y0) = ((t % self.tiles_x) * TILE, (t / self.tiles_x) * TILE);
+        (
+            x0,
+            y0,
+            TILE.min(self.width - x0),
+            TILE.min(self.height - y0),
+        )
+    }
+
+    /// The pixels (x, y) of tile `t`, row by row.
+    pub fn tile_pixels(&self, t: usize) -> impl Iterator<Item = (usize, usize)> + use<> {
+        let (x0, y0, w, h) = self.tile_rect(t);
+        (y0..y0 + h).flat_map(move |y| (x0..x0 + w).map(move |x| (x, y)))
+    }
+}
 
 /// Vectors per tile row (4 pixels each).
 const ROW_VECTORS: usize = TILE / 4;

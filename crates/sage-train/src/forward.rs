@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use sage_splat::Camera;
 use sage_splat::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
 use sage_splat::sh::C0;
-use sage_splat::tile::{MIN_TRANSMITTANCE, TILE};
+use sage_splat::tile::{MIN_TRANSMITTANCE, TILE, TileGrid};
 
 /// `Y_1` basis constant.
 pub(crate) const C1: f32 = 0.488_602_52;
@@ -207,7 +207,7 @@ impl Projected {
     }
 
     /// The tile rectangle [x0, y0, x1, y1] (inclusive) of the 1/255 box, clamped to the grid.
-    fn tiles(&self, grid: &Grid) -> [usize; 4] {
+    fn tiles(&self, grid: &TileGrid) -> [usize; 4] {
         let tile = |p: f32, n: usize| ((p / TILE as f32).max(0.0) as usize).min(n - 1);
         [
             tile(self.mean[0] - self.extent[0], grid.tiles_x),
@@ -218,46 +218,11 @@ impl Projected {
     }
 }
 
-/// A view's tile grid.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Grid {
-    /// Image width, pixels.
-    pub width: usize,
-    /// Image height, pixels.
-    pub height: usize,
-    /// Tiles across.
-    pub tiles_x: usize,
-    /// Tiles down.
-    pub tiles_y: usize,
-}
-
-impl Grid {
-    fn new(camera: &Camera) -> Grid {
-        let (width, height) = (
-            camera.intrinsics.width as usize,
-            camera.intrinsics.height as usize,
-        );
-        Grid {
-            width,
-            height,
-            tiles_x: width.div_ceil(TILE),
-            tiles_y: height.div_ceil(TILE),
-        }
-    }
-
-    /// The pixels (x, y) of tile `t`, row by row.
-    pub fn tile_pixels(&self, t: usize) -> impl Iterator<Item = (usize, usize)> + use<> {
-        let (x0, y0) = ((t % self.tiles_x) * TILE, (t / self.tiles_x) * TILE);
-        let (x1, y1) = ((x0 + TILE).min(self.width), (y0 + TILE).min(self.height));
-        (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (x, y)))
-    }
-}
-
 /// One view rendered by the forward pass, with what the backward pass needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
     /// The tile grid.
-    pub grid: Grid,
+    pub grid: TileGrid,
     /// The Gaussians that survived projection, in index order.
     pub splats: Vec<Projected>,
     /// Start of each tile's list in `lists` (one more entry than tiles).
@@ -276,7 +241,7 @@ pub struct Frame {
 
 /// Renders `params` from `camera` over `background`.
 pub fn forward(params: &Params, camera: &Camera, background: [f32; 3]) -> Frame {
-    let grid = Grid::new(camera);
+    let grid = TileGrid::new(camera);
     let view = ViewGeometry::new(camera);
     let splats: Vec<Projected> = params
         .rows
@@ -357,7 +322,7 @@ impl Projected {
 
 /// Tile lists: every splat in each tile of its 1/255 box, each list sorted front to back
 /// (depth, then splat index — the renderer's order).
-fn bin(splats: &[Projected], grid: &Grid) -> (Vec<u32>, Vec<u32>) {
+fn bin(splats: &[Projected], grid: &TileGrid) -> (Vec<u32>, Vec<u32>) {
     let n_tiles = grid.tiles_x * grid.tiles_y;
     let mut start = vec![0u32; n_tiles + 1];
     let rects: Vec<[usize; 4]> = splats.iter().map(|s| s.tiles(grid)).collect();
