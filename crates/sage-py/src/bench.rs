@@ -34,21 +34,7 @@ pub fn read_split<'py>(
 /// The split names of a dataset folder (its `episodes/*.jsonl`), sorted.
 #[pyfunction]
 pub fn list_splits(dataset: PathBuf) -> PyResult<Vec<String>> {
-    let dir = dataset.join("episodes");
-    let entries = std::fs::read_dir(&dir)
-        .map_err(|e| Error::io(&dir, e))
-        .py()?;
-    let mut names: Vec<String> = entries
-        .filter_map(|e| e.ok())
-        .filter_map(|e| {
-            e.file_name()
-                .to_string_lossy()
-                .strip_suffix(".jsonl")
-                .map(str::to_string)
-        })
-        .collect();
-    names.sort();
-    Ok(names)
+    eval::dataset_splits(&dataset).py()
 }
 
 /// The scene folders under `root` (itself when it is one), sorted by name.

@@ -25,6 +25,19 @@ use serde::Serialize;
 use serde_json::Value;
 use std::sync::Arc;
 
+/// What a single step hands Python: observation, reward, terminated, truncated, info.
+type Transition<'py> = (Bound<'py, PyDict>, f32, bool, bool, Bound<'py, PyAny>);
+
+/// What a vector step hands Python: observations (a dict of stacked arrays), rewards,
+/// terminated and truncated flags, and infos.
+type Batch<'py> = (
+    Bound<'py, PyDict>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+);
+
 /// Reward per step for existing (Habitat's slack reward).
 const SLACK: f32 = 0.01;
 /// Reward for a successful STOP (Habitat's success reward).
@@ -479,12 +492,11 @@ impl Sim {
     }
 
     /// Applies one action; returns `(obs, reward, terminated, truncated, info)`.
-    #[allow(clippy::type_complexity)]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         action: &Bound<'py, PyAny>,
-    ) -> PyResult<(Bound<'py, PyDict>, f32, bool, bool, Bound<'py, PyAny>)> {
+    ) -> PyResult<Transition<'py>> {
         let action = parse_action(&self.core.config.actions, action)?;
         let core = &mut self.core;
         let out = py.detach(|| core.step(action)).py()?;
@@ -513,18 +525,7 @@ enum Order {
 
 impl VecSim {
     /// Runs `orders` in parallel and returns the batch as Python objects.
-    #[allow(clippy::type_complexity)]
-    fn run<'py>(
-        &mut self,
-        py: Python<'py>,
-        orders: Vec<Order>,
-    ) -> PyResult<(
-        Bound<'py, PyDict>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-    )> {
+    fn run<'py>(&mut self, py: Python<'py>, orders: Vec<Order>) -> PyResult<Batch<'py>> {
         let cores = &mut self.cores;
         let outs: Vec<Outcome> = py
             .detach(|| {
@@ -647,19 +648,12 @@ impl VecSim {
     /// One step of every sub-environment: `actions[i]`, or a reset to episode `resets[i]` where
     /// that is not `None` (the autoreset of a finished one; its reward is 0 and it is neither
     /// terminated nor truncated). Returns `(obs, rewards, terminated, truncated, infos)`.
-    #[allow(clippy::type_complexity)]
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         actions: Vec<Bound<'py, PyAny>>,
         resets: Vec<Option<usize>>,
-    ) -> PyResult<(
-        Bound<'py, PyDict>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-        Bound<'py, PyAny>,
-    )> {
+    ) -> PyResult<Batch<'py>> {
         self.check_len(actions.len())?;
         self.check_len(resets.len())?;
         let orders = actions

@@ -217,13 +217,5 @@ pub fn write_transforms(path: &Path, t: &Transforms) -> Result<()> {
 
 /// Reads a `transforms.json` written by [`write_transforms`] (or any file with its fields).
 pub fn read_transforms(path: &Path) -> Result<Transforms> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text)
-        .map_err(|e| {
-            Error::format(
-                format!("line {} column {}", e.line(), e.column()),
-                e.to_string(),
-            )
-        })
-        .in_file(path)
+    sage_scene::fsutil::read_json(path)
 }

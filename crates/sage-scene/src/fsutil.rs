@@ -48,7 +48,12 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
 /// Reads a JSON file into `T`; a parse error names the file, line and column.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| {
+    parse_json(&text, path)
+}
+
+/// Parses the JSON `text` of file `path` into `T`; an error names the file, line and column.
+pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
+    serde_json::from_str(text).map_err(|e| {
         Error::format(
             format!("line {} column {}", e.line(), e.column()),
             e.to_string(),

@@ -100,13 +100,12 @@ pub struct RunOutcome {
     pub summary: Summary,
 }
 
-/// The episodes file of `split` in `dataset`.
+/// The splits of `dataset` (the names of its `episodes/*.jsonl`), sorted.
 ///
 /// # Errors
 ///
-/// An `invalid` error listing the dataset's splits when `split` has no file, or the file's
-/// read error.
-pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
+/// An `invalid` error when `dataset` has no `episodes/` folder, or its read error.
+pub fn dataset_splits(dataset: &Path) -> Result<Vec<String>> {
     let dir = dataset.join("episodes");
     if !dir.is_dir() {
         return Err(Error::invalid(
@@ -114,19 +113,30 @@ pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episo
         )
         .in_file(dataset));
     }
-    let file = dir.join(format!("{split}.jsonl"));
+    let mut splits: Vec<String> = std::fs::read_dir(&dir)
+        .map_err(|e| Error::io(&dir, e))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .strip_suffix(".jsonl")
+                .map(str::to_string)
+        })
+        .collect();
+    splits.sort();
+    Ok(splits)
+}
+
+/// The episodes file of `split` in `dataset`.
+///
+/// # Errors
+///
+/// An `invalid` error listing the dataset's splits when `split` has no file, or the file's
+/// read error.
+pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
+    let splits = dataset_splits(dataset)?;
+    let file = dataset.join("episodes").join(format!("{split}.jsonl"));
     if !file.is_file() {
-        let mut splits: Vec<String> = std::fs::read_dir(&dir)
-            .map_err(|e| Error::io(&dir, e))?
-            .filter_map(|e| e.ok())
-            .filter_map(|e| {
-                e.file_name()
-                    .to_string_lossy()
-                    .strip_suffix(".jsonl")
-                    .map(str::to_string)
-            })
-            .collect();
-        splits.sort();
         return Err(Error::invalid(format!(
             "unknown split '{split}' (this dataset has: {})",
             splits.join(", ")

@@ -155,7 +155,29 @@ def action_space(config: dict, look: bool = False) -> spaces.Space:
     return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
 
 
-class SageEnv(gym.Env):
+class _Prepared:
+    """What the single and the vector environment do first with their keyword arguments."""
+
+    def _prepare(self, render_mode, scene, dataset, scenes, split, episodes, task, filters,
+                 num_episodes, seed, synth, preset, width, height, sensors, actions, max_steps,
+                 hfov, config):
+        """Checks ``render_mode``, resolves the configuration into ``self.config`` and gathers
+        the episode pool into ``self.scenes``; returns (overrides JSON, scenes, episodes,
+        scene of each episode)."""
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
+        self.render_mode = render_mode
+        if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
+            sensors = [*sensors, "rgb"]
+        overrides = _json(config_overrides(width, height, sensors, actions, max_steps, hfov, config))
+        self.config = _sage3d.env_config(preset, overrides)
+        pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
+                                                  filters, num_episodes, seed, synth)
+        self.scenes = pool_scenes
+        return overrides, pool_scenes, eps, scene_of
+
+
+class SageEnv(_Prepared, gym.Env):
     """A sage3d environment as a Gymnasium 1.x ``Env``.
 
     ``reset(seed=, options=)`` picks an episode with the env's seeded generator, or the one named
@@ -175,17 +197,10 @@ class SageEnv(gym.Env):
                  height: int | None = None, sensors: Iterable[str] | None = None,
                  actions: str = "discrete", look: bool = False, max_steps: int | None = None,
                  hfov: float | None = None, config: dict | None = None, mode: str = "sage"):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
-        self.render_mode = render_mode
-        if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
-            sensors = [*sensors, "rgb"]
-        overrides = config_overrides(width, height, sensors, actions, max_steps, hfov, config)
-        self.config = _sage3d.env_config(preset, _json(overrides))
-        pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
-                                                  filters, num_episodes, seed, synth)
-        self.scenes = pool_scenes
-        self._sim = _sage3d.Sim(pool_scenes, _json(eps), scene_of, preset, _json(overrides), mode)
+        overrides, pool_scenes, eps, scene_of = self._prepare(
+            render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
+            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config)
+        self._sim = _sage3d.Sim(pool_scenes, _json(eps), scene_of, preset, overrides, mode)
         self._ids = {e["episode_id"]: i for i, e in enumerate(eps)}
         self.observation_space = observation_space(self.config, (e["instruction"] for e in eps))
         self.action_space = action_space(self.config, look)

@@ -11,10 +11,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _sage3d
-from .env import _json, action_space, config_overrides, episode_pool, observation_space
+from .env import _json, _Prepared, action_space, observation_space
 
 
-class SageVectorEnv(VectorEnv):
+class SageVectorEnv(_Prepared, VectorEnv):
     """``num_envs`` environments over one episode pool (the keyword arguments of
     :class:`~sage3d.SageEnv`), stepped together by rayon.
 
@@ -35,18 +35,11 @@ class SageVectorEnv(VectorEnv):
                  sensors: Iterable[str] | None = None, actions: str = "discrete",
                  look: bool = False, max_steps: int | None = None, hfov: float | None = None,
                  config: dict | None = None, mode: str = "sage"):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
-        self.render_mode = render_mode
-        if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
-            sensors = [*sensors, "rgb"]
-        overrides = config_overrides(width, height, sensors, actions, max_steps, hfov, config)
-        self.config = _sage3d.env_config(preset, _json(overrides))
-        pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
-                                                  filters, num_episodes, seed, synth)
-        self.scenes = pool_scenes
+        overrides, pool_scenes, eps, scene_of = self._prepare(
+            render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
+            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config)
         self._sim = _sage3d.VecSim(num_envs, pool_scenes, _json(eps), scene_of, preset,
-                                   _json(overrides), mode)
+                                   overrides, mode)
         self.num_envs = num_envs
         self.single_observation_space = observation_space(self.config, (e["instruction"] for e in eps))
         self.single_action_space = action_space(self.config, look)

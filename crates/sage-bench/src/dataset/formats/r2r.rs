@@ -143,14 +143,7 @@ fn read_gz<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
     GzDecoder::new(file)
         .read_to_string(&mut text)
         .map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text)
-        .map_err(|e| {
-            Error::format(
-                format!("line {} column {}", e.line(), e.column()),
-                e.to_string(),
-            )
-        })
-        .in_file(path)
+    sage_scene::fsutil::parse_json(&text, path)
 }
 
 /// The two files of `split` under `dir`.
