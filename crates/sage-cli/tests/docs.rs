@@ -115,6 +115,13 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
                 .map(|_| ())
                 .map_err(err)
         }
+        "replay" => {
+            let file = dir.path().join("replay.jsonl");
+            std::fs::write(&file, body).unwrap();
+            sage_bench::agents::replay::ReplayFile::read(&file)
+                .map(|_| ())
+                .map_err(err)
+        }
         "eval-record" => serde_json::from_str::<sage_bench::eval::EvalRecord>(body)
             .map(|_| ())
             .map_err(|e| e.to_string()),
@@ -213,6 +220,7 @@ fn every_documented_example_is_read_by_sage3d() {
         "semantic-map",
         "episode",
         "eval-record",
+        "replay",
         "run-record",
         "dtw",
         "metrics",
