@@ -4,25 +4,8 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_dataset, small_scene};
+use common::{eval, s, sage3d, small_dataset, small_scene};
 use std::path::Path;
-
-/// `sage3d --threads N eval DATA --scenes SCENES --split train --out RUN` and `extra`.
-fn eval(threads: &str, data: &Path, scenes: &Path, run: &Path, extra: &[&str]) -> String {
-    let base = [
-        "--threads",
-        threads,
-        "eval",
-        s(data),
-        "--scenes",
-        s(scenes),
-        "--split",
-        "train",
-        "--out",
-        s(run),
-    ];
-    ok(&[&base[..], extra].concat())
-}
 
 fn read(p: &Path) -> String {
     std::fs::read_to_string(p).unwrap()

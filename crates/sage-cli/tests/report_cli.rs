@@ -4,25 +4,14 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_dataset};
+use common::{eval, ok, s, sage3d, small_dataset};
 
 #[test]
 fn eval_writes_the_report_and_report_regenerates_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let (scenes, data) = small_dataset(dir.path());
     let run = dir.path().join("run");
-    let out = ok(&[
-        "eval",
-        s(&data),
-        "--scenes",
-        s(&scenes),
-        "--split",
-        "train",
-        "--agent",
-        "random",
-        "--out",
-        s(&run),
-    ]);
+    let out = eval("2", &data, &scenes, &run, &["--agent", "random"]);
     let html_path = run.join("report.html");
     assert!(
         out.contains(&format!("report: {}", html_path.display())),
@@ -57,18 +46,7 @@ fn failed_episodes_are_listed_with_their_errors() {
     let (scenes, data) = small_dataset(dir.path());
     let run = dir.path().join("run");
     // The oracle cannot act on a no-goal episode: it is recorded with an error.
-    ok(&[
-        "eval",
-        s(&data),
-        "--scenes",
-        s(&scenes),
-        "--split",
-        "train",
-        "--agent",
-        "oracle",
-        "--out",
-        s(&run),
-    ]);
+    eval("2", &data, &scenes, &run, &["--agent", "oracle"]);
     let records = std::fs::read_to_string(run.join("episodes.jsonl")).unwrap();
     let failed: Vec<serde_json::Value> = records
         .lines()

@@ -66,3 +66,20 @@ pub fn small_dataset(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     ]);
     (scenes, data)
 }
+
+/// `sage3d --threads N eval DATA --scenes SCENES --split train --out RUN` and `extra`.
+pub fn eval(threads: &str, data: &Path, scenes: &Path, run: &Path, extra: &[&str]) -> String {
+    let base = [
+        "--threads",
+        threads,
+        "eval",
+        s(data),
+        "--scenes",
+        s(scenes),
+        "--split",
+        "train",
+        "--out",
+        s(run),
+    ];
+    ok(&[&base[..], extra].concat())
+}
