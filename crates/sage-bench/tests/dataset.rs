@@ -10,9 +10,10 @@ use sage_bench::dataset::split::{self, SplitParams};
 use sage_bench::dataset::{Episode, Task};
 use sage_core::frame::SageFrame;
 use sage_core::wrap_angle;
+use sage_io::files::read_tree;
+use sage_io::runner::Status;
 use sage_lang::InstructionType;
 use sage_lang::actions::{ActionSpace, replay};
-use sage_scene::fsutil::read_tree;
 use sage_scene::synth::{SynthConfig, generate};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -84,8 +85,9 @@ fn same_bytes_with_one_and_two_threads_and_resume_redoes_only_missing_scenes() {
     std::fs::remove_file(build::scene_file(b.path(), "scene3")).unwrap();
     std::fs::remove_file(b.path().join("summary.json")).unwrap();
     let outcomes = build_with(2, b.path());
-    let status: Vec<&str> = outcomes.iter().map(|o| o.status.as_str()).collect();
-    assert_eq!(status, ["resumed", "resumed", "done", "resumed", "resumed"]);
+    let status: Vec<Status> = outcomes.iter().map(|o| o.status).collect();
+    use Status::{Done, Resumed};
+    assert_eq!(status, [Resumed, Resumed, Done, Resumed, Resumed]);
     assert_eq!(read_tree(b.path()).unwrap(), fa);
     // Other settings redo every scene.
     let (mut p, a2) = params();
@@ -93,7 +95,7 @@ fn same_bytes_with_one_and_two_threads_and_resume_redoes_only_missing_scenes() {
     let outcomes = build::build(&scenes().1, b.path(), &p, &a2, &|_| {})
         .unwrap()
         .0;
-    assert!(outcomes.iter().all(|o| o.status == "done"));
+    assert!(outcomes.iter().all(|o| o.status == Status::Done));
 }
 
 #[test]

@@ -10,8 +10,8 @@ use base64::Engine;
 use sage_bench::eval::{self, EvalRecord, EvalSettings, Summary};
 use sage_bench::metrics::Mode;
 use sage_bench::report::{self, maps};
-use sage_nav::draw::Canvas;
-use sage_scene::fsutil::read_tree;
+use sage_io::canvas::Canvas;
+use sage_io::files::read_tree;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

@@ -5,8 +5,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
 use sage_core::{Error, Result};
+use sage_io::run::write_run_record;
+use sage_io::runner::{Status, Tally};
 use sage_lang::llm::LlmConfig;
-use sage_scene::fsutil::write_run_record;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -105,7 +106,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
             "--scene-unseen and --val must be shares between 0 and 1",
         ));
     }
-    let dirs = sage_nav::trajectory::scene_dirs(&a.scenes)?;
+    let dirs = sage_io::scenes::scene_dirs(&a.scenes)?;
     std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
     let bar = ProgressBar::new(dirs.len() as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}")
@@ -118,15 +119,15 @@ fn data_build(a: BuildArgs) -> Result<()> {
     })?;
     bar.finish_and_clear();
     let secs = start.elapsed().as_secs_f64();
-    for o in outcomes.iter().filter(|o| o.status == "skipped") {
+    for o in outcomes.iter().filter(|o| o.status == Status::Skipped) {
         eprintln!("skipped {}: {}", o.scene, o.reason.as_deref().unwrap_or(""));
     }
     let inputs: std::collections::BTreeMap<String, _> = dirs
         .iter()
         .map(|d| {
             (
-                sage_nav::trajectory::scene_name(d),
-                sage_nav::trajectory::input_hashes(d),
+                sage_io::scenes::scene_name(d),
+                sage_io::scenes::input_hashes(d),
             )
         })
         .collect();
@@ -140,18 +141,15 @@ fn data_build(a: BuildArgs) -> Result<()> {
         }),
     )?;
     print!("{}", summary.table());
-    let count = |s: &str| outcomes.iter().filter(|o| o.status == s).count();
+    let tally = Tally::of(outcomes.iter().map(|o| o.status));
     let made: usize = outcomes
         .iter()
-        .filter(|o| o.status == "done")
+        .filter(|o| o.status == Status::Done)
         .map(|o| o.episodes)
         .sum();
     println!(
-        "{} scenes: {} done, {} already complete, {} skipped; {made} new episodes in {secs:.1} s ({:.1} episodes/s on {} threads) -> {}",
+        "{} scenes: {tally}; {made} new episodes in {secs:.1} s ({:.1} episodes/s on {} threads) -> {}",
         outcomes.len(),
-        count("done"),
-        count("resumed"),
-        count("skipped"),
         made as f64 / secs.max(1e-9),
         rayon::current_num_threads(),
         a.out.display()

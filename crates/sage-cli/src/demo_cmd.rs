@@ -7,7 +7,7 @@
 
 use sage_bench::eval::{SUMMARY_FILE, Summary};
 use sage_core::{Error, Result};
-use sage_scene::fsutil::RUN_RECORD;
+use sage_io::run::RUN_RECORD;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -79,7 +79,7 @@ fn plan(a: &DemoArgs) -> Result<Vec<Step>> {
     let dataset = a.out.join("dataset");
     let mut steps = Vec::new();
     let dirs: Vec<(String, PathBuf)> = match &a.from {
-        Some(from) => sage_nav::trajectory::scene_dirs_by_name(from)?
+        Some(from) => sage_io::scenes::scene_dirs_by_name(from)?
             .into_iter()
             .collect(),
         None => (0..a.scenes)
@@ -173,7 +173,7 @@ fn agents_table(out: &Path, agents: &[String]) -> Result<String> {
     text.push('\n');
     for agent in agents {
         let path = out.join("runs").join(agent).join(SUMMARY_FILE);
-        let s: Summary = sage_scene::fsutil::read_json(&path)?;
+        let s: Summary = sage_io::files::read_json(&path)?;
         text += &format!("{agent:<10} {:>8}", s.overall.episodes);
         for (key, _) in COLUMNS {
             match s.overall.means.get(key) {

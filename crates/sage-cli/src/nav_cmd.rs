@@ -5,11 +5,12 @@ use clap::{Args, Subcommand};
 use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
+use sage_io::run::write_run_record;
+use sage_io::runner::{Status, Tally};
 use sage_nav::sampling::Endpoints;
 use sage_nav::trajectory::{self, Prepared, TrajectoryParams};
 use sage_nav::{GridParams, NavGrid, PathFinder, SemanticMap};
 use sage_scene::Scene;
-use sage_scene::fsutil::write_run_record;
 use sage_scene::synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -141,7 +142,7 @@ fn map(a: MapArgs) -> Result<()> {
                 "margin": grid_params.margin,
                 "grid_source": source.as_str(),
             },
-            "inputs": trajectory::input_hashes(&a.scene),
+            "inputs": sage_io::scenes::input_hashes(&a.scene),
         }),
     )?;
     println!(
@@ -186,7 +187,7 @@ fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {
 
 fn trajectories(a: TrajectoriesArgs) -> Result<()> {
     let params = trajectory_params(&a)?;
-    let dirs = trajectory::scene_dirs(&a.scenes)?;
+    let dirs = sage_io::scenes::scene_dirs(&a.scenes)?;
     let single = dirs.len() == 1 && dirs[0] == a.scenes;
     let out = a.out.clone().unwrap_or_else(|| {
         if single {
@@ -213,9 +214,9 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         })
         .collect();
     bar.finish_and_clear();
-    let count = |s: &str| outcomes.iter().filter(|o| o.status == s).count();
+    let tally = Tally::of(outcomes.iter().map(|o| o.status));
     let total: usize = outcomes.iter().map(|o| o.trajectories).sum();
-    for o in outcomes.iter().filter(|o| o.status == "skipped") {
+    for o in outcomes.iter().filter(|o| o.status == Status::Skipped) {
         eprintln!(
             "skipped {}: {}",
             o.scene.display(),
@@ -232,11 +233,8 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         }),
     )?;
     println!(
-        "{} scenes: {} done, {} already complete, {} skipped; {total} trajectories in {} ({:.1} s)",
+        "{} scenes: {tally}; {total} trajectories in {} ({:.1} s)",
         outcomes.len(),
-        count("done"),
-        count("resumed"),
-        count("skipped"),
         out.display(),
         start.elapsed().as_secs_f64()
     );

@@ -71,7 +71,7 @@ pub fn write(scenes: &Path, run: &Path, out: &Path) -> Result<()> {
     let mut rgb = vec![255u8; total * height * 3];
     blit(&mut rgb, total, &view.rgb, width, height, 0);
     blit(&mut rgb, total, &map.rgb, map.width, height, width);
-    sage_scene::fsutil::write_rgb_png(out, total, height, &rgb)?;
+    sage_io::files::write_rgb_png(out, total, height, &rgb)?;
     eprintln!(
         "overview: {} (episode {} in {})",
         out.display(),

@@ -6,13 +6,13 @@ use clap::{Args, Subcommand};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Pose, Result, Vec3};
+use sage_io::files::write_json;
 use sage_physics::usd::{SplatAsset, write_usda};
 use sage_physics::{
     Agent, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, World,
     WorldOptions, cache_key, default_cache_dir,
 };
 use sage_scene::Scene;
-use sage_scene::fsutil::write_json;
 use sage_scene::scene::files;
 use sage_scene::synth::{SceneKind, SynthConfig};
 use std::path::{Component, Path, PathBuf};

@@ -5,6 +5,8 @@ use clap::{Args, Subcommand};
 use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
+use sage_io::files::write_json;
+use sage_io::run::write_run_record;
 use sage_recon::export::{
     POINTS_FILE, TRANSFORMS_FILE, is_heldout, transforms_for, write_points_ply, write_transforms,
 };
@@ -12,7 +14,6 @@ use sage_recon::plan::{PLAN_FILE, PLAN_PNG, Plan, PlanSettings, Policy, draw_pla
 use sage_recon::sweep::SweepParams;
 use sage_recon::views::{self, Manifest};
 use sage_recon::{SceneSurfaces, render_view, surface_samples};
-use sage_scene::fsutil::{write_json, write_run_record};
 use sage_scene::{Scene, SplatLayout};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

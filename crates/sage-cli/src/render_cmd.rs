@@ -4,7 +4,7 @@
 use clap::Args;
 use glam::Vec3;
 use sage_core::{Error, Result};
-use sage_scene::fsutil::{write_json, write_npy_f32, write_png, write_rgb_png};
+use sage_io::files::{write_json, write_npy_f32, write_png, write_rgb_png};
 use sage_scene::{InstanceKind, Scene};
 use sage_splat::{Camera, CameraSpec, Intrinsics, RenderOptions, RenderOutput, Renderer};
 use std::collections::BTreeMap;
@@ -179,7 +179,7 @@ pub fn id_color(id: u32) -> [u8; 3] {
     if id == 0 {
         return [0, 0, 0];
     }
-    sage_scene::palette::distinct_color(id)
+    sage_io::palette::distinct_color(id)
 }
 
 fn colorize(ids: impl Iterator<Item = u32>) -> Vec<u8> {
@@ -298,7 +298,7 @@ fn write_turntable(
         camera.intrinsics.width as u16,
         camera.intrinsics.height as u16,
     );
-    sage_scene::fsutil::write_atomic(&dir.join("turntable.gif"), |out| {
+    sage_io::files::write_atomic(&dir.join("turntable.gif"), |out| {
         let mut enc = gif::Encoder::new(out, w, h, &[]).map_err(std::io::Error::other)?;
         enc.set_repeat(gif::Repeat::Infinite)
             .map_err(std::io::Error::other)?;

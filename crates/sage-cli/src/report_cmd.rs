@@ -5,7 +5,7 @@
 use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::report::{self, ReportOutcome};
 use sage_core::{Error, Result};
-use sage_scene::fsutil::RUN_RECORD;
+use sage_io::run::RUN_RECORD;
 use std::path::{Path, PathBuf};
 
 /// Flags of `sage3d report`.

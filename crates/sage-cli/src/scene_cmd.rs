@@ -176,7 +176,7 @@ fn write_run_record(out: &Path, config: &SynthConfig, layout: SplatLayout) -> Re
         },
         "inputs": [],
     });
-    sage_scene::fsutil::write_run_record(out, "scene synth", Some(config.seed), details)
+    sage_io::run::write_run_record(out, "scene synth", Some(config.seed), details)
 }
 
 fn info(dir: &Path, json: bool) -> Result<()> {

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{ok, s, sage3d, small_scene};
-use sage_scene::fsutil::read_tree;
+use sage_io::files::read_tree;
 use std::path::Path;
 
 #[test]

@@ -146,7 +146,7 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
             for k in ["tool", "version"] {
                 fields.remove(k);
             }
-            sage_scene::fsutil::write_run_record(
+            sage_io::run::write_run_record(
                 dir.path(),
                 command.as_str().unwrap(),
                 seed.as_u64(),
@@ -154,7 +154,7 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
             )
             .map_err(err)?;
             let written: Value =
-                sage_scene::fsutil::read_json(&dir.path().join(sage_scene::fsutil::RUN_RECORD))
+                sage_io::files::read_json(&dir.path().join(sage_io::run::RUN_RECORD))
                     .map_err(err)?;
             (written == example)
                 .then_some(())

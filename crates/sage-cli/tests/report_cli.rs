@@ -22,7 +22,7 @@ fn eval_writes_the_report_and_report_regenerates_the_same_bytes() {
     assert!(text.contains("agent</th><td>random") && text.contains("data:image/png;base64,"));
     let maps = std::fs::read_dir(run.join("report/maps")).unwrap().count();
     assert!(maps >= 3, "{maps}");
-    let before = sage_scene::fsutil::read_tree(&run.join("report")).unwrap();
+    let before = sage_io::files::read_tree(&run.join("report")).unwrap();
 
     std::fs::remove_file(&html_path).unwrap();
     let out = ok(&["report", s(&run), "--scenes", s(&scenes)]);
@@ -35,7 +35,7 @@ fn eval_writes_the_report_and_report_regenerates_the_same_bytes() {
     ok(&["--threads", "1", "report", s(&run)]);
     assert_eq!(std::fs::read(&html_path).unwrap(), html);
     assert_eq!(
-        sage_scene::fsutil::read_tree(&run.join("report")).unwrap(),
+        sage_io::files::read_tree(&run.join("report")).unwrap(),
         before
     );
 }

@@ -74,13 +74,6 @@ fn discrete(env: &Env, agent: &str) -> Result<(f32, f32)> {
     }
 }
 
-/// FNV-1a of a string: a stable per-episode seed component, independent of run order.
-fn fnv1a(s: &str) -> u64 {
-    s.bytes().fold(0xcbf2_9ce4_8422_2325, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    })
-}
-
 /// Uniform FORWARD / LEFT / RIGHT, and STOP with a fixed probability per step; seeded per
 /// episode from its seed and the episode id, so results do not depend on episode order or
 /// thread count.
@@ -118,7 +111,8 @@ impl Agent for RandomAgent {
 
     fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
         discrete(env, "random")?;
-        self.rng = ChaCha8Rng::seed_from_u64(self.seed ^ fnv1a(&episode.id));
+        self.rng =
+            ChaCha8Rng::seed_from_u64(self.seed ^ sage_io::hash::fnv1a64(episode.id.as_bytes()));
         Ok(())
     }
 

@@ -280,7 +280,7 @@ impl LlmClient {
 
     fn cache_path(&self, url: &str, body: &str) -> Option<PathBuf> {
         let dir = self.config.cache_dir.as_ref()?;
-        let key = sage_nav::trajectory::fnv1a(format!("{url}\n{body}").as_bytes());
+        let key = sage_io::hash::fnv1a64(format!("{url}\n{body}").as_bytes());
         Some(dir.join(format!("{key:016x}.json")))
     }
 
@@ -327,7 +327,7 @@ impl LlmClient {
                             if let Some(dir) = path.parent() {
                                 std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
                             }
-                            sage_scene::fsutil::write_json(
+                            sage_io::files::write_json(
                                 path,
                                 &CacheEntry {
                                     url: url.clone(),

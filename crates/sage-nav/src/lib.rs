@@ -10,7 +10,6 @@
 
 pub mod astar;
 pub mod cost;
-pub mod draw;
 pub mod edt;
 pub mod grid;
 pub mod path;

@@ -7,10 +7,10 @@
 //! order, none skipped, so that the same object has the same id in the map, the trajectories and
 //! the instructions.
 
-use crate::draw::{self, Canvas};
 use crate::grid::NavGrid;
 use glam::Vec2;
 use sage_core::{Polygon2, Result};
+use sage_io::canvas::{self as draw, Canvas};
 use sage_scene::occupancy::OCCUPIED;
 use sage_scene::{DoorState, HoleKind, Object, Scene};
 use serde::Serialize;
@@ -244,7 +244,7 @@ impl SemanticMap {
 
     /// Writes the map as pretty JSON (atomically).
     pub fn save_json(&self, path: &Path) -> Result<()> {
-        sage_scene::fsutil::write_json(path, self)
+        sage_io::files::write_json(path, self)
     }
 
     /// Draws the map over `grid`'s extent (rooms, objects by category, walls, doors by state),

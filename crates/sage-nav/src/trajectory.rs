@@ -17,6 +17,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use sage_core::{Error, Result};
+use sage_io::runner::{Status, resume_or_run};
 use sage_scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -111,7 +112,7 @@ impl TrajectoryParams {
     /// The seed of one scene: the run seed mixed with a hash of the scene name, so a scene's
     /// trajectories do not depend on which other scenes are in the run.
     pub fn scene_seed(&self, scene: &str) -> u64 {
-        self.seed ^ fnv1a(scene.as_bytes())
+        self.seed ^ sage_io::hash::fnv1a64(scene.as_bytes())
     }
 }
 
@@ -451,7 +452,7 @@ pub fn generate(
 }
 
 /// Draws the semantic map with every trajectory (start green, goal red).
-pub fn draw_trajectories(prep: &Prepared, set: &TrajectorySet) -> crate::draw::Canvas {
+pub fn draw_trajectories(prep: &Prepared, set: &TrajectorySet) -> sage_io::Canvas {
     let legend = [
         ([20, 90, 220], "path".to_string()),
         ([0, 160, 0], "start".to_string()),
@@ -484,8 +485,8 @@ pub fn draw_trajectories(prep: &Prepared, set: &TrajectorySet) -> crate::draw::C
 pub struct SceneOutcome {
     /// Scene folder.
     pub scene: PathBuf,
-    /// `done`, `resumed` (already complete) or `skipped`.
-    pub status: String,
+    /// Made, resumed (already complete) or skipped.
+    pub status: Status,
     /// Trajectories in its file.
     pub trajectories: usize,
     /// Why it was skipped.
@@ -499,30 +500,25 @@ pub struct SceneOutcome {
 /// `trajectories.json` (written last, atomically: its presence means the scene is complete).
 /// A scene whose file exists with the same settings is left as it is (`resumed`).
 pub fn run_scene(scene_dir: &Path, out: &Path, params: &TrajectoryParams) -> SceneOutcome {
-    let inputs = input_hashes(scene_dir);
     let done = out.join(TRAJECTORIES_FILE);
-    let outcome = |status: &str, n: usize, reason: Option<String>| SceneOutcome {
+    let outcome = resume_or_run(
+        || complete_with(&done, params),
+        || {
+            let (scene, _) = Scene::load(scene_dir)?;
+            let prep = prepare(&scene, params)?;
+            let (set, _) = generate(&scene.name, &prep, params)?;
+            std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+            draw_trajectories(&prep, &set).save_png(&out.join(TRAJECTORIES_PNG))?;
+            sage_io::files::write_json(&done, &set)?;
+            Ok(set.trajectories.len())
+        },
+    );
+    SceneOutcome {
         scene: scene_dir.to_path_buf(),
-        status: status.into(),
-        trajectories: n,
-        reason,
-        inputs: inputs.clone(),
-    };
-    if let Some(n) = complete_with(&done, params) {
-        return outcome("resumed", n, None);
-    }
-    let result = (|| {
-        let (scene, _) = Scene::load(scene_dir)?;
-        let prep = prepare(&scene, params)?;
-        let (set, _) = generate(&scene.name, &prep, params)?;
-        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-        draw_trajectories(&prep, &set).save_png(&out.join(TRAJECTORIES_PNG))?;
-        sage_scene::fsutil::write_json(&done, &set)?;
-        Ok::<usize, Error>(set.trajectories.len())
-    })();
-    match result {
-        Ok(n) => outcome("done", n, None),
-        Err(e) => outcome("skipped", 0, Some(e.to_string())),
+        status: outcome.status,
+        trajectories: outcome.count,
+        reason: outcome.reason,
+        inputs: sage_io::scenes::input_hashes(scene_dir),
     }
 }
 
@@ -531,83 +527,4 @@ fn complete_with(path: &Path, params: &TrajectoryParams) -> Option<usize> {
     let text = std::fs::read_to_string(path).ok()?;
     let set: TrajectorySet = serde_json::from_str(&text).ok()?;
     (set.settings == *params).then_some(set.trajectories.len())
-}
-
-/// The scene folders of `root`: itself when it is a scene (holds `structure.json` or
-/// `labels.json`), else its sub-folders that are, sorted by name.
-pub fn scene_dirs(root: &Path) -> Result<Vec<PathBuf>> {
-    let is_scene = |p: &Path| p.join("structure.json").is_file() || p.join("labels.json").is_file();
-    if is_scene(root) {
-        return Ok(vec![root.to_path_buf()]);
-    }
-    let mut dirs: Vec<PathBuf> = std::fs::read_dir(root)
-        .map_err(|e| Error::io(root, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.is_dir() && is_scene(p))
-        .collect();
-    dirs.sort();
-    if dirs.is_empty() {
-        return Err(Error::invalid(format!(
-            "{} is neither a scene folder nor a folder of scenes (no structure.json or labels.json)",
-            root.display()
-        )));
-    }
-    Ok(dirs)
-}
-
-/// The folder name of a scene folder (how episodes name their scene).
-pub fn scene_name(dir: &Path) -> String {
-    dir.file_name()
-        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-}
-
-/// [`scene_dirs`] keyed by [`scene_name`].
-///
-/// # Errors
-///
-/// As [`scene_dirs`].
-pub fn scene_dirs_by_name(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
-    Ok(scene_dirs(root)?
-        .into_iter()
-        .map(|d| (scene_name(&d), d))
-        .collect())
-}
-
-/// FNV-1a, 64 bits: a cheap, stable fingerprint for run records (not for security).
-pub fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
-    })
-}
-
-/// Hashes of the files navigation reads (labels, structure, objects, occupancy, meshes).
-pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
-    let mut files: Vec<PathBuf> = [
-        "labels.json",
-        "structure.json",
-        "objects.json",
-        "occupancy.json",
-        "occupancy.png",
-    ]
-    .iter()
-    .map(|f| dir.join(f))
-    .filter(|p| p.is_file())
-    .collect();
-    if let Ok(entries) = std::fs::read_dir(dir.join("meshes")) {
-        let mut meshes: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
-        meshes.sort();
-        files.extend(meshes);
-    }
-    files
-        .iter()
-        .filter_map(|p| {
-            let bytes = std::fs::read(p).ok()?;
-            let name = p
-                .strip_prefix(dir)
-                .unwrap_or(p)
-                .to_string_lossy()
-                .into_owned();
-            Some((name, format!("{:016x}", fnv1a(&bytes))))
-        })
-        .collect()
 }

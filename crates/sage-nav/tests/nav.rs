@@ -5,6 +5,7 @@
 use glam::{Vec2, Vec3};
 use proptest::prelude::*;
 use sage_core::{InstanceId, Obb, Polygon2};
+use sage_io::runner::Status;
 use sage_nav::astar::{DistanceField, Graph, Search};
 use sage_nav::grid::NavGrid;
 use sage_nav::path::line_clear;
@@ -612,7 +613,7 @@ fn a_run_writes_resumes_and_reports_skips() {
         .unwrap_or_else(|_| {
             std::fs::create_dir_all(&bad_dir).unwrap();
         });
-    let dirs = trajectory::scene_dirs(&scenes).unwrap();
+    let dirs = sage_io::scenes::scene_dirs(&scenes).unwrap();
     assert_eq!(dirs.len(), 2);
     let params = TrajectoryParams {
         count: 5,
@@ -621,7 +622,7 @@ fn a_run_writes_resumes_and_reports_skips() {
     };
     let out = root.path().join("out");
     let first = trajectory::run_scene(&good, &out.join("a_good"), &params);
-    assert_eq!(first.status, "done", "{:?}", first.reason);
+    assert_eq!(first.status, Status::Done, "{:?}", first.reason);
     let bytes = std::fs::read(out.join("a_good").join(trajectory::TRAJECTORIES_FILE)).unwrap();
     assert!(
         out.join("a_good")
@@ -629,7 +630,7 @@ fn a_run_writes_resumes_and_reports_skips() {
             .is_file()
     );
     let again = trajectory::run_scene(&good, &out.join("a_good"), &params);
-    assert_eq!(again.status, "resumed");
+    assert_eq!(again.status, Status::Resumed);
     assert_eq!(
         std::fs::read(out.join("a_good").join(trajectory::TRAJECTORIES_FILE)).unwrap(),
         bytes
@@ -641,10 +642,10 @@ fn a_run_writes_resumes_and_reports_skips() {
     };
     assert_eq!(
         trajectory::run_scene(&good, &out.join("a_good"), &more).status,
-        "done"
+        Status::Done
     );
     let skipped = trajectory::run_scene(&bad_dir, &out.join("b_blocked"), &params);
-    assert_eq!(skipped.status, "skipped");
+    assert_eq!(skipped.status, Status::Skipped);
     assert!(skipped.reason.unwrap().contains("no navigable space"));
     assert!(
         !out.join("b_blocked")

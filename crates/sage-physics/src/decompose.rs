@@ -15,8 +15,8 @@ use crate::hull::ConvexPart;
 use glam::Vec3;
 use parry3d::transformation::vhacd::{VHACD, VHACDParameters};
 use sage_core::{Error, Result, ResultExt};
+use sage_io::files::write_atomic;
 use sage_scene::TriMesh;
-use sage_scene::fsutil::write_atomic;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -144,29 +144,10 @@ fn vhacd(mesh: &TriMesh, resolution: u32, concavity: f32, max_hulls: u32) -> Vec
         .collect()
 }
 
-/// A 128-bit FNV-1a hash: stable across platforms and releases (unlike std's hasher).
-struct Fnv128(u128);
-
-impl Fnv128 {
-    const OFFSET: u128 = 0x6c62272e07bb014262b821756295c58d;
-    const PRIME: u128 = 0x0000000001000000000000000000013B;
-
-    fn new() -> Self {
-        Fnv128(Self::OFFSET)
-    }
-
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 ^= u128::from(b);
-            self.0 = self.0.wrapping_mul(Self::PRIME);
-        }
-    }
-}
-
 /// The cache key of (mesh, decomposer): FNV-1a 128 over the settings text, the vertex and
 /// triangle counts, every coordinate's bits and every index (little endian).
 pub fn cache_key(mesh: &TriMesh, decomposer: &Decomposer) -> u128 {
-    let mut h = Fnv128::new();
+    let mut h = sage_io::hash::Fnv1a128::new();
     h.write(decomposer.describe().as_bytes());
     h.write(&(mesh.positions.len() as u64).to_le_bytes());
     h.write(&(mesh.triangles.len() as u64).to_le_bytes());
@@ -180,7 +161,7 @@ pub fn cache_key(mesh: &TriMesh, decomposer: &Decomposer) -> u128 {
             h.write(&i.to_le_bytes());
         }
     }
-    h.0
+    h.finish()
 }
 
 /// A folder of cached decompositions, one file per key.

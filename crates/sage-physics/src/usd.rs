@@ -18,8 +18,8 @@
 use crate::bodies::{Body, SceneBodies};
 use crate::world::hinge_of;
 use sage_core::{Result, Vec3};
+use sage_io::files::write_atomic;
 use sage_scene::PhysicsRole;
-use sage_scene::fsutil::write_atomic;
 use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::Path;

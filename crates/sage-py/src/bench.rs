@@ -15,7 +15,8 @@ use sage_bench::eval::{
 };
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
-use sage_scene::fsutil::{write_atomic, write_json, write_run_record};
+use sage_io::files::{write_atomic, write_json};
+use sage_io::run::write_run_record;
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -40,7 +41,7 @@ pub fn list_splits(dataset: PathBuf) -> PyResult<Vec<String>> {
 /// The scene folders under `root` (itself when it is one), sorted by name.
 #[pyfunction]
 pub fn scene_dirs(root: PathBuf) -> PyResult<Vec<PathBuf>> {
-    sage_nav::trajectory::scene_dirs(&root).py()
+    sage_io::scenes::scene_dirs(&root).py()
 }
 
 /// The settings of an evaluation. `agent` is the recorded name; a Python agent has no
@@ -234,7 +235,7 @@ fn merge(settings: &EvalSettings, agent: &str, shards: &[String], out: &Path) ->
         Some(settings.seed),
         serde_json::json!({
             "settings": recorded,
-            "dataset_hash": format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes)),
+            "dataset_hash": sage_io::hash::fnv1a64_hex(&bytes),
         }),
     )?;
     Ok(summary)
@@ -327,7 +328,7 @@ pub fn assemble_dataset<'py>(
             let summary = build::assemble(&out, &names, &assemble, &params.space)?;
             let inputs: BTreeMap<String, _> = scenes
                 .iter()
-                .map(|d| (name(d), sage_nav::trajectory::input_hashes(d)))
+                .map(|d| (name(d), sage_io::scenes::input_hashes(d)))
                 .collect();
             write_run_record(
                 &out,

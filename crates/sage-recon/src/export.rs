@@ -194,7 +194,7 @@ pub const POINTS_FILE: &str = "points3d.ply";
 /// Writes coloured points as a binary PLY (`x, y, z` float, `red, green, blue` uchar), the
 /// layout nerfstudio loads through `ply_file_path` (atomically).
 pub fn write_points_ply(path: &Path, points: &[(glam::Vec3, [f32; 3], glam::Vec3)]) -> Result<()> {
-    sage_scene::fsutil::write_atomic(path, |w| {
+    sage_io::files::write_atomic(path, |w| {
         write!(
             w,
             "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
@@ -212,10 +212,10 @@ pub fn write_points_ply(path: &Path, points: &[(glam::Vec3, [f32; 3], glam::Vec3
 
 /// Writes `transforms.json` (atomically).
 pub fn write_transforms(path: &Path, t: &Transforms) -> Result<()> {
-    sage_scene::fsutil::write_json(path, t)
+    sage_io::files::write_json(path, t)
 }
 
 /// Reads a `transforms.json` written by [`write_transforms`] (or any file with its fields).
 pub fn read_transforms(path: &Path) -> Result<Transforms> {
-    sage_scene::fsutil::read_json(path)
+    sage_io::files::read_json(path)
 }

@@ -10,7 +10,7 @@ use crate::volume::{VolumeParams, volume};
 use crate::{Pose, PoseTag};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result, ResultExt};
-use sage_nav::draw::{Canvas, legend_height, legend_width};
+use sage_io::canvas::{Canvas, legend_height, legend_width};
 use sage_scene::Scene;
 use sage_splat::{Camera, Intrinsics};
 use serde::{Deserialize, Serialize};
@@ -284,7 +284,7 @@ impl Plan {
 
     /// Writes the plan file (atomically).
     pub fn save(&self, path: &Path) -> Result<()> {
-        sage_scene::fsutil::write_json(path, self)
+        sage_io::files::write_json(path, self)
     }
 
     /// Intrinsics of the views at `width × height` (square pixels from the plan's field of

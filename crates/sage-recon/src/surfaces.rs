@@ -63,11 +63,8 @@ pub fn object_base_color(category: &str, color: Option<&str>) -> [f32; 3] {
     if let Some(rgb) = color.and_then(sage_scene::synth::color_rgb) {
         return rgb;
     }
-    // FNV-1a: stable across runs and platforms, unlike the standard hasher.
-    let h = category.bytes().fold(0x811c_9dc5u32, |h, b| {
-        (h ^ b as u32).wrapping_mul(0x0100_0193)
-    });
-    sage_scene::palette::distinct_color(h % 4096).map(|c| c as f32 / 255.0)
+    let h = sage_io::hash::fnv1a32(category.as_bytes());
+    sage_io::palette::distinct_color(h % 4096).map(|c| c as f32 / 255.0)
 }
 
 /// The 12 triangles of an oriented box, wound outwards.

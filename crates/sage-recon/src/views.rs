@@ -7,7 +7,7 @@ use crate::export::ExportView;
 use crate::plan::Plan;
 use crate::raster::MeshImage;
 use sage_core::{Error, Result, ResultExt};
-use sage_scene::fsutil::{write_json, write_png, write_rgb_png};
+use sage_io::files::{write_json, write_png, write_rgb_png};
 use sage_splat::Intrinsics;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -78,10 +78,7 @@ impl Manifest {
 fn views_hash(plan: &Plan) -> Result<String> {
     let bytes = serde_json::to_vec(&plan.views)
         .map_err(|e| Error::invalid(format!("plan views do not serialise: {e}")))?;
-    let h = bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-        (h ^ u64::from(*b)).wrapping_mul(0x0000_0100_0000_01b3)
-    });
-    Ok(format!("{h:016x}"))
+    Ok(sage_io::hash::fnv1a64_hex(&bytes))
 }
 
 /// RGB file of view `k`, relative to the reconstruction folder.

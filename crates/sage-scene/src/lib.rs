@@ -11,13 +11,11 @@
 
 pub mod floorplan;
 pub mod formats;
-pub mod fsutil;
 pub mod gaussians;
 pub mod instances;
 pub mod mesh;
 pub mod object;
 pub mod occupancy;
-pub mod palette;
 pub mod ply;
 pub mod preview;
 pub mod scene;

@@ -112,7 +112,7 @@ impl OccupancyMap {
             "lower": self.lower.to_array(), "upper": self.upper.to_array(),
         });
         let png_path = dir.join("occupancy.png");
-        crate::fsutil::write_png(
+        sage_io::files::write_png(
             &png_path,
             self.width,
             self.height,
@@ -120,7 +120,7 @@ impl OccupancyMap {
             png::BitDepth::Eight,
             &self.cells,
         )?;
-        crate::fsutil::write_json(&dir.join("occupancy.json"), &placement)
+        sage_io::files::write_json(&dir.join("occupancy.json"), &placement)
     }
 }
 

@@ -65,7 +65,7 @@ pub fn plan_view(gaussians: &Gaussians, metres_per_pixel: f32, cut_z: f32) -> Rg
 impl RgbImage {
     /// Writes the image as PNG (atomically).
     pub fn save_png(&self, path: &std::path::Path) -> sage_core::Result<()> {
-        crate::fsutil::write_rgb_png(path, self.width, self.height, &self.pixels)
+        sage_io::files::write_rgb_png(path, self.width, self.height, &self.pixels)
     }
 }
 

@@ -258,12 +258,12 @@ impl Scene {
             SplatLayout::Standard => files::STANDARD_PLY,
         };
         ply::write_splats_file(&dir.join(splat_name), &self.gaussians, layout)?;
-        crate::fsutil::write_json(&dir.join(files::LABELS), &labels::to_json(&self.objects))?;
-        crate::fsutil::write_json(
+        sage_io::files::write_json(&dir.join(files::LABELS), &labels::to_json(&self.objects))?;
+        sage_io::files::write_json(
             &dir.join(files::STRUCTURE),
             &structure::to_json(&self.floorplan),
         )?;
-        crate::fsutil::write_json(
+        sage_io::files::write_json(
             &dir.join(files::OBJECTS),
             &objects_json::to_json(&self.objects, &self.floorplan),
         )?;
@@ -279,11 +279,11 @@ impl Scene {
         for o in &self.objects {
             if let Some(m) = &o.mesh {
                 let p = mesh_dir.join(format!("{}.obj", o.ins_id));
-                crate::fsutil::write_atomic(&p, |w| m.write_obj(w, &o.category))?;
+                sage_io::files::write_atomic(&p, |w| m.write_obj(w, &o.category))?;
             }
         }
         if let Some(m) = &self.structure_mesh {
-            crate::fsutil::write_atomic(&mesh_dir.join(files::STRUCTURE_MESH), |w| {
+            sage_io::files::write_atomic(&mesh_dir.join(files::STRUCTURE_MESH), |w| {
                 m.write_obj(w, "structure")
             })?;
         }

@@ -22,6 +22,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use sage_core::{Error, Result};
+use sage_io::files::write_json;
+use sage_io::runner::{Status, resume_or_run};
 use sage_lang::actions::{self, ActionSpace};
 use sage_lang::instruction::Instruction;
 use sage_lang::llm::{self, LlmClient, LlmConfig};
@@ -29,7 +31,6 @@ use sage_lang::validate::ValidationReport;
 use sage_lang::{InstructionType, TextMap, Validator, highlevel, lowlevel};
 use sage_nav::trajectory::{self, Trajectory, TrajectoryParams};
 use sage_scene::Scene;
-use sage_scene::fsutil::write_json;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -403,8 +404,8 @@ pub fn scene_file(out: &Path, scene: &str) -> PathBuf {
 pub struct SceneOutcome {
     /// Scene name.
     pub scene: String,
-    /// `done`, `resumed` or `skipped`.
-    pub status: String,
+    /// Made, resumed (already complete) or skipped.
+    pub status: Status,
     /// Episodes in its file.
     pub episodes: usize,
     /// Why it was skipped.
@@ -419,21 +420,14 @@ pub fn run_scene(
     params: &SceneParams,
     client: Option<&LlmClient>,
 ) -> SceneOutcome {
-    let name = sage_nav::trajectory::scene_name(dir);
+    let name = sage_io::scenes::scene_name(dir);
     let file = scene_file(out, &name);
-    let outcome = |status: &str, n: usize, reason: Option<String>| SceneOutcome {
-        scene: name.clone(),
-        status: status.into(),
-        episodes: n,
-        reason,
+    let complete = || {
+        let text = std::fs::read_to_string(&file).ok()?;
+        let done = serde_json::from_str::<SceneEpisodes>(&text).ok()?;
+        (done.settings == *params).then_some(done.episodes.len())
     };
-    if let Ok(text) = std::fs::read_to_string(&file)
-        && let Ok(done) = serde_json::from_str::<SceneEpisodes>(&text)
-        && done.settings == *params
-    {
-        return outcome("resumed", done.episodes.len(), None);
-    }
-    let result = (|| {
+    let outcome = resume_or_run(complete, || {
         let (mut scene, _) = Scene::load(dir)?;
         scene.name = name.clone();
         let (report, episodes) = scene_episodes(&scene, params, client)?;
@@ -445,16 +439,18 @@ pub fn run_scene(
             &SceneEpisodes {
                 scene: name.clone(),
                 settings: params.clone(),
-                inputs: trajectory::input_hashes(dir),
+                inputs: sage_io::scenes::input_hashes(dir),
                 report,
                 episodes,
             },
         )?;
-        Ok::<usize, Error>(n)
-    })();
-    match result {
-        Ok(n) => outcome("done", n, None),
-        Err(e) => outcome("skipped", 0, Some(e.to_string())),
+        Ok(n)
+    });
+    SceneOutcome {
+        scene: name,
+        status: outcome.status,
+        episodes: outcome.count,
+        reason: outcome.reason,
     }
 }
 
@@ -695,7 +691,7 @@ pub fn assemble(
         &serde_json::json!({"seed": params.seed, "params": params, "splits": split_ids}),
     )?;
     write_json(&out.join("summary.json"), &summary)?;
-    sage_scene::fsutil::write_atomic(&out.join("summary.txt"), |w| {
+    sage_io::files::write_atomic(&out.join("summary.txt"), |w| {
         std::io::Write::write_all(w, summary.table().as_bytes())
     })?;
     Ok(summary)
@@ -723,7 +719,7 @@ pub fn build(
         .collect();
     let names: Vec<String> = dirs
         .iter()
-        .map(|d| sage_nav::trajectory::scene_name(d))
+        .map(|d| sage_io::scenes::scene_name(d))
         .collect();
     let summary = assemble(out, &names, assemble_params, &params.space)?;
     Ok((outcomes, summary))

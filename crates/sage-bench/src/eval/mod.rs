@@ -20,8 +20,8 @@ use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
 use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
+use sage_io::run::RUN_RECORD;
 use sage_lang::{InstructionType, Level};
-use sage_scene::fsutil::RUN_RECORD;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -254,7 +254,7 @@ fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str
             .in_file(&path));
         }
     }
-    sage_scene::fsutil::write_run_record(
+    sage_io::run::write_run_record(
         out,
         "eval",
         settings.get("seed").and_then(serde_json::Value::as_u64),
@@ -305,8 +305,8 @@ pub fn run_with(
         episodes.retain(|e| keep(e));
     }
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
-    let dataset_hash = format!("{:016x}", sage_nav::trajectory::fnv1a(&bytes));
-    let dirs = sage_nav::trajectory::scene_dirs_by_name(&settings.scenes)?;
+    let dataset_hash = sage_io::hash::fnv1a64_hex(&bytes);
+    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
     if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
         return Err(Error::invalid(format!(
             "scene '{}' of episode {} is not among the scenes",
@@ -357,7 +357,7 @@ pub fn run_with(
         agent: runner.agent_name.clone(),
         ..Summary::of(settings, &all)
     };
-    sage_scene::fsutil::write_json(&out.join(SUMMARY_FILE), &summary)?;
+    sage_io::files::write_json(&out.join(SUMMARY_FILE), &summary)?;
     Ok(RunOutcome {
         total: episodes.len(),
         resumed: done.len(),

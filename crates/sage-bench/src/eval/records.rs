@@ -118,7 +118,7 @@ pub fn resume(path: &Path, ids: &BTreeSet<&str>) -> Result<BTreeSet<String>> {
     let text = read_text(path)?;
     let (records, kept) = parse(path, &text, ids, true)?;
     if kept < text.len() {
-        sage_scene::fsutil::write_atomic(path, |w| w.write_all(&text.as_bytes()[..kept]))?;
+        sage_io::files::write_atomic(path, |w| w.write_all(&text.as_bytes()[..kept]))?;
     }
     Ok(records.into_iter().map(|r| r.episode_id).collect())
 }

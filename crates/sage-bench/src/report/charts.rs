@@ -8,7 +8,7 @@
 
 use crate::metrics::Aggregate;
 use glam::Vec2;
-use sage_nav::draw::Canvas;
+use sage_io::canvas::Canvas;
 use std::collections::BTreeMap;
 use std::fmt::Write;
 

@@ -9,7 +9,7 @@
 use crate::eval::EvalRecord;
 use crate::metrics::EpisodeRecord;
 use glam::Vec2;
-use sage_nav::draw::Canvas;
+use sage_io::canvas::Canvas;
 use sage_nav::{NavGrid, SemanticMap};
 
 /// The folder of the maps, under the report folder.

@@ -18,9 +18,9 @@ use crate::eval::summary::AXES;
 use crate::eval::{EvalRecord, RECORDS_FILE, SUMMARY_FILE, Summary};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
+use sage_io::run::RUN_RECORD;
 use sage_nav::{NavGrid, SemanticMap, TrajectoryParams};
 use sage_scene::Scene;
-use sage_scene::fsutil::RUN_RECORD;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
@@ -150,7 +150,7 @@ pub fn map_file_name(episode_id: &str) -> String {
     if safe == episode_id {
         format!("{safe}.png")
     } else {
-        let hash = sage_nav::trajectory::fnv1a(episode_id.as_bytes());
+        let hash = sage_io::hash::fnv1a64(episode_id.as_bytes());
         format!("{safe}-{hash:016x}.png")
     }
 }
@@ -215,7 +215,7 @@ pub fn write_with(
     let dirs: BTreeMap<String, PathBuf> = if by_scene.is_empty() {
         BTreeMap::new()
     } else {
-        sage_nav::trajectory::scene_dirs_by_name(scenes_dir)?
+        sage_io::scenes::scene_dirs_by_name(scenes_dir)?
     };
     if let Some(scene) = by_scene.keys().find(|s| !dirs.contains_key(**s)) {
         return Err(Error::invalid(format!(
@@ -269,7 +269,7 @@ pub fn write_with(
         embed: embedded,
     })?;
     let html_path = run_dir.join(REPORT_FILE);
-    sage_scene::fsutil::write_atomic(&html_path, |w| {
+    sage_io::files::write_atomic(&html_path, |w| {
         std::io::Write::write_all(w, page.as_bytes())
     })?;
     Ok(ReportOutcome {

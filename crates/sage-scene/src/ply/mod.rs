@@ -102,7 +102,7 @@ pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
 
 /// Writes Gaussians in `layout`, atomically (temporary file, then rename).
 pub fn write_splats_file(path: &Path, gaussians: &Gaussians, layout: SplatLayout) -> Result<()> {
-    crate::fsutil::write_atomic(path, |w| match layout {
+    sage_io::files::write_atomic(path, |w| match layout {
         SplatLayout::Standard => standard::write(w, gaussians),
         SplatLayout::Compressed => compressed::write(w, gaussians),
     })

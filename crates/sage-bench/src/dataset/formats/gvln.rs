@@ -170,7 +170,7 @@ pub fn write(
             meta["frame_offset"] = json!([s.offset.x, s.offset.y]);
         }
     }
-    sage_scene::fsutil::write_json(path, &json!({"dataset_metadata": meta, "scenes": scenes}))
+    sage_io::files::write_json(path, &json!({"dataset_metadata": meta, "scenes": scenes}))
 }
 
 /// The kind of a goal reference: `room_3` a room, `dining_area_1` an area, empty a pose.

@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// Writes `episodes`, one per line (atomically).
 pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
-    sage_scene::fsutil::write_atomic(path, |w| {
+    sage_io::files::write_atomic(path, |w| {
         for e in episodes {
             serde_json::to_writer(&mut *w, e).map_err(std::io::Error::other)?;
             w.write_all(b"\n")?;

@@ -128,7 +128,7 @@ fn world(p: [f32; 3]) -> [f32; 3] {
 }
 
 fn write_gz(path: &Path, value: &impl Serialize) -> Result<()> {
-    sage_scene::fsutil::write_atomic(path, |w| {
+    sage_io::files::write_atomic(path, |w| {
         let mut gz = flate2::GzBuilder::new()
             .mtime(0)
             .write(w, Compression::new(6));
@@ -143,7 +143,7 @@ fn read_gz<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
     GzDecoder::new(file)
         .read_to_string(&mut text)
         .map_err(|e| Error::io(path, e))?;
-    sage_scene::fsutil::parse_json(&text, path)
+    sage_io::files::parse_json(&text, path)
 }
 
 /// The two files of `split` under `dir`.

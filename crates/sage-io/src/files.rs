@@ -1,4 +1,5 @@
-//! File writing that never leaves a half-written file under the final name.
+//! Files that are never half-written: atomic writes of any file, JSON, PNG and NumPy `.npy`,
+//! and the readers that name the file, line and column of a parse error.
 
 use sage_core::{Error, Result};
 use std::io::{BufWriter, Write};
@@ -60,29 +61,6 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Re
         )
         .in_file(path)
     })
-}
-
-/// The file in which a command records how its output folder was made (SPEC §13).
-pub const RUN_RECORD: &str = "sage3d_run.json";
-
-/// Writes `dir/sage3d_run.json` (atomically): the tool, its version, the command and its seed,
-/// plus the command's own `details` (an object: resolved settings, input hashes, outcomes).
-pub fn write_run_record(
-    dir: &Path,
-    command: &str,
-    seed: Option<u64>,
-    details: serde_json::Value,
-) -> Result<()> {
-    let mut record = serde_json::json!({
-        "tool": "sage3d",
-        "version": env!("CARGO_PKG_VERSION"),
-        "command": command,
-        "seed": seed,
-    });
-    if let (Some(fields), serde_json::Value::Object(extra)) = (record.as_object_mut(), details) {
-        fields.extend(extra);
-    }
-    write_json(&dir.join(RUN_RECORD), &record)
 }
 
 /// Writes an 8- or 16-bit PNG (atomically). `data` holds the rows top to bottom, samples

@@ -157,7 +157,7 @@ impl Canvas {
 
     /// Saves the canvas as an RGB PNG (atomically).
     pub fn save_png(&self, path: &Path) -> Result<()> {
-        sage_scene::fsutil::write_rgb_png(path, self.width, self.height, &self.rgb)
+        crate::files::write_rgb_png(path, self.width, self.height, &self.rgb)
     }
 }
 
@@ -176,7 +176,7 @@ pub fn legend_height(rows: usize) -> usize {
 
 /// A distinct, stable colour per index.
 pub fn palette(index: usize) -> [u8; 3] {
-    sage_scene::palette::distinct_color(index as u32 + 1)
+    crate::palette::distinct_color(index as u32 + 1)
 }
 
 /// The 5×7 bitmap of a character (rows top to bottom, bit 4 = leftmost column).

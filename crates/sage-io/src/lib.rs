@@ -1,0 +1,24 @@
+//! `sage-io`: the plumbing of files and runs that every sage3d pipeline shares.
+//!
+//! - [`files`]: atomic writes (a file is whole or absent, never half-written), JSON, PNG and
+//!   NumPy `.npy`, readers whose errors name the file, line and column;
+//! - [`hash`]: the one stable hash (FNV-1a) for fingerprints, cache keys and derived seeds;
+//! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made;
+//! - [`scenes`]: finding scene folders, their names, and fingerprints of their input files;
+//! - [`runner`]: the resumable per-scene runner and its typed outcome;
+//! - [`canvas`]: the small RGB canvas that draws maps, plans and charts to PNG, and
+//!   [`palette`]: distinct, stable colours for ids.
+//!
+//! It knows nothing of scenes beyond their folder layout, so every other crate can use it.
+
+pub mod canvas;
+pub mod files;
+pub mod hash;
+pub mod palette;
+pub mod run;
+pub mod runner;
+pub mod scenes;
+
+pub use canvas::Canvas;
+pub use files::{read_json, write_atomic, write_json};
+pub use run::{RUN_RECORD, write_run_record};

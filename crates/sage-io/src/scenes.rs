@@ -1,0 +1,114 @@
+//! Finding scene folders, naming them, and fingerprinting the files a pipeline reads.
+
+use crate::hash::fnv1a64_hex;
+use sage_core::{Error, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// True when `dir` is a scene folder: it holds `structure.json` or `labels.json`.
+pub fn is_scene_dir(dir: &Path) -> bool {
+    dir.join("structure.json").is_file() || dir.join("labels.json").is_file()
+}
+
+/// The scene folders of `root`: itself when it is a scene ([`is_scene_dir`]), else its
+/// sub-folders that are, sorted by name.
+///
+/// # Errors
+///
+/// `root` cannot be read, or neither it nor any sub-folder is a scene.
+pub fn scene_dirs(root: &Path) -> Result<Vec<PathBuf>> {
+    if is_scene_dir(root) {
+        return Ok(vec![root.to_path_buf()]);
+    }
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(root)
+        .map_err(|e| Error::io(root, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir() && is_scene_dir(p))
+        .collect();
+    dirs.sort();
+    if dirs.is_empty() {
+        return Err(Error::invalid(format!(
+            "{} is neither a scene folder nor a folder of scenes (no structure.json or labels.json)",
+            root.display()
+        )));
+    }
+    Ok(dirs)
+}
+
+/// The folder name of a scene folder (how episodes name their scene).
+pub fn scene_name(dir: &Path) -> String {
+    dir.file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+}
+
+/// [`scene_dirs`] keyed by [`scene_name`].
+///
+/// # Errors
+///
+/// As [`scene_dirs`].
+pub fn scene_dirs_by_name(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
+    Ok(scene_dirs(root)?
+        .into_iter()
+        .map(|d| (scene_name(&d), d))
+        .collect())
+}
+
+/// FNV-1a 64 hashes (hex) of the files navigation reads (labels, structure, objects,
+/// occupancy, meshes), keyed by their path relative to `dir`: what run records store so a
+/// later reader can tell whether a scene changed.
+pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
+    let mut files: Vec<PathBuf> = [
+        "labels.json",
+        "structure.json",
+        "objects.json",
+        "occupancy.json",
+        "occupancy.png",
+    ]
+    .iter()
+    .map(|f| dir.join(f))
+    .filter(|p| p.is_file())
+    .collect();
+    if let Ok(entries) = std::fs::read_dir(dir.join("meshes")) {
+        let mut meshes: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
+        meshes.sort();
+        files.extend(meshes);
+    }
+    files
+        .iter()
+        .filter_map(|p| {
+            let bytes = std::fs::read(p).ok()?;
+            let name = p
+                .strip_prefix(dir)
+                .unwrap_or(p)
+                .to_string_lossy()
+                .into_owned();
+            Some((name, fnv1a64_hex(&bytes)))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_folder_of_scenes_lists_its_scenes_by_name_and_a_scene_lists_itself() {
+        let root = tempfile::tempdir().unwrap();
+        for (name, file) in [("b", "labels.json"), ("a", "structure.json")] {
+            std::fs::create_dir_all(root.path().join(name)).unwrap();
+            std::fs::write(root.path().join(name).join(file), "[]").unwrap();
+        }
+        std::fs::create_dir_all(root.path().join("notes")).unwrap();
+        let named = scene_dirs_by_name(root.path()).unwrap();
+        assert_eq!(named.keys().collect::<Vec<_>>(), ["a", "b"]);
+        let a = root.path().join("a");
+        assert_eq!(scene_dirs(&a).unwrap(), vec![a.clone()]);
+        let hashes = input_hashes(&a);
+        assert_eq!(hashes.keys().collect::<Vec<_>>(), ["structure.json"]);
+        assert_eq!(hashes["structure.json"], fnv1a64_hex(b"[]"));
+        let e = scene_dirs(&root.path().join("notes"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("neither a scene folder"), "{e}");
+    }
+}
