@@ -2,16 +2,13 @@
 //!
 //! [`dataset`] holds episodes, slices, splits, the balanced test selector, the file formats
 //! (our JSONL, SAGE-Bench GVLN JSON, R2R-VLNCE) and the `build` pipeline that turns a folder of
-//! scenes into a dataset (`docs/dataset.md`). [`metrics`] scores one episode's record — NE, SR,
-//! OSR, SPL, TL, CR, CSR, ICP, PS, nDTW, SDTW and the NoGoal measures — in the modes `sage`,
-//! `vlnce` and `sage-official`, and aggregates them (`docs/metrics.md`). [`eval`] runs an agent over
-//! a dataset split in the environment, resumably, and summarises the scores per slice
-//! (`docs/evaluation.md`); [`agents`] adds the replay and remote (model server) agents it can
+//! scenes into a dataset (`docs/dataset.md`). [`eval`] runs an agent over
+//! a dataset split in the environment, resumably, and summarises the scores per slice with
+//! `sage-metrics` (`docs/evaluation.md`); [`agents`] adds the replay and remote (model server) agents it can
 //! run. [`report`] turns a run folder into a self-contained HTML page with the metric tables,
 //! per-slice charts and per-episode trajectory maps.
 
 pub mod agents;
 pub mod dataset;
 pub mod eval;
-pub mod metrics;
 pub mod report;

@@ -8,10 +8,10 @@ mod common;
 
 use base64::Engine;
 use sage_bench::eval::{self, EvalRecord, EvalSettings, Summary};
-use sage_bench::metrics::Mode;
 use sage_bench::report::{self, maps};
 use sage_io::canvas::Canvas;
 use sage_io::files::read_tree;
+use sage_metrics::Mode;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

@@ -7,10 +7,10 @@
 use crate::machine;
 use clap::{Args, Subcommand};
 use sage_bench::eval::convert::{AgentKind, env_episode, load_context, metric_record};
-use sage_bench::metrics::{self, Mode};
 use sage_core::{Error, Result};
 use sage_env::agents::{Agent, RandomAgent, run_episode};
 use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
+use sage_metrics::Mode;
 use sage_nav::{GridParams, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies};
 use sage_scene::synth::{SceneKind, SynthConfig};
@@ -105,7 +105,7 @@ fn run_one(a: RunArgs) -> Result<()> {
     for s in &trace.steps {
         println!("{}", json(s)?);
     }
-    let m = metrics::evaluate(&metric_record(&ctx, &trace), mode)?;
+    let m = sage_metrics::evaluate(&metric_record(&ctx, &trace), mode)?;
     println!(
         "{}",
         json(&serde_json::json!({

@@ -169,14 +169,11 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
             let (r, q) = (points("reference"), points("query"));
             let manhattan = |a: &[f64; 2], b: &[f64; 2]| (a[0] - b[0]).abs() + (a[1] - b[1]).abs();
             let cost = match v["cost"].as_str() {
-                Some("manhattan") => sage_bench::metrics::dtw::dtw(&r, &q, manhattan),
-                _ => sage_bench::metrics::dtw::dtw(&r, &q, sage_bench::metrics::dtw::euclidean),
+                Some("manhattan") => sage_metrics::dtw::dtw(&r, &q, manhattan),
+                _ => sage_metrics::dtw::dtw(&r, &q, sage_metrics::dtw::euclidean),
             };
-            let ndtw = sage_bench::metrics::dtw::ndtw_from(
-                cost,
-                r.len(),
-                v["threshold"].as_f64().unwrap(),
-            );
+            let ndtw =
+                sage_metrics::dtw::ndtw_from(cost, r.len(), v["threshold"].as_f64().unwrap());
             let close = |a: f64, k: &str| (a - v[k].as_f64().unwrap()).abs() < 1e-9;
             (close(cost, "dtw") && close(ndtw, "ndtw"))
                 .then_some(())
@@ -185,11 +182,11 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
         "metrics" => {
             // {"mode": M, "record": EpisodeRecord, "expected": {metric: value}}
             let v: Value = serde_json::from_str(body).map_err(|e| e.to_string())?;
-            let record: sage_bench::metrics::EpisodeRecord =
+            let record: sage_metrics::EpisodeRecord =
                 serde_json::from_value(v["record"].clone()).map_err(|e| e.to_string())?;
-            let mode: sage_bench::metrics::Mode =
+            let mode: sage_metrics::Mode =
                 serde_json::from_value(v["mode"].clone()).map_err(|e| e.to_string())?;
-            let m = sage_bench::metrics::evaluate(&record, mode).map_err(err)?;
+            let m = sage_metrics::evaluate(&record, mode).map_err(err)?;
             let named: BTreeMap<&str, Option<f64>> = m.named().into_iter().collect();
             v["expected"]
                 .as_object()

@@ -306,6 +306,33 @@ impl Polygon2 {
     }
 }
 
+/// Points every `step` metres along the polyline from its first point, plus its last point.
+pub fn resample_polyline(points: &[Vec2], step: f32) -> Vec<Vec2> {
+    let Some(&first) = points.first() else {
+        return Vec::new();
+    };
+    let mut out = vec![first];
+    let mut carried = 0.0f32;
+    for w in points.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let len = a.distance(b);
+        if len <= 0.0 {
+            continue;
+        }
+        let mut t = step - carried;
+        while t < len - 1e-4 {
+            out.push(a + (b - a) * (t / len));
+            t += step;
+        }
+        carried = len - (t - step);
+    }
+    let last = *points.last().unwrap_or(&first);
+    if out.last().is_none_or(|p| p.distance(last) > 1e-4) {
+        out.push(last);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

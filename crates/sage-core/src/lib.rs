@@ -2,7 +2,7 @@
 //!
 //! Math types (re-exported from `glam`), the three coordinate frames of SPEC §3 (the internal
 //! world frame W, Habitat's Y-up frame and the SAGE "S" frame), poses and angles, plain geometry
-//! (oriented boxes, polygons), instance ids, and the one error type whose messages name the file
+//! (oriented boxes, polygons), instance ids, the task of an episode, and the one error type whose messages name the file
 //! and field at fault. Nothing here touches files or threads.
 
 pub mod error;
@@ -10,6 +10,7 @@ pub mod frame;
 pub mod geometry;
 pub mod id;
 pub mod pose;
+pub mod task;
 
 pub use error::{Error, ErrorKind, Result, ResultExt};
 pub use geometry::{Aabb, Obb, Polygon2};
@@ -17,3 +18,4 @@ pub use glam;
 pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 pub use id::InstanceId;
 pub use pose::{Pose, wrap_angle};
+pub use task::Task;

@@ -2,8 +2,9 @@
 
 use crate::config::{ActionSpace, EnvConfig};
 use crate::context::SceneContext;
-use crate::episode::{EnvEpisode, EnvTask, EpisodeTrace, TraceGeodesics};
+use crate::episode::{EnvEpisode, EpisodeTrace, TraceGeodesics};
 use glam::{Vec2, Vec3};
+use sage_core::Task;
 use sage_core::{Error, Polygon2, Pose, Result};
 use sage_nav::PathFinder;
 use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
@@ -229,7 +230,7 @@ impl Env {
     /// A VLN episode without a goal, a goal object missing from the scene, or a render error.
     pub fn reset(&mut self, episode: &EnvEpisode) -> Result<Observation> {
         let region = match (&episode.task, &episode.goal) {
-            (EnvTask::Vln, None) => {
+            (Task::Vln, None) => {
                 return Err(Error::invalid(format!(
                     "episode {}: a vln episode needs a goal",
                     episode.id
@@ -243,7 +244,7 @@ impl Env {
                 ),
                 None => None,
             },
-            (EnvTask::Nogoal, None) => None,
+            (Task::Nogoal, None) => None,
         };
         let body = Body::new(self.profile.clone(), episode.start);
         let trace = EpisodeTrace {
@@ -312,9 +313,9 @@ impl Env {
         let steps = s.trace.steps.len() + 1;
         let termination = if action == Action::Stop {
             Some(Termination::Stop)
-        } else if s.trace.episode.task == EnvTask::Nogoal && report.contact_onset {
+        } else if s.trace.episode.task == Task::Nogoal && report.contact_onset {
             Some(Termination::Collision)
-        } else if s.trace.episode.task == EnvTask::Nogoal && s.time >= task.nogoal_time_limit {
+        } else if s.trace.episode.task == Task::Nogoal && s.time >= task.nogoal_time_limit {
             Some(Termination::TimeLimit)
         } else if steps >= task.max_steps {
             Some(Termination::MaxSteps)

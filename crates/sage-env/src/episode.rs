@@ -6,19 +6,9 @@
 
 use crate::env::{StepInfo, Termination};
 use glam::Vec3;
-use sage_core::Pose;
+use sage_core::{Pose, Task};
 use sage_nav::{EndpointKind, Trajectory};
 use serde::{Deserialize, Serialize};
-
-/// The task of an episode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum EnvTask {
-    /// Reach the goal and STOP there.
-    Vln,
-    /// Move as long as possible without a collision.
-    Nogoal,
-}
 
 /// The goal of a VLN episode.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -37,7 +27,7 @@ pub struct EnvEpisode {
     /// Episode id.
     pub id: String,
     /// The task.
-    pub task: EnvTask,
+    pub task: Task,
     /// The instruction shown to the agent.
     pub instruction: String,
     /// Start pose (floor position, heading).
@@ -87,7 +77,7 @@ impl EnvEpisode {
         let object = (t.goal.kind == EndpointKind::Object).then(|| t.goal.reference.clone());
         EnvEpisode {
             id: id.into(),
-            task: EnvTask::Vln,
+            task: Task::Vln,
             instruction: instruction.to_string(),
             start: Pose::new(
                 Vec3::from(t.start.point),

@@ -21,4 +21,4 @@ pub mod episode;
 pub use config::{ActionSpace, EnvConfig, SensorConfig, TaskConfig};
 pub use context::SceneContext;
 pub use env::{Action, Env, Images, Observation, StepInfo, Termination};
-pub use episode::{EnvEpisode, EnvGoal, EnvTask, EpisodeTrace};
+pub use episode::{EnvEpisode, EnvGoal, EpisodeTrace};

@@ -4,8 +4,7 @@
 use sage_core::Pose;
 use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent, run_episode};
 use sage_env::{
-    Action, ActionSpace, Env, EnvConfig, EnvEpisode, EnvTask, SceneContext, SensorConfig,
-    Termination,
+    Action, ActionSpace, Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig, Termination,
 };
 use sage_nav::TrajectoryParams;
 use sage_physics::{Decomposer, HullCache, SceneBodies};
@@ -196,7 +195,7 @@ fn termination_rules() {
     assert!(trace.stop_called());
     // NoGoal: forward until the first collision or the time limit.
     let nogoal = EnvEpisode {
-        task: EnvTask::Nogoal,
+        task: sage_core::Task::Nogoal,
         goal: None,
         ..e.clone()
     };

@@ -209,7 +209,7 @@ mod tests {
 
     fn poly(points: &[(f32, f32)], step: f32) -> Vec<Vec2> {
         let pts: Vec<Vec2> = points.iter().map(|&(x, y)| Vec2::new(x, y)).collect();
-        sage_nav::path::resample(&pts, step)
+        sage_core::geometry::resample_polyline(&pts, step)
     }
 
     #[test]

@@ -64,33 +64,6 @@ pub fn polyline_length(points: &[Vec2]) -> f32 {
     points.windows(2).map(|w| w[0].distance(w[1])).sum()
 }
 
-/// Points every `step` metres along the polyline from its first point, plus its last point.
-pub fn resample(points: &[Vec2], step: f32) -> Vec<Vec2> {
-    let Some(&first) = points.first() else {
-        return Vec::new();
-    };
-    let mut out = vec![first];
-    let mut carried = 0.0f32;
-    for w in points.windows(2) {
-        let (a, b) = (w[0], w[1]);
-        let len = a.distance(b);
-        if len <= 0.0 {
-            continue;
-        }
-        let mut t = step - carried;
-        while t < len - 1e-4 {
-            out.push(a + (b - a) * (t / len));
-            t += step;
-        }
-        carried = len - (t - step);
-    }
-    let last = *points.last().unwrap_or(&first);
-    if out.last().is_none_or(|p| p.distance(last) > 1e-4) {
-        out.push(last);
-    }
-    out
-}
-
 /// Heading (radians, from +x counter-clockwise) at each point: towards the next point; the last
 /// point takes `final_heading` when given, else the previous heading.
 pub fn headings(points: &[Vec2], final_heading: Option<f32>) -> Vec<f32> {
@@ -114,7 +87,7 @@ mod tests {
     #[test]
     fn resample_spaces_points_evenly_and_keeps_ends() {
         let pts = [Vec2::ZERO, Vec2::new(1.0, 0.0), Vec2::new(1.0, 0.6)];
-        let r = resample(&pts, 0.25);
+        let r = sage_core::geometry::resample_polyline(&pts, 0.25);
         assert_eq!(r.first(), Some(&Vec2::ZERO));
         assert_eq!(r.last(), Some(&Vec2::new(1.0, 0.6)));
         for w in r.windows(2).take(r.len() - 2) {

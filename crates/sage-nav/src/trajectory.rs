@@ -262,7 +262,7 @@ fn plan_pair(
     let waypoints = pf.shortcut_points(&cells);
     times.shortcut += t.elapsed();
     let t = Instant::now();
-    let pts = path::resample(&waypoints, params.step);
+    let pts = sage_core::geometry::resample_polyline(&waypoints, params.step);
     let goal_end = &endpoints.list[pair.goal];
     let headings = path::headings(&pts, g.facing);
     let length = path::polyline_length(&waypoints);

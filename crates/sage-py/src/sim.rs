@@ -15,12 +15,12 @@ use pyo3::types::{PyDict, PyList};
 use rayon::prelude::*;
 use sage_bench::dataset::Episode;
 use sage_bench::eval::convert::{env_episode, metric_record};
-use sage_bench::metrics::{self, EpisodeMetrics, Mode};
 use sage_core::{Error, Result};
 use sage_env::{
     Action, ActionSpace, Env, EnvConfig, EnvEpisode, Observation, SceneContext, StepInfo,
     Termination,
 };
+use sage_metrics::{EpisodeMetrics, Mode};
 use serde::Serialize;
 use serde_json::Value;
 use std::sync::Arc;
@@ -154,7 +154,7 @@ impl Core {
         let within = env.within_success_distance();
         let task = env.trace().map(|t| t.episode.task);
         let reward = match task {
-            Some(sage_env::EnvTask::Nogoal) => step.achieved - SLACK,
+            Some(sage_core::Task::Nogoal) => step.achieved - SLACK,
             _ => {
                 let progress = match (self.last_distance, step.distance_to_goal) {
                     (Some(a), Some(b)) => a - b,
@@ -203,7 +203,7 @@ impl Core {
             })
             .sum();
         let metrics = match trace.termination {
-            Some(_) => Some(metrics::evaluate(&metric_record(ctx, trace), mode)?),
+            Some(_) => Some(sage_metrics::evaluate(&metric_record(ctx, trace), mode)?),
             None => None,
         };
         let p = obs.pose;

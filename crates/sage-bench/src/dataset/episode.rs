@@ -5,15 +5,7 @@ use sage_core::Pose;
 use sage_lang::{Action, InstructionType, Level, SingleGoalKind, Source};
 use serde::{Deserialize, Serialize};
 
-/// Task of an episode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Task {
-    /// Vision-and-language navigation to a goal.
-    Vln,
-    /// Explore without a goal.
-    Nogoal,
-}
+pub use sage_core::Task;
 
 /// A start pose: position (W, floor z) and heading (radians, +x counter-clockwise).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -5,13 +5,13 @@
 
 use crate::agents::remote::{RemoteAgent, RemoteSpec};
 use crate::agents::replay::{ReplayAgent, ReplayFile};
-use crate::dataset::{Episode, Task};
-use crate::metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
-use crate::metrics::{EpisodeRecord, Geodesics, StepRecord};
+use crate::dataset::Episode;
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
 use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent};
-use sage_env::{ActionSpace, EnvEpisode, EnvGoal, EnvTask, EpisodeTrace, SceneContext};
+use sage_env::{ActionSpace, EnvEpisode, EnvGoal, EpisodeTrace, SceneContext};
+use sage_metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
+use sage_metrics::{EpisodeRecord, Geodesics, StepRecord};
 use sage_nav::TrajectoryParams;
 use sage_physics::{Decomposer, HullCache, SceneBodies, default_cache_dir};
 use sage_scene::Scene;
@@ -167,10 +167,7 @@ impl<'de> Deserialize<'de> for AgentKind {
 pub fn env_episode(e: &Episode) -> EnvEpisode {
     EnvEpisode {
         id: e.episode_id.clone(),
-        task: match e.task {
-            Task::Vln => EnvTask::Vln,
-            Task::Nogoal => EnvTask::Nogoal,
-        },
+        task: e.task,
         instruction: e.instruction.clone(),
         start: e.start.pose(),
         goal: e.goal.as_ref().map(|g| EnvGoal {
@@ -224,10 +221,7 @@ pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
     };
     EpisodeRecord {
         episode_id: e.id.clone(),
-        task: match e.task {
-            EnvTask::Vln => Task::Vln,
-            EnvTask::Nogoal => Task::Nogoal,
-        },
+        task: e.task,
         start: e.start.position.to_array(),
         start_yaw: e.start.yaw,
         steps: t

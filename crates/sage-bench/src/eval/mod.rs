@@ -14,7 +14,6 @@ pub mod summary;
 
 use crate::dataset::slices::Slices;
 use crate::dataset::{Episode, Task};
-use crate::metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
 use convert::{AgentKind, AgentMaker, env_episode, load_context, metric_record};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
@@ -22,6 +21,7 @@ use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_io::run::RUN_RECORD;
 use sage_lang::{InstructionType, Level};
+use sage_metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -213,7 +213,7 @@ fn run_one(
         let agent = agent.insert((runner.agent)()?);
         let trace = run_episode(&mut env, agent.as_mut(), &env_episode(e))?;
         let record = metric_record(ctx, &trace);
-        let m = metrics::evaluate(&record, mode)?;
+        let m = sage_metrics::evaluate(&record, mode)?;
         Ok::<_, Error>((trace.termination, m, record))
     })();
     match result {

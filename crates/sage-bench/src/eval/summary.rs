@@ -5,7 +5,7 @@
 //! `summary.json`) do not depend on the order episodes finished in.
 
 use super::{EvalRecord, EvalSettings};
-use crate::metrics::{Aggregate, Mode, aggregate};
+use sage_metrics::{Aggregate, Mode, aggregate};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write;

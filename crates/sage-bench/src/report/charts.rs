@@ -6,9 +6,9 @@
 //! inline SVG and the PNG (drawn with the map canvas and its bitmap font), so both show the
 //! same picture. Bars run horizontally so long slice names stay legible.
 
-use crate::metrics::Aggregate;
 use glam::Vec2;
 use sage_io::canvas::Canvas;
+use sage_metrics::Aggregate;
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -354,7 +354,7 @@ impl BarChart {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::metrics::Mode;
+    use sage_metrics::Mode;
 
     #[test]
     fn nice_ceilings() {

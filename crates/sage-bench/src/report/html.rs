@@ -4,9 +4,9 @@
 use super::charts::BarChart;
 use super::{MapFile, RunFiles, succeeded};
 use crate::eval::summary::AXES;
-use crate::metrics::{Aggregate, EpisodeMetrics};
 use base64::Engine;
 use sage_core::{Error, Result};
+use sage_metrics::{Aggregate, EpisodeMetrics};
 use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::Path;

@@ -7,9 +7,9 @@
 //! caption naming the episode and its SR, NE and nDTW.
 
 use crate::eval::EvalRecord;
-use crate::metrics::EpisodeRecord;
 use glam::Vec2;
 use sage_io::canvas::Canvas;
+use sage_metrics::EpisodeRecord;
 use sage_nav::{NavGrid, SemanticMap};
 
 /// The folder of the maps, under the report folder.

@@ -285,8 +285,8 @@ mod tests {
     use super::*;
     use crate::dataset::Task;
     use crate::dataset::slices::Slices;
-    use crate::metrics::EpisodeMetrics;
     use sage_lang::InstructionType;
+    use sage_metrics::EpisodeMetrics;
 
     fn rec(id: &str, sr: Option<f64>, termination: sage_env::Termination) -> EvalRecord {
         EvalRecord {

@@ -1,4 +1,5 @@
-//! The SAGE-Bench and VLN-CE metrics (SPEC §10) as pure functions of a per-episode record.
+//! `sage-metrics`: the SAGE-Bench and VLN-CE metrics (SPEC §10) as pure functions of a
+//! per-episode record.
 //!
 //! An environment run fills an [`EpisodeRecord`] (positions, headings, contacts, c(t), the
 //! geodesic distances only a path finder can give); [`evaluate`] turns it into
@@ -18,9 +19,8 @@ pub mod dtw;
 pub mod nogoal;
 pub mod smoothness;
 
-use crate::dataset::Task;
 use distance::{GoalRegion, OfficialGoal, OfficialTest};
-use sage_core::{Error, Result, Vec2};
+use sage_core::{Error, Result, Task, Vec2};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -317,7 +317,7 @@ fn vln_metrics(
                 .iter()
                 .map(|p| Vec2::new(p[0] as f32, p[1] as f32))
                 .collect();
-            let resampled: Vec<[f64; 2]> = sage_nav::path::resample(&pts, 0.25)
+            let resampled: Vec<[f64; 2]> = sage_core::geometry::resample_polyline(&pts, 0.25)
                 .iter()
                 .map(|p| [f64::from(p.x), f64::from(p.y)])
                 .collect();
