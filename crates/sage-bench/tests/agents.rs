@@ -10,8 +10,9 @@ mod common;
 
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
-use sage_bench::eval::convert::{env_episode, load_context};
+
 use sage_bench::eval::{self, EvalRecord, EvalSettings, RunOutcome};
+use sage_env::SceneContext;
 use sage_env::agents::{OracleAgent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig};
 use sage_metrics::Mode;
@@ -31,7 +32,7 @@ fn fixture() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
         let dir = tempfile::tempdir().unwrap();
         let (scenes, home, data) = common::small_dataset(dir.path(), 0);
         // Fill the hull cache beside the scene once: the tests' runs then only read it.
-        load_context(&home, None).unwrap();
+        SceneContext::load(&home, None).unwrap();
         (dir, scenes, data)
     })
 }
@@ -82,7 +83,7 @@ fn oracle_run() -> &'static (RunOutcome, BTreeMap<String, EvalRecord>) {
 /// The oracle's actions per VLN episode, from the environment directly.
 fn oracle_actions() -> BTreeMap<String, Vec<sage_env::Action>> {
     let (_, scenes, data) = fixture();
-    let ctx = Arc::new(load_context(&scenes.join("home1"), None).unwrap());
+    let ctx = Arc::new(SceneContext::load(&scenes.join("home1"), None).unwrap());
     let config = EnvConfig {
         sensors: SensorConfig {
             rgb: false,
@@ -98,7 +99,7 @@ fn oracle_actions() -> BTreeMap<String, Vec<sage_env::Action>> {
         .map(|e| {
             let mut env = Env::new(ctx.clone(), config.clone()).unwrap();
             let mut agent = OracleAgent::new(0.25);
-            let trace = run_episode(&mut env, &mut agent, &env_episode(e)).unwrap();
+            let trace = run_episode(&mut env, &mut agent, &e.env_episode()).unwrap();
             let actions = trace.steps.iter().map(|s| s.action).collect();
             (e.episode_id.clone(), actions)
         })

@@ -6,7 +6,7 @@
 
 use crate::machine;
 use clap::{Args, Subcommand};
-use sage_bench::eval::convert::{AgentKind, env_episode, load_context, metric_record};
+use sage_bench::agents::AgentKind;
 use sage_core::{Error, Result};
 use sage_env::agents::{Agent, RandomAgent, run_episode};
 use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
@@ -79,7 +79,7 @@ fn run_one(a: RunArgs) -> Result<()> {
         .parse::<AgentKind>()
         .map_err(|e| e.within(format!("--agent '{}'", a.agent)))?
         .build(a.seed)?;
-    let ctx = Arc::new(load_context(&a.scene, a.cache)?);
+    let ctx = Arc::new(SceneContext::load(&a.scene, a.cache)?);
     let episodes = sage_bench::dataset::formats::jsonl::read(&a.episodes)?;
     let episode = episodes
         .iter()
@@ -101,11 +101,11 @@ fn run_one(a: RunArgs) -> Result<()> {
         )));
     }
     let mut env = Env::new(ctx.clone(), config)?;
-    let trace = run_episode(&mut env, agent.as_mut(), &env_episode(episode))?;
+    let trace = run_episode(&mut env, agent.as_mut(), &episode.env_episode())?;
     for s in &trace.steps {
         println!("{}", json(s)?);
     }
-    let m = sage_metrics::evaluate(&metric_record(&ctx, &trace), mode)?;
+    let m = sage_metrics::evaluate(&sage_env::scoring::metric_record(&ctx, &trace), mode)?;
     println!(
         "{}",
         json(&serde_json::json!({

@@ -140,6 +140,40 @@ impl Default for EnvConfig {
 }
 
 impl EnvConfig {
+    /// The preset `preset` with the JSON object `overrides` merged over it (nested objects
+    /// merge key by key, any other value replaces), validated: how the Python environments and
+    /// configuration files adjust a preset.
+    ///
+    /// # Errors
+    ///
+    /// An unknown preset, an override of the wrong type (`environment config: …`) or a value
+    /// the validation refuses (naming the field).
+    pub fn with_overrides(preset: &str, overrides: &serde_json::Value) -> Result<EnvConfig> {
+        fn merge(base: &mut serde_json::Value, over: &serde_json::Value) {
+            use serde_json::Value;
+            match (base, over) {
+                (Value::Object(b), Value::Object(o)) => {
+                    for (k, v) in o {
+                        match b.get_mut(k) {
+                            Some(slot) if v.is_object() && slot.is_object() => merge(slot, v),
+                            _ => {
+                                b.insert(k.clone(), v.clone());
+                            }
+                        }
+                    }
+                }
+                (b, o) => *b = o.clone(),
+            }
+        }
+        let mut v = serde_json::to_value(EnvConfig::preset(preset)?)
+            .map_err(|e| Error::invalid(e.to_string()))?;
+        merge(&mut v, overrides);
+        let config: EnvConfig = serde_json::from_value(v)
+            .map_err(|e| Error::invalid(format!("environment config: {e}")))?;
+        config.validate()?;
+        Ok(config)
+    }
+
     /// A named preset: `sage` (the default) or `vlnce` (224×224 RGB, 256×256 depth, HFOV 90,
     /// 0.25 m / 15°, 500 steps, camera at 1.25 m as in VLN-CE's agent).
     ///
@@ -247,6 +281,7 @@ impl EnvConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     #[test]
     fn presets_and_validation() {
@@ -269,5 +304,35 @@ mod tests {
         c.validate().unwrap();
         c.agent = "robot".into();
         assert!(c.validate().is_err());
+    }
+
+    #[test]
+    fn overrides_merge_key_by_key_over_the_preset_and_are_validated() {
+        let c = EnvConfig::with_overrides(
+            "vlnce",
+            &json!({"sensors": {"width": 32, "semantic": true}, "task": {"max_steps": 7}}),
+        )
+        .unwrap();
+        let base = EnvConfig::preset("vlnce").unwrap();
+        assert_eq!(
+            (c.sensors.width, c.sensors.height),
+            (32, base.sensors.height)
+        );
+        assert!(c.sensors.semantic && c.sensors.rgb);
+        assert_eq!(c.sensors.depth_size, base.sensors.depth_size);
+        assert_eq!(c.task.max_steps, 7);
+        assert_eq!(c.task.success_distance, base.task.success_distance);
+        let ground = EnvConfig::with_overrides(
+            "sage",
+            &json!({"actions": {"kind": "ground", "max_dt": 0.5}}),
+        );
+        assert_eq!(ground.unwrap().actions, ActionSpace::Ground { max_dt: 0.5 });
+        let e = EnvConfig::with_overrides("sage", &json!({"sensors": {"hfov_deg": 200.0}}))
+            .unwrap_err();
+        assert!(e.to_string().contains("hfov_deg"), "{e}");
+        let e =
+            EnvConfig::with_overrides("sage", &json!({"sensors": {"width": "wide"}})).unwrap_err();
+        assert!(e.to_string().contains("environment config"), "{e}");
+        assert!(EnvConfig::with_overrides("habitat", &json!({})).is_err());
     }
 }

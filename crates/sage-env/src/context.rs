@@ -1,9 +1,10 @@
 //! What a scene contributes to every episode run in it, built once.
 
 use sage_core::{Error, Polygon2, Result};
-use sage_nav::{CostParams, GridParams, PathFinder, SemanticMap};
-use sage_physics::{SceneBodies, World, WorldOptions};
+use sage_nav::{CostParams, GridParams, PathFinder, SemanticMap, TrajectoryParams};
+use sage_physics::{Decomposer, HullCache, SceneBodies, World, WorldOptions, default_cache_dir};
 use sage_scene::Scene;
+use std::path::{Path, PathBuf};
 
 /// A loaded scene with its semantic map, collision bodies and path finder.
 ///
@@ -43,6 +44,21 @@ impl SceneContext {
             world,
             pathfinder,
         })
+    }
+
+    /// Loads a scene folder with its collision bodies (hulls cached in `cache`, by default
+    /// beside the scene) and the path finder of the default trajectory settings: the context
+    /// every front end (evaluator, `env run`, Python) opens a scene with.
+    ///
+    /// # Errors
+    ///
+    /// The scene, its bodies or its navigation grid cannot be built.
+    pub fn load(dir: &Path, cache: Option<PathBuf>) -> Result<SceneContext> {
+        let (scene, _) = Scene::load(dir)?;
+        let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
+        let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
+        let params = TrajectoryParams::default();
+        SceneContext::new(scene, bodies, &params.grid, params.cost)
     }
 
     /// A fresh physics world (movable bodies at their scene poses): a copy of the one built

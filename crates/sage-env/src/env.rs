@@ -88,6 +88,19 @@ pub enum Termination {
     TimeLimit,
 }
 
+impl Termination {
+    /// True when the task itself ended the episode (STOP, a NoGoal collision): Gymnasium's
+    /// `terminated`. The other endings are limits: [`Termination::is_truncation`].
+    pub fn is_terminal(self) -> bool {
+        matches!(self, Termination::Stop | Termination::Collision)
+    }
+
+    /// True when a step or time limit cut the episode: Gymnasium's `truncated`.
+    pub fn is_truncation(self) -> bool {
+        matches!(self, Termination::MaxSteps | Termination::TimeLimit)
+    }
+}
+
 /// The rendered images, row-major `height × width` (RGB × 3); absent when not configured.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Images {

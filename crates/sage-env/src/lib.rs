@@ -8,17 +8,24 @@
 //! [`agents::Agent`] trait (observation → action) and the local baselines. Conventions are
 //! documented in `docs/environment.md`.
 //!
-//! The environment does not depend on the benchmark crate: episodes come in as [`EnvEpisode`]
-//! (the part of a dataset episode the environment uses), and a finished episode comes out as an
-//! [`EpisodeTrace`] that the benchmark turns into metrics.
+//! It is the one door to an environment for every front end: [`SceneContext::load`] opens a
+//! scene folder, [`reward`] holds the tasks' rewards, [`scoring`] turns a finished
+//! [`EpisodeTrace`] into the metrics of `sage-metrics`, and [`pool`] runs environments over a
+//! pool of episodes in many scenes, one at a time or several in parallel (what the Python
+//! environments and vector environments wrap). Episodes come in as [`EnvEpisode`] (the part of
+//! a dataset episode the environment uses), so this crate never depends on the benchmark crate.
 
 pub mod agents;
 pub mod config;
 pub mod context;
 pub mod env;
 pub mod episode;
+pub mod pool;
+pub mod reward;
+pub mod scoring;
 
 pub use config::{ActionSpace, EnvConfig, SensorConfig, TaskConfig};
 pub use context::SceneContext;
 pub use env::{Action, Env, Images, Observation, StepInfo, Termination};
 pub use episode::{EnvEpisode, EnvGoal, EpisodeTrace};
+pub use pool::{Pool, PoolEpisode, PooledEnv, Transition, VecEnv};

@@ -4,12 +4,11 @@
 
 use crate::agent::PyAgent;
 use crate::convert::{PyResultExt, from_json, to_py};
-use crate::sim::resolve_config;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use sage_bench::agents::AgentKind;
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
-use sage_bench::eval::convert::AgentKind;
 use sage_bench::eval::{
     self, EvalRecord, EvalSettings, RECORDS_FILE, Runner, SUMMARY_FILE, Summary,
 };
@@ -108,9 +107,11 @@ pub fn evaluate<'py>(
         let config = match (&maker, overrides) {
             // A built-in agent sees what it sees under `sage3d eval`.
             (Some(maker), None) => eval::env_config(preset, maker).py()?,
-            _ => {
-                resolve_config(preset, &from_json(overrides.unwrap_or("{}"), "overrides")?).py()?
-            }
+            _ => sage_env::EnvConfig::with_overrides(
+                preset,
+                &from_json(overrides.unwrap_or("{}"), "overrides")?,
+            )
+            .py()?,
         };
         let make = || -> Result<Box<dyn Agent>> {
             match &maker {

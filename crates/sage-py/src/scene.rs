@@ -8,7 +8,6 @@ use pyo3::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sage_bench::dataset::build::{SceneParams, scene_episodes};
-use sage_bench::eval::convert::load_context;
 use sage_core::{Error, Result};
 use sage_env::SceneContext;
 use sage_scene::SplatLayout;
@@ -68,7 +67,7 @@ impl PyScene {
     #[staticmethod]
     #[pyo3(signature = (path, cache=None))]
     fn load(py: Python<'_>, path: PathBuf, cache: Option<PathBuf>) -> PyResult<PyScene> {
-        let ctx = py.detach(|| load_context(&path, cache)).py()?;
+        let ctx = py.detach(|| SceneContext::load(&path, cache)).py()?;
         Ok(PyScene {
             ctx: Arc::new(ctx),
             dir: path,
@@ -100,7 +99,7 @@ impl PyScene {
         let (dir, ctx) = py
             .detach(|| {
                 let dir = synth_folder(&config, &cache)?;
-                let ctx = load_context(&dir, None)?;
+                let ctx = SceneContext::load(&dir, None)?;
                 Ok::<_, Error>((dir, ctx))
             })
             .py()?;

@@ -1,7 +1,8 @@
 //! One episode of the benchmark (SPEC §9), W frame.
 
 use crate::dataset::slices::Slices;
-use sage_core::Pose;
+use sage_core::{Pose, Vec3};
+use sage_env::{EnvEpisode, EnvGoal};
 use sage_lang::{Action, InstructionType, Level, SingleGoalKind, Source};
 use serde::{Deserialize, Serialize};
 
@@ -78,4 +79,22 @@ pub struct Episode {
     pub geodesic_distance: f32,
     /// Complexity slices.
     pub slices: Slices,
+}
+
+impl Episode {
+    /// The environment's view of this episode: an object goal names its item id, so the
+    /// object's footprint becomes the goal region.
+    pub fn env_episode(&self) -> EnvEpisode {
+        EnvEpisode {
+            id: self.episode_id.clone(),
+            task: self.task,
+            instruction: self.instruction.clone(),
+            start: self.start.pose(),
+            goal: self.goal.as_ref().map(|g| EnvGoal {
+                point: Vec3::from(g.position),
+                object: (g.kind == "object").then(|| g.reference.clone()),
+            }),
+            reference_path: self.reference_path.iter().map(|&p| Vec3::from(p)).collect(),
+        }
+    }
 }

@@ -8,15 +8,15 @@
 //! sorted by episode id, so it does not depend on the thread count or finishing order
 //! ([`summary`]). [`convert`] bridges dataset episodes, environment traces and metric records.
 
-pub mod convert;
 pub mod records;
 pub mod summary;
 
+use crate::agents::{AgentKind, AgentMaker};
 use crate::dataset::slices::Slices;
 use crate::dataset::{Episode, Task};
-use convert::{AgentKind, AgentMaker, env_episode, load_context, metric_record};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
+use sage_env::SceneContext;
 use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_io::run::RUN_RECORD;
@@ -211,8 +211,8 @@ fn run_one(
     let result = (|| {
         let mut env = Env::new(ctx.clone(), runner.config.clone())?;
         let agent = agent.insert((runner.agent)()?);
-        let trace = run_episode(&mut env, agent.as_mut(), &env_episode(e))?;
-        let record = metric_record(ctx, &trace);
+        let trace = run_episode(&mut env, agent.as_mut(), &e.env_episode())?;
+        let record = sage_env::scoring::metric_record(ctx, &trace);
         let m = sage_metrics::evaluate(&record, mode)?;
         Ok::<_, Error>((trace.termination, m, record))
     })();
@@ -333,7 +333,7 @@ pub fn run_with(
     let writer = Mutex::new(records::Appender::open(&records_path)?);
     groups.par_iter().try_for_each(|(scene, eps)| {
         // A scene that cannot be loaded fails its episodes, with the reason; the run goes on.
-        let ctx = load_context(&dirs[*scene], None)
+        let ctx = SceneContext::load(&dirs[*scene], None)
             .within(format!("scene {scene}"))
             .map(Arc::new);
         eps.par_iter().try_for_each(|e| {

@@ -1,23 +1,14 @@
-//! The bridge between the benchmark and the environment: a dataset episode becomes an
-//! environment episode, a finished trace becomes the metrics' record, an agent spec becomes an
-//! agent, and a scene folder becomes a loaded [`SceneContext`]. The environment crate does not
-//! know the benchmark crate, so these live here.
+//! Which agent an evaluation runs, as `--agent` names it, and the maker of one agent per
+//! episode.
 
 use crate::agents::remote::{RemoteAgent, RemoteSpec};
 use crate::agents::replay::{ReplayAgent, ReplayFile};
-use crate::dataset::Episode;
-use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
+use sage_env::ActionSpace;
 use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent};
-use sage_env::{ActionSpace, EnvEpisode, EnvGoal, EpisodeTrace, SceneContext};
-use sage_metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
-use sage_metrics::{EpisodeRecord, Geodesics, StepRecord};
-use sage_nav::TrajectoryParams;
-use sage_physics::{Decomposer, HullCache, SceneBodies, default_cache_dir};
-use sage_scene::Scene;
 use serde::{Deserialize, Serialize};
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::str::FromStr;
 use std::sync::Arc;
 
@@ -160,109 +151,6 @@ impl<'de> Deserialize<'de> for AgentKind {
         let s = String::deserialize(d)?;
         s.parse().map_err(serde::de::Error::custom)
     }
-}
-
-/// The environment's view of a dataset episode: an object goal names its item id, so the
-/// object's footprint becomes the goal region.
-pub fn env_episode(e: &Episode) -> EnvEpisode {
-    EnvEpisode {
-        id: e.episode_id.clone(),
-        task: e.task,
-        instruction: e.instruction.clone(),
-        start: e.start.pose(),
-        goal: e.goal.as_ref().map(|g| EnvGoal {
-            point: Vec3::from(g.position),
-            object: (g.kind == "object").then(|| g.reference.clone()),
-        }),
-        reference_path: e.reference_path.iter().map(|&p| Vec3::from(p)).collect(),
-    }
-}
-
-/// The metrics' record of a finished trace; the published code's goal box is chosen among
-/// the scene's semantic-map objects and walls.
-pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
-    let f = |v: Vec2| [f64::from(v.x), f64::from(v.y)];
-    let boxes: Vec<LabelledBox> = ctx
-        .semantic
-        .items
-        .iter()
-        .map(|i| (i.category.clone(), &i.polygon))
-        .chain(
-            ctx.semantic
-                .walls
-                .iter()
-                .map(|w| ("wall".to_string(), &w.polygon)),
-        )
-        .map(|(label, poly)| {
-            let lo = poly.iter().fold(Vec2::INFINITY, |m, p| m.min(*p));
-            let hi = poly.iter().fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
-            LabelledBox {
-                label,
-                min: f(lo),
-                max: f(hi),
-            }
-        })
-        .collect();
-    let e = &t.episode;
-    let goal = e.goal.as_ref().map(|g| GoalRegion {
-        point: f(g.point.truncate()),
-        footprint: t.goal_footprint.as_ref().map(|p| {
-            p.iter()
-                .map(|q| [f64::from(q[0]), f64::from(q[1])])
-                .collect()
-        }),
-    });
-    let official_goal = OfficialGoal::Map {
-        chosen: e
-            .reference_path
-            .last()
-            .or(e.goal.as_ref().map(|g| &g.point))
-            .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
-    };
-    EpisodeRecord {
-        episode_id: e.id.clone(),
-        task: e.task,
-        start: e.start.position.to_array(),
-        start_yaw: e.start.yaw,
-        steps: t
-            .steps
-            .iter()
-            .enumerate()
-            .map(|(k, s)| StepRecord {
-                position: s.pose.position.to_array(),
-                yaw: s.pose.yaw,
-                time: s.time,
-                commanded: s.commanded,
-                achieved: s.achieved,
-                contact: !s.touched.is_empty(),
-                intensity: s.intensity,
-                geodesic_to_goal_point: t.geodesics.steps_to_point.get(k).copied().flatten(),
-            })
-            .collect(),
-        stop_called: t.stop_called(),
-        reference_path: e.reference_path.iter().map(|p| p.to_array()).collect(),
-        goal,
-        geodesics: Geodesics {
-            start_to_region: t.geodesics.start_to_region,
-            final_to_region: t.geodesics.final_to_region,
-            start_to_point: t.geodesics.start_to_point,
-        },
-        official_goal,
-    }
-}
-
-/// Loads a scene folder with its collision bodies (hulls cached in `cache`, by default beside
-/// the scene) and the path finder of the default trajectory settings.
-///
-/// # Errors
-///
-/// The scene, its bodies or its navigation grid cannot be built.
-pub fn load_context(dir: &Path, cache: Option<PathBuf>) -> Result<SceneContext> {
-    let (scene, _) = Scene::load(dir)?;
-    let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
-    let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
-    let params = TrajectoryParams::default();
-    SceneContext::new(scene, bodies, &params.grid, params.cost)
 }
 
 #[cfg(test)]

@@ -1,0 +1,92 @@
+//! From a finished episode to its scores: the metrics' record of a trace and its metrics in a
+//! mode. The evaluator, `env run` and the Python environments all score through here, so an
+//! episode gets the same numbers whichever front end ran it.
+
+use crate::context::SceneContext;
+use crate::episode::EpisodeTrace;
+use glam::Vec2;
+use sage_core::Result;
+use sage_metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
+use sage_metrics::{EpisodeMetrics, EpisodeRecord, Geodesics, Mode, StepRecord};
+
+/// The metrics' record of a finished trace; the published code's goal box is chosen among
+/// the scene's semantic-map objects and walls.
+pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
+    let f = |v: Vec2| [f64::from(v.x), f64::from(v.y)];
+    let boxes: Vec<LabelledBox> = ctx
+        .semantic
+        .items
+        .iter()
+        .map(|i| (i.category.clone(), &i.polygon))
+        .chain(
+            ctx.semantic
+                .walls
+                .iter()
+                .map(|w| ("wall".to_string(), &w.polygon)),
+        )
+        .map(|(label, poly)| {
+            let lo = poly.iter().fold(Vec2::INFINITY, |m, p| m.min(*p));
+            let hi = poly.iter().fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
+            LabelledBox {
+                label,
+                min: f(lo),
+                max: f(hi),
+            }
+        })
+        .collect();
+    let e = &t.episode;
+    let goal = e.goal.as_ref().map(|g| GoalRegion {
+        point: f(g.point.truncate()),
+        footprint: t.goal_footprint.as_ref().map(|p| {
+            p.iter()
+                .map(|q| [f64::from(q[0]), f64::from(q[1])])
+                .collect()
+        }),
+    });
+    let official_goal = OfficialGoal::Map {
+        chosen: e
+            .reference_path
+            .last()
+            .or(e.goal.as_ref().map(|g| &g.point))
+            .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
+    };
+    EpisodeRecord {
+        episode_id: e.id.clone(),
+        task: e.task,
+        start: e.start.position.to_array(),
+        start_yaw: e.start.yaw,
+        steps: t
+            .steps
+            .iter()
+            .enumerate()
+            .map(|(k, s)| StepRecord {
+                position: s.pose.position.to_array(),
+                yaw: s.pose.yaw,
+                time: s.time,
+                commanded: s.commanded,
+                achieved: s.achieved,
+                contact: !s.touched.is_empty(),
+                intensity: s.intensity,
+                geodesic_to_goal_point: t.geodesics.steps_to_point.get(k).copied().flatten(),
+            })
+            .collect(),
+        stop_called: t.stop_called(),
+        reference_path: e.reference_path.iter().map(|p| p.to_array()).collect(),
+        goal,
+        geodesics: Geodesics {
+            start_to_region: t.geodesics.start_to_region,
+            final_to_region: t.geodesics.final_to_region,
+            start_to_point: t.geodesics.start_to_point,
+        },
+        official_goal,
+    }
+}
+
+/// The metrics of a finished trace in `mode`.
+///
+/// # Errors
+///
+/// The metrics' own checks of the record (see [`sage_metrics::evaluate`]).
+pub fn score(ctx: &SceneContext, trace: &EpisodeTrace, mode: Mode) -> Result<EpisodeMetrics> {
+    sage_metrics::evaluate(&metric_record(ctx, trace), mode)
+}
