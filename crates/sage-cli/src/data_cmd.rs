@@ -5,7 +5,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
 use sage_core::{Error, Result};
-use sage_io::run::write_run_record;
 use sage_io::runner::{Status, Tally};
 use sage_lang::llm::LlmConfig;
 use std::path::PathBuf;
@@ -122,24 +121,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
     for o in outcomes.iter().filter(|o| o.status == Status::Skipped) {
         eprintln!("skipped {}: {}", o.scene, o.reason.as_deref().unwrap_or(""));
     }
-    let inputs: std::collections::BTreeMap<String, _> = dirs
-        .iter()
-        .map(|d| {
-            (
-                sage_io::scenes::scene_name(d),
-                sage_io::scenes::input_hashes(d),
-            )
-        })
-        .collect();
-    write_run_record(
-        &a.out,
-        "data build",
-        Some(a.seed),
-        serde_json::json!({
-            "config": {"scene": params, "assemble": assemble},
-            "inputs": inputs,
-        }),
-    )?;
+    build::write_run_record(&a.out, &dirs, &params, &assemble)?;
     print!("{}", summary.table());
     let tally = Tally::of(outcomes.iter().map(|o| o.status));
     let made: usize = outcomes

@@ -9,15 +9,9 @@ use pyo3::prelude::*;
 use sage_bench::agents::AgentKind;
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
-use sage_bench::eval::{
-    self, EvalRecord, EvalSettings, RECORDS_FILE, Runner, SUMMARY_FILE, Summary,
-};
+use sage_bench::eval::{self, EvalSettings, Runner, Summary};
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
-use sage_io::files::{write_atomic, write_json};
-use sage_io::run::write_run_record;
-use std::collections::{BTreeMap, BTreeSet};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The episodes of `split` in a dataset folder, as dicts (the JSONL schema).
@@ -178,68 +172,9 @@ pub fn merge_eval<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings = settings(dataset, scenes, split, &agent_name, mode, seed, preset)?;
     let summary = py
-        .detach(|| merge(&settings, &agent_name, &shards, &out))
+        .detach(|| eval::merge_shards(&settings, &agent_name, &shards, &out))
         .py()?;
     to_py(py, &summary)
-}
-
-fn merge(settings: &EvalSettings, agent: &str, shards: &[String], out: &Path) -> Result<Summary> {
-    let (file, episodes) = eval::split_episodes(&settings.dataset, &settings.split)?;
-    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
-    // Lines are kept as the shards wrote them: parsing and printing again would move some
-    // floats by an ulp (serde_json's parser is not exactly rounding), and the summary is
-    // computed from the parsed records as `sage3d eval` computes it from its file.
-    let mut all: BTreeMap<String, (&str, EvalRecord)> = BTreeMap::new();
-    for (i, text) in shards.iter().enumerate() {
-        for (line, l) in text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty())
-        {
-            let at = || format!("shard {i}, line {}", line + 1);
-            let rec: EvalRecord =
-                serde_json::from_str(l).map_err(|e| Error::format(at(), e.to_string()))?;
-            if !ids.contains(rec.episode_id.as_str()) {
-                return Err(Error::format(
-                    at(),
-                    format!(
-                        "episode {} is not in split {}",
-                        rec.episode_id, settings.split
-                    ),
-                ));
-            }
-            if all.insert(rec.episode_id.clone(), (l, rec)).is_some() {
-                return Err(Error::format(at(), "episode recorded by two shards"));
-            }
-        }
-    }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    write_atomic(&out.join(RECORDS_FILE), |w| {
-        for (line, _) in all.values() {
-            w.write_all(line.trim_end().as_bytes())?;
-            w.write_all(b"\n")?;
-        }
-        Ok(())
-    })?;
-    let records: Vec<EvalRecord> = all.into_values().map(|(_, r)| r).collect();
-    let summary = Summary {
-        agent: agent.to_string(),
-        ..Summary::of(settings, &records)
-    };
-    write_json(&out.join(SUMMARY_FILE), &summary)?;
-    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
-    let mut recorded = serde_json::to_value(settings).map_err(|e| Error::invalid(e.to_string()))?;
-    recorded["agent"] = agent.into();
-    write_run_record(
-        out,
-        "eval",
-        Some(settings.seed),
-        serde_json::json!({
-            "settings": recorded,
-            "dataset_hash": sage_io::hash::fnv1a64_hex(&bytes),
-        }),
-    )?;
-    Ok(summary)
 }
 
 /// The per-scene settings of a dataset build (`sage3d data build`'s flags).
@@ -327,19 +262,7 @@ pub fn assemble_dataset<'py>(
         .detach(|| {
             let names: Vec<String> = scenes.iter().map(|d| name(d)).collect();
             let summary = build::assemble(&out, &names, &assemble, &params.space)?;
-            let inputs: BTreeMap<String, _> = scenes
-                .iter()
-                .map(|d| (name(d), sage_io::scenes::input_hashes(d)))
-                .collect();
-            write_run_record(
-                &out,
-                "data build",
-                Some(seed),
-                serde_json::json!({
-                    "config": {"scene": params, "assemble": assemble},
-                    "inputs": inputs,
-                }),
-            )?;
+            build::write_run_record(&out, &scenes, &params, &assemble)?;
             Ok::<_, Error>(summary)
         })
         .py()?;

@@ -454,6 +454,39 @@ pub fn run_scene(
     }
 }
 
+/// Writes the dataset's run record into `out`: the settings of both steps and the fingerprints
+/// of every scene's input files (`dirs`, the scene folders), as `sage3d data build` and the
+/// distributed build leave it.
+///
+/// # Errors
+///
+/// The record cannot be written.
+pub fn write_run_record(
+    out: &Path,
+    dirs: &[std::path::PathBuf],
+    params: &SceneParams,
+    assemble: &AssembleParams,
+) -> Result<()> {
+    let inputs: BTreeMap<String, _> = dirs
+        .iter()
+        .map(|d| {
+            (
+                sage_io::scenes::scene_name(d),
+                sage_io::scenes::input_hashes(d),
+            )
+        })
+        .collect();
+    sage_io::run::write_run_record(
+        out,
+        "data build",
+        Some(assemble.seed),
+        serde_json::json!({
+            "config": {"scene": params, "assemble": assemble},
+            "inputs": inputs,
+        }),
+    )
+}
+
 /// Settings of the assembly step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AssembleParams {

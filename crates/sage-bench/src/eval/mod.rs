@@ -8,12 +8,14 @@
 //! sorted by episode id, so it does not depend on the thread count or finishing order
 //! ([`summary`]). [`convert`] bridges dataset episodes, environment traces and metric records.
 
+pub mod merge;
 pub mod records;
 pub mod summary;
 
 use crate::agents::{AgentKind, AgentMaker};
 use crate::dataset::slices::Slices;
 use crate::dataset::{Episode, Task};
+pub use merge::merge_shards;
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
 use sage_env::SceneContext;
@@ -254,12 +256,25 @@ fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str
             .in_file(&path));
         }
     }
+    write_run_record(out, settings, dataset_hash)
+}
+
+/// The settings as the run record stores them: `settings` with the agent's recorded name.
+fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<serde_json::Value> {
+    let mut recorded =
+        serde_json::to_value(settings).map_err(|e| Error::invalid(format!("settings: {e}")))?;
+    recorded["agent"] = agent.into();
+    Ok(recorded)
+}
+
+/// Writes an evaluation's run record: its recorded settings and the split file's hash.
+fn write_run_record(out: &Path, recorded: &serde_json::Value, dataset_hash: &str) -> Result<()> {
     sage_io::run::write_run_record(
         out,
         "eval",
-        settings.get("seed").and_then(serde_json::Value::as_u64),
+        recorded.get("seed").and_then(serde_json::Value::as_u64),
         serde_json::json!({
-            "settings": settings,
+            "settings": recorded,
             "dataset_hash": dataset_hash,
         }),
     )
@@ -315,9 +330,7 @@ pub fn run_with(
         .in_file(&settings.scenes));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let mut recorded =
-        serde_json::to_value(settings).map_err(|e| Error::invalid(format!("settings: {e}")))?;
-    recorded["agent"] = runner.agent_name.clone().into();
+    let recorded = recorded_settings(settings, &runner.agent_name)?;
     claim_run_folder(out, &recorded, &dataset_hash)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let records_path = out.join(RECORDS_FILE);
