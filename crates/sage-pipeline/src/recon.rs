@@ -1,0 +1,372 @@
+//! Reconstruction, step by step: plan cameras over a mesh scene, render their ground-truth
+//! views, export them for nerfstudio / gsplat, fit Gaussians to them on the CPU, and project a
+//! world point into the planned views (`docs/reconstruction.md`). Each step reads and writes the
+//! reconstruction folder, so the steps can run apart and resume.
+
+use rayon::prelude::*;
+use sage_core::{Error, Result, Vec3};
+use sage_io::files::write_json;
+use sage_io::run::write_run_record;
+use sage_recon::export::{
+    POINTS_FILE, TRANSFORMS_FILE, is_heldout, transforms_for, write_points_ply, write_transforms,
+};
+use sage_recon::plan::{PLAN_FILE, PLAN_PNG, Plan, PlanSettings, Policy, draw_plan, make_plan};
+use sage_recon::views::{self, Manifest};
+use sage_recon::{SceneSurfaces, render_view, surface_samples};
+use sage_scene::{Scene, SplatLayout};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The fit's report inside the output scene folder.
+pub const FIT_REPORT: &str = "fit_report.json";
+
+/// Loads a scene with the surfaces reconstruction renders (its meshes, or its object boxes).
+///
+/// # Errors
+///
+/// The scene cannot be loaded, or it has nothing to render.
+pub fn load_mesh_scene(dir: &Path) -> Result<(Scene, SceneSurfaces)> {
+    let (scene, _) = Scene::load(dir)?;
+    let surfaces = SceneSurfaces::build(&scene, Some(dir))?;
+    if surfaces.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: the scene has no meshes and no object boxes to render",
+            dir.display()
+        )));
+    }
+    Ok((scene, surfaces))
+}
+
+/// What [`plan`] made.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlanReport {
+    /// Scene name.
+    pub scene: String,
+    /// Placement policy.
+    pub policy: Policy,
+    /// Cameras asked for.
+    pub budget: usize,
+    /// Cameras sampled.
+    pub sampled: usize,
+    /// Cameras kept.
+    pub kept: usize,
+    /// Cameras dropped by the safety filter.
+    pub dropped: usize,
+    /// The safety filter's least distance to a surface, metres.
+    pub safety_threshold: f32,
+    /// Kept and dropped per tier (sweep) or template view (volume).
+    pub groups: BTreeMap<String, (usize, usize)>,
+}
+
+/// Plans the cameras of the scene in `scene_dir` into `out` (`plan.json`, `plan.png`, the run
+/// record).
+///
+/// # Errors
+///
+/// The scene cannot be loaded or planned, or a file cannot be written.
+pub fn plan(scene_dir: &Path, settings: &PlanSettings, out: &Path) -> Result<PlanReport> {
+    let (scene, surfaces) = load_mesh_scene(scene_dir)?;
+    let plan = make_plan(&scene, &scene_dir.to_string_lossy(), &surfaces, settings)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    plan.save(&out.join(PLAN_FILE))?;
+    draw_plan(&scene, &plan).save_png(&out.join(PLAN_PNG))?;
+    let sampled = plan.views.len() + plan.dropped.len();
+    // Per tier (sweep) or template view (volume): the part of the tag after the position.
+    let mut groups: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    for (v, kept) in plan
+        .views
+        .iter()
+        .map(|v| (v, true))
+        .chain(plan.dropped.iter().map(|v| (v, false)))
+    {
+        let key = v.tag.split_once('/').map_or("", |t| t.1).to_string();
+        let e = groups.entry(key).or_default();
+        if kept {
+            e.0 += 1;
+        } else {
+            e.1 += 1;
+        }
+    }
+    write_run_record(
+        out,
+        "recon plan",
+        Some(settings.seed),
+        serde_json::json!({
+            "scene": plan.scene,
+            "policy": plan.policy,
+            "budget": plan.budget,
+            "sampled": sampled,
+            "kept": plan.views.len(),
+            "dropped": plan.dropped.len(),
+        }),
+    )?;
+    Ok(PlanReport {
+        scene: plan.scene,
+        policy: plan.policy,
+        budget: plan.budget,
+        sampled,
+        kept: plan.views.len(),
+        dropped: plan.dropped.len(),
+        safety_threshold: plan.safety_threshold,
+        groups,
+    })
+}
+
+/// The scene folder of a step: the one given, else the one the plan was made from.
+fn scene_of(plan: &Plan, scene: Option<&Path>) -> PathBuf {
+    scene.map_or_else(|| PathBuf::from(&plan.scene_dir), Path::to_path_buf)
+}
+
+/// What [`render`] did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RenderReport {
+    /// Views rendered by this call (0 when all were already there).
+    pub rendered: usize,
+    /// Views in the plan.
+    pub total: usize,
+    /// Triangles rendered (0 when nothing was to render).
+    pub triangles: usize,
+    /// The scene the plan was made for, when another one was rendered.
+    pub other_scene: Option<(String, String)>,
+}
+
+/// Renders the planned views of the reconstruction folder `dir` at `width × height` that are
+/// not yet there (RGB + depth into `dir/views`); `on_view` is called after each.
+///
+/// # Errors
+///
+/// No plan, a manifest of another size, the scene cannot be loaded, or a write error.
+pub fn render(
+    dir: &Path,
+    scene: Option<&Path>,
+    width: u32,
+    height: u32,
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderReport> {
+    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    let manifest = Manifest::new(&plan, width, height)?;
+    views::prepare(dir, &manifest)?;
+    let todo = views::pending(dir, &plan);
+    if todo.is_empty() {
+        return Ok(RenderReport {
+            rendered: 0,
+            total: plan.views.len(),
+            triangles: 0,
+            other_scene: None,
+        });
+    }
+    let (scene, surfaces) = load_mesh_scene(&scene_of(&plan, scene))?;
+    let other_scene = (scene.name != plan.scene).then(|| (plan.scene.clone(), scene.name));
+    let bvh = surfaces.bvh();
+    let k = manifest.intrinsics();
+    todo.par_iter().try_for_each(|&id| {
+        let image = render_view(&surfaces, &bvh, &plan.views[id].camera(k));
+        views::write_view(dir, id, &image)?;
+        on_view(id, todo.len());
+        Ok::<(), Error>(())
+    })?;
+    Ok(RenderReport {
+        rendered: todo.len(),
+        total: plan.views.len(),
+        triangles: surfaces.len(),
+        other_scene,
+    })
+}
+
+/// What [`export`] wrote.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExportReport {
+    /// `transforms.json`.
+    pub path: PathBuf,
+    /// Frames.
+    pub frames: usize,
+    /// Training frames.
+    pub train: usize,
+    /// Held-out frames.
+    pub heldout: usize,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// The point cloud's file name, if one was written.
+    pub points: Option<String>,
+}
+
+/// Writes `dir/transforms.json` for the rendered views, and `points3d.ply` of `points` surface
+/// samples when `points > 0`.
+///
+/// # Errors
+///
+/// No plan or views, the scene cannot be loaded, or a write error.
+pub fn export(dir: &Path, scene: Option<&Path>, points: usize) -> Result<ExportReport> {
+    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    let views = views::export_views(dir, &plan)?;
+    let mut transforms = transforms_for(&views)?;
+    if points > 0 {
+        let (_, surfaces) = load_mesh_scene(&scene_of(&plan, scene))?;
+        let samples = surface_samples(&surfaces, points, plan.seed);
+        write_points_ply(&dir.join(POINTS_FILE), &samples)?;
+        transforms.ply_file_path = Some(POINTS_FILE.to_string());
+    }
+    let path = dir.join(TRANSFORMS_FILE);
+    write_transforms(&path, &transforms)?;
+    Ok(ExportReport {
+        path,
+        frames: transforms.frames.len(),
+        train: transforms.train_filenames.len(),
+        heldout: (0..views.len()).filter(|&i| is_heldout(i)).count(),
+        width: transforms.w,
+        height: transforms.h,
+        points: transforms.ply_file_path,
+    })
+}
+
+/// Settings of [`fit`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitSettings {
+    /// Optimisation steps (one training view each).
+    pub iterations: usize,
+    /// Surface samples the Gaussians start from (one Gaussian each).
+    pub points: usize,
+    /// Seed of the samples and of the fit (default: the plan's).
+    pub seed: Option<u64>,
+}
+
+/// What [`fit`] made.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FitReport {
+    /// Gaussians fitted.
+    pub gaussians: usize,
+    /// Training views.
+    pub train_views: usize,
+    /// Held-out views.
+    pub heldout_views: usize,
+    /// Held-out PSNR before fitting, dB.
+    pub initial_heldout_psnr: f32,
+    /// Held-out PSNR after fitting, dB.
+    pub final_heldout_psnr: f32,
+    /// Training PSNR after fitting, dB.
+    pub final_train_psnr: f32,
+}
+
+/// Fits Gaussians to the rendered views of the reconstruction folder `dir` (the pipeline recon
+/// → fit): starts from surface samples of the scene's meshes, optimises with `sage-train`
+/// (`on_iteration(iteration, loss)`), and writes the scene folder `out` (the fitted Gaussians
+/// with the original labels, structure and meshes), `out/fit_report.json` and the run record.
+///
+/// # Errors
+///
+/// No plan or rendered views, no points asked for, the scene cannot be loaded, the fit fails,
+/// or a write error.
+pub fn fit(
+    dir: &Path,
+    scene: Option<&Path>,
+    settings: &FitSettings,
+    out: &Path,
+    on_iteration: &(dyn Fn(usize, f32) + Sync),
+) -> Result<FitReport> {
+    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    let exported = views::export_views(dir, &plan)?;
+    let manifest = views::read_manifest(dir)?
+        .ok_or_else(|| Error::invalid("no views/render.json: run `sage3d recon render` first"))?;
+    if settings.points == 0 {
+        return Err(Error::invalid("--points must be at least 1"));
+    }
+    let seed = settings.seed.unwrap_or(plan.seed);
+    let (scene, surfaces) = load_mesh_scene(&scene_of(&plan, scene))?;
+    let samples = surface_samples(&surfaces, settings.points, seed);
+    // The mean distance between samples spread evenly over the area.
+    let spacing = (surfaces.area() / settings.points as f64).sqrt() as f32;
+    let init = sage_train::init_gaussians(&samples, spacing);
+    let loaded: Vec<(bool, sage_train::View)> = exported
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            Ok((
+                is_heldout(i),
+                sage_train::View {
+                    camera: v.camera,
+                    rgb: views::read_rgb(dir, i, &manifest)?,
+                },
+            ))
+        })
+        .collect::<Result<_>>()?;
+    let (heldout, train): (Vec<_>, Vec<_>) = loaded.into_iter().partition(|(h, _)| *h);
+    let train: Vec<sage_train::View> = train.into_iter().map(|(_, v)| v).collect();
+    let heldout: Vec<sage_train::View> = heldout.into_iter().map(|(_, v)| v).collect();
+    let params = sage_train::FitParams {
+        iterations: settings.iterations,
+        seed,
+        ..sage_train::FitParams::default()
+    };
+    let (gaussians, report) = sage_train::fit(&init, &train, &heldout, &params, on_iteration)?;
+    let mut fitted = scene;
+    fitted.gaussians = gaussians;
+    fitted.finish();
+    fitted.save(out, SplatLayout::Compressed)?;
+    let details = serde_json::json!({
+        "recon": dir.to_string_lossy(),
+        "scene": plan.scene,
+        "iterations": settings.iterations,
+        "train_views": train.len(),
+        "heldout_views": heldout.len(),
+        "image_size": [manifest.width, manifest.height],
+        "init_points": samples.len(),
+        "init_spacing_m": spacing,
+        "initial_heldout_psnr": report.initial_heldout_psnr,
+        "final_heldout_psnr": report.final_heldout_psnr,
+        "final_train_psnr": report.final_train_psnr,
+        "gaussians": report.gaussians,
+        "heldout_curve": report.heldout_curve,
+        "loss": report.loss,
+    });
+    write_json(&out.join(FIT_REPORT), &details)?;
+    write_run_record(
+        out,
+        "recon fit",
+        Some(seed),
+        serde_json::json!({ "recon": dir.to_string_lossy(), "iterations": settings.iterations, "points": settings.points }),
+    )?;
+    Ok(FitReport {
+        gaussians: report.gaussians,
+        train_views: train.len(),
+        heldout_views: heldout.len(),
+        initial_heldout_psnr: report.initial_heldout_psnr,
+        final_heldout_psnr: report.final_heldout_psnr,
+        final_train_psnr: report.final_train_psnr,
+    })
+}
+
+/// Where world point `p` lands in each planned view of `dir` that sees it in front of the camera
+/// and inside the image: `{view, file_path, u, v, depth}` per view.
+///
+/// # Errors
+///
+/// No plan, or no rendered views (the image size is set by rendering).
+pub fn project(dir: &Path, p: Vec3) -> Result<Vec<serde_json::Value>> {
+    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    let manifest = views::read_manifest(dir)?.ok_or_else(|| {
+        Error::invalid("no views/render.json: the image size is set by `sage3d recon render`")
+    })?;
+    let k = manifest.intrinsics();
+    let mut hits = Vec::new();
+    for v in &plan.views {
+        let cam = v.camera(k);
+        let c = cam.world_to_camera(p);
+        if c.z <= cam.near {
+            continue;
+        }
+        let (u, vv) = cam.project(c);
+        if u >= 0.0 && vv >= 0.0 && u < k.width as f32 && vv < k.height as f32 {
+            hits.push(serde_json::json!({
+                "view": v.id,
+                "file_path": views::rgb_name(v.id),
+                "u": u,
+                "v": vv,
+                "depth": c.z,
+            }));
+        }
+    }
+    Ok(hits)
+}
