@@ -9,8 +9,8 @@ use sage_core::{Error, Pose, Result, Vec3};
 use sage_io::files::write_json;
 use sage_physics::usd::{SplatAsset, write_usda};
 use sage_physics::{
-    Agent, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, World,
-    WorldOptions, cache_key, default_cache_dir,
+    Agent, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, WorkList, World,
+    WorldOptions, default_cache_dir,
 };
 use sage_scene::Scene;
 use sage_scene::scene::files;
@@ -244,40 +244,13 @@ fn build(a: BuildArgs) -> Result<()> {
 
 fn pending(a: PendingArgs) -> Result<()> {
     let (scene, _) = Scene::load(&a.scene)?;
-    let decomposer = a.decomp.decomposer()?;
-    let cache = a.decomp.cache(&a.scene);
-    let mut meshes = Vec::new();
-    for o in &scene.objects {
-        let Some(mesh) = o.mesh.as_ref().filter(|m| !m.triangles.is_empty()) else {
-            continue;
-        };
-        let key = cache_key(mesh, &decomposer);
-        if cache.path(key).is_file() {
-            continue;
-        }
-        meshes.push(serde_json::json!({
-            "instance": o.id.0,
-            "ins_id": o.ins_id,
-            "key": format!("{key:032x}"),
-            "cache_file": cache.path(key),
-            "vertices": mesh.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
-            "triangles": mesh.triangles,
-        }));
-    }
-    let count = meshes.len();
-    let doc = serde_json::json!({
-        "decomposer": decomposer.describe(),
-        "settings": match decomposer {
-            Decomposer::Coacd { threshold, max_hulls } =>
-                serde_json::json!({"threshold": threshold, "max_hulls": max_hulls}),
-            Decomposer::Vhacd { resolution, concavity, max_hulls } =>
-                serde_json::json!({"resolution": resolution, "concavity": concavity, "max_hulls": max_hulls}),
-        },
-        "cache_dir": cache.dir(),
-        "meshes": meshes,
-    });
-    write_json(&a.out, &doc)?;
-    println!("{count} meshes without cached hulls -> {}", a.out.display());
+    let list = WorkList::of(&scene, &a.decomp.decomposer()?, &a.decomp.cache(&a.scene));
+    write_json(&a.out, &list)?;
+    println!(
+        "{} meshes without cached hulls -> {}",
+        list.meshes.len(),
+        a.out.display()
+    );
     Ok(())
 }
 

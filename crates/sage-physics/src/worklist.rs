@@ -1,0 +1,81 @@
+//! The CoACD work list: the object meshes of a scene whose hulls are not yet in the cache, with
+//! what an offline decomposer needs to fill it (`python/tools/coacd_cache.py` reads this file,
+//! runs CoACD on each mesh and writes each `cache_file`; `docs/physics.md`).
+
+use crate::decompose::{Decomposer, HullCache, cache_key};
+use sage_scene::Scene;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// One mesh to decompose. Fields are in alphabetical order, the file's layout since its first
+/// version.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PendingMesh {
+    /// Where the decomposer must write the hulls.
+    pub cache_file: PathBuf,
+    /// The object's `ins_id` in labels.json.
+    pub ins_id: String,
+    /// The object's instance id.
+    pub instance: u32,
+    /// The cache key (32 hex digits).
+    pub key: String,
+    /// Mesh triangles (vertex indices).
+    pub triangles: Vec<[u32; 3]>,
+    /// Mesh vertices, W frame.
+    pub vertices: Vec<[f32; 3]>,
+}
+
+/// The work list file's content (fields in alphabetical order, as [`PendingMesh`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WorkList {
+    /// The cache folder.
+    pub cache_dir: PathBuf,
+    /// The decomposer as the cache key describes it.
+    pub decomposer: String,
+    /// The meshes without cached hulls, in object order.
+    pub meshes: Vec<PendingMesh>,
+    /// Its parameters by name.
+    pub settings: serde_json::Value,
+}
+
+impl WorkList {
+    /// The meshes of `scene` that `decomposer` has not yet decomposed into `cache`.
+    pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> WorkList {
+        let meshes = scene
+            .objects
+            .iter()
+            .filter_map(|o| {
+                let mesh = o.mesh.as_ref().filter(|m| !m.triangles.is_empty())?;
+                let key = cache_key(mesh, decomposer);
+                let cache_file = cache.path(key);
+                (!cache_file.is_file()).then(|| PendingMesh {
+                    cache_file,
+                    ins_id: o.ins_id.clone(),
+                    instance: o.id.0,
+                    key: format!("{key:032x}"),
+                    triangles: mesh.triangles.clone(),
+                    vertices: mesh.positions.iter().map(|p| p.to_array()).collect(),
+                })
+            })
+            .collect();
+        let settings = match *decomposer {
+            Decomposer::Coacd {
+                threshold,
+                max_hulls,
+            } => serde_json::json!({"threshold": threshold, "max_hulls": max_hulls}),
+            Decomposer::Vhacd {
+                resolution,
+                concavity,
+                max_hulls,
+            } => {
+                serde_json::json!({"resolution": resolution, "concavity": concavity, "max_hulls": max_hulls})
+            }
+        };
+        WorkList {
+            cache_dir: cache.dir().to_path_buf(),
+            decomposer: decomposer.describe(),
+            meshes,
+            settings,
+        }
+    }
+}
