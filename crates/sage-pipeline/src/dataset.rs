@@ -1,0 +1,51 @@
+//! The dataset build over a folder of scenes: per-scene trajectories, instructions and episodes
+//! (parallel, resumable), then splits, files and summary, and the run record.
+
+use sage_bench::dataset::build::{self, AssembleParams, SceneOutcome, SceneParams, Summary};
+use sage_core::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// What [`build`] did.
+#[derive(Debug, Clone)]
+pub struct DatasetReport {
+    /// The scene folders.
+    pub dirs: Vec<PathBuf>,
+    /// Per scene: made, resumed or skipped.
+    pub outcomes: Vec<SceneOutcome>,
+    /// The dataset's summary.
+    pub summary: Summary,
+}
+
+/// Builds (or resumes) the dataset of the scenes under `scenes` into `out`; `on_scene(outcome,
+/// scenes)` is called as each of the `scenes` folders is done.
+///
+/// # Errors
+///
+/// Bad settings (shares outside 0..1, naming the flags), no scenes, or a write error. A scene
+/// that fails is skipped with its reason (in the outcomes) and the build goes on.
+pub fn build(
+    scenes: &Path,
+    out: &Path,
+    params: &SceneParams,
+    assemble: &AssembleParams,
+    on_scene: &(dyn Fn(&SceneOutcome, usize) + Sync),
+) -> Result<DatasetReport> {
+    params.validate()?;
+    let shares = [assemble.split.scene_unseen, assemble.split.val];
+    if !shares.iter().all(|s| (0.0..=1.0).contains(s)) {
+        return Err(Error::invalid(
+            "--scene-unseen and --val must be shares between 0 and 1",
+        ));
+    }
+    let dirs = sage_io::scenes::scene_dirs(scenes)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let (outcomes, summary) = build::build(&dirs, out, params, assemble, &|o| {
+        on_scene(o, dirs.len())
+    })?;
+    build::write_run_record(out, &dirs, params, assemble)?;
+    Ok(DatasetReport {
+        dirs,
+        outcomes,
+        summary,
+    })
+}

@@ -1,0 +1,434 @@
+//! The demo: the whole pipeline on synthetic scenes (or a folder of real ones), end to end.
+//!
+//! [`plan`] decides every step before anything runs; each [`Step`] is one pipeline step of this
+//! crate with the settings of the `sage3d` subcommand that does the same
+//! ([`Step::command_line`]), so the demo doubles as a worked example of pointing the same
+//! commands at real data. Each step resumes: scenes already synthesised are kept, collision
+//! hulls come from their cache, the dataset build and the evaluations skip what their folders
+//! already hold.
+
+use crate::dataset::DatasetReport;
+use crate::nav::MapReport;
+use sage_bench::agents::AgentKind;
+use sage_bench::dataset::build::{AssembleParams, SceneParams};
+use sage_bench::dataset::split::SplitParams;
+use sage_bench::eval::{EvalSettings, RunOutcome, SUMMARY_FILE, Summary};
+use sage_bench::report::ReportOutcome;
+use sage_core::{Error, Result};
+use sage_metrics::Mode;
+use sage_nav::GridParams;
+use sage_physics::{BuildReport, Decomposer, HullCache, default_cache_dir};
+use sage_scene::{Scene, SplatLayout};
+use sage_synth::{SceneKind, SynthConfig};
+use std::path::{Path, PathBuf};
+
+/// Settings of the demo (`sage3d demo`'s flags).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DemoSettings {
+    /// Output folder: scenes/, dataset/, runs/{agent}/, overview.png.
+    pub out: PathBuf,
+    /// Number of synthetic scenes (homes, every third an office).
+    pub scenes: usize,
+    /// Seed of every random choice (scene k uses seed + k).
+    pub seed: u64,
+    /// Trajectories per scene in the dataset.
+    pub per_scene: usize,
+    /// Gaussians per scene.
+    pub gaussians: usize,
+    /// Agents to evaluate (as `--agent` names them).
+    pub agents: Vec<String>,
+    /// Dataset split the agents are evaluated on.
+    pub split: String,
+    /// A folder of real scene folders to run on instead of synthetic ones.
+    pub from: Option<PathBuf>,
+}
+
+impl Default for DemoSettings {
+    fn default() -> Self {
+        DemoSettings {
+            out: PathBuf::from("demo"),
+            scenes: 3,
+            seed: 0,
+            per_scene: 12,
+            gaussians: 150_000,
+            agents: ["oracle", "random", "forward"].map(String::from).to_vec(),
+            split: "test_balanced".into(),
+            from: None,
+        }
+    }
+}
+
+impl DemoSettings {
+    /// Where the scenes are: `from`, or the synthetic ones under `out/scenes`.
+    pub fn scenes_folder(&self) -> PathBuf {
+        self.from.clone().unwrap_or_else(|| self.out.join("scenes"))
+    }
+
+    /// The dataset folder.
+    pub fn dataset(&self) -> PathBuf {
+        self.out.join("dataset")
+    }
+
+    /// The run folder of `agent`.
+    pub fn run_folder(&self, agent: &str) -> PathBuf {
+        self.out.join("runs").join(agent)
+    }
+}
+
+/// One step of the demo.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    /// Synthesise a scene folder.
+    Synth {
+        /// Scene name.
+        name: String,
+        /// Generator settings.
+        config: SynthConfig,
+        /// Scene folder.
+        out: PathBuf,
+    },
+    /// A scene's semantic map and occupancy grid (into `scene/nav`).
+    NavMap {
+        /// Scene name.
+        name: String,
+        /// Scene folder.
+        scene: PathBuf,
+    },
+    /// A scene's collision bodies (hulls cached under `scene/.sage3d`).
+    Physics {
+        /// Scene name.
+        name: String,
+        /// Scene folder.
+        scene: PathBuf,
+    },
+    /// Trajectories, instructions, episodes and splits of every scene.
+    Dataset {
+        /// Folder of scene folders.
+        scenes: PathBuf,
+        /// Dataset folder.
+        out: PathBuf,
+        /// Per-scene settings.
+        params: SceneParams,
+        /// Assembly settings.
+        assemble: AssembleParams,
+    },
+    /// Evaluate one agent, with its report.
+    Eval {
+        /// The evaluation.
+        settings: EvalSettings,
+        /// Run folder.
+        out: PathBuf,
+    },
+}
+
+/// What one step made.
+#[derive(Debug, Clone)]
+pub enum StepReport {
+    /// The synthesised scene.
+    Synth(Box<Scene>),
+    /// The map written.
+    NavMap(MapReport),
+    /// The bodies built.
+    Physics(Box<(Scene, BuildReport)>),
+    /// The dataset built.
+    Dataset(Box<DatasetReport>),
+    /// The evaluation and its report.
+    Eval(Box<(RunOutcome, ReportOutcome)>),
+}
+
+/// Progress inside a step: `done` of `total` units (`what`: scenes, objects, episodes, maps).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tick<'a> {
+    /// Units done so far.
+    pub done: usize,
+    /// Units in all.
+    pub total: usize,
+    /// What the units are.
+    pub what: &'a str,
+}
+
+fn path_arg(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+impl Step {
+    /// What the step does, in words.
+    pub fn title(&self) -> String {
+        match self {
+            Step::Synth { name, .. } => format!("synthesise scene {name}"),
+            Step::NavMap { name, .. } => format!("semantic map and occupancy of {name}"),
+            Step::Physics { name, .. } => format!("collision bodies of {name}"),
+            Step::Dataset { .. } => "trajectories, instructions, episodes and splits".into(),
+            Step::Eval { settings, .. } => format!("evaluate the {} agent", settings.agent),
+        }
+    }
+
+    /// The `sage3d` command line (without `sage3d`) that runs the same step.
+    pub fn command_line(&self) -> Vec<String> {
+        let words: Vec<String> = match self {
+            Step::Synth { config, out, .. } => vec![
+                "scene".into(),
+                "synth".into(),
+                "--kind".into(),
+                config.kind.as_str().into(),
+                "--seed".into(),
+                config.seed.to_string(),
+                "--gaussians".into(),
+                config.gaussians.to_string(),
+                "--out".into(),
+                path_arg(out),
+            ],
+            Step::NavMap { scene, .. } => vec!["nav".into(), "map".into(), path_arg(scene)],
+            Step::Physics { scene, .. } => {
+                vec!["physics".into(), "build".into(), path_arg(scene)]
+            }
+            Step::Dataset {
+                scenes,
+                out,
+                params,
+                assemble,
+            } => vec![
+                "data".into(),
+                "build".into(),
+                path_arg(scenes),
+                "--out".into(),
+                path_arg(out),
+                "--per-scene".into(),
+                params.per_scene.to_string(),
+                "--seed".into(),
+                assemble.seed.to_string(),
+            ],
+            Step::Eval { settings, out } => vec![
+                "eval".into(),
+                path_arg(&settings.dataset),
+                "--scenes".into(),
+                path_arg(&settings.scenes),
+                "--agent".into(),
+                settings.agent.to_string(),
+                "--split".into(),
+                settings.split.clone(),
+                "--seed".into(),
+                settings.seed.to_string(),
+                "--out".into(),
+                path_arg(out),
+            ],
+        };
+        words
+    }
+
+    /// Runs the step; `on_tick` follows its progress.
+    ///
+    /// # Errors
+    ///
+    /// The step's own errors; an evaluation of an empty split fails early, saying what to pass.
+    pub fn run(&self, on_tick: &(dyn Fn(Tick<'_>) + Sync)) -> Result<StepReport> {
+        let counter = std::sync::atomic::AtomicUsize::new(0);
+        let tick = |total: usize, what: &str| {
+            let done = counter.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            on_tick(Tick { done, total, what });
+        };
+        Ok(match self {
+            Step::Synth { config, out, .. } => StepReport::Synth(Box::new(
+                crate::scene::synthesize(config, out, SplatLayout::Compressed, &|_| {})?,
+            )),
+            Step::NavMap { scene, .. } => {
+                StepReport::NavMap(crate::nav::map(scene, None, &GridParams::default())?)
+            }
+            Step::Physics { scene, .. } => {
+                let cache = HullCache::new(default_cache_dir(scene));
+                let (scene, _, report) =
+                    crate::physics::bodies(scene, &Decomposer::default(), &cache, &|n| {
+                        tick(n, "objects")
+                    })?;
+                StepReport::Physics(Box::new((scene, report)))
+            }
+            Step::Dataset {
+                scenes,
+                out,
+                params,
+                assemble,
+            } => StepReport::Dataset(Box::new(crate::dataset::build(
+                scenes,
+                out,
+                params,
+                assemble,
+                &|_, n| tick(n, "scenes"),
+            )?)),
+            Step::Eval { settings, out } => {
+                check_split(&settings.dataset, &settings.split)?;
+                StepReport::Eval(Box::new(crate::evaluate::evaluate(
+                    settings,
+                    out,
+                    &|_, n| tick(n, "episodes"),
+                    &|_, _| {},
+                )?))
+            }
+        })
+    }
+}
+
+/// The name of demo scene `k` and its kind.
+fn scene_name(k: usize) -> (String, SceneKind) {
+    let kind = if k % 3 == 2 {
+        SceneKind::Office
+    } else {
+        SceneKind::Home
+    };
+    (format!("{}_{k}", kind.as_str()), kind)
+}
+
+/// The steps of the demo, in order (pure: what runs is decided before anything runs).
+///
+/// # Errors
+///
+/// No scenes or no agents asked for, an agent name that does not parse, or a `from` folder
+/// without scenes.
+pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
+    if s.scenes == 0 {
+        return Err(Error::invalid("--scenes must be at least 1"));
+    }
+    if s.agents.is_empty() {
+        return Err(Error::invalid("--agents names no agent"));
+    }
+    let scenes = s.scenes_folder();
+    let mut steps = Vec::new();
+    let dirs: Vec<(String, PathBuf)> = match &s.from {
+        Some(from) => sage_io::scenes::scene_dirs_by_name(from)?
+            .into_iter()
+            .collect(),
+        None => (0..s.scenes)
+            .map(|k| (scene_name(k).0, scenes.join(scene_name(k).0)))
+            .collect(),
+    };
+    for (k, (name, dir)) in dirs.into_iter().enumerate() {
+        if s.from.is_none() && !dir.join(sage_io::RUN_RECORD).is_file() {
+            steps.push(Step::Synth {
+                name: name.clone(),
+                config: SynthConfig {
+                    seed: s.seed + k as u64,
+                    kind: scene_name(k).1,
+                    gaussians: s.gaussians,
+                    ..SynthConfig::default()
+                },
+                out: dir.clone(),
+            });
+        }
+        steps.push(Step::NavMap {
+            name: name.clone(),
+            scene: dir.clone(),
+        });
+        steps.push(Step::Physics { name, scene: dir });
+    }
+    steps.push(Step::Dataset {
+        scenes: scenes.clone(),
+        out: s.dataset(),
+        params: SceneParams::new(s.per_scene, s.seed),
+        assemble: AssembleParams {
+            seed: s.seed,
+            split: SplitParams::default(),
+            balanced: 1000,
+        },
+    });
+    for agent in &s.agents {
+        let kind: AgentKind = agent
+            .parse()
+            .map_err(|e: Error| e.within(format!("--agents '{agent}'")))?;
+        steps.push(Step::Eval {
+            settings: EvalSettings {
+                dataset: s.dataset(),
+                scenes: scenes.clone(),
+                split: s.split.clone(),
+                agent: kind,
+                mode: Mode::default(),
+                seed: s.seed,
+                preset: "sage".into(),
+            },
+            out: s.run_folder(agent),
+        });
+    }
+    Ok(steps)
+}
+
+/// Fails early, with what to do, when the split to evaluate holds no episode (with few
+/// scenes every scene can go to the training split).
+fn check_split(dataset: &Path, split: &str) -> Result<()> {
+    let (_, episodes) = sage_bench::eval::split_episodes(dataset, split)?;
+    if episodes.is_empty() {
+        return Err(Error::invalid(format!(
+            "the {split} split is empty (with few scenes, all of them can land in train); pass --split train or more --scenes"
+        ))
+        .in_file(dataset));
+    }
+    Ok(())
+}
+
+/// Runs the demo: every step of [`plan`] in order (`on_step(k, n, step)` before step `k` of
+/// `n`, `on_tick` inside it, `on_done(step, report)` after it), then the overview picture
+/// `out/overview.png` of the first agent's run. Returns the summaries of the agents' runs.
+///
+/// # Errors
+///
+/// The first failing step's error, naming the step.
+pub fn run(
+    s: &DemoSettings,
+    on_step: &dyn Fn(usize, usize, &Step),
+    on_tick: &(dyn Fn(Tick<'_>) + Sync),
+    on_done: &dyn Fn(&Step, &StepReport),
+) -> Result<Vec<(String, Summary)>> {
+    let steps = plan(s)?;
+    for (k, step) in steps.iter().enumerate() {
+        on_step(k, steps.len(), step);
+        let report = step
+            .run(on_tick)
+            .map_err(|e| e.within(format!("demo step '{}'", step.title())))?;
+        on_done(step, &report);
+    }
+    crate::overview::write(
+        &s.scenes_folder(),
+        &s.run_folder(&s.agents[0]),
+        &s.out.join("overview.png"),
+    )?;
+    s.agents
+        .iter()
+        .map(|agent| {
+            let path = s.run_folder(agent).join(SUMMARY_FILE);
+            Ok((agent.clone(), sage_io::files::read_json(&path)?))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn three_scenes_plan_synth_map_physics_each_then_the_dataset_and_one_eval_per_agent() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = DemoSettings {
+            out: dir.path().join("demo"),
+            ..DemoSettings::default()
+        };
+        let steps = plan(&s).unwrap();
+        assert_eq!(steps.len(), 3 * 3 + 1 + 3);
+        assert!(
+            steps
+                .iter()
+                .any(|st| st.command_line().contains(&"office".to_string()))
+        );
+        // A scene already synthesised is kept.
+        let first = s.scenes_folder().join(scene_name(0).0);
+        std::fs::create_dir_all(&first).unwrap();
+        std::fs::write(first.join(sage_io::RUN_RECORD), "{}").unwrap();
+        assert_eq!(plan(&s).unwrap().len(), steps.len() - 1);
+        let none = DemoSettings {
+            scenes: 0,
+            ..s.clone()
+        };
+        assert!(plan(&none).unwrap_err().to_string().contains("--scenes"));
+        let bad = DemoSettings {
+            agents: vec!["genius".into()],
+            ..s
+        };
+        assert!(plan(&bad).unwrap_err().to_string().contains("genius"));
+    }
+}
