@@ -13,7 +13,7 @@ use sage_core::wrap_angle;
 use sage_lang::InstructionType;
 use sage_lang::actions::{ActionSpace, replay};
 use sage_scene::fsutil::read_tree;
-use sage_scene::synth::{SynthConfig, generate};
+use sage_synth::{SynthConfig, generate};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
