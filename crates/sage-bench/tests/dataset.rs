@@ -14,7 +14,7 @@ use sage_io::files::read_tree;
 use sage_io::runner::Status;
 use sage_lang::InstructionType;
 use sage_lang::actions::{ActionSpace, replay};
-use sage_scene::synth::{SynthConfig, generate};
+use sage_synth::{SynthConfig, generate};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;

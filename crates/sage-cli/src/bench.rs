@@ -4,7 +4,7 @@ use crate::machine;
 use clap::{Args, Subcommand};
 use sage_core::{Error, Result};
 use sage_scene::ply::{self, SplatLayout};
-use sage_scene::synth::{SceneKind, SynthConfig};
+use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -109,7 +109,7 @@ fn fit(a: FitBenchArgs) -> Result<()> {
     use rand::{Rng, SeedableRng};
     let (width, height) = parse_size(&a.size)?;
     eprintln!("generating a one-room scene of {} Gaussians …", a.gaussians);
-    let scene = sage_scene::synth::generate(&SynthConfig {
+    let scene = sage_synth::generate(&SynthConfig {
         seed: a.seed,
         rooms: 1,
         objects: 10,
@@ -299,7 +299,7 @@ fn generate(path: &Path, gaussians: usize, sh3: bool) -> Result<()> {
         gaussians,
         ..SynthConfig::default()
     };
-    let scene = sage_scene::synth::generate(&config)?;
+    let scene = sage_synth::generate(&config)?;
     let g = if sh3 {
         to_sh3(&scene.gaussians)?
     } else {
@@ -353,7 +353,7 @@ fn render(a: RenderBenchArgs) -> Result<()> {
                 Some(dir) => sage_scene::Scene::load(dir)?.0,
                 None => {
                     eprintln!("generating a {}-Gaussian home …", a.gaussians);
-                    sage_scene::synth::generate(&SynthConfig {
+                    sage_synth::generate(&SynthConfig {
                         seed: 1,
                         kind: SceneKind::Home,
                         rooms: 16,

@@ -218,7 +218,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
             .map_err(|e| e.within(format!("demo step '{}'", step.title)))?;
     }
     let overview = a.out.join("overview.png");
-    crate::overview::write(
+    sage_pipeline::overview::write(
         &scenes_folder(&a),
         &a.out.join("runs").join(&a.agents[0]),
         &overview,

@@ -13,7 +13,7 @@ use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
 use sage_metrics::Mode;
 use sage_nav::{GridParams, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies};
-use sage_scene::synth::{SceneKind, SynthConfig};
+use sage_synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -212,7 +212,7 @@ pub fn bench(a: EnvBenchArgs) -> Result<()> {
         "generating a {}-object home of {} Gaussians …",
         a.objects, a.gaussians
     );
-    let scene = sage_scene::synth::generate(&config)?;
+    let scene = sage_synth::generate(&config)?;
     let cache = HullCache::new(
         a.cache
             .unwrap_or_else(|| std::env::temp_dir().join("sage3d-bench-env-hulls")),

@@ -11,7 +11,6 @@ mod env_cmd;
 mod eval_cmd;
 mod machine;
 mod nav_cmd;
-mod overview;
 mod physics_cmd;
 mod recon_cmd;
 mod render_cmd;

@@ -11,7 +11,7 @@ use sage_nav::sampling::Endpoints;
 use sage_nav::trajectory::{self, Prepared, TrajectoryParams};
 use sage_nav::{GridParams, NavGrid, PathFinder, SemanticMap};
 use sage_scene::Scene;
-use sage_scene::synth::{SceneKind, SynthConfig};
+use sage_synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -247,7 +247,7 @@ pub fn bench(a: NavBenchArgs) -> Result<()> {
         Some(dir) => Scene::load(dir)?.0,
         None => {
             eprintln!("generating a {}-room home …", a.rooms);
-            sage_scene::synth::generate(&SynthConfig {
+            sage_synth::generate(&SynthConfig {
                 seed: a.seed,
                 kind: SceneKind::Home,
                 rooms: a.rooms,

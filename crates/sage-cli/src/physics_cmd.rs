@@ -14,7 +14,7 @@ use sage_physics::{
 };
 use sage_scene::Scene;
 use sage_scene::scene::files;
-use sage_scene::synth::{SceneKind, SynthConfig};
+use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Component, Path, PathBuf};
 use std::time::Instant;
 
@@ -413,7 +413,7 @@ pub fn bench(a: PhysicsBenchArgs) -> Result<()> {
                 ..SynthConfig::default()
             };
             eprintln!("generating a {}-object home …", a.objects);
-            let scene = sage_scene::synth::generate(&config)?;
+            let scene = sage_synth::generate(&config)?;
             let dir = a
                 .cache
                 .clone()

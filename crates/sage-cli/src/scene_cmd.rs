@@ -3,8 +3,8 @@
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use sage_core::{Error, Result};
-use sage_scene::synth::{SceneKind, SynthConfig};
 use sage_scene::{Scene, SplatLayout};
+use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -149,7 +149,7 @@ fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout) -> Result<S
         config.kind.as_str(),
         config.seed
     ));
-    let scene = sage_scene::synth::generate(config)?;
+    let scene = sage_synth::generate(config)?;
     bar.set_message(format!("writing {}", out.display()));
     scene.save(out, layout)?;
     write_run_record(out, config, layout)?;

@@ -126,7 +126,7 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
             .map(|_| ())
             .map_err(|e| e.to_string()),
         "semantic-map" => {
-            let scene = sage_scene::synth::generate(&sage_scene::synth::SynthConfig {
+            let scene = sage_synth::generate(&sage_synth::SynthConfig {
                 rooms: 2,
                 objects: 10,
                 gaussians: 1000,

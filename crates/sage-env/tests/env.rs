@@ -8,7 +8,7 @@ use sage_env::{
 };
 use sage_nav::TrajectoryParams;
 use sage_physics::{Decomposer, HullCache, SceneBodies};
-use sage_scene::synth::{SceneKind, SynthConfig, generate};
+use sage_synth::{SceneKind, SynthConfig, generate};
 use std::sync::{Arc, OnceLock};
 
 struct Fixture {

@@ -115,7 +115,7 @@ impl Validator {
             .map(|s| s.to_string())
             .collect();
         attributes.extend(
-            sage_scene::synth::PALETTE
+            sage_scene::vocabulary::COLORS
                 .iter()
                 .map(|(n, _)| n.to_string()),
         );

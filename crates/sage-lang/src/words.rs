@@ -154,8 +154,8 @@ pub const MOTION_VERBS: &[&str] = &[
 /// Step and angle words (the defining feature of Base-Action).
 pub const BASE_ACTION_WORDS: &[&str] = &["step", "steps", "degree", "degrees", "turn", "rotate"];
 
-/// Attribute words beyond the colours of the synthetic palette (states, contents, sizes,
-/// materials).
+/// Attribute words beyond the colour words of `sage_scene::vocabulary::COLORS` (states,
+/// contents, sizes, materials).
 pub const ATTRIBUTE_WORDS: &[&str] = &[
     "open",
     "closed",

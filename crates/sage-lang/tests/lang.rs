@@ -9,7 +9,7 @@ use sage_lang::refexp::{self, Style};
 use sage_lang::textmap::RelKind;
 use sage_lang::{InstructionType, RejectReason, TextMap, Validator, highlevel, lowlevel};
 use sage_nav::trajectory::{self, Prepared, TrajectoryParams, TrajectorySet};
-use sage_scene::synth::{SceneKind, SynthConfig, generate};
+use sage_synth::{SceneKind, SynthConfig, generate};
 
 fn scene(
     seed: u64,

@@ -5,7 +5,7 @@ use sage_lang::llm::{LlmClient, LlmConfig, accept};
 use sage_lang::validate::ValidationReport;
 use sage_lang::{InstructionType, TextMap, Validator};
 use sage_nav::trajectory::{self, TrajectoryParams};
-use sage_scene::synth::{SynthConfig, generate};
+use sage_synth::{SynthConfig, generate};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -13,8 +13,8 @@ use sage_nav::sampling::Endpoints;
 use sage_nav::trajectory::{self, TrajectoryParams};
 use sage_nav::{CostParams, GridParams, PathFinder, SemanticMap};
 use sage_scene::occupancy::{FREE, OCCUPIED, UNKNOWN};
-use sage_scene::synth::{SceneKind, SynthConfig, generate};
 use sage_scene::{Floorplan, Gaussians, Object, Room, Scene, TriMesh, Wall};
+use sage_synth::{SceneKind, SynthConfig, generate};
 
 /// A closed box mesh from `lo` to `hi`.
 fn box_mesh(lo: Vec3, hi: Vec3) -> TriMesh {

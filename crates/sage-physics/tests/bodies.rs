@@ -6,8 +6,8 @@ use sage_core::Pose;
 use sage_physics::{
     Agent, BodyKind, Command, Decomposer, HullCache, PartSource, SceneBodies, World, WorldOptions,
 };
-use sage_scene::synth::{SceneKind, SynthConfig, generate};
 use sage_scene::{DoorState, HoleKind, Scene};
+use sage_synth::{SceneKind, SynthConfig, generate};
 
 /// A coarse V-HACD: the tests exercise the pipeline, not the decomposer's fine quality.
 const COARSE: Decomposer = Decomposer::Vhacd {

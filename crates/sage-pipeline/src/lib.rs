@@ -1,6 +1,10 @@
 //! `sage-pipeline`: the pipelines of sage3d as library functions, shared by the command line
 //! and the Python package (as brush's `brush-process` is by its CLI and app).
 //!
+//! - [`demo`]: the whole job end to end on synthetic (or real) scenes, as a plan of steps;
+//! - its steps: [`scene`] (synthesise a scene folder), [`nav`] (semantic map and occupancy),
+//!   [`physics`] (collision bodies), [`dataset`] (the dataset build), [`evaluate`] (an agent's
+//!   evaluation with its report), [`overview`] (the demo's picture);
 //! - [`recon`]: mesh scene → planned cameras → ground-truth views → nerfstudio export → a fitted
 //!   Gaussian scene.
 //!
@@ -8,4 +12,11 @@
 //! outputs atomically with a run record, and returns a plain report; printing is the front
 //! end's.
 
+pub mod dataset;
+pub mod demo;
+pub mod evaluate;
+pub mod nav;
+pub mod overview;
+pub mod physics;
 pub mod recon;
+pub mod scene;

@@ -11,7 +11,7 @@ use sage_bench::dataset::build::{SceneParams, scene_episodes};
 use sage_core::{Error, Result};
 use sage_env::SceneContext;
 use sage_scene::SplatLayout;
-use sage_scene::synth::{SceneKind, SynthConfig};
+use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
@@ -39,7 +39,7 @@ fn synth_folder(config: &SynthConfig, cache: &Path) -> Result<PathBuf> {
     if dir.join("structure.json").is_file() {
         return Ok(dir);
     }
-    let scene = sage_scene::synth::generate(config)?;
+    let scene = sage_synth::generate(config)?;
     std::fs::create_dir_all(cache).map_err(|e| Error::io(cache, e))?;
     let tmp = cache.join(format!(
         ".{}.tmp{}",
@@ -74,7 +74,7 @@ impl PyScene {
         })
     }
 
-    /// A synthetic scene (`sage_scene::synth`) written once under `cache` (keyed by kind, seed
+    /// A synthetic scene (`sage_synth`) written once under `cache` (keyed by kind, seed
     /// and sizes) and loaded from there, so later calls and other processes reuse the folder and
     /// its collision hulls.
     #[staticmethod]

@@ -57,10 +57,10 @@ pub fn shade(base: [f32; 3], normal: Vec3) -> [f32; 3] {
     base.map(|c| (c * k).clamp(0.0, 1.0))
 }
 
-/// The base colour of an object: its `color` attribute when it is a colour word of the
-/// generator's palette, else a stable colour for its category.
+/// The base colour of an object: its `color` attribute when it is a colour word of
+/// [`sage_scene::vocabulary::COLORS`], else a stable colour for its category.
 pub fn object_base_color(category: &str, color: Option<&str>) -> [f32; 3] {
-    if let Some(rgb) = color.and_then(sage_scene::synth::color_rgb) {
+    if let Some(rgb) = color.and_then(sage_scene::vocabulary::color_rgb) {
         return rgb;
     }
     let h = sage_io::hash::fnv1a32(category.as_bytes());
@@ -69,6 +69,9 @@ pub fn object_base_color(category: &str, color: Option<&str>) -> [f32; 3] {
 
 /// The 12 triangles of an oriented box, wound outwards.
 pub fn obb_mesh(b: &Obb) -> TriMesh {
+    // Not shared with the generator's axis-aligned boxes (`sage-synth`, `shapes::cuboid`): their
+    // corner, face and diagonal orders differ, and each order is part of the bytes it produces
+    // (here the surface samples and depth maps of objects without meshes).
     let c = b.corners();
     // Corners 0–3 bottom counter-clockwise seen from above, 4–7 above them.
     let quads = [

@@ -14,9 +14,9 @@ use sage_recon::surfaces::{SceneSurfaces, SurfaceKind, shade};
 use sage_recon::sweep::{Baseline, SweepParams, Tier, perimeter, sweep};
 use sage_recon::volume::{TEMPLATE, VolumeParams, volume};
 use sage_recon::{PoseTag, apportion};
-use sage_scene::synth::{SynthConfig, generate};
 use sage_scene::{Floorplan, Object, Room, Scene};
 use sage_splat::{Camera, Intrinsics};
+use sage_synth::{SynthConfig, generate};
 use std::sync::OnceLock;
 
 fn scene() -> &'static Scene {
@@ -354,7 +354,7 @@ fn a_red_box_face_renders_red_under_the_fixed_light() {
         0.0,
     );
     let img = render_view(&surf, &bvh, &cam);
-    let expected = shade(sage_scene::synth::color_rgb("red").unwrap(), -Vec3::X).map(to_u8);
+    let expected = shade(sage_scene::vocabulary::color_rgb("red").unwrap(), -Vec3::X).map(to_u8);
     for (i, j) in [(15, 15), (16, 16), (10, 20)] {
         let px = j * 32 + i;
         assert_eq!(&img.rgb[px * 3..px * 3 + 3], &expected);
@@ -531,7 +531,7 @@ fn obj_materials_colour_their_triangles() {
     let (loaded, _) = Scene::load(dir.path()).unwrap();
     let with = SceneSurfaces::build(&loaded, Some(dir.path())).unwrap();
     let without = SceneSurfaces::build(&loaded, None).unwrap();
-    let red = sage_scene::synth::color_rgb("red").unwrap();
+    let red = sage_scene::vocabulary::color_rgb("red").unwrap();
     for t in 0..12 {
         let n = with.normals[t];
         assert_eq!(without.colors[t], shade(red, n));

@@ -4,8 +4,9 @@
 //! holds the in-memory model — [`Gaussians`] in a compact structure of arrays, [`Object`]s with
 //! boxes, meshes and attributes, the [`Floorplan`], the [`OccupancyMap`] — the readers and
 //! writers of every file ([`ply`] for 3DGS in the standard and SuperSplat compressed layouts,
-//! [`formats`] for the JSON files, [`mesh`] for OBJ/glTF/PLY meshes), and the seeded
-//! [`synth`] generator that makes whole scenes in that layout.
+//! [`formats`] for the JSON files, [`mesh`] for OBJ/glTF/PLY meshes), and the attribute
+//! [`vocabulary`] the layers above share. The seeded generator of whole scenes in that layout is
+//! the `sage-synth` crate.
 //!
 //! Load a folder with [`Scene::load`]; write one with [`Scene::save`].
 
@@ -20,7 +21,7 @@ pub mod ply;
 pub mod preview;
 pub mod scene;
 pub mod summary;
-pub mod synth;
+pub mod vocabulary;
 
 pub use floorplan::{Floorplan, Hole, HoleKind, Room, StructureItem, Wall};
 pub use gaussians::{Gaussian, Gaussians};

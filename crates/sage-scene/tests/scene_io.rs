@@ -1,8 +1,8 @@
 //! A scene folder written by `Scene::save` loads back as the same scene (within the documented
 //! precision of the compressed layout), and loading reports what it found.
 
-use sage_scene::synth::{SynthConfig, generate};
 use sage_scene::{Scene, SplatLayout};
+use sage_synth::{SynthConfig, generate};
 
 fn small() -> SynthConfig {
     SynthConfig {

@@ -6,9 +6,9 @@ use glam::{Mat3, Quat, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_scene::gaussians::sh_rest_count;
-use sage_scene::synth::{SynthConfig, generate};
 use sage_scene::{Gaussian, Gaussians};
 use sage_splat::{Camera, Intrinsics, RenderOptions, RenderOutput, Renderer, sh};
+use sage_synth::{SynthConfig, generate};
 
 /// One projected Gaussian of the reference.
 struct RefSplat {

@@ -3,7 +3,7 @@
 
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
-use sage_scene::synth::{SynthConfig, generate};
+use sage_synth::{SynthConfig, generate};
 use std::path::{Path, PathBuf};
 
 /// A 3-room, 30-object home saved as `dir/scenes/home1` and its dataset in `dir/data`

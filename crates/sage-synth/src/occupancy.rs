@@ -2,11 +2,11 @@
 //! (open doorways stay free; closed and half-open doors block) or where an object's box reaches
 //! into the height band an agent's body sweeps, unknown outside.
 
-use super::item::Item;
-use super::layout::{Axis, Layout};
-use crate::occupancy::{FREE, OCCUPIED, OccupancyMap};
+use crate::item::Item;
+use crate::layout::{Axis, Layout};
 use glam::{Vec2, Vec3};
 use sage_core::{Obb, Result};
+use sage_scene::occupancy::{FREE, OCCUPIED, OccupancyMap};
 
 /// Margin of the map around the footprint (m).
 const MARGIN: f32 = 0.5;

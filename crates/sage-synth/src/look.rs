@@ -1,46 +1,12 @@
-//! Looks: the colour words and materials of the generator, and the procedural textures that turn a
-//! point on a surface into a colour.
+//! Looks: the materials of the generator, and the procedural textures that turn a point on a
+//! surface into a colour.
 //!
-//! Every colour word an object's `color` attribute can carry is in [`PALETTE`], and the texture of a
+//! Every colour word an object's `color` attribute can carry is in [`COLORS`], and the texture of a
 //! surface only modulates that colour's brightness by a few tens of percent, so the word and the
 //! rendered colour agree.
 
 use glam::{Vec2, Vec3};
-
-/// The colour words the generator uses and the sRGB (0–1) it renders each with.
-pub const PALETTE: &[(&str, [f32; 3])] = &[
-    ("white", [0.92, 0.92, 0.90]),
-    ("cream", [0.93, 0.88, 0.74]),
-    ("beige", [0.82, 0.74, 0.60]),
-    ("tan", [0.76, 0.60, 0.42]),
-    ("brown", [0.48, 0.31, 0.18]),
-    ("dark brown", [0.30, 0.19, 0.11]),
-    ("black", [0.08, 0.08, 0.09]),
-    ("gray", [0.50, 0.50, 0.52]),
-    ("light gray", [0.76, 0.76, 0.77]),
-    ("silver", [0.70, 0.72, 0.75]),
-    ("gold", [0.83, 0.67, 0.28]),
-    ("red", [0.72, 0.14, 0.12]),
-    ("orange", [0.90, 0.48, 0.12]),
-    ("yellow", [0.93, 0.80, 0.22]),
-    ("green", [0.25, 0.52, 0.26]),
-    ("dark green", [0.13, 0.30, 0.15]),
-    ("teal", [0.10, 0.50, 0.50]),
-    ("blue", [0.18, 0.36, 0.70]),
-    ("light blue", [0.64, 0.77, 0.88]),
-    ("navy", [0.10, 0.14, 0.33]),
-    ("purple", [0.45, 0.25, 0.55]),
-    ("pink", [0.90, 0.62, 0.68]),
-    ("terracotta", [0.72, 0.38, 0.24]),
-];
-
-/// The sRGB (0–1) the generator renders a colour word with, or `None` for a word it never uses.
-pub fn color_rgb(name: &str) -> Option<[f32; 3]> {
-    PALETTE
-        .iter()
-        .find(|(n, _)| *n == name)
-        .map(|(_, rgb)| *rgb)
-}
+use sage_scene::vocabulary::{COLORS, color_rgb};
 
 /// What a surface is made of: decides the texture, the gloss and the physics constants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -344,8 +310,8 @@ fn marble(uv: Vec2, rgb: Vec3, seed: u32) -> Vec3 {
 /// An abstract painting: three colours from the seed blended by low-frequency noise.
 fn canvas(uv: Vec2, seed: u32) -> Vec3 {
     let pick = |k: i32| {
-        let i = (lattice(k, 0, 3, seed) * PALETTE.len() as f32) as usize % PALETTE.len();
-        Vec3::from_array(PALETTE[i].1)
+        let i = (lattice(k, 0, 3, seed) * COLORS.len() as f32) as usize % COLORS.len();
+        Vec3::from_array(COLORS[i].1)
     };
     let w = fbm2(uv * 3.0, seed);
     let a = pick(0).lerp(pick(1), smooth((w * 2.0).clamp(0.0, 1.0)));

@@ -3,9 +3,9 @@
 //! Every primitive is a closed, consistently wound mesh: triangles are counter-clockwise seen from
 //! outside, so a part's signed volume is positive.
 
-use super::look::Look;
-use crate::mesh::TriMesh;
+use crate::look::Look;
 use glam::{Mat4, Quat, Vec3};
+use sage_scene::mesh::TriMesh;
 
 /// One piece of an object: a closed mesh with a single look.
 #[derive(Debug, Clone, PartialEq)]

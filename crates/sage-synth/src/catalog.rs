@@ -1,8 +1,8 @@
 //! The object catalogue: every category the generator places (its size range, looks, states and
 //! physics) and, per room type, which categories go in and how they are mounted.
 
-use super::look::Material::{self, *};
-use crate::object::PhysicsRole::{self, Movable, Static};
+use crate::look::Material::{self, *};
+use sage_scene::object::PhysicsRole::{self, Movable, Static};
 
 /// How an object's mesh is built (see `furniture.rs`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1168,7 +1168,7 @@ mod tests {
                 for (_, colors) in s.looks {
                     for c in *colors {
                         assert!(
-                            super::super::look::color_rgb(c).is_some(),
+                            sage_scene::vocabulary::color_rgb(c).is_some(),
                             "{} colour {c}",
                             s.label
                         );

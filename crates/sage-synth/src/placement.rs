@@ -2,18 +2,18 @@
 //! sampling. A candidate is kept only when its box lies inside the room's walls and overlaps no
 //! other object, no door leaf and no clearance zone in front of a door or window.
 
-use super::catalog::{self, Entry, Mount, Shape, Spec};
-use super::furniture;
-use super::item::Item;
-use super::layout::{Layout, Opening, Rect};
-use super::look::{Look, Material};
-use super::{pick, uniform};
-use crate::floorplan::HoleKind;
-use crate::object::{Attributes, RigidBody};
+use crate::catalog::{self, Entry, Mount, Shape, Spec};
+use crate::furniture;
+use crate::item::Item;
+use crate::layout::{Layout, Opening, Rect};
+use crate::look::{Look, Material};
+use crate::{pick, uniform};
 use glam::{Vec2, Vec3};
 use rand::seq::IndexedRandom;
 use rand::{Rng, RngCore};
 use sage_core::Obb;
+use sage_scene::floorplan::HoleKind;
+use sage_scene::object::{Attributes, RigidBody};
 use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
 /// Candidates tried per object before giving up on it.

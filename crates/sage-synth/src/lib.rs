@@ -1,5 +1,6 @@
-//! The synthetic scene generator: seeded multi-room homes, offices and shops in the InteriorGS
-//! layout (SPEC §4), the embedded default scene and the test data of the project.
+//! `sage-synth`: the seeded generator of whole synthetic scenes — multi-room homes, offices and
+//! shops in the InteriorGS layout (SPEC §4) of the `sage-scene` model; the embedded default
+//! scene and the test data of the project.
 //!
 //! [`generate`] builds, from a [`SynthConfig`]:
 //!
@@ -9,7 +10,8 @@
 //! 2. a door leaf or window frame object in every opening (`openings.rs`) and furniture from a
 //!    catalogue of about fifty categories placed by room type without overlaps (`catalog.rs`,
 //!    `placement.rs`), each with a closed, concave-where-real mesh built from boxes and surfaces of
-//!    revolution (`furniture.rs`, `shapes.rs`) and attributes that match how it looks (`look.rs`);
+//!    revolution (`furniture.rs`, `shapes.rs`) and attributes that match how it looks (`look.rs`,
+//!    with the colour words of `sage_scene::vocabulary`);
 //! 3. Gaussians (SH degree 1) sampled evenly over every surface with procedural textures
 //!    (`structure.rs`, `surfaces.rs`), a structure mesh, and an occupancy map (`occupancy.rs`).
 //!
@@ -29,14 +31,12 @@ mod shapes;
 mod structure;
 mod surfaces;
 
-pub use look::{PALETTE, color_rgb};
-
-use crate::instances::InstanceTable;
-use crate::scene::Scene;
 use rand::seq::IndexedRandom;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Result};
+use sage_scene::instances::InstanceTable;
+use sage_scene::scene::Scene;
 use std::fmt;
 use std::str::FromStr;
 

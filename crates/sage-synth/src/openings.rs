@@ -1,16 +1,16 @@
 //! The objects that fill wall openings: a door leaf swung about its hinge by the door's state, and
 //! a window frame with glass.
 
-use super::furniture::frame;
-use super::item::Item;
-use super::layout::{Layout, Opening};
-use super::look::{Look, Material};
-use super::shapes::{Part, cuboid};
-use super::{pick, uniform};
-use crate::floorplan::HoleKind;
-use crate::object::{Attributes, DoorState, PhysicsRole, RigidBody};
+use crate::furniture::frame;
+use crate::item::Item;
+use crate::layout::{Layout, Opening};
+use crate::look::{Look, Material};
+use crate::shapes::{Part, cuboid};
+use crate::{pick, uniform};
 use glam::Vec3;
 use rand::RngCore;
+use sage_scene::floorplan::HoleKind;
+use sage_scene::object::{Attributes, DoorState, PhysicsRole, RigidBody};
 
 /// Thickness of a door leaf (m).
 const LEAF: f32 = 0.04;

@@ -6,10 +6,10 @@
 //! checked is conservative and the tight box around the parts is the object's box. Shapes are
 //! concave where the real thing is: tables stand on legs, shelves are open at the front.
 
-use super::catalog::Shape;
-use super::look::{Look, Material};
-use super::shapes::{Part, block, cuboid, cylinder, ellipsoid, lathe, rod};
-use super::{pick, uniform};
+use crate::catalog::Shape;
+use crate::look::{Look, Material};
+use crate::shapes::{Part, block, cuboid, cylinder, ellipsoid, lathe, rod};
+use crate::{pick, uniform};
 use glam::{Mat4, Quat, Vec3};
 use rand::{Rng, RngCore};
 

@@ -3,14 +3,14 @@
 //! over shared walls plus a few extra), an entrance, windows on the outside walls, and a type and
 //! finish for each room.
 
-use super::look::{Look, Material};
-use super::{SceneKind, SynthConfig, pick, uniform};
-use crate::floorplan::{Floorplan, Hole, HoleKind, Room, Wall};
-use crate::object::DoorState;
+use crate::look::{Look, Material};
+use crate::{SceneKind, SynthConfig, pick, uniform};
 use glam::{Vec2, Vec3};
 use rand::seq::{IndexedRandom, SliceRandom};
 use rand::{Rng, RngCore};
 use sage_core::Polygon2;
+use sage_scene::floorplan::{Floorplan, Hole, HoleKind, Room, Wall};
+use sage_scene::object::DoorState;
 
 /// Thickness of the outside walls (m).
 pub(crate) const EXTERIOR_WALL: f32 = 0.2;

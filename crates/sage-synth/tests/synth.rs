@@ -4,8 +4,9 @@
 
 use glam::Vec2;
 use sage_scene::occupancy::{FREE, OCCUPIED, UNKNOWN};
-use sage_scene::synth::{SceneKind, SynthConfig, color_rgb, generate};
+use sage_scene::vocabulary::color_rgb;
 use sage_scene::{DoorState, Hole, HoleKind, Scene};
+use sage_synth::{SceneKind, SynthConfig, generate};
 use std::collections::BTreeSet;
 
 fn config(

@@ -5,13 +5,13 @@
 //! opening (jambs, lintel, sill or threshold). The mesh: every wall as solid boxes around its
 //! openings, plus a floor and a ceiling per room.
 
-use super::layout::{Axis, EXTERIOR_WALL, Layout, Opening, RoomCell};
-use super::look::Look;
-use super::shapes::{cuboid, first_use_order};
-use super::surfaces::{Frame, Geometry, Patch};
-use crate::floorplan::HoleKind;
-use crate::mesh::TriMesh;
+use crate::layout::{Axis, EXTERIOR_WALL, Layout, Opening, RoomCell};
+use crate::look::Look;
+use crate::shapes::{cuboid, first_use_order};
+use crate::surfaces::{Frame, Geometry, Patch};
 use glam::Vec3;
+use sage_scene::floorplan::HoleKind;
+use sage_scene::mesh::TriMesh;
 
 /// A vertical wall face on the plane `across` of `axis`, along `span`, from the floor to the
 /// ceiling, facing `facing`, minus the openings of the wall whose centre line is `line`.

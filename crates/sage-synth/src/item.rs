@@ -1,12 +1,12 @@
 //! Placed objects before they become [`Object`]s: label, box, attributes, physics and the parts
 //! that make up the mesh and carry the looks the Gaussians are sampled with.
 
-use super::shapes::{Part, first_use_order};
-use super::surfaces::{Frame, Geometry, Patch};
-use crate::mesh::TriMesh;
-use crate::object::{Attributes, Object, PhysicsRole, RigidBody, normalize_category};
+use crate::shapes::{Part, first_use_order};
+use crate::surfaces::{Frame, Geometry, Patch};
 use glam::{Mat4, Quat, Vec3};
 use sage_core::{Aabb, InstanceId, Obb};
+use sage_scene::mesh::TriMesh;
+use sage_scene::object::{Attributes, Object, PhysicsRole, RigidBody, normalize_category};
 
 /// The first `ins_id` of a synthetic scene (InteriorGS numbers its instances from the thousands).
 const FIRST_INS_ID: usize = 1001;

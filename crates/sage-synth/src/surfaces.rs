@@ -10,13 +10,13 @@
 //! Patches are sampled in parallel, each with its own random stream derived from the seed and the
 //! patch's index, and the output keeps patch order, so the result does not depend on threads.
 
-use super::look::Look;
-use crate::gaussians::{Gaussian, Gaussians, SH_C0, opacity_to_logit};
+use crate::look::Look;
 use glam::{Mat3, Quat, Vec2, Vec3};
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use sage_core::{Error, Result};
+use sage_scene::gaussians::{Gaussian, Gaussians, SH_C0, opacity_to_logit};
 
 /// `Y_1^m` normalisation: the degree-1 SH basis is `SH_C1 · (−y, z, −x)` of the view direction.
 const SH_C1: f32 = 0.488_602_5;
@@ -348,7 +348,7 @@ mod tests {
 
     #[test]
     fn surfels_face_their_normal_and_have_a_highlight() {
-        let look = Look::named("red", super::super::look::Material::Metal, 3);
+        let look = Look::named("red", crate::look::Material::Metal, 3);
         let patch = Patch {
             geometry: Geometry::rect_facing(Vec3::ZERO, Vec3::X, Vec3::Y, -Vec3::Z),
             look,
