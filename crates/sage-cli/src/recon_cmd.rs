@@ -224,7 +224,7 @@ fn plan(a: PlanArgs) -> Result<()> {
 fn render(a: RenderArgs) -> Result<()> {
     let plan = Plan::load(&a.dir.join(PLAN_FILE))?;
     let scene_dir = a.scene.unwrap_or_else(|| PathBuf::from(&plan.scene_dir));
-    let (w, h) = crate::bench::parse_size(&a.size)?;
+    let (w, h) = crate::flags::parse_size(&a.size)?;
     let manifest = Manifest::new(&plan, w, h)?;
     views::prepare(&a.dir, &manifest)?;
     let todo = views::pending(&a.dir, &plan);
