@@ -184,3 +184,41 @@ fn generate(path: &Path, gaussians: usize, sh3: bool) -> Result<()> {
     };
     ply::write_splats_file(path, &g, SplatLayout::Compressed)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> LoadReport {
+        LoadReport {
+            machine: "CPU, 2 cores visible, 2 threads used".into(),
+            file: "scene/bench.compressed.ply".into(),
+            layout: "compressed".into(),
+            file_bytes: 25_300_000,
+            sh_degree: 1,
+            gaussians: 1_000_000,
+            decode_s: vec![0.0625, 0.125, 0.25],
+            store_bytes: 49_000_000,
+            resident_growth_bytes: Some(50_100_000),
+        }
+    }
+
+    #[test]
+    fn text_is_the_command_output() {
+        assert_eq!(
+            report().to_string(),
+            "machine          CPU, 2 cores visible, 2 threads used\n\
+             file             scene/bench.compressed.ply (compressed layout, 25.3 MB, SH degree 1)\n\
+             gaussians        1000000\n\
+             decode           median 0.125 s, best 0.062 s over 3 runs (8.0 M Gaussians/s)\n\
+             store            49.0 bytes/Gaussian (heap of the Gaussian arrays)\n\
+             resident         +50.1 bytes/Gaussian (process RSS growth while loading)\n"
+        );
+    }
+
+    #[test]
+    fn report_survives_json() {
+        let json = serde_json::to_string(&report()).unwrap();
+        assert_eq!(serde_json::from_str::<LoadReport>(&json).unwrap(), report());
+    }
+}
