@@ -1,12 +1,20 @@
-//! `sage3d bench …`: the performance figures of SPEC §12, measured on this machine.
+//! `sage3d bench …`: the performance figures of SPEC §12, measured on this machine by
+//! sage-perf. This module turns flags into the benchmarks' settings and prints their reports.
 
-use crate::machine;
+use crate::flags::parse_size;
 use clap::{Args, Subcommand};
 use sage_core::{Error, Result};
-use sage_scene::ply::{self, SplatLayout};
-use sage_synth::{SceneKind, SynthConfig};
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use sage_perf::env::EnvSettings;
+use sage_perf::fit::FitSettings;
+use sage_perf::load::LoadSettings;
+use sage_perf::nav::NavSettings;
+use sage_perf::physics::PhysicsSettings;
+use sage_perf::render::RenderSettings;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use std::ffi::OsString;
+use std::fmt::Display;
+use std::path::PathBuf;
 
 #[derive(Subcommand)]
 pub enum BenchCommand {
@@ -19,13 +27,13 @@ pub enum BenchCommand {
     Render(RenderBenchArgs),
     /// Plan trajectories in a 20 × 20 m synthetic home: grid and EDT once, then sampling, A*,
     /// shortcut and resampling per trajectory, in parallel; report trajectories per second.
-    Nav(crate::nav_cmd::NavBenchArgs),
+    Nav(NavBenchArgs),
     /// Step one agent through a 200-object synthetic home, physics only (no rendering), and
     /// report steps per second.
-    Physics(crate::physics_cmd::PhysicsBenchArgs),
+    Physics(PhysicsBenchArgs),
     /// Step the environment with a seeded random agent in a 200-object, 1M-Gaussian synthetic
     /// home: steps per second without rendering and with RGB + depth at 224×224 and 640×480.
-    Env(crate::env_cmd::EnvBenchArgs),
+    Env(EnvBenchArgs),
     /// Fit a degraded copy of one synthetic room to views of it on the CPU (sage-train):
     /// held-out PSNR before and after, milliseconds per iteration.
     Fit(FitBenchArgs),
@@ -73,6 +81,9 @@ pub struct RenderBenchArgs {
     /// Give the scene SH degree 3 (bands 2–3 filled from a seeded hash), the memory worst case.
     #[arg(long)]
     sh3: bool,
+    /// Print the report as JSON: how the measuring process hands it back.
+    #[arg(long, hide = true)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -89,392 +100,278 @@ pub struct LoadArgs {
     /// Timed decodes (the median is reported).
     #[arg(long, default_value_t = 7)]
     repeat: usize,
+    /// Print the report as JSON: how the measuring process hands it back.
+    #[arg(long, hide = true)]
+    json: bool,
+}
+
+#[derive(Args)]
+pub struct NavBenchArgs {
+    /// Trajectories to plan.
+    #[arg(long, default_value_t = 4000)]
+    count: usize,
+    /// Seed of the scene and of the sampling.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Rooms of the generated home (about 15 m² each; 27 make about 20 × 20 m).
+    #[arg(long, default_value_t = 27)]
+    rooms: usize,
+    /// Scene folder to use instead of a generated home.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct PhysicsBenchArgs {
+    /// Scene folder (default: generate a home with --objects objects).
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// Objects in the generated scene (doors and windows included).
+    #[arg(long, default_value_t = 200)]
+    objects: usize,
+    /// Hull cache (default: SCENE/.sage3d/collision, or a folder in the system temp dir for a
+    /// generated scene, so repeated runs reuse it).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Agent profile.
+    #[arg(long, default_value = "wheeled")]
+    agent: String,
+    /// Agent steps per timed run.
+    #[arg(long, default_value_t = 100_000)]
+    steps: usize,
+    /// Timed runs (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Seed of the generated scene and of the command sequence.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+#[derive(Args)]
+pub struct EnvBenchArgs {
+    /// Objects in the generated home.
+    #[arg(long, default_value_t = 200)]
+    objects: usize,
+    /// Gaussians in the generated home.
+    #[arg(long, default_value_t = 1_000_000)]
+    gaussians: usize,
+    /// Seed of the scene, the episodes and the random agent.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Steps without rendering.
+    #[arg(long, default_value_t = 20_000)]
+    steps: usize,
+    /// Steps per rendered resolution.
+    #[arg(long, default_value_t = 200)]
+    render_steps: usize,
+    /// Resolutions as WxH (RGB + depth each).
+    #[arg(long, value_delimiter = ',', default_value = "224x224,640x480")]
+    sizes: Vec<String>,
+    /// Hull cache folder.
+    #[arg(long)]
+    cache: Option<PathBuf>,
+}
+
+impl LoadArgs {
+    fn settings(&self) -> LoadSettings {
+        LoadSettings {
+            input: self.input.clone(),
+            gaussians: self.gaussians,
+            sh3: self.sh3,
+            repeat: self.repeat,
+        }
+    }
+}
+
+impl RenderBenchArgs {
+    fn settings(&self) -> Result<RenderSettings> {
+        Ok(RenderSettings {
+            scene: self.scene.clone(),
+            gaussians: self.gaussians,
+            frames: self.frames,
+            sizes: sizes(&self.sizes)?,
+            pitch: self.pitch,
+            sh3: self.sh3,
+        })
+    }
+}
+
+impl NavBenchArgs {
+    fn settings(&self) -> NavSettings {
+        NavSettings {
+            count: self.count,
+            seed: self.seed,
+            rooms: self.rooms,
+            scene: self.scene.clone(),
+        }
+    }
+}
+
+impl PhysicsBenchArgs {
+    fn settings(&self) -> PhysicsSettings {
+        PhysicsSettings {
+            scene: self.scene.clone(),
+            objects: self.objects,
+            cache: self.cache.clone(),
+            agent: self.agent.clone(),
+            steps: self.steps,
+            repeat: self.repeat,
+            seed: self.seed,
+        }
+    }
+}
+
+impl EnvBenchArgs {
+    fn settings(&self) -> Result<EnvSettings> {
+        Ok(EnvSettings {
+            objects: self.objects,
+            gaussians: self.gaussians,
+            seed: self.seed,
+            steps: self.steps,
+            render_steps: self.render_steps,
+            sizes: sizes(&self.sizes)?,
+            cache: self.cache.clone(),
+        })
+    }
+}
+
+impl FitBenchArgs {
+    fn settings(&self) -> Result<FitSettings> {
+        Ok(FitSettings {
+            iterations: self.iterations,
+            size: parse_size(&self.size)?,
+            gaussians: self.gaussians,
+            views: self.views,
+            heldout: self.heldout,
+            seed: self.seed,
+        })
+    }
 }
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
-        BenchCommand::Load(a) => load(a),
-        BenchCommand::Render(a) => render(a),
-        BenchCommand::Nav(a) => crate::nav_cmd::bench(a),
-        BenchCommand::Physics(a) => crate::physics_cmd::bench(a),
-        BenchCommand::Env(a) => crate::env_cmd::bench(a),
-        BenchCommand::Fit(a) => fit(a),
+        BenchCommand::Load(a) => {
+            let report = sage_perf::load::run(&a.settings(), &|s| {
+                let mut args = vec![
+                    "load".into(),
+                    "--repeat".into(),
+                    s.repeat.to_string().into(),
+                ];
+                if let Some(input) = &s.input {
+                    args.extend(["--input".into(), input.into()]);
+                }
+                in_fresh_process(args)
+            })?;
+            print_report(&report, a.json)
+        }
+        BenchCommand::Render(a) => {
+            let report = sage_perf::render::run(&a.settings()?, &|s| {
+                let sizes: Vec<String> = s.sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect();
+                let mut args: Vec<OsString> = vec![
+                    "render".into(),
+                    "--frames".into(),
+                    s.frames.to_string().into(),
+                    "--sizes".into(),
+                    sizes.join(",").into(),
+                    "--pitch".into(),
+                    s.pitch.to_string().into(),
+                ];
+                if let Some(scene) = &s.scene {
+                    args.extend(["--scene".into(), scene.into()]);
+                }
+                in_fresh_process(args)
+            })?;
+            print_report(&report, a.json)
+        }
+        BenchCommand::Nav(a) => print_report(&sage_perf::nav::run(&a.settings())?, false),
+        BenchCommand::Physics(a) => print_report(&sage_perf::physics::run(&a.settings())?, false),
+        BenchCommand::Env(a) => print_report(&sage_perf::env::run(&a.settings()?)?, false),
+        BenchCommand::Fit(a) => print_report(&sage_perf::fit::run(&a.settings()?)?, false),
     }
 }
 
-/// Views of a one-room synthetic scene rendered by `sage-splat` from cameras near its middle
-/// (random headings, slightly downward), fitted from every fourth Gaussian with perturbed
-/// colours and scales grown by 1.6.
-fn fit(a: FitBenchArgs) -> Result<()> {
-    use rand::{Rng, SeedableRng};
-    let (width, height) = parse_size(&a.size)?;
-    eprintln!("generating a one-room scene of {} Gaussians …", a.gaussians);
-    let scene = sage_synth::generate(&SynthConfig {
-        seed: a.seed,
-        rooms: 1,
-        objects: 10,
-        gaussians: a.gaussians,
-        ..SynthConfig::default()
-    })?;
-    let truth = &scene.gaussians;
-    let centre = scene.floorplan.rooms[0].profile.centroid();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-    let mut renderer = sage_splat::Renderer::new(truth);
-    let intrinsics = sage_splat::Intrinsics::from_hfov(width, height, 90.0)?;
-    let mut views = (0..a.views + a.heldout)
-        .map(|_| {
-            let position = glam::Vec3::new(
-                centre.x + rng.random_range(-0.6..0.6),
-                centre.y + rng.random_range(-0.6..0.6),
-                rng.random_range(1.1..1.6),
-            );
-            let camera = sage_splat::Camera::from_yaw_pitch(
-                intrinsics,
-                position,
-                rng.random_range(-std::f32::consts::PI..std::f32::consts::PI),
-                rng.random_range(-0.4..0.1),
-            );
-            let rgb = renderer
-                .render(truth, &[], &camera, &sage_splat::RenderOptions::default())?
-                .rgb;
-            Ok(sage_train::View { camera, rgb })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let heldout = views.split_off(a.views);
-    let mut init = sage_scene::Gaussians::new(0)?;
-    for i in (0..truth.len()).step_by(4) {
-        let g = truth.get(i);
-        init.push(&sage_scene::Gaussian {
-            log_scale: g.log_scale + glam::Vec3::splat(1.6f32.ln()),
-            sh_dc: g.sh_dc.map(|c| c + rng.random_range(-0.6..0.6)),
-            ..g
-        });
+fn sizes(flags: &[String]) -> Result<Vec<(u32, u32)>> {
+    flags.iter().map(|s| parse_size(s)).collect()
+}
+
+/// Prints a report: its lines, or with `json` one line of JSON.
+fn print_report(report: &(impl Display + Serialize), json: bool) -> Result<()> {
+    if json {
+        let line = serde_json::to_string(report).map_err(|e| Error::invalid(e.to_string()))?;
+        println!("{line}");
+    } else {
+        print!("{report}");
     }
-    let params = sage_train::FitParams {
-        iterations: a.iterations,
-        seed: a.seed,
-        ..sage_train::FitParams::default()
-    };
-    // Iterations are timed between the first and the last progress call, so the held-out
-    // evaluations before and after are left out.
-    let marks = std::sync::Mutex::new((None, None));
-    let (fitted, report) = sage_train::fit(&init, &views, &heldout, &params, &|it, _| {
-        let mut m = marks.lock().unwrap_or_else(|e| e.into_inner());
-        let now = Some((it, Instant::now()));
-        if m.0.is_none() {
-            m.0 = now;
-        }
-        m.1 = now;
-    })?;
-    let per_iteration = match marks.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        (Some((i0, t0)), Some((i1, t1))) if i1 > i0 => {
-            format!("{:.1} ms", (t1 - t0).as_secs_f64() * 1e3 / (i1 - i0) as f64)
-        }
-        _ => "n/a (fewer than 2 iterations)".into(),
-    };
-    println!("machine          {}", machine::describe());
-    println!(
-        "scene            one room, {} Gaussians; initialisation {} Gaussians",
-        truth.len(),
-        init.len()
-    );
-    println!(
-        "views            {} training, {} held-out, {width}x{height}",
-        views.len(),
-        heldout.len()
-    );
-    println!(
-        "held-out PSNR    {:.2} dB -> {:.2} dB (training {:.2} dB)",
-        report.initial_heldout_psnr, report.final_heldout_psnr, report.final_train_psnr
-    );
-    println!(
-        "fit              {} iterations, {} Gaussians at the end, {per_iteration} per iteration ({} threads)",
-        a.iterations,
-        fitted.len(),
-        rayon::current_num_threads()
-    );
     Ok(())
 }
 
-fn load(a: LoadArgs) -> Result<()> {
-    match a.input {
-        Some(p) => measure_load(&p, a.repeat),
-        None => {
-            let dir = std::env::temp_dir().join(format!("sage3d-bench-{}", std::process::id()));
-            std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-            let file = dir.join("bench.compressed.ply");
-            eprintln!("generating a {}-Gaussian scene …", a.gaussians);
-            let result = generate(&file, a.gaussians, a.sh3).and_then(|()| {
-                let repeat = a.repeat.to_string();
-                bench_in_fresh_process(&[
-                    "load".as_ref(),
-                    "--repeat".as_ref(),
-                    repeat.as_ref(),
-                    "--input".as_ref(),
-                    file.as_os_str(),
-                ])
-            });
-            let _ = std::fs::remove_dir_all(&dir);
-            result
-        }
-    }
-}
-
-/// Runs `sage3d bench ARGS…` in a new process with this process's thread count, so that
-/// memory freed by a generator does not hide (or inflate) the measured resident figures.
-fn bench_in_fresh_process(args: &[&std::ffi::OsStr]) -> Result<()> {
+/// Runs `sage3d bench ARGS… --json` in a new process with this process's thread count and reads
+/// back its report (sage-perf measures generated inputs so; see `sage_perf::load::run`).
+fn in_fresh_process<R: DeserializeOwned>(args: Vec<OsString>) -> Result<R> {
     let exe = std::env::current_exe().map_err(|e| Error::io("current executable", e))?;
-    let status = std::process::Command::new(&exe)
+    let out = std::process::Command::new(&exe)
         .args([
             "--threads",
             &rayon::current_num_threads().to_string(),
             "bench",
         ])
         .args(args)
-        .status()
+        .arg("--json")
+        .stderr(std::process::Stdio::inherit())
+        .output()
         .map_err(|e| Error::io(&exe, e))?;
-    if status.success() {
-        Ok(())
-    } else {
-        Err(Error::invalid(format!(
-            "the measuring process failed ({status})"
-        )))
+    if !out.status.success() {
+        return Err(Error::invalid(format!(
+            "the measuring process failed ({})",
+            out.status
+        )));
     }
+    serde_json::from_slice(&out.stdout)
+        .map_err(|e| Error::invalid(format!("the measuring process's report: {e}")))
 }
 
-fn measure_load(path: &Path, repeat: usize) -> Result<()> {
-    let size = std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .len();
-    let rss_before = machine::resident_bytes();
-    let (kept, layout) = ply::read_splats_file(path)?;
-    let rss_after = machine::resident_bytes();
-    let mut times = Vec::with_capacity(repeat);
-    for _ in 0..repeat.max(1) {
-        let start = Instant::now();
-        let (g, _) = ply::read_splats_file(path)?;
-        times.push(start.elapsed().as_secs_f64());
-        drop(g);
-    }
-    times.sort_by(f64::total_cmp);
-    let n = kept.len().max(1) as f64;
-    let median = times[times.len() / 2];
-    println!("machine          {}", machine::describe());
-    println!(
-        "file             {} ({} layout, {:.1} MB, SH degree {})",
-        path.display(),
-        layout.as_str(),
-        size as f64 / 1e6,
-        kept.sh_degree()
-    );
-    println!("gaussians        {}", kept.len());
-    println!(
-        "decode           median {:.3} s, best {:.3} s over {} runs ({:.1} M Gaussians/s)",
-        median,
-        times[0],
-        times.len(),
-        n / median / 1e6
-    );
-    println!(
-        "store            {:.1} bytes/Gaussian (heap of the Gaussian arrays)",
-        kept.heap_bytes() as f64 / n
-    );
-    if let (Some(b), Some(a)) = (rss_before, rss_after) {
-        println!(
-            "resident         +{:.1} bytes/Gaussian (process RSS growth while loading)",
-            a.saturating_sub(b) as f64 / n
-        );
-    }
-    Ok(())
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
 
-/// Writes the compressed PLY of a synthetic office with about `gaussians` Gaussians.
-fn generate(path: &Path, gaussians: usize, sh3: bool) -> Result<()> {
-    let rooms = (gaussians / 60_000).clamp(4, 20);
-    let config = SynthConfig {
-        seed: 1,
-        kind: SceneKind::Office,
-        rooms,
-        objects: rooms * 25,
-        gaussians,
-        ..SynthConfig::default()
-    };
-    let scene = sage_synth::generate(&config)?;
-    let g = if sh3 {
-        to_sh3(&scene.gaussians)?
-    } else {
-        scene.gaussians
-    };
-    ply::write_splats_file(path, &g, SplatLayout::Compressed)
-}
+    #[derive(Parser)]
+    struct Bench {
+        #[command(subcommand)]
+        command: BenchCommand,
+    }
 
-/// The same Gaussians at SH degree 3, higher bands filled with small deterministic values.
-fn to_sh3(g: &sage_scene::Gaussians) -> Result<sage_scene::Gaussians> {
-    let items: Vec<_> = (0..g.len())
-        .map(|i| {
-            let mut x = g.get(i);
-            for (k, coeff) in x.sh_rest.iter_mut().enumerate().skip(3) {
-                for (c, v) in coeff.iter_mut().enumerate() {
-                    let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                        ^ ((k * 3 + c) as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-                    *v = ((h >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 0.2;
+    fn parse(args: &[&str]) -> BenchCommand {
+        Bench::try_parse_from(std::iter::once("bench").chain(args.iter().copied()))
+            .unwrap()
+            .command
+    }
+
+    /// The flags' defaults are the benchmarks' defaults.
+    #[test]
+    fn default_flags_give_default_settings() {
+        for name in ["load", "render", "nav", "physics", "env", "fit"] {
+            match parse(&[name]) {
+                BenchCommand::Load(a) => assert_eq!(a.settings(), LoadSettings::default()),
+                BenchCommand::Render(a) => {
+                    assert_eq!(a.settings().unwrap(), RenderSettings::default());
                 }
-            }
-            x
-        })
-        .collect();
-    sage_scene::Gaussians::from_gaussians(&items, 3)
-}
-
-pub fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or_else(|| Error::invalid(format!("size '{s}' is not WxH")))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .map_err(|_| Error::invalid(format!("size '{s}' is not WxH")))
-    };
-    Ok((parse(w)?, parse(h)?))
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-fn render(a: RenderBenchArgs) -> Result<()> {
-    match (&a.scene, a.sh3) {
-        (Some(dir), false) => measure_render(&sage_scene::Scene::load(dir)?.0, &a),
-        (given, sh3) => {
-            // Generated or converted scenes are written to a temporary folder and measured
-            // from a fresh process, so the resident figure is that of a scene loaded from disk.
-            let mut scene = match given {
-                Some(dir) => sage_scene::Scene::load(dir)?.0,
-                None => {
-                    eprintln!("generating a {}-Gaussian home …", a.gaussians);
-                    sage_synth::generate(&SynthConfig {
-                        seed: 1,
-                        kind: SceneKind::Home,
-                        rooms: 16,
-                        objects: 400,
-                        gaussians: a.gaussians,
-                        ..SynthConfig::default()
-                    })?
+                BenchCommand::Nav(a) => assert_eq!(a.settings(), NavSettings::default()),
+                BenchCommand::Physics(a) => {
+                    assert_eq!(a.settings(), PhysicsSettings::default());
                 }
-            };
-            if sh3 {
-                scene.gaussians = to_sh3(&scene.gaussians)?;
+                BenchCommand::Env(a) => assert_eq!(a.settings().unwrap(), EnvSettings::default()),
+                BenchCommand::Fit(a) => assert_eq!(a.settings().unwrap(), FitSettings::default()),
             }
-            let dir = std::env::temp_dir().join(format!("sage3d-bench-{}", std::process::id()));
-            let result = scene.save(&dir, SplatLayout::Compressed).and_then(|()| {
-                drop(scene);
-                let (frames, sizes, pitch) =
-                    (a.frames.to_string(), a.sizes.join(","), a.pitch.to_string());
-                bench_in_fresh_process(&[
-                    "render".as_ref(),
-                    "--frames".as_ref(),
-                    frames.as_ref(),
-                    "--sizes".as_ref(),
-                    sizes.as_ref(),
-                    "--pitch".as_ref(),
-                    pitch.as_ref(),
-                    "--scene".as_ref(),
-                    dir.as_os_str(),
-                ])
-            });
-            let _ = std::fs::remove_dir_all(&dir);
-            result
         }
     }
-}
 
-fn measure_render(scene: &sage_scene::Scene, a: &RenderBenchArgs) -> Result<()> {
-    use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
-    let start = Instant::now();
-    let mut renderer = Renderer::new(&scene.gaussians);
-    let index_ms = start.elapsed().as_secs_f64() * 1e3;
-    let eye = crate::render_cmd::default_eye(scene);
-    println!("machine          {}", machine::describe());
-    println!(
-        "scene            {} Gaussians (SH degree {}), camera at ({:.2}, {:.2}, {:.2}) in the largest room, pitch {}°, HFOV 90°",
-        scene.gaussians.len(),
-        scene.gaussians.sh_degree(),
-        eye.x,
-        eye.y,
-        eye.z,
-        a.pitch
-    );
-    println!(
-        "index            built in {index_ms:.0} ms, {:.1} bytes/Gaussian",
-        renderer.index().heap_bytes() as f64 / scene.gaussians.len().max(1) as f64
-    );
-    let options = RenderOptions::default();
-    let n = scene.gaussians.len().max(1) as f64;
-    for size in &a.sizes {
-        let (w, h) = parse_size(size)?;
-        let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
-        let frames = a.frames.max(1);
-        let cams: Vec<Camera> = (0..frames)
-            .map(|f| {
-                Camera::from_yaw_pitch(
-                    intrinsics,
-                    eye,
-                    std::f32::consts::TAU * f as f32 / frames as f32,
-                    a.pitch.to_radians(),
-                )
-            })
-            .collect();
-        // One warm-up frame sizes the reusable buffers.
-        renderer.render(
-            &scene.gaussians,
-            &scene.instances.category_ids,
-            &cams[0],
-            &options,
-        )?;
-        let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames);
-        for cam in &cams {
-            let start = Instant::now();
-            renderer.render(
-                &scene.gaussians,
-                &scene.instances.category_ids,
-                cam,
-                &options,
-            )?;
-            let total = start.elapsed().as_secs_f64() * 1e3;
-            let s = renderer.stats();
-            rows.push([
-                total,
-                s.cull_ms,
-                s.project_ms,
-                s.sort_ms,
-                s.raster_ms,
-                s.examined as f64,
-                s.splats as f64,
-            ]);
-        }
-        let col = |k: usize| median(rows.iter().map(|r| r[k]).collect());
-        let worst = rows.iter().map(|r| r[0]).fold(0.0, f64::max);
-        println!(
-            "{w}x{h:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians examined, {:.0} splats",
-            col(0),
-            worst,
-            1e3 / col(0),
-            col(1),
-            col(2),
-            col(3),
-            col(4),
-            col(5),
-            col(6)
-        );
+    #[test]
+    fn sizes_are_checked_before_any_work() {
+        let BenchCommand::Render(a) = parse(&["render", "--sizes", "32x24,10"]) else {
+            unreachable!()
+        };
+        let e = a.settings().unwrap_err().to_string();
+        assert!(e.contains("size '10' is not WxH"), "{e}");
     }
-    if let Some(rss) = machine::resident_bytes() {
-        println!(
-            "resident         {:.1} bytes/Gaussian: the whole process (scene {:.1} + index {:.1} + frame buffers and the rest)",
-            rss as f64 / n,
-            scene.gaussians.heap_bytes() as f64 / n,
-            renderer.index().heap_bytes() as f64 / n
-        );
-    }
-    Ok(())
 }

@@ -9,7 +9,7 @@ mod data_cmd;
 mod demo_cmd;
 mod env_cmd;
 mod eval_cmd;
-mod machine;
+mod flags;
 mod nav_cmd;
 mod physics_cmd;
 mod recon_cmd;

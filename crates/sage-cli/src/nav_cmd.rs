@@ -1,17 +1,14 @@
-//! `sage3d nav …` and `sage3d bench nav`: semantic maps, occupancy grids and trajectories.
+//! `sage3d nav …`: semantic maps, occupancy grids and trajectories.
 
-use crate::machine;
 use clap::{Args, Subcommand};
 use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_io::run::write_run_record;
 use sage_io::runner::{Status, Tally};
-use sage_nav::sampling::Endpoints;
-use sage_nav::trajectory::{self, Prepared, TrajectoryParams};
-use sage_nav::{GridParams, NavGrid, PathFinder, SemanticMap};
+use sage_nav::trajectory::{self, TrajectoryParams};
+use sage_nav::{GridParams, NavGrid, SemanticMap};
 use sage_scene::Scene;
-use sage_synth::{SceneKind, SynthConfig};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -91,22 +88,6 @@ pub struct TrajectoriesArgs {
     kinds: Vec<f32>,
     #[command(flatten)]
     grid: GridArgs,
-}
-
-#[derive(Args)]
-pub struct NavBenchArgs {
-    /// Trajectories to plan.
-    #[arg(long, default_value_t = 4000)]
-    count: usize,
-    /// Seed of the scene and of the sampling.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Rooms of the generated home (about 15 m² each; 27 make about 20 × 20 m).
-    #[arg(long, default_value_t = 27)]
-    rooms: usize,
-    /// Scene folder to use instead of a generated home.
-    #[arg(long)]
-    scene: Option<PathBuf>,
 }
 
 pub fn run(cmd: NavCommand) -> Result<()> {
@@ -237,98 +218,6 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         outcomes.len(),
         out.display(),
         start.elapsed().as_secs_f64()
-    );
-    Ok(())
-}
-
-/// `sage3d bench nav`: grid and EDT once, then many trajectories in parallel (SPEC §12).
-pub fn bench(a: NavBenchArgs) -> Result<()> {
-    let scene = match &a.scene {
-        Some(dir) => Scene::load(dir)?.0,
-        None => {
-            eprintln!("generating a {}-room home …", a.rooms);
-            sage_synth::generate(&SynthConfig {
-                seed: a.seed,
-                kind: SceneKind::Home,
-                rooms: a.rooms,
-                objects: a.rooms * 12,
-                gaussians: 1000,
-                ..SynthConfig::default()
-            })?
-        }
-    };
-    let params = TrajectoryParams {
-        count: a.count,
-        seed: a.seed,
-        ..TrajectoryParams::default()
-    };
-    let t = Instant::now();
-    let (grid, source) = NavGrid::from_scene(&scene, &params.grid)?;
-    let grid_ms = t.elapsed().as_secs_f64() * 1e3;
-    let t = Instant::now();
-    let finder = PathFinder::new(grid, &scene.floorplan, params.cost.clone())?;
-    let edt_ms = t.elapsed().as_secs_f64() * 1e3;
-    let t = Instant::now();
-    let map = SemanticMap::build(&scene);
-    let endpoints = Endpoints::collect(&map, &finder, &params.sampling);
-    let endpoints_ms = t.elapsed().as_secs_f64() * 1e3;
-    let prep = Prepared {
-        finder,
-        source,
-        map,
-        endpoints,
-    };
-    // A short warm-up run sizes every thread's search buffers.
-    let warm = TrajectoryParams {
-        count: 64,
-        ..params.clone()
-    };
-    trajectory::generate(&scene.name, &prep, &warm)?;
-    let t = Instant::now();
-    let (set, times) = trajectory::generate(&scene.name, &prep, &params)?;
-    let wall = t.elapsed().as_secs_f64();
-    let g = &prep.finder.grid;
-    let size = g.size();
-    let n = set.trajectories.len().max(1) as f64;
-    let per = |d: std::time::Duration| d.as_secs_f64() * 1e3 / n;
-    let (free, occupied, unknown) = g.counts();
-    println!("machine          {}", machine::describe());
-    println!(
-        "scene            {} ({} rooms, {} objects), grid {:.1} x {:.1} m = {} x {} cells at {} m ({free} free, {occupied} occupied, {unknown} unknown; {} navigable)",
-        scene.name,
-        scene.floorplan.rooms.len(),
-        scene.objects.len(),
-        size.x,
-        size.y,
-        g.width,
-        g.height,
-        g.cell,
-        prep.finder.navigable_cells().len()
-    );
-    println!(
-        "once per scene   grid {grid_ms:.0} ms (rasterise meshes, walls) + EDT/costs/islands {edt_ms:.0} ms + map/endpoints {endpoints_ms:.0} ms ({} endpoints: {:?} rooms/objects/areas)",
-        prep.endpoints.list.len(),
-        prep.endpoints.counts()
-    );
-    println!(
-        "trajectories     {} in {:.2} s = {:.0} trajectories/s on {} threads ({} candidates, mean length {:.1} m, {:?})",
-        set.trajectories.len(),
-        wall,
-        set.trajectories.len() as f64 / wall,
-        rayon::current_num_threads(),
-        set.report.candidates,
-        set.report.mean_length,
-        set.report.by_length
-    );
-    println!(
-        "per trajectory   CPU ms: sampling {:.3} + A* {:.3} + shortcut {:.3} + resample {:.3} + geodesic {:.3} (summed over threads; {} planned for {} kept)",
-        per(times.sampling),
-        per(times.astar),
-        per(times.shortcut),
-        per(times.resample),
-        per(times.geodesic),
-        times.planned,
-        set.trajectories.len()
     );
     Ok(())
 }

@@ -1,10 +1,7 @@
 //! `sage3d physics …` and `sage3d export usd`: collision bodies and their quality, the CoACD
-//! work list, driving an agent, the hybrid USDA scene, and the physics benchmark.
+//! work list, driving an agent, the hybrid USDA scene.
 
-use crate::machine;
 use clap::{Args, Subcommand};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Pose, Result, Vec3};
 use sage_io::files::write_json;
 use sage_physics::usd::{SplatAsset, write_usda};
@@ -14,9 +11,7 @@ use sage_physics::{
 };
 use sage_scene::Scene;
 use sage_scene::scene::files;
-use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Component, Path, PathBuf};
-use std::time::Instant;
 
 #[derive(Subcommand)]
 pub enum PhysicsCommand {
@@ -335,160 +330,6 @@ fn export_usd(a: UsdArgs) -> Result<()> {
         report.parts,
         report.decomposed,
         report.cached
-    );
-    Ok(())
-}
-
-#[derive(Args)]
-pub struct PhysicsBenchArgs {
-    /// Scene folder (default: generate a home with --objects objects).
-    #[arg(long)]
-    scene: Option<PathBuf>,
-    /// Objects in the generated scene (doors and windows included).
-    #[arg(long, default_value_t = 200)]
-    objects: usize,
-    /// Hull cache (default: SCENE/.sage3d/collision, or a folder in the system temp dir for a
-    /// generated scene, so repeated runs reuse it).
-    #[arg(long)]
-    cache: Option<PathBuf>,
-    /// Agent profile.
-    #[arg(long, default_value = "wheeled")]
-    agent: String,
-    /// Agent steps per timed run.
-    #[arg(long, default_value_t = 100_000)]
-    steps: usize,
-    /// Timed runs (the median is reported).
-    #[arg(long, default_value_t = 5)]
-    repeat: usize,
-    /// Seed of the generated scene and of the command sequence.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-}
-
-/// The next command of a seeded wandering agent: mostly 0.25 m forward steps, 15° turns and
-/// velocity commands; after a step that contact mostly blocked (c > 0.5), a turn of 90–180°, so
-/// the walk explores the scene instead of pressing into a corner.
-fn wander(rng: &mut ChaCha8Rng, blocked: bool, uav: bool) -> Command {
-    let sign = if rng.random() { 1.0f32 } else { -1.0 };
-    if blocked {
-        return Command::Turn {
-            angle: sign * rng.random_range(90f32..180.0).to_radians(),
-        };
-    }
-    match rng.random_range(0..10) {
-        0..=5 => Command::Forward { distance: 0.25 },
-        6 => Command::Turn {
-            angle: sign * 15f32.to_radians(),
-        },
-        _ if uav => Command::Uav {
-            vx: rng.random_range(0.0..1.0),
-            vy: rng.random_range(-0.3..0.3),
-            vz: rng.random_range(-0.5..0.5),
-            wz: rng.random_range(-0.5..0.5),
-            dt: 0.2,
-        },
-        _ => Command::Ground {
-            vx: rng.random_range(0.0..1.0),
-            vy: 0.0,
-            wz: rng.random_range(-0.8..0.8),
-            dt: 0.25,
-        },
-    }
-}
-
-pub fn bench(a: PhysicsBenchArgs) -> Result<()> {
-    let profile: AgentProfile = a.agent.parse()?;
-    let (scene, cache) = match &a.scene {
-        Some(dir) => (
-            Scene::load(dir)?.0,
-            HullCache::new(a.cache.clone().unwrap_or_else(|| default_cache_dir(dir))),
-        ),
-        None => {
-            let config = SynthConfig {
-                seed: a.seed,
-                kind: SceneKind::Home,
-                rooms: (a.objects / 14).clamp(1, 64),
-                objects: a.objects,
-                gaussians: 20_000,
-                ..SynthConfig::default()
-            };
-            eprintln!("generating a {}-object home …", a.objects);
-            let scene = sage_synth::generate(&config)?;
-            let dir = a
-                .cache
-                .clone()
-                .unwrap_or_else(|| std::env::temp_dir().join("sage3d-bench-physics-hulls"));
-            (scene, HullCache::new(dir))
-        }
-    };
-    let (bodies, report) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
-    let parts = report.parts;
-    let mut world = World::new(&scene, bodies, &WorldOptions::default());
-    let room = scene
-        .floorplan
-        .rooms
-        .iter()
-        .max_by(|x, y| x.profile.area().total_cmp(&y.profile.area()))
-        .ok_or_else(|| Error::invalid("the scene has no rooms to start the agent in"))?;
-    let z = if profile.kind == sage_physics::AgentKind::Uav {
-        1.2
-    } else {
-        0.0
-    };
-    let start = Pose::new(room.profile.centroid().extend(z), 0.0);
-    let uav = profile.kind == sage_physics::AgentKind::Uav;
-    let steps = a.steps.max(1);
-    let mut rates = Vec::new();
-    let (mut touching, mut stuck, mut recovered) = (0usize, 0usize, 0usize);
-    for run in 0..a.repeat.max(1) {
-        let mut agent = Agent::new(profile.clone(), start);
-        agent.step(&mut world, &Command::Stop)?;
-        // Every run replays the same seeded walk.
-        let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
-        let mut blocked = false;
-        let t0 = Instant::now();
-        for _ in 0..steps {
-            let r = agent.step(&mut world, &wander(&mut rng, blocked, uav))?;
-            blocked = r.intensity > 0.5;
-            if run == 0 {
-                touching += usize::from(!r.touched.is_empty());
-                stuck += usize::from(r.stuck);
-                recovered += usize::from(r.recovery.is_some());
-            }
-        }
-        rates.push(steps as f64 / t0.elapsed().as_secs_f64());
-    }
-    rates.sort_by(f64::total_cmp);
-    let n = steps as f64;
-    println!("machine          {}", machine::describe());
-    println!(
-        "scene            {} ({} objects, {} walls, {} collision parts)",
-        scene.name,
-        scene.objects.len(),
-        scene.floorplan.walls.len(),
-        parts
-    );
-    println!(
-        "bodies           built in {:.2} s ({} decomposed, {} from cache {})",
-        report.seconds, report.decomposed, report.cached, report.cache_dir
-    );
-    println!(
-        "agent            {} ({} steps per run, {} runs; seeded wander: forward, turn, velocity; turn away when blocked)",
-        profile.name,
-        steps,
-        rates.len()
-    );
-    println!(
-        "steps/s          median {:.0}, best {:.0} ({:.2} µs per step)",
-        rates[rates.len() / 2],
-        rates[rates.len() - 1],
-        1e6 / rates[rates.len() / 2]
-    );
-    println!(
-        "contacts         {:.1} % of steps touching, {:.1} % stuck, {} recoveries",
-        100.0 * touching as f64 / n,
-        100.0 * stuck as f64 / n,
-        recovered
     );
     Ok(())
 }

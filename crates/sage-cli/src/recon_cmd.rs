@@ -168,7 +168,7 @@ fn bar(len: u64, template: &str) -> ProgressBar {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
-    let (w, h) = crate::bench::parse_size(&a.size)?;
+    let (w, h) = crate::flags::parse_size(&a.size)?;
     let progress = bar(0, "{bar:30} {pos}/{len} views {elapsed} (eta {eta})");
     let start = Instant::now();
     let r = recon::render(&a.dir, a.scene.as_deref(), w, h, &|_, todo| {

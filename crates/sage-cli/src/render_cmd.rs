@@ -6,6 +6,7 @@ use glam::Vec3;
 use sage_core::{Error, Result};
 use sage_io::files::{write_json, write_npy_f32, write_png, write_rgb_png};
 use sage_scene::{InstanceKind, Scene};
+use sage_splat::camera::default_eye;
 use sage_splat::{Camera, CameraSpec, Intrinsics, RenderOptions, RenderOutput, Renderer};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -57,26 +58,6 @@ pub struct RenderArgs {
     /// turntable.gif.
     #[arg(long)]
     turntable: Option<usize>,
-}
-
-/// The default eye: the middle of the largest room at 1.2 m, else the middle of the Gaussians.
-pub fn default_eye(scene: &Scene) -> Vec3 {
-    let room = scene
-        .floorplan
-        .rooms
-        .iter()
-        .max_by(|a, b| a.profile.area().total_cmp(&b.profile.area()));
-    match room {
-        Some(r) => r.profile.centroid().extend(1.2),
-        None => {
-            let b = scene.gaussians.bounds();
-            if b.is_empty() {
-                Vec3::new(0.0, 0.0, 1.2)
-            } else {
-                (b.min + b.max) * 0.5
-            }
-        }
-    }
 }
 
 fn camera_from_args(a: &RenderArgs, scene: &Scene) -> Result<Camera> {

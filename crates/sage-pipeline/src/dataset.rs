@@ -39,9 +39,8 @@ pub fn build(
     }
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let (outcomes, summary) = build::build(&dirs, out, params, assemble, &|o| {
-        on_scene(o, dirs.len())
-    })?;
+    let (outcomes, summary) =
+        build::build(&dirs, out, params, assemble, &|o| on_scene(o, dirs.len()))?;
     build::write_run_record(out, &dirs, params, assemble)?;
     Ok(DatasetReport {
         dirs,

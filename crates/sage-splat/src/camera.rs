@@ -275,6 +275,27 @@ impl CameraSpec {
     }
 }
 
+/// The default eye of `sage3d render` and `sage3d bench render`: the middle of the largest room
+/// at 1.2 m, else the middle of the Gaussians.
+pub fn default_eye(scene: &sage_scene::Scene) -> Vec3 {
+    let room = scene
+        .floorplan
+        .rooms
+        .iter()
+        .max_by(|a, b| a.profile.area().total_cmp(&b.profile.area()));
+    match room {
+        Some(r) => r.profile.centroid().extend(1.2),
+        None => {
+            let b = scene.gaussians.bounds();
+            if b.is_empty() {
+                Vec3::new(0.0, 0.0, 1.2)
+            } else {
+                (b.min + b.max) * 0.5
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,6 +1,7 @@
 //! What machine a figure was measured on, and how much memory the process holds.
 
-/// The CPU model and core count, e.g. `"AMD EPYC 7B13, 2 cores"`.
+/// The CPU model, the cores visible and the worker threads used, e.g.
+/// `"AMD EPYC 7B13, 2 cores visible, 2 threads used"`.
 pub fn describe() -> String {
     let model = std::fs::read_to_string("/proc/cpuinfo")
         .ok()

@@ -1,0 +1,274 @@
+//! `sage3d bench env`: environment steps per second with a seeded random agent, without
+//! rendering and with RGB + depth at each resolution.
+
+use crate::machine;
+use sage_core::{Error, Result};
+use sage_env::agents::{Agent, RandomAgent};
+use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
+use sage_nav::{GridParams, TrajectoryParams};
+use sage_physics::{Decomposer, HullCache, SceneBodies};
+use sage_synth::{SceneKind, SynthConfig};
+use serde::Serialize;
+use std::fmt;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// What `bench env` steps.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvSettings {
+    /// Objects in the generated home.
+    pub objects: usize,
+    /// Gaussians in the generated home.
+    pub gaussians: usize,
+    /// Seed of the scene, the episodes and the random agent.
+    pub seed: u64,
+    /// Steps without rendering.
+    pub steps: usize,
+    /// Steps per rendered resolution.
+    pub render_steps: usize,
+    /// Resolutions, (width, height) (RGB + depth each).
+    pub sizes: Vec<(u32, u32)>,
+    /// Hull cache folder (`None`: a folder in the system temp dir, so repeated runs reuse it).
+    pub cache: Option<PathBuf>,
+}
+
+impl Default for EnvSettings {
+    fn default() -> Self {
+        Self {
+            objects: 200,
+            gaussians: 1_000_000,
+            seed: 1,
+            steps: 20_000,
+            render_steps: 200,
+            sizes: vec![(224, 224), (640, 480)],
+            cache: None,
+        }
+    }
+}
+
+/// What `bench env` measured.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EnvReport {
+    /// The machine ([`machine::describe`]).
+    pub machine: String,
+    /// Scene name.
+    pub scene: String,
+    /// Objects in the scene.
+    pub objects: usize,
+    /// Gaussians in the scene.
+    pub gaussians: usize,
+    /// Convex collision parts.
+    pub parts: usize,
+    /// Seconds to build the collision bodies.
+    pub bodies_s: f64,
+    /// Planned trajectories run as episodes, cycled.
+    pub episodes: usize,
+    /// Steps without rendering.
+    pub steps: usize,
+    /// Their rate.
+    pub blind: Rate,
+    /// Steps per rendered resolution.
+    pub render_steps: usize,
+    /// One entry per resolution, in the order asked.
+    pub rendered: Vec<SizedRate>,
+}
+
+/// Steps and resets of one configuration.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Rate {
+    /// Steps per second of `act` + `step` (physics, trace, observation, rendering when set).
+    pub steps_per_s: f64,
+    /// Episode resets done.
+    pub resets: usize,
+    /// Mean milliseconds per reset (fresh physics world, first observation).
+    pub reset_ms: f64,
+}
+
+/// The rate with RGB + depth at one resolution.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SizedRate {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Steps and resets.
+    pub rate: Rate,
+}
+
+impl fmt::Display for EnvReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "machine          {}", self.machine)?;
+        writeln!(
+            f,
+            "scene            {} ({} objects, {} Gaussians; {} collision parts, bodies in {:.2} s)",
+            self.scene, self.objects, self.gaussians, self.parts, self.bodies_s
+        )?;
+        writeln!(
+            f,
+            "episodes         {} planned trajectories, cycled; seeded random agent (forward / left / right), 500-step limit",
+            self.episodes
+        )?;
+        let r = &self.blind;
+        writeln!(
+            f,
+            "no rendering     {:.0} steps/s ({:.2} µs per step; {} steps); reset {:.2} ms ({} resets)",
+            r.steps_per_s,
+            1e6 / r.steps_per_s,
+            self.steps,
+            r.reset_ms,
+            r.resets
+        )?;
+        for s in &self.rendered {
+            writeln!(
+                f,
+                "{:<16} {:.1} steps/s ({:.1} ms per step; RGB + depth, HFOV 90, {} steps); reset {:.1} ms",
+                format!("{}x{}", s.width, s.height),
+                s.rate.steps_per_s,
+                1e3 / s.rate.steps_per_s,
+                self.render_steps,
+                s.rate.reset_ms
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Runs `steps` steps of a seeded random agent over the episodes, cycling them; steps and
+/// resets are timed apart.
+fn measure(
+    ctx: &Arc<SceneContext>,
+    config: EnvConfig,
+    episodes: &[EnvEpisode],
+    steps: usize,
+    seed: u64,
+) -> Result<Rate> {
+    let mut env = Env::new(ctx.clone(), config)?;
+    let mut agent = RandomAgent::new(seed, 0.0)?;
+    let (mut done, mut resets) = (0, 0);
+    let (mut stepping, mut resetting) = (Duration::ZERO, Duration::ZERO);
+    'outer: for e in episodes.iter().cycle() {
+        let t0 = Instant::now();
+        let mut obs = env.reset(e)?;
+        agent.reset(&env, e)?;
+        resetting += t0.elapsed();
+        resets += 1;
+        while !env.done() {
+            let t0 = Instant::now();
+            obs = env.step(agent.act(&obs)?)?.0;
+            stepping += t0.elapsed();
+            done += 1;
+            if done == steps {
+                break 'outer;
+            }
+        }
+    }
+    Ok(Rate {
+        steps_per_s: done as f64 / stepping.as_secs_f64(),
+        resets,
+        reset_ms: resetting.as_secs_f64() * 1e3 / resets as f64,
+    })
+}
+
+/// Runs `bench env`: a generated home with its collision bodies and 16 planned trajectories
+/// as episodes, stepped blind, then with RGB + depth at each size.
+///
+/// # Errors
+///
+/// The scene, its bodies or its trajectories cannot be made, or the environment fails.
+pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
+    let config = SynthConfig {
+        seed: settings.seed,
+        kind: SceneKind::Home,
+        rooms: (settings.objects / 14).clamp(1, 64),
+        objects: settings.objects,
+        gaussians: settings.gaussians,
+        ..SynthConfig::default()
+    };
+    eprintln!(
+        "generating a {}-object home of {} Gaussians …",
+        settings.objects, settings.gaussians
+    );
+    let scene = sage_synth::generate(&config)?;
+    let cache = HullCache::new(
+        settings
+            .cache
+            .clone()
+            .unwrap_or_else(|| std::env::temp_dir().join("sage3d-bench-env-hulls")),
+    );
+    let (bodies, report) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
+    let params = TrajectoryParams {
+        count: 16,
+        seed: settings.seed,
+        ..TrajectoryParams::default()
+    };
+    let prep = sage_nav::trajectory::prepare(&scene, &params)?;
+    let (set, _) = sage_nav::trajectory::generate(&scene.name, &prep, &params)?;
+    let episodes: Vec<EnvEpisode> = set
+        .trajectories
+        .iter()
+        .map(|t| EnvEpisode::from_trajectory(format!("t{}", t.id), t, "go to the goal"))
+        .collect();
+    if episodes.is_empty() {
+        return Err(Error::invalid(
+            "the generated home has no trajectory to run",
+        ));
+    }
+    let (name, objects, gaussians) = (
+        scene.name.clone(),
+        scene.objects.len(),
+        scene.gaussians.len(),
+    );
+    let ctx = Arc::new(SceneContext::new(
+        scene,
+        bodies,
+        &GridParams::default(),
+        params.cost.clone(),
+    )?);
+    let blind = EnvConfig {
+        sensors: SensorConfig {
+            rgb: false,
+            depth: false,
+            ..SensorConfig::default()
+        },
+        ..EnvConfig::default()
+    };
+    let machine = machine::describe();
+    let blind = measure(&ctx, blind, &episodes, settings.steps, settings.seed)?;
+    let mut rendered = Vec::with_capacity(settings.sizes.len());
+    for &(width, height) in &settings.sizes {
+        let config = EnvConfig {
+            sensors: SensorConfig {
+                width,
+                height,
+                ..SensorConfig::default()
+            },
+            ..EnvConfig::default()
+        };
+        let rate = measure(
+            &ctx,
+            config,
+            &episodes,
+            settings.render_steps,
+            settings.seed,
+        )?;
+        rendered.push(SizedRate {
+            width,
+            height,
+            rate,
+        });
+    }
+    Ok(EnvReport {
+        machine,
+        scene: name,
+        objects,
+        gaussians,
+        parts: report.parts,
+        bodies_s: report.seconds,
+        episodes: episodes.len(),
+        steps: settings.steps,
+        blind,
+        render_steps: settings.render_steps,
+        rendered,
+    })
+}

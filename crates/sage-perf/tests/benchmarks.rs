@@ -1,0 +1,88 @@
+//! Each benchmark on a tiny setting: it runs, and its report holds what it measured.
+
+use sage_perf::load::{self, LoadSettings};
+use sage_perf::nav::{self, NavSettings};
+use sage_perf::physics::{self, PhysicsSettings};
+use sage_perf::render::{self, RenderSettings};
+
+/// Generated inputs go to the fresh-process step with the input set; here that step measures
+/// in this process. One test for both, as they share this process's scratch folder.
+#[test]
+fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
+    let settings = LoadSettings {
+        gaussians: 3000,
+        repeat: 2,
+        ..LoadSettings::default()
+    };
+    let report = load::run(&settings, &|s| {
+        let file = s.input.as_ref().expect("the generated file");
+        assert!(file.is_file());
+        load::run(s, &|_| unreachable!("a given file is measured in process"))
+    })
+    .unwrap();
+    assert_eq!(report.layout, "compressed");
+    assert_eq!(report.decode_s.len(), 2);
+    assert!(report.gaussians > 0 && report.sh_degree == 1);
+    assert!(!report.file.exists(), "the scratch folder is removed");
+    assert_eq!(
+        report.to_string().lines().count(),
+        5 + report.resident_growth_bytes.iter().count()
+    );
+
+    let settings = RenderSettings {
+        gaussians: 3000,
+        frames: 2,
+        sizes: vec![(16, 12), (24, 16)],
+        sh3: true,
+        ..RenderSettings::default()
+    };
+    let report = render::run(&settings, &|s| {
+        assert!(s.scene.as_ref().is_some_and(|d| d.is_dir()) && !s.sh3);
+        render::run(s, &|_| unreachable!("a given scene is measured in process"))
+    })
+    .unwrap();
+    assert_eq!(report.sh_degree, 3);
+    let sizes: Vec<_> = report.sizes.iter().map(|t| (t.width, t.height)).collect();
+    assert_eq!(sizes, settings.sizes);
+    let text = report.to_string();
+    assert!(
+        text.contains("\n16x12         median ") && text.contains("\n24x16         median "),
+        "{text}"
+    );
+}
+
+#[test]
+fn nav_plans_in_a_small_home() {
+    let report = nav::run(&NavSettings {
+        count: 8,
+        rooms: 3,
+        ..NavSettings::default()
+    })
+    .unwrap();
+    assert_eq!(report.rooms, 3);
+    assert!(report.trajectories > 0 && report.trajectories <= 8);
+    assert!(report.planned >= report.trajectories);
+    assert_eq!(report.to_string().lines().count(), 5);
+}
+
+#[test]
+fn physics_steps_an_agent() {
+    let cache = tempfile::tempdir().unwrap();
+    let settings = PhysicsSettings {
+        objects: 14,
+        cache: Some(cache.path().to_path_buf()),
+        steps: 200,
+        repeat: 2,
+        ..PhysicsSettings::default()
+    };
+    let report = physics::run(&settings).unwrap();
+    assert_eq!((report.agent.as_str(), report.steps), ("wheeled", 200));
+    assert_eq!(report.steps_per_s.len(), 2);
+    assert!(report.touching <= 200 && report.parts > 0);
+    assert!(report.to_string().contains("steps/s          median "));
+    let unknown = PhysicsSettings {
+        agent: "nope".into(),
+        ..settings
+    };
+    assert!(physics::run(&unknown).is_err());
+}
