@@ -108,7 +108,7 @@ pub enum Step {
         /// Dataset folder.
         out: PathBuf,
         /// Per-scene settings.
-        params: SceneParams,
+        params: Box<SceneParams>,
         /// Assembly settings.
         assemble: AssembleParams,
     },
@@ -322,7 +322,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     steps.push(Step::Dataset {
         scenes: scenes.clone(),
         out: s.dataset(),
-        params: SceneParams::new(s.per_scene, s.seed),
+        params: Box::new(SceneParams::new(s.per_scene, s.seed)),
         assemble: AssembleParams {
             seed: s.seed,
             split: SplitParams::default(),
