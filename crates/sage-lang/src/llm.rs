@@ -4,10 +4,12 @@
 //! - **Endpoint**: `POST {base_url}/chat/completions` with `model`, a system message (the
 //!   prompt), a user message (text map, start and end ids, trajectory id) and `temperature`; the
 //!   key is read from the environment variable named in the config (no header when unset, as
-//!   local servers need none). Plain HTTP always; HTTPS with the crate feature `tls`.
-//! - **Retry**: transport errors, HTTP 429 and 5xx, and answers that are not a JSON array are
-//!   retried with exponential backoff (initial × 2^attempt, capped; `Retry-After` seconds are
-//!   honoured up to the cap), at most `max_retries` times.
+//!   local servers need none). Requests go through `sage-http`: plain HTTP always; HTTPS with
+//!   the crate feature `tls`, forwarded to it.
+//! - **Retry** (`sage_http::RetryPolicy`): every failure — a transport error, any HTTP status
+//!   other than 200, an answer that is not a JSON array — is retried with exponential backoff
+//!   (initial × 2^attempt, capped; `Retry-After` seconds are honoured up to the cap), at most
+//!   `max_retries` times.
 //! - **Cache**: the answer to a request is stored under the FNV-1a 64 hash of the URL and the
 //!   request body; the file keeps the whole request and is used only when it matches exactly, so
 //!   a hash collision is a miss, never a wrong answer. A rerun with the same cache makes no
@@ -18,6 +20,7 @@ use crate::instruction::{Instruction, InstructionType, Source};
 use crate::textmap::TextMap;
 use crate::validate::{RejectReason, ValidationReport, Validator};
 use sage_core::{Error, Result};
+use sage_http::{Failure, RetryOn, RetryPolicy, Stage};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::PathBuf;
@@ -201,7 +204,7 @@ struct CacheEntry {
 #[derive(Debug)]
 pub struct LlmClient {
     config: LlmConfig,
-    agent: ureq::Agent,
+    http: sage_http::Client,
     gate: Semaphore,
     /// Counters.
     pub stats: LlmStats,
@@ -232,18 +235,14 @@ impl LlmClient {
         if config.concurrency == 0 {
             return Err(Error::invalid("llm: concurrency must be at least 1"));
         }
-        let agent: ureq::Agent = ureq::Agent::config_builder()
-            .timeout_global(Some(Duration::from_secs(config.timeout_s.max(1))))
-            .http_status_as_error(false)
-            .build()
-            .into();
+        let http = sage_http::Client::new(Duration::from_secs(config.timeout_s.max(1)));
         Ok(LlmClient {
             gate: Semaphore {
                 free: Mutex::new(config.concurrency),
                 cv: Condvar::new(),
             },
             config,
-            agent,
+            http,
             stats: LlmStats::default(),
         })
     }
@@ -310,100 +309,83 @@ impl LlmClient {
             self.stats.cache_hits.fetch_add(1, Ordering::Relaxed);
             return Ok(items);
         }
-        let mut last = String::new();
-        for attempt in 0..=self.config.max_retries {
-            if attempt > 0 {
-                self.stats.retries.fetch_add(1, Ordering::Relaxed);
-            }
-            let (content, retry_after) = {
-                let _permit = self.gate.acquire();
-                self.stats.requests.fetch_add(1, Ordering::Relaxed);
-                self.post(&url, &body)
-            };
-            match content {
-                Ok(content) => match parse_answer(&content) {
-                    Some(items) => {
-                        if let Some(path) = &cache {
-                            if let Some(dir) = path.parent() {
-                                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-                            }
-                            sage_io::files::write_json(
-                                path,
-                                &CacheEntry {
-                                    url: url.clone(),
-                                    request: request.clone(),
-                                    content,
-                                },
-                            )?;
-                        }
-                        return Ok(items);
+        let (content, items) = self
+            .retry_policy()
+            .run(
+                |attempt| {
+                    if attempt > 0 {
+                        self.stats.retries.fetch_add(1, Ordering::Relaxed);
                     }
-                    None => last = "the answer holds no JSON array".into(),
+                    let content = {
+                        let _permit = self.gate.acquire();
+                        self.stats.requests.fetch_add(1, Ordering::Relaxed);
+                        self.post(&url, &body)?
+                    };
+                    let items = parse_answer(&content)
+                        .ok_or_else(|| Failure::new("the answer holds no JSON array"))?;
+                    Ok((content, items))
                 },
-                Err(e) => last = e,
+                |_, _| {},
+                std::thread::sleep,
+            )
+            .map_err(|gave_up| {
+                Error::invalid(format!(
+                    "llm: {url}: no usable answer after {} attempts: {}",
+                    gave_up.attempts, gave_up.last.message
+                ))
+            })?;
+        if let Some(path) = &cache {
+            if let Some(dir) = path.parent() {
+                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
             }
-            if attempt < self.config.max_retries {
-                let backoff = self.config.backoff_ms.saturating_mul(1 << attempt.min(20));
-                let wait = retry_after
-                    .map_or(backoff, |s| s.saturating_mul(1000))
-                    .min(self.config.backoff_max_ms);
-                std::thread::sleep(Duration::from_millis(wait));
-            }
+            sage_io::files::write_json(
+                path,
+                &CacheEntry {
+                    url,
+                    request,
+                    content,
+                },
+            )?;
         }
-        Err(Error::invalid(format!(
-            "llm: {url}: no usable answer after {} attempts: {last}",
-            self.config.max_retries + 1
-        )))
+        Ok(items)
     }
 
-    /// One POST; the message content, or a retryable error and the server's `Retry-After`.
-    fn post(&self, url: &str, body: &str) -> (std::result::Result<String, String>, Option<u64>) {
-        let mut req = self
-            .agent
-            .post(url)
-            .header("Content-Type", "application/json");
-        if let Ok(key) = std::env::var(&self.config.api_key_env)
-            && !key.is_empty()
-        {
-            req = req.header("Authorization", &format!("Bearer {key}"));
+    /// The retry policy of the config. Every failure is tried again, a 4xx included: a model
+    /// server behind a proxy or still loading answers wrongly now and then, and a request that
+    /// is really wrong fails after `max_retries` all the same.
+    fn retry_policy(&self) -> RetryPolicy {
+        RetryPolicy {
+            retries: self.config.max_retries,
+            initial: Duration::from_millis(self.config.backoff_ms),
+            cap: Duration::from_millis(self.config.backoff_max_ms),
+            retry_on: RetryOn::Any,
         }
-        let mut resp = match req.send(body) {
-            Ok(r) => r,
-            Err(e) => return (Err(format!("transport: {e}")), None),
-        };
-        let status = resp.status().as_u16();
-        let retry_after = resp
-            .headers()
-            .get("retry-after")
-            .and_then(|v| v.to_str().ok())
-            .and_then(|v| v.trim().parse().ok());
-        let text = match resp.body_mut().read_to_string() {
-            Ok(t) => t,
-            Err(e) => return (Err(format!("reading the answer: {e}")), retry_after),
-        };
-        if status != 200 {
-            return (
-                Err(format!(
-                    "HTTP {status}: {}",
-                    text.chars().take(200).collect::<String>()
-                )),
-                retry_after,
-            );
-        }
-        let content = serde_json::from_str::<serde_json::Value>(&text)
+    }
+
+    /// One POST; the message content, or the failure (with the server's `Retry-After`).
+    fn post(&self, url: &str, body: &str) -> std::result::Result<String, Failure> {
+        let key = std::env::var(&self.config.api_key_env)
+            .ok()
+            .filter(|k| !k.is_empty());
+        let text = self
+            .http
+            .post_json(url, body, key.as_deref())
+            .map_err(|e| {
+                let stage = match e.stage {
+                    Stage::Request => "transport",
+                    Stage::Body => "reading the answer",
+                };
+                e.failure(format!("{stage}: {e}"))
+            })?
+            .into_ok()?;
+        serde_json::from_str::<serde_json::Value>(&text)
             .ok()
             .and_then(|v| {
                 v.pointer("/choices/0/message/content")
                     .and_then(|c| c.as_str())
                     .map(str::to_string)
-            });
-        match content {
-            Some(c) => (Ok(c), None),
-            None => (
-                Err("the answer has no choices[0].message.content".into()),
-                None,
-            ),
-        }
+            })
+            .ok_or_else(|| Failure::new("the answer has no choices[0].message.content"))
     }
 }
 

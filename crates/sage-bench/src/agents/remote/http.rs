@@ -1,10 +1,12 @@
 //! The HTTP protocols: `POST /vln_step` of the SAGE-3D model servers (JSON
 //! `{images, instruction, current_yaw: 0.0}` → `{result: text}`) and OpenAI-compatible chat
 //! completions (the paper's MLLM baselines: instruction and image data URIs in, one action
-//! word out). Plain HTTP; HTTPS when the `tls` feature of `sage-lang` (rustls) is built in.
+//! word out). Requests go through `sage-http`: plain HTTP; HTTPS when the `tls` feature
+//! (rustls) is built in.
 
 use super::Transport;
 use sage_core::{Error, Result};
+use sage_http::{Client, Stage};
 use std::time::Duration;
 
 /// The system prompt of the chat agent, after the published MLLM baseline server: one action
@@ -53,45 +55,26 @@ pub fn base_url(url: &str) -> Result<String> {
     Ok(with_scheme(url)?.trim_end_matches('/').to_string())
 }
 
-/// A ureq agent whose requests may take `timeout` in all and whose HTTP errors are replies.
-fn http_agent(timeout: Duration) -> ureq::Agent {
-    ureq::Agent::config_builder()
-        .timeout_global(Some(timeout))
-        .http_status_as_error(false)
-        .build()
-        .into()
-}
-
 /// POSTs `body` as JSON to `url`; the reply's text when the status is 200, else a fault.
 fn post(
-    agent: &ureq::Agent,
+    client: &Client,
     url: &str,
     body: &serde_json::Value,
     bearer: Option<&str>,
 ) -> std::result::Result<String, String> {
-    let mut req = agent.post(url).header("Content-Type", "application/json");
-    if let Some(key) = bearer {
-        req = req.header("Authorization", &format!("Bearer {key}"));
-    }
-    let mut resp = req.send(body.to_string()).map_err(|e| format!("{e}"))?;
-    let status = resp.status().as_u16();
-    let text = resp
-        .body_mut()
-        .read_to_string()
-        .map_err(|e| format!("reading the reply: {e}"))?;
-    if status != 200 {
-        return Err(format!(
-            "HTTP {status}: {}",
-            text.chars().take(200).collect::<String>()
-        ));
-    }
-    Ok(text)
+    let reply = client
+        .post_json(url, &body.to_string(), bearer)
+        .map_err(|e| match e.stage {
+            Stage::Request => e.to_string(),
+            Stage::Body => format!("reading the reply: {e}"),
+        })?;
+    reply.into_ok().map_err(|f| f.message)
 }
 
 /// A client of a `/vln_step` server (NaVILA, NaVid and the MLLM servers of SAGE-3D).
 pub struct StepClient {
     url: String,
-    agent: ureq::Agent,
+    client: Client,
 }
 
 impl StepClient {
@@ -99,7 +82,7 @@ impl StepClient {
     pub fn new(url: &str, timeout: Duration) -> StepClient {
         StepClient {
             url: url.to_string(),
-            agent: http_agent(timeout),
+            client: Client::new(timeout),
         }
     }
 }
@@ -115,7 +98,7 @@ impl Transport for StepClient {
             "instruction": instruction,
             "current_yaw": 0.0,
         });
-        let text = post(&self.agent, &self.url, &body, None)?;
+        let text = post(&self.client, &self.url, &body, None)?;
         // A body that is not JSON is handed to the text parser as it is.
         Ok(serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)))
     }
@@ -128,7 +111,7 @@ pub struct ChatClient {
     model: String,
     temperature: f32,
     max_tokens: u32,
-    agent: ureq::Agent,
+    client: Client,
 }
 
 impl ChatClient {
@@ -145,7 +128,7 @@ impl ChatClient {
             model: model.to_string(),
             temperature,
             max_tokens,
-            agent: http_agent(timeout),
+            client: Client::new(timeout),
         }
     }
 
@@ -184,7 +167,7 @@ impl Transport for ChatClient {
             .ok()
             .filter(|k| !k.is_empty());
         let text = post(
-            &self.agent,
+            &self.client,
             &self.url,
             &self.request(images, instruction),
             key.as_deref(),

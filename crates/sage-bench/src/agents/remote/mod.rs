@@ -6,14 +6,14 @@
 //! `/chat/completions`). [`frames`] keeps the last `history` frames as base64 JPEGs — the real
 //! recent frames, current last (the published client sent copies of the first frame). [`parse`]
 //! turns a reply into discrete actions; a reply naming several steps ("move forward 75 cm")
-//! is queued and the server is asked again only when the queue is empty. [`retry`] retries
-//! faults (refused, timeout, disconnect, bad framing, garbage); recovered faults are kept for
-//! the episode's record, and a step that fails every attempt fails the episode.
+//! is queued and the server is asked again only when the queue is empty. Faults (refused,
+//! timeout, disconnect, bad framing, garbage) are retried under [`RemoteOptions::retry_policy`]
+//! (`sage_http`'s backoff, for every protocol); recovered faults are kept for the episode's
+//! record, and a step that fails every attempt fails the episode.
 
 pub mod frames;
 pub mod http;
 pub mod parse;
-pub mod retry;
 pub mod socket;
 
 use frames::FrameHistory;
@@ -21,9 +21,15 @@ use parse::Steps;
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
 use sage_env::{Action, ActionSpace, Env, EnvEpisode, Observation};
+use sage_http::{Failure, RetryOn, RetryPolicy};
 use std::collections::VecDeque;
 use std::fmt;
 use std::time::Duration;
+
+/// First pause between attempts; doubled per attempt up to [`BACKOFF_MAX`].
+const BACKOFF: Duration = Duration::from_millis(100);
+/// Longest pause between attempts.
+const BACKOFF_MAX: Duration = Duration::from_secs(2);
 
 /// Where the remote agent's decisions come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -153,6 +159,19 @@ impl RemoteOptions {
     /// The time allowed for one request.
     pub fn timeout(&self) -> Duration {
         Duration::from_secs_f64(self.timeout_s)
+    }
+
+    /// How a step's request is retried: `retries` times after short, growing pauses (0.1 s
+    /// doubled up to 2 s). Every fault is retried, an HTTP 4xx or a reply that does not parse
+    /// included, since model servers answer wrongly now and then; faults reach the policy as
+    /// the same text for every protocol, so an HTTP `Retry-After` does not change the pauses.
+    pub fn retry_policy(&self) -> RetryPolicy {
+        RetryPolicy {
+            retries: self.retries,
+            initial: BACKOFF,
+            cap: BACKOFF_MAX,
+            retry_on: RetryOn::Any,
+        }
     }
 }
 
@@ -348,34 +367,51 @@ impl Agent for RemoteAgent {
             return Ok(a);
         }
         let images = self.frames.frames();
-        let (transport, steps, instruction) = (&mut self.transport, &self.steps, &self.instruction);
-        let outcome = retry::with_retries(self.spec.options.retries, || {
-            let reply = transport.ask(&images, instruction)?;
-            parse::parse_reply(&reply, steps)
-        });
         let step = obs.step;
-        self.faults.extend(
-            outcome
-                .faults
-                .iter()
-                .enumerate()
-                .map(|(i, f)| format!("step {step}, attempt {}: {f}", i + 1)),
-        );
-        match outcome.value {
-            Some(actions) => {
-                self.queue.extend(actions);
-                Ok(self.queue.pop_front().unwrap_or(Action::Stop))
-            }
-            None => Err(Error::invalid(format!(
-                "{}: no usable reply at step {step} after {} attempts: {}",
-                self.spec.server(),
-                outcome.faults.len(),
-                outcome.faults.last().map_or("", String::as_str)
-            ))),
-        }
+        let (transport, steps, instruction) = (&mut self.transport, &self.steps, &self.instruction);
+        let faults = &mut self.faults;
+        let actions = self
+            .spec
+            .options
+            .retry_policy()
+            .run(
+                |_| {
+                    let reply = transport.ask(&images, instruction).map_err(Failure::new)?;
+                    parse::parse_reply(&reply, steps).map_err(Failure::new)
+                },
+                |attempt, f| {
+                    let n = attempt + 1;
+                    faults.push(format!("step {step}, attempt {n}: {}", f.message));
+                },
+                std::thread::sleep,
+            )
+            .map_err(|gave_up| {
+                Error::invalid(format!(
+                    "{}: no usable reply at step {step} after {} attempts: {}",
+                    self.spec.server(),
+                    gave_up.attempts,
+                    gave_up.last.message
+                ))
+            })?;
+        self.queue.extend(actions);
+        Ok(self.queue.pop_front().unwrap_or(Action::Stop))
     }
 
     fn take_faults(&mut self) -> Vec<String> {
         std::mem::take(&mut self.faults)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_fault_is_retried_after_a_pause_doubling_from_0_1_s_to_2_s() {
+        let spec = RemoteSpec::parse("socket", "h:1?retries=7").unwrap();
+        let policy = spec.options.retry_policy();
+        assert_eq!((policy.retries, policy.retry_on), (7, RetryOn::Any));
+        let waits: Vec<u128> = (0..7).map(|n| policy.wait(n, None).as_millis()).collect();
+        assert_eq!(waits, [100, 200, 400, 800, 1600, 2000, 2000]);
     }
 }
