@@ -2,12 +2,13 @@
 
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
+use sage_bench::dataset::build::{AssembleParams, SceneParams};
 use sage_bench::dataset::split::SplitParams;
-use sage_core::{Error, Result};
+use sage_core::Result;
 use sage_io::runner::{Status, Tally};
 use sage_lang::llm::LlmConfig;
-use std::path::PathBuf;
+use sage_pipeline::dataset::DatasetReport;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Subcommand)]
@@ -90,7 +91,6 @@ fn data_build(a: BuildArgs) -> Result<()> {
         ),
         ..LlmConfig::default()
     });
-    params.validate()?;
     let assemble = AssembleParams {
         seed: a.seed,
         split: SplitParams {
@@ -100,41 +100,40 @@ fn data_build(a: BuildArgs) -> Result<()> {
         },
         balanced: a.balanced,
     };
-    if !(0.0..=1.0).contains(&a.scene_unseen) || !(0.0..=1.0).contains(&a.val) {
-        return Err(Error::invalid(
-            "--scene-unseen and --val must be shares between 0 and 1",
-        ));
-    }
-    let dirs = sage_io::scenes::scene_dirs(&a.scenes)?;
-    std::fs::create_dir_all(&a.out).map_err(|e| Error::io(&a.out, e))?;
-    let bar = ProgressBar::new(dirs.len() as u64).with_style(
+    let bar = ProgressBar::new(0).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let start = Instant::now();
-    let (outcomes, summary) = build::build(&dirs, &a.out, &params, &assemble, &|o| {
+    let report = sage_pipeline::dataset::build(&a.scenes, &a.out, &params, &assemble, &|o, n| {
+        bar.set_length(n as u64);
         bar.set_message(o.scene.clone());
         bar.inc(1);
-    })?;
+    });
     bar.finish_and_clear();
-    let secs = start.elapsed().as_secs_f64();
-    for o in outcomes.iter().filter(|o| o.status == Status::Skipped) {
+    print_dataset(&report?, &a.out, start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// Prints what a dataset build did: skipped scenes with their reasons, the summary table and a
+/// line of counts (`secs`: how long it took).
+pub fn print_dataset(r: &DatasetReport, out: &Path, secs: f64) {
+    for o in r.outcomes.iter().filter(|o| o.status == Status::Skipped) {
         eprintln!("skipped {}: {}", o.scene, o.reason.as_deref().unwrap_or(""));
     }
-    build::write_run_record(&a.out, &dirs, &params, &assemble)?;
-    print!("{}", summary.table());
-    let tally = Tally::of(outcomes.iter().map(|o| o.status));
-    let made: usize = outcomes
+    print!("{}", r.summary.table());
+    let tally = Tally::of(r.outcomes.iter().map(|o| o.status));
+    let made: usize = r
+        .outcomes
         .iter()
         .filter(|o| o.status == Status::Done)
         .map(|o| o.episodes)
         .sum();
     println!(
         "{} scenes: {tally}; {made} new episodes in {secs:.1} s ({:.1} episodes/s on {} threads) -> {}",
-        outcomes.len(),
+        r.outcomes.len(),
         made as f64 / secs.max(1e-9),
         rayon::current_num_threads(),
-        a.out.display()
+        out.display()
     );
-    Ok(())
 }

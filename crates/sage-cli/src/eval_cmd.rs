@@ -3,9 +3,10 @@
 //! (`docs/evaluation.md`).
 
 use indicatif::{ProgressBar, ProgressStyle};
-use sage_bench::eval::{self, EvalSettings};
+use sage_bench::eval::{EvalSettings, RunOutcome};
+use sage_bench::report::ReportOutcome;
 use sage_core::{Error, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Flags of `sage3d eval`.
@@ -54,29 +55,48 @@ pub fn run(a: EvalArgs) -> Result<()> {
         seed: a.seed,
         preset: a.preset,
     };
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} episodes {elapsed} (eta {eta}) {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let episodes = bar("{bar:30} {pos}/{len} episodes {elapsed} (eta {eta}) {msg}");
+    let maps = bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
-    let outcome = eval::run(&settings, &a.out, &|rec, to_run| {
-        bar.set_length(to_run as u64);
-        bar.set_message(rec.episode_id.clone());
-        bar.inc(1);
-    });
-    bar.finish_and_clear();
-    let outcome = outcome?;
+    let result = sage_pipeline::evaluate::evaluate(
+        &settings,
+        &a.out,
+        &|rec, to_run| {
+            episodes.set_length(to_run as u64);
+            episodes.set_message(rec.episode_id.clone());
+            episodes.inc(1);
+        },
+        &|id, total| {
+            episodes.finish_and_clear();
+            maps.set_length(total as u64);
+            maps.set_message(id.to_string());
+            maps.inc(1);
+        },
+    );
+    episodes.finish_and_clear();
+    maps.finish_and_clear();
+    let (outcome, report) = result?;
+    print_eval(&outcome, &report, &a.out, start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn bar(template: &str) -> ProgressBar {
+    ProgressBar::new(0).with_style(
+        ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar()),
+    )
+}
+
+/// Prints an evaluation: the summary tables, a line of counts (`secs`: how long it took) and
+/// where its report is.
+pub fn print_eval(outcome: &RunOutcome, report: &ReportOutcome, out: &Path, secs: f64) {
     print!("{}", outcome.summary.table());
     println!(
-        "{} episodes: {} already recorded, {} run now in {:.1} s on {} threads -> {}",
+        "{} episodes: {} already recorded, {} run now in {secs:.1} s on {} threads -> {}",
         outcome.total,
         outcome.resumed,
         outcome.ran,
-        start.elapsed().as_secs_f64(),
         rayon::current_num_threads(),
-        a.out.display()
+        out.display()
     );
-    let report = crate::report_cmd::write_with_bar(&a.out, &settings.scenes)?;
-    println!("{}", crate::report_cmd::describe(&report));
-    Ok(())
+    println!("{}", crate::report_cmd::describe(report));
 }

@@ -122,17 +122,6 @@ fn main() -> ExitCode {
     }
 }
 
-/// Runs `sage3d ARGV…` in this process (the demo runs its steps so).
-///
-/// # Errors
-///
-/// ARGV does not parse (clap's message), or the subcommand's own error.
-pub(crate) fn run_subcommand(argv: &[String]) -> sage_core::Result<()> {
-    let cli = Cli::try_parse_from(std::iter::once("sage3d").chain(argv.iter().map(String::as_str)))
-        .map_err(|e| sage_core::Error::invalid(e.to_string()))?;
-    dispatch(cli.command)
-}
-
 fn dispatch(command: Command) -> sage_core::Result<()> {
     match command {
         Command::Demo(a) => demo_cmd::run(a),

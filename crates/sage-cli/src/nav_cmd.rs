@@ -6,9 +6,9 @@ use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_io::run::write_run_record;
 use sage_io::runner::{Status, Tally};
+use sage_nav::GridParams;
 use sage_nav::trajectory::{self, TrajectoryParams};
-use sage_nav::{GridParams, NavGrid, SemanticMap};
-use sage_scene::Scene;
+use sage_pipeline::nav::MapReport;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -98,48 +98,29 @@ pub fn run(cmd: NavCommand) -> Result<()> {
 }
 
 fn map(a: MapArgs) -> Result<()> {
-    let (scene, _) = Scene::load(&a.scene)?;
-    let out = a.out.unwrap_or_else(|| a.scene.join("nav"));
-    let grid_params = a.grid.grid();
-    let (grid, source) = NavGrid::from_scene(&scene, &grid_params)?;
-    let map = SemanticMap::build(&scene);
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    map.save_json(&out.join("semantic_map.json"))?;
-    map.draw(&grid, &[])
-        .0
-        .save_png(&out.join("semantic_map.png"))?;
-    grid.to_occupancy((grid_params.slab_bottom, grid_params.agent_height))?
-        .save(&out)?;
-    let (free, occupied, unknown) = grid.counts();
-    write_run_record(
-        &out,
-        "nav map",
-        None,
-        serde_json::json!({
-            "config": {
-                "cell": grid_params.cell,
-                "agent_height": grid_params.agent_height,
-                "slab_bottom": grid_params.slab_bottom,
-                "margin": grid_params.margin,
-                "grid_source": source.as_str(),
-            },
-            "inputs": sage_io::scenes::input_hashes(&a.scene),
-        }),
-    )?;
-    println!(
-        "{}: {} items, {} walls, {} doors, {} rooms; grid {} x {} at {} m from {} ({free} free, {occupied} occupied, {unknown} unknown) -> {}",
-        scene.name,
-        map.items.len(),
-        map.walls.len(),
-        map.doors.len(),
-        map.rooms.len(),
-        grid.width,
-        grid.height,
-        grid.cell,
-        source.as_str(),
-        out.display()
-    );
+    let report = sage_pipeline::nav::map(&a.scene, a.out.as_deref(), &a.grid.grid())?;
+    print_map(&report);
     Ok(())
+}
+
+/// Prints what the map step wrote.
+pub fn print_map(r: &MapReport) {
+    println!(
+        "{}: {} items, {} walls, {} doors, {} rooms; grid {} x {} at {} m from {} ({} free, {} occupied, {} unknown) -> {}",
+        r.scene,
+        r.items,
+        r.walls,
+        r.doors,
+        r.rooms,
+        r.width,
+        r.height,
+        r.cell,
+        r.source,
+        r.free,
+        r.occupied,
+        r.unknown,
+        r.out.display()
+    );
 }
 
 fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {

@@ -85,26 +85,32 @@ impl DecompArgs {
         )
     }
 
-    /// Loads the scene and builds its bodies.
+    /// Loads the scene and builds its bodies under a progress bar.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
-        let (scene, _) = Scene::load(scene_dir)?;
         // Hidden when standard error is not a terminal.
-        let bar = indicatif::ProgressBar::new(scene.objects.len() as u64).with_style(
-            indicatif::ProgressStyle::with_template(
-                "collision bodies {bar:40} {pos}/{len} objects {elapsed}",
-            )
-            .expect("static template"),
-        );
-        let built = SceneBodies::build_with_progress(
-            &scene,
+        let bar = objects_bar();
+        let built = sage_pipeline::physics::bodies(
+            scene_dir,
             &self.decomposer()?,
             &self.cache(scene_dir),
-            &|| bar.inc(1),
+            &|n| {
+                bar.set_length(n as u64);
+                bar.inc(1);
+            },
         );
         bar.finish_and_clear();
-        let (bodies, report) = built?;
-        Ok((scene, bodies, report))
+        built
     }
+}
+
+/// The progress bar over a scene's objects while its bodies are built.
+pub fn objects_bar() -> indicatif::ProgressBar {
+    indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "collision bodies {bar:40} {pos}/{len} objects {elapsed}",
+        )
+        .expect("static template"),
+    )
 }
 
 #[derive(Args)]
@@ -190,6 +196,12 @@ fn build(a: BuildArgs) -> Result<()> {
         );
         return Ok(());
     }
+    print_build(&scene, &bodies, &report);
+    Ok(())
+}
+
+/// Prints what building a scene's bodies did: counts, hull volumes, the worst objects.
+pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
     println!(
         "scene            {} ({} objects)",
         scene.name,
@@ -234,7 +246,6 @@ fn build(a: BuildArgs) -> Result<()> {
         report.wall_pieces, report.openings_cut, bodies.ceiling_height
     );
     println!("time             {:.2} s", report.seconds);
-    Ok(())
 }
 
 fn pending(a: PendingArgs) -> Result<()> {

@@ -20,7 +20,7 @@ pub struct ReportArgs {
 
 /// Writes the report of `run` with the scenes of `scenes` under a progress bar over the
 /// episodes' maps.
-pub fn write_with_bar(run: &Path, scenes: &Path) -> Result<ReportOutcome> {
+fn write_with_bar(run: &Path, scenes: &Path) -> Result<ReportOutcome> {
     let bar = ProgressBar::new(0).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),

@@ -142,6 +142,7 @@ fn spinner(message: &str) -> ProgressBar {
 }
 
 /// Generates a scene, writes it and its run record; returns the scene.
+/// Synthesises a scene folder under a spinner.
 fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout) -> Result<Scene> {
     let start = Instant::now();
     let bar = spinner(&format!(
@@ -149,34 +150,19 @@ fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout) -> Result<S
         config.kind.as_str(),
         config.seed
     ));
-    let scene = sage_synth::generate(config)?;
-    bar.set_message(format!("writing {}", out.display()));
-    scene.save(out, layout)?;
-    write_run_record(out, config, layout)?;
+    let scene = sage_pipeline::scene::synthesize(config, out, layout, &|stage| {
+        if stage == sage_pipeline::scene::Stage::Writing {
+            bar.set_message(format!("writing {}", out.display()));
+        }
+    });
     bar.finish_and_clear();
+    let scene = scene?;
     eprintln!(
         "wrote {} in {:.1} s",
         out.display(),
         start.elapsed().as_secs_f64()
     );
     Ok(scene)
-}
-
-/// Records how the folder was made (SPEC §13): resolved config, seed, version.
-fn write_run_record(out: &Path, config: &SynthConfig, layout: SplatLayout) -> Result<()> {
-    let details = serde_json::json!({
-        "config": {
-            "kind": config.kind.as_str(),
-            "rooms": config.rooms,
-            "objects": config.objects,
-            "gaussians": config.gaussians,
-            "wall_height": config.wall_height,
-            "cell": config.cell,
-            "layout": layout.as_str(),
-        },
-        "inputs": [],
-    });
-    sage_io::run::write_run_record(out, "scene synth", Some(config.seed), details)
 }
 
 fn info(dir: &Path, json: bool) -> Result<()> {

@@ -17,7 +17,7 @@ use sage_bench::report::ReportOutcome;
 use sage_core::{Error, Result};
 use sage_metrics::Mode;
 use sage_nav::GridParams;
-use sage_physics::{BuildReport, Decomposer, HullCache, default_cache_dir};
+use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, default_cache_dir};
 use sage_scene::{Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
@@ -128,8 +128,8 @@ pub enum StepReport {
     Synth(Box<Scene>),
     /// The map written.
     NavMap(MapReport),
-    /// The bodies built.
-    Physics(Box<(Scene, BuildReport)>),
+    /// The scene and the bodies built.
+    Physics(Box<(Scene, SceneBodies, BuildReport)>),
     /// The dataset built.
     Dataset(Box<DatasetReport>),
     /// The evaluation and its report.
@@ -236,11 +236,12 @@ impl Step {
             }
             Step::Physics { scene, .. } => {
                 let cache = HullCache::new(default_cache_dir(scene));
-                let (scene, _, report) =
-                    crate::physics::bodies(scene, &Decomposer::default(), &cache, &|n| {
-                        tick(n, "objects")
-                    })?;
-                StepReport::Physics(Box::new((scene, report)))
+                StepReport::Physics(Box::new(crate::physics::bodies(
+                    scene,
+                    &Decomposer::default(),
+                    &cache,
+                    &|n| tick(n, "objects"),
+                )?))
             }
             Step::Dataset {
                 scenes,

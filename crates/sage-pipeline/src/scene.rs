@@ -5,9 +5,18 @@ use sage_scene::{Scene, SplatLayout};
 use sage_synth::SynthConfig;
 use std::path::Path;
 
+/// The stages of [`synthesize`], as they start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Generating the scene in memory.
+    Generating,
+    /// Writing its files.
+    Writing,
+}
+
 /// Generates the scene of `config` and writes it to `out` in the InteriorGS layout with
 /// Gaussians in `layout`, then the run record (written last: its presence marks a complete
-/// folder). `on_stage` names each stage as it starts (`generating`, `writing`).
+/// folder). `on_stage` is told each [`Stage`] as it starts.
 ///
 /// # Errors
 ///
@@ -16,11 +25,11 @@ pub fn synthesize(
     config: &SynthConfig,
     out: &Path,
     layout: SplatLayout,
-    on_stage: &dyn Fn(&str),
+    on_stage: &dyn Fn(Stage),
 ) -> Result<Scene> {
-    on_stage("generating");
+    on_stage(Stage::Generating);
     let scene = sage_synth::generate(config)?;
-    on_stage("writing");
+    on_stage(Stage::Writing);
     scene.save(out, layout)?;
     let details = serde_json::json!({
         "config": {
