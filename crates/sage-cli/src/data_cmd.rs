@@ -3,7 +3,6 @@
 use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::dataset::build::{AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
 use sage_core::Result;
 use sage_io::runner::{Status, Tally};
 use sage_lang::llm::LlmConfig;
@@ -91,15 +90,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
         ),
         ..LlmConfig::default()
     });
-    let assemble = AssembleParams {
-        seed: a.seed,
-        split: SplitParams {
-            scene_unseen: a.scene_unseen,
-            val: a.val,
-            ..SplitParams::default()
-        },
-        balanced: a.balanced,
-    };
+    let assemble = AssembleParams::new(a.seed, a.balanced, a.scene_unseen, a.val);
     let bar = ProgressBar::new(0).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),

@@ -337,3 +337,86 @@ fn same_inputs_same_observations_any_thread_count() {
     // The random agent really varies between episodes.
     assert!(a.windows(2).any(|w| w[0].0 != w[1].0));
 }
+
+/// The pooled environment: rewards sum to the progress towards the goal region minus the slack
+/// per step (plus the success reward when the oracle stops inside it), the oracle's STOP is
+/// `terminated`, info holds the metrics once the episode ended, and a vector of pooled
+/// environments gives, sub-environment for sub-environment, the transitions of single ones.
+#[test]
+fn pooled_environments_pay_habitat_rewards_and_vector_ones_equal_single_ones() {
+    use sage_env::pool::Order;
+    use sage_env::reward::{SLACK, SUCCESS_REWARD};
+    use sage_env::{Pool, PoolEpisode, PooledEnv, VecEnv};
+    use sage_metrics::Mode;
+    let f = fixture();
+    let entries: Vec<PoolEpisode> = f
+        .episodes
+        .iter()
+        .map(|e| PoolEpisode {
+            scene: 0,
+            scene_name: "home".into(),
+            episode: e.clone(),
+        })
+        .collect();
+    let pool = Arc::new(Pool::new(vec![f.ctx.clone()], entries).unwrap());
+    assert!(Pool::new(vec![], vec![]).is_err());
+    let mut env = PooledEnv::new(pool.clone(), blind(), Mode::Sage);
+    assert!(env.step(Action::MoveForward).is_err(), "step before reset");
+    let start = env.reset(0).unwrap();
+    assert_eq!(
+        (start.reward, start.terminated, start.truncated),
+        (0.0, false, false)
+    );
+    assert!(start.info.metrics.is_none());
+    let d0 = start.info.metrics_so_far.distance_to_goal.unwrap();
+    let mut oracle = OracleAgent::new(0.25);
+    let mut inner = Env::new(f.ctx.clone(), blind()).unwrap();
+    let mut obs = inner.reset(&f.episodes[0]).unwrap();
+    oracle.reset(&inner, &f.episodes[0]).unwrap();
+    let (mut total, mut steps) = (0.0f32, 0usize);
+    let last = loop {
+        let action = oracle.act(&obs).unwrap();
+        let (o, _) = inner.step(action).unwrap();
+        obs = o;
+        let t = env.step(action).unwrap();
+        total += t.reward;
+        steps += 1;
+        if t.terminated || t.truncated {
+            break t;
+        }
+    };
+    assert!(last.terminated && !last.truncated);
+    assert_eq!(last.info.termination, Some(Termination::Stop));
+    let metrics = last.info.metrics.as_ref().unwrap();
+    assert_eq!(metrics.sr, Some(1.0));
+    let d_end = last.info.metrics_so_far.distance_to_goal.unwrap();
+    let want = d0 - d_end - SLACK * steps as f32 + SUCCESS_REWARD;
+    assert!((total - want).abs() < 1e-3, "{total} vs {want}");
+
+    let mut vec_env = VecEnv::new(2, pool.clone(), blind(), Mode::Sage).unwrap();
+    assert!(VecEnv::new(0, pool.clone(), blind(), Mode::Sage).is_err());
+    assert!(
+        vec_env.run(vec![Order::Reset(0)]).is_err(),
+        "one order per env"
+    );
+    let batch = vec_env.run(vec![Order::Reset(0), Order::Reset(1)]).unwrap();
+    let step = vec_env
+        .run(vec![
+            Order::Step(Action::MoveForward),
+            Order::Step(Action::TurnLeft),
+        ])
+        .unwrap();
+    for (i, action) in [Action::MoveForward, Action::TurnLeft]
+        .into_iter()
+        .enumerate()
+    {
+        let mut single = PooledEnv::new(pool.clone(), blind(), Mode::Sage);
+        let r = single.reset(i).unwrap();
+        assert_eq!(r.info.pose, batch[i].info.pose);
+        let s = single.step(action).unwrap();
+        assert_eq!(
+            (s.reward, s.info.pose, s.info.step),
+            (step[i].reward, step[i].info.pose, step[i].info.step)
+        );
+    }
+}

@@ -8,7 +8,6 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use sage_bench::agents::AgentKind;
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
 use sage_bench::eval::{self, EvalSettings, Runner, Summary};
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
@@ -245,15 +244,7 @@ pub fn assemble_dataset<'py>(
         ));
     }
     let params = scene_params(per_scene, seed, base_actions, nogoal, high_per_type).py()?;
-    let assemble = AssembleParams {
-        seed,
-        split: SplitParams {
-            scene_unseen,
-            val,
-            ..SplitParams::default()
-        },
-        balanced,
-    };
+    let assemble = AssembleParams::new(seed, balanced, scene_unseen, val);
     let name = |d: &Path| {
         d.file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned())

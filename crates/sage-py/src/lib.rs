@@ -4,12 +4,14 @@
 //! environment as a single or batched simulator handing out NumPy arrays that own the Rust
 //! buffers ([`sim`]), datasets, the evaluator with agents written in Python, and the per-scene
 //! steps of dataset generation and evaluation that `sage3d.distributed` spreads over a Ray
-//! cluster ([`bench`]). Long calls release the GIL. The Gymnasium classes are pure Python on
+//! cluster ([`bench`]), and the pipelines the CLI runs ([`pipeline`]: the demo, the dataset
+//! build). Long calls release the GIL. The Gymnasium classes are pure Python on
 //! top of this module (`python/sage3d/`).
 
 pub mod agent;
 pub mod bench;
 pub mod convert;
+pub mod pipeline;
 pub mod scene;
 pub mod sim;
 
@@ -31,5 +33,7 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bench::build_scene, m)?)?;
     m.add_function(wrap_pyfunction!(bench::assemble_dataset, m)?)?;
     m.add_function(wrap_pyfunction!(bench::scene_dirs, m)?)?;
+    m.add_function(wrap_pyfunction!(pipeline::demo, m)?)?;
+    m.add_function(wrap_pyfunction!(pipeline::build_dataset, m)?)?;
     Ok(())
 }

@@ -39,7 +39,6 @@ fn synth_folder(config: &SynthConfig, cache: &Path) -> Result<PathBuf> {
     if dir.join("structure.json").is_file() {
         return Ok(dir);
     }
-    let scene = sage_synth::generate(config)?;
     std::fs::create_dir_all(cache).map_err(|e| Error::io(cache, e))?;
     let tmp = cache.join(format!(
         ".{}.tmp{}",
@@ -47,7 +46,7 @@ fn synth_folder(config: &SynthConfig, cache: &Path) -> Result<PathBuf> {
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
         std::process::id()
     ));
-    scene.save(&tmp, SplatLayout::Compressed)?;
+    sage_pipeline::scene::synthesize(config, &tmp, SplatLayout::Compressed, &|_| {})?;
     if std::fs::rename(&tmp, &dir).is_err() {
         // Another process renamed its copy first; both are the same bytes.
         let _ = std::fs::remove_dir_all(&tmp);

@@ -498,6 +498,23 @@ pub struct AssembleParams {
     pub balanced: usize,
 }
 
+impl AssembleParams {
+    /// Assembly with `seed`, a balanced test selection of `balanced` episodes (0: none), and
+    /// the shares of scenes held out as scene-unseen test and validation (the rest of the split
+    /// settings at their defaults).
+    pub fn new(seed: u64, balanced: usize, scene_unseen: f32, val: f32) -> AssembleParams {
+        AssembleParams {
+            seed,
+            split: SplitParams {
+                scene_unseen,
+                val,
+                ..SplitParams::default()
+            },
+            balanced,
+        }
+    }
+}
+
 /// Counts of the whole dataset: the file `summary.json`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Summary {

@@ -5,12 +5,14 @@
 - ``Scene.load(dir)`` / ``synth_scene()``: scenes with their path finder (``scene.pathfinder``).
 - ``load_dataset(dir)``: datasets written by ``sage3d data build``; episodes by split and slice.
 - ``evaluate(...)``: the evaluator of ``sage3d eval`` with built-in or Python agents.
+- ``demo(out)`` / ``build_dataset(scenes, out)``: the pipelines of ``sage3d demo`` and
+  ``sage3d data build``, the same library functions the command line calls.
 - ``sage3d.distributed``: dataset generation and evaluation sharded over a Ray cluster.
 """
 
 import gymnasium
 
-from ._sage3d import PathFinder, Scene, __version__, env_config
+from ._sage3d import PathFinder, Scene, __version__, build_dataset, demo, env_config
 from .dataset import Dataset, filter_episodes, load_dataset
 from .env import SageEnv, cache_dir, make_env, synth_scene
 from .evaluation import evaluate
@@ -23,7 +25,9 @@ __all__ = [
     "SageVectorEnv",
     "Scene",
     "__version__",
+    "build_dataset",
     "cache_dir",
+    "demo",
     "env_config",
     "evaluate",
     "filter_episodes",
