@@ -248,6 +248,7 @@ impl FitBenchArgs {
     }
 }
 
+/// Runs one `sage3d bench` subcommand and prints its report.
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Load(a) => {
@@ -290,6 +291,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
     }
 }
 
+/// The `--sizes` values as (width, height).
 fn sizes(flags: &[String]) -> Result<Vec<(u32, u32)>> {
     flags.iter().map(|s| parse_size(s)).collect()
 }
