@@ -5,8 +5,9 @@
 //! The baselines act in the discrete action space. Remote agents (model servers) implement the
 //! same trait.
 
+use crate::action::Action;
 use crate::config::ActionSpace;
-use crate::env::{Action, Env, Observation};
+use crate::env::{Env, Observation};
 use crate::episode::{EnvEpisode, EpisodeTrace};
 use glam::Vec2;
 use rand::{Rng, SeedableRng};

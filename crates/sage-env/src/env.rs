@@ -1,105 +1,19 @@
 //! The environment loop: reset, step, observations and termination.
 
+use crate::action::Action;
 use crate::config::{ActionSpace, EnvConfig};
 use crate::context::SceneContext;
-use crate::episode::{EnvEpisode, EpisodeTrace, TraceGeodesics};
+use crate::episode::{EnvEpisode, EpisodeTrace, StepInfo, Termination, TraceGeodesics};
 use glam::{Vec2, Vec3};
 use sage_core::Task;
 use sage_core::{Error, Polygon2, Pose, Result};
 use sage_nav::PathFinder;
 use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
 use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
-use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
 /// Largest camera tilt reachable with look actions (degrees).
 const MAX_PITCH_DEG: f32 = 60.0;
-
-/// One action. STOP is valid in every action space; the others only in theirs.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case")]
-pub enum Action {
-    /// End the episode.
-    Stop,
-    /// Discrete: move forward one step.
-    MoveForward,
-    /// Discrete: turn left (counter-clockwise) one step.
-    TurnLeft,
-    /// Discrete: turn right one step.
-    TurnRight,
-    /// Discrete: tilt the camera up one step.
-    LookUp,
-    /// Discrete: tilt the camera down one step.
-    LookDown,
-    /// Ground velocity in the body frame (x forward, y left), yaw rate, held for `dt`.
-    Velocity {
-        /// m/s.
-        vx: f32,
-        /// m/s.
-        vy: f32,
-        /// rad/s.
-        wz: f32,
-        /// s.
-        dt: f32,
-    },
-    /// UAV velocity: body-frame horizontal, world vertical, yaw rate, held for `dt`.
-    Fly {
-        /// m/s.
-        vx: f32,
-        /// m/s.
-        vy: f32,
-        /// m/s.
-        vz: f32,
-        /// rad/s.
-        wz: f32,
-        /// s.
-        dt: f32,
-    },
-}
-
-impl Action {
-    /// The discrete action with VLN-CE's index: 0 STOP, 1 FORWARD, 2 LEFT, 3 RIGHT, 4 LOOK_UP,
-    /// 5 LOOK_DOWN.
-    pub fn from_index(i: u8) -> Option<Action> {
-        [
-            Action::Stop,
-            Action::MoveForward,
-            Action::TurnLeft,
-            Action::TurnRight,
-            Action::LookUp,
-            Action::LookDown,
-        ]
-        .get(usize::from(i))
-        .copied()
-    }
-}
-
-/// Why an episode ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Termination {
-    /// The agent called STOP.
-    Stop,
-    /// The step limit was reached.
-    MaxSteps,
-    /// NoGoal: a collision event.
-    Collision,
-    /// NoGoal: the simulated time limit was reached.
-    TimeLimit,
-}
-
-impl Termination {
-    /// True when the task itself ended the episode (STOP, a NoGoal collision): Gymnasium's
-    /// `terminated`. The other endings are limits: [`Termination::is_truncation`].
-    pub fn is_terminal(self) -> bool {
-        matches!(self, Termination::Stop | Termination::Collision)
-    }
-
-    /// True when a step or time limit cut the episode: Gymnasium's `truncated`.
-    pub fn is_truncation(self) -> bool {
-        matches!(self, Termination::MaxSteps | Termination::TimeLimit)
-    }
-}
 
 /// The rendered images, row-major `height × width` (RGB × 3); absent when not configured.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -137,37 +51,6 @@ pub struct Observation {
     pub time: f32,
     /// Steps taken.
     pub step: usize,
-}
-
-/// What one step did (the per-step record of an episode).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct StepInfo {
-    /// The action.
-    pub action: Action,
-    /// Pose after the step.
-    pub pose: Pose,
-    /// Camera pitch after the step, radians.
-    pub pitch: f32,
-    /// Simulated seconds since reset, after the step.
-    pub time: f32,
-    /// Commanded translation length, metres.
-    pub commanded: f32,
-    /// Achieved translation along the command, metres.
-    pub achieved: f32,
-    /// Instance ids of the bodies touched.
-    pub touched: Vec<u32>,
-    /// Collision intensity c(t) (SPEC §6).
-    pub intensity: f32,
-    /// Contact began this step after a step without.
-    pub collision: bool,
-    /// No progress for several commanded moves.
-    pub stuck: bool,
-    /// Euclidean distance from the agent to the goal region (VLN).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub distance_to_goal: Option<f32>,
-    /// Set on the step that ended the episode.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub termination: Option<Termination>,
 }
 
 /// A running episode's state.

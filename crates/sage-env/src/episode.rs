@@ -2,9 +2,10 @@
 //!
 //! [`EnvEpisode`] is the part of a dataset episode (SPEC §9) that drives the environment: the
 //! benchmark converts its own episode records into it, so this crate never depends on the
-//! benchmark crate.
+//! benchmark crate. Each step leaves a [`StepInfo`]; the last one says why the episode ended
+//! ([`Termination`]); the [`EpisodeTrace`] holds them all.
 
-use crate::env::{StepInfo, Termination};
+use crate::action::Action;
 use glam::Vec3;
 use sage_core::{Pose, Task};
 use sage_nav::{EndpointKind, Trajectory};
@@ -38,6 +39,64 @@ pub struct EnvEpisode {
     /// The dense reference path, W frame.
     #[serde(default)]
     pub reference_path: Vec<Vec3>,
+}
+
+/// Why an episode ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// The agent called STOP.
+    Stop,
+    /// The step limit was reached.
+    MaxSteps,
+    /// NoGoal: a collision event.
+    Collision,
+    /// NoGoal: the simulated time limit was reached.
+    TimeLimit,
+}
+
+impl Termination {
+    /// True when the task itself ended the episode (STOP, a NoGoal collision): Gymnasium's
+    /// `terminated`. The other endings are limits: [`Termination::is_truncation`].
+    pub fn is_terminal(self) -> bool {
+        matches!(self, Termination::Stop | Termination::Collision)
+    }
+
+    /// True when a step or time limit cut the episode: Gymnasium's `truncated`.
+    pub fn is_truncation(self) -> bool {
+        matches!(self, Termination::MaxSteps | Termination::TimeLimit)
+    }
+}
+
+/// What one step did (the per-step record of an episode).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepInfo {
+    /// The action.
+    pub action: Action,
+    /// Pose after the step.
+    pub pose: Pose,
+    /// Camera pitch after the step, radians.
+    pub pitch: f32,
+    /// Simulated seconds since reset, after the step.
+    pub time: f32,
+    /// Commanded translation length, metres.
+    pub commanded: f32,
+    /// Achieved translation along the command, metres.
+    pub achieved: f32,
+    /// Instance ids of the bodies touched.
+    pub touched: Vec<u32>,
+    /// Collision intensity c(t) (SPEC §6).
+    pub intensity: f32,
+    /// Contact began this step after a step without.
+    pub collision: bool,
+    /// No progress for several commanded moves.
+    pub stuck: bool,
+    /// Euclidean distance from the agent to the goal region (VLN).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub distance_to_goal: Option<f32>,
+    /// Set on the step that ended the episode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub termination: Option<Termination>,
 }
 
 /// Geodesic distances of a finished VLN episode (metres; `None` when unreachable).

@@ -15,6 +15,7 @@
 //! environments and vector environments wrap). Episodes come in as [`EnvEpisode`] (the part of
 //! a dataset episode the environment uses), so this crate never depends on the benchmark crate.
 
+pub mod action;
 pub mod agents;
 pub mod config;
 pub mod context;
@@ -24,8 +25,9 @@ pub mod pool;
 pub mod reward;
 pub mod scoring;
 
+pub use action::Action;
 pub use config::{ActionSpace, EnvConfig, SensorConfig, TaskConfig};
 pub use context::SceneContext;
-pub use env::{Action, Env, Images, Observation, StepInfo, Termination};
-pub use episode::{EnvEpisode, EnvGoal, EpisodeTrace};
+pub use env::{Env, Images, Observation};
+pub use episode::{EnvEpisode, EnvGoal, EpisodeTrace, StepInfo, Termination};
 pub use pool::{Pool, PoolEpisode, PooledEnv, Transition, VecEnv};

@@ -2,10 +2,12 @@
 //! stepped in parallel ([`VecEnv`]), with rewards, Gymnasium's `terminated`/`truncated` and an
 //! info record per step: what the Python environments and vector environments run.
 
+use crate::action::Action;
 use crate::config::EnvConfig;
 use crate::context::SceneContext;
-use crate::env::{Action, Env, Observation, StepInfo, Termination};
+use crate::env::{Env, Observation};
 use crate::episode::EnvEpisode;
+use crate::episode::{StepInfo, Termination};
 use crate::reward::Reward;
 use rayon::prelude::*;
 use sage_core::{Error, Result};

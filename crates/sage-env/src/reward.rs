@@ -6,8 +6,8 @@
 //! [`crate::Termination::is_terminal`] and [`crate::Termination::is_truncation`].
 
 use crate::context::SceneContext;
-use crate::env::{StepInfo, Termination};
 use crate::episode::EnvEpisode;
+use crate::episode::{StepInfo, Termination};
 use sage_core::Task;
 
 /// Reward per step for existing (Habitat's slack reward).
