@@ -61,8 +61,16 @@ proptest! {
         let target: Vec<f32> = theirs.rgb_f32.iter().map(|v| v.clamp(0.0, 1.0)).collect();
         let p = psnr(&ours.rgb, &target);
         prop_assert!(p > 45.0, "trainer vs renderer: {p:.1} dB");
+        // Both skip a Gaussian whose alpha falls below 1/255; evaluated with different exp
+        // approximations, one that lands exactly on that threshold can be kept by one and
+        // skipped by the other. So a pixel may differ by that one Gaussian (< 2/255), and only
+        // a few pixels may differ by more than the rounding.
+        let mut off = 0;
         for (t, a) in ours.final_t.iter().zip(&theirs.alpha) {
-            prop_assert!((1.0 - t - a).abs() < 2e-3, "alpha {} vs {a}", 1.0 - t);
+            let d = (1.0 - t - a).abs();
+            prop_assert!(d < 2e-3 + 1.0 / 255.0, "alpha {} vs {a}", 1.0 - t);
+            off += usize::from(d >= 2e-3);
         }
+        prop_assert!(off * 100 <= theirs.alpha.len(), "{off} pixels differ in alpha");
     }
 }
