@@ -1,7 +1,6 @@
 //! `sage3d data …`: benchmark datasets (instructions, episodes, splits, files).
 
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::dataset::build::{AssembleParams, SceneParams};
 use sage_core::Result;
 use sage_io::runner::{Status, Tally};
@@ -91,10 +90,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
         ..LlmConfig::default()
     });
     let assemble = AssembleParams::new(a.seed, a.balanced, a.scene_unseen, a.val);
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = crate::progress::bar("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
     let report = sage_pipeline::dataset::build(&a.scenes, &a.out, &params, &assemble, &|o, n| {
         bar.set_length(n as u64);

@@ -4,7 +4,6 @@
 //! reports what it made as that subcommand would, so the demo doubles as a worked example of
 //! pointing the same commands at real data.
 
-use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::eval::Summary;
 use sage_core::Result;
 use sage_pipeline::demo::{self, DemoSettings, Step, StepReport, Tick};
@@ -108,10 +107,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let s = DemoSettings::from(a);
     let start = Instant::now();
     let step_start = std::cell::Cell::new(Instant::now());
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = crate::progress::bar("{bar:30} {pos}/{len} {msg} {elapsed}");
     let runs = demo::run(
         &s,
         &|k, n, step| {

@@ -2,7 +2,7 @@
 //! under a progress bar, resumably, print the summary tables and write the run's report
 //! (`docs/evaluation.md`).
 
-use indicatif::{ProgressBar, ProgressStyle};
+use crate::progress::bar;
 use sage_bench::eval::{EvalSettings, RunOutcome};
 use sage_bench::report::ReportOutcome;
 use sage_core::{Error, Result};
@@ -78,12 +78,6 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let (outcome, report) = result?;
     print_eval(&outcome, &report, &a.out, start.elapsed().as_secs_f64());
     Ok(())
-}
-
-fn bar(template: &str) -> ProgressBar {
-    ProgressBar::new(0).with_style(
-        ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar()),
-    )
 }
 
 /// Prints an evaluation: the summary tables, a line of counts (`secs`: how long it took) and

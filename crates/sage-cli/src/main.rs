@@ -12,6 +12,7 @@ mod eval_cmd;
 mod flags;
 mod nav_cmd;
 mod physics_cmd;
+mod progress;
 mod recon_cmd;
 mod render_cmd;
 mod report_cmd;

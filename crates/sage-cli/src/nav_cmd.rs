@@ -1,7 +1,7 @@
 //! `sage3d nav …`: semantic maps, occupancy grids and trajectories.
 
 use clap::{Args, Subcommand};
-use indicatif::{ParallelProgressIterator, ProgressBar, ProgressStyle};
+use indicatif::ParallelProgressIterator;
 use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_io::run::write_run_record;
@@ -159,10 +159,8 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         }
     });
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    let bar = ProgressBar::new(dirs.len() as u64).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = crate::progress::bar("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta})");
+    bar.set_length(dirs.len() as u64);
     let start = Instant::now();
     let outcomes: Vec<_> = dirs
         .par_iter()

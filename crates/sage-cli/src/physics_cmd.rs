@@ -88,7 +88,7 @@ impl DecompArgs {
     /// Loads the scene and builds its bodies under a progress bar.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
         // Hidden when standard error is not a terminal.
-        let bar = objects_bar();
+        let bar = crate::progress::bar("collision bodies {bar:40} {pos}/{len} objects {elapsed}");
         let built = sage_pipeline::physics::bodies(
             scene_dir,
             &self.decomposer()?,
@@ -101,16 +101,6 @@ impl DecompArgs {
         bar.finish_and_clear();
         built
     }
-}
-
-/// The progress bar over a scene's objects while its bodies are built.
-pub fn objects_bar() -> indicatif::ProgressBar {
-    indicatif::ProgressBar::new(0).with_style(
-        indicatif::ProgressStyle::with_template(
-            "collision bodies {bar:40} {pos}/{len} objects {elapsed}",
-        )
-        .expect("static template"),
-    )
 }
 
 #[derive(Args)]

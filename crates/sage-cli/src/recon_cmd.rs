@@ -3,7 +3,6 @@
 //! The steps are `sage_pipeline::recon`'s; this module translates flags and prints.
 
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use sage_core::{Error, Result};
 use sage_pipeline::recon::{self, FitSettings};
 use sage_recon::plan::{PLAN_FILE, PLAN_PNG, PlanSettings, Policy};
@@ -161,15 +160,9 @@ fn plan(a: PlanArgs) -> Result<()> {
     Ok(())
 }
 
-fn bar(len: u64, template: &str) -> ProgressBar {
-    ProgressBar::new(len).with_style(
-        ProgressStyle::with_template(template).unwrap_or_else(|_| ProgressStyle::default_bar()),
-    )
-}
-
 fn render(a: RenderArgs) -> Result<()> {
     let (w, h) = crate::flags::parse_size(&a.size)?;
-    let progress = bar(0, "{bar:30} {pos}/{len} views {elapsed} (eta {eta})");
+    let progress = crate::progress::bar("{bar:30} {pos}/{len} views {elapsed} (eta {eta})");
     let start = Instant::now();
     let r = recon::render(&a.dir, a.scene.as_deref(), w, h, &|_, todo| {
         progress.set_length(todo as u64);
@@ -221,10 +214,9 @@ fn fit(a: FitArgs) -> Result<()> {
         points: a.points,
         seed: a.seed,
     };
-    let progress = bar(
-        a.iterations as u64,
-        "{bar:30} {pos}/{len} iterations {msg} {elapsed} (eta {eta})",
-    );
+    let progress =
+        crate::progress::bar("{bar:30} {pos}/{len} iterations {msg} {elapsed} (eta {eta})");
+    progress.set_length(a.iterations as u64);
     let start = Instant::now();
     let r = recon::fit(
         &a.dir,

@@ -2,7 +2,6 @@
 //! PNGs under a progress bar (`docs/evaluation.md`, "Report"); `sage3d eval` calls the same
 //! writer at the end of a run.
 
-use indicatif::{ProgressBar, ProgressStyle};
 use sage_bench::report::{self, ReportOutcome};
 use sage_core::{Error, Result};
 use sage_io::run::RUN_RECORD;
@@ -21,10 +20,7 @@ pub struct ReportArgs {
 /// Writes the report of `run` with the scenes of `scenes` under a progress bar over the
 /// episodes' maps.
 fn write_with_bar(run: &Path, scenes: &Path) -> Result<ReportOutcome> {
-    let bar = ProgressBar::new(0).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = crate::progress::bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let outcome = report::write_with(run, scenes, &|id, total| {
         bar.set_length(total as u64);
         bar.set_message(id.to_string());

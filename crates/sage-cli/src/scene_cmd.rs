@@ -1,12 +1,11 @@
 //! `sage3d scene …`: synthesise and describe scene folders.
 
 use clap::{Args, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 use sage_core::{Error, Result};
 use sage_scene::{Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 #[derive(Subcommand)]
 pub enum SceneCommand {
@@ -131,21 +130,10 @@ fn write_preview(scene: &Scene, out: &Path, resolution: f32) -> Result<()> {
     Ok(())
 }
 
-fn spinner(message: &str) -> ProgressBar {
-    let bar = ProgressBar::new_spinner().with_message(message.to_string());
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {msg} {elapsed}")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-    );
-    bar.enable_steady_tick(Duration::from_millis(120));
-    bar
-}
-
-/// Generates a scene, writes it and its run record; returns the scene.
-/// Synthesises a scene folder under a spinner.
+/// Synthesises a scene folder under a spinner; returns the scene.
 fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout) -> Result<Scene> {
     let start = Instant::now();
-    let bar = spinner(&format!(
+    let bar = crate::progress::spinner(&format!(
         "generating a {} scene (seed {})",
         config.kind.as_str(),
         config.seed
