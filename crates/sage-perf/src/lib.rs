@@ -27,6 +27,13 @@ fn scratch_dir() -> PathBuf {
     std::env::temp_dir().join(format!("sage3d-bench-{}", std::process::id()))
 }
 
+/// The median of `values` (the upper one of an even count; NaN when there are none).
+fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
 /// The same Gaussians at SH degree 3, higher bands filled with small deterministic values.
 fn to_sh3(g: &Gaussians) -> Result<Gaussians> {
     let items: Vec<_> = (0..g.len())

@@ -59,10 +59,7 @@ pub struct LoadReport {
 impl LoadReport {
     /// Median seconds per decode.
     pub fn median_s(&self) -> f64 {
-        self.decode_s
-            .get(self.decode_s.len() / 2)
-            .copied()
-            .unwrap_or(f64::NAN)
+        crate::median(&self.decode_s)
     }
 }
 

@@ -87,10 +87,7 @@ pub struct PhysicsReport {
 impl PhysicsReport {
     /// Median steps per second.
     pub fn median_steps_per_s(&self) -> f64 {
-        self.steps_per_s
-            .get(self.steps_per_s.len() / 2)
-            .copied()
-            .unwrap_or(f64::NAN)
+        crate::median(&self.steps_per_s)
     }
 }
 

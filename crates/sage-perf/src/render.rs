@@ -185,11 +185,6 @@ pub fn run(
     result
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// Renders `frames` headings at every size after one warm-up frame, which sizes the reusable
 /// buffers.
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
@@ -240,7 +235,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 s.splats as f64,
             ]);
         }
-        let col = |k: usize| median(rows.iter().map(|r| r[k]).collect());
+        let col = |k: usize| crate::median(&rows.iter().map(|r| r[k]).collect::<Vec<_>>());
         sizes.push(FrameTimes {
             width: w,
             height: h,

@@ -165,7 +165,7 @@ impl Step {
 
     /// The `sage3d` command line (without `sage3d`) that runs the same step.
     pub fn command_line(&self) -> Vec<String> {
-        let words: Vec<String> = match self {
+        match self {
             Step::Synth { config, out, .. } => vec![
                 "scene".into(),
                 "synth".into(),
@@ -212,8 +212,7 @@ impl Step {
                 "--out".into(),
                 path_arg(out),
             ],
-        };
-        words
+        }
     }
 
     /// Runs the step; `on_tick` follows its progress.

@@ -336,9 +336,6 @@ impl VecSim {
         overrides: &str,
         mode: &str,
     ) -> PyResult<VecSim> {
-        if num_envs == 0 {
-            return Err(PyValueError::new_err("num_envs must be at least 1"));
-        }
         let config = EnvConfig::with_overrides(preset, &from_json(overrides, "overrides")?).py()?;
         let (pool, _) = pool(scenes, episodes, scene_of)?;
         Ok(VecSim {
