@@ -45,6 +45,7 @@ fn settings(agent: &str) -> EvalSettings {
         split: "train".into(),
         agent: agent.parse().unwrap(),
         mode: Mode::Sage,
+        dtw: Default::default(),
         seed: 0,
         preset: "sage".into(),
     }

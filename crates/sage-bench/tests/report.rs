@@ -34,6 +34,7 @@ fn fixture() -> &'static Fixture {
             split: "train".into(),
             agent: "forward".parse().unwrap(),
             mode: Mode::Sage,
+            dtw: Default::default(),
             seed: 0,
             preset: "sage".into(),
         };

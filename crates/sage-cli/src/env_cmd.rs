@@ -9,7 +9,7 @@ use sage_bench::agents::AgentKind;
 use sage_core::{Error, Result};
 use sage_env::agents::run_episode;
 use sage_env::{Env, EnvConfig, SceneContext, SensorConfig};
-use sage_metrics::Mode;
+use sage_metrics::Scoring;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -42,6 +42,9 @@ pub struct RunArgs {
     /// Metric mode: sage, vlnce or sage-official.
     #[arg(long, default_value = "sage")]
     mode: String,
+    /// nDTW alignment: exact (default) or fast (FastDTW, radius 1, as VLN-CE computes it).
+    #[arg(long, default_value = "exact")]
+    dtw: String,
     /// Render the preset's images at every step, as an agent receiving them would (they are
     /// not written; without this flag the run is blind, which the baselines do not need).
     #[arg(long)]
@@ -58,7 +61,10 @@ pub fn run(cmd: EnvCommand) -> Result<()> {
 }
 
 fn run_one(a: RunArgs) -> Result<()> {
-    let mode: Mode = a.mode.parse().map_err(|e: Error| e.within("--mode"))?;
+    let scoring = Scoring {
+        mode: a.mode.parse().map_err(|e: Error| e.within("--mode"))?,
+        dtw: a.dtw.parse().map_err(|e: Error| e.within("--dtw"))?,
+    };
     let mut config = EnvConfig::preset(&a.preset).map_err(|e| e.within("--preset"))?;
     if !a.render {
         config.sensors = SensorConfig {
@@ -100,14 +106,15 @@ fn run_one(a: RunArgs) -> Result<()> {
     for s in &trace.steps {
         println!("{}", json(s)?);
     }
-    let m = sage_metrics::evaluate(&sage_env::scoring::metric_record(&ctx, &trace), mode)?;
+    let m = sage_metrics::evaluate(&sage_env::scoring::metric_record(&ctx, &trace), scoring)?;
     println!(
         "{}",
         json(&serde_json::json!({
             "episode": trace.episode.id,
             "agent": agent.name(),
             "termination": trace.termination,
-            "mode": mode,
+            "mode": scoring.mode,
+            "dtw": scoring.dtw,
             "metrics": m,
         }))?
     );

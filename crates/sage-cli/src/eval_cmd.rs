@@ -30,6 +30,9 @@ pub struct EvalArgs {
     /// Metric mode: sage, vlnce or sage-official.
     #[arg(long, default_value = "sage")]
     mode: String,
+    /// nDTW alignment: exact (default) or fast (FastDTW, radius 1, as VLN-CE computes it).
+    #[arg(long, default_value = "exact")]
+    dtw: String,
     /// Seed of the agent (each episode mixes in its id).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -52,6 +55,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
             .parse()
             .map_err(|e: Error| e.within(format!("--agent '{}'", a.agent)))?,
         mode: a.mode.parse().map_err(|e: Error| e.within("--mode"))?,
+        dtw: a.dtw.parse().map_err(|e: Error| e.within("--dtw"))?,
         seed: a.seed,
         preset: a.preset,
     };

@@ -179,6 +179,20 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
                 .then_some(())
                 .ok_or(format!("computed dtw {cost}, ndtw {ndtw}"))
         }
+        "goal-box" => {
+            // {"goal": [x, y], "entries": [LabelledBox…], "chosen": item_id}
+            let v: Value = serde_json::from_str(body).map_err(|e| e.to_string())?;
+            let entries: Vec<sage_metrics::distance::LabelledBox> =
+                serde_json::from_value(v["entries"].clone()).map_err(|e| e.to_string())?;
+            let goal: [f64; 2] =
+                serde_json::from_value(v["goal"].clone()).map_err(|e| e.to_string())?;
+            let chosen = sage_metrics::distance::official_goal_box(&entries, goal)
+                .map(|b| b.item_id)
+                .unwrap_or_default();
+            (chosen == v["chosen"].as_str().unwrap_or(""))
+                .then_some(())
+                .ok_or(format!("chosen '{chosen}'"))
+        }
         "metrics" => {
             // {"mode": M, "record": EpisodeRecord, "expected": {metric: value}}
             let v: Value = serde_json::from_str(body).map_err(|e| e.to_string())?;
@@ -221,6 +235,7 @@ fn every_documented_example_is_read_by_sage3d() {
         "run-record",
         "dtw",
         "metrics",
+        "goal-box",
     ] {
         assert!(
             by_kind.contains_key(required),

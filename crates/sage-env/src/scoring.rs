@@ -9,31 +9,10 @@ use sage_core::Result;
 use sage_metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
 use sage_metrics::{EpisodeMetrics, EpisodeRecord, Geodesics, Mode, StepRecord};
 
-/// The metrics' record of a finished trace; the published code's goal box is chosen among
-/// the scene's semantic-map objects and walls.
+/// The metrics' record of a finished trace; the published code's goal box is chosen among the
+/// entries of the scene's published map (no map: its distance rule).
 pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
     let f = |v: Vec2| [f64::from(v.x), f64::from(v.y)];
-    let boxes: Vec<LabelledBox> = ctx
-        .semantic
-        .items
-        .iter()
-        .map(|i| (i.category.clone(), &i.polygon))
-        .chain(
-            ctx.semantic
-                .walls
-                .iter()
-                .map(|w| ("wall".to_string(), &w.polygon)),
-        )
-        .map(|(label, poly)| {
-            let lo = poly.iter().fold(Vec2::INFINITY, |m, p| m.min(*p));
-            let hi = poly.iter().fold(Vec2::NEG_INFINITY, |m, p| m.max(*p));
-            LabelledBox {
-                label,
-                min: f(lo),
-                max: f(hi),
-            }
-        })
-        .collect();
     let e = &t.episode;
     let goal = e.goal.as_ref().map(|g| GoalRegion {
         point: f(g.point.truncate()),
@@ -43,12 +22,27 @@ pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
                 .collect()
         }),
     });
-    let official_goal = OfficialGoal::Map {
-        chosen: e
-            .reference_path
-            .last()
-            .or(e.goal.as_ref().map(|g| &g.point))
-            .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
+    let official_goal = match &ctx.published {
+        None => OfficialGoal::NoMap,
+        Some(map) => {
+            let boxes: Vec<LabelledBox> = map
+                .entries
+                .iter()
+                .map(|x| LabelledBox {
+                    item_id: x.item_id.clone(),
+                    label: x.label.clone(),
+                    min: x.min,
+                    max: x.max,
+                })
+                .collect();
+            OfficialGoal::Map {
+                chosen: e
+                    .reference_path
+                    .last()
+                    .or(e.goal.as_ref().map(|g| &g.point))
+                    .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
+            }
+        }
     };
     EpisodeRecord {
         episode_id: e.id.clone(),

@@ -1,5 +1,6 @@
-//! Collision metrics: CR (collision events), ICP (integrated collision penalty) and the
-//! published code's binary collision window (SPEC §10, §10.1).
+//! Collision metrics: CR (collision events; habitat's collision test in mode `vlnce`), ICP
+//! (integrated collision penalty) and the published code's binary collision window (SPEC §10,
+//! §10.1).
 
 /// CR in mode `sage`: steps whose contact begins after a step without contact (the step
 /// before the first one counts as without contact).
@@ -15,18 +16,12 @@ pub fn collision_events(contact: &[bool]) -> usize {
     n
 }
 
-/// True when a translation was blocked as habitat-sim tests it: something was commanded and
-/// less than that was achieved (tolerance 1e-5 m).
-pub fn blocked_move(commanded: f64, achieved: f64) -> bool {
-    commanded > 0.0 && achieved < commanded - 1e-5
-}
-
-/// CR in mode `vlnce`: the number of blocked translations.
-pub fn blocked_moves(moves: &[(f64, f64)]) -> usize {
-    moves
-        .iter()
-        .filter(|&&(cmd, ach)| blocked_move(cmd, ach))
-        .count()
+/// True when a step collided as habitat-sim tests it (mode `vlnce`): the squared length of the
+/// displacement achieved, plus 1e-5, is below the squared length of the translation commanded
+/// (its move filter compares `dot()` of the two vectors with `EPS = 1e-5`). Turns never collide.
+pub fn habitat_collided(commanded: f64, from: &[f64; 3], to: &[f64; 3]) -> bool {
+    let moved2: f64 = (0..3).map(|k| (to[k] - from[k]).powi(2)).sum();
+    moved2 + 1e-5 < commanded * commanded
 }
 
 /// The mean of the per-step values (0 for none): ICP = (1/T) Σ c(t) and any other step ratio.
@@ -88,15 +83,17 @@ mod tests {
     }
 
     #[test]
-    fn blocked_translations() {
-        let moves = [
-            (0.25, 0.25),
-            (0.25, 0.1),
-            (0.0, 0.0),
-            (0.25, 0.249_995),
-            (0.25, 0.0),
-        ];
-        assert_eq!(blocked_moves(&moves), 2);
+    fn habitat_collision_test_is_on_squared_lengths() {
+        let o = [0.0, 0.0, 0.0];
+        assert!(!habitat_collided(0.25, &o, &[0.25, 0.0, 0.0]));
+        assert!(habitat_collided(0.25, &o, &[0.1, 0.0, 0.0]));
+        assert!(!habitat_collided(0.0, &o, &o));
+        // 1e-5 on squared lengths: 0.25² − 0.24999² ≈ 5e-6 is no collision, although the
+        // lengths differ by 1e-5; 0.25² − 0.2499² ≈ 5e-5 is one.
+        assert!(!habitat_collided(0.25, &o, &[0.249_99, 0.0, 0.0]));
+        assert!(habitat_collided(0.25, &o, &[0.249_9, 0.0, 0.0]));
+        // A slide along a wall that keeps the full length is not a collision.
+        assert!(!habitat_collided(0.25, &o, &[0.15, 0.2, 0.0]));
     }
 
     #[test]

@@ -84,10 +84,13 @@ impl GoalRegion {
     }
 }
 
-/// An axis-aligned box of the published semantic map (`bbox_m`, here in the W frame).
+/// An entry of the published semantic map (`bbox_m`, here in the W frame).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LabelledBox {
-    /// The map entry's label (`table`, `wall`, `unable`, …).
+    /// The entry's `item_id` (`coffee_table_1`, `wall_2`, `unable_area_1`, …).
+    #[serde(default)]
+    pub item_id: String,
+    /// The entry's `category_label` (`Coffee Table`, `wall`, `Unable Area`, …).
     pub label: String,
     /// Lower corner `[x, y]`.
     pub min: [f64; 2],
@@ -124,36 +127,58 @@ pub enum OfficialGoal {
     },
 }
 
-/// Priority of a semantic-map label in the published "smart position" fallback (lower first).
-fn official_priority(label: &str) -> u32 {
-    let l = label.to_ascii_lowercase();
-    match l.as_str() {
-        "screen" | "projector" => 1,
-        "table" | "desk" => 2,
-        "chair" => 3,
-        "unable" => 10,
-        _ if ["furniture", "cabinet", "shelf", "bookcase"]
-            .iter()
-            .any(|w| l.contains(w)) =>
-        {
-            4
-        }
-        _ => 5,
+/// The published goal radius: its loop stops an episode once the agent is closer than this to
+/// the goal point, and without a semantic map success is being closer than this (metres).
+pub const OFFICIAL_GOAL_RADIUS: f64 = 0.5;
+
+/// How far from the goal point the published code looks for goal boxes (box centres, metres).
+pub const OFFICIAL_SEARCH_RADIUS: f64 = 2.0;
+
+/// Priority of a map entry in the published "smart position" fallback (lower first). As the
+/// published code has it, keywords match as substrings of the lower-cased item id or category
+/// label (`coffee_table_1` ranks with tables, `office_chair` with chairs), except the
+/// furniture group, which it looks for in the category label only.
+pub fn official_priority(item_id: &str, label: &str) -> u32 {
+    let (id, label) = (item_id.to_lowercase(), label.to_lowercase());
+    let either = |kw: &str| id.contains(kw) || label.contains(kw);
+    if either("screen") || either("projector") {
+        1
+    } else if either("table") || either("desk") {
+        2
+    } else if either("chair") {
+        3
+    } else if ["furniture", "cabinet", "shelf", "bookcase"]
+        .iter()
+        .any(|kw| label.contains(kw))
+    {
+        4
+    } else if either("unable") {
+        10
+    } else {
+        5
     }
 }
 
-/// The published code's choice of goal box: among entries whose box centre is ≤ 2.0 m from the
-/// goal point (walls and unable areas included), the lowest priority, then the nearest; ties
-/// keep map order.
+/// The box the published code tests against: among entries whose box centre is ≤ 2.0 m from
+/// the goal point (walls and unable areas included), the lowest priority, then the nearest,
+/// ties in map order. It then looks the winner up by item id in a table where a later entry
+/// with the same id replaced an earlier one, so the box returned is the last entry carrying
+/// the winner's id (the same entry unless ids repeat).
 pub fn official_goal_box(entries: &[LabelledBox], goal: [f64; 2]) -> Option<LabelledBox> {
+    let winner = entries
+        .iter()
+        .map(|e| (e, euclidean(&e.centre(), &goal)))
+        .filter(|(_, d)| *d <= OFFICIAL_SEARCH_RADIUS)
+        .min_by(|(a, da), (b, db)| {
+            official_priority(&a.item_id, &a.label)
+                .cmp(&official_priority(&b.item_id, &b.label))
+                .then(da.total_cmp(db))
+        })?
+        .0;
     entries
         .iter()
-        .filter(|e| euclidean(&e.centre(), &goal) <= 2.0)
-        .min_by(|a, b| {
-            official_priority(&a.label)
-                .cmp(&official_priority(&b.label))
-                .then(euclidean(&a.centre(), &goal).total_cmp(&euclidean(&b.centre(), &goal)))
-        })
+        .rev()
+        .find(|e| e.item_id == winner.item_id)
         .cloned()
 }
 
@@ -179,7 +204,7 @@ impl OfficialGoal {
         let d = euclidean(p, goal);
         match self {
             OfficialGoal::NoMap => match test {
-                OfficialTest::Success => d < 0.5,
+                OfficialTest::Success => d < OFFICIAL_GOAL_RADIUS,
                 OfficialTest::Oracle => d < 1.5,
                 OfficialTest::Continuous => d <= 2.0,
             },
@@ -189,13 +214,48 @@ impl OfficialGoal {
     }
 }
 
-/// SPL = SR · L* / max(L*, L); SR itself when L* = 0 (both paths empty).
-pub fn spl(success: bool, shortest: f64, taken: f64) -> f64 {
-    if !success {
-        return 0.0;
-    }
+/// SPL = SR · L* / max(L*, L) (modes `sage` and `vlnce`); `None` when L* = L = 0, where the
+/// formula divides zero by zero (habitat's SPL raises there); with L* = 0 < L it is 0.
+pub fn spl(success: bool, shortest: f64, taken: f64) -> Option<f64> {
     let denom = shortest.max(taken);
-    if denom <= 0.0 { 1.0 } else { shortest / denom }
+    if denom <= 0.0 {
+        return None;
+    }
+    Some(if success { shortest / denom } else { 0.0 })
+}
+
+/// SPL as the published SAGE-3D code computes it: SR · L* / max(L*, L) when L* > 0, else SR.
+pub fn official_spl(success: bool, shortest: f64, taken: f64) -> f64 {
+    match (success, shortest > 0.0) {
+        (false, _) => 0.0,
+        (true, true) => shortest / shortest.max(taken),
+        (true, false) => 1.0,
+    }
+}
+
+/// The per-step distances habitat's `DistanceToGoal` reports: it recomputes the distance only
+/// when the position moved beyond `np.allclose(previous, current, atol=1e-4)` (per coordinate
+/// |a − b| ≤ 1e-4 + 1e-5·|b|) from the position of its last computation, and otherwise repeats
+/// the last value. `positions[k]` and `distances[k]` are the start (k = 0) and each step's.
+pub fn habitat_cached_distances(
+    positions: &[[f64; 3]],
+    distances: &[Option<f64>],
+) -> Vec<Option<f64>> {
+    let close = |a: &[f64; 3], b: &[f64; 3]| {
+        (0..3).all(|k| (a[k] - b[k]).abs() <= 1e-4 + 1e-5 * b[k].abs())
+    };
+    let mut last: Option<([f64; 3], Option<f64>)> = None;
+    positions
+        .iter()
+        .zip(distances)
+        .map(|(p, d)| match last {
+            Some((q, v)) if close(&q, p) => v,
+            _ => {
+                last = Some((*p, *d));
+                *d
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -235,35 +295,98 @@ mod tests {
 
     #[test]
     fn spl_cases() {
-        assert_eq!(spl(true, 4.0, 5.0), 0.8);
-        assert_eq!(spl(true, 4.0, 3.0), 1.0);
-        assert_eq!(spl(false, 4.0, 4.0), 0.0);
-        assert_eq!(spl(true, 0.0, 0.0), 1.0);
+        assert_eq!(spl(true, 4.0, 5.0), Some(0.8));
+        assert_eq!(spl(true, 4.0, 3.0), Some(1.0));
+        assert_eq!(spl(false, 4.0, 4.0), Some(0.0));
+        // Zero shortest distance: undefined when nothing moved, else 0; the published SAGE
+        // formula gives SR in both cases.
+        assert_eq!(spl(true, 0.0, 0.0), None);
+        assert_eq!(spl(true, 0.0, 1.0), Some(0.0));
+        assert_eq!(official_spl(true, 0.0, 1.0), 1.0);
+        assert_eq!(official_spl(false, 0.0, 0.0), 0.0);
+        assert_eq!(official_spl(true, 4.0, 5.0), 0.8);
+    }
+
+    #[test]
+    fn habitat_distance_cache() {
+        let p = |x: f64| [x, 0.0, 0.0];
+        let d = |v: f64| Some(v);
+        // Moves of 5e-5 stay within the tolerance of the last computed position (0.0) until
+        // the total exceeds 1e-4 (+ 1e-5·|x|); then the value is recomputed.
+        let got = habitat_cached_distances(
+            &[p(0.0), p(5e-5), p(1e-4), p(1.5e-4), p(1.5e-4)],
+            &[d(3.0), d(2.99995), d(2.9999), d(2.99985), d(2.99985)],
+        );
+        assert_eq!(got, [d(3.0), d(3.0), d(3.0), d(2.99985), d(2.99985)]);
+        // Relative part: at x = 100 the tolerance is 1e-4 + 1e-3.
+        let got = habitat_cached_distances(&[p(100.0), p(100.001)], &[d(1.0), d(2.0)]);
+        assert_eq!(got, [d(1.0), d(1.0)]);
+    }
+
+    fn entry(item_id: &str, label: &str, min: [f64; 2], max: [f64; 2]) -> LabelledBox {
+        LabelledBox {
+            item_id: item_id.into(),
+            label: label.into(),
+            min,
+            max,
+        }
+    }
+
+    #[test]
+    fn official_priority_matches_substrings() {
+        // Keywords match inside the item id or the label, in any case.
+        assert_eq!(official_priority("coffee_table_1", "Coffee Table"), 2);
+        assert_eq!(official_priority("table_lamp_1", "Table Lamp"), 2);
+        assert_eq!(official_priority("reception_desk_2", "Reception Desk"), 2);
+        assert_eq!(official_priority("armchair_1", "Armchair"), 3);
+        assert_eq!(official_priority("office_chair_3", "Office Chair"), 3);
+        assert_eq!(official_priority("tv_screen_1", "TV Screen"), 1);
+        // The first group that matches wins: a desk chair ranks with desks.
+        assert_eq!(official_priority("desk_chair_1", "Desk Chair"), 2);
+        // The furniture group is looked for in the label only.
+        assert_eq!(official_priority("big_bookcase_1", "Bookcase"), 4);
+        assert_eq!(official_priority("shelf_1", "Rack"), 5);
+        assert_eq!(official_priority("unable_area_1", "Unable Area"), 10);
+        assert_eq!(official_priority("wall_2", "wall"), 5);
+        assert_eq!(official_priority("sofa_1", "Sofa"), 5);
     }
 
     #[test]
     fn official_box_choice_and_tests() {
-        let b = |label: &str, min: [f64; 2], max: [f64; 2]| LabelledBox {
-            label: label.into(),
-            min,
-            max,
-        };
         let entries = vec![
-            b("wall", [-10.0, -10.0], [10.0, 10.0]),
-            b("chair", [0.5, 0.5], [1.5, 1.5]),
-            b("table", [2.0, 0.0], [3.0, 1.0]),
-            b("desk", [4.5, 4.5], [5.5, 5.5]),
-            b("bookcase_big", [0.0, -1.0], [0.2, -0.8]),
+            entry("wall_1", "wall", [-10.0, -10.0], [10.0, 10.0]),
+            entry("armchair_1", "Armchair", [0.5, 0.5], [1.5, 1.5]),
+            entry("coffee_table_1", "Coffee Table", [2.0, 0.0], [3.0, 1.0]),
+            entry("desk_1", "Desk", [4.5, 4.5], [5.5, 5.5]),
+            entry("bookcase_1", "Bookcase", [0.0, -1.0], [0.2, -0.8]),
         ];
-        // Table (priority 2, centre 1.58 m away) beats chair (3) and the wall (5); the desk is
-        // more than 2 m away.
+        // The coffee table (priority 2, centre 1.58 m away) beats the armchair (3, 1.12 m) and
+        // the wall (5); the desk is more than 2 m away. An exact-category rule would have
+        // taken the bookcase (4, 1.27 m).
         let chosen = official_goal_box(&entries, [1.0, 0.0]).unwrap();
-        assert_eq!(chosen.label, "table");
+        assert_eq!(chosen.item_id, "coffee_table_1");
         assert!(official_goal_box(&entries[3..4], [0.0, 0.0]).is_none());
-        // Priority: furniture-like labels rank 4, before the default 5 and `unable` 10.
-        assert_eq!(official_priority("Bookcase_big"), 4);
-        assert_eq!(official_priority("unable"), 10);
-        assert_eq!(official_priority("sofa"), 5);
+        // Equal priority: the nearer centre; equal distance too: map order.
+        let twins = [
+            entry("chair_1", "Chair", [0.0, 0.0], [1.0, 1.0]),
+            entry("chair_2", "Chair", [0.0, 0.0], [1.0, 1.0]),
+            entry("chair_3", "Chair", [0.2, 0.2], [0.6, 0.6]),
+        ];
+        let near = official_goal_box(&twins, [0.4, 0.4]).unwrap();
+        assert_eq!(near.item_id, "chair_3");
+        assert_eq!(
+            official_goal_box(&twins[..2], [0.4, 0.4]).unwrap().item_id,
+            "chair_1"
+        );
+        // A repeated item id: the winner is looked up by id, and the last entry holding it wins.
+        let repeated = [
+            entry("chair_1", "Chair", [0.0, 0.0], [0.4, 0.4]),
+            entry("chair_1", "chair", [5.0, 5.0], [6.0, 6.0]),
+        ];
+        assert_eq!(
+            official_goal_box(&repeated, [0.2, 0.2]).unwrap().min,
+            [5.0, 5.0]
+        );
         let goal = OfficialGoal::Map {
             chosen: Some(chosen),
         };

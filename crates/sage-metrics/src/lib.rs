@@ -16,6 +16,7 @@
 pub mod collision;
 pub mod distance;
 pub mod dtw;
+pub mod fastdtw;
 pub mod nogoal;
 pub mod smoothness;
 
@@ -67,6 +68,67 @@ impl FromStr for Mode {
             _ => Err(Error::invalid(format!(
                 "unknown metric mode '{s}' (expected sage, vlnce or sage-official)"
             ))),
+        }
+    }
+}
+
+/// How nDTW aligns the two paths.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Dtw {
+    /// Exact dynamic time warping.
+    #[default]
+    Exact,
+    /// FastDTW with radius 1, as the `fastdtw` package computes it (VLN-CE's default): an
+    /// approximation that can only cost more than the exact alignment.
+    Fast,
+}
+
+impl Dtw {
+    /// The name as written in files and flags.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Dtw::Exact => "exact",
+            Dtw::Fast => "fast",
+        }
+    }
+}
+
+impl fmt::Display for Dtw {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for Dtw {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Dtw> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "exact" => Ok(Dtw::Exact),
+            "fast" => Ok(Dtw::Fast),
+            _ => Err(Error::invalid(format!(
+                "unknown DTW '{s}' (expected exact or fast)"
+            ))),
+        }
+    }
+}
+
+/// Everything that decides how a record is scored: the mode and the DTW used by nDTW.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub struct Scoring {
+    /// The metric definitions.
+    pub mode: Mode,
+    /// The alignment nDTW and SDTW use.
+    #[serde(default)]
+    pub dtw: Dtw,
+}
+
+impl From<Mode> for Scoring {
+    fn from(mode: Mode) -> Scoring {
+        Scoring {
+            mode,
+            dtw: Dtw::Exact,
         }
     }
 }
@@ -204,19 +266,31 @@ fn flag(b: bool) -> f64 {
     if b { 1.0 } else { 0.0 }
 }
 
-/// The metrics of one episode under `mode`.
+/// The metrics of one episode under `scoring` (a [`Mode`] alone scores with exact DTW).
 ///
 /// # Errors
 ///
 /// An `invalid` error naming the episode when a VLN record has no goal region, or when it says
 /// STOP was called but holds no step (STOP is a step).
-pub fn evaluate(rec: &EpisodeRecord, mode: Mode) -> Result<EpisodeMetrics> {
+pub fn evaluate(rec: &EpisodeRecord, scoring: impl Into<Scoring>) -> Result<EpisodeMetrics> {
+    let Scoring { mode, dtw } = scoring.into();
     if rec.stop_called && rec.steps.is_empty() {
         return Err(Error::invalid(format!(
             "episode {}: stop_called is set but there is no step (STOP is a step)",
             rec.episode_id
         )));
     }
+    let cut;
+    let rec = match official_auto_stop(rec, mode) {
+        Some(steps) => {
+            cut = EpisodeRecord {
+                steps: rec.steps[..steps].to_vec(),
+                ..rec.clone()
+            };
+            &cut
+        }
+        None => rec,
+    };
     let start = xy(&rec.start);
     let trace: Vec<[f64; 2]> = std::iter::once(start)
         .chain(rec.steps.iter().map(|s| xy(&s.position)))
@@ -247,7 +321,12 @@ pub fn evaluate(rec: &EpisodeRecord, mode: Mode) -> Result<EpisodeMetrics> {
             m.ps = Some(smoothness::path_smoothness(&headings));
         }
         Mode::Vlnce => {
-            m.cr = Some(collision::blocked_moves(&moves) as f64);
+            let positions = positions3(rec);
+            let blocked =
+                rec.steps.iter().zip(positions.windows(2)).filter(|(s, w)| {
+                    collision::habitat_collided(f64::from(s.commanded), &w[0], &w[1])
+                });
+            m.cr = Some(blocked.count() as f64);
             m.icp = Some(collision::mean(
                 rec.steps.iter().map(|s| f64::from(s.intensity)),
             ));
@@ -259,7 +338,7 @@ pub fn evaluate(rec: &EpisodeRecord, mode: Mode) -> Result<EpisodeMetrics> {
         }
     }
     match rec.task {
-        Task::Vln => vln_metrics(rec, mode, &trace, &official_samples, &mut m)?,
+        Task::Vln => vln_metrics(rec, mode, dtw, &trace, &official_samples, &mut m)?,
         Task::Nogoal => {
             m.episode_time = Some(rec.steps.last().map_or(0.0, |s| f64::from(s.time)));
             let cells = match mode {
@@ -276,9 +355,43 @@ pub fn evaluate(rec: &EpisodeRecord, mode: Mode) -> Result<EpisodeMetrics> {
     Ok(m)
 }
 
+/// The published goal point g of a VLN record: the reference path's last point (its
+/// `gt_locations[-1]`), else the goal point.
+fn official_goal_point(rec: &EpisodeRecord) -> Option<[f64; 2]> {
+    rec.reference_path
+        .last()
+        .map(xy)
+        .or(rec.goal.as_ref().map(|g| g.point))
+}
+
+/// In mode `sage-official`, the number of steps the published loop would have run: it ends a
+/// VLN episode after the first step that leaves the agent closer than 0.5 m to g (its
+/// auto-stop). `None` when the record needs no cut: no step comes that close before its last,
+/// or another mode or task.
+pub fn official_auto_stop(rec: &EpisodeRecord, mode: Mode) -> Option<usize> {
+    if mode != Mode::SageOfficial || rec.task != Task::Vln {
+        return None;
+    }
+    let g = official_goal_point(rec)?;
+    rec.steps
+        .iter()
+        .position(|s| dtw::euclidean(&xy(&s.position), &g) < distance::OFFICIAL_GOAL_RADIUS)
+        .map(|k| k + 1)
+        .filter(|&n| n < rec.steps.len())
+}
+
+/// The start and every step's position in 3-D, f64.
+fn positions3(rec: &EpisodeRecord) -> Vec<[f64; 3]> {
+    std::iter::once(&rec.start)
+        .chain(rec.steps.iter().map(|s| &s.position))
+        .map(|p| p.map(f64::from))
+        .collect()
+}
+
 fn vln_metrics(
     rec: &EpisodeRecord,
     mode: Mode,
+    dtw_kind: Dtw,
     trace: &[[f64; 2]],
     samples: &[[f64; 2]],
     m: &mut EpisodeMetrics,
@@ -293,18 +406,22 @@ fn vln_metrics(
     let tl = m.tl.unwrap_or(0.0);
     let reference: Vec<[f64; 2]> = rec.reference_path.iter().map(xy).collect();
     let agent = dtw::dedup_trace(trace);
+    let inf = |v: Option<f64>| v.unwrap_or(f64::INFINITY);
     let opt = |v: Option<f32>| v.map_or(f64::INFINITY, f64::from);
+    let align = |r: &[[f64; 2]]| match dtw_kind {
+        Dtw::Exact => dtw::dtw(r, &agent, dtw::euclidean),
+        Dtw::Fast => fastdtw::fastdtw(&agent, r, fastdtw::FASTDTW_RADIUS),
+    };
     let (success, ndtw) = match mode {
         Mode::Sage => {
             let r = distance::SAGE_SUCCESS_DISTANCE;
             let success = rec.stop_called && goal.distance(&last) <= r;
             m.ne = Some(opt(rec.geodesics.final_to_region));
             m.osr = Some(flag(trace[1..].iter().any(|p| goal.distance(p) <= r)));
-            m.spl = Some(distance::spl(
-                success,
-                opt(rec.geodesics.start_to_region),
-                tl,
-            ));
+            m.spl = Some(
+                distance::spl(success, opt(rec.geodesics.start_to_region), tl)
+                    .unwrap_or(flag(success)),
+            );
             m.csr = Some(collision::mean(rec.steps.iter().zip(&trace[1..]).map(
                 |(s, p)| {
                     flag(
@@ -321,7 +438,7 @@ fn vln_metrics(
                 .iter()
                 .map(|p| [f64::from(p.x), f64::from(p.y)])
                 .collect();
-            let d = dtw::dtw(&resampled, &agent, dtw::euclidean);
+            let d = align(&resampled);
             (
                 success,
                 dtw::ndtw_from(d, resampled.len(), dtw::DTW_THRESHOLD),
@@ -329,29 +446,24 @@ fn vln_metrics(
         }
         Mode::Vlnce => {
             let r = distance::VLNCE_SUCCESS_DISTANCE;
-            let d_final = rec
-                .steps
-                .last()
-                .map_or(rec.geodesics.start_to_point, |s| s.geodesic_to_goal_point);
-            let success = rec.stop_called && opt(d_final) < r;
-            m.ne = Some(opt(d_final));
-            let oracle = std::iter::once(rec.geodesics.start_to_point)
+            let raw: Vec<Option<f64>> = std::iter::once(rec.geodesics.start_to_point)
                 .chain(rec.steps.iter().map(|s| s.geodesic_to_goal_point))
-                .any(|d| opt(d) < r);
-            m.osr = Some(flag(oracle));
-            m.spl = Some(distance::spl(
-                success,
-                opt(rec.geodesics.start_to_point),
-                tl,
-            ));
-            let d = dtw::dtw(&reference, &agent, dtw::euclidean);
+                .map(|d| d.map(f64::from))
+                .collect();
+            let dist = distance::habitat_cached_distances(&positions3(rec), &raw);
+            let d_final = inf(dist.last().copied().flatten());
+            let success = rec.stop_called && d_final < r;
+            m.ne = Some(d_final);
+            m.osr = Some(flag(dist.iter().any(|d| inf(*d) < r)));
+            m.spl = distance::spl(success, inf(dist[0]), tl);
+            let d = align(&reference);
             (
                 success,
                 dtw::ndtw_from(d, reference.len(), dtw::DTW_THRESHOLD),
             )
         }
         Mode::SageOfficial => {
-            let g = reference.last().copied().unwrap_or(goal.point);
+            let g = official_goal_point(rec).unwrap_or(goal.point);
             let og = &rec.official_goal;
             let success = og.passes(OfficialTest::Success, &last, &g);
             m.ne = Some(dtw::euclidean(&last, &g));
@@ -360,7 +472,11 @@ fn vln_metrics(
                     .iter()
                     .any(|p| og.passes(OfficialTest::Oracle, p, &g)),
             ));
-            m.spl = Some(distance::spl(success, dtw::euclidean(&trace[0], &g), tl));
+            m.spl = Some(distance::official_spl(
+                success,
+                dtw::euclidean(&trace[0], &g),
+                tl,
+            ));
             m.csr = Some(collision::mean(
                 samples
                     .iter()

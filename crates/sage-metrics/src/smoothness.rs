@@ -21,14 +21,17 @@ pub fn path_smoothness(headings: &[f64]) -> f64 {
     1.0 - s / (headings.len() - 1) as f64
 }
 
+/// Displacements no longer than this are dropped by the published PS (metres).
+pub const OFFICIAL_MIN_DISPLACEMENT: f64 = 1e-6;
+
 /// PS of the published code over its update samples: the successive displacement vectors with
-/// zero-length ones dropped, a_k = ‖v_{k+1} − v_k‖, PS = 1/(1 + 10·mean(a)); 1 until two
+/// those no longer than 1e-6 m dropped, a_k = ‖v_{k+1} − v_k‖, PS = 1/(1 + 10·mean(a)); 1 until two
 /// non-zero displacements exist.
 pub fn official_path_smoothness(samples: &[[f64; 2]]) -> f64 {
     let v: Vec<[f64; 2]> = samples
         .windows(2)
         .map(|w| [w[1][0] - w[0][0], w[1][1] - w[0][1]])
-        .filter(|d| d[0] != 0.0 || d[1] != 0.0)
+        .filter(|d| d[0].hypot(d[1]) > OFFICIAL_MIN_DISPLACEMENT)
         .collect();
     if v.len() < 2 {
         return 1.0;
@@ -77,5 +80,19 @@ mod tests {
         let expect = 1.0 / (1.0 + 10.0 * (0.2f64 * 2f64.sqrt() / 2.0));
         assert!((official_path_smoothness(&s) - expect).abs() < 1e-12);
         assert_eq!(official_path_smoothness(&[[0.0, 0.0], [1.0, 0.0]]), 1.0);
+        // A jitter of 1e-6 m counts as no move (the corner then costs the same as above);
+        // 2e-6 m is a move and a sharp turn.
+        let s = [
+            [0.0, 0.0],
+            [0.2, 0.0],
+            [0.2, 1e-6],
+            [0.4, 1e-6],
+            [0.4, 0.2 + 1e-6],
+        ];
+        let jitter = official_path_smoothness(&s);
+        let corner = 1.0 / (1.0 + 10.0 * ((0.0 + 0.2 * 2f64.sqrt()) / 2.0));
+        assert!((jitter - corner).abs() < 1e-9);
+        let s = [[0.0, 0.0], [0.2, 0.0], [0.2, 2e-6], [0.4, 2e-6]];
+        assert!(official_path_smoothness(&s) < 0.5);
     }
 }

@@ -1,6 +1,6 @@
 //! Whole-episode cases computed by hand, one per mode, plus the NoGoal case.
 
-use super::distance::LabelledBox;
+use super::distance::{LabelledBox, official_goal_box};
 use super::*;
 use std::f64::consts::FRAC_PI_2;
 
@@ -110,47 +110,193 @@ fn vlnce_mode_by_hand() {
     close(m.cr, 1.0);
     // Dense reference as given (3 points): (0,0)(1,1)(1,2)(2,3) costs 0 + 0 + .25 + .25.
     close(m.ndtw, (-0.5f64 / 9.0).exp());
-    // Success is strict: exactly 3.0 m fails.
+    // Success is strict: exactly 3.0 m fails. (The STOP step does not move, so the distance
+    // is the one computed after step 5.)
     let mut r = vln_record(OfficialGoal::NoMap);
-    r.steps.last_mut().unwrap().geodesic_to_goal_point = Some(3.0);
+    for s in &mut r.steps[4..] {
+        s.geodesic_to_goal_point = Some(3.0);
+    }
     let m = evaluate(&r, Mode::Vlnce).unwrap();
     close(m.sr, 0.0);
     close(m.ne, 3.0);
     // Unreachable counts as infinitely far.
-    r.steps.last_mut().unwrap().geodesic_to_goal_point = None;
+    r.steps[4].geodesic_to_goal_point = None;
     assert_eq!(evaluate(&r, Mode::Vlnce).unwrap().ne, Some(f64::INFINITY));
+}
+
+fn table_box() -> LabelledBox {
+    LabelledBox {
+        item_id: "table_1".into(),
+        label: "Table".into(),
+        min: [2.5, -0.5],
+        max: [3.5, 0.5],
+    }
 }
 
 #[test]
 fn official_mode_by_hand() {
-    let table = LabelledBox {
-        label: "table".into(),
-        min: [2.5, -0.5],
-        max: [3.5, 0.5],
-    };
     let r = vln_record(OfficialGoal::Map {
-        chosen: Some(table),
+        chosen: Some(table_box()),
     });
+    // Step 5 ends 0.25 m from g = (2, 0): the published loop stops there, so step 6 (STOP)
+    // never happens. 11 samples: reset, then before/after each of the 5 steps.
+    assert_eq!(official_auto_stop(&r, Mode::SageOfficial), Some(5));
     let m = evaluate(&r, Mode::SageOfficial).unwrap();
-    // 13 samples: reset, then before/after each of the 6 steps.
+    close(m.steps, 5.0);
     close(m.sr, 1.0);
     close(m.ne, 0.25);
     close(m.osr, 1.0);
     // L* is the straight line start → last reference point (2 m).
     close(m.spl, 2.0 / 2.25);
     // Box grown by 1.5 m starts at x = 1.0: the two samples at the start fail.
-    close(m.csr, 11.0 / 13.0);
-    // Step 3 achieves 25 % → counter 1 seen by samples 6–9; windows cover samples 6–11.
-    close(m.icp, 6.0 / 13.0);
+    close(m.csr, 9.0 / 11.0);
+    // Step 3 achieves 25 % → counter 1 seen by samples 6–9; windows cover samples 6–10.
+    close(m.icp, 5.0 / 11.0);
     // Non-zero displacements (1,0) (0,.25) (1,0): a = |(−1,.25)| twice.
     close(m.ps, 1.0 / (1.0 + 10.0 * 1.0f64.hypot(0.25)));
     assert_eq!(m.cr, None);
     assert_eq!(m.ndtw, None);
-    // Without a map the 0.5 m radius applies (strict): 0.25 m passes, 0.5 m fails.
+    // Without a map the 0.5 m radius applies (strict): 0.25 m passes, 0.5 m fails (and is
+    // not close enough to stop the episode either).
     let mut r = vln_record(OfficialGoal::NoMap);
     close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 1.0);
-    r.steps.last_mut().unwrap().position = [2.0, 0.5, 0.0];
+    for s in &mut r.steps[4..] {
+        s.position = [2.0, 0.5, 0.0];
+    }
+    assert_eq!(official_auto_stop(&r, Mode::SageOfficial), None);
     close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 0.0);
+}
+
+#[test]
+fn official_auto_stop_changes_the_result() {
+    // The agent passes 0.3 m from g = (2, 0) at step 2, then walks on to (4, 0.3) and stops.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.steps = vec![
+        step(1.0, 0.3, 0.0, (1.0, 1.0), (false, 0.0), 1.0),
+        step(2.0, 0.3, 0.0, (1.0, 1.0), (false, 0.0), 0.3),
+        step(3.0, 0.3, 0.0, (1.0, 1.0), (false, 0.0), 1.0),
+        step(4.0, 0.3, 0.0, (1.0, 1.0), (false, 0.0), 2.0),
+        step(4.0, 0.3, 0.0, (0.0, 0.0), (false, 0.0), 2.0),
+    ];
+    let whole = evaluate(&r, Mode::Sage).unwrap();
+    close(whole.steps, 5.0);
+    let m = evaluate(&r, Mode::SageOfficial).unwrap();
+    // Scored as if cut after step 2: success at 0.3 m, NE 0.3, TL to (2, 0.3).
+    close(m.steps, 2.0);
+    close(m.sr, 1.0);
+    close(m.ne, 0.3);
+    close(m.tl, 1.0f64.hypot(0.3) + 1.0);
+    // Exactly 0.5 m does not stop (the test is strict).
+    r.steps[1].position = [2.0, 0.5, 0.0];
+    assert_eq!(official_auto_stop(&r, Mode::SageOfficial), None);
+    close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 0.0);
+    // Other modes and NoGoal episodes are never cut.
+    assert_eq!(official_auto_stop(&r, Mode::Vlnce), None);
+}
+
+#[test]
+fn official_goal_box_choice_changes_the_result() {
+    // Near g = (2, 0): a bookcase box 1.0 m away (priority 4 by its label) and a coffee table
+    // 1.8 m away, which ranks with tables (2) because "table" is inside its id and label.
+    let entries = [
+        LabelledBox {
+            item_id: "bookcase_1".into(),
+            label: "Bookcase".into(),
+            min: [1.8, 0.8],
+            max: [2.2, 1.2],
+        },
+        LabelledBox {
+            item_id: "coffee_table_1".into(),
+            label: "Coffee Table".into(),
+            min: [3.5, -0.3],
+            max: [4.1, 0.3],
+        },
+    ];
+    let chosen = official_goal_box(&entries, [2.0, 0.0]).unwrap();
+    assert_eq!(chosen.item_id, "coffee_table_1");
+    // The agent ends at (2, 1.5): inside the bookcase grown by 1 m, not the table.
+    let mut r = vln_record(OfficialGoal::Map {
+        chosen: Some(chosen),
+    });
+    r.steps = vec![step(2.0, 1.5, 0.0, (2.5, 2.5), (false, 0.0), 1.5)];
+    close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 0.0);
+    r.official_goal = OfficialGoal::Map {
+        chosen: Some(entries[0].clone()),
+    };
+    close(evaluate(&r, Mode::SageOfficial).unwrap().sr, 1.0);
+}
+
+#[test]
+fn zero_shortest_distance_spl() {
+    // Start on the goal point (the reference path ends where it starts); the agent steps away
+    // and back and stops there.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.reference_path = vec![[0.0, 0.0, 0.0]];
+    r.goal = Some(GoalRegion {
+        point: [0.0, 0.0],
+        footprint: None,
+    });
+    r.geodesics = Geodesics {
+        start_to_region: Some(0.0),
+        final_to_region: Some(0.0),
+        start_to_point: Some(0.0),
+    };
+    r.steps = vec![
+        step(0.4, 0.0, 0.0, (0.4, 0.4), (false, 0.0), 0.4),
+        step(0.0, 0.0, 0.0, (0.4, 0.4), (false, 0.0), 0.0),
+        step(0.0, 0.0, 0.0, (0.0, 0.0), (false, 0.0), 0.0),
+    ];
+    // SAGE's published formula: SPL = SR when L* = 0 (its auto-stop ends the episode at once).
+    let m = evaluate(&r, Mode::SageOfficial).unwrap();
+    close(m.sr, 1.0);
+    close(m.spl, 1.0);
+    // habitat: SR · 0 / max(0, L) = 0 once the agent moved; mode sage does the same.
+    close(evaluate(&r, Mode::Vlnce).unwrap().spl, 0.0);
+    close(evaluate(&r, Mode::Sage).unwrap().spl, 0.0);
+    // Not moving at all: habitat divides 0 by 0 (undefined, left out of the mean); mode sage
+    // gives SR.
+    r.steps = vec![step(0.0, 0.0, 0.0, (0.0, 0.0), (false, 0.0), 0.0)];
+    assert_eq!(evaluate(&r, Mode::Vlnce).unwrap().spl, None);
+    close(evaluate(&r, Mode::Sage).unwrap().spl, 1.0);
+}
+
+#[test]
+fn vlnce_distance_is_cached_like_habitat() {
+    // A 5e-5 m creep after step 1 keeps the distance computed there, even though the record
+    // holds a (hypothetically) different value: habitat would not have asked the path finder.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.steps = vec![
+        step(1.0, 0.0, 0.0, (1.0, 1.0), (false, 0.0), 2.9),
+        step(1.000_05, 0.0, 0.0, (1.0, 0.000_05), (true, 1.0), 3.1),
+    ];
+    r.stop_called = true;
+    let m = evaluate(&r, Mode::Vlnce).unwrap();
+    close(m.ne, 2.9);
+    close(m.sr, 1.0);
+    // Beyond the tolerance the new value counts.
+    r.steps[1].position = [1.001, 0.0, 0.0];
+    close(evaluate(&r, Mode::Vlnce).unwrap().ne, 3.1);
+}
+
+#[test]
+fn fast_dtw_is_chosen_by_scoring() {
+    let r = vln_record(OfficialGoal::NoMap);
+    let exact = evaluate(&r, Mode::Vlnce).unwrap();
+    let fast = evaluate(
+        &r,
+        Scoring {
+            mode: Mode::Vlnce,
+            dtw: Dtw::Fast,
+        },
+    )
+    .unwrap();
+    // Short paths fall back to full DTW inside FastDTW: the same number.
+    close(fast.ndtw, exact.ndtw.unwrap());
+    assert_eq!(fast.sr, exact.sr);
+    for d in [Dtw::Exact, Dtw::Fast] {
+        assert_eq!(d.as_str().parse::<Dtw>().unwrap(), d);
+    }
+    assert!("approx".parse::<Dtw>().is_err());
 }
 
 #[test]

@@ -15,7 +15,7 @@ use sage_bench::dataset::split::SplitParams;
 use sage_bench::eval::{EvalSettings, RunOutcome, SUMMARY_FILE, Summary};
 use sage_bench::report::ReportOutcome;
 use sage_core::{Error, Result};
-use sage_metrics::Mode;
+use sage_metrics::{Dtw, Mode};
 use sage_nav::GridParams;
 use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, default_cache_dir};
 use sage_scene::{Scene, SplatLayout};
@@ -340,6 +340,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
                 split: s.split.clone(),
                 agent: kind,
                 mode: Mode::default(),
+                dtw: Dtw::default(),
                 seed: s.seed,
                 preset: "sage".into(),
             },

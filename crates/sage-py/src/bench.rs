@@ -11,6 +11,7 @@ use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::eval::{self, EvalSettings, Runner, Summary};
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
+use sage_metrics::Scoring;
 use std::path::{Path, PathBuf};
 
 /// The episodes of `split` in a dataset folder, as dicts (the JSONL schema).
@@ -36,6 +37,14 @@ pub fn scene_dirs(root: PathBuf) -> PyResult<Vec<PathBuf>> {
     sage_io::scenes::scene_dirs(&root).py()
 }
 
+/// How an evaluation scores its records, from the names Python passes.
+fn scoring(mode: &str, dtw: &str) -> PyResult<Scoring> {
+    Ok(Scoring {
+        mode: mode.parse().py()?,
+        dtw: dtw.parse().py()?,
+    })
+}
+
 /// The settings of an evaluation. `agent` is the recorded name; a Python agent has no
 /// built-in kind, and its kind here only fills the field that [`Runner::agent_name`]
 /// overrides in every file.
@@ -44,7 +53,7 @@ fn settings(
     scenes: PathBuf,
     split: &str,
     agent: &str,
-    mode: &str,
+    scoring: Scoring,
     seed: u64,
     preset: &str,
 ) -> PyResult<EvalSettings> {
@@ -53,7 +62,8 @@ fn settings(
         scenes,
         split: split.to_string(),
         agent: agent.parse().unwrap_or(AgentKind::Forward),
-        mode: mode.parse().py()?,
+        mode: scoring.mode,
+        dtw: scoring.dtw,
         seed,
         preset: preset.to_string(),
     })
@@ -66,7 +76,7 @@ fn settings(
 /// `sage3d eval`; otherwise the environment is `preset` with `overrides` (JSON; a Python agent
 /// sees the preset's images) and only the episodes of the scenes in `scenes_only` run.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None))]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact"))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -81,6 +91,7 @@ pub fn evaluate<'py>(
     preset: &str,
     overrides: Option<&str>,
     scenes_only: Option<Vec<String>>,
+    dtw: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let builtin: Option<AgentKind> = match agent.extract::<String>() {
         Ok(name) => Some(name.parse().py()?),
@@ -91,7 +102,15 @@ pub fn evaluate<'py>(
         (None, Some(n)) => n,
         (None, None) => return Err(PyValueError::new_err("a Python agent needs agent_name")),
     };
-    let settings = settings(dataset, scenes, split, &name, mode, seed, preset)?;
+    let settings = settings(
+        dataset,
+        scenes,
+        split,
+        &name,
+        scoring(mode, dtw)?,
+        seed,
+        preset,
+    )?;
     let factory = agent.clone().unbind();
     let outcome = if builtin.is_some() && overrides.is_none() && scenes_only.is_none() {
         py.detach(|| eval::run(&settings, &out, &|_, _| {}))
@@ -155,7 +174,7 @@ struct Evaluated {
 /// `sage3d_run.json`, as one `sage3d eval` over the union writes them (up to line order).
 /// Returns the summary. An episode recorded by two shards is an error.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage"))]
+#[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage", dtw="exact"))]
 #[allow(clippy::too_many_arguments)]
 pub fn merge_eval<'py>(
     py: Python<'py>,
@@ -168,8 +187,17 @@ pub fn merge_eval<'py>(
     mode: &str,
     seed: u64,
     preset: &str,
+    dtw: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let settings = settings(dataset, scenes, split, &agent_name, mode, seed, preset)?;
+    let settings = settings(
+        dataset,
+        scenes,
+        split,
+        &agent_name,
+        scoring(mode, dtw)?,
+        seed,
+        preset,
+    )?;
     let summary = py
         .detach(|| eval::merge_shards(&settings, &agent_name, &shards, &out))
         .py()?;

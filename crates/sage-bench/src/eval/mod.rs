@@ -23,7 +23,7 @@ use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_io::run::RUN_RECORD;
 use sage_lang::{InstructionType, Level};
-use sage_metrics::{self, EpisodeMetrics, EpisodeRecord, Mode};
+use sage_metrics::{self, Dtw, EpisodeMetrics, EpisodeRecord, Mode, Scoring};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -48,10 +48,23 @@ pub struct EvalSettings {
     pub agent: AgentKind,
     /// Metric mode.
     pub mode: Mode,
+    /// The alignment of nDTW (exact unless asked).
+    #[serde(default)]
+    pub dtw: Dtw,
     /// Seed of the agent (each episode mixes in its id).
     pub seed: u64,
     /// Environment preset (`sage` or `vlnce`).
     pub preset: String,
+}
+
+impl EvalSettings {
+    /// How the run's records are scored.
+    pub fn scoring(&self) -> Scoring {
+        Scoring {
+            mode: self.mode,
+            dtw: self.dtw,
+        }
+    }
 }
 
 /// One finished episode: the line appended to `RUN/episodes.jsonl`.
@@ -205,7 +218,7 @@ fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
 fn run_one(
     ctx: &Arc<sage_env::SceneContext>,
     runner: &Runner,
-    mode: Mode,
+    scoring: Scoring,
     e: &Episode,
 ) -> EvalRecord {
     let mut rec = blank_record(runner, e);
@@ -215,7 +228,7 @@ fn run_one(
         let agent = agent.insert((runner.agent)()?);
         let trace = run_episode(&mut env, agent.as_mut(), &e.env_episode())?;
         let record = sage_env::scoring::metric_record(ctx, &trace);
-        let m = sage_metrics::evaluate(&record, mode)?;
+        let m = sage_metrics::evaluate(&record, scoring)?;
         Ok::<_, Error>((trace.termination, m, record))
     })();
     match result {
@@ -351,7 +364,7 @@ pub fn run_with(
             .map(Arc::new);
         eps.par_iter().try_for_each(|e| {
             let rec = match &ctx {
-                Ok(ctx) => run_one(ctx, runner, settings.mode, e),
+                Ok(ctx) => run_one(ctx, runner, settings.scoring(), e),
                 Err(err) => EvalRecord {
                     error: Some(err.to_string()),
                     ..blank_record(runner, e)

@@ -5,7 +5,7 @@
 //! `summary.json`) do not depend on the order episodes finished in.
 
 use super::{EvalRecord, EvalSettings};
-use sage_metrics::{Aggregate, Mode, aggregate};
+use sage_metrics::{Aggregate, Dtw, Mode, aggregate};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -22,6 +22,9 @@ pub struct Summary {
     pub split: String,
     /// The metric mode the numbers are in.
     pub mode: Mode,
+    /// The alignment nDTW and SDTW used.
+    #[serde(default)]
+    pub dtw: Dtw,
     /// Episodes recorded.
     pub episodes: usize,
     /// Ids of episodes that failed (recorded with an error, left out of the means).
@@ -66,6 +69,7 @@ impl Summary {
             agent: settings.agent.to_string(),
             split: settings.split.clone(),
             mode,
+            dtw: settings.dtw,
             episodes: records.len(),
             failed: records
                 .iter()
@@ -93,10 +97,11 @@ impl Summary {
         let mut t = String::new();
         let _ = writeln!(
             t,
-            "agent {} · split {} · mode {} · {} episodes ({} failed)",
+            "agent {} · split {} · mode {} · {} DTW · {} episodes ({} failed)",
             self.agent,
             self.split,
             self.mode,
+            self.dtw,
             self.episodes,
             self.failed.len()
         );

@@ -172,6 +172,7 @@ pub fn page(input: &PageInput) -> Result<String> {
     let scored = s.episodes - s.failed.len();
     let rows = [
         ("metric mode", s.mode.to_string()),
+        ("nDTW alignment", format!("{} DTW", s.dtw)),
         ("agent", s.agent.clone()),
         ("split", s.split.clone()),
         ("preset", setting("preset")),
@@ -196,9 +197,9 @@ pub fn page(input: &PageInput) -> Result<String> {
     let _ = write!(
         t,
         "<h2>Metrics</h2>\n<p>Means over the scored episodes, in metric mode <b>{}</b> \
-         (each metric over the episodes that define it; <code>-</code>: none does). \
+         with {} DTW for nDTW (each metric over the episodes that define it; <code>-</code>: none does). \
          The same numbers as <code>summary.json</code>.</p>\n<h3>overall</h3>\n",
-        s.mode
+        s.mode, s.dtw
     );
     metric_table(&mut t, "", &[("overall", &s.overall)]);
     for axis in AXES {

@@ -69,7 +69,7 @@ def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
 def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: str = "sage",
              seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             num_cpus: float = 1) -> dict:
+             num_cpus: float = 1, dtw: str = "exact") -> dict:
     """:func:`sage3d.evaluate` with one Ray task per scene of the split.
 
     Task ``scene`` runs (or resumes) the run folder ``out/shards/{scene}``; the driver merges
@@ -83,11 +83,11 @@ def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: st
     overrides = overrides_json(width, height, sensors, config)
     name = agent_name(agent)
     kwargs = dict(agent_name=None if isinstance(agent, str) else name, split=split, mode=mode,
-                  seed=seed, preset=preset, overrides=overrides)
+                  seed=seed, preset=preset, overrides=overrides, dtw=dtw)
     factory = agent_factory(agent)
     task = ray.remote(num_cpus=num_cpus)(_evaluate_shard)
     refs = [task.remote(dataset, scenes, factory, os.path.join(out, "shards", n), kwargs, n)
             for n in names]
     shards = ray.get(refs)
     return _sage3d.merge_eval(dataset, scenes, out, name, shards, split=split,
-                              mode=mode, seed=seed, preset=preset)
+                              mode=mode, seed=seed, preset=preset, dtw=dtw)

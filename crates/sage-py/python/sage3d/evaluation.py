@@ -52,7 +52,7 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
 def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: str = "sage",
              seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             scenes_only: list[str] | None = None) -> dict:
+             scenes_only: list[str] | None = None, dtw: str = "exact") -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
     resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json`` and
     ``sage3d_run.json`` as ``sage3d eval`` writes them.
@@ -64,9 +64,11 @@ def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: st
     Each episode gets a fresh agent (the class called, or a deep copy of the object). Episodes
     run in parallel; Python agents decide one at a time under the GIL while rendering and
     physics run in parallel. ``scenes_only`` runs only the episodes of those scenes (a shard).
+    ``mode`` and ``dtw`` (``"exact"`` or ``"fast"``, VLN-CE's FastDTW) choose how episodes are
+    scored, as ``sage3d eval --mode/--dtw``.
     """
     overrides = overrides_json(width, height, sensors, config)
     return _sage3d.evaluate(
         os.fspath(dataset), os.fspath(scenes), os.fspath(out), agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), split=split,
-        mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only)
+        mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only, dtw=dtw)
