@@ -56,10 +56,28 @@ def test_env_over_a_dataset_starts_where_the_episodes_start(data):
         sg.make_env(dataset=out)
 
 
-def cli_eval(sage3d, data, agent, out, split="train"):
+def cli_eval(sage3d, data, agent, out, split="train", *flags):
     scenes, dataset = data
-    sage3d("eval", dataset, "--scenes", scenes, "--agent", agent, "--split", split, "--out", out)
+    sage3d("eval", dataset, "--scenes", scenes, "--agent", agent, "--split", split, "--out", out,
+           *flags)
     return sorted(jsonl(out / "episodes.jsonl"), key=lambda r: r["episode_id"])
+
+
+def test_metric_mode_and_dtw_from_python_equal_the_cli(data, sage3d, tmp_path):
+    scenes, dataset = data
+    expected = cli_eval(sage3d, data, "forward", tmp_path / "cli", "train", "--mode", "vlnce",
+                        "--dtw", "fast")
+    sg.evaluate(dataset, scenes, "forward", tmp_path / "py", split="train", mode="vlnce", dtw="fast")
+    got = sorted(jsonl(tmp_path / "py" / "episodes.jsonl"), key=lambda r: r["episode_id"])
+    assert got == expected
+    summary = json.loads((tmp_path / "py" / "summary.json").read_text())
+    assert summary["mode"] == "vlnce" and summary["dtw"] == "fast"
+    assert (tmp_path / "py" / "summary.json").read_bytes() == (tmp_path / "cli" / "summary.json").read_bytes()
+    # A run folder resumes only the same scoring.
+    with pytest.raises(ValueError, match="other settings"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "py", split="train", mode="vlnce")
+    with pytest.raises(ValueError, match="expected exact or fast"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", dtw="approx")
 
 
 def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):

@@ -257,6 +257,8 @@ fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str
             if let Some(o) = v.as_object_mut() {
                 o.remove("dataset");
                 o.remove("scenes");
+                // Runs recorded before the DTW choice existed used exact DTW.
+                o.entry("dtw").or_insert_with(|| Dtw::Exact.as_str().into());
             }
             v
         };
