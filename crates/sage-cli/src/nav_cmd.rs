@@ -121,6 +121,14 @@ pub fn print_map(r: &MapReport) {
         r.unknown,
         r.out.display()
     );
+    if let Some(n) = r.published_entries {
+        println!(
+            "  the published builder's map of the scene's occupancy image: {n} entries -> {}",
+            r.out
+                .join(sage_nav::published_map::file_name(&r.scene))
+                .display()
+        );
+    }
 }
 
 fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {

@@ -20,29 +20,64 @@ use std::collections::BTreeMap;
 /// Unable-area components smaller than this (pixels) are dropped, as the builder drops them.
 pub const MIN_UNABLE_PIXELS: usize = 5;
 
+/// The builder's fixed category ids (1–11, exact labels); other labels get 12, 13, … in order
+/// of first appearance in `labels.json`, and unable areas −1.
+pub const FIXED_CATEGORIES: [&str; 11] = [
+    "door", "window", "chair", "table", "sofa", "bed", "wardrobe", "plant", "floor", "wall",
+    "ceiling",
+];
+
+/// One object as the builder reads it from `labels.json`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LabelledFootprint<'a> {
+    /// `label`, as written.
+    pub label: &'a str,
+    /// `ins_id`.
+    pub ins_id: &'a str,
+    /// Corners 0–3 of `bounding_box`: the footprint polygon.
+    pub corners: [Vec2; 4],
+    /// Lowest and highest z of the eight corners.
+    pub z: [f32; 2],
+}
+
 /// One entry of the published map: an object, a wall component or an unable area.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PublishedEntry {
-    /// `item_id`: the label in lower case with spaces as `_`, then `_{n}` counted per label.
-    pub item_id: String,
+    /// `category_id` (see [`FIXED_CATEGORIES`]).
+    pub category_id: i64,
     /// `category_label`: the object's label as written, `wall` or `Unable Area`.
     pub label: String,
+    /// `instance_id`: the object's `ins_id`, `wall_{k}` or `unable_area_{k}` (k counts every
+    /// component, kept or not).
+    pub instance_id: String,
+    /// `item_id`: the label in lower case with spaces as `_`, then `_{n}` counted per label
+    /// over the kept entries.
+    pub item_id: String,
     /// Lower corner of `bbox_m`, reflected into the world frame, metres.
     pub min: [f64; 2],
     /// Upper corner of `bbox_m`, reflected into the world frame, metres.
     pub max: [f64; 2],
-    /// Pixels in the entry's mask.
-    pub area: usize,
+    /// The mask's pixels `(column, row)` in the builder's frame, row by row.
+    pub pixels: Vec<(usize, usize)>,
+    /// `min_z_m`, `max_z_m`.
+    pub z: [f64; 2],
 }
 
 /// The published map of a scene: objects in `labels.json` order, then walls, then unable areas.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct PublishedMap {
     /// The entries, in the builder's order.
     pub entries: Vec<PublishedEntry>,
+    grid: Grid,
 }
 
-/// The builder's grid: placement in f64 and the M-frame extent of a mask.
+/// The file name the published harness looks for: `2D_Semantic_Map_{scene}_Complete.json`.
+pub fn file_name(scene: &str) -> String {
+    format!("2D_Semantic_Map_{scene}_Complete.json")
+}
+
+/// The builder's grid: the occupancy placement in f64 and the image size.
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Grid {
     x0: f64,
     y0: f64,
@@ -51,38 +86,48 @@ struct Grid {
     h: usize,
 }
 
-/// Column and row ranges of a mask in the M frame (inclusive).
-#[derive(Clone, Copy)]
-struct PixelBox {
-    cols: (usize, usize),
-    rows: (usize, usize),
+/// `f"{v:.2f}"`: how the builder writes every metric value.
+fn format2(v: f64) -> String {
+    format!("{v:.2}")
 }
 
-impl PixelBox {
-    fn at(col: usize, row: usize) -> PixelBox {
-        PixelBox {
-            cols: (col, col),
-            rows: (row, row),
-        }
-    }
-
-    fn grow(&mut self, col: usize, row: usize) {
-        self.cols = (self.cols.0.min(col), self.cols.1.max(col));
-        self.rows = (self.rows.0.min(row), self.rows.1.max(row));
-    }
-}
-
-/// `f"{v:.2f}"` read back as a number: bounds are stored as two-decimal strings.
+/// `f"{v:.2f}"` read back as a number, as the evaluator reads the bounds.
 fn two_decimals(v: f64) -> f64 {
-    format!("{v:.2}").parse().unwrap_or(v)
+    format2(v).parse().unwrap_or(v)
 }
 
 impl Grid {
-    /// The world-frame box of an M-frame pixel box: pixel edges, rounded in M, reflected.
-    fn world_box(&self, b: PixelBox) -> ([f64; 2], [f64; 2]) {
-        let m = |origin: f64, k: usize| two_decimals(origin + k as f64 * self.s);
-        let (left, right) = (m(self.x0, b.cols.0), m(self.x0, b.cols.1 + 1));
-        let (bottom, top) = (m(self.y0, b.rows.0), m(self.y0, b.rows.1 + 1));
+    /// The grid of an occupancy map, placed in double precision as the builder reads
+    /// `occupancy.json`.
+    fn of(occupancy: &OccupancyMap) -> Grid {
+        let [s, x0, y0] = occupancy.exact_placement;
+        Grid {
+            x0,
+            y0,
+            s,
+            w: occupancy.width,
+            h: occupancy.height,
+        }
+    }
+
+    /// `bbox_m` of a mask in the builder's frame: the pixel edges `[left, bottom, right, top]`.
+    fn bbox(&self, pixels: &[(usize, usize)]) -> [f64; 4] {
+        let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
+        for &(c, r) in pixels {
+            (c0, c1, r0, r1) = (c0.min(c), c1.max(c), r0.min(r), r1.max(r));
+        }
+        let at = |origin: f64, k: usize| origin + k as f64 * self.s;
+        [
+            at(self.x0, c0),
+            at(self.y0, r0),
+            at(self.x0, c1 + 1),
+            at(self.y0, r1 + 1),
+        ]
+    }
+
+    /// A mask's box as the evaluator reads it (two decimals), reflected into the world frame.
+    fn world_box(&self, pixels: &[(usize, usize)]) -> ([f64; 2], [f64; 2]) {
+        let [left, bottom, right, top] = self.bbox(pixels).map(two_decimals);
         let cx = 2.0 * self.x0 + self.w as f64 * self.s;
         let cy = 2.0 * self.y0 + self.h as f64 * self.s;
         ([cx - right, cy - top], [cx - left, cy - bottom])
@@ -113,9 +158,10 @@ fn covers(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
     inside
 }
 
-/// The 8-connected components of the M-frame mask `on(col, row)`, numbered in raster order of
-/// their first pixel (as `scipy.ndimage.label` numbers them), with their boxes and pixel counts.
-fn components(g: &Grid, on: impl Fn(usize, usize) -> bool) -> Vec<(PixelBox, usize)> {
+/// The 8-connected components of the builder-frame mask `on(col, row)`, numbered in raster
+/// order of their first pixel (as `scipy.ndimage.label` numbers them), each as its pixels row
+/// by row.
+fn components(g: &Grid, on: impl Fn(usize, usize) -> bool) -> Vec<Vec<(usize, usize)>> {
     let mut seen = vec![false; g.w * g.h];
     let mut out = Vec::new();
     let mut stack = Vec::new();
@@ -126,10 +172,9 @@ fn components(g: &Grid, on: impl Fn(usize, usize) -> bool) -> Vec<(PixelBox, usi
             }
             seen[row * g.w + col] = true;
             stack.push((col, row));
-            let (mut b, mut n) = (PixelBox::at(col, row), 0);
+            let mut pixels = Vec::new();
             while let Some((c, r)) = stack.pop() {
-                b.grow(c, r);
-                n += 1;
+                pixels.push((c, r));
                 for (dc, dr) in [
                     (-1, -1),
                     (0, -1),
@@ -151,7 +196,8 @@ fn components(g: &Grid, on: impl Fn(usize, usize) -> bool) -> Vec<(PixelBox, usi
                     }
                 }
             }
-            out.push((b, n));
+            pixels.sort_unstable_by_key(|&(c, r)| (r, c));
+            out.push(pixels);
         }
     }
     out
@@ -166,9 +212,8 @@ fn wall_value(cells: &[u8]) -> u8 {
     }
     let mut best: Option<u8> = None;
     for v in 1u8..250 {
-        if counts[usize::from(v)] > 0
-            && best.is_none_or(|b| counts[usize::from(v)] > counts[usize::from(b)])
-        {
+        let n = counts[usize::from(v)];
+        if n > 0 && best.is_none_or(|b| n > counts[usize::from(b)]) {
             best = Some(v);
         }
     }
@@ -182,65 +227,135 @@ fn wall_value(cells: &[u8]) -> u8 {
 impl PublishedMap {
     /// The published map of a scene's objects over its occupancy image.
     pub fn build(objects: &[Object], occupancy: &OccupancyMap) -> PublishedMap {
-        let footprints = objects
-            .iter()
-            .map(|o| (o.label.as_str(), o.obb.footprint()));
+        let footprints = objects.iter().map(|o| LabelledFootprint {
+            label: &o.label,
+            ins_id: &o.ins_id,
+            corners: o.obb.footprint(),
+            z: [o.obb.min_z(), o.obb.max_z()],
+        });
         PublishedMap::from_footprints(footprints, occupancy)
     }
 
-    /// The published map of labelled footprints (each an object's `bounding_box` corners 0–3)
-    /// over an occupancy image.
+    /// The published map of the objects of `labels.json` over an occupancy image.
     pub fn from_footprints<'a>(
-        objects: impl IntoIterator<Item = (&'a str, [Vec2; 4])>,
+        objects: impl IntoIterator<Item = LabelledFootprint<'a>>,
         occupancy: &OccupancyMap,
     ) -> PublishedMap {
-        // The placement is kept in f32; its shortest decimal form is the number the JSON held
-        // (to f32's seven digits), which the builder reads as f64.
-        let wide = |v: f32| v.to_string().parse::<f64>().unwrap_or(f64::from(v));
-        let g = Grid {
-            x0: wide(occupancy.lower.x),
-            y0: wide(occupancy.lower.y),
-            s: wide(occupancy.scale),
-            w: occupancy.width,
-            h: occupancy.height,
-        };
+        let g = Grid::of(occupancy);
+        let objects: Vec<LabelledFootprint> = objects.into_iter().collect();
+        let mut category: BTreeMap<&str, i64> = FIXED_CATEGORIES
+            .iter()
+            .zip(1..)
+            .map(|(c, k)| (*c, k))
+            .collect();
+        for o in &objects {
+            let next = category.len() as i64 + 1;
+            category.entry(o.label).or_insert(next);
+        }
         let mut counters: BTreeMap<String, usize> = BTreeMap::new();
-        let mut entry = |label: &str, b: PixelBox, area: usize| {
+        let mut entry = |category_id: i64,
+                         label: &str,
+                         instance_id: String,
+                         pixels: Vec<(usize, usize)>,
+                         z: [f64; 2]| {
             let n = counters.entry(label.to_string()).or_insert(0);
             *n += 1;
-            let (min, max) = g.world_box(b);
+            let (min, max) = g.world_box(&pixels);
             PublishedEntry {
-                item_id: format!("{}_{n}", label.trim().to_lowercase().replace(' ', "_")),
+                category_id,
                 label: label.to_string(),
+                instance_id,
+                item_id: format!("{}_{n}", label.trim().to_lowercase().replace(' ', "_")),
                 min,
                 max,
-                area,
+                pixels,
+                z,
             }
         };
         let mut entries = Vec::new();
-        for (label, footprint) in objects {
-            if let Some((b, area)) = rasterise(&g, &footprint) {
-                entries.push(entry(label, b, area));
+        for o in &objects {
+            if let Some(pixels) = rasterise(&g, &o.corners) {
+                let z = o.z.map(f64::from);
+                entries.push(entry(
+                    category[o.label],
+                    o.label,
+                    o.ins_id.to_string(),
+                    pixels,
+                    z,
+                ));
             }
         }
-        // M row `row` is image row `h − 1 − row` (the builder flips the image upside down).
+        // Builder row `row` is image row `h − 1 − row` (the builder flips the image upside down).
         let pixel = |col: usize, row: usize| occupancy.get(col, g.h - 1 - row);
         let wall = wall_value(&occupancy.cells);
-        for (b, area) in components(&g, |c, r| pixel(c, r) == wall) {
-            entries.push(entry("wall", b, area));
+        for (k, pixels) in components(&g, |c, r| pixel(c, r) == wall)
+            .into_iter()
+            .enumerate()
+        {
+            entries.push(entry(
+                category["wall"],
+                "wall",
+                format!("wall_{}", k + 1),
+                pixels,
+                [0.0, 3.0],
+            ));
         }
-        for (b, area) in components(&g, |c, r| pixel(c, r) == 0) {
-            if area >= MIN_UNABLE_PIXELS {
-                entries.push(entry("Unable Area", b, area));
+        for (k, pixels) in components(&g, |c, r| pixel(c, r) == 0)
+            .into_iter()
+            .enumerate()
+        {
+            if pixels.len() >= MIN_UNABLE_PIXELS {
+                let id = format!("unable_area_{}", k + 1);
+                entries.push(entry(-1, "Unable Area", id, pixels, [0.0, 0.0]));
             }
         }
-        PublishedMap { entries }
+        PublishedMap { entries, grid: g }
+    }
+
+    /// The map as the published builder writes it (`2D_Semantic_Map_{scene}_Complete.json`):
+    /// an array of entries in its own frame, every metric value a two-decimal string, masks as
+    /// `[y, x]` pixel centres. The published harness reads this file unchanged.
+    pub fn to_json(&self) -> serde_json::Value {
+        let g = &self.grid;
+        let entries: Vec<serde_json::Value> = self
+            .entries
+            .iter()
+            .map(|e| {
+                let [left, bottom, right, top] = g.bbox(&e.pixels);
+                let mask: Vec<[String; 2]> = e
+                    .pixels
+                    .iter()
+                    .map(|&(c, r)| {
+                        [
+                            format2(g.y0 + (r as f64 + 0.5) * g.s),
+                            format2(g.x0 + (c as f64 + 0.5) * g.s),
+                        ]
+                    })
+                    .collect();
+                let bbox = [left, bottom, right, top].map(format2);
+                let xywh = [left, bottom, right - left, top - bottom].map(format2);
+                serde_json::json!({
+                    "category_id": e.category_id,
+                    "category_label": e.label,
+                    "instance_id": e.instance_id,
+                    "item_id": e.item_id,
+                    "bbox_m": bbox,
+                    "bbox_xywh_m": xywh,
+                    "area": e.pixels.len(),
+                    "height_m": format2(e.z[1] - e.z[0]),
+                    "min_z_m": format2(e.z[0]),
+                    "max_z_m": format2(e.z[1]),
+                    "mask_coords_m": mask,
+                })
+            })
+            .collect();
+        serde_json::Value::Array(entries)
     }
 }
 
-/// The M-frame pixel box and pixel count of a footprint rasterised at pixel centres, or `None`
-/// when no pixel centre is covered (the builder skips such objects).
-fn rasterise(g: &Grid, footprint: &[Vec2; 4]) -> Option<(PixelBox, usize)> {
+/// The builder-frame pixels whose centres a footprint covers, row by row, or `None` when there
+/// are none (the builder skips such objects).
+fn rasterise(g: &Grid, footprint: &[Vec2; 4]) -> Option<Vec<(usize, usize)>> {
     let poly: Vec<[f64; 2]> = footprint
         .iter()
         .map(|p| [f64::from(p.x), f64::from(p.y)])
@@ -258,22 +373,17 @@ fn rasterise(g: &Grid, footprint: &[Vec2; 4]) -> Option<(PixelBox, usize)> {
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
             (a.min(p[1]), b.max(p[1]))
         });
-    let mut found: Option<PixelBox> = None;
-    let mut area = 0;
+    let mut pixels = Vec::new();
     for j in index(lo_x, g.x0, g.w)..=index(hi_x, g.x0, g.w) {
         for i in index(lo_y, g.y0, g.h)..=index(hi_y, g.y0, g.h) {
             let centre = [g.x0 + (j as f64 + 0.5) * g.s, g.y0 + (i as f64 + 0.5) * g.s];
             if covers(&poly, centre) {
-                let (col, row) = (g.w - 1 - j, g.h - 1 - i);
-                area += 1;
-                match &mut found {
-                    Some(b) => b.grow(col, row),
-                    None => found = Some(PixelBox::at(col, row)),
-                }
+                pixels.push((g.w - 1 - j, g.h - 1 - i));
             }
         }
     }
-    found.map(|b| (b, area))
+    pixels.sort_unstable_by_key(|&(c, r)| (r, c));
+    (!pixels.is_empty()).then_some(pixels)
 }
 
 #[cfg(test)]
@@ -285,6 +395,8 @@ mod tests {
     /// A 20 × 10 map at 0.1 m from (0, 0): unknown border, free inside, one occupied pillar.
     fn map() -> OccupancyMap {
         let mut m = OccupancyMap::new(Vec3::ZERO, Vec3::new(2.0, 1.0, 3.0), 0.1).unwrap();
+        // As `occupancy.json` would hold it ("scale": 0.1), not the f32 widened.
+        m.exact_placement = [0.1, 0.0, 0.0];
         for r in 0..m.height {
             for c in 0..m.width {
                 let border = r == 0 || c == 0 || r + 1 == m.height || c + 1 == m.width;
@@ -298,16 +410,20 @@ mod tests {
         m
     }
 
-    /// An axis-aligned footprint.
-    fn object(label: &str, centre: [f32; 2], half: [f32; 2]) -> (&str, [Vec2; 4]) {
+    /// An axis-aligned footprint 0.8 m tall.
+    fn object(label: &'static str, centre: [f32; 2], half: [f32; 2]) -> LabelledFootprint<'static> {
         let (c, h) = (Vec2::from(centre), Vec2::from(half));
-        let f = [
-            c - h,
-            c + Vec2::new(h.x, -h.y),
-            c + h,
-            c + Vec2::new(-h.x, h.y),
-        ];
-        (label, f)
+        LabelledFootprint {
+            label,
+            ins_id: "7",
+            corners: [
+                c - h,
+                c + Vec2::new(h.x, -h.y),
+                c + h,
+                c + Vec2::new(-h.x, h.y),
+            ],
+            z: [0.0, 0.8],
+        }
     }
 
     #[test]
@@ -315,30 +431,37 @@ mod tests {
         let objects = [
             object("Coffee Table", [0.5, 0.5], [0.2, 0.1]),
             object("Coffee Table", [1.5, 0.5], [0.02, 0.02]),
-            object("Chair", [1.5, 0.5], [0.1, 0.1]),
+            object("chair", [1.5, 0.5], [0.1, 0.1]),
         ];
         let map = PublishedMap::from_footprints(objects, &map());
         let ids: Vec<&str> = map.entries.iter().map(|e| e.item_id.as_str()).collect();
         // The tiny table covers no pixel centre and is skipped without using up a number;
-        // the unknown border is the wall grey (one component); the block is an unable area.
+        // the unknown border is the wall grey (one component); the block is an unable area and
+        // the lone pixel is dropped, though it numbers component 1 (the builder's rows run
+        // upward from the image's last row, so it comes first).
         assert_eq!(
             ids,
             ["coffee_table_1", "chair_1", "wall_1", "unable_area_1"]
         );
+        let cats: Vec<i64> = map.entries.iter().map(|e| e.category_id).collect();
+        assert_eq!(cats, [12, 3, 10, -1]);
         let table = &map.entries[0];
         // Pixel centres 0.35..0.65 × 0.45, 0.55 are covered: edges 0.3..0.7 × 0.4..0.6.
         for (got, want) in table.min.iter().chain(&table.max).zip([0.3, 0.4, 0.7, 0.6]) {
             assert!((got - want).abs() < 1e-9, "{:?} {:?}", table.min, table.max);
         }
-        assert_eq!(table.area, 8);
+        assert_eq!(table.pixels.len(), 8);
         let wall = &map.entries[2];
         assert_eq!(
-            (wall.min, wall.max, wall.area),
+            (wall.min, wall.max, wall.pixels.len()),
             ([0.0, 0.0], [2.0, 1.0], 56)
         );
         // Image columns 5–7 hold world x 1.2..1.5 (column 0 at max-x); rows 3–4 world y 0.3..0.5.
         let unable = &map.entries[3];
-        assert_eq!(unable.label, "Unable Area");
+        assert_eq!(
+            (unable.label.as_str(), unable.instance_id.as_str()),
+            ("Unable Area", "unable_area_2")
+        );
         for (got, want) in unable
             .min
             .iter()
@@ -352,6 +475,24 @@ mod tests {
                 unable.max
             );
         }
+        // The file: the builder's frame is the world reflected through (2, 1).
+        let json = map.to_json();
+        let t = &json[0];
+        assert_eq!(
+            t["bbox_m"],
+            serde_json::json!(["1.30", "0.40", "1.70", "0.60"])
+        );
+        assert_eq!(
+            t["bbox_xywh_m"],
+            serde_json::json!(["1.30", "0.40", "0.40", "0.20"])
+        );
+        assert_eq!(
+            (t["area"].as_u64(), t["height_m"].as_str()),
+            (Some(8), Some("0.80"))
+        );
+        assert_eq!(t["mask_coords_m"][0], serde_json::json!(["0.45", "1.35"]));
+        assert_eq!(json[2]["instance_id"], "wall_1");
+        assert_eq!(json[3]["category_label"], "Unable Area");
     }
 
     #[test]
@@ -365,6 +506,7 @@ mod tests {
         assert!(covers(&sq, [0.0, 0.0]));
         assert!(!covers(&sq, [1.0001, 0.5]));
         assert_eq!(two_decimals(0.30000000000000004), 0.3);
+        assert_eq!(format2(0.125), "0.12");
         assert_eq!(two_decimals(1.23456), 1.23);
     }
 }

@@ -1,8 +1,9 @@
 //! A scene's navigation map step: the semantic top-down map and the occupancy grid of an
-//! agent's height slab, written beside the scene.
+//! agent's height slab, written beside the scene, and the published SAGE-3D builder's map of
+//! the scene's own occupancy image (the file the published harness reads).
 
 use sage_core::{Error, Result};
-use sage_nav::{GridParams, NavGrid, SemanticMap};
+use sage_nav::{GridParams, NavGrid, PublishedMap, SemanticMap, published_map};
 use sage_scene::Scene;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -34,12 +35,16 @@ pub struct MapReport {
     pub occupied: usize,
     /// Unknown cells.
     pub unknown: usize,
+    /// Entries of the published map (`2D_Semantic_Map_{scene}_Complete.json`); `None` when the
+    /// scene has no occupancy image to cut it from.
+    pub published_entries: Option<usize>,
     /// The output folder.
     pub out: PathBuf,
 }
 
-/// Writes `semantic_map.json`, `semantic_map.png`, `occupancy.png` + `occupancy.json` and the
-/// run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`).
+/// Writes `semantic_map.json`, `semantic_map.png`, `occupancy.png` + `occupancy.json`, the
+/// published map `2D_Semantic_Map_{scene}_Complete.json` (when the scene has an occupancy
+/// image) and the run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`).
 ///
 /// # Errors
 ///
@@ -56,6 +61,16 @@ pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Re
         .save_png(&out.join("semantic_map.png"))?;
     grid.to_occupancy((grid_params.slab_bottom, grid_params.agent_height))?
         .save(&out)?;
+    let published = scene
+        .occupancy
+        .as_ref()
+        .map(|occ| PublishedMap::build(&scene.objects, occ));
+    if let Some(p) = &published {
+        sage_io::files::write_json(
+            &out.join(published_map::file_name(&scene.name)),
+            &p.to_json(),
+        )?;
+    }
     let (free, occupied, unknown) = grid.counts();
     sage_io::run::write_run_record(
         &out,
@@ -85,6 +100,7 @@ pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Re
         free,
         occupied,
         unknown,
+        published_entries: published.map(|p| p.entries.len()),
         out,
     })
 }

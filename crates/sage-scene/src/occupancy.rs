@@ -33,6 +33,11 @@ pub struct OccupancyMap {
     pub height: usize,
     /// Row-major cells, `height × width`.
     pub cells: Vec<u8>,
+    /// `scale`, `min[0]` and `min[1]` at the precision `occupancy.json` holds them. Tools that
+    /// compute in double precision from the file (the published SAGE-3D map builder) need them
+    /// unrounded; a map built in memory holds its f32 values widened, which is what
+    /// [`OccupancyMap::save`] writes.
+    pub exact_placement: [f64; 3],
 }
 
 impl OccupancyMap {
@@ -56,6 +61,7 @@ impl OccupancyMap {
             width,
             height,
             cells: vec![UNKNOWN; width * height],
+            exact_placement: [scale, lower.x, lower.y].map(f64::from),
         })
     }
 
@@ -95,12 +101,13 @@ impl OccupancyMap {
         let (scale, lower, upper) = parse_placement(&text).in_file(&json_path)?;
         let (width, height, cells) = read_gray_png(&png_path)?;
         Ok(OccupancyMap {
-            scale,
-            lower,
-            upper,
+            scale: scale as f32,
+            lower: Vec3::from_array(lower.map(|v| v as f32)),
+            upper: Vec3::from_array(upper.map(|v| v as f32)),
             width,
             height,
             cells,
+            exact_placement: [scale, lower[0], lower[1]],
         })
     }
 
@@ -124,7 +131,7 @@ impl OccupancyMap {
     }
 }
 
-fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<Vec3> {
+fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<[f64; 3]> {
     let (key, value) = keys
         .iter()
         .find_map(|k| v.get(*k).map(|x| (*k, x)))
@@ -135,27 +142,26 @@ fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<Vec3> {
         .as_array()
         .filter(|a| a.len() == 2 || a.len() == 3)
         .ok_or_else(|| Error::format(key, "expected an array of 2 or 3 numbers"))?;
-    let mut out = [0.0f32; 3];
+    let mut out = [0.0; 3];
     for (i, x) in arr.iter().enumerate() {
         out[i] = x
             .as_f64()
             .filter(|f| f.is_finite())
-            .ok_or_else(|| Error::format(format!("{key}[{i}]"), "expected a finite number"))?
-            as f32;
+            .ok_or_else(|| Error::format(format!("{key}[{i}]"), "expected a finite number"))?;
     }
-    Ok(Vec3::from_array(out))
+    Ok(out)
 }
 
-/// Reads `scale` and the bounds (accepting `min`/`lower` and `max`/`upper`).
-pub fn parse_placement(text: &str) -> Result<(f32, Vec3, Vec3)> {
+/// Reads `scale` and the bounds (accepting `min`/`lower` and `max`/`upper`), at the file's
+/// precision.
+pub fn parse_placement(text: &str) -> Result<(f64, [f64; 3], [f64; 3])> {
     let v: Value = serde_json::from_str(text)
         .map_err(|e| Error::format(format!("line {}", e.line()), e.to_string()))?;
     let scale = v
         .get("scale")
         .and_then(Value::as_f64)
         .filter(|s| *s > 0.0 && s.is_finite())
-        .ok_or_else(|| Error::format("scale", "missing or not a positive number"))?
-        as f32;
+        .ok_or_else(|| Error::format("scale", "missing or not a positive number"))?;
     Ok((
         scale,
         vec3_field(&v, ["min", "lower"])?,
