@@ -1,6 +1,7 @@
 //! What a scene contributes to every episode run in it, built once.
 
 use sage_core::{Error, Polygon2, Result};
+use sage_metrics::distance::LabelledBox;
 use sage_nav::{CostParams, GridParams, PathFinder, PublishedMap, SemanticMap, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies, World, WorldOptions, default_cache_dir};
 use sage_scene::Scene;
@@ -16,9 +17,10 @@ pub struct SceneContext {
     pub scene: Scene,
     /// The semantic map (item ids and footprints of goal objects).
     pub semantic: SemanticMap,
-    /// The published SAGE-3D builder's map of the scene (metric mode `sage-official` picks its
-    /// goal boxes there); `None` when the scene has no occupancy image to cut it from.
-    pub published: Option<PublishedMap>,
+    /// The boxes of the published SAGE-3D builder's map of the scene, among which metric mode
+    /// `sage-official` picks its goal box; `None` when the scene has no occupancy image to cut
+    /// the map from.
+    pub published_boxes: Option<Vec<LabelledBox>>,
     /// The physics world at rest, built once; every episode starts from a copy.
     world: World,
     /// The navigable grid for geodesic distances and the oracle.
@@ -40,15 +42,23 @@ impl SceneContext {
     ) -> Result<SceneContext> {
         let (pathfinder, _) = PathFinder::from_scene(&scene, grid, cost)?;
         let semantic = SemanticMap::build(&scene);
-        let published = scene
-            .occupancy
-            .as_ref()
-            .map(|occ| PublishedMap::build(&scene.objects, occ));
+        let published_boxes = scene.occupancy.as_ref().map(|occ| {
+            PublishedMap::build(&scene.objects, occ)
+                .entries
+                .into_iter()
+                .map(|x| LabelledBox {
+                    item_id: x.item_id,
+                    label: x.label,
+                    min: x.min,
+                    max: x.max,
+                })
+                .collect()
+        });
         let world = World::new(&scene, bodies, &WorldOptions::default());
         Ok(SceneContext {
             scene,
             semantic,
-            published,
+            published_boxes,
             world,
             pathfinder,
         })

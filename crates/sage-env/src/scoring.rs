@@ -6,7 +6,7 @@ use crate::context::SceneContext;
 use crate::episode::EpisodeTrace;
 use glam::Vec2;
 use sage_core::Result;
-use sage_metrics::distance::{GoalRegion, LabelledBox, OfficialGoal, official_goal_box};
+use sage_metrics::distance::{GoalRegion, OfficialGoal, official_goal_box};
 use sage_metrics::{EpisodeMetrics, EpisodeRecord, Geodesics, Mode, StepRecord};
 
 /// The metrics' record of a finished trace; the published code's goal box is chosen among the
@@ -22,27 +22,15 @@ pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
                 .collect()
         }),
     });
-    let official_goal = match &ctx.published {
+    let official_goal = match &ctx.published_boxes {
         None => OfficialGoal::NoMap,
-        Some(map) => {
-            let boxes: Vec<LabelledBox> = map
-                .entries
-                .iter()
-                .map(|x| LabelledBox {
-                    item_id: x.item_id.clone(),
-                    label: x.label.clone(),
-                    min: x.min,
-                    max: x.max,
-                })
-                .collect();
-            OfficialGoal::Map {
-                chosen: e
-                    .reference_path
-                    .last()
-                    .or(e.goal.as_ref().map(|g| &g.point))
-                    .and_then(|p| official_goal_box(&boxes, f(p.truncate()))),
-            }
-        }
+        Some(boxes) => OfficialGoal::Map {
+            chosen: e
+                .reference_path
+                .last()
+                .or(e.goal.as_ref().map(|g| &g.point))
+                .and_then(|p| official_goal_box(boxes, f(p.truncate()))),
+        },
     };
     EpisodeRecord {
         episode_id: e.id.clone(),
