@@ -115,10 +115,14 @@ def dataset(tmp_path_factory, sage3d):
     return scenes, data
 
 
-def run_eval(sage3d, dataset, tmp_path, agent):
+def run_eval(sage3d, dataset, tmp_path, agent, expect_failure=False):
     scenes, data = dataset
     out = tmp_path / "run"
-    sage3d("--threads", 1, "eval", data, "--scenes", scenes, "--split", "few", "--agent", agent, "--out", out)
+    proc = sage3d("--threads", 1, "eval", data, "--scenes", scenes, "--split", "few", "--agent", agent, "--out", out,
+                  check=not expect_failure)
+    if expect_failure:
+        assert proc.returncode != 0, "a run whose every episode failed must exit non-zero"
+        assert "every episode of the run failed" in proc.stderr, proc.stderr
     records = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     summary = json.loads((out / "summary.json").read_text())
     run = json.loads((out / "sage3d_run.json").read_text())
@@ -189,8 +193,10 @@ def test_a_dead_server_fails_each_episode_and_the_run_finishes(sage3d, dataset, 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    records, summary, _ = run_eval(sage3d, dataset, tmp_path, f"socket:127.0.0.1:{port}?retries=1&timeout=1")
+    records, summary, _ = run_eval(sage3d, dataset, tmp_path, f"socket:127.0.0.1:{port}?retries=1&timeout=1",
+                                   expect_failure=True)
     assert len(summary["failed"]) == len(records) > 0
     for r in records:
         assert f"127.0.0.1:{port}" in r["error"] and "after 2 attempts" in r["error"]
-        assert len(r["faults"]) == 2
+        assert [(f["step"], f["attempt"], f["kind"]) for f in r["faults"]] == [(0, 1, "transport"), (0, 2, "transport")]
+    assert summary["failures"] == {"model_server": len(records)}

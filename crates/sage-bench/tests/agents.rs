@@ -11,9 +11,9 @@ mod common;
 use base64::Engine;
 use base64::engine::general_purpose::STANDARD;
 
-use sage_bench::eval::{self, EvalRecord, EvalSettings, RunOutcome};
+use sage_bench::eval::{self, EvalRecord, EvalSettings, Failure, RunOutcome};
 use sage_env::SceneContext;
-use sage_env::agents::{OracleAgent, run_episode};
+use sage_env::agents::{FaultKind, OracleAgent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig};
 use sage_metrics::Mode;
 use serde_json::{Value, json};
@@ -486,11 +486,11 @@ fn socket_faults_are_retried_and_recorded_and_a_dead_server_fails_episodes_not_t
         .iter()
         .zip(["disconnected", "bad framing", "not JSON", "timed out"])
     {
-        assert!(
-            fault.contains(says) && fault.starts_with("step 0"),
-            "{fault}"
-        );
+        assert!(fault.message.contains(says) && fault.step == 0, "{fault}");
+        assert_eq!(fault.kind, FaultKind::Transport, "{fault}");
+        assert!(fault.recovered, "a later attempt succeeded: {fault}");
     }
+    assert_eq!(faulty[0].failure, None);
 
     // Garbage every time: each episode fails naming the server; the run still finishes.
     let (port, _) = socket_server(vec![json!({"result": "I would rather not."})], |_| {
@@ -510,7 +510,23 @@ fn socket_faults_are_retried_and_recorded_and_a_dead_server_fails_episodes_not_t
             "{e}"
         );
         assert_eq!(r.faults.len(), 2);
+        assert!(
+            r.faults
+                .iter()
+                .all(|f| f.kind == FaultKind::Unparseable && !f.recovered)
+        );
+        assert_eq!(r.failure, Some(Failure::ModelServer));
     }
+    assert_eq!(
+        outcome.summary.failures,
+        [(Failure::ModelServer, records.len())].into()
+    );
+    assert_eq!(
+        outcome.summary.faults,
+        [(FaultKind::Unparseable, 2 * records.len())].into()
+    );
+    // Nothing was scored: the run did not do what was asked, strict or not.
+    assert!(outcome.verdict(false).is_err());
 
     // Nobody listening: connection refused.
     let port = TcpListener::bind("127.0.0.1:0")
@@ -627,9 +643,10 @@ fn http_vln_step_agent_posts_images_and_instruction() {
     assert!(seen.iter().all(|s| s.body["current_yaw"] == 0.0));
     check_history(&seen, &instructions(), 8);
     // The 503 was retried and recorded on the first episode.
-    let faults: Vec<&String> = records.values().flat_map(|r| &r.faults).collect();
+    let faults: Vec<&sage_env::agents::Fault> = records.values().flat_map(|r| &r.faults).collect();
     assert_eq!(faults.len(), 1);
-    assert!(faults[0].contains("HTTP 503"), "{faults:?}");
+    assert!(faults[0].message.contains("HTTP 503"), "{faults:?}");
+    assert_eq!(faults[0].kind, FaultKind::Transport);
 }
 
 #[test]

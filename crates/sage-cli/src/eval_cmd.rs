@@ -21,7 +21,8 @@ pub struct EvalArgs {
     /// episode); socket:HOST:PORT (SAGE socket protocol), http:URL (POST /vln_step) or
     /// chat:MODEL@BASE_URL (OpenAI-compatible; key from OPENAI_API_KEY), with options
     /// ?history=8&timeout=60&retries=3&quality=90&repeat=3 (chat also temperature=0.1,
-    /// max_tokens=64). See docs/evaluation.md.
+    /// max_tokens=64; socket also server=navila|navid|mllm for the published SAGE-3D servers).
+    /// See docs/evaluation.md.
     #[arg(long)]
     agent: String,
     /// Dataset split (`DATASET/episodes/{split}.jsonl`).
@@ -42,6 +43,9 @@ pub struct EvalArgs {
     /// Run folder: episodes.jsonl, summary.json, sage3d_run.json. Rerunning into it resumes.
     #[arg(long)]
     out: PathBuf,
+    /// Exit non-zero when any episode failed (without it: only when every episode failed).
+    #[arg(long)]
+    strict: bool,
 }
 
 /// Runs or resumes the evaluation and prints its tables.
@@ -81,7 +85,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     maps.finish_and_clear();
     let (outcome, report) = result?;
     print_eval(&outcome, &report, &a.out, start.elapsed().as_secs_f64());
-    Ok(())
+    outcome.verdict(a.strict)
 }
 
 /// Prints an evaluation: the summary tables, a line of counts (`secs`: how long it took) and

@@ -13,6 +13,7 @@ use glam::Vec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Polygon2, Result, wrap_angle};
+use serde::{Deserialize, Serialize};
 
 /// Something that chooses actions from observations.
 pub trait Agent {
@@ -34,11 +35,145 @@ pub trait Agent {
     /// The agent failed to decide (for remote agents: after its retries).
     fn act(&mut self, obs: &Observation) -> Result<Action>;
 
-    /// The faults the agent recovered from since the last call (for remote agents: failed
-    /// attempts that a retry made good), taken so the evaluator can record them on the
-    /// episode. Local agents have none.
-    fn take_faults(&mut self) -> Vec<String> {
+    /// The faults since the last call (for remote agents: every failed attempt, whether a
+    /// retry made it good or not), taken so the evaluator can record them on the episode.
+    /// Local agents have none.
+    fn take_faults(&mut self) -> Vec<Fault> {
         Vec::new()
+    }
+
+    /// Remarks on what the agent did with its decisions since the last call that a reader of
+    /// the record should know (for remote agents: a reply cut to the `repeat` cap). Local
+    /// agents have none.
+    fn take_notes(&mut self) -> Vec<String> {
+        Vec::new()
+    }
+}
+
+/// What went wrong with one attempt of a remote agent's request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultKind {
+    /// No reply came through: refused, timed out, disconnected, bad framing, a reply that is
+    /// not JSON, an HTTP status other than 200.
+    Transport,
+    /// The server replied that it failed: an error status, `parsed_from: "error"`, an
+    /// "Error processing request" text.
+    ServerError,
+    /// The server replaced the model's output by an action of its own (NaVid picks one at
+    /// random when it cannot read the model's text).
+    Substituted,
+    /// The reply holds nothing readable as an action.
+    Unparseable,
+}
+
+impl FaultKind {
+    /// Every kind, in report order.
+    pub const ALL: [FaultKind; 4] = [
+        FaultKind::Transport,
+        FaultKind::ServerError,
+        FaultKind::Substituted,
+        FaultKind::Unparseable,
+    ];
+
+    /// The kind's name as records store it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FaultKind::Transport => "transport",
+            FaultKind::ServerError => "server_error",
+            FaultKind::Substituted => "substituted",
+            FaultKind::Unparseable => "unparseable",
+        }
+    }
+}
+
+impl std::fmt::Display for FaultKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One failed attempt of a remote agent's request, as the episode's record keeps it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Fault {
+    /// The step the request was for.
+    pub step: usize,
+    /// The attempt, from 1.
+    pub attempt: u32,
+    /// What went wrong.
+    pub kind: FaultKind,
+    /// The details.
+    pub message: String,
+    /// A later attempt of the same request succeeded.
+    pub recovered: bool,
+}
+
+impl std::fmt::Display for Fault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "step {}, attempt {}: {}: {}",
+            self.step, self.attempt, self.kind, self.message
+        )
+    }
+}
+
+impl<'de> Deserialize<'de> for Fault {
+    /// A fault object, or the text `step S, attempt A: MESSAGE` that records written before
+    /// faults had kinds hold (its kind read from the message).
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Fault, D::Error> {
+        #[derive(Deserialize)]
+        struct Object {
+            step: usize,
+            attempt: u32,
+            kind: FaultKind,
+            message: String,
+            #[serde(default)]
+            recovered: bool,
+        }
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Stored {
+            Object(Object),
+            Text(String),
+        }
+        Ok(match Stored::deserialize(d)? {
+            Stored::Object(o) => Fault {
+                step: o.step,
+                attempt: o.attempt,
+                kind: o.kind,
+                message: o.message,
+                recovered: o.recovered,
+            },
+            Stored::Text(text) => Fault::from_legacy_text(&text),
+        })
+    }
+}
+
+impl Fault {
+    /// A fault from the text of an older record (`step 3, attempt 1: connect: …`); whether it
+    /// was recovered is not known there, so it counts as not.
+    fn from_legacy_text(text: &str) -> Fault {
+        let (head, message) = text.split_once(": ").unwrap_or(("", text));
+        let number = |key: &str| {
+            head.split(", ")
+                .find_map(|part| part.strip_prefix(key))
+                .and_then(|n| n.trim().parse().ok())
+        };
+        let kind = if message.starts_with("unparseable reply") {
+            FaultKind::Unparseable
+        } else if message.starts_with("the server answered status") {
+            FaultKind::ServerError
+        } else {
+            FaultKind::Transport
+        };
+        Fault {
+            step: number("step ").unwrap_or(0),
+            attempt: number("attempt ").unwrap_or(1) as u32,
+            kind,
+            message: message.to_string(),
+            recovered: false,
+        }
     }
 }
 
@@ -302,5 +437,51 @@ impl OracleAgent {
         };
         self.last = Some((action, at));
         action
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn faults_round_trip_and_older_records_text_faults_still_read() {
+        let f = Fault {
+            step: 3,
+            attempt: 2,
+            kind: FaultKind::ServerError,
+            message: "the server answered status 'error'".into(),
+            recovered: true,
+        };
+        let json = serde_json::to_string(&f).unwrap();
+        assert_eq!(serde_json::from_str::<Fault>(&json).unwrap(), f);
+        for (text, kind) in [
+            (
+                "step 3, attempt 1: connect: Connection refused",
+                FaultKind::Transport,
+            ),
+            (
+                "step 0, attempt 2: unparseable reply: \"hm\"",
+                FaultKind::Unparseable,
+            ),
+            (
+                "step 7, attempt 4: the server answered status 'error'",
+                FaultKind::ServerError,
+            ),
+        ] {
+            let f: Fault = serde_json::from_value(serde_json::json!(text)).unwrap();
+            assert_eq!(f.kind, kind, "{text}");
+            assert!(!f.recovered);
+            assert_eq!(
+                f.to_string(),
+                format!("{text}").replacen(": ", &format!(": {kind}: "), 1)
+            );
+        }
+        let f: Fault =
+            serde_json::from_value(serde_json::json!("step 3, attempt 1: connect: x")).unwrap();
+        assert_eq!(
+            (f.step, f.attempt, f.message.as_str()),
+            (3, 1, "connect: x")
+        );
     }
 }

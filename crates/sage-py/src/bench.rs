@@ -6,7 +6,7 @@ use crate::agent::PyAgent;
 use crate::convert::{PyResultExt, from_json, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sage_bench::agents::AgentKind;
+use sage_bench::agents::{AgentKind, AgentMaker};
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
 use sage_bench::eval::{self, EvalSettings, Runner, Summary};
 use sage_core::{Error, Result};
@@ -76,7 +76,7 @@ fn settings(
 /// `sage3d eval`; otherwise the environment is `preset` with `overrides` (JSON; a Python agent
 /// sees the preset's images) and only the episodes of the scenes in `scenes_only` run.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact"))]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -92,6 +92,7 @@ pub fn evaluate<'py>(
     overrides: Option<&str>,
     scenes_only: Option<Vec<String>>,
     dtw: &str,
+    strict: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let builtin: Option<AgentKind> = match agent.extract::<String>() {
         Ok(name) => Some(name.parse().py()?),
@@ -143,10 +144,14 @@ pub fn evaluate<'py>(
             agent_name: name.clone(),
             agent: &make,
             shard: Some(&keep),
+            serial: maker.as_ref().is_some_and(AgentMaker::serial),
         };
         py.detach(|| eval::run_with(&settings, &runner, &out, &|_, _| {}))
     }
     .py()?;
+    if strict {
+        outcome.verdict(true).py()?;
+    }
     to_py(
         py,
         &Evaluated {

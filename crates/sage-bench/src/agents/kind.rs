@@ -90,6 +90,12 @@ impl AgentMaker {
         })
     }
 
+    /// True when the agent's episodes must run one at a time: its server holds one episode's
+    /// state for all clients (NaVid).
+    pub fn serial(&self) -> bool {
+        matches!(&self.kind, AgentKind::Remote(spec) if spec.options.server.serial())
+    }
+
     /// True when the agent reads RGB images (the remote agents); the others run blind.
     pub fn reads_images(&self) -> bool {
         matches!(self.kind, AgentKind::Remote(_))
@@ -169,6 +175,11 @@ mod tests {
             "http:http://127.0.0.1:8000/vln_step",
             "http:http://127.0.0.1:8000/v1/step?quality=75&repeat=1",
             "chat:qwen2.5-vl@http://127.0.0.1:8000/v1?history=2&temperature=0&max_tokens=16",
+            "socket:127.0.0.1:54321?server=navila",
+            "socket:127.0.0.1:4321?server=navid&timeout=5",
+            "socket:127.0.0.1:7777?server=mllm&history=3",
+            "socket:127.0.0.1:54321?server=navila&repeat=3",
+            "socket:127.0.0.1:9?repeat=all",
         ] {
             let k: AgentKind = spec.parse().unwrap();
             assert_eq!(k.to_string(), spec);
@@ -180,6 +191,25 @@ mod tests {
         // Defaults are left out of the canonical string; a bare host gets http:// and /vln_step.
         let k: AgentKind = "socket:localhost:9?history=8&retries=3".parse().unwrap();
         assert_eq!(k.to_string(), "socket:localhost:9");
+        // A flavour's own defaults are left out too, and it sets them.
+        let k: AgentKind = "socket:h:9?history=8&server=NaVILA&repeat=all"
+            .parse()
+            .unwrap();
+        assert_eq!(k.to_string(), "socket:h:9?server=navila");
+        let AgentKind::Remote(spec) = &k else {
+            panic!("{k:?}")
+        };
+        assert_eq!((spec.options.history, spec.options.max_repeat), (8, None));
+        let k: AgentKind = "socket:h:9?server=navid".parse().unwrap();
+        assert!(k.maker().unwrap().serial());
+        assert!(
+            !"socket:h:9?server=mllm"
+                .parse::<AgentKind>()
+                .unwrap()
+                .maker()
+                .unwrap()
+                .serial()
+        );
         let k: AgentKind = "http:127.0.0.1:8000".parse().unwrap();
         assert_eq!(k.to_string(), "http:http://127.0.0.1:8000/vln_step");
         for (bad, says) in [
@@ -195,6 +225,9 @@ mod tests {
                 "history, timeout, retries, quality, repeat",
             ),
             ("socket:h:1?history=0", "history"),
+            ("socket:h:1?server=habitat", "navila, navid, mllm"),
+            ("http:127.0.0.1:8000?server=navid", "socket protocol"),
+            ("socket:h:1?repeat=many", "or all"),
             ("chat:@http://x", "MODEL@BASE_URL"),
             ("http:ftp://x", "http://"),
             (

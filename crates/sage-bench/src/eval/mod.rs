@@ -6,7 +6,8 @@
 //! episode is appended to `RUN/episodes.jsonl` as one flushed line, so a crashed run resumes by
 //! skipping the ids already recorded ([`records`]); the summary is computed from the records
 //! sorted by episode id, so it does not depend on the thread count or finishing order
-//! ([`summary`]). [`convert`] bridges dataset episodes, environment traces and metric records.
+//! ([`summary`]). Agents whose server holds one episode's state (NaVid) run their episodes one
+//! at a time.
 
 pub mod merge;
 pub mod records;
@@ -19,7 +20,7 @@ pub use merge::merge_shards;
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
 use sage_env::SceneContext;
-use sage_env::agents::{Agent, run_episode};
+use sage_env::agents::{Agent, Fault, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_io::run::RUN_RECORD;
 use sage_lang::{InstructionType, Level};
@@ -94,12 +95,48 @@ pub struct EvalRecord {
     /// Why the episode failed (agent, reset or metric error); the run goes on without it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
-    /// Faults of a remote agent's server that retries made good (or that preceded `error`).
+    /// What kind of failure `error` is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<Failure>,
+    /// Faults of a remote agent's server, each attempt that failed, recovered or not.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub faults: Vec<String>,
+    pub faults: Vec<Fault>,
+    /// What a remote agent did with a reply that a reader should know (a reply cut to the
+    /// `repeat` cap).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// Everything the metrics need, so any mode can be recomputed and paths drawn later.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub record: Option<EpisodeRecord>,
+}
+
+/// Why an episode was not scored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Failure {
+    /// Its scene could not be loaded.
+    Scene,
+    /// The agent's model server gave no usable reply after every retry.
+    ModelServer,
+    /// The agent could not act on it, or the environment or the metrics failed.
+    Episode,
+}
+
+impl Failure {
+    /// The failure's name as records store it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Failure::Scene => "scene",
+            Failure::ModelServer => "model_server",
+            Failure::Episode => "episode",
+        }
+    }
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
 }
 
 /// What [`run`] did.
@@ -113,6 +150,31 @@ pub struct RunOutcome {
     pub ran: usize,
     /// The aggregate written to `RUN/summary.json`.
     pub summary: Summary,
+}
+
+impl RunOutcome {
+    /// Whether the run did what was asked: `Err` with the reason when every episode of the run
+    /// failed (nothing was scored) or, if `strict`, when any did.
+    ///
+    /// # Errors
+    ///
+    /// The verdict, naming the failed count and the summary's failure kinds.
+    pub fn verdict(&self, strict: bool) -> Result<()> {
+        let failed = self.summary.failed.len();
+        let episodes = self.summary.episodes;
+        if failed == 0 || (!strict && failed < episodes) {
+            return Ok(());
+        }
+        let what = if failed == episodes {
+            format!("every episode of the run failed ({failed})")
+        } else {
+            format!("{failed} of {episodes} episodes failed (--strict)")
+        };
+        Err(Error::invalid(format!(
+            "{what}: {}; see the records' \"error\" fields",
+            self.summary.failure_counts()
+        )))
+    }
 }
 
 /// The splits of `dataset` (the names of its `episodes/*.jsonl`), sorted.
@@ -140,6 +202,21 @@ pub fn dataset_splits(dataset: &Path) -> Result<Vec<String>> {
         .collect();
     splits.sort();
     Ok(splits)
+}
+
+/// The splits of `dataset` that hold at least one episode, sorted.
+///
+/// # Errors
+///
+/// As [`dataset_splits`].
+pub fn non_empty_splits(dataset: &Path) -> Result<Vec<String>> {
+    Ok(dataset_splits(dataset)?
+        .into_iter()
+        .filter(|s| {
+            let file = dataset.join("episodes").join(format!("{s}.jsonl"));
+            std::fs::read_to_string(file).is_ok_and(|t| t.lines().any(|l| !l.trim().is_empty()))
+        })
+        .collect())
 }
 
 /// The episodes file of `split` in `dataset`.
@@ -194,6 +271,8 @@ pub struct Runner<'a> {
     /// Which episodes of the split this run covers (`None`: all); the records, resume and
     /// summary then concern those alone.
     pub shard: Option<&'a (dyn Fn(&Episode) -> bool + Sync)>,
+    /// Run the episodes one at a time (the agent's server holds one episode's state).
+    pub serial: bool,
 }
 
 /// The record of episode `e` before it runs: its tags, no outcome yet.
@@ -209,7 +288,9 @@ fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
         termination: None,
         metrics: None,
         error: None,
+        failure: None,
         faults: Vec::new(),
+        notes: Vec::new(),
         record: None,
     }
 }
@@ -239,7 +320,19 @@ fn run_one(
         }
         Err(err) => rec.error = Some(err.to_string()),
     }
-    rec.faults = agent.map(|mut a| a.take_faults()).unwrap_or_default();
+    if let Some(mut agent) = agent {
+        rec.faults = agent.take_faults();
+        rec.notes = agent.take_notes();
+    }
+    if rec.error.is_some() {
+        // A remote agent fails an episode only on a request whose every attempt faulted.
+        let gave_up = rec.faults.last().is_some_and(|f| !f.recovered);
+        rec.failure = Some(if gave_up {
+            Failure::ModelServer
+        } else {
+            Failure::Episode
+        });
+    }
     rec
 }
 
@@ -314,6 +407,7 @@ pub fn run(
         agent_name: settings.agent.to_string(),
         agent: &|| maker.build(settings.seed),
         shard: None,
+        serial: maker.serial(),
     };
     run_with(settings, &runner, out, on_done)
 }
@@ -331,6 +425,19 @@ pub fn run_with(
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
     let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    if episodes.is_empty() {
+        let with_episodes = non_empty_splits(&settings.dataset)?;
+        return Err(Error::invalid(format!(
+            "split '{}' has no episodes (splits with episodes: {})",
+            settings.split,
+            if with_episodes.is_empty() {
+                "none".to_string()
+            } else {
+                with_episodes.join(", ")
+            }
+        ))
+        .in_file(&file));
+    }
     if let Some(keep) = runner.shard {
         episodes.retain(|e| keep(e));
     }
@@ -359,16 +466,17 @@ pub fn run_with(
     }
     let ran: usize = groups.values().map(Vec::len).sum();
     let writer = Mutex::new(records::Appender::open(&records_path)?);
-    groups.par_iter().try_for_each(|(scene, eps)| {
+    let run_scene = |scene: &str, eps: &[&Episode]| {
         // A scene that cannot be loaded fails its episodes, with the reason; the run goes on.
-        let ctx = SceneContext::load(&dirs[*scene], None)
+        let ctx = SceneContext::load(&dirs[scene], None)
             .within(format!("scene {scene}"))
             .map(Arc::new);
-        eps.par_iter().try_for_each(|e| {
+        let record_episode = |e: &&Episode| {
             let rec = match &ctx {
                 Ok(ctx) => run_one(ctx, runner, settings.scoring(), e),
                 Err(err) => EvalRecord {
                     error: Some(err.to_string()),
+                    failure: Some(Failure::Scene),
                     ..blank_record(runner, e)
                 },
             };
@@ -378,8 +486,24 @@ pub fn run_with(
                 .append(&rec)?;
             on_done(&rec, ran);
             Ok::<_, Error>(())
-        })
-    })?;
+        };
+        if runner.serial {
+            eps.iter().try_for_each(record_episode)
+        } else {
+            eps.par_iter().try_for_each(record_episode)
+        }
+    };
+    if runner.serial {
+        // Plain loops: a rayon worker waiting on a shared server must never pick up another
+        // episode of the same server while it holds one.
+        groups
+            .iter()
+            .try_for_each(|(scene, eps)| run_scene(scene, eps))?;
+    } else {
+        groups
+            .par_iter()
+            .try_for_each(|(scene, eps)| run_scene(scene, eps))?;
+    }
     let all = records::read(&records_path, &ids)?;
     let summary = Summary {
         agent: runner.agent_name.clone(),

@@ -157,7 +157,9 @@ mod tests {
             termination: None,
             metrics: None,
             error: Some("no path".into()),
+            failure: None,
             faults: Vec::new(),
+            notes: Vec::new(),
             record: None,
         }
     }

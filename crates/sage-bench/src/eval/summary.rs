@@ -4,7 +4,8 @@
 //! Computed from the records sorted by episode id, so the sums (and the bytes of
 //! `summary.json`) do not depend on the order episodes finished in.
 
-use super::{EvalRecord, EvalSettings};
+use super::{EvalRecord, EvalSettings, Failure};
+use sage_env::agents::FaultKind;
 use sage_metrics::{Aggregate, Dtw, Mode, aggregate};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -29,6 +30,12 @@ pub struct Summary {
     pub episodes: usize,
     /// Ids of episodes that failed (recorded with an error, left out of the means).
     pub failed: Vec<String>,
+    /// Failed episodes per kind of failure (kinds that occurred).
+    #[serde(default)]
+    pub failures: BTreeMap<Failure, usize>,
+    /// Model-server faults per kind over every episode, recovered or not (kinds that occurred).
+    #[serde(default)]
+    pub faults: BTreeMap<FaultKind, usize>,
     /// Means over every scored episode.
     pub overall: Aggregate,
     /// Axis → slice value → means over the scored episodes of that slice.
@@ -65,6 +72,16 @@ impl Summary {
                 (axis.to_string(), aggs)
             })
             .collect();
+        let mut failures = BTreeMap::new();
+        for r in records.iter().filter(|r| r.metrics.is_none()) {
+            *failures
+                .entry(r.failure.unwrap_or(Failure::Episode))
+                .or_insert(0) += 1;
+        }
+        let mut faults = BTreeMap::new();
+        for f in records.iter().flat_map(|r| &r.faults) {
+            *faults.entry(f.kind).or_insert(0) += 1;
+        }
         Summary {
             agent: settings.agent.to_string(),
             split: settings.split.clone(),
@@ -76,12 +93,25 @@ impl Summary {
                 .filter(|r| r.metrics.is_none())
                 .map(|r| r.episode_id.clone())
                 .collect(),
+            failures,
+            faults,
             overall: means(&scored),
             slices,
         }
     }
 
-    /// Short text tables: the overall row, then one block per axis.
+    /// The failed episodes per kind, as text: `2 model_server, 1 scene` (`none`).
+    pub fn failure_counts(&self) -> String {
+        counts(self.failures.iter().map(|(k, n)| (k.as_str(), *n)))
+    }
+
+    /// The faults per kind, as text: `3 server_error, 1 substituted` (`none`).
+    pub fn fault_counts(&self) -> String {
+        counts(self.faults.iter().map(|(k, n)| (k.as_str(), *n)))
+    }
+
+    /// Short text tables: first what failed and the faults (when any), then the overall row
+    /// and one block per axis.
     pub fn table(&self) -> String {
         const COLS: [&str; 9] = [
             "sr",
@@ -95,6 +125,18 @@ impl Summary {
             "explored_area",
         ];
         let mut t = String::new();
+        if !self.failed.is_empty() {
+            let _ = writeln!(
+                t,
+                "FAILED: {} of {} episodes were not scored ({}); their records say why",
+                self.failed.len(),
+                self.episodes,
+                self.failure_counts()
+            );
+        }
+        if !self.faults.is_empty() {
+            let _ = writeln!(t, "model-server faults: {}", self.fault_counts());
+        }
         let _ = writeln!(
             t,
             "agent {} · split {} · mode {} · {} DTW · {} episodes ({} failed)",
@@ -136,6 +178,16 @@ impl Summary {
             }
         }
         t
+    }
+}
+
+/// `n kind` pairs joined by commas, or `none`.
+fn counts<'a>(pairs: impl Iterator<Item = (&'a str, usize)>) -> String {
+    let text: Vec<String> = pairs.map(|(k, n)| format!("{n} {k}")).collect();
+    if text.is_empty() {
+        "none".to_string()
+    } else {
+        text.join(", ")
     }
 }
 

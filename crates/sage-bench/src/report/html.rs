@@ -3,6 +3,7 @@
 
 use super::charts::BarChart;
 use super::{MapFile, RunFiles, succeeded};
+use crate::eval::Failure;
 use crate::eval::summary::AXES;
 use base64::Engine;
 use sage_core::{Error, Result};
@@ -53,6 +54,7 @@ th,td{border:1px solid #ccc;padding:.2em .5em}\
 td.num{text-align:right;font-family:ui-monospace,monospace}\
 th{background:#f0f0f0}\
 table.meta th{text-align:left}\
+p.banner{background:#fff3cd;border:1px solid #c9a227;padding:.6em 1em}\
 .charts svg{display:block;margin:.5em 0 1.5em;font-family:ui-monospace,monospace;font-size:14px}\
 .gallery{display:flex;flex-wrap:wrap;gap:1em}\
 figure{margin:0;border:1px solid #ddd;padding:.5em;max-width:640px}\
@@ -168,6 +170,16 @@ pub fn page(input: &PageInput) -> Result<String> {
         escape(&title)
     );
 
+    if !s.failed.is_empty() {
+        let _ = writeln!(
+            t,
+            "<p class=\"banner\"><b>{} of {} episodes failed</b> and are not in the means ({}); \
+             see <a href=\"#failed\">Failed episodes</a>.</p>",
+            s.failed.len(),
+            s.episodes,
+            escape(&s.failure_counts())
+        );
+    }
     t.push_str("<h2>Run</h2>\n<table class=\"meta\">\n");
     let scored = s.episodes - s.failed.len();
     let rows = [
@@ -188,6 +200,8 @@ pub fn page(input: &PageInput) -> Result<String> {
         ("episodes recorded", s.episodes.to_string()),
         ("episodes scored", scored.to_string()),
         ("episodes failed", s.failed.len().to_string()),
+        ("failures by kind", s.failure_counts()),
+        ("model-server faults by kind", s.fault_counts()),
     ];
     for (k, v) in rows {
         let _ = writeln!(t, "<tr><th>{k}</th><td>{}</td></tr>", escape(&v));
@@ -222,18 +236,19 @@ pub fn page(input: &PageInput) -> Result<String> {
     }
     t.push_str("</div>\n");
 
-    t.push_str("<h2>Failed episodes</h2>\n");
+    t.push_str("<h2 id=\"failed\">Failed episodes</h2>\n");
     let failed: Vec<_> = files.records.iter().filter(|r| r.error.is_some()).collect();
     if failed.is_empty() {
         t.push_str("<p>None.</p>\n");
     } else {
-        t.push_str("<table><tr><th>episode</th><th>scene</th><th>error</th></tr>\n");
+        t.push_str("<table><tr><th>episode</th><th>scene</th><th>kind</th><th>error</th></tr>\n");
         for r in failed {
             let _ = writeln!(
                 t,
-                "<tr><td>{}</td><td>{}</td><td>{}</td></tr>",
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 escape(&r.episode_id),
                 escape(&r.scene),
+                r.failure.map_or("episode", Failure::as_str),
                 escape(r.error.as_deref().unwrap_or_default())
             );
         }

@@ -310,7 +310,9 @@ mod tests {
                 ..EpisodeMetrics::default()
             }),
             error: None,
+            failure: None,
             faults: Vec::new(),
+            notes: Vec::new(),
             record: None,
         }
     }

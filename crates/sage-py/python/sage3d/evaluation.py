@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import os
+import warnings
 
 from . import _sage3d
 from .env import _json, config_overrides
@@ -52,23 +53,33 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
 def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: str = "sage",
              seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             scenes_only: list[str] | None = None, dtw: str = "exact") -> dict:
+             scenes_only: list[str] | None = None, dtw: str = "exact",
+             strict: bool = False) -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
     resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json`` and
     ``sage3d_run.json`` as ``sage3d eval`` writes them.
 
-    ``agent`` is ``"random"``, ``"forward"`` or ``"oracle"`` (then exactly the CLI's run), or a
-    Python agent: an object (or class) with ``act(obs) -> action`` and optionally
+    ``agent`` is an agent string as ``sage3d eval --agent`` takes it (``"oracle"``,
+    ``"socket:HOST:PORT?server=navila"``, …; then exactly the CLI's run), or a Python agent: an object (or class) with ``act(obs) -> action`` and optionally
     ``reset(episode)``; it sees the observations of :class:`~sage3d.SageEnv` (the preset's
     images, resized by ``width``/``height``) and answers actions as ``SageEnv.step`` takes them.
     Each episode gets a fresh agent (the class called, or a deep copy of the object). Episodes
     run in parallel; Python agents decide one at a time under the GIL while rendering and
     physics run in parallel. ``scenes_only`` runs only the episodes of those scenes (a shard).
     ``mode`` and ``dtw`` (``"exact"`` or ``"fast"``, VLN-CE's FastDTW) choose how episodes are
-    scored, as ``sage3d eval --mode/--dtw``.
+    scored, as ``sage3d eval --mode/--dtw``. Failed episodes are recorded and listed in
+    ``summary["failed"]`` (per kind in ``summary["failures"]``); with ``strict=True`` any failure
+    raises ``ValueError`` after the run folder is written, as ``sage3d eval --strict`` exits
+    non-zero, and a run in which every episode failed warns (``RuntimeWarning``).
     """
     overrides = overrides_json(width, height, sensors, config)
-    return _sage3d.evaluate(
+    result = _sage3d.evaluate(
         os.fspath(dataset), os.fspath(scenes), os.fspath(out), agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), split=split,
-        mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only, dtw=dtw)
+        mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only, dtw=dtw,
+        strict=strict)
+    summary = result["summary"]
+    if summary["episodes"] and len(summary["failed"]) == summary["episodes"]:
+        warnings.warn(f"every episode of the run failed ({summary['episodes']}); see the records' "
+                      f"\"error\" fields in {os.fspath(out)}/episodes.jsonl", RuntimeWarning, stacklevel=2)
+    return result

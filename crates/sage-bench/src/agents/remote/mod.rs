@@ -4,24 +4,30 @@
 //! Three protocols carry the same request: [`socket`] (the SAGE-3D socket protocol, 8-byte
 //! big-endian length + JSON `{images, query}`), [`http`] (`POST /vln_step` and OpenAI-compatible
 //! `/chat/completions`). [`frames`] keeps the last `history` frames as base64 JPEGs — the real
-//! recent frames, current last (the published client sent copies of the first frame). [`parse`]
-//! turns a reply into discrete actions; a reply naming several steps ("move forward 75 cm")
-//! is queued and the server is asked again only when the queue is empty. Faults (refused,
-//! timeout, disconnect, bad framing, garbage) are retried under [`RemoteOptions::retry_policy`]
-//! (`sage_http`'s backoff, for every protocol); recovered faults are kept for the episode's
-//! record, and a step that fails every attempt fails the episode.
+//! recent frames (the published client sent copies of the first frame) — and [`flavour`]
+//! arranges them as the published server behind a socket needs them (NaVILA: exactly 8, padded;
+//! MLLM: current first; NaVid: a reset per episode, one episode at a time). [`parse`] turns a
+//! reply into discrete actions; a reply naming several steps ("move forward 75 cm") is queued
+//! and the server is asked again only when the queue is empty. Faults (refused, timeout,
+//! disconnect, bad framing, a reply that says the server failed or that the server made up,
+//! garbage) are retried under [`RemoteOptions::retry_policy`] (`sage_http`'s backoff, for every
+//! protocol); every fault is kept for the episode's record with its kind, and a step that
+//! fails every attempt fails the episode.
 
+pub mod flavour;
 pub mod frames;
 pub mod http;
 pub mod parse;
 pub mod socket;
 
+pub use flavour::Server;
 use frames::FrameHistory;
 use parse::Steps;
 use sage_core::{Error, Result};
-use sage_env::agents::Agent;
+use sage_env::agents::{Agent, Fault, FaultKind};
 use sage_env::{Action, ActionSpace, Env, EnvEpisode, Observation};
 use sage_http::{Failure, RetryOn, RetryPolicy};
+use std::cell::Cell;
 use std::collections::VecDeque;
 use std::fmt;
 use std::time::Duration;
@@ -58,7 +64,9 @@ pub enum Protocol {
 /// The `?key=value` options of a remote agent.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RemoteOptions {
-    /// Frames sent per request, current last (`history`; 8, chat 1).
+    /// The published server behind a socket (`server`; generic).
+    pub server: Server,
+    /// Frames sent per request (`history`; 8, chat, NaVid and MLLM 1).
     pub history: usize,
     /// Seconds allowed for one request, connect to reply (`timeout`; 60).
     pub timeout_s: f64,
@@ -66,8 +74,8 @@ pub struct RemoteOptions {
     pub retries: u32,
     /// JPEG quality 1–100 (`quality`; 90).
     pub quality: u8,
-    /// Most actions queued from one reply (`repeat`; 3, as NaVid).
-    pub max_repeat: usize,
+    /// Most actions queued from one reply (`repeat`; 3, as NaVid; NaVILA `all`: no cap).
+    pub max_repeat: Option<usize>,
     /// Chat sampling temperature (`temperature`; 0.1, as the MLLM baselines).
     pub temperature: f32,
     /// Chat answer length limit (`max_tokens`; 64).
@@ -75,18 +83,19 @@ pub struct RemoteOptions {
 }
 
 impl RemoteOptions {
-    /// The defaults of a protocol (chat models see the current image only).
-    pub fn defaults(protocol: &Protocol) -> RemoteOptions {
+    /// The defaults of a protocol and server flavour (chat models see the current image only).
+    pub fn defaults(protocol: &Protocol, server: Server) -> RemoteOptions {
         RemoteOptions {
+            server,
             history: if matches!(protocol, Protocol::Chat { .. }) {
                 1
             } else {
-                8
+                server.default_history()
             },
             timeout_s: 60.0,
             retries: 3,
             quality: 90,
-            max_repeat: 3,
+            max_repeat: server.default_repeat(),
             temperature: 0.1,
             max_tokens: 64,
         }
@@ -94,6 +103,9 @@ impl RemoteOptions {
 
     /// The option names a protocol accepts, in canonical order.
     fn keys(protocol: &Protocol) -> &'static [&'static str] {
+        const SOCKET: [&str; 6] = [
+            "server", "history", "timeout", "retries", "quality", "repeat",
+        ];
         const COMMON: [&str; 5] = ["history", "timeout", "retries", "quality", "repeat"];
         const CHAT: [&str; 7] = [
             "history",
@@ -105,19 +117,23 @@ impl RemoteOptions {
             "max_tokens",
         ];
         match protocol {
+            Protocol::Socket { .. } => &SOCKET,
             Protocol::Chat { .. } => &CHAT,
-            _ => &COMMON,
+            Protocol::Http { .. } => &COMMON,
         }
     }
 
     /// The value of option `key` as written in the canonical string.
     fn value(&self, key: &str) -> String {
         match key {
+            "server" => self.server.to_string(),
             "history" => self.history.to_string(),
             "timeout" => self.timeout_s.to_string(),
             "retries" => self.retries.to_string(),
             "quality" => self.quality.to_string(),
-            "repeat" => self.max_repeat.to_string(),
+            "repeat" => self
+                .max_repeat
+                .map_or_else(|| "all".to_string(), |n| n.to_string()),
             "temperature" => self.temperature.to_string(),
             _ => self.max_tokens.to_string(),
         }
@@ -143,7 +159,15 @@ impl RemoteOptions {
             }
             "retries" => self.retries = int(0, 100)? as u32,
             "quality" => self.quality = int(1, 100)? as u8,
-            "repeat" => self.max_repeat = int(1, 100)? as usize,
+            "repeat" if v.eq_ignore_ascii_case("all") => self.max_repeat = None,
+            "repeat" => {
+                self.max_repeat = Some(
+                    v.parse::<usize>()
+                        .ok()
+                        .filter(|n| (1..=100).contains(n))
+                        .ok_or_else(|| bad("an integer in 1..=100 or all"))?,
+                );
+            }
             "temperature" => {
                 self.temperature = v
                     .parse::<f32>()
@@ -227,8 +251,8 @@ impl RemoteSpec {
                 }
             }
         };
-        let mut options = RemoteOptions::defaults(&protocol);
         let keys = RemoteOptions::keys(&protocol);
+        let mut pairs = Vec::new();
         for pair in query.into_iter().flat_map(|q| q.split('&')) {
             if pair.is_empty() {
                 continue;
@@ -236,12 +260,28 @@ impl RemoteSpec {
             let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
             let k = k.trim().to_ascii_lowercase();
             if !keys.contains(&k.as_str()) {
+                let why = if k == "server" {
+                    " (server flavours are for socket agents: the published servers speak the socket protocol)"
+                } else {
+                    ""
+                };
                 return Err(Error::invalid(format!(
-                    "{kind} agent: unknown option '{k}' (expected: {})",
+                    "{kind} agent: unknown option '{k}'{why} (expected: {})",
                     keys.join(", ")
                 )));
             }
-            options.set(&k, v.trim())?;
+            pairs.push((k, v.trim()));
+        }
+        // The flavour sets the other options' defaults, so it is read first.
+        let server = match pairs.iter().find(|(k, _)| k == "server") {
+            Some((_, v)) => v
+                .parse()
+                .map_err(|e: Error| e.within(format!("{kind} agent option server")))?,
+            None => Server::Generic,
+        };
+        let mut options = RemoteOptions::defaults(&protocol, server);
+        for (k, v) in pairs.iter().filter(|(k, _)| k != "server") {
+            options.set(k, v)?;
         }
         Ok(RemoteSpec { protocol, options })
     }
@@ -264,7 +304,11 @@ impl fmt::Display for RemoteSpec {
             Protocol::Chat { .. } => "chat",
         };
         write!(f, "{kind}:{}", self.server())?;
-        let defaults = RemoteOptions::defaults(&self.protocol);
+        // The flavour's own defaults are left out; the flavour itself unless generic.
+        let defaults = RemoteOptions {
+            server: Server::Generic,
+            ..RemoteOptions::defaults(&self.protocol, self.options.server)
+        };
         let mut sep = '?';
         for key in RemoteOptions::keys(&self.protocol) {
             let v = self.options.value(key);
@@ -277,14 +321,23 @@ impl fmt::Display for RemoteSpec {
     }
 }
 
-/// One request to a server: the frames (base64 JPEGs, current last) and the instruction; the
-/// reply as JSON (chat and non-JSON HTTP bodies as a JSON string), or the fault.
+/// One request to a server: the frames (base64 JPEGs) and the instruction; the reply as JSON
+/// (chat and non-JSON HTTP bodies as a JSON string), or the fault.
 trait Transport: Send {
     fn ask(
         &mut self,
         images: &[String],
         instruction: &str,
     ) -> std::result::Result<serde_json::Value, String>;
+
+    /// Sends `message` outside the step protocol (an episode's opening, NaVid's reset) and
+    /// returns the reply; only the socket protocol has such messages.
+    fn send(
+        &mut self,
+        message: &serde_json::Value,
+    ) -> std::result::Result<serde_json::Value, String> {
+        Err(format!("this protocol cannot send {message}"))
+    }
 }
 
 /// An agent whose decisions come from a remote model (see the module doc).
@@ -296,7 +349,8 @@ pub struct RemoteAgent {
     queue: VecDeque<Action>,
     steps: Steps,
     instruction: String,
-    faults: Vec<String>,
+    faults: Vec<Fault>,
+    notes: Vec<String>,
 }
 
 impl RemoteAgent {
@@ -322,13 +376,63 @@ impl RemoteAgent {
             steps: Steps {
                 forward: 0.25,
                 turn_deg: 15.0,
-                max_repeat: o.max_repeat,
+                bare_turn_deg: o.server.bare_turn_deg(),
             },
             spec,
             transport,
             queue: VecDeque::new(),
             instruction: String::new(),
             faults: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    /// Runs `attempt` under the retry policy for the request of `step`, recording each failed
+    /// attempt as a fault (marked recovered when a later attempt succeeds).
+    ///
+    /// # Errors
+    ///
+    /// Every attempt failed: the server, the step and the last fault.
+    fn with_retries<T>(
+        &mut self,
+        step: usize,
+        what: &str,
+        mut attempt: impl FnMut(&mut dyn Transport) -> std::result::Result<T, (FaultKind, String)>,
+    ) -> Result<T> {
+        let first = self.faults.len();
+        let kind = Cell::new(FaultKind::Transport);
+        let (transport, faults) = (&mut self.transport, &mut self.faults);
+        let result = self.spec.options.retry_policy().run(
+            |_| {
+                attempt(transport.as_mut()).map_err(|(k, message)| {
+                    kind.set(k);
+                    Failure::new(message)
+                })
+            },
+            |n, f| {
+                faults.push(Fault {
+                    step,
+                    attempt: n + 1,
+                    kind: kind.get(),
+                    message: f.message.clone(),
+                    recovered: false,
+                });
+            },
+            std::thread::sleep,
+        );
+        match result {
+            Ok(value) => {
+                for f in &mut self.faults[first..] {
+                    f.recovered = true;
+                }
+                Ok(value)
+            }
+            Err(gave_up) => Err(Error::invalid(format!(
+                "{}: no usable {what} at step {step} after {} attempts: {}",
+                self.spec.server(),
+                gave_up.attempts,
+                gave_up.last.message
+            ))),
         }
     }
 }
@@ -357,7 +461,13 @@ impl Agent for RemoteAgent {
         self.frames.clear();
         self.queue.clear();
         self.faults.clear();
+        self.notes.clear();
         self.instruction = episode.instruction.clone();
+        if let Some(message) = self.spec.options.server.episode_start() {
+            self.with_retries(0, "reply to the episode's reset", |t| {
+                t.send(&message).map_err(|e| (FaultKind::Transport, e))
+            })?;
+        }
         Ok(())
     }
 
@@ -366,39 +476,40 @@ impl Agent for RemoteAgent {
         if let Some(a) = self.queue.pop_front() {
             return Ok(a);
         }
-        let images = self.frames.frames();
-        let step = obs.step;
-        let (transport, steps, instruction) = (&mut self.transport, &self.steps, &self.instruction);
-        let faults = &mut self.faults;
-        let actions = self
-            .spec
-            .options
-            .retry_policy()
-            .run(
-                |_| {
-                    let reply = transport.ask(&images, instruction).map_err(Failure::new)?;
-                    parse::parse_reply(&reply, steps).map_err(Failure::new)
-                },
-                |attempt, f| {
-                    let n = attempt + 1;
-                    faults.push(format!("step {step}, attempt {n}: {}", f.message));
-                },
-                std::thread::sleep,
-            )
-            .map_err(|gave_up| {
-                Error::invalid(format!(
-                    "{}: no usable reply at step {step} after {} attempts: {}",
-                    self.spec.server(),
-                    gave_up.attempts,
-                    gave_up.last.message
-                ))
-            })?;
+        let options = &self.spec.options;
+        let images = options
+            .server
+            .arrange(self.frames.frames(), options.history);
+        let (server, steps, instruction) = (options.server, self.steps, self.instruction.clone());
+        let mut actions = self.with_retries(obs.step, "reply", |t| {
+            let reply = t
+                .ask(&images, &instruction)
+                .map_err(|e| (FaultKind::Transport, e))?;
+            // A reply that says the server failed is that, whatever else it holds.
+            let actions = parse::parse_reply(&reply, &steps)?;
+            server.check(&reply)?;
+            Ok(actions)
+        })?;
+        if let Some(cap) = self.spec.options.max_repeat
+            && actions.len() > cap
+        {
+            self.notes.push(format!(
+                "step {}: the reply asked for {} actions; repeat={cap} carried out the first {cap}",
+                obs.step,
+                actions.len()
+            ));
+            actions.truncate(cap);
+        }
         self.queue.extend(actions);
         Ok(self.queue.pop_front().unwrap_or(Action::Stop))
     }
 
-    fn take_faults(&mut self) -> Vec<String> {
+    fn take_faults(&mut self) -> Vec<Fault> {
         std::mem::take(&mut self.faults)
+    }
+
+    fn take_notes(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.notes)
     }
 }
 

@@ -5,22 +5,28 @@
 //! the MLLM action words (`MOVE_FORWARD`, …), JSON objects carrying the text in `result`,
 //! `text_response`, `action` or `text`, a stringified Python dict
 //! (`{'status': 'success', 'result': 'MOVE_FORWARD'}`), VLN-CE action indices, sage3d
-//! `Action` objects, and velocity commands (`vx`, `yaw_rate`, `duration`; NaVid). A reply
-//! with nothing recognisable is a fault (the caller retries).
+//! `Action` objects, and velocity commands (`vx`, `yaw_rate`, `duration_s`, `stop`; NaVid).
+//! A reply that says the server failed (an error status, `parsed_from: "error"`, a text
+//! beginning "Error") is a server fault, one with nothing recognisable an unparseable one;
+//! the caller retries both.
 
 use sage_env::Action;
+use sage_env::agents::FaultKind;
 use serde_json::Value;
 
-/// The environment's discrete step sizes and the cap on actions queued from one reply.
+/// The environment's discrete step sizes, and how a turn named without an angle is read.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Steps {
     /// Forward step, metres.
     pub forward: f32,
     /// Turn step, degrees.
     pub turn_deg: f32,
-    /// Most actions one reply may queue.
-    pub max_repeat: usize,
+    /// The angle of "turn left" without a number, degrees (`None`: one turn step).
+    pub bare_turn_deg: Option<f32>,
 }
+
+/// Why a reply gives no action: the kind of fault and its details.
+pub type ReplyFault = (FaultKind, String);
 
 /// Fields that may carry the answer, in the order they are tried.
 const ANSWER_FIELDS: [&str; 8] = [
@@ -52,14 +58,26 @@ const FORWARD_WORDS: [&str; 9] = [
     "forward", "forwards", "ahead", "straight", "move", "go", "walk", "proceed", "advance",
 ];
 
-/// The actions a reply asks for (at least one, at most `steps.max_repeat`).
+/// The actions a reply asks for (at least one, all of them: the caller applies its cap).
 ///
 /// # Errors
 ///
-/// A fault message: an error status or nothing recognisable.
-pub fn parse_reply(reply: &Value, steps: &Steps) -> Result<Vec<Action>, String> {
+/// A server fault (the reply says the server failed) or an unparseable reply.
+pub fn parse_reply(reply: &Value, steps: &Steps) -> Result<Vec<Action>, ReplyFault> {
     let actions = match reply {
-        Value::String(s) => parse_text(s, steps),
+        Value::String(s) => {
+            if s.split(|c: char| !c.is_ascii_alphabetic())
+                .find(|w| !w.is_empty())
+                .is_some_and(|w| w.eq_ignore_ascii_case("error"))
+            {
+                let short: String = s.trim().chars().take(160).collect();
+                return Err((
+                    FaultKind::ServerError,
+                    format!("the server answered an error: {short}"),
+                ));
+            }
+            parse_text(s, steps)
+        }
         Value::Number(n) => n.as_u64().and_then(index_action).map(|a| vec![a]),
         Value::Array(items) => {
             let all: Option<Vec<Vec<Action>>> =
@@ -75,9 +93,27 @@ pub fn parse_reply(reply: &Value, steps: &Steps) -> Result<Vec<Action>, String> 
                     .or_else(|| o.get("message"))
                     .map(Value::to_string)
                     .unwrap_or_default();
-                return Err(format!("the server answered status '{status}' {why}")
-                    .trim_end()
-                    .to_string());
+                return Err((
+                    FaultKind::ServerError,
+                    format!("the server answered status '{status}' {why}")
+                        .trim_end()
+                        .to_string(),
+                ));
+            }
+            if o.get("parsed_from").and_then(Value::as_str) == Some("error") {
+                let why = ["raw_response", "text_response", "message"]
+                    .iter()
+                    .find_map(|k| o.get(*k).and_then(Value::as_str))
+                    .unwrap_or("");
+                return Err((
+                    FaultKind::ServerError,
+                    format!("the server marked its reply as an error: {why}")
+                        .trim_end()
+                        .to_string(),
+                ));
+            }
+            if o.get("stop").and_then(Value::as_bool) == Some(true) {
+                return Ok(vec![Action::Stop]);
             }
             velocity(o, steps)
                 .or_else(|| {
@@ -95,14 +131,14 @@ pub fn parse_reply(reply: &Value, steps: &Steps) -> Result<Vec<Action>, String> 
         Value::Bool(_) | Value::Null => None,
     };
     match actions {
-        Some(mut a) if !a.is_empty() => {
-            a.truncate(steps.max_repeat.max(1));
-            Ok(a)
-        }
+        Some(a) if !a.is_empty() => Ok(a),
         _ => {
             let text = reply.to_string();
             let short: String = text.chars().take(120).collect();
-            Err(format!("unparseable reply: {short}"))
+            Err((
+                FaultKind::Unparseable,
+                format!("unparseable reply: {short}"),
+            ))
         }
     }
 }
@@ -122,12 +158,13 @@ fn action_object(a: Action, steps: &Steps) -> Option<Vec<Action>> {
     }
 }
 
-/// A velocity reply `{vx, yaw_rate | wz, duration | dt}` (rad/s, s; duration 1 s when absent).
+/// A velocity reply `{vx, yaw_rate | wz, duration_s | duration | dt}` (rad/s, s; 1 s when
+/// absent).
 fn velocity(o: &serde_json::Map<String, Value>, steps: &Steps) -> Option<Vec<Action>> {
     let num = |keys: &[&str]| keys.iter().find_map(|k| o.get(*k).and_then(Value::as_f64));
     let vx = num(&["vx"])?;
     let wz = num(&["yaw_rate", "wz", "omega"])?;
-    let dt = num(&["duration", "dt"]).unwrap_or(1.0);
+    let dt = num(&["duration_s", "duration", "dt"]).unwrap_or(1.0);
     if !(vx.is_finite() && wz.is_finite() && dt.is_finite() && dt >= 0.0) {
         return None;
     }
@@ -246,9 +283,10 @@ pub fn parse_text(text: &str, steps: &Steps) -> Option<Vec<Action>> {
             ("deg", 1.0),
             ("degs", 1.0),
         ];
-        let n = amount(window, &units).map_or(1, |deg| {
-            ((deg / steps.turn_deg.max(1e-6)).round() as usize).max(1)
-        });
+        let turns = |deg: f32| ((deg / steps.turn_deg.max(1e-6)).round() as usize).max(1);
+        let n = amount(window, &units)
+            .or(steps.bare_turn_deg)
+            .map_or(1, turns);
         Some(vec![side; n])
     };
     for i in 0..toks.len() {
@@ -351,10 +389,10 @@ mod tests {
     const STEPS: Steps = Steps {
         forward: 0.25,
         turn_deg: 15.0,
-        max_repeat: 3,
+        bare_turn_deg: None,
     };
 
-    fn text(s: &str) -> Result<Vec<Action>, String> {
+    fn text(s: &str) -> Result<Vec<Action>, ReplyFault> {
         parse_reply(&Value::String(s.into()), &STEPS)
     }
 
@@ -366,7 +404,8 @@ mod tests {
         );
         assert_eq!(text("move forward 0.5 m").unwrap(), [F, F]);
         assert_eq!(text("Go straight ahead 2 steps").unwrap(), [F, F]);
-        assert_eq!(text("move forward 10 meters").unwrap(), [F, F, F]);
+        // Every step a reply asks for (the agent applies its cap and notes the cut).
+        assert_eq!(text("move forward 10 meters").unwrap(), vec![F; 40]);
         assert_eq!(text("Move forward").unwrap(), [F]);
         assert_eq!(
             text("The next action is turn left 30 degrees").unwrap(),
@@ -456,17 +495,97 @@ mod tests {
             json!([]),
             json!("{'result': 'no idea'}"),
         ] {
-            let e = parse_reply(&reply, &STEPS).unwrap_err();
+            let (kind, e) = parse_reply(&reply, &STEPS).unwrap_err();
+            assert_eq!(kind, FaultKind::Unparseable, "{reply}");
             assert!(e.starts_with("unparseable reply"), "{reply}: {e}");
         }
-        let e = parse_reply(
+        let (kind, e) = parse_reply(
             &json!({"status": "error", "error": "CUDA out of memory"}),
             &STEPS,
         )
         .unwrap_err();
+        assert_eq!(kind, FaultKind::ServerError);
         assert!(
             e.contains("'error'") && e.contains("CUDA out of memory"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn replies_that_say_the_server_failed_are_server_faults_never_actions() {
+        for (reply, says) in [
+            // The MLLM server's failure reply still names an action.
+            (
+                json!({"status": "error", "message": "VLN query failed: boom", "result": "MOVE_FORWARD"}),
+                "VLN query failed: boom",
+            ),
+            // NaVid's exception reply asks for STOP and reports success.
+            (
+                json!({"vx": 0.0, "vy": 0.0, "yaw_rate": 0.0, "duration_s": 0.0, "stop": true,
+                       "raw_response": "Error: boom", "parsed_from": "error", "status": "success"}),
+                "Error: boom",
+            ),
+            // NaVILA's reply when the model raised.
+            (
+                json!("Error processing request: list index out of range"),
+                "list index out of range",
+            ),
+            (json!("error: move forward"), "error: move forward"),
+        ] {
+            let (kind, why) = parse_reply(&reply, &STEPS).unwrap_err();
+            assert_eq!(kind, FaultKind::ServerError, "{reply}");
+            assert!(why.contains(says), "{reply}: {why}");
+        }
+        // A word that merely starts like it is no error.
+        assert_eq!(text("Errorless: move forward").unwrap(), [F]);
+    }
+
+    #[test]
+    fn navid_velocity_replies_read_duration_s_and_stop() {
+        let navid = |vx: f64, yaw: f64, dur: f64, stop: bool| {
+            json!({"vx": vx, "vy": 0.0, "yaw_rate": yaw, "duration_s": dur, "stop": stop,
+                   "raw_response": "move forward 75 cm", "parsed_from": "navid", "status": "success"})
+        };
+        let thirty = 30f64.to_radians();
+        assert_eq!(
+            parse_reply(&navid(0.25, 0.0, 1.0, false), &STEPS).unwrap(),
+            [F]
+        );
+        assert_eq!(
+            parse_reply(&navid(0.25, 0.0, 2.0, false), &STEPS).unwrap(),
+            [F, F]
+        );
+        assert_eq!(
+            parse_reply(&navid(0.0, thirty, 1.0, false), &STEPS).unwrap(),
+            [L, L]
+        );
+        assert_eq!(
+            parse_reply(&navid(0.0, -thirty, 1.0, false), &STEPS).unwrap(),
+            [R, R]
+        );
+        assert_eq!(
+            parse_reply(&navid(0.0, 0.0, 0.0, true), &STEPS).unwrap(),
+            [S]
+        );
+        // `stop` wins over any velocity sent with it.
+        assert_eq!(
+            parse_reply(&navid(0.25, 0.0, 1.0, true), &STEPS).unwrap(),
+            [S]
+        );
+    }
+
+    #[test]
+    fn a_bare_turn_is_the_flavours_angle() {
+        let thirty = Steps {
+            bare_turn_deg: Some(30.0),
+            ..STEPS
+        };
+        assert_eq!(parse_reply(&json!("turn left"), &thirty).unwrap(), [L, L]);
+        assert_eq!(parse_reply(&json!("TURN_RIGHT"), &thirty).unwrap(), [R, R]);
+        assert_eq!(
+            parse_reply(&json!("turn left 15 degrees"), &thirty).unwrap(),
+            [L]
+        );
+        assert_eq!(text("turn left").unwrap(), [L]);
     }
 }

@@ -123,4 +123,8 @@ impl Transport for SocketClient {
         let request = serde_json::json!({"images": images, "query": instruction});
         self.exchange(request.to_string().as_bytes())
     }
+
+    fn send(&mut self, message: &serde_json::Value) -> Result<serde_json::Value, String> {
+        self.exchange(message.to_string().as_bytes())
+    }
 }
