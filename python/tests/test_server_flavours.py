@@ -790,3 +790,16 @@ def test_strict_makes_one_failed_episode_fail_the_run(sage3d, dataset, tmp_path)
         for eid in good:
             assert_scored(records[eid], NAVILA_ACTIONS)
             assert "faults" not in records[eid], f"{eid}: expected no faults, got {records[eid].get('faults')}"
+
+
+def test_python_reads_agent_strings_as_the_cli_does():
+    """The Python package canonicalises agent strings as the run record stores them, and knows
+    that a NaVid server's episodes run one at a time (sage3d.distributed then runs its tasks
+    one after another)."""
+    from sage3d import _sage3d
+
+    assert _sage3d.agent_spec("socket:h:9?server=NaVid&history=1") == {"name": "socket:h:9?server=navid", "serial": True}
+    assert _sage3d.agent_spec("socket:h:9?server=navila&history=8") == {"name": "socket:h:9?server=navila", "serial": False}
+    assert _sage3d.agent_spec("oracle") == {"name": "oracle", "serial": False}
+    with pytest.raises(ValueError, match="navila, navid, mllm"):
+        _sage3d.agent_spec("socket:h:9?server=habitat")

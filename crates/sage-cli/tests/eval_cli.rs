@@ -153,6 +153,14 @@ fn bad_input_gives_clear_errors() {
         e.contains("unknown split 'tset'") && e.contains("train, val"),
         "{e}"
     );
+    // An empty split is an error naming the splits that hold episodes; no run folder is made.
+    std::fs::write(data.join("episodes/empty.jsonl"), "").unwrap();
+    let e = err(&data, "empty", "oracle");
+    assert!(
+        e.contains("split 'empty' has no episodes") && e.contains("train") && !e.contains("empty,"),
+        "{e}"
+    );
+    assert!(!run.exists(), "no run folder for an empty split");
     let e = err(&data, "train", "genius");
     assert!(
         e.contains("--agent 'genius'") && e.contains("random, forward, oracle"),
@@ -187,7 +195,32 @@ fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
     let (scenes, data) = small_dataset(dir.path());
     std::fs::write(scenes.join("home1/structure.json"), "{\"rooms\": 3}").unwrap();
     let run = dir.path().join("run");
-    eval("2", &data, &scenes, &run, &["--agent", "forward"]);
+    // Nothing could be scored: the run is written, and says so in its exit status.
+    let out = sage3d(&[
+        "eval",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--split",
+        "train",
+        "--agent",
+        "forward",
+        "--out",
+        s(&run),
+    ]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(!out.status.success(), "{stdout}");
+    assert!(
+        stderr.contains("every episode of the run failed") && stderr.contains("scene"),
+        "{stderr}"
+    );
+    assert!(
+        stdout.starts_with("FAILED: "),
+        "the failures come first: {stdout}"
+    );
     let records: Vec<serde_json::Value> = read(&run.join("episodes.jsonl"))
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
@@ -204,4 +237,48 @@ fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
     let summary: serde_json::Value =
         serde_json::from_str(&read(&run.join("summary.json"))).unwrap();
     assert_eq!(summary["failed"].as_array().unwrap().len(), records.len());
+    assert_eq!(
+        summary["failures"],
+        serde_json::json!({"scene": records.len()})
+    );
+    assert!(records.iter().all(|r| r["failure"] == "scene"));
+}
+
+#[test]
+fn strict_fails_a_run_with_any_failed_episode() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    // The oracle cannot act on no-goal episodes (they have no goal): some fail, most are scored.
+    let lenient = dir.path().join("lenient");
+    let out = eval("2", &data, &scenes, &lenient, &["--agent", "oracle"]);
+    let summary: serde_json::Value =
+        serde_json::from_str(&read(&lenient.join("summary.json"))).unwrap();
+    let failed = summary["failed"].as_array().unwrap().len();
+    assert!(failed > 0 && failed < summary["episodes"].as_u64().unwrap() as usize);
+    assert_eq!(summary["failures"], serde_json::json!({"episode": failed}));
+    assert!(out.starts_with(&format!("FAILED: {failed} of ")), "{out}");
+    let strict = dir.path().join("strict");
+    let run = sage3d(&[
+        "eval",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--split",
+        "train",
+        "--agent",
+        "oracle",
+        "--strict",
+        "--out",
+        s(&strict),
+    ]);
+    let e = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && e.contains(&format!("{failed} of")) && e.contains("--strict"),
+        "{e}"
+    );
+    // The run folder is complete all the same: the same summary as the lenient run.
+    assert_eq!(
+        read(&strict.join("summary.json")),
+        read(&lenient.join("summary.json"))
+    );
 }

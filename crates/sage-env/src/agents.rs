@@ -474,7 +474,7 @@ mod tests {
             assert!(!f.recovered);
             assert_eq!(
                 f.to_string(),
-                format!("{text}").replacen(": ", &format!(": {kind}: "), 1)
+                text.replacen(": ", &format!(": {kind}: "), 1)
             );
         }
         let f: Fault =

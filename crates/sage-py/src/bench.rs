@@ -25,6 +25,18 @@ pub fn read_split<'py>(
     to_py(py, &episodes)
 }
 
+/// An agent string as `sage3d eval --agent` takes it: its canonical form (as records store
+/// it) and whether its episodes must run one at a time (a server holding one episode's state).
+#[pyfunction]
+pub fn agent_spec<'py>(py: Python<'py>, spec: &str) -> PyResult<Bound<'py, PyAny>> {
+    let kind: AgentKind = spec.parse().py()?;
+    let serial = kind.maker().py()?.serial();
+    to_py(
+        py,
+        &serde_json::json!({"name": kind.to_string(), "serial": serial}),
+    )
+}
+
 /// The split names of a dataset folder (its `episodes/*.jsonl`), sorted.
 #[pyfunction]
 pub fn list_splits(dataset: PathBuf) -> PyResult<Vec<String>> {

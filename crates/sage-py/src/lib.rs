@@ -29,6 +29,7 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bench::read_split, m)?)?;
     m.add_function(wrap_pyfunction!(bench::list_splits, m)?)?;
     m.add_function(wrap_pyfunction!(bench::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::agent_spec, m)?)?;
     m.add_function(wrap_pyfunction!(bench::merge_eval, m)?)?;
     m.add_function(wrap_pyfunction!(bench::build_scene, m)?)?;
     m.add_function(wrap_pyfunction!(bench::assemble_dataset, m)?)?;

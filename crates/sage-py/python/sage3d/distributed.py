@@ -75,19 +75,27 @@ def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: st
     Task ``scene`` runs (or resumes) the run folder ``out/shards/{scene}``; the driver merges
     the shards' records into ``out/episodes.jsonl`` sorted by episode id, with ``summary.json``
     and ``sage3d_run.json`` equal to one ``sage3d eval`` over the whole split. ``agent`` as in
-    :func:`sage3d.evaluate` (a Python agent must be picklable). Returns the summary.
+    :func:`sage3d.evaluate` (a Python agent must be picklable). An agent whose server holds one
+    episode's state (``socket:HOST:PORT?server=navid``) gets its tasks one after another, as
+    ``sage3d eval`` runs its episodes one at a time. Returns the summary.
     """
     ray = _ray()
     dataset, scenes, out = os.fspath(dataset), os.fspath(scenes), os.fspath(out)
     names = sorted({e["scene"] for e in _sage3d.read_split(dataset, split)})
     overrides = overrides_json(width, height, sensors, config)
-    name = agent_name(agent)
+    spec = _sage3d.agent_spec(agent) if isinstance(agent, str) else None
+    name = spec["name"] if spec else agent_name(agent)
     kwargs = dict(agent_name=None if isinstance(agent, str) else name, split=split, mode=mode,
                   seed=seed, preset=preset, overrides=overrides, dtw=dtw)
     factory = agent_factory(agent)
     task = ray.remote(num_cpus=num_cpus)(_evaluate_shard)
-    refs = [task.remote(dataset, scenes, factory, os.path.join(out, "shards", n), kwargs, n)
-            for n in names]
-    shards = ray.get(refs)
+
+    def shard(n):
+        return task.remote(dataset, scenes, factory, os.path.join(out, "shards", n), kwargs, n)
+
+    if spec and spec["serial"]:
+        shards = [ray.get(shard(n)) for n in names]
+    else:
+        shards = ray.get([shard(n) for n in names])
     return _sage3d.merge_eval(dataset, scenes, out, name, shards, split=split,
                               mode=mode, seed=seed, preset=preset, dtw=dtw)
