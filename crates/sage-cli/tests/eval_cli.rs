@@ -214,7 +214,7 @@ fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
     );
     assert!(!out.status.success(), "{stdout}");
     assert!(
-        stderr.contains("every episode of the run failed") && stderr.contains("scene"),
+        stderr.contains("every episode of the run failed") && stderr.contains("scene_load"),
         "{stderr}"
     );
     assert!(
@@ -239,9 +239,9 @@ fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
     assert_eq!(summary["failed"].as_array().unwrap().len(), records.len());
     assert_eq!(
         summary["failures"],
-        serde_json::json!({"scene": records.len()})
+        serde_json::json!({"scene_load": records.len()})
     );
-    assert!(records.iter().all(|r| r["failure"] == "scene"));
+    assert!(records.iter().all(|r| r["failure"] == "scene_load"));
 }
 
 #[test]
@@ -255,7 +255,10 @@ fn strict_fails_a_run_with_any_failed_episode() {
         serde_json::from_str(&read(&lenient.join("summary.json"))).unwrap();
     let failed = summary["failed"].as_array().unwrap().len();
     assert!(failed > 0 && failed < summary["episodes"].as_u64().unwrap() as usize);
-    assert_eq!(summary["failures"], serde_json::json!({"episode": failed}));
+    assert_eq!(
+        summary["failures"],
+        serde_json::json!({"episode_error": failed})
+    );
     assert!(out.starts_with(&format!("FAILED: {failed} of ")), "{out}");
     let strict = dir.path().join("strict");
     let run = sage3d(&[

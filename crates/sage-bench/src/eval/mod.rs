@@ -115,20 +115,20 @@ pub struct EvalRecord {
 #[serde(rename_all = "snake_case")]
 pub enum Failure {
     /// Its scene could not be loaded.
-    Scene,
+    SceneLoad,
     /// The agent's model server gave no usable reply after every retry.
     ModelServer,
     /// The agent could not act on it, or the environment or the metrics failed.
-    Episode,
+    EpisodeError,
 }
 
 impl Failure {
     /// The failure's name as records store it.
     pub fn as_str(self) -> &'static str {
         match self {
-            Failure::Scene => "scene",
+            Failure::SceneLoad => "scene_load",
             Failure::ModelServer => "model_server",
-            Failure::Episode => "episode",
+            Failure::EpisodeError => "episode_error",
         }
     }
 }
@@ -330,7 +330,7 @@ fn run_one(
         rec.failure = Some(if gave_up {
             Failure::ModelServer
         } else {
-            Failure::Episode
+            Failure::EpisodeError
         });
     }
     rec
@@ -476,7 +476,7 @@ pub fn run_with(
                 Ok(ctx) => run_one(ctx, runner, settings.scoring(), e),
                 Err(err) => EvalRecord {
                     error: Some(err.to_string()),
-                    failure: Some(Failure::Scene),
+                    failure: Some(Failure::SceneLoad),
                     ..blank_record(runner, e)
                 },
             };

@@ -75,7 +75,7 @@ impl Summary {
         let mut failures = BTreeMap::new();
         for r in records.iter().filter(|r| r.metrics.is_none()) {
             *failures
-                .entry(r.failure.unwrap_or(Failure::Episode))
+                .entry(r.failure.unwrap_or(Failure::EpisodeError))
                 .or_insert(0) += 1;
         }
         let mut faults = BTreeMap::new();

@@ -248,7 +248,7 @@ pub fn page(input: &PageInput) -> Result<String> {
                 "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 escape(&r.episode_id),
                 escape(&r.scene),
-                r.failure.map_or("episode", Failure::as_str),
+                r.failure.unwrap_or(Failure::EpisodeError).as_str(),
                 escape(r.error.as_deref().unwrap_or_default())
             );
         }
