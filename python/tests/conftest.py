@@ -1,5 +1,7 @@
-"""Shared fixtures: the sage3d binary under test and a small synthetic scene."""
+"""Shared fixtures: the sage3d binary under test and a small synthetic scene; the small
+VLN split the model-server tests run on."""
 
+import json
 import os
 import pathlib
 import subprocess
@@ -31,3 +33,24 @@ def small_scene(tmp_path_factory, sage3d):
     out = tmp_path_factory.mktemp("scene") / "home"
     sage3d("scene", "synth", "--seed", 3, "--out", out, "--rooms", 4, "--objects", 40, "--gaussians", 60000)
     return out
+
+
+def few_vln_split(sage3d, root):
+    """A synthetic home under `root/scenes` and a dataset under `root/data` with a `few` split of
+    three VLN episodes with distinct instructions (few rendered steps: the debug build renders
+    slowly; distinct instructions let a server tell episodes apart). Returns (scenes, data,
+    {episode_id: instruction})."""
+    scenes = root / "scenes"
+    sage3d("scene", "synth", "--seed", 1, "--out", scenes / "home1", "--rooms", 3, "--objects", 30, "--gaussians", 1000)
+    data = root / "data"
+    sage3d("data", "build", scenes, "--out", data, "--per-scene", 1, "--seed", 2)
+    vln, seen = [], set()
+    for line in (data / "episodes" / "train.jsonl").read_text().splitlines():
+        ep = json.loads(line)
+        if ep["task"] == "vln" and ep["instruction"] not in seen:
+            seen.add(ep["instruction"])
+            vln.append(line)
+    vln = vln[:3]
+    assert len(vln) == 3, "expected the built dataset to hold 3 VLN episodes with distinct instructions"
+    (data / "episodes" / "few.jsonl").write_text("\n".join(vln) + "\n")
+    return scenes, data, {json.loads(line)["episode_id"]: json.loads(line)["instruction"] for line in vln}

@@ -15,6 +15,7 @@ import struct
 import threading
 
 import pytest
+from conftest import few_vln_split
 from PIL import Image
 
 SCRIPT = [
@@ -102,16 +103,7 @@ def start_http_server(nav):
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory, sage3d):
-    root = tmp_path_factory.mktemp("servers")
-    scenes = root / "scenes"
-    sage3d("scene", "synth", "--seed", 1, "--out", scenes / "home1", "--rooms", 3, "--objects", 30, "--gaussians", 1000)
-    data = root / "data"
-    sage3d("data", "build", scenes, "--out", data, "--per-scene", 1, "--seed", 2)
-    # A split of three VLN episodes keeps the rendered steps few (the debug build renders slowly).
-    lines = (data / "episodes" / "train.jsonl").read_text().splitlines()
-    vln = [line for line in lines if json.loads(line)["task"] == "vln"][:3]
-    assert len(vln) == 3
-    (data / "episodes" / "few.jsonl").write_text("\n".join(vln) + "\n")
+    scenes, data, _ = few_vln_split(sage3d, tmp_path_factory.mktemp("servers"))
     return scenes, data
 
 

@@ -32,6 +32,7 @@ import struct
 import threading
 
 import pytest
+from conftest import few_vln_split
 from PIL import Image
 
 FORWARD_M = 0.25
@@ -353,26 +354,8 @@ class MLLM:
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory, sage3d):
-    """A synthetic home and a `few` split of three VLN episodes with distinct instructions;
-    returns (scenes, data, {episode_id: instruction})."""
-    root = tmp_path_factory.mktemp("flavours")
-    scenes = root / "scenes"
-    sage3d("scene", "synth", "--seed", 1, "--out", scenes / "home1", "--rooms", 3, "--objects", 30, "--gaussians", 1000)
-    data = root / "data"
-    sage3d("data", "build", scenes, "--out", data, "--per-scene", 1, "--seed", 2)
-    # A split of three VLN episodes keeps the rendered steps few (the debug build renders slowly).
-    lines = (data / "episodes" / "train.jsonl").read_text().splitlines()
-    vln, seen = [], set()
-    for line in lines:
-        ep = json.loads(line)
-        if ep["task"] == "vln" and ep["instruction"] not in seen:
-            seen.add(ep["instruction"])
-            vln.append(line)
-    vln = vln[:3]
-    assert len(vln) == 3, "expected the built dataset to hold 3 VLN episodes with distinct instructions"
-    (data / "episodes" / "few.jsonl").write_text("\n".join(vln) + "\n")
-    instructions = {json.loads(line)["episode_id"]: json.loads(line)["instruction"] for line in vln}
-    return scenes, data, instructions
+    """(scenes, data, {episode_id: instruction}) of the `few` split."""
+    return few_vln_split(sage3d, tmp_path_factory.mktemp("flavours"))
 
 
 def run_eval(sage3d, dataset, out, agent, threads=1, extra=()):
@@ -425,6 +408,25 @@ def assert_scored(rec, actions):
 
 def fault_keys(rec):
     return [(f["step"], f["attempt"], f["kind"]) for f in rec.get("faults", [])]
+
+
+def assert_one_server_error(records, summary, hit_id, step, says):
+    """Episode `hit_id` has exactly one server_error fault (at `step`, first attempt, its message
+    holding `says`), the others none; the run counts that one fault and no failure."""
+    for eid, rec in records.items():
+        if eid == hit_id:
+            assert fault_keys(rec) == [(step, 1, "server_error")], (
+                f"{eid}: expected one server_error fault at step {step}, attempt 1, got {rec.get('faults')}"
+            )
+            assert says in rec["faults"][0]["message"], (
+                f"{eid}: expected the fault message to carry {says!r}, got {rec['faults'][0]['message']!r}"
+            )
+        else:
+            assert "faults" not in rec, f"{eid}: expected no faults, got {rec.get('faults')}"
+    assert summary["faults"] == {"server_error": 1}, f"expected summary faults {{'server_error': 1}}, got {summary['faults']}"
+    assert summary["failed"] == [] and summary["failures"] == {}, (
+        f"expected no failed episodes, got {summary['failed']} / {summary['failures']}"
+    )
 
 
 def moved(before, after):
@@ -512,19 +514,7 @@ def test_navila_error_reply_is_a_server_error_fault_and_retried(sage3d, dataset,
     for eid, rec in records.items():
         assert_scored(rec, NAVILA_ACTIONS)
         check_navila_frames(nav, rec, instructions[eid])
-        if eid == hit[0]:
-            assert fault_keys(rec) == [(4, 1, "server_error")], (
-                f"{eid}: expected one server_error fault at step 4, attempt 1, got {rec.get('faults')}"
-            )
-            assert "CUDA out of memory" in rec["faults"][0]["message"], (
-                f"{eid}: expected the fault message to carry the server's error, got {rec['faults'][0]['message']!r}"
-            )
-        else:
-            assert "faults" not in rec, f"{eid}: expected no faults, got {rec.get('faults')}"
-    assert summary["faults"] == {"server_error": 1}, f"expected summary faults {{'server_error': 1}}, got {summary['faults']}"
-    assert summary["failed"] == [] and summary["failures"] == {}, (
-        f"expected no failed episodes, got {summary['failed']} / {summary['failures']}"
-    )
+    assert_one_server_error(records, summary, hit[0], 4, "CUDA out of memory")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -678,19 +668,8 @@ def test_mllm_flavour_sends_the_current_frame_alone_and_error_status_is_a_fault(
                 assert reqs[k]["current"] != reqs[k - 1]["current"], (
                     f"{eid}: expected images[0] to change after MOVE_FORWARD {k} (the agent moved)"
                 )
-        if instructions[eid] == failed_req["query"]:
-            assert fault_keys(rec) == [(1, 1, "server_error")], (
-                f"{eid}: expected one server_error fault at step 1, attempt 1, got {rec.get('faults')}"
-            )
-            assert "VLN query failed" in rec["faults"][0]["message"], (
-                f"{eid}: expected the fault message to carry the server's message, got {rec['faults'][0]['message']!r}"
-            )
-        else:
-            assert "faults" not in rec, f"{eid}: expected no faults, got {rec.get('faults')}"
-    assert summary["faults"] == {"server_error": 1}, f"expected summary faults {{'server_error': 1}}, got {summary['faults']}"
-    assert summary["failed"] == [] and summary["failures"] == {}, (
-        f"expected no failed episodes, got {summary['failed']} / {summary['failures']}"
-    )
+    hit = next(eid for eid, q in instructions.items() if q == failed_req["query"])
+    assert_one_server_error(records, summary, hit, 1, "VLN query failed")
 
 
 def test_mllm_flavour_history_sends_current_frame_first(sage3d, dataset, tmp_path):

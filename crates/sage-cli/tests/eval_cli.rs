@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{eval, s, sage3d, small_dataset, small_scene};
+use common::{eval, eval_output, s, sage3d, small_dataset, small_scene};
 use std::path::Path;
 
 fn read(p: &Path) -> String {
@@ -106,18 +106,7 @@ fn oracle_solves_the_vln_episodes_independent_of_threads_and_resumes_exactly() {
     assert!(read(&r1.join("summary.json")).contains("\"mode\": \"vlnce\""));
 
     // A run folder resumes only the same run.
-    let other = sage3d(&[
-        "eval",
-        s(&data),
-        "--scenes",
-        s(&scenes),
-        "--split",
-        "train",
-        "--agent",
-        "forward",
-        "--out",
-        s(&one),
-    ]);
+    let other = eval_output("1", &data, &scenes, &one, &["--agent", "forward"]);
     assert!(!other.status.success());
     assert!(String::from_utf8_lossy(&other.stderr).contains("other settings"));
 }
@@ -196,18 +185,7 @@ fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
     std::fs::write(scenes.join("home1/structure.json"), "{\"rooms\": 3}").unwrap();
     let run = dir.path().join("run");
     // Nothing could be scored: the run is written, and says so in its exit status.
-    let out = sage3d(&[
-        "eval",
-        s(&data),
-        "--scenes",
-        s(&scenes),
-        "--split",
-        "train",
-        "--agent",
-        "forward",
-        "--out",
-        s(&run),
-    ]);
+    let out = eval_output("2", &data, &scenes, &run, &["--agent", "forward"]);
     let (stdout, stderr) = (
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr),
@@ -261,19 +239,13 @@ fn strict_fails_a_run_with_any_failed_episode() {
     );
     assert!(out.starts_with(&format!("FAILED: {failed} of ")), "{out}");
     let strict = dir.path().join("strict");
-    let run = sage3d(&[
-        "eval",
-        s(&data),
-        "--scenes",
-        s(&scenes),
-        "--split",
-        "train",
-        "--agent",
-        "oracle",
-        "--strict",
-        "--out",
-        s(&strict),
-    ]);
+    let run = eval_output(
+        "2",
+        &data,
+        &scenes,
+        &strict,
+        &["--agent", "oracle", "--strict"],
+    );
     let e = String::from_utf8_lossy(&run.stderr);
     assert!(
         !run.status.success() && e.contains(&format!("{failed} of")) && e.contains("--strict"),

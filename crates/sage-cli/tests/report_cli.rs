@@ -56,7 +56,13 @@ fn failed_episodes_are_listed_with_their_errors() {
     assert!(!failed.is_empty());
     let html = std::fs::read_to_string(run.join("report.html")).unwrap();
     assert!(html.contains(&format!("episodes failed</th><td>{}", failed.len())));
-    let section = &html[html.find("<h2>Failed episodes</h2>").unwrap() + 4..];
+    // A banner above everything says so and links the list.
+    let banner = &html[..html.find("<h2>Run</h2>").unwrap()];
+    assert!(
+        banner.contains(&format!("{} of ", failed.len())) && banner.contains("href=\"#failed\""),
+        "{banner}"
+    );
+    let section = &html[html.find("<h2 id=\"failed\">Failed episodes</h2>").unwrap() + 4..];
     let section = &section[..section.find("<h2>").unwrap()];
     for r in failed {
         let id = r["episode_id"].as_str().unwrap();
@@ -69,6 +75,10 @@ fn failed_episodes_are_listed_with_their_errors() {
             .replace('"', "&quot;")
             .replace('\'', "&#39;");
         assert!(section.contains(&format!("<tr><td>{id}</td>")), "{section}");
+        assert!(
+            section.contains(&format!("<td>{}</td>", r["failure"].as_str().unwrap())),
+            "{section}"
+        );
         assert!(section.contains(&error), "{error} {section}");
     }
 }

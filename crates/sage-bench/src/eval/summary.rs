@@ -33,6 +33,10 @@ pub struct Summary {
     /// Failed episodes per kind of failure (kinds that occurred).
     #[serde(default)]
     pub failures: BTreeMap<Failure, usize>,
+    /// For each kind of failure, the first failed episode (by id) and its error:
+    /// `"home1-n0: agent oracle on episode home1-n0: …"`.
+    #[serde(default)]
+    pub failure_examples: BTreeMap<Failure, String>,
     /// Model-server faults per kind over every episode, recovered or not (kinds that occurred).
     #[serde(default)]
     pub faults: BTreeMap<FaultKind, usize>,
@@ -73,10 +77,17 @@ impl Summary {
             })
             .collect();
         let mut failures = BTreeMap::new();
+        let mut failure_examples = BTreeMap::new();
         for r in records.iter().filter(|r| r.metrics.is_none()) {
-            *failures
-                .entry(r.failure.unwrap_or(Failure::EpisodeError))
-                .or_insert(0) += 1;
+            let kind = r.failure.unwrap_or(Failure::EpisodeError);
+            *failures.entry(kind).or_insert(0) += 1;
+            failure_examples.entry(kind).or_insert_with(|| {
+                format!(
+                    "{}: {}",
+                    r.episode_id,
+                    r.error.as_deref().unwrap_or("no error recorded")
+                )
+            });
         }
         let mut faults = BTreeMap::new();
         for f in records.iter().flat_map(|r| &r.faults) {
@@ -94,6 +105,7 @@ impl Summary {
                 .map(|r| r.episode_id.clone())
                 .collect(),
             failures,
+            failure_examples,
             faults,
             overall: means(&scored),
             slices,
@@ -128,11 +140,14 @@ impl Summary {
         if !self.failed.is_empty() {
             let _ = writeln!(
                 t,
-                "FAILED: {} of {} episodes were not scored ({}); their records say why",
+                "FAILED: {} of {} episodes were not scored ({}):",
                 self.failed.len(),
                 self.episodes,
                 self.failure_counts()
             );
+            for (kind, example) in &self.failure_examples {
+                let _ = writeln!(t, "  {kind}, e.g. {example}");
+            }
         }
         if !self.faults.is_empty() {
             let _ = writeln!(t, "model-server faults: {}", self.fault_counts());

@@ -67,8 +67,31 @@ pub fn small_dataset(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     (scenes, data)
 }
 
-/// `sage3d --threads N eval DATA --scenes SCENES --split train --out RUN` and `extra`.
+/// `sage3d --threads N eval DATA --scenes SCENES --split train --out RUN` and `extra`: asserts
+/// success and returns standard output.
 pub fn eval(threads: &str, data: &Path, scenes: &Path, run: &Path, extra: &[&str]) -> String {
+    ok(&eval_args(threads, data, scenes, run, extra))
+}
+
+/// [`eval`]'s command, whatever its outcome.
+pub fn eval_output(
+    threads: &str,
+    data: &Path,
+    scenes: &Path,
+    run: &Path,
+    extra: &[&str],
+) -> Output {
+    sage3d(&eval_args(threads, data, scenes, run, extra))
+}
+
+/// The arguments of [`eval`].
+fn eval_args<'a>(
+    threads: &'a str,
+    data: &'a Path,
+    scenes: &'a Path,
+    run: &'a Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
     let base = [
         "--threads",
         threads,
@@ -81,5 +104,5 @@ pub fn eval(threads: &str, data: &Path, scenes: &Path, run: &Path, extra: &[&str
         "--out",
         s(run),
     ];
-    ok(&[&base[..], extra].concat())
+    [&base[..], extra].concat()
 }

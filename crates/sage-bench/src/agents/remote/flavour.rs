@@ -9,6 +9,7 @@
 //! model sees what the agent sees now and nothing a server invents is scored as the model's
 //! choice.
 
+use super::parse::ReplyFault;
 use sage_core::{Error, Result};
 use sage_env::agents::FaultKind;
 use serde_json::Value;
@@ -110,7 +111,7 @@ impl Server {
     /// # Errors
     ///
     /// The fault's kind and message when the reply is not the model's own decision.
-    pub fn check(self, reply: &Value) -> std::result::Result<(), (FaultKind, String)> {
+    pub fn check(self, reply: &Value) -> std::result::Result<(), ReplyFault> {
         if self != Server::Navid {
             return Ok(());
         }

@@ -397,7 +397,7 @@ impl RemoteAgent {
         &mut self,
         step: usize,
         what: &str,
-        mut attempt: impl FnMut(&mut dyn Transport) -> std::result::Result<T, (FaultKind, String)>,
+        mut attempt: impl FnMut(&mut dyn Transport) -> std::result::Result<T, parse::ReplyFault>,
     ) -> Result<T> {
         let first = self.faults.len();
         let kind = Cell::new(FaultKind::Transport);
