@@ -18,9 +18,10 @@ use std::path::PathBuf;
 
 #[derive(Subcommand)]
 pub enum BenchCommand {
-    /// Decode a compressed PLY and measure time and resident memory per Gaussian.
-    /// Without --input, a synthetic office of --gaussians Gaussians (SH degree 1) is written
-    /// first; use --sh3 to re-encode it at SH degree 3 (the memory target's case).
+    /// Decode a 3DGS file into the scene store and measure time and resident memory per
+    /// Gaussian. Without --input, a synthetic office of --gaussians Gaussians (SH degree 1) is
+    /// written first in --format; use --sh3 to re-encode it at SH degree 3 (the memory target's
+    /// case).
     Load(LoadArgs),
     /// Render a ≥1M-Gaussian synthetic home from cameras inside its largest room at 224×224
     /// and 640×480; report the median frame time and its breakdown.
@@ -88,9 +89,13 @@ pub struct RenderBenchArgs {
 
 #[derive(Args)]
 pub struct LoadArgs {
-    /// A compressed or standard PLY to decode (default: generate one).
+    /// A 3DGS file to decode, any format sage3d reads (default: generate one).
     #[arg(long)]
     input: Option<PathBuf>,
+    /// Format of the generated file: compressed-ply, ply or spz (SOG, glTF and .splat files
+    /// come with --input).
+    #[arg(long, default_value = "compressed-ply")]
+    format: String,
     /// Gaussians in the generated scene.
     #[arg(long, default_value_t = 1_000_000)]
     gaussians: usize,
@@ -173,13 +178,14 @@ pub struct EnvBenchArgs {
 }
 
 impl LoadArgs {
-    fn settings(&self) -> LoadSettings {
-        LoadSettings {
+    fn settings(&self) -> Result<LoadSettings> {
+        Ok(LoadSettings {
             input: self.input.clone(),
+            format: self.format.parse()?,
             gaussians: self.gaussians,
             sh3: self.sh3,
             repeat: self.repeat,
-        }
+        })
     }
 }
 
@@ -252,7 +258,7 @@ impl FitBenchArgs {
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Load(a) => {
-            let report = sage_perf::load::run(&a.settings(), &|s| {
+            let report = sage_perf::load::run(&a.settings()?, &|s| {
                 let mut args = vec![
                     "load".into(),
                     "--repeat".into(),
@@ -354,7 +360,7 @@ mod tests {
     fn default_flags_give_default_settings() {
         for name in ["load", "render", "nav", "physics", "env", "fit"] {
             match parse(&[name]) {
-                BenchCommand::Load(a) => assert_eq!(a.settings(), LoadSettings::default()),
+                BenchCommand::Load(a) => assert_eq!(a.settings().unwrap(), LoadSettings::default()),
                 BenchCommand::Render(a) => {
                     assert_eq!(a.settings().unwrap(), RenderSettings::default());
                 }

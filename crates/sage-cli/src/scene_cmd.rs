@@ -163,7 +163,7 @@ fn info(dir: &Path, json: bool) -> Result<()> {
             "summary": summary,
             "files": report.files,
             "missing": report.missing,
-            "layout": report.splat_layout.map(|l| l.as_str()),
+            "format": report.splat_format.map(|f| f.as_str()),
             "morton_reordered": report.morton_reordered,
             "warnings": report.warnings,
             "load_seconds": elapsed,
@@ -179,13 +179,13 @@ fn info(dir: &Path, json: bool) -> Result<()> {
     if !report.missing.is_empty() {
         println!("missing     {}", report.missing.join(", "));
     }
-    if let Some(l) = report.splat_layout {
+    if let Some(f) = report.splat_format {
         let note = if report.morton_reordered {
             " (Gaussians sorted into Morton order for rendering)"
         } else {
             ""
         };
-        println!("layout      {} PLY{note}", l.as_str());
+        println!("format      {f}{note}");
     }
     for w in &report.warnings {
         println!("warning     {w}");

@@ -1,47 +1,67 @@
-//! `sage3d splat …`: 3DGS PLY conversions.
+//! `sage3d splat …`: 3DGS file conversions.
 
 use clap::{Args, Subcommand};
 use sage_core::Result;
-use sage_scene::ply::{self, SplatLayout};
+use sage_scene::splats::convert::{ConvertOptions, convert};
 use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Subcommand)]
 pub enum SplatCommand {
-    /// Convert between the standard and compressed layouts. The input layout is read from its
-    /// header; the output layout comes from the output name (`*.compressed.ply` → compressed,
-    /// other `*.ply` → standard). Gaussian order is preserved.
+    /// Convert between 3DGS formats. The input may be standard or compressed PLY, SPZ, SOG,
+    /// glTF/GLB (KHR_gaussian_splatting) or .splat, told from its content; the output format
+    /// comes from its name: NAME.ply (standard), NAME.compressed.ply or NAME.spz. Values pass
+    /// at full precision from reader to writer (standard PLY output is lossless); what the
+    /// output format cannot hold is listed. Gaussian order is preserved.
     Convert(ConvertArgs),
 }
 
 #[derive(Args)]
 pub struct ConvertArgs {
-    /// Input PLY (standard or compressed).
+    /// Input 3DGS file (any format sage3d reads).
     input: PathBuf,
-    /// Output PLY.
+    /// Output file: NAME.ply, NAME.compressed.ply or NAME.spz.
     output: PathBuf,
+    /// Keep SH bands up to this degree (0–3; default: all the input has).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(0..=3))]
+    sh_degree: Option<u8>,
+    /// Replace the output file if it exists.
+    #[arg(long)]
+    force: bool,
 }
 
 pub fn run(cmd: SplatCommand) -> Result<()> {
     match cmd {
-        SplatCommand::Convert(a) => convert(a),
+        SplatCommand::Convert(a) => run_convert(a),
     }
 }
 
-fn convert(a: ConvertArgs) -> Result<()> {
-    let out_layout = SplatLayout::from_file_name(&a.output)?;
+fn run_convert(a: ConvertArgs) -> Result<()> {
     let start = Instant::now();
-    let (g, in_layout) = ply::read_splats_file(&a.input)?;
-    ply::write_splats_file(&a.output, &g, out_layout)?;
+    let r = convert(
+        &a.input,
+        &a.output,
+        ConvertOptions {
+            sh_degree: a.sh_degree,
+            force: a.force,
+        },
+    )?;
     println!(
-        "{} ({}, {} Gaussians, SH degree {}) -> {} ({}) in {:.2} s",
+        "{} ({}, {} Gaussians, SH degree {}) -> {} ({}, SH degree {}) in {:.2} s",
         a.input.display(),
-        in_layout.as_str(),
-        g.len(),
-        g.sh_degree(),
+        r.input_format,
+        r.gaussians,
+        r.sh_degree_in,
         a.output.display(),
-        out_layout.as_str(),
+        r.output_format,
+        r.sh_degree_out,
         start.elapsed().as_secs_f64()
     );
+    if r.losses.is_empty() {
+        println!("lossless: every value is written as read");
+    }
+    for loss in &r.losses {
+        println!("lost: {loss}");
+    }
     Ok(())
 }

@@ -101,7 +101,34 @@ fn convert_round_trip_through_both_layouts() {
     assert!(printed.contains("4096 Gaussians, SH degree 3"), "{printed}");
     ok(&["splat", "convert", s(&packed), s(&plain)]);
     let printed = ok(&["splat", "convert", s(&plain), s(&dir.path().join("y.ply"))]);
-    assert!(printed.contains("(standard, 4096 Gaussians"), "{printed}");
+    assert!(printed.contains("(ply, 4096 Gaussians"), "{printed}");
+    assert!(printed.contains("lossless"), "{printed}");
+    // Any format in, SPZ out, with what SPZ cannot hold listed; SH bands dropped on request.
+    let spz = dir.path().join("x.spz");
+    let printed = ok(&["splat", "convert", &testdata("random_3k_sh0.sog"), s(&spz)]);
+    assert!(
+        printed.contains("(sog, 3000 Gaussians") && printed.contains("lost: positions"),
+        "{printed}"
+    );
+    let printed = ok(&[
+        "splat",
+        "convert",
+        &testdata("random_4k_sh3.glb"),
+        s(&dir.path().join("sh1.compressed.ply")),
+        "--sh-degree",
+        "1",
+    ]);
+    assert!(
+        printed.contains("(gltf, 4096 Gaussians, SH degree 3)")
+            && printed.contains("SH degree 1")
+            && printed.contains("lost: SH bands 2–3 dropped"),
+        "{printed}"
+    );
+    // An existing output is never replaced unasked.
+    let out = sage3d(&["splat", "convert", s(&plain), s(&spz)]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--force"));
+    ok(&["splat", "convert", s(&plain), s(&spz), "--force"]);
 }
 
 #[test]
@@ -149,7 +176,7 @@ fn bad_input_is_a_clear_error_and_leaves_no_output() {
         &testdata("random_3k_sh0.ply"),
         s(&dir.path().join("x.splat")),
     ]);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot tell the layout"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot tell the output format"));
 }
 
 #[test]

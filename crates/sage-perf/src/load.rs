@@ -1,8 +1,10 @@
-//! `sage3d bench load`: decode a compressed PLY; time and resident memory per Gaussian.
+//! `sage3d bench load`: decode a 3DGS file of any format into the scene store; time and
+//! resident memory per Gaussian.
 
 use crate::machine;
 use sage_core::{Error, Result};
-use sage_scene::ply::{self, SplatLayout};
+use sage_scene::ply::SplatLayout;
+use sage_scene::splats::{self, Format};
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -12,8 +14,10 @@ use std::time::Instant;
 /// What `bench load` decodes, and how often.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadSettings {
-    /// A compressed or standard PLY to decode (`None`: generate one).
+    /// A 3DGS file of any format to decode (`None`: generate one).
     pub input: Option<PathBuf>,
+    /// The format the generated file is written in (standard or compressed PLY, SPZ).
+    pub format: Format,
     /// Gaussians in the generated scene.
     pub gaussians: usize,
     /// Give the generated file SH degree 3 (bands 2–3 filled from a seeded hash).
@@ -26,6 +30,7 @@ impl Default for LoadSettings {
     fn default() -> Self {
         Self {
             input: None,
+            format: Format::Ply(SplatLayout::Compressed),
             gaussians: 1_000_000,
             sh3: false,
             repeat: 7,
@@ -40,8 +45,9 @@ pub struct LoadReport {
     pub machine: String,
     /// The decoded file.
     pub file: PathBuf,
-    /// Its layout (`compressed` or `standard`).
-    pub layout: String,
+    /// Its format, told from its content (`compressed-ply`, `ply`, `spz`, `sog`, `gltf`,
+    /// `splat`).
+    pub format: String,
     /// Its size, bytes.
     pub file_bytes: u64,
     /// SH degree of the Gaussians.
@@ -70,9 +76,9 @@ impl fmt::Display for LoadReport {
         writeln!(f, "machine          {}", self.machine)?;
         writeln!(
             f,
-            "file             {} ({} layout, {:.1} MB, SH degree {})",
+            "file             {} ({}, {:.1} MB, SH degree {})",
             self.file.display(),
-            self.layout,
+            self.format,
             self.file_bytes as f64 / 1e6,
             self.sh_degree
         )?;
@@ -117,16 +123,35 @@ pub fn run(
     if let Some(path) = &settings.input {
         return measure(path, settings.repeat);
     }
+    if !settings.format.writable() {
+        return Err(Error::invalid(format!(
+            "bench load generates ply, compressed-ply or spz files; give a {} file with --input \
+             (splat-transform writes one: `splat-transform IN.ply OUT.{}`)",
+            settings.format,
+            match settings.format {
+                Format::Gltf => "glb",
+                other => other.as_str(),
+            }
+        )));
+    }
     let dir = crate::scratch_dir();
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-    let file = dir.join("bench.compressed.ply");
-    eprintln!("generating a {}-Gaussian scene …", settings.gaussians);
-    let result = generate(&file, settings.gaussians, settings.sh3).and_then(|()| {
-        fresh(&LoadSettings {
-            input: Some(file.clone()),
-            ..settings.clone()
-        })
+    let file = dir.join(match settings.format {
+        Format::Ply(SplatLayout::Compressed) => "bench.compressed.ply",
+        Format::Ply(SplatLayout::Standard) => "bench.ply",
+        _ => "bench.spz",
     });
+    eprintln!(
+        "generating a {}-Gaussian scene ({}) …",
+        settings.gaussians, settings.format
+    );
+    let result =
+        generate(&file, settings.gaussians, settings.sh3, settings.format).and_then(|()| {
+            fresh(&LoadSettings {
+                input: Some(file.clone()),
+                ..settings.clone()
+            })
+        });
     let _ = std::fs::remove_dir_all(&dir);
     result
 }
@@ -137,12 +162,12 @@ fn measure(path: &Path, repeat: usize) -> Result<LoadReport> {
         .map_err(|e| Error::io(path, e))?
         .len();
     let rss_before = machine::resident_bytes();
-    let (kept, layout) = ply::read_splats_file(path)?;
+    let (kept, format) = splats::read_gaussians_file(path)?;
     let rss_after = machine::resident_bytes();
     let mut times = Vec::with_capacity(repeat);
     for _ in 0..repeat.max(1) {
         let start = Instant::now();
-        let (g, _) = ply::read_splats_file(path)?;
+        let (g, _) = splats::read_gaussians_file(path)?;
         times.push(start.elapsed().as_secs_f64());
         drop(g);
     }
@@ -150,7 +175,7 @@ fn measure(path: &Path, repeat: usize) -> Result<LoadReport> {
     Ok(LoadReport {
         machine: machine::describe(),
         file: path.to_path_buf(),
-        layout: layout.as_str().to_string(),
+        format: format.to_string(),
         file_bytes: size,
         sh_degree: kept.sh_degree(),
         gaussians: kept.len(),
@@ -162,8 +187,8 @@ fn measure(path: &Path, repeat: usize) -> Result<LoadReport> {
     })
 }
 
-/// Writes the compressed PLY of a synthetic office with about `gaussians` Gaussians.
-fn generate(path: &Path, gaussians: usize, sh3: bool) -> Result<()> {
+/// Writes the Gaussians of a synthetic office with about `gaussians` Gaussians in `format`.
+fn generate(path: &Path, gaussians: usize, sh3: bool, format: Format) -> Result<()> {
     let rooms = (gaussians / 60_000).clamp(4, 20);
     let config = SynthConfig {
         seed: 1,
@@ -179,7 +204,7 @@ fn generate(path: &Path, gaussians: usize, sh3: bool) -> Result<()> {
     } else {
         scene.gaussians
     };
-    ply::write_splats_file(path, &g, SplatLayout::Compressed)
+    splats::write_file(path, &g, format)
 }
 
 #[cfg(test)]
@@ -190,7 +215,7 @@ mod tests {
         LoadReport {
             machine: "CPU, 2 cores visible, 2 threads used".into(),
             file: "scene/bench.compressed.ply".into(),
-            layout: "compressed".into(),
+            format: "compressed-ply".into(),
             file_bytes: 25_300_000,
             sh_degree: 1,
             gaussians: 1_000_000,
@@ -205,7 +230,7 @@ mod tests {
         assert_eq!(
             report().to_string(),
             "machine          CPU, 2 cores visible, 2 threads used\n\
-             file             scene/bench.compressed.ply (compressed layout, 25.3 MB, SH degree 1)\n\
+             file             scene/bench.compressed.ply (compressed-ply, 25.3 MB, SH degree 1)\n\
              gaussians        1000000\n\
              decode           median 0.125 s, best 0.062 s over 3 runs (8.0 M Gaussians/s)\n\
              store            49.0 bytes/Gaussian (heap of the Gaussian arrays)\n\

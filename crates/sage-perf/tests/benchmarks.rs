@@ -20,7 +20,7 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
         load::run(s, &|_| unreachable!("a given file is measured in process"))
     })
     .unwrap();
-    assert_eq!(report.layout, "compressed");
+    assert_eq!(report.format, "compressed-ply");
     assert_eq!(report.decode_s.len(), 2);
     assert!(report.gaussians > 0 && report.sh_degree == 1);
     assert!(!report.file.exists(), "the scratch folder is removed");
@@ -28,6 +28,23 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
         report.to_string().lines().count(),
         5 + report.resident_growth_bytes.iter().count()
     );
+    // Every writable format can be generated and measured; the read-only ones come as files.
+    for format in ["ply", "spz"] {
+        let settings = LoadSettings {
+            format: format.parse().unwrap(),
+            ..settings.clone()
+        };
+        let report = load::run(&settings, &|s| load::run(s, &|_| unreachable!())).unwrap();
+        assert_eq!(report.format, format);
+    }
+    let sog = LoadSettings {
+        format: "sog".parse().unwrap(),
+        ..settings.clone()
+    };
+    let e = load::run(&sog, &|_| unreachable!())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--input"), "{e}");
 
     let settings = RenderSettings {
         gaussians: 3000,

@@ -20,6 +20,7 @@ pub mod occupancy;
 pub mod ply;
 pub mod preview;
 pub mod scene;
+pub mod splats;
 pub mod summary;
 pub mod vocabulary;
 

@@ -8,6 +8,7 @@ use crate::mesh::TriMesh;
 use crate::object::Object;
 use crate::occupancy::OccupancyMap;
 use crate::ply::{self, SplatLayout};
+use crate::splats::{self, Format};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result, ResultExt};
 use std::path::Path;
@@ -45,8 +46,8 @@ pub struct LoadReport {
     pub files: Vec<String>,
     /// Expected files that were absent.
     pub missing: Vec<String>,
-    /// The layout of the Gaussian file.
-    pub splat_layout: Option<SplatLayout>,
+    /// The format of the Gaussian file (told from its content).
+    pub splat_format: Option<Format>,
     /// True when the Gaussians were reordered on load (a standard PLY not in Morton order; see
     /// [`Scene::load`]).
     pub morton_reordered: bool,
@@ -62,6 +63,17 @@ pub mod files {
     pub const COMPRESSED_PLY: &str = "3dgs_compressed.ply";
     /// Gaussians in the standard Inria layout.
     pub const STANDARD_PLY: &str = "3dgs.ply";
+    /// Gaussian files looked for, in this order; the first present is read, in whatever
+    /// format its content is (so a `3dgs.ply` may be compressed and a `3dgs.spz` is SPZ).
+    pub const GAUSSIANS: [&str; 7] = [
+        COMPRESSED_PLY,
+        STANDARD_PLY,
+        "3dgs.spz",
+        "3dgs.sog",
+        "3dgs.glb",
+        "3dgs.gltf",
+        "3dgs.splat",
+    ];
     /// Object boxes.
     pub const LABELS: &str = "labels.json";
     /// Floorplan.
@@ -125,18 +137,18 @@ impl Scene {
                 report.missing.push(name.to_string())
             }
         };
-        let splat_path = [files::COMPRESSED_PLY, files::STANDARD_PLY]
+        let splat_path = files::GAUSSIANS
             .iter()
             .map(|f| dir.join(f))
             .find(|p| p.is_file());
         let gaussians = match &splat_path {
             Some(p) => {
                 note(&p.file_name().unwrap_or_default().to_string_lossy(), true);
-                let (mut g, layout) = ply::read_splats_file(p)?;
-                report.splat_layout = Some(layout);
-                // Compressed files are spatially chunked by construction; standard ones may be
-                // in any order (training output is), which would make render chunks loose.
-                if layout == SplatLayout::Standard {
+                let (mut g, format) = splats::read_gaussians_file(p)?;
+                report.splat_format = Some(format);
+                // Compressed PLY files are spatially chunked by construction; other files may
+                // be in any order (training output is), which would make render chunks loose.
+                if format != Format::Ply(SplatLayout::Compressed) {
                     report.morton_reordered = g.sort_morton();
                 }
                 g

@@ -20,7 +20,10 @@ fn save_then_load_round_trips() {
     let dir = tempfile::tempdir().unwrap();
     scene.save(dir.path(), SplatLayout::Compressed).unwrap();
     let (back, report) = Scene::load(dir.path()).unwrap();
-    assert_eq!(report.splat_layout, Some(SplatLayout::Compressed));
+    assert_eq!(
+        report.splat_format,
+        Some(sage_scene::splats::Format::Ply(SplatLayout::Compressed))
+    );
     assert!(report.missing.is_empty(), "{report:?}");
     assert_eq!(report.meshes, scene.objects.len());
     assert_eq!(back.floorplan, scene.floorplan);
@@ -71,7 +74,10 @@ fn standard_layout_keeps_gaussians_exactly() {
     let dir = tempfile::tempdir().unwrap();
     scene.save(dir.path(), SplatLayout::Standard).unwrap();
     let (back, report) = Scene::load(dir.path()).unwrap();
-    assert_eq!(report.splat_layout, Some(SplatLayout::Standard));
+    assert_eq!(
+        report.splat_format,
+        Some(sage_scene::splats::Format::Ply(SplatLayout::Standard))
+    );
     assert_eq!(back.gaussians.positions, scene.gaussians.positions);
     assert_eq!(back.gaussians.log_scales, scene.gaussians.log_scales);
     assert_eq!(back.gaussians.sh_dc, scene.gaussians.sh_dc);

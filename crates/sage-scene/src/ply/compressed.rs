@@ -13,7 +13,9 @@
 //! The writer always emits 18-float chunk records and keeps the Gaussians in store order.
 
 use super::header::{Element, Header, Rows, Scalar, element_rows};
+use super::standard::MAX_LOGIT;
 use crate::gaussians::{Gaussian, Gaussians, SH_C0, sh_degree_for_rest_len, sh_rest_count};
+use crate::splats::{BlockDecoder, SplatSource};
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
@@ -44,17 +46,13 @@ const PACKED: [&str; 4] = [
     "packed_color",
 ];
 
-/// Alpha is clamped half a quantisation step inside (0, 1) so the logit stays finite and
-/// re-encodes to the same byte.
-const ALPHA_EPS: f32 = 0.5 / 255.0;
-
-fn fixed<'a>(rows: &'a Rows<'a>, name: &str) -> Result<(&'a [u8], usize)> {
+fn fixed<'a>(rows: &Rows<'a>, name: &str) -> Result<(&'a [u8], usize)> {
     match rows {
         Rows::Fixed {
             bytes,
             stride,
             big_endian: false,
-        } => Ok((bytes, *stride)),
+        } => Ok((*bytes, *stride)),
         _ => Err(Error::format(
             name,
             "the compressed layout must be binary little-endian without lists",
@@ -126,114 +124,183 @@ fn sh_value(byte: u8) -> f32 {
     (u - 0.5) * 8.0
 }
 
-/// Reads the compressed layout (the header has been parsed already).
-pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
-    let (ci, chunk_el) = header
-        .element("chunk")
-        .ok_or_else(|| Error::format("chunk", "missing element"))?;
-    let (vi, vertex_el) = header
-        .element("vertex")
-        .ok_or_else(|| Error::format("vertex", "missing element"))?;
-    let rows = element_rows(header, bytes)?;
-    let (chunk_bytes, chunk_stride) = fixed(&rows[ci], "chunk")?;
-    let (vert_bytes, vert_stride) = fixed(&rows[vi], "vertex")?;
-    let n = vertex_el.count;
-    if chunk_el.count < n.div_ceil(CHUNK) {
-        return Err(Error::format(
-            "chunk",
-            format!(
-                "{} chunk records cannot cover {n} vertices (need {})",
-                chunk_el.count,
-                n.div_ceil(CHUNK)
-            ),
-        ));
-    }
-    let chunk_off = offsets(chunk_el, &CHUNK_POS, Scalar::F32)?;
-    let color_off = match chunk_el.property_index("min_r") {
-        Some(_) => Some(offsets(chunk_el, &CHUNK_COLOR, Scalar::F32)?),
-        None => None,
-    };
-    let packed_off = offsets(vertex_el, &PACKED, Scalar::U32)?;
-    let sh = match header.element("sh") {
-        None => None,
-        Some((si, sh_el)) => {
-            if sh_el.count != n {
-                return Err(Error::format(
-                    "sh",
-                    format!("has {} rows but vertex has {n}", sh_el.count),
-                ));
-            }
-            let names: Vec<String> = (0..sh_el.properties.len())
-                .map(|i| format!("f_rest_{i}"))
-                .collect();
-            let names: Vec<&str> = names.iter().map(String::as_str).collect();
-            let off = offsets(sh_el, &names, Scalar::U8)?;
-            let (b, stride) = fixed(&rows[si], "sh")?;
-            Some((b, stride, off))
-        }
-    };
-    let degree = match &sh {
-        None => 0,
-        Some((_, _, off)) => sh_degree_for_rest_len(off.len()).ok_or_else(|| {
-            Error::format(
-                "sh",
+/// A compressed-layout file opened for decoding (the header has been parsed already).
+pub struct CompressedDecoder<'a> {
+    n: usize,
+    degree: u8,
+    chunk_bytes: &'a [u8],
+    chunk_stride: usize,
+    chunk_off: Vec<usize>,
+    color_off: Option<Vec<usize>>,
+    vert_bytes: &'a [u8],
+    vert_stride: usize,
+    packed_off: Vec<usize>,
+    sh: Option<(&'a [u8], usize, Vec<usize>)>,
+}
+
+impl<'a> CompressedDecoder<'a> {
+    /// Locates the chunk, vertex and SH records of `bytes` as `header` describes them.
+    ///
+    /// # Errors
+    ///
+    /// A missing element or property, a wrong type, too few chunk records for the vertices or
+    /// an SH element of another length, naming the element and property.
+    pub fn open(header: &Header, bytes: &'a [u8]) -> Result<CompressedDecoder<'a>> {
+        let (ci, chunk_el) = header
+            .element("chunk")
+            .ok_or_else(|| Error::format("chunk", "missing element"))?;
+        let (vi, vertex_el) = header
+            .element("vertex")
+            .ok_or_else(|| Error::format("vertex", "missing element"))?;
+        let rows = element_rows(header, bytes)?;
+        let (chunk_bytes, chunk_stride) = fixed(&rows[ci], "chunk")?;
+        let (vert_bytes, vert_stride) = fixed(&rows[vi], "vertex")?;
+        let n = vertex_el.count;
+        if chunk_el.count < n.div_ceil(CHUNK) {
+            return Err(Error::format(
+                "chunk",
                 format!(
-                    "found {} f_rest properties; expected 9, 24 or 45",
-                    off.len()
+                    "{} chunk records cannot cover {n} vertices (need {})",
+                    chunk_el.count,
+                    n.div_ceil(CHUNK)
                 ),
-            )
-        })?,
-    };
-    let k = sh_rest_count(degree);
-    let mut store = Gaussians::with_len(n, degree)?;
-    store
-        .par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(c, mut window)| {
-            let cb = &chunk_bytes[c * chunk_stride..];
-            let f = |i: usize| f32_at(cb, chunk_off[i]);
-            let (pmin, pmax) = (Vec3::new(f(0), f(1), f(2)), Vec3::new(f(3), f(4), f(5)));
-            let (smin, smax) = (Vec3::new(f(6), f(7), f(8)), Vec3::new(f(9), f(10), f(11)));
-            let color_range = color_off.as_ref().map(|o| {
+            ));
+        }
+        let chunk_off = offsets(chunk_el, &CHUNK_POS, Scalar::F32)?;
+        let color_off = match chunk_el.property_index("min_r") {
+            Some(_) => Some(offsets(chunk_el, &CHUNK_COLOR, Scalar::F32)?),
+            None => None,
+        };
+        let packed_off = offsets(vertex_el, &PACKED, Scalar::U32)?;
+        let sh = match header.element("sh") {
+            None => None,
+            Some((si, sh_el)) => {
+                if sh_el.count != n {
+                    return Err(Error::format(
+                        "sh",
+                        format!("has {} rows but vertex has {n}", sh_el.count),
+                    ));
+                }
+                let names: Vec<String> = (0..sh_el.properties.len())
+                    .map(|i| format!("f_rest_{i}"))
+                    .collect();
+                let names: Vec<&str> = names.iter().map(String::as_str).collect();
+                let off = offsets(sh_el, &names, Scalar::U8)?;
+                let (b, stride) = fixed(&rows[si], "sh")?;
+                Some((b, stride, off))
+            }
+        };
+        let degree = match &sh {
+            None => 0,
+            Some((_, _, off)) => sh_degree_for_rest_len(off.len()).ok_or_else(|| {
+                Error::format(
+                    "sh",
+                    format!(
+                        "found {} f_rest properties; expected 9, 24 or 45",
+                        off.len()
+                    ),
+                )
+            })?,
+        };
+        Ok(CompressedDecoder {
+            n,
+            degree,
+            chunk_bytes,
+            chunk_stride,
+            chunk_off,
+            color_off,
+            vert_bytes,
+            vert_stride,
+            packed_off,
+            sh,
+        })
+    }
+
+    /// The position, log-scale and colour bounds of chunk `c`.
+    fn bounds(&self, c: usize) -> ChunkBounds {
+        let cb = &self.chunk_bytes[c * self.chunk_stride..];
+        let f = |i: usize| f32_at(cb, self.chunk_off[i]);
+        ChunkBounds {
+            position: (Vec3::new(f(0), f(1), f(2)), Vec3::new(f(3), f(4), f(5))),
+            log_scale: (Vec3::new(f(6), f(7), f(8)), Vec3::new(f(9), f(10), f(11))),
+            color: self.color_off.as_ref().map(|o| {
                 let g = |i: usize| f32_at(cb, o[i]);
                 (Vec3::new(g(0), g(1), g(2)), Vec3::new(g(3), g(4), g(5)))
-            });
-            for j in 0..window.len() {
-                let row = c * CHUNK + j;
-                let vb = &vert_bytes[row * vert_stride..];
-                let [pp, pr, ps, pc] = [0, 1, 2, 3].map(|i| u32_at(vb, packed_off[i]));
-                let raw = Vec3::new(
-                    (pc >> 24) as f32,
-                    ((pc >> 16) & 0xff) as f32,
-                    ((pc >> 8) & 0xff) as f32,
-                ) / 255.0;
-                let rgb = match color_range {
-                    Some((lo, hi)) => lo + (hi - lo) * raw,
-                    None => raw,
-                };
-                let alpha = ((pc & 0xff) as f32 / 255.0).clamp(ALPHA_EPS, 1.0 - ALPHA_EPS);
-                let mut sh_rest = [[0.0; 3]; 15];
-                if let Some((sb, stride, off)) = &sh {
-                    let row_bytes = &sb[row * stride..];
-                    for (idx, o) in off.iter().enumerate() {
-                        sh_rest[idx % k][idx / k] = sh_value(row_bytes[*o]);
-                    }
+            }),
+        }
+    }
+}
+
+/// The bounds of one chunk record: (min, max) of positions, log-scales and (18-float records)
+/// colours.
+struct ChunkBounds {
+    position: (Vec3, Vec3),
+    log_scale: (Vec3, Vec3),
+    color: Option<(Vec3, Vec3)>,
+}
+
+impl BlockDecoder for CompressedDecoder<'_> {
+    fn len(&self) -> usize {
+        self.n
+    }
+
+    fn sh_degree(&self) -> u8 {
+        self.degree
+    }
+
+    fn decode(&self, start: usize, out: &mut [Gaussian]) -> Result<()> {
+        let k = sh_rest_count(self.degree);
+        let mut chunk = None;
+        for (j, g) in out.iter_mut().enumerate() {
+            let row = start + j;
+            let c = row / CHUNK;
+            let b = match &chunk {
+                Some((at, b)) if *at == c => b,
+                _ => &chunk.insert((c, self.bounds(c))).1,
+            };
+            let vb = &self.vert_bytes[row * self.vert_stride..];
+            let [pp, pr, ps, pc] = [0, 1, 2, 3].map(|i| u32_at(vb, self.packed_off[i]));
+            let raw = Vec3::new(
+                (pc >> 24) as f32,
+                ((pc >> 16) & 0xff) as f32,
+                ((pc >> 8) & 0xff) as f32,
+            ) / 255.0;
+            let rgb = match b.color {
+                Some((lo, hi)) => lo + (hi - lo) * raw,
+                None => raw,
+            };
+            let alpha = (pc & 0xff) as f32 / 255.0;
+            let mut sh_rest = [[0.0; 3]; 15];
+            if let Some((sb, stride, off)) = &self.sh {
+                let row_bytes = &sb[row * stride..];
+                for (idx, o) in off.iter().enumerate() {
+                    sh_rest[idx % k][idx / k] = sh_value(row_bytes[*o]);
                 }
-                window.set(
-                    j,
-                    &Gaussian {
-                        position: pmin + (pmax - pmin) * unpack_11_10_11(pp),
-                        rotation: unpack_rotation(pr),
-                        log_scale: smin + (smax - smin) * unpack_11_10_11(ps),
-                        opacity_logit: -(1.0 / alpha - 1.0).ln(),
-                        sh_dc: ((rgb - Vec3::splat(0.5)) / SH_C0).to_array(),
-                        sh_rest,
-                        instance: 0,
-                    },
-                );
             }
-        });
-    Ok(store)
+            let ((pmin, pmax), (smin, smax)) = (b.position, b.log_scale);
+            *g = Gaussian {
+                position: pmin + (pmax - pmin) * unpack_11_10_11(pp),
+                rotation: unpack_rotation(pr),
+                log_scale: smin + (smax - smin) * unpack_11_10_11(ps),
+                // 0 and 255 give logits of ∓infinity, kept at ∓20 as `splat-transform` keeps
+                // them (sigmoid(±20) re-encodes to the same byte).
+                opacity_logit: (-(1.0 / alpha - 1.0).ln()).clamp(-MAX_LOGIT, MAX_LOGIT),
+                sh_dc: ((rgb - Vec3::splat(0.5)) / SH_C0).to_array(),
+                sh_rest,
+                instance: 0,
+            };
+        }
+        Ok(())
+    }
+}
+
+/// Reads the compressed layout into the compact store (the header has been parsed already).
+///
+/// # Errors
+///
+/// As [`CompressedDecoder::open`], and the store's validation.
+pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
+    CompressedDecoder::open(header, bytes)?.to_gaussians()
 }
 
 fn unorm(v: f32, bits: u32) -> u32 {
@@ -343,8 +410,8 @@ fn encode_chunk(items: &[Gaussian], k: usize) -> ([f32; 18], Vec<u8>, Vec<u8>) {
     (b, vertices, sh_bytes)
 }
 
-/// Writes the compressed layout, in store order.
-pub fn write(w: &mut impl Write, g: &Gaussians) -> std::io::Result<()> {
+/// Writes the compressed layout, in the source's order.
+pub fn write(w: &mut impl Write, g: &impl SplatSource) -> std::io::Result<()> {
     let n = g.len();
     let k = sh_rest_count(g.sh_degree());
     let chunks: Vec<([f32; 18], Vec<u8>, Vec<u8>)> = (0..n.div_ceil(CHUNK))

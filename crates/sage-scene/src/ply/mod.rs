@@ -14,6 +14,7 @@ pub mod mesh;
 pub mod standard;
 
 use crate::gaussians::Gaussians;
+use crate::splats::SplatSource;
 use sage_core::{Error, Result, ResultExt};
 use std::path::Path;
 
@@ -79,7 +80,7 @@ pub fn detect_layout(header: &header::Header) -> Result<SplatLayout> {
     }
 }
 
-/// Reads Gaussians from PLY bytes in either layout.
+/// Reads Gaussians from PLY bytes in either layout into the compact store.
 pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
     let header = header::parse_header(bytes)?;
     let layout = detect_layout(&header)?;
@@ -87,7 +88,6 @@ pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
         SplatLayout::Standard => standard::read(&header, bytes)?,
         SplatLayout::Compressed => compressed::read(&header, bytes)?,
     };
-    g.validate()?;
     Ok((g, layout))
 }
 
@@ -101,7 +101,11 @@ pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
 }
 
 /// Writes Gaussians in `layout`, atomically (temporary file, then rename).
-pub fn write_splats_file(path: &Path, gaussians: &Gaussians, layout: SplatLayout) -> Result<()> {
+pub fn write_splats_file(
+    path: &Path,
+    gaussians: &impl SplatSource,
+    layout: SplatLayout,
+) -> Result<()> {
     sage_io::files::write_atomic(path, |w| match layout {
         SplatLayout::Standard => standard::write(w, gaussians),
         SplatLayout::Compressed => compressed::write(w, gaussians),

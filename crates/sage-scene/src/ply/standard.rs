@@ -6,6 +6,7 @@
 
 use super::header::{Element, Header, Rows, Scalar, element_rows};
 use crate::gaussians::{Gaussian, Gaussians, SH_C0, sh_degree_for_rest_len, sh_rest_count};
+use crate::splats::{BlockDecoder, SplatSource};
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
@@ -89,83 +90,118 @@ fn layout(e: &Element, fixed: bool) -> Result<(Layout, u8)> {
     ))
 }
 
-/// Reads the standard layout (the header has been parsed already).
-pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
-    let (vi, element) = header
-        .element("vertex")
-        .ok_or_else(|| Error::format("vertex", "missing element"))?;
-    let rows = element_rows(header, bytes)?;
-    let rows = &rows[vi];
-    let fixed = matches!(rows, Rows::Fixed { .. });
-    let (layout, degree) = layout(element, fixed)?;
-    let k = sh_rest_count(degree);
-    let mut store = Gaussians::with_len(element.count, degree)?;
-    const BLOCK: usize = 4096;
-    store
-        .par_chunks_mut(BLOCK)
-        .enumerate()
-        .try_for_each(|(b, mut window)| {
-            for j in 0..window.len() {
-                let row = b * BLOCK + j;
-                let get = |s: &Source| -> f32 {
-                    match (s, rows) {
-                        (
-                            Source::Offset(o, t),
-                            Rows::Fixed {
-                                bytes,
-                                stride,
-                                big_endian,
-                            },
-                        ) => t.read(&bytes[row * stride + o..], *big_endian) as f32,
-                        (Source::Index(i), _) => {
-                            rows.values(element, row, *i)
-                                .first()
-                                .copied()
-                                .unwrap_or(f64::NAN) as f32
-                        }
-                        _ => f32::NAN,
-                    }
-                };
-                let sh_dc = match &layout.color {
-                    ColorSource::Dc(s) => s.each_ref().map(get),
-                    ColorSource::Rgb(s, max) => {
-                        s.each_ref().map(|c| (get(c) / *max as f32 - 0.5) / SH_C0)
-                    }
-                };
-                let mut sh_rest = [[0.0; 3]; 15];
-                for (idx, s) in layout.rest.iter().enumerate() {
-                    sh_rest[idx % k][idx / k] = get(s);
+/// A standard-layout file opened for decoding (the header has been parsed already).
+pub struct StandardDecoder<'a> {
+    element: Element,
+    rows: Rows<'a>,
+    layout: Layout,
+    degree: u8,
+}
+
+impl<'a> StandardDecoder<'a> {
+    /// Locates the vertex rows of `bytes` and the properties the Gaussians need.
+    ///
+    /// # Errors
+    ///
+    /// No `vertex` element, a missing property or an SH count that is no degree, naming them.
+    pub fn open(header: &Header, bytes: &'a [u8]) -> Result<StandardDecoder<'a>> {
+        let (vi, element) = header
+            .element("vertex")
+            .ok_or_else(|| Error::format("vertex", "missing element"))?;
+        let rows = element_rows(header, bytes)?
+            .into_iter()
+            .nth(vi)
+            .ok_or_else(|| Error::format("vertex", "missing rows"))?;
+        let (layout, degree) = layout(element, matches!(rows, Rows::Fixed { .. }))?;
+        Ok(StandardDecoder {
+            element: element.clone(),
+            rows,
+            layout,
+            degree,
+        })
+    }
+
+    /// The value of `s` in row `row`.
+    fn get(&self, row: usize, s: &Source) -> f32 {
+        match (s, &self.rows) {
+            (
+                Source::Offset(o, t),
+                Rows::Fixed {
+                    bytes,
+                    stride,
+                    big_endian,
+                },
+            ) => t.read(&bytes[row * stride + o..], *big_endian) as f32,
+            (Source::Index(i), rows) => rows
+                .values(&self.element, row, *i)
+                .first()
+                .copied()
+                .unwrap_or(f64::NAN) as f32,
+            _ => f32::NAN,
+        }
+    }
+}
+
+impl BlockDecoder for StandardDecoder<'_> {
+    fn len(&self) -> usize {
+        self.element.count
+    }
+
+    fn sh_degree(&self) -> u8 {
+        self.degree
+    }
+
+    fn decode(&self, start: usize, out: &mut [Gaussian]) -> Result<()> {
+        let k = sh_rest_count(self.degree);
+        let layout = &self.layout;
+        for (j, g) in out.iter_mut().enumerate() {
+            let row = start + j;
+            let get = |s: &Source| self.get(row, s);
+            let sh_dc = match &layout.color {
+                ColorSource::Dc(s) => s.each_ref().map(get),
+                ColorSource::Rgb(s, max) => {
+                    s.each_ref().map(|c| (get(c) / *max as f32 - 0.5) / SH_C0)
                 }
-                let [w, x, y, z] = layout.rotation.each_ref().map(get);
-                let rotation = Quat::from_xyzw(x, y, z, w);
-                let bad = |field: &str, why: &str| {
-                    Err(Error::format(
-                        format!("vertex[{row}].{field}"),
-                        why.to_string(),
-                    ))
-                };
-                if !rotation.is_finite() || rotation.length_squared() == 0.0 {
-                    return bad("rot_*", "rotation is not finite or is zero");
-                }
-                if !sh_rest.iter().flatten().all(|v| v.is_finite()) {
-                    return bad("f_rest_*", "value is not finite (NaN or infinity)");
-                }
-                window.set(
-                    j,
-                    &Gaussian {
-                        position: Vec3::from_array(layout.position.each_ref().map(get)),
-                        rotation,
-                        log_scale: Vec3::from_array(layout.scale.each_ref().map(get)),
-                        opacity_logit: finite_logit(get(&layout.opacity)),
-                        sh_dc,
-                        sh_rest,
-                        instance: 0,
-                    },
-                );
+            };
+            let mut sh_rest = [[0.0; 3]; 15];
+            for (idx, s) in layout.rest.iter().enumerate() {
+                sh_rest[idx % k][idx / k] = get(s);
             }
-            Ok(())
-        })?;
-    Ok(store)
+            let [w, x, y, z] = layout.rotation.each_ref().map(get);
+            let rotation = Quat::from_xyzw(x, y, z, w);
+            let bad = |field: &str, why: &str| {
+                Err(Error::format(
+                    format!("vertex[{row}].{field}"),
+                    why.to_string(),
+                ))
+            };
+            if !rotation.is_finite() || rotation.length_squared() == 0.0 {
+                return bad("rot_*", "rotation is not finite or is zero");
+            }
+            if !sh_rest.iter().flatten().all(|v| v.is_finite()) {
+                return bad("f_rest_*", "value is not finite (NaN or infinity)");
+            }
+            *g = Gaussian {
+                position: Vec3::from_array(layout.position.each_ref().map(get)),
+                rotation,
+                log_scale: Vec3::from_array(layout.scale.each_ref().map(get)),
+                opacity_logit: finite_logit(get(&layout.opacity)),
+                sh_dc,
+                sh_rest,
+                instance: 0,
+            };
+        }
+        Ok(())
+    }
+}
+
+/// Reads the standard layout into the compact store (the header has been parsed already).
+///
+/// # Errors
+///
+/// As [`StandardDecoder::open`] and [`BlockDecoder::decode`], and the store's validation.
+pub fn read(header: &Header, bytes: &[u8]) -> Result<Gaussians> {
+    StandardDecoder::open(header, bytes)?.to_gaussians()
 }
 
 /// Tools write alpha 0 and 1 as logits of ∓infinity; keep them finite (NaN stays NaN and is
@@ -213,8 +249,8 @@ fn encode_row(g: &Gaussian, k: usize, out: &mut Vec<u8>) {
     [q.w, q.x, q.y, q.z].into_iter().for_each(&mut push);
 }
 
-/// Writes the standard layout (binary little-endian), in store order.
-pub fn write(w: &mut impl Write, g: &Gaussians) -> std::io::Result<()> {
+/// Writes the standard layout (binary little-endian), in the source's order.
+pub fn write(w: &mut impl Write, g: &impl SplatSource) -> std::io::Result<()> {
     let k = sh_rest_count(g.sh_degree());
     w.write_all(header_text(g.len(), g.sh_degree()).as_bytes())?;
     const BLOCK: usize = 16384;

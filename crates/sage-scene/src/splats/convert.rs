@@ -1,0 +1,131 @@
+//! `splat convert`: any readable 3DGS file to a writable format, at full precision in between,
+//! with a statement of what the target format cannot hold.
+
+use super::{Format, SplatTable, read_table_file, write_file};
+use crate::gaussians::sh_rest_count;
+use crate::ply::SplatLayout;
+use sage_core::{Error, Result};
+use std::path::Path;
+
+/// How to convert.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ConvertOptions {
+    /// Keep SH bands up to this degree (`None`: all the input has); never more than the input.
+    pub sh_degree: Option<u8>,
+    /// Replace an existing output file.
+    pub force: bool,
+}
+
+/// What [`convert`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConvertReport {
+    /// The input's format, told from its content.
+    pub input_format: Format,
+    /// The output's format, from its name.
+    pub output_format: Format,
+    /// Gaussians converted (in input order).
+    pub gaussians: usize,
+    /// SH degree of the input.
+    pub sh_degree_in: u8,
+    /// SH degree written.
+    pub sh_degree_out: u8,
+    /// What the output does not hold of the input, one sentence each (empty: nothing lost).
+    pub losses: Vec<String>,
+}
+
+/// Converts `input` (any format sage3d reads) to `output` (standard PLY, compressed PLY or SPZ,
+/// from its name), passing every value at full precision from reader to writer.
+///
+/// # Errors
+///
+/// An output name that names no writable format, an existing output without `force`, the
+/// input and output being one file, an SH degree above the input's, or the reader's and
+/// writer's errors (naming the file).
+pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<ConvertReport> {
+    let output_format = Format::from_output_name(output)?;
+    if output.exists() {
+        let same = std::fs::canonicalize(input)
+            .ok()
+            .zip(std::fs::canonicalize(output).ok())
+            .is_some_and(|(a, b)| a == b);
+        if same {
+            return Err(Error::invalid(format!(
+                "{}: the output is the input; write to another file",
+                output.display()
+            )));
+        }
+        if !options.force {
+            return Err(Error::invalid(format!(
+                "{} exists; pass --force to replace it",
+                output.display()
+            )));
+        }
+    }
+    let (mut table, input_format) = read_table_file(input)?;
+    let sh_degree_in = table.sh_degree;
+    if let Some(d) = options.sh_degree {
+        if d > sh_degree_in {
+            return Err(Error::invalid(format!(
+                "--sh-degree {d}: the input has SH degree {sh_degree_in}; bands can be dropped, not added"
+            )));
+        }
+        drop_sh_bands(&mut table, d);
+    }
+    write_file(output, &table, output_format)?;
+    Ok(ConvertReport {
+        input_format,
+        output_format,
+        gaussians: table.gaussians.len(),
+        sh_degree_in,
+        sh_degree_out: table.sh_degree,
+        losses: losses(output_format, sh_degree_in, table.sh_degree),
+    })
+}
+
+/// Zeroes the SH coefficients above `degree` and lowers the table's degree to it.
+pub fn drop_sh_bands(table: &mut SplatTable, degree: u8) {
+    let keep = sh_rest_count(degree);
+    for g in &mut table.gaussians {
+        for c in &mut g.sh_rest[keep..] {
+            *c = [0.0; 3];
+        }
+    }
+    table.sh_degree = table.sh_degree.min(degree);
+}
+
+/// What a file written in `to` does not hold of Gaussians of SH degree `from_degree` written
+/// with degree `to_degree`.
+pub fn losses(to: Format, from_degree: u8, to_degree: u8) -> Vec<String> {
+    let mut out = Vec::new();
+    if to_degree < from_degree {
+        out.push(format!(
+            "SH bands {}–{from_degree} dropped ({} of {} coefficients per colour channel kept)",
+            to_degree + 1,
+            sh_rest_count(to_degree) + 1,
+            sh_rest_count(from_degree) + 1
+        ));
+    }
+    match to {
+        Format::Ply(SplatLayout::Standard) => {}
+        Format::Ply(SplatLayout::Compressed) => out.extend(
+            [
+                "positions and log-scales quantised to 11-10-11 bits between the bounds of each 256-Gaussian chunk",
+                "rotations normalised and quantised to 10 bits per component (smallest three)",
+                "base colour quantised to 8 bits per channel between each chunk's colour bounds, opacity to 8 bits after the sigmoid",
+                "higher SH quantised to 8 bits over [-4, 4]",
+            ]
+            .map(String::from),
+        ),
+        _ => out.extend(
+            [
+                "positions quantised to 24-bit fixed point (1/4096 m steps)",
+                "log-scales quantised to 8 bits (1/16 steps over [-10, 6))",
+                "rotations normalised and quantised (smallest three, 9 bits per component)",
+                "base colour and opacity quantised to 8 bits",
+                "higher SH quantised to 5 bits (degree 1) and 4 bits (degrees 2–3) per coefficient",
+            ]
+            .map(String::from),
+        ),
+    }
+    out
+}

@@ -1,0 +1,213 @@
+//! Which format a 3DGS file is in, told from its bytes, and the one door to reading and
+//! writing any of them.
+
+use super::{BlockDecoder, SplatSource, SplatTable, antimatter, gltf, sog, spz};
+use crate::gaussians::Gaussians;
+use crate::ply::{self, SplatLayout};
+use sage_core::{Error, Result, ResultExt};
+use std::fmt;
+use std::path::Path;
+
+/// A 3DGS file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// PLY, standard (Inria) or compressed (SuperSplat) layout.
+    Ply(SplatLayout),
+    /// Niantic's SPZ.
+    Spz,
+    /// PlayCanvas's SOG (a zip of WebP images and `meta.json`).
+    Sog,
+    /// glTF 2.0 (GLB or JSON) with the `KHR_gaussian_splatting` extension.
+    Gltf,
+    /// antimatter15's `.splat` (32-byte records, no header).
+    Splat,
+}
+
+/// Every format, in the order [`Format::detect`] tries them.
+pub const ALL: [Format; 6] = [
+    Format::Ply(SplatLayout::Standard),
+    Format::Ply(SplatLayout::Compressed),
+    Format::Spz,
+    Format::Sog,
+    Format::Gltf,
+    Format::Splat,
+];
+
+impl Format {
+    /// The format's name as commands take and print it: `ply`, `compressed-ply`, `spz`,
+    /// `sog`, `gltf`, `splat`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Format::Ply(SplatLayout::Standard) => "ply",
+            Format::Ply(SplatLayout::Compressed) => "compressed-ply",
+            Format::Spz => "spz",
+            Format::Sog => "sog",
+            Format::Gltf => "gltf",
+            Format::Splat => "splat",
+        }
+    }
+
+    /// True when sage3d writes the format (standard and compressed PLY, SPZ).
+    pub fn writable(self) -> bool {
+        matches!(self, Format::Ply(_) | Format::Spz)
+    }
+
+    /// The format of `bytes`, from magic bytes and headers: PLY (`ply` and its header's
+    /// layout), SPZ (gzip holding the `NGSP` header), SOG (a zip holding `meta.json`), glTF
+    /// (`glTF` magic, or JSON naming the extension), and last `.splat`, which has no magic (a
+    /// whole number of plausible 32-byte records).
+    ///
+    /// # Errors
+    ///
+    /// None of them fits (the message lists what was tried), or a PLY header is damaged.
+    pub fn detect(bytes: &[u8]) -> Result<Format> {
+        if bytes.starts_with(b"ply") {
+            let header = ply::header::parse_header(bytes)?;
+            return Ok(Format::Ply(ply::detect_layout(&header)?));
+        }
+        if spz::sniff(bytes) {
+            return Ok(Format::Spz);
+        }
+        if sog::sniff(bytes) {
+            return Ok(Format::Sog);
+        }
+        if gltf::sniff(bytes) {
+            return Ok(Format::Gltf);
+        }
+        if antimatter::sniff(bytes) {
+            return Ok(Format::Splat);
+        }
+        Err(Error::format(
+            "file",
+            "not a 3DGS file sage3d reads (tried PLY, SPZ, SOG, glTF/GLB and .splat)",
+        ))
+    }
+
+    /// The format a file name asks for when writing: `*.compressed.ply` / `*_compressed.ply`
+    /// compressed PLY (as `splat-transform` decides), other `*.ply` standard PLY, `*.spz` SPZ.
+    ///
+    /// # Errors
+    ///
+    /// Another name, or a format sage3d only reads.
+    pub fn from_output_name(path: &Path) -> Result<Format> {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        if name.ends_with(".spz") {
+            Ok(Format::Spz)
+        } else if name.ends_with(".ply") {
+            Ok(Format::Ply(SplatLayout::from_file_name(path)?))
+        } else {
+            Err(Error::invalid(format!(
+                "{}: cannot tell the output format from the name (write NAME.ply, \
+                 NAME.compressed.ply or NAME.spz; SOG, glTF and .splat are read only)",
+                path.display()
+            )))
+        }
+    }
+}
+
+impl std::str::FromStr for Format {
+    type Err = Error;
+
+    /// A format by the name [`Format::as_str`] gives (`glb` also names glTF).
+    fn from_str(s: &str) -> Result<Format> {
+        let name = s.trim().to_ascii_lowercase();
+        ALL.into_iter()
+            .find(|f| f.as_str() == name)
+            .or((name == "glb").then_some(Format::Gltf))
+            .ok_or_else(|| {
+                let names: Vec<&str> = ALL.iter().map(|f| f.as_str()).collect();
+                Error::invalid(format!(
+                    "unknown format '{s}' (expected one of: {})",
+                    names.join(", ")
+                ))
+            })
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Opens `bytes` for decoding in the format they are in.
+///
+/// # Errors
+///
+/// As [`Format::detect`], and the format's own checks.
+pub fn open(bytes: &[u8]) -> Result<(Box<dyn BlockDecoder + '_>, Format)> {
+    let format = Format::detect(bytes)?;
+    let decoder: Box<dyn BlockDecoder + '_> = match format {
+        Format::Ply(layout) => {
+            let header = ply::header::parse_header(bytes)?;
+            match layout {
+                SplatLayout::Standard => {
+                    Box::new(ply::standard::StandardDecoder::open(&header, bytes)?)
+                }
+                SplatLayout::Compressed => {
+                    Box::new(ply::compressed::CompressedDecoder::open(&header, bytes)?)
+                }
+            }
+        }
+        Format::Spz => Box::new(spz::SpzDecoder::open(bytes)?),
+        Format::Sog => Box::new(sog::SogDecoder::open(bytes)?),
+        Format::Gltf => Box::new(gltf::GltfDecoder::open(bytes)?),
+        Format::Splat => Box::new(antimatter::SplatDecoder::open(bytes)?),
+    };
+    Ok((decoder, format))
+}
+
+/// Runs `f` on the bytes of `path`, memory-mapped; errors name the file.
+fn with_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T>) -> Result<T> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    // SAFETY: the map is read-only and dropped before returning; a file truncated by another
+    // process while mapped is outside what a reader can defend against.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
+    f(&map).in_file(path)
+}
+
+/// Reads a 3DGS file of any format into the compact scene store.
+///
+/// # Errors
+///
+/// As [`open`] and [`BlockDecoder::to_gaussians`], naming the file.
+pub fn read_gaussians_file(path: &Path) -> Result<(Gaussians, Format)> {
+    with_file(path, |bytes| {
+        let (decoder, format) = open(bytes)?;
+        Ok((decoder.to_gaussians()?, format))
+    })
+}
+
+/// Reads a 3DGS file of any format at full precision.
+///
+/// # Errors
+///
+/// As [`open`] and [`BlockDecoder::to_table`], naming the file.
+pub fn read_table_file(path: &Path) -> Result<(SplatTable, Format)> {
+    with_file(path, |bytes| {
+        let (decoder, format) = open(bytes)?;
+        Ok((decoder.to_table()?, format))
+    })
+}
+
+/// Writes `src` to `path` in `format`, atomically (temporary file, then rename).
+///
+/// # Errors
+///
+/// A format sage3d only reads, or the write error.
+pub fn write_file(path: &Path, src: &impl SplatSource, format: Format) -> Result<()> {
+    if !format.writable() {
+        return Err(Error::invalid(format!(
+            "{}: sage3d reads {format} but does not write it (write ply, compressed-ply or spz)",
+            path.display()
+        )));
+    }
+    sage_io::files::write_atomic(path, |w| match format {
+        Format::Ply(SplatLayout::Standard) => ply::standard::write(w, src),
+        Format::Ply(SplatLayout::Compressed) => ply::compressed::write(w, src),
+        _ => spz::write(w, src),
+    })
+}
