@@ -251,25 +251,33 @@ fn encode_row(g: &Gaussian, k: usize, out: &mut Vec<u8>) {
 
 /// Writes the standard layout (binary little-endian), in the source's order.
 pub fn write(w: &mut impl Write, g: &impl SplatSource) -> std::io::Result<()> {
-    let k = sh_rest_count(g.sh_degree());
     w.write_all(header_text(g.len(), g.sh_degree()).as_bytes())?;
     const BLOCK: usize = 16384;
+    let mut rows = Vec::with_capacity(BLOCK.min(g.len()));
     for start in (0..g.len()).step_by(BLOCK) {
-        let end = (start + BLOCK).min(g.len());
-        let parts: Vec<Vec<u8>> = (start..end)
-            .into_par_iter()
-            .chunks(1024)
-            .map(|ids| {
-                let mut buf = Vec::with_capacity(ids.len() * (62 * 4));
-                for i in ids {
-                    encode_row(&g.get(i), k, &mut buf);
-                }
-                buf
-            })
-            .collect();
-        for p in parts {
-            w.write_all(&p)?;
-        }
+        rows.clear();
+        rows.extend((start..(start + BLOCK).min(g.len())).map(|i| g.get(i)));
+        write_rows(w, &rows, g.sh_degree())?;
+    }
+    Ok(())
+}
+
+/// Writes the rows of `rows` (after [`header_text`] for SH degree `degree`), encoded in
+/// parallel; a caller streaming a large file writes it block by block.
+pub fn write_rows(w: &mut impl Write, rows: &[Gaussian], degree: u8) -> std::io::Result<()> {
+    let k = sh_rest_count(degree);
+    let parts: Vec<Vec<u8>> = rows
+        .par_chunks(1024)
+        .map(|chunk| {
+            let mut buf = Vec::with_capacity(chunk.len() * (62 * 4));
+            for g in chunk {
+                encode_row(g, k, &mut buf);
+            }
+            buf
+        })
+        .collect();
+    for p in parts {
+        w.write_all(&p)?;
     }
     Ok(())
 }

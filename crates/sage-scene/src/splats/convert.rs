@@ -1,10 +1,13 @@
 //! `splat convert`: any readable 3DGS file to a writable format, at full precision in between,
-//! with a statement of what the target format cannot hold.
+//! with a statement of what the target format cannot hold. Standard PLY output is streamed
+//! block by block from the decoder; the other writers take the whole table.
 
-use super::{Format, SplatTable, read_table_file, write_file};
-use crate::gaussians::sh_rest_count;
-use crate::ply::SplatLayout;
-use sage_core::{Error, Result};
+use super::{BLOCK, BlockDecoder, Format, SplatTable, open, write_file};
+use crate::gaussians::{Gaussian, sh_rest_count};
+use crate::ply::{SplatLayout, standard};
+use rayon::prelude::*;
+use sage_core::{Error, Result, ResultExt};
+use std::io::Write;
 use std::path::Path;
 
 /// How to convert.
@@ -61,25 +64,74 @@ pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<C
             )));
         }
     }
-    let (mut table, input_format) = read_table_file(input)?;
-    let sh_degree_in = table.sh_degree;
-    if let Some(d) = options.sh_degree {
-        if d > sh_degree_in {
+    let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
+    // SAFETY: the map is read-only and dropped before returning; a file truncated by another
+    // process while mapped is outside what a reader can defend against.
+    let bytes = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(input, e))?;
+    let (decoder, input_format) = open(&bytes).in_file(input)?;
+    let sh_degree_in = decoder.sh_degree();
+    let sh_degree_out = match options.sh_degree {
+        Some(d) if d > sh_degree_in => {
             return Err(Error::invalid(format!(
                 "--sh-degree {d}: the input has SH degree {sh_degree_in}; bands can be dropped, not added"
             )));
         }
-        drop_sh_bands(&mut table, d);
+        Some(d) => d,
+        None => sh_degree_in,
+    };
+    if output_format == Format::Ply(SplatLayout::Standard) {
+        stream_standard(decoder.as_ref(), sh_degree_out, input, output)?;
+    } else {
+        let mut table = decoder.to_table().in_file(input)?;
+        drop_sh_bands(&mut table, sh_degree_out);
+        write_file(output, &table, output_format)?;
     }
-    write_file(output, &table, output_format)?;
     Ok(ConvertReport {
         input_format,
         output_format,
-        gaussians: table.gaussians.len(),
+        gaussians: decoder.len(),
         sh_degree_in,
-        sh_degree_out: table.sh_degree,
-        losses: losses(output_format, sh_degree_in, table.sh_degree),
+        sh_degree_out,
+        losses: losses(output_format, sh_degree_in, sh_degree_out),
     })
+}
+
+/// Writes the standard PLY of `decoder` block by block (never the whole file at full
+/// precision in memory), with SH up to `degree`; an error decoding `input` names it and leaves
+/// no output.
+fn stream_standard(
+    decoder: &dyn BlockDecoder,
+    degree: u8,
+    input: &Path,
+    output: &Path,
+) -> Result<()> {
+    const STREAM: usize = 1 << 16;
+    let failure = std::cell::RefCell::new(None);
+    let written = sage_io::files::write_atomic(output, |w| {
+        w.write_all(standard::header_text(decoder.len(), degree).as_bytes())?;
+        let mut rows = vec![Gaussian::default(); STREAM.min(decoder.len())];
+        for start in (0..decoder.len()).step_by(STREAM) {
+            let rows = &mut rows[..STREAM.min(decoder.len() - start)];
+            let decoded = rows
+                .par_chunks_mut(BLOCK)
+                .enumerate()
+                .try_for_each(|(b, out)| decoder.decode(start + b * BLOCK, out));
+            if let Err(e) = decoded {
+                *failure.borrow_mut() = Some(e);
+                return Err(std::io::Error::other("the input could not be decoded"));
+            }
+            let keep = sh_rest_count(degree);
+            for g in rows.iter_mut() {
+                g.sh_rest[keep..].fill([0.0; 3]);
+            }
+            standard::write_rows(w, rows, degree)?;
+        }
+        Ok(())
+    });
+    match failure.into_inner() {
+        Some(e) => Err(e.in_file(input)),
+        None => written,
+    }
 }
 
 /// Zeroes the SH coefficients above `degree` and lowers the table's degree to it.
