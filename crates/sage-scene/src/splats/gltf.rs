@@ -1465,61 +1465,11 @@ pub(crate) mod tests {
             .join(name)
     }
 
-    /// A minimal reader of the float-only binary little-endian standard 3DGS PLY the test
-    /// files are (properties by name from the header; `f_rest` channel-major).
+    /// A standard PLY of the test files at full precision: (Gaussians, SH degree).
     pub(crate) fn read_ply(name: &str) -> (Vec<Gaussian>, u8) {
-        let bytes = std::fs::read(testdata(name)).unwrap();
-        let end = bytes
-            .windows(11)
-            .position(|w| w == b"end_header\n")
-            .unwrap()
-            + 11;
-        let header = std::str::from_utf8(&bytes[..end]).unwrap();
-        let mut count = 0;
-        let mut names = Vec::new();
-        for line in header.lines() {
-            let words: Vec<&str> = line.split_whitespace().collect();
-            match words.as_slice() {
-                ["element", "vertex", n] => count = n.parse().unwrap(),
-                ["property", "float", name] => names.push(name.to_string()),
-                ["property", ..] => panic!("test PLY reader: only float properties"),
-                _ => {}
-            }
-        }
-        let col = |n: &str| names.iter().position(|p| p == n);
-        let rest = names.iter().filter(|n| n.starts_with("f_rest_")).count();
-        let k = rest / 3;
-        let degree = (0..=3u8).find(|&d| sh_rest_count(d) == k).unwrap();
-        let row = names.len() * 4;
-        let gaussians = (0..count)
-            .map(|i| {
-                let r = &bytes[end + i * row..end + (i + 1) * row];
-                let v = |n: &str| {
-                    let c = col(n).unwrap();
-                    f32::from_le_bytes(r[c * 4..c * 4 + 4].try_into().unwrap())
-                };
-                // Channel-major in the file: f_rest_{c·K + k} is coefficient k of channel c.
-                let sh_rest: [[f32; 3]; 15] = std::array::from_fn(|kk| {
-                    std::array::from_fn(|c| {
-                        if kk < k {
-                            v(&format!("f_rest_{}", c * k + kk))
-                        } else {
-                            0.0
-                        }
-                    })
-                });
-                Gaussian {
-                    position: Vec3::new(v("x"), v("y"), v("z")),
-                    rotation: Quat::from_xyzw(v("rot_1"), v("rot_2"), v("rot_3"), v("rot_0")),
-                    log_scale: Vec3::new(v("scale_0"), v("scale_1"), v("scale_2")),
-                    opacity_logit: v("opacity"),
-                    sh_dc: [v("f_dc_0"), v("f_dc_1"), v("f_dc_2")],
-                    sh_rest,
-                    instance: 0,
-                }
-            })
-            .collect();
-        (gaussians, degree)
+        let table =
+            crate::splats::test_files::standard_table(&std::fs::read(testdata(name)).unwrap());
+        (table.gaussians, table.sh_degree)
     }
 
     fn sigmoid(x: f32) -> f64 {

@@ -996,46 +996,17 @@ mod tests {
         std::fs::read(SOG_FILE).expect("test file")
     }
 
-    /// A binary little-endian float32 PLY: property names and rows.
-    fn parse_ply(bytes: &[u8]) -> (Vec<String>, Vec<Vec<f32>>) {
-        const END: &[u8] = b"end_header\n";
-        let end = bytes
-            .windows(END.len())
-            .position(|w| w == END)
-            .expect("end_header")
-            + END.len();
-        let header = std::str::from_utf8(&bytes[..end]).expect("text header");
-        let mut count = 0usize;
-        let mut names = Vec::new();
-        for line in header.lines() {
-            let words: Vec<&str> = line.split_whitespace().collect();
-            match words.as_slice() {
-                ["format", f, _] => assert_eq!(*f, "binary_little_endian"),
-                ["element", "vertex", n] => count = n.parse().expect("count"),
-                ["property", "float", name] => names.push((*name).to_owned()),
-                ["property", ..] => panic!("unexpected property line {line}"),
-                _ => {}
-            }
-        }
-        let floats: Vec<f32> = bytes[end..]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
-        assert_eq!(floats.len(), count * names.len());
-        let rows = floats.chunks(names.len()).map(<[f32]>::to_vec).collect();
-        (names, rows)
-    }
-
     #[test]
     fn matches_the_reference_decoding() {
         let sog = real_file();
         assert!(sniff(&sog));
         let decoder = SogDecoder::open(&sog).expect("open");
         let table = decoder.to_table().expect("decode");
-        let (names, rows) = parse_ply(&std::fs::read(SOG_DECODED).expect("reference"));
+        let reference = crate::splats::test_files::standard_table(
+            &std::fs::read(SOG_DECODED).expect("reference"),
+        );
         assert_eq!(table.sh_degree, 0);
-        assert_eq!(table.gaussians.len(), rows.len());
-        let col = |n: &str| names.iter().position(|x| x == n).expect(n);
+        assert_eq!(table.gaussians.len(), reference.gaussians.len());
         type Get = fn(&Gaussian) -> f32;
         let fields: [(&str, Get); 14] = [
             ("x", |g| g.position.x),
@@ -1054,10 +1025,9 @@ mod tests {
             ("rot_3", |g| g.rotation.z),
         ];
         for (name, get) in fields {
-            let c = col(name);
             let (mut max_err, mut exact) = (0f32, 0);
-            for (i, (g, row)) in table.gaussians.iter().zip(&rows).enumerate() {
-                let (ours, theirs) = (get(g), row[c]);
+            for (i, (g, r)) in table.gaussians.iter().zip(&reference.gaussians).enumerate() {
+                let (ours, theirs) = (get(g), get(r));
                 let err = (ours - theirs).abs() / theirs.abs().max(1.0);
                 exact += usize::from(ours.to_bits() == theirs.to_bits());
                 max_err = max_err.max(err);
@@ -1065,7 +1035,7 @@ mod tests {
             }
             eprintln!(
                 "{name}: max relative error {max_err:e}, {exact}/{} bit-exact",
-                rows.len()
+                reference.gaussians.len()
             );
         }
         // Every Gaussian is the same whichever way it is decoded.

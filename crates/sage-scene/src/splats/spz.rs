@@ -1032,79 +1032,10 @@ mod tests {
         gz.finish().unwrap()
     }
 
-    /// A binary little-endian PLY of float properties: (property names, rows).
-    fn read_ply(bytes: &[u8]) -> (Vec<String>, Vec<Vec<f32>>) {
-        let end = bytes
-            .windows(11)
-            .position(|w| w == b"end_header\n")
-            .expect("end_header")
-            + 11;
-        let header = std::str::from_utf8(&bytes[..end]).unwrap();
-        assert!(header.contains("format binary_little_endian 1.0"));
-        let mut count = 0;
-        let mut names = Vec::new();
-        for line in header.lines() {
-            let words: Vec<&str> = line.split_whitespace().collect();
-            match words.as_slice() {
-                ["element", "vertex", n] => count = n.parse().unwrap(),
-                ["property", "float", name] => names.push(name.to_string()),
-                ["property", ..] => panic!("unexpected property {line}"),
-                _ => {}
-            }
-        }
-        let row = names.len() * 4;
-        assert_eq!(bytes.len() - end, count * row);
-        let rows = bytes[end..]
-            .chunks_exact(row)
-            .map(|r| {
-                r.chunks_exact(4)
-                    .map(|v| f32::from_le_bytes([v[0], v[1], v[2], v[3]]))
-                    .collect()
-            })
-            .collect();
-        (names, rows)
-    }
-
-    /// The Gaussians of a standard PLY as stored (raw opacity, channel-major `f_rest` made
-    /// coefficient-major), and the SH degree.
+    /// The Gaussians of a standard PLY at full precision, and the SH degree.
     fn ply_gaussians(bytes: &[u8]) -> (Vec<Gaussian>, u8) {
-        let (names, rows) = read_ply(bytes);
-        let col = |name: &str| names.iter().position(|n| n == name).unwrap();
-        let rest = names.iter().filter(|n| n.starts_with("f_rest_")).count();
-        let k = rest / 3;
-        let degree = match k {
-            0 => 0,
-            3 => 1,
-            8 => 2,
-            _ => 3,
-        };
-        let (x, dc, op, sc, rot) = (
-            col("x"),
-            col("f_dc_0"),
-            col("opacity"),
-            col("scale_0"),
-            col("rot_0"),
-        );
-        let rest: Vec<usize> = (0..rest).map(|i| col(&format!("f_rest_{i}"))).collect();
-        let gaussians = rows
-            .iter()
-            .map(|r| {
-                let mut sh_rest = [[0.0; 3]; 15];
-                for (i, &c) in rest.iter().enumerate() {
-                    sh_rest[i % k][i / k] = r[c];
-                }
-                Gaussian {
-                    position: Vec3::new(r[x], r[x + 1], r[x + 2]),
-                    rotation: Quat::from_xyzw(r[rot + 1], r[rot + 2], r[rot + 3], r[rot]),
-                    log_scale: Vec3::new(r[sc], r[sc + 1], r[sc + 2]),
-                    opacity_logit: r[op],
-                    sh_dc: [r[dc], r[dc + 1], r[dc + 2]],
-                    sh_rest,
-                    instance: 0,
-                }
-            })
-            .collect();
-        (gaussians, degree)
+        let table = crate::splats::test_files::standard_table(bytes);
+        (table.gaussians, table.sh_degree)
     }
 
     /// Opens `bytes` and decodes every Gaussian if it opens (the fuzz tests fail only on a
