@@ -49,7 +49,9 @@ fn synth_then_info_describes_the_scene() {
     }
     let info = ok(&["scene", "info", s(&out)]);
     assert!(
-        info.contains("SH degree 1") && info.contains("rooms") && info.contains("compressed PLY"),
+        info.contains("SH degree 1")
+            && info.contains("rooms")
+            && info.contains("format      compressed-ply"),
         "{info}"
     );
     let json: serde_json::Value =
