@@ -99,6 +99,7 @@ fn command_line() -> sage_core::Result<Vec<std::ffi::OsString>> {
 }
 
 fn main() -> ExitCode {
+    quiet_on_closed_pipe();
     let cli = match command_line() {
         Ok(argv) => Cli::parse_from(argv),
         Err(e) => {
@@ -120,6 +121,19 @@ fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Restores SIGPIPE's default action, which Rust programs start with ignored: then a reader
+/// that stops early (`sage3d … | head`) ends the command quietly, as it ends `cat`, instead of
+/// a panic on the next print. Files are written before anything is printed about them, so the
+/// command's outputs are complete.
+fn quiet_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: called first in `main`, before any thread exists; setting a signal's action to
+    // its default has no other precondition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 

@@ -133,6 +133,48 @@ fn convert_round_trip_through_both_layouts() {
     ok(&["splat", "convert", s(&plain), s(&spz), "--force"]);
 }
 
+/// A reader that stops early (`sage3d … | head`) ends the command quietly: killed by SIGPIPE
+/// as `cat` is, or done before it noticed; never a panic.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        "2",
+        "--rooms",
+        "3",
+        "--objects",
+        "20",
+        "--gaussians",
+        "2000",
+        "--out",
+        s(&scene),
+    ]);
+    for args in [vec!["scene", "info", s(&scene)], vec!["--help"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_sage3d"))
+            .args(&args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            out.status.success() || out.status.signal() == Some(13),
+            "{args:?}: {:?} {err}",
+            out.status
+        );
+    }
+}
+
 #[test]
 fn bad_input_is_a_clear_error_and_leaves_no_output() {
     let dir = tempfile::tempdir().unwrap();

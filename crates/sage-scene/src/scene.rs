@@ -123,10 +123,27 @@ impl Scene {
     /// is sorted into it ([`Gaussians::sort_morton`], reported in
     /// [`LoadReport::morton_reordered`]) so that the renderer's chunks are compact.
     pub fn load(dir: &Path) -> Result<(Scene, LoadReport)> {
+        if !dir.exists() {
+            return Err(Error::invalid(format!("{} does not exist", dir.display())));
+        }
         if !dir.is_dir() {
             return Err(Error::invalid(format!(
-                "{} is not a scene folder",
+                "{} is not a scene folder: it is a file",
                 dir.display()
+            )));
+        }
+        // A folder with none of the files that make a scene is a mistaken path, not an empty
+        // scene.
+        let has = |name: &str| dir.join(name).is_file();
+        if !files::GAUSSIANS.iter().any(|f| has(f)) && !has(files::LABELS) && !has(files::STRUCTURE)
+        {
+            return Err(Error::invalid(format!(
+                "{} is not a scene folder: missing {} (or {}), {} and {}",
+                dir.display(),
+                files::COMPRESSED_PLY,
+                files::GAUSSIANS[1..].join(", "),
+                files::LABELS,
+                files::STRUCTURE
             )));
         }
         let mut report = LoadReport::default();

@@ -112,8 +112,23 @@ fn a_folder_with_only_labels_loads_and_reports_the_rest_missing() {
 
 #[test]
 fn not_a_folder_is_an_error() {
-    let e = Scene::load(std::path::Path::new("no/such/scene")).unwrap_err();
-    assert!(e.to_string().contains("no/such/scene"));
+    let e = Scene::load(std::path::Path::new("no/such/scene"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no/such/scene does not exist"), "{e}");
+    // An empty folder, or one of other files, is not an empty scene.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "hello").unwrap();
+    let e = Scene::load(dir.path()).unwrap_err().to_string();
+    assert!(
+        e.contains("is not a scene folder: missing 3dgs_compressed.ply (or 3dgs.ply")
+            && e.contains("labels.json and structure.json"),
+        "{e}"
+    );
+    let e = Scene::load(&dir.path().join("notes.txt"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("is not a scene folder: it is a file"), "{e}");
 }
 
 #[test]
