@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{ok, s, sage3d};
+use common::{ok, s, sage3d, small_scene};
 
 use std::path::PathBuf;
 
@@ -142,20 +142,7 @@ fn a_closed_pipe_ends_the_command_quietly() {
     use std::process::{Command, Stdio};
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("home");
-    ok(&[
-        "scene",
-        "synth",
-        "--seed",
-        "2",
-        "--rooms",
-        "3",
-        "--objects",
-        "20",
-        "--gaussians",
-        "2000",
-        "--out",
-        s(&scene),
-    ]);
+    small_scene(&scene, "2", "2000");
     for args in [vec!["scene", "info", s(&scene)], vec!["--help"]] {
         let mut child = Command::new(env!("CARGO_BIN_EXE_sage3d"))
             .args(&args)

@@ -110,6 +110,14 @@ pub struct EvalRecord {
     pub record: Option<EpisodeRecord>,
 }
 
+impl EvalRecord {
+    /// What kind of failure the record's error is; records written before failures had kinds
+    /// count as [`Failure::EpisodeError`].
+    pub fn failure_kind(&self) -> Failure {
+        self.failure.unwrap_or(Failure::EpisodeError)
+    }
+}
+
 /// Why an episode was not scored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]

@@ -79,7 +79,7 @@ impl Summary {
         let mut failures = BTreeMap::new();
         let mut failure_examples = BTreeMap::new();
         for r in records.iter().filter(|r| r.metrics.is_none()) {
-            let kind = r.failure.unwrap_or(Failure::EpisodeError);
+            let kind = r.failure_kind();
             *failures.entry(kind).or_insert(0) += 1;
             failure_examples.entry(kind).or_insert_with(|| {
                 format!(

@@ -3,7 +3,6 @@
 
 use super::charts::BarChart;
 use super::{MapFile, RunFiles, succeeded};
-use crate::eval::Failure;
 use crate::eval::summary::AXES;
 use base64::Engine;
 use sage_core::{Error, Result};
@@ -248,7 +247,7 @@ pub fn page(input: &PageInput) -> Result<String> {
                 "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
                 escape(&r.episode_id),
                 escape(&r.scene),
-                r.failure.unwrap_or(Failure::EpisodeError).as_str(),
+                r.failure_kind().as_str(),
                 escape(r.error.as_deref().unwrap_or_default())
             );
         }

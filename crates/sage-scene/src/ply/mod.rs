@@ -15,7 +15,7 @@ pub mod standard;
 
 use crate::gaussians::Gaussians;
 use crate::splats::SplatSource;
-use sage_core::{Error, Result, ResultExt};
+use sage_core::{Error, Result};
 use std::path::Path;
 
 /// The two 3DGS PLY layouts.
@@ -93,11 +93,7 @@ pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
 
 /// Reads a Gaussian file (memory-mapped); errors name the file.
 pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    // SAFETY: the map is read-only and dropped before returning; a file truncated by another
-    // process while mapped is outside what a reader can defend against.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
-    read_splats(&map).in_file(path)
+    crate::splats::format::with_mapped_file(path, read_splats)
 }
 
 /// Writes Gaussians in `layout`, atomically (temporary file, then rename).

@@ -2,11 +2,12 @@
 //! with a statement of what the target format cannot hold. Standard PLY output is streamed
 //! block by block from the decoder; the other writers take the whole table.
 
+use super::format::with_mapped_file;
 use super::{BLOCK, BlockDecoder, Format, SplatTable, open, write_file};
 use crate::gaussians::{Gaussian, sh_rest_count};
 use crate::ply::{SplatLayout, standard};
 use rayon::prelude::*;
-use sage_core::{Error, Result, ResultExt};
+use sage_core::{Error, Result};
 use std::io::Write;
 use std::path::Path;
 
@@ -64,13 +65,22 @@ pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<C
             )));
         }
     }
-    let file = std::fs::File::open(input).map_err(|e| Error::io(input, e))?;
-    // SAFETY: the map is read-only and dropped before returning; a file truncated by another
-    // process while mapped is outside what a reader can defend against.
-    let bytes = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(input, e))?;
-    let (decoder, input_format) = open(&bytes).in_file(input)?;
+    // Errors of the input name it; the output's name the output already.
+    with_mapped_file(input, |bytes| {
+        convert_bytes(bytes, output, output_format, options.sh_degree)
+    })
+}
+
+/// [`convert`] of the input's bytes.
+fn convert_bytes(
+    bytes: &[u8],
+    output: &Path,
+    output_format: Format,
+    sh_degree: Option<u8>,
+) -> Result<ConvertReport> {
+    let (decoder, input_format) = open(bytes)?;
     let sh_degree_in = decoder.sh_degree();
-    let sh_degree_out = match options.sh_degree {
+    let sh_degree_out = match sh_degree {
         Some(d) if d > sh_degree_in => {
             return Err(Error::invalid(format!(
                 "--sh-degree {d}: the input has SH degree {sh_degree_in}; bands can be dropped, not added"
@@ -80,9 +90,9 @@ pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<C
         None => sh_degree_in,
     };
     if output_format == Format::Ply(SplatLayout::Standard) {
-        stream_standard(decoder.as_ref(), sh_degree_out, input, output)?;
+        stream_standard(decoder.as_ref(), sh_degree_out, output)?;
     } else {
-        let mut table = decoder.to_table().in_file(input)?;
+        let mut table = decoder.to_table()?;
         drop_sh_bands(&mut table, sh_degree_out);
         write_file(output, &table, output_format)?;
     }
@@ -97,14 +107,9 @@ pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<C
 }
 
 /// Writes the standard PLY of `decoder` block by block (never the whole file at full
-/// precision in memory), with SH up to `degree`; an error decoding `input` names it and leaves
-/// no output.
-fn stream_standard(
-    decoder: &dyn BlockDecoder,
-    degree: u8,
-    input: &Path,
-    output: &Path,
-) -> Result<()> {
+/// precision in memory), with SH up to `degree`; a decoding error is returned as it is and
+/// leaves no output.
+fn stream_standard(decoder: &dyn BlockDecoder, degree: u8, output: &Path) -> Result<()> {
     const STREAM: usize = 1 << 16;
     let failure = std::cell::RefCell::new(None);
     let written = sage_io::files::write_atomic(output, |w| {
@@ -120,29 +125,29 @@ fn stream_standard(
                 *failure.borrow_mut() = Some(e);
                 return Err(std::io::Error::other("the input could not be decoded"));
             }
-            let keep = sh_rest_count(degree);
-            for g in rows.iter_mut() {
-                g.sh_rest[keep..].fill([0.0; 3]);
-            }
+            zero_sh_above(rows, degree);
             standard::write_rows(w, rows, degree)?;
         }
         Ok(())
     });
     match failure.into_inner() {
-        Some(e) => Err(e.in_file(input)),
+        Some(e) => Err(e),
         None => written,
     }
 }
 
 /// Zeroes the SH coefficients above `degree` and lowers the table's degree to it.
 pub fn drop_sh_bands(table: &mut SplatTable, degree: u8) {
-    let keep = sh_rest_count(degree);
-    for g in &mut table.gaussians {
-        for c in &mut g.sh_rest[keep..] {
-            *c = [0.0; 3];
-        }
-    }
+    zero_sh_above(&mut table.gaussians, degree);
     table.sh_degree = table.sh_degree.min(degree);
+}
+
+/// Zeroes the SH coefficients of `gaussians` above `degree`.
+fn zero_sh_above(gaussians: &mut [Gaussian], degree: u8) {
+    let keep = sh_rest_count(degree);
+    for g in gaussians {
+        g.sh_rest[keep..].fill([0.0; 3]);
+    }
 }
 
 /// What a file written in `to` does not hold of Gaussians of SH degree `from_degree` written

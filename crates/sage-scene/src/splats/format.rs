@@ -160,8 +160,9 @@ pub fn open(bytes: &[u8]) -> Result<(Box<dyn BlockDecoder + '_>, Format)> {
     Ok((decoder, format))
 }
 
-/// Runs `f` on the bytes of `path`, memory-mapped; errors name the file.
-fn with_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T>) -> Result<T> {
+/// Runs `f` on the bytes of `path`, memory-mapped; errors name the file (unless they name
+/// another already).
+pub(crate) fn with_mapped_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T>) -> Result<T> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     // SAFETY: the map is read-only and dropped before returning; a file truncated by another
     // process while mapped is outside what a reader can defend against.
@@ -175,7 +176,7 @@ fn with_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T>) -> Result<T> {
 ///
 /// As [`open`] and [`BlockDecoder::to_gaussians`], naming the file.
 pub fn read_gaussians_file(path: &Path) -> Result<(Gaussians, Format)> {
-    with_file(path, |bytes| {
+    with_mapped_file(path, |bytes| {
         let (decoder, format) = open(bytes)?;
         Ok((decoder.to_gaussians()?, format))
     })
@@ -187,7 +188,7 @@ pub fn read_gaussians_file(path: &Path) -> Result<(Gaussians, Format)> {
 ///
 /// As [`open`] and [`BlockDecoder::to_table`], naming the file.
 pub fn read_table_file(path: &Path) -> Result<(SplatTable, Format)> {
-    with_file(path, |bytes| {
+    with_mapped_file(path, |bytes| {
         let (decoder, format) = open(bytes)?;
         Ok((decoder.to_table()?, format))
     })
