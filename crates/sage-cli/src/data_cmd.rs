@@ -14,6 +14,83 @@ pub enum DataCommand {
     /// Build a dataset over a folder of scenes: trajectories, instructions (grammar or LLM),
     /// episodes, splits, JSONL / GVLN / R2R-VLNCE files and a summary (parallel, resumable).
     Build(BuildArgs),
+    /// Render a training set from a dataset split: each trajectory cut into a preset's
+    /// discrete actions, walked through physics, a frame rendered before every action, written
+    /// as NaVILA annotations, WebDataset shards or a folder tree (parallel, resumable).
+    Render(RenderArgs),
+}
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// The dataset folder (made by `sage3d data build`: episodes/{split}.jsonl).
+    dataset: PathBuf,
+    /// A scene folder, or a folder of scene folders, holding the dataset's scenes.
+    #[arg(long)]
+    scenes: PathBuf,
+    /// Output folder (new or empty; rerun with the same settings to resume).
+    #[arg(long)]
+    out: PathBuf,
+    /// The split to render.
+    #[arg(long, default_value = "train")]
+    split: String,
+    /// Action preset: vlnce (0.25 m, 15°), navila_small (0.35 m, 30°), navila_large
+    /// (0.75 m, 15°), custom_small (0.50 m, 30°).
+    #[arg(long, default_value = "navila_small")]
+    preset: String,
+    /// MOVE_FORWARD distance in metres (overrides the preset's).
+    #[arg(long)]
+    step: Option<f32>,
+    /// Turn angle in degrees (overrides the preset's).
+    #[arg(long)]
+    turn: Option<f32>,
+    /// Motions per trajectory at most; past it the walk calls STOP where it stands.
+    #[arg(long, default_value_t = sage_traindata::preset::DEFAULT_MAX_ACTIONS)]
+    max_actions: usize,
+    /// Image width in pixels (the published pipeline rendered 1024×768).
+    #[arg(long, default_value_t = 224)]
+    width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 224)]
+    height: u32,
+    /// Horizontal field of view in degrees.
+    #[arg(long, default_value_t = 90.0)]
+    hfov: f32,
+    /// Images per frame: rgb[,depth,semantic,instance] (depth: 16-bit PNG millimetres).
+    #[arg(long, default_value = "rgb")]
+    sensors: String,
+    /// Output layout: navila, webdataset or frames.
+    #[arg(long, default_value = "navila")]
+    format: String,
+    /// Samples per NaVILA part (default 10000), episodes per WebDataset shard (default 100).
+    #[arg(long)]
+    shard_size: Option<usize>,
+    /// Render only the first N goal-directed episodes of the split.
+    #[arg(long)]
+    limit: Option<usize>,
+    /// Seed of the NaVILA sample shuffle.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Agent profile (camera height, body radius): wheeled, go2, g1 or h1.
+    #[arg(long, default_value = "wheeled")]
+    agent: String,
+    /// RGB file type: jpg or png.
+    #[arg(long, default_value = "jpg")]
+    image: String,
+    /// JPEG quality (1–100).
+    #[arg(long, default_value_t = 90)]
+    jpeg_quality: u8,
+    /// Keep episodes whose walk collided or ended farther than 1 m from the goal (dropped by
+    /// default; counted either way).
+    #[arg(long)]
+    keep_failed: bool,
+    /// Write preview.gif of the first N kept episodes (frames with instruction and action,
+    /// beside the top-down map with the pose).
+    #[arg(long, default_value_t = 0)]
+    preview: usize,
+    /// Replace another render's output in --out (files a render did not write are never
+    /// touched).
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -67,6 +144,7 @@ pub struct BuildArgs {
 pub fn run(cmd: DataCommand) -> Result<()> {
     match cmd {
         DataCommand::Build(a) => data_build(a),
+        DataCommand::Render(a) => data_render(a),
     }
 }
 
@@ -100,6 +178,135 @@ fn data_build(a: BuildArgs) -> Result<()> {
     bar.finish_and_clear();
     print_dataset(&report?, &a.out, start.elapsed().as_secs_f64());
     Ok(())
+}
+
+fn render_settings(a: &RenderArgs) -> Result<sage_traindata::Settings> {
+    use sage_traindata::encode::RgbCodec;
+    let format: sage_traindata::Format = a.format.parse()?;
+    let preset = sage_traindata::ActionPreset::with(
+        sage_traindata::ActionPreset::named(&a.preset)?,
+        a.step,
+        a.turn,
+        Some(a.max_actions),
+    )?;
+    let rgb_codec = match a.image.as_str() {
+        "jpg" | "jpeg" => RgbCodec::Jpeg {
+            quality: a.jpeg_quality,
+        },
+        "png" => RgbCodec::Png,
+        other => {
+            return Err(sage_core::Error::invalid(format!(
+                "--image: unknown type '{other}' (jpg or png)"
+            )));
+        }
+    };
+    Ok(sage_traindata::Settings {
+        split: a.split.clone(),
+        preset,
+        agent: a.agent.clone(),
+        width: a.width,
+        height: a.height,
+        hfov_deg: a.hfov,
+        sensors: a.sensors.parse()?,
+        rgb_codec,
+        format,
+        shard_size: a.shard_size.unwrap_or(match format {
+            sage_traindata::Format::Webdataset => 100,
+            _ => 10_000,
+        }),
+        limit: a.limit,
+        seed: a.seed,
+        keep_failed: a.keep_failed,
+        preview: a.preview,
+        ..sage_traindata::Settings::new(&a.dataset, &a.scenes)?
+    })
+}
+
+fn data_render(a: RenderArgs) -> Result<()> {
+    let settings = render_settings(&a)?;
+    let bar = crate::progress::bar("{bar:30} {pos}/{len} walks {elapsed} (eta {eta}) {msg}");
+    let start = Instant::now();
+    let frames = std::sync::atomic::AtomicUsize::new(0);
+    let plan = sage_traindata::Plan::new(&settings)?;
+    bar.set_length(plan.route_count() as u64);
+    let manifest = match sage_traindata::claim(&plan, &a.out, a.force)? {
+        Some(done) => {
+            println!("already complete: {}", a.out.display());
+            done
+        }
+        None => {
+            let on_route = |r: &sage_traindata::RouteDone| {
+                let n = frames.fetch_add(r.frames, std::sync::atomic::Ordering::Relaxed) + r.frames;
+                if let Some(e) = &r.error {
+                    bar.suspend(|| eprintln!("skipped walk {}: {e}", r.route));
+                }
+                bar.set_message(format!(
+                    "{n} frames, {:.1} frames/s",
+                    n as f64 / start.elapsed().as_secs_f64().max(1e-9)
+                ));
+                bar.inc(1);
+            };
+            for scene in plan.scenes() {
+                bar.set_message(format!("loading {scene}"));
+                sage_traindata::render_scene(&plan, &scene, &a.out, &on_route)?;
+            }
+            bar.finish_and_clear();
+            sage_traindata::finish(&plan, &a.out)?
+        }
+    };
+    let rendered = frames.into_inner();
+    let secs = start.elapsed().as_secs_f64();
+    print_render(&manifest, &a.out, rendered, secs);
+    if a.preview > 0 {
+        println!(
+            "preview: {}",
+            a.out.join(sage_traindata::preview::PREVIEW_FILE).display()
+        );
+    }
+    if manifest.skipped_any() {
+        return Err(sage_core::Error::invalid(format!(
+            "{} episodes were skipped (listed above and in {}/manifest.json)",
+            manifest.counts.skipped,
+            a.out.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Prints what a training-data render did: skipped episodes with their reasons, the counts
+/// and the rate.
+fn print_render(m: &sage_traindata::Manifest, out: &Path, rendered: usize, secs: f64) {
+    for s in &m.skipped {
+        eprintln!("skipped {}: {}", s.episode_id, s.reason);
+    }
+    let c = &m.counts;
+    let listed = |m: &std::collections::BTreeMap<String, usize>| {
+        let parts: Vec<String> = m.iter().map(|(k, v)| format!("{v} {k}")).collect();
+        if parts.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", parts.join(", "))
+        }
+    };
+    println!(
+        "{} episodes ({} walks): {} kept, {} dropped{}, {} skipped; {} ignored{}",
+        c.episodes,
+        c.routes,
+        c.kept,
+        c.dropped.values().sum::<usize>(),
+        listed(&c.dropped),
+        c.skipped,
+        c.ignored.values().sum::<usize>(),
+        listed(&c.ignored)
+    );
+    println!(
+        "{} samples, {} frames; rendered {rendered} frames in {secs:.1} s ({:.1} frames/s on {} threads) -> {}",
+        c.samples,
+        c.frames,
+        rendered as f64 / secs.max(1e-9),
+        rayon::current_num_threads(),
+        out.display()
+    );
 }
 
 /// Prints what a dataset build did: skipped scenes with their reasons, the summary table and a

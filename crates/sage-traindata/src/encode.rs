@@ -1,0 +1,178 @@
+//! Frame files: a rendered observation as the image files a sample holds (RGB as JPEG or PNG,
+//! depth as 16-bit PNG millimetres, semantic and instance ids as 16-bit PNG).
+
+use sage_core::{Error, Result};
+use sage_env::Images;
+use serde::{Deserialize, Serialize};
+
+/// How the RGB frame is stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "codec", rename_all = "snake_case")]
+pub enum RgbCodec {
+    /// Baseline JPEG, 4:2:0, at this quality (1–100).
+    Jpeg {
+        /// Quality, 1–100.
+        quality: u8,
+    },
+    /// Lossless 8-bit RGB PNG.
+    Png,
+}
+
+impl RgbCodec {
+    /// The file extension (`jpg` or `png`).
+    pub fn extension(self) -> &'static str {
+        match self {
+            RgbCodec::Jpeg { .. } => "jpg",
+            RgbCodec::Png => "png",
+        }
+    }
+}
+
+/// The suffixes (after `NNNN.`) of a frame's files, RGB first, in the order they are written.
+pub fn suffixes(images: &Images, codec: RgbCodec) -> Vec<&'static str> {
+    let mut s = Vec::new();
+    if images.rgb.is_some() {
+        s.push(codec.extension());
+    }
+    if images.depth.is_some() {
+        s.push("depth.png");
+    }
+    if images.semantic.is_some() {
+        s.push("semantic.png");
+    }
+    if images.instance.is_some() {
+        s.push("instance.png");
+    }
+    s
+}
+
+/// Encodes every image of `images`: `(suffix, bytes)` in the order of [`suffixes`].
+///
+/// # Errors
+///
+/// An instance id above 65 535 (it does not fit the 16-bit PNG), or an encoder error.
+pub fn encode(images: &Images, codec: RgbCodec) -> Result<Vec<(&'static str, Vec<u8>)>> {
+    let (w, h) = (images.width, images.height);
+    let mut out = Vec::with_capacity(4);
+    if let Some(rgb) = &images.rgb {
+        let bytes = match codec {
+            RgbCodec::Jpeg { quality } => jpeg(rgb, w, h, quality)?,
+            RgbCodec::Png => png_bytes(w, h, png::ColorType::Rgb, png::BitDepth::Eight, rgb)?,
+        };
+        out.push((codec.extension(), bytes));
+    }
+    if let Some(depth) = &images.depth {
+        let (dw, dh) = images.depth_size;
+        let mm: Vec<u16> = depth.iter().map(|&d| depth_mm(d)).collect();
+        out.push(("depth.png", png16(dw, dh, &mm)?));
+    }
+    if let Some(sem) = &images.semantic {
+        out.push(("semantic.png", png16(w, h, sem)?));
+    }
+    if let Some(inst) = &images.instance {
+        let ids = inst
+            .iter()
+            .map(|&i| {
+                u16::try_from(i).map_err(|_| {
+                    Error::invalid(format!(
+                        "instance id {i} does not fit a 16-bit PNG (at most 65535)"
+                    ))
+                })
+            })
+            .collect::<Result<Vec<u16>>>()?;
+        out.push(("instance.png", png16(w, h, &ids)?));
+    }
+    Ok(out)
+}
+
+/// Depth in whole millimetres, 0 where nothing was hit, saturating at 65.535 m.
+pub fn depth_mm(metres: f32) -> u16 {
+    if metres.is_finite() && metres > 0.0 {
+        (metres * 1000.0).round().min(f32::from(u16::MAX)) as u16
+    } else {
+        0
+    }
+}
+
+fn jpeg(rgb: &[u8], w: usize, h: usize, quality: u8) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let (w16, h16) = (dim16(w)?, dim16(h)?);
+    jpeg_encoder::Encoder::new(&mut out, quality.clamp(1, 100))
+        .encode(rgb, w16, h16, jpeg_encoder::ColorType::Rgb)
+        .map_err(|e| Error::invalid(format!("JPEG encoding: {e}")))?;
+    Ok(out)
+}
+
+fn dim16(n: usize) -> Result<u16> {
+    u16::try_from(n).map_err(|_| Error::invalid(format!("image side {n} exceeds 65535 pixels")))
+}
+
+fn png16(w: usize, h: usize, values: &[u16]) -> Result<Vec<u8>> {
+    let be: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
+    png_bytes(w, h, png::ColorType::Grayscale, png::BitDepth::Sixteen, &be)
+}
+
+fn png_bytes(
+    w: usize,
+    h: usize,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let err = |e: png::EncodingError| Error::invalid(format!("PNG encoding: {e}"));
+    let (w32, h32) = (
+        u32::try_from(w).map_err(|_| Error::invalid("image too wide"))?,
+        u32::try_from(h).map_err(|_| Error::invalid("image too tall"))?,
+    );
+    let mut enc = png::Encoder::new(&mut out, w32, h32);
+    enc.set_color(color);
+    enc.set_depth(depth);
+    // Fast filters and compression: frames are written by the million.
+    enc.set_compression(png::Compression::Fast);
+    let mut writer = enc.write_header().map_err(err)?;
+    writer.write_image_data(data).map_err(err)?;
+    writer.finish().map_err(err)?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn depth_is_whole_millimetres_and_zero_for_no_hit() {
+        assert_eq!(depth_mm(1.2345), 1235);
+        assert_eq!(depth_mm(0.0), 0);
+        assert_eq!(depth_mm(f32::INFINITY), 0);
+        assert_eq!(depth_mm(f32::NAN), 0);
+        assert_eq!(depth_mm(100.0), u16::MAX);
+    }
+
+    #[test]
+    fn every_requested_image_is_encoded_in_suffix_order() {
+        let images = Images {
+            width: 4,
+            height: 2,
+            rgb: Some(vec![200; 24]),
+            depth_size: (4, 2),
+            depth: Some(vec![1.5; 8]),
+            semantic: Some(vec![3; 8]),
+            instance: Some(vec![70_000; 8]),
+        };
+        assert!(encode(&images, RgbCodec::Png).is_err());
+        let images = Images {
+            instance: Some(vec![7; 8]),
+            ..images
+        };
+        let files = encode(&images, RgbCodec::Jpeg { quality: 90 }).unwrap();
+        let names: Vec<&str> = files.iter().map(|f| f.0).collect();
+        assert_eq!(names, suffixes(&images, RgbCodec::Jpeg { quality: 90 }));
+        assert_eq!(
+            names,
+            ["jpg", "depth.png", "semantic.png", "instance.png"]
+        );
+        assert_eq!(&files[0].1[..2], &[0xFF, 0xD8]);
+        assert_eq!(&files[1].1[1..4], b"PNG");
+    }
+}

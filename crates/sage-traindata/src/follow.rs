@@ -1,0 +1,161 @@
+//! The path follower: an agent that walks an episode's reference path with a preset's
+//! discrete actions, deciding each action from where physics actually put it.
+
+use crate::preset::ActionPreset;
+use glam::Vec2;
+use sage_core::{Error, Polygon2, Result, wrap_angle};
+use sage_env::agents::Agent;
+use sage_env::{Action, Env, EnvEpisode, Observation};
+
+/// Forward moves in a row that make almost no progress before the follower gives up.
+const MAX_BLOCKED: usize = 3;
+
+/// How far inside the success distance of an object goal the follower stops, metres: a
+/// reference path's end point may lie at the very edge of that distance.
+const SUCCESS_MARGIN: f32 = 0.05;
+
+/// How a follower's walk ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ending {
+    /// It reached the end of the reference path (within half a step) and called STOP.
+    Reached,
+    /// The preset's cap on motions was hit; it called STOP where it stood.
+    Capped,
+    /// Three forward moves in a row were blocked; it called STOP where it stood.
+    Blocked,
+}
+
+/// Walks the reference path: skips waypoints closer than one step, turns towards the next one
+/// until it lies within half a turn of the heading, else moves forward; STOP within half a
+/// step of the path's end (for an object goal, once well inside the success distance of its
+/// footprint). Because every decision is taken from the achieved pose, a step that
+/// physics shortened is made up by the following ones, as a robot replaying the path would.
+#[derive(Debug, Clone)]
+pub struct PathFollower {
+    step: f32,
+    turn: f32,
+    max_actions: usize,
+    waypoints: Vec<Vec2>,
+    next: usize,
+    motions: usize,
+    last_forward_from: Option<Vec2>,
+    blocked: usize,
+    ending: Option<Ending>,
+    /// The goal object's footprint, when the episode names one.
+    region: Option<Polygon2>,
+    /// The task's success distance to the goal region.
+    success: f32,
+    /// Past the path's end, closing in on an object goal's footprint.
+    approaching: bool,
+}
+
+impl PathFollower {
+    /// A follower with `preset`'s step, turn and cap.
+    pub fn new(preset: &ActionPreset) -> PathFollower {
+        PathFollower {
+            step: preset.step_m,
+            turn: preset.turn_deg.to_radians(),
+            max_actions: preset.max_actions,
+            waypoints: Vec::new(),
+            next: 0,
+            motions: 0,
+            last_forward_from: None,
+            blocked: 0,
+            ending: None,
+            region: None,
+            success: 0.0,
+            approaching: false,
+        }
+    }
+
+    /// How the last walk ended (`None` before STOP).
+    pub fn ending(&self) -> Option<Ending> {
+        self.ending
+    }
+
+    fn stop(&mut self, why: Ending) -> Action {
+        self.ending = Some(why);
+        Action::Stop
+    }
+}
+
+impl Agent for PathFollower {
+    fn name(&self) -> &str {
+        "path-follower"
+    }
+
+    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
+        if episode.reference_path.is_empty() {
+            return Err(Error::invalid(format!(
+                "episode {}: no reference path to follow",
+                episode.id
+            )));
+        }
+        self.waypoints = episode
+            .reference_path
+            .iter()
+            .map(|p| p.truncate())
+            .collect();
+        self.next = 1.min(self.waypoints.len() - 1);
+        self.motions = 0;
+        self.last_forward_from = None;
+        self.blocked = 0;
+        self.ending = None;
+        self.region = episode
+            .goal
+            .as_ref()
+            .and_then(|g| g.object.as_ref())
+            .and_then(|id| env.context().footprint(id).ok());
+        self.success = env.config().task.success_distance;
+        self.approaching = false;
+        Ok(())
+    }
+
+    fn act(&mut self, obs: &Observation) -> Result<Action> {
+        let at = obs.pose.position.truncate();
+        if let Some(from) = self.last_forward_from.take() {
+            if at.distance(from) < 0.1 * self.step {
+                self.blocked += 1;
+            } else {
+                self.blocked = 0;
+            }
+        }
+        if self.blocked >= MAX_BLOCKED {
+            return Ok(self.stop(Ending::Blocked));
+        }
+        let last = self.waypoints.len() - 1;
+        while self.next < last && at.distance(self.waypoints[self.next]) < self.step {
+            self.next += 1;
+        }
+        self.approaching |= self.next == last && at.distance(self.waypoints[last]) < 0.5 * self.step;
+        let target = if self.approaching {
+            // At the path's end: done, unless an object goal is not yet well inside the success
+            // distance; then on towards its footprint.
+            match &self.region {
+                Some(r) if self.blocked == 0 && !r.contains(at) => r
+                    .nearest_boundary_point(at)
+                    .filter(|q| at.distance(*q) > self.success - SUCCESS_MARGIN),
+                _ => None,
+            }
+        } else {
+            Some(self.waypoints[self.next])
+        };
+        let Some(target) = target else {
+            return Ok(self.stop(Ending::Reached));
+        };
+        if self.motions >= self.max_actions {
+            return Ok(self.stop(Ending::Capped));
+        }
+        self.motions += 1;
+        let d = target - at;
+        let error = wrap_angle(d.y.atan2(d.x) - obs.pose.yaw);
+        Ok(if error > 0.5 * self.turn {
+            Action::TurnLeft
+        } else if error < -0.5 * self.turn {
+            Action::TurnRight
+        } else {
+            self.last_forward_from = Some(at);
+            Action::MoveForward
+        })
+    }
+}

@@ -1,0 +1,180 @@
+//! Routes and their replay: episodes that share one walk are grouped into a route, and a
+//! route is walked once through the environment (physics and camera), recording each action
+//! with the pose it commanded and the pose it achieved.
+
+use crate::follow::{Ending, PathFollower};
+use crate::preset::ActionPreset;
+use sage_bench::dataset::Episode;
+use sage_core::{Result, wrap_angle};
+use sage_env::agents::Agent;
+use sage_env::{Action, Env, Images};
+use serde::{Deserialize, Serialize};
+
+/// Episodes of one scene that share a start, a reference path and a goal, so one walk (one
+/// set of frames) serves them all: the instructions written for one trajectory.
+#[derive(Debug, Clone)]
+pub struct Route {
+    /// The scene.
+    pub scene: String,
+    /// The route's folder name: its first episode's id, with characters other than letters,
+    /// digits, `-` and `_` replaced by `_`.
+    pub name: String,
+    /// The episodes, in dataset order.
+    pub episodes: Vec<Episode>,
+}
+
+/// Groups `episodes` into routes, in the order of each route's first episode.
+pub fn routes(episodes: &[Episode]) -> Vec<Route> {
+    let mut out: Vec<Route> = Vec::new();
+    let mut index: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+    for e in episodes {
+        let key = serde_json::json!([e.scene, e.start, e.reference_path, e.goal]).to_string();
+        match index.get(&key) {
+            Some(&i) => out[i].episodes.push(e.clone()),
+            None => {
+                index.insert(key, out.len());
+                out.push(Route {
+                    scene: e.scene.clone(),
+                    name: folder_name(&e.episode_id),
+                    episodes: vec![e.clone()],
+                });
+            }
+        }
+    }
+    out
+}
+
+/// `id` with every character other than ASCII letters, digits, `-` and `_` replaced by `_`
+/// (a file name, and a WebDataset key, which must not hold a dot).
+pub fn folder_name(id: &str) -> String {
+    id.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// One action of a walk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WalkStep {
+    /// The action (`MOVE_FORWARD`, `TURN_LEFT`, `TURN_RIGHT`, `STOP`).
+    pub action: String,
+    /// The pose the frame of this step was taken at, before the action: `[x, y, yaw]` (W
+    /// frame, metres, radians).
+    pub pose: [f32; 3],
+    /// Where the action was meant to take the agent: the pose plus one step or one turn.
+    pub commanded: [f32; 3],
+    /// Where physics put it.
+    pub achieved: [f32; 3],
+    /// The agent touched something during the action.
+    pub contact: bool,
+}
+
+/// Why a route's walk is kept or dropped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// Ended within the success distance of the goal without touching anything.
+    Clean,
+    /// Touched an obstacle on the way.
+    Collided,
+    /// Ended farther than the success distance from the goal.
+    FarFromGoal,
+}
+
+/// A finished walk.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Walk {
+    /// Every action, STOP last.
+    pub steps: Vec<WalkStep>,
+    /// `reached`, `capped` (the motion cap) or `blocked` (three blocked moves in a row).
+    pub ending: String,
+    /// Steps on which the agent touched something.
+    pub contact_steps: usize,
+    /// Distance from the final position to the goal region, metres.
+    pub final_distance: Option<f32>,
+    /// The verdict.
+    pub verdict: Verdict,
+}
+
+/// Walks `route` in `env` (already set up with the preset's action space and the sensors):
+/// `on_frame(k, images)` gets the observation taken before action `k` (the frame a model
+/// sees when it chooses that action). The walk is the route's first episode's: its start,
+/// reference path and goal, which the route's episodes share.
+///
+/// # Errors
+///
+/// The episode cannot be started (its goal object is missing from the scene, …), a step or
+/// render error, or an error of `on_frame`.
+pub fn walk(
+    env: &mut Env,
+    route: &Route,
+    preset: &ActionPreset,
+    mut on_frame: impl FnMut(usize, &Images) -> Result<()>,
+) -> Result<Walk> {
+    let episode = route.episodes[0].env_episode();
+    let mut follower = PathFollower::new(preset);
+    let mut obs = env.reset(&episode)?;
+    follower.reset(env, &episode)?;
+    let turn = preset.turn_deg.to_radians();
+    let mut steps = Vec::new();
+    loop {
+        if let Some(images) = &obs.images {
+            on_frame(steps.len(), images)?;
+        }
+        let action = follower.act(&obs)?;
+        let p = obs.pose;
+        let pose = [p.position.x, p.position.y, p.yaw];
+        let commanded = match action {
+            Action::MoveForward => [
+                pose[0] + preset.step_m * p.yaw.cos(),
+                pose[1] + preset.step_m * p.yaw.sin(),
+                p.yaw,
+            ],
+            Action::TurnLeft => [pose[0], pose[1], wrap_angle(p.yaw + turn)],
+            Action::TurnRight => [pose[0], pose[1], wrap_angle(p.yaw - turn)],
+            _ => pose,
+        };
+        let (next, info) = env.step(action)?;
+        steps.push(WalkStep {
+            action: crate::preset::action_name(action).into(),
+            pose,
+            commanded,
+            achieved: [info.pose.position.x, info.pose.position.y, info.pose.yaw],
+            // STOP does not move: what it reports touching was touched by the step before.
+            contact: action != Action::Stop && !info.touched.is_empty(),
+        });
+        if action == Action::Stop {
+            break;
+        }
+        obs = next;
+    }
+    let contact_steps = steps.iter().filter(|s| s.contact).count();
+    let verdict = if contact_steps > 0 {
+        Verdict::Collided
+    } else if env.within_success_distance() {
+        Verdict::Clean
+    } else {
+        Verdict::FarFromGoal
+    };
+    let final_distance = env
+        .trace()
+        .and_then(|t| t.steps.last())
+        .and_then(|s| s.distance_to_goal);
+    Ok(Walk {
+        steps,
+        ending: match follower.ending() {
+            Some(Ending::Capped) => "capped",
+            Some(Ending::Blocked) => "blocked",
+            _ => "reached",
+        }
+        .into(),
+        contact_steps,
+        final_distance,
+        verdict,
+    })
+}

@@ -1,0 +1,703 @@
+//! A training-data render end to end: the settings, the plan (episodes grouped into routes per
+//! scene), rendering one scene (resumable per route), and the finish that writes the format's
+//! files and the manifest last.
+
+use crate::encode::{self, RgbCodec};
+use crate::output::{self, Format};
+use crate::preset::ActionPreset;
+use crate::replay::{self, Route, Verdict};
+use crate::sample::{self, EpisodeSample, IMAGES_DIR, ROUTE_FILE, RouteRecord};
+use rayon::prelude::*;
+use sage_core::{Error, Result, ResultExt, Task};
+use sage_env::{ActionSpace, Env, EnvConfig, SceneContext, SensorConfig};
+use sage_io::files::{read_json, write_json};
+use sage_io::hash::fnv1a64_hex;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The file a finished render writes last.
+pub const MANIFEST: &str = "manifest.json";
+
+/// The images a sample holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Sensors {
+    /// RGB frames.
+    pub rgb: bool,
+    /// Depth (16-bit PNG, millimetres).
+    pub depth: bool,
+    /// Category ids (16-bit PNG).
+    pub semantic: bool,
+    /// Instance ids (16-bit PNG).
+    pub instance: bool,
+}
+
+impl std::str::FromStr for Sensors {
+    type Err = Error;
+
+    /// `rgb[,depth,semantic,instance]`: RGB is always produced (every format needs it).
+    fn from_str(s: &str) -> Result<Sensors> {
+        let mut out = Sensors {
+            rgb: true,
+            depth: false,
+            semantic: false,
+            instance: false,
+        };
+        for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            match name {
+                "rgb" => {}
+                "depth" => out.depth = true,
+                "semantic" => out.semantic = true,
+                "instance" => out.instance = true,
+                other => {
+                    return Err(Error::invalid(format!(
+                        "unknown sensor '{other}' (known: rgb, depth, semantic, instance)"
+                    )));
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Everything a render is set up with.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settings {
+    /// The dataset folder (`episodes/{split}.jsonl`).
+    pub dataset: PathBuf,
+    /// A scene folder or a folder of scene folders.
+    pub scenes: PathBuf,
+    /// The split to render.
+    pub split: String,
+    /// The action preset.
+    pub preset: ActionPreset,
+    /// The agent profile (`wheeled`, `go2`, `g1`, `h1`): radius for physics, camera height.
+    pub agent: String,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Horizontal field of view, degrees.
+    pub hfov_deg: f32,
+    /// The images of each frame.
+    pub sensors: Sensors,
+    /// How RGB frames are stored.
+    pub rgb_codec: RgbCodec,
+    /// The output layout.
+    pub format: Format,
+    /// Samples per NaVILA part, episodes per WebDataset shard.
+    pub shard_size: usize,
+    /// Render the first N goal-directed episodes of the split only.
+    pub limit: Option<usize>,
+    /// Seed of the NaVILA sample shuffle (the render itself has no random choice).
+    pub seed: u64,
+    /// Keep the episodes of walks that collided or ended far from the goal.
+    pub keep_failed: bool,
+    /// Episodes shown in `preview.gif` (0: no preview).
+    pub preview: usize,
+}
+
+impl Settings {
+    /// Settings with the published defaults for `dataset` and `scenes`: split `train`,
+    /// `navila_small`, wheeled robot (camera 1.2 m), 224×224 RGB at 90° HFOV as JPEG quality
+    /// 90, the NaVILA layout in parts of 10 000 samples, seed 0, failed walks dropped.
+    ///
+    /// # Errors
+    ///
+    /// None in practice (the preset is known).
+    pub fn new(dataset: &Path, scenes: &Path) -> Result<Settings> {
+        Ok(Settings {
+            dataset: dataset.to_path_buf(),
+            scenes: scenes.to_path_buf(),
+            split: "train".into(),
+            preset: ActionPreset::named("navila_small")?,
+            agent: "wheeled".into(),
+            width: 224,
+            height: 224,
+            hfov_deg: 90.0,
+            sensors: Sensors {
+                rgb: true,
+                depth: false,
+                semantic: false,
+                instance: false,
+            },
+            rgb_codec: RgbCodec::Jpeg { quality: 90 },
+            format: Format::Navila,
+            shard_size: 10_000,
+            limit: None,
+            seed: 0,
+            keep_failed: false,
+            preview: 0,
+        })
+    }
+
+    /// The environment the walks run in: the agent profile, the preset's discrete actions and
+    /// the camera.
+    ///
+    /// # Errors
+    ///
+    /// A bad profile, size, field of view or preset, naming the field.
+    pub fn env_config(&self) -> Result<EnvConfig> {
+        let mut config = EnvConfig {
+            agent: self.agent.clone(),
+            ..EnvConfig::default()
+        };
+        config.actions = ActionSpace::Discrete {
+            forward: self.preset.step_m,
+            turn_deg: self.preset.turn_deg,
+            look_deg: 30.0,
+            seconds: 1.0,
+        };
+        config.sensors = SensorConfig {
+            width: self.width,
+            height: self.height,
+            hfov_deg: self.hfov_deg,
+            camera_height: None,
+            depth_size: None,
+            rgb: true,
+            depth: self.sensors.depth,
+            semantic: self.sensors.semantic,
+            instance: self.sensors.instance,
+        };
+        config.task.max_steps = config.task.max_steps.max(self.preset.max_actions + 1);
+        if self.shard_size == 0 {
+            return Err(Error::invalid("shard size: must be at least 1"));
+        }
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// The settings as the run record stores them: without the folders (they may be named
+    /// from another working directory; the dataset's hash says which data).
+    fn recorded(&self) -> serde_json::Value {
+        let mut v = serde_json::to_value(self).unwrap_or_default();
+        if let Some(o) = v.as_object_mut() {
+            o.remove("dataset");
+            o.remove("scenes");
+        }
+        v
+    }
+}
+
+/// An episode left out, with the reason.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Skip {
+    /// The episode.
+    pub episode_id: String,
+    /// Why (names the scene or the file).
+    pub reason: String,
+}
+
+/// What a render will do: the routes of every scene, and the episodes left out before it.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The settings.
+    pub settings: Settings,
+    /// The environment of the walks.
+    pub env: EnvConfig,
+    /// The routes by scene, scenes sorted, routes in dataset order.
+    pub routes: BTreeMap<String, Vec<Route>>,
+    /// Each scene's folder.
+    pub scene_dirs: BTreeMap<String, PathBuf>,
+    /// Episodes whose scene is not among the scenes.
+    pub skipped: Vec<Skip>,
+    /// Episodes of the split with nothing to walk, by reason: `no_goal` (no-goal episodes)
+    /// and `in_place` (a reference path of one point: a Base-Action rotation in place, whose
+    /// turns a path does not record).
+    pub ignored: BTreeMap<String, usize>,
+    /// The split file's hash.
+    pub dataset_hash: String,
+}
+
+impl Plan {
+    /// Reads the split and groups its goal-directed episodes (the first `limit`) into routes.
+    ///
+    /// # Errors
+    ///
+    /// Bad settings, an unknown or empty split, an unreadable dataset or scenes folder.
+    pub fn new(settings: &Settings) -> Result<Plan> {
+        let env = settings.env_config()?;
+        let (file, episodes) = sage_bench::eval::split_episodes(&settings.dataset, &settings.split)?;
+        let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+        let mut ignored: BTreeMap<String, usize> = BTreeMap::new();
+        let mut goal: Vec<_> = episodes
+            .into_iter()
+            .filter(|e| {
+                let why = if e.task != Task::Vln {
+                    "no_goal"
+                } else if e.reference_path.len() < 2 {
+                    "in_place"
+                } else {
+                    return true;
+                };
+                *ignored.entry(why.into()).or_default() += 1;
+                false
+            })
+            .collect();
+        if let Some(n) = settings.limit {
+            goal.truncate(n);
+        }
+        if goal.is_empty() {
+            return Err(Error::invalid(format!(
+                "split '{}' has no goal-directed episodes to render",
+                settings.split
+            ))
+            .in_file(&file));
+        }
+        let scene_dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
+        let (present, missing): (Vec<_>, Vec<_>) = goal
+            .into_iter()
+            .partition(|e| scene_dirs.contains_key(&e.scene));
+        let skipped = missing
+            .iter()
+            .map(|e| Skip {
+                episode_id: e.episode_id.clone(),
+                reason: format!(
+                    "scene '{}' is not among the scenes in {}",
+                    e.scene,
+                    settings.scenes.display()
+                ),
+            })
+            .collect();
+        let mut routes: BTreeMap<String, Vec<Route>> = BTreeMap::new();
+        for r in replay::routes(&present) {
+            routes.entry(r.scene.clone()).or_default().push(r);
+        }
+        Ok(Plan {
+            settings: settings.clone(),
+            env,
+            routes,
+            scene_dirs,
+            skipped,
+            ignored,
+            dataset_hash: fnv1a64_hex(&bytes),
+        })
+    }
+
+    /// The scenes with routes to walk, sorted.
+    pub fn scenes(&self) -> Vec<String> {
+        self.routes.keys().cloned().collect()
+    }
+
+    /// Routes in all scenes.
+    pub fn route_count(&self) -> usize {
+        self.routes.values().map(Vec::len).sum()
+    }
+}
+
+/// A route finished by [`render_scene`] (for progress displays).
+#[derive(Debug, Clone)]
+pub struct RouteDone {
+    /// The scene.
+    pub scene: String,
+    /// The route.
+    pub route: String,
+    /// Frames written.
+    pub frames: usize,
+    /// Why it could not be walked.
+    pub error: Option<String>,
+}
+
+/// The folder of a route's frames under `out`.
+pub fn route_dir(out: &Path, route: &Route) -> PathBuf {
+    out.join(IMAGES_DIR).join(&route.scene).join(&route.name)
+}
+
+/// True when `route` has a complete record under `out` (a walk, not an error).
+fn is_done(out: &Path, route: &Route) -> bool {
+    read_json::<RouteRecord>(&route_dir(out, route).join(ROUTE_FILE))
+        .is_ok_and(|r| r.walk.is_some())
+}
+
+/// Renders the routes of `scene` that are not done under `out` (in parallel): per route its
+/// frames, then its `route.json`. A route that cannot be walked gets a record with the reason
+/// (retried by the next run); a scene that cannot be loaded gives every route that record.
+/// Returns the routes rendered.
+///
+/// # Errors
+///
+/// A write error (a full disk, an unwritable folder), naming the file: the run cannot go on.
+pub fn render_scene(
+    plan: &Plan,
+    scene: &str,
+    out: &Path,
+    on_route: &(dyn Fn(&RouteDone) + Sync),
+) -> Result<usize> {
+    let pending: Vec<&Route> = plan
+        .routes
+        .get(scene)
+        .map(|r| r.iter().filter(|r| !is_done(out, r)).collect())
+        .unwrap_or_default();
+    if pending.is_empty() {
+        return Ok(0);
+    }
+    let s = &plan.settings;
+    let suffixes: Vec<String> = {
+        let probe = sage_env::Images {
+            rgb: Some(Vec::new()),
+            depth: s.sensors.depth.then(Vec::new),
+            semantic: s.sensors.semantic.then(Vec::new),
+            instance: s.sensors.instance.then(Vec::new),
+            ..Default::default()
+        };
+        encode::suffixes(&probe, s.rgb_codec)
+            .into_iter()
+            .map(String::from)
+            .collect()
+    };
+    let record = |route: &Route, walk, error| RouteRecord {
+        scene: route.scene.clone(),
+        route: route.name.clone(),
+        episodes: route.episodes.iter().map(|e| e.episode_id.clone()).collect(),
+        suffixes: suffixes.clone(),
+        walk,
+        error,
+    };
+    let ctx = SceneContext::load(&plan.scene_dirs[scene], None)
+        .within(format!("scene {scene}"))
+        .map(Arc::new);
+    let ctx = match ctx {
+        Ok(ctx) => ctx,
+        Err(err) => {
+            for route in &pending {
+                let dir = route_dir(out, route);
+                std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+                let rec = record(route, None, Some(err.to_string()));
+                write_json(&dir.join(ROUTE_FILE), &rec)?;
+                on_route(&RouteDone {
+                    scene: scene.into(),
+                    route: route.name.clone(),
+                    frames: 0,
+                    error: rec.error,
+                });
+            }
+            return Ok(pending.len());
+        }
+    };
+    pending
+        .par_iter()
+        .map_init(
+            || Env::new(ctx.clone(), plan.env.clone()),
+            |env, route| {
+                let env = env
+                    .as_mut()
+                    .map_err(|e| Error::invalid(e.to_string()))?;
+                let dir = route_dir(out, route);
+                if dir.exists() {
+                    std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+                }
+                std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+                // A write error stops the run; an error of the walk itself is the route's.
+                let mut write_error = None;
+                let walked = replay::walk(env, route, &s.preset, |k, images| {
+                    for (suffix, bytes) in encode::encode(images, s.rgb_codec)? {
+                        let path = dir.join(format!("{k:04}.{suffix}"));
+                        if let Err(e) = std::fs::write(&path, bytes) {
+                            write_error = Some(Error::io(&path, e));
+                            return Err(Error::invalid("a frame could not be written"));
+                        }
+                    }
+                    Ok(())
+                });
+                if let Some(err) = write_error {
+                    return Err(err);
+                }
+                let (frames, rec) = match walked {
+                    Ok(walk) => (walk.steps.len(), record(route, Some(walk), None)),
+                    Err(err) => (
+                        0,
+                        record(
+                            route,
+                            None,
+                            Some(err.within(format!("episode {}", route.episodes[0].episode_id)).to_string()),
+                        ),
+                    ),
+                };
+                write_json(&dir.join(ROUTE_FILE), &rec)?;
+                on_route(&RouteDone {
+                    scene: scene.into(),
+                    route: route.name.clone(),
+                    frames,
+                    error: rec.error,
+                });
+                Ok(())
+            },
+        )
+        .collect::<Result<Vec<()>>>()?;
+    Ok(pending.len())
+}
+
+/// Counts of a finished render.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Counts {
+    /// Goal-directed episodes selected from the split.
+    pub episodes: usize,
+    /// Routes (walks) they share.
+    pub routes: usize,
+    /// Episodes written.
+    pub kept: usize,
+    /// Episodes dropped, by their walk's verdict.
+    pub dropped: BTreeMap<String, usize>,
+    /// Episodes skipped for an error (listed in `skipped`).
+    pub skipped: usize,
+    /// Episodes of the split with nothing to walk, by reason (`no_goal`, `in_place`).
+    pub ignored: BTreeMap<String, usize>,
+    /// NaVILA samples (one per step of each kept episode).
+    pub samples: usize,
+    /// Frames rendered for the kept routes.
+    pub frames: usize,
+}
+
+/// A written file: its path relative to the output, size and FNV-1a 64 hash.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FileEntry {
+    /// Relative path.
+    pub path: String,
+    /// Bytes.
+    pub bytes: u64,
+    /// FNV-1a 64 of the bytes, hex.
+    pub fnv1a64: String,
+}
+
+/// The manifest of a finished render, written last.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    /// `sage3d`.
+    pub tool: String,
+    /// Its version.
+    pub version: String,
+    /// The settings (without the folders).
+    pub settings: serde_json::Value,
+    /// The split file's hash.
+    pub dataset_hash: String,
+    /// The counts.
+    pub counts: Counts,
+    /// Episodes left out for an error, with the reason.
+    pub skipped: Vec<Skip>,
+    /// The format's files (parts, shards, index).
+    pub files: Vec<FileEntry>,
+    /// The frames under `images/` (none for WebDataset, whose shards hold them): count, total
+    /// bytes and one FNV-1a 64 over every relative path and its bytes in path order.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub images: Option<FileEntry>,
+}
+
+impl Manifest {
+    /// True when something asked for was not done: an episode skipped for an error.
+    pub fn skipped_any(&self) -> bool {
+        self.counts.skipped > 0
+    }
+}
+
+/// Writes the format's files from the rendered routes, the preview when asked for, then the
+/// manifest, then (WebDataset) removes the frames folder the shards now hold.
+///
+/// # Errors
+///
+/// A route not rendered yet, an unreadable route record or frame, a write error.
+pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
+    let s = &plan.settings;
+    let mut counts = Counts {
+        episodes: plan.routes.values().flatten().map(|r| r.episodes.len()).sum::<usize>()
+            + plan.skipped.len(),
+        routes: plan.route_count(),
+        ignored: plan.ignored.clone(),
+        ..Counts::default()
+    };
+    let mut skipped = plan.skipped.clone();
+    let mut samples: Vec<EpisodeSample> = Vec::new();
+    for route in plan.routes.values().flatten() {
+        let path = route_dir(out, route).join(ROUTE_FILE);
+        if !path.is_file() {
+            return Err(Error::invalid(format!(
+                "route {} of scene {} has not been rendered (run the render again)",
+                route.name, route.scene
+            )));
+        }
+        let rec: RouteRecord = read_json(&path)?;
+        match &rec.walk {
+            None => skipped.extend(route.episodes.iter().map(|e| Skip {
+                episode_id: e.episode_id.clone(),
+                reason: rec.error.clone().unwrap_or_default(),
+            })),
+            Some(walk) if walk.verdict != Verdict::Clean && !s.keep_failed => {
+                let key = serde_json::to_value(walk.verdict)
+                    .ok()
+                    .and_then(|v| v.as_str().map(String::from))
+                    .unwrap_or_default();
+                *counts.dropped.entry(key).or_default() += route.episodes.len();
+            }
+            Some(walk) => {
+                counts.frames += walk.steps.len();
+                samples.extend(sample::samples(route, &rec, &s.preset));
+            }
+        }
+    }
+    counts.kept = samples.len();
+    counts.skipped = skipped.len();
+    counts.samples = samples.iter().map(|e| e.actions.len()).sum();
+    let written = match s.format {
+        Format::Navila => output::write_navila(
+            out,
+            &samples,
+            &s.preset,
+            s.shard_size,
+            s.seed,
+            &format!("sage3d_{}_{}", s.split, s.preset.name),
+        )?,
+        Format::Webdataset => output::write_webdataset(out, &samples, s.shard_size, &s.split)?,
+        Format::Frames => output::write_frames_index(out, &samples)?,
+    };
+    let files = written
+        .iter()
+        .map(|p| {
+            let bytes = std::fs::read(out.join(p)).map_err(|e| Error::io(out.join(p), e))?;
+            Ok(FileEntry {
+                path: p.clone(),
+                bytes: bytes.len() as u64,
+                fnv1a64: fnv1a64_hex(&bytes),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let images = (s.format != Format::Webdataset)
+        .then(|| images_entry(out, &samples))
+        .transpose()?;
+    let manifest = Manifest {
+        tool: "sage3d".into(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        settings: s.recorded(),
+        dataset_hash: plan.dataset_hash.clone(),
+        counts,
+        skipped,
+        files,
+        images,
+    };
+    if s.preview > 0 {
+        crate::preview::write(plan, out, &samples, s.preview)?;
+    }
+    write_json(&out.join(MANIFEST), &manifest)?;
+    if s.format == Format::Webdataset {
+        let dir = out.join(IMAGES_DIR);
+        std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    }
+    Ok(manifest)
+}
+
+/// The frames of the kept samples as one entry: count, bytes and a hash over paths and bytes.
+fn images_entry(out: &Path, samples: &[EpisodeSample]) -> Result<FileEntry> {
+    let mut files: Vec<&String> = samples.iter().flat_map(|e| e.files.iter().flatten()).collect();
+    files.sort();
+    files.dedup();
+    let mut hash = sage_io::hash::Fnv1a128::new();
+    let mut bytes = 0u64;
+    let root = out.join(IMAGES_DIR);
+    for f in &files {
+        let data = std::fs::read(root.join(f)).map_err(|e| Error::io(root.join(f), e))?;
+        bytes += data.len() as u64;
+        hash.write(f.as_bytes());
+        hash.write(&data);
+    }
+    Ok(FileEntry {
+        path: format!("{IMAGES_DIR}/ ({} files)", files.len()),
+        bytes,
+        fnv1a64: format!("{:016x}", hash.finish() as u64),
+    })
+}
+
+/// The files a render may have written in an output folder (nothing else is ever touched).
+const OWN: [&str; 7] = [
+    IMAGES_DIR,
+    output::SHARDS_DIR,
+    output::EPISODES_FILE,
+    "dataset_info.json",
+    MANIFEST,
+    sage_io::run::RUN_RECORD,
+    crate::preview::PREVIEW_FILE,
+];
+
+fn is_own(name: &str) -> bool {
+    OWN.contains(&name) || (name.starts_with("annotations_part_") && name.ends_with(".json"))
+}
+
+/// Claims `out` for a render with `plan`'s settings: a new or empty folder, or the folder of
+/// the same render (which resumes). With `force`, a folder of another render has that
+/// render's files removed first. Returns the manifest when the same render already finished.
+///
+/// # Errors
+///
+/// A folder holding files a render did not write, or another render's output without
+/// `force`; a write error.
+pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
+    let record_path = out.join(sage_io::run::RUN_RECORD);
+    let settings = plan.settings.recorded();
+    if out.is_dir() {
+        let names: Vec<String> = std::fs::read_dir(out)
+            .map_err(|e| Error::io(out, e))?
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        if let Some(foreign) = names.iter().find(|n| !is_own(n)) {
+            return Err(Error::invalid(format!(
+                "the output folder holds '{foreign}', which a training-data render did not write; choose an empty or new folder"
+            ))
+            .in_file(out));
+        }
+        let same = read_json::<serde_json::Value>(&record_path).is_ok_and(|old| {
+            old.get("command").and_then(|c| c.as_str()) == Some("data render")
+                && old.get("settings") == Some(&settings)
+                && old.get("dataset_hash").and_then(|h| h.as_str())
+                    == Some(plan.dataset_hash.as_str())
+        });
+        if !same && !names.is_empty() {
+            if !force {
+                return Err(Error::invalid(
+                    "the output folder holds a render with other settings or another dataset; use a new --out, or --force to replace it",
+                )
+                .in_file(out));
+            }
+            for name in names.iter().filter(|n| is_own(n)) {
+                let p = out.join(name);
+                let removed = if p.is_dir() {
+                    std::fs::remove_dir_all(&p)
+                } else {
+                    std::fs::remove_file(&p)
+                };
+                removed.map_err(|e| Error::io(&p, e))?;
+            }
+        }
+        if same && let Ok(m) = read_json::<Manifest>(&out.join(MANIFEST)) {
+            return Ok(Some(m));
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    sage_io::run::write_run_record(
+        out,
+        "data render",
+        Some(plan.settings.seed),
+        serde_json::json!({ "settings": settings, "dataset_hash": plan.dataset_hash }),
+    )?;
+    Ok(None)
+}
+
+/// A whole render: claim `out`, render every scene (resuming routes already done), finish.
+/// A render that already finished returns its manifest.
+///
+/// # Errors
+///
+/// As [`Plan::new`], [`claim`], [`render_scene`] and [`finish`].
+pub fn render(
+    settings: &Settings,
+    out: &Path,
+    force: bool,
+    on_route: &(dyn Fn(&RouteDone) + Sync),
+) -> Result<Manifest> {
+    let plan = Plan::new(settings)?;
+    if let Some(done) = claim(&plan, out, force)? {
+        return Ok(done);
+    }
+    for scene in plan.scenes() {
+        render_scene(&plan, &scene, out, on_route)?;
+    }
+    finish(&plan, out)
+}
