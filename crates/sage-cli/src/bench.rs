@@ -10,6 +10,7 @@ use sage_perf::load::LoadSettings;
 use sage_perf::nav::NavSettings;
 use sage_perf::physics::PhysicsSettings;
 use sage_perf::render::RenderSettings;
+use sage_perf::traindata::TrainDataSettings;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 use std::ffi::OsString;
@@ -38,6 +39,45 @@ pub enum BenchCommand {
     /// Fit a degraded copy of one synthetic room to views of it on the CPU (sage-train):
     /// held-out PSNR before and after, milliseconds per iteration.
     Fit(FitBenchArgs),
+    /// Render the training set of a generated 1M-Gaussian home (walks through physics, frames,
+    /// JPEG, NaVILA files) at each size: frames per second per core and the CPU-hours of the
+    /// paper's 500k training pairs.
+    TrainData(TrainDataBenchArgs),
+}
+
+#[derive(Args)]
+pub struct TrainDataBenchArgs {
+    /// Objects in the generated home.
+    #[arg(long, default_value_t = 200)]
+    objects: usize,
+    /// Gaussians in the generated home.
+    #[arg(long, default_value_t = 1_000_000)]
+    gaussians: usize,
+    /// Seed of the scene and its dataset.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Trajectories planned in the home.
+    #[arg(long, default_value_t = 40)]
+    trajectories: usize,
+    /// Resolutions as WxH.
+    #[arg(long, value_delimiter = ',', default_value = "224x224,384x384,640x480")]
+    sizes: Vec<String>,
+    /// Action preset.
+    #[arg(long, default_value = "navila_small")]
+    preset: String,
+}
+
+impl TrainDataBenchArgs {
+    fn settings(&self) -> Result<TrainDataSettings> {
+        Ok(TrainDataSettings {
+            objects: self.objects,
+            gaussians: self.gaussians,
+            seed: self.seed,
+            trajectories: self.trajectories,
+            sizes: sizes(&self.sizes)?,
+            preset: self.preset.clone(),
+        })
+    }
 }
 
 #[derive(Args)]
@@ -294,6 +334,9 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Physics(a) => print_report(&sage_perf::physics::run(&a.settings())?, false),
         BenchCommand::Env(a) => print_report(&sage_perf::env::run(&a.settings()?)?, false),
         BenchCommand::Fit(a) => print_report(&sage_perf::fit::run(&a.settings()?)?, false),
+        BenchCommand::TrainData(a) => {
+            print_report(&sage_perf::traindata::run(&a.settings()?)?, false)
+        }
     }
 }
 
@@ -358,7 +401,15 @@ mod tests {
     /// The flags' defaults are the benchmarks' defaults.
     #[test]
     fn default_flags_give_default_settings() {
-        for name in ["load", "render", "nav", "physics", "env", "fit"] {
+        for name in [
+            "load",
+            "render",
+            "nav",
+            "physics",
+            "env",
+            "fit",
+            "train-data",
+        ] {
             match parse(&[name]) {
                 BenchCommand::Load(a) => assert_eq!(a.settings().unwrap(), LoadSettings::default()),
                 BenchCommand::Render(a) => {
@@ -370,6 +421,9 @@ mod tests {
                 }
                 BenchCommand::Env(a) => assert_eq!(a.settings().unwrap(), EnvSettings::default()),
                 BenchCommand::Fit(a) => assert_eq!(a.settings().unwrap(), FitSettings::default()),
+                BenchCommand::TrainData(a) => {
+                    assert_eq!(a.settings().unwrap(), TrainDataSettings::default());
+                }
             }
         }
     }

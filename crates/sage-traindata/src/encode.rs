@@ -168,10 +168,7 @@ mod tests {
         let files = encode(&images, RgbCodec::Jpeg { quality: 90 }).unwrap();
         let names: Vec<&str> = files.iter().map(|f| f.0).collect();
         assert_eq!(names, suffixes(&images, RgbCodec::Jpeg { quality: 90 }));
-        assert_eq!(
-            names,
-            ["jpg", "depth.png", "semantic.png", "instance.png"]
-        );
+        assert_eq!(names, ["jpg", "depth.png", "semantic.png", "instance.png"]);
         assert_eq!(&files[0].1[..2], &[0xFF, 0xD8]);
         assert_eq!(&files[1].1[1..4], b"PNG");
     }

@@ -127,7 +127,8 @@ impl Agent for PathFollower {
         while self.next < last && at.distance(self.waypoints[self.next]) < self.step {
             self.next += 1;
         }
-        self.approaching |= self.next == last && at.distance(self.waypoints[last]) < 0.5 * self.step;
+        self.approaching |=
+            self.next == last && at.distance(self.waypoints[last]) < 0.5 * self.step;
         let target = if self.approaching {
             // At the path's end: done, unless an object goal is not yet well inside the success
             // distance; then on towards its footprint.

@@ -89,12 +89,15 @@ pub fn navila_samples(
         .iter()
         .flat_map(|e| {
             let rgb: Vec<String> = e.files.iter().map(|f| f[0].clone()).collect();
-            e.actions.iter().enumerate().map(move |(k, a)| NavilaSample {
-                video_id: format!("{}-{k}", e.episode_id),
-                q: e.instruction.clone(),
-                a: preset.answer(action_from_name(a)),
-                frames: rgb[..=k].to_vec(),
-            })
+            e.actions
+                .iter()
+                .enumerate()
+                .map(move |(k, a)| NavilaSample {
+                    video_id: format!("{}-{k}", e.episode_id),
+                    q: e.instruction.clone(),
+                    a: preset.answer(action_from_name(a)),
+                    frames: rgb[..=k].to_vec(),
+                })
         })
         .collect();
     samples.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed));

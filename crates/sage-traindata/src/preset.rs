@@ -44,16 +44,17 @@ impl ActionPreset {
     ///
     /// An unknown name, listing the known ones.
     pub fn named(name: &str) -> Result<ActionPreset> {
-        let (name, step_m, turn_deg) = PUBLISHED
-            .iter()
-            .find(|p| p.0 == name)
-            .copied()
-            .ok_or_else(|| {
-                Error::invalid(format!(
-                    "unknown action preset '{name}' (known: {})",
-                    Self::names().join(", ")
-                ))
-            })?;
+        let (name, step_m, turn_deg) =
+            PUBLISHED
+                .iter()
+                .find(|p| p.0 == name)
+                .copied()
+                .ok_or_else(|| {
+                    Error::invalid(format!(
+                        "unknown action preset '{name}' (known: {})",
+                        Self::names().join(", ")
+                    ))
+                })?;
         Ok(ActionPreset {
             name: name.to_string(),
             step_m,
@@ -155,7 +156,9 @@ mod tests {
         let c = ActionPreset::named("custom_small").unwrap();
         assert_eq!(c.words(Action::MoveForward), "move forward 0.5 meter");
         assert_eq!(
-            ActionPreset::named("vlnce").unwrap().words(Action::TurnLeft),
+            ActionPreset::named("vlnce")
+                .unwrap()
+                .words(Action::TurnLeft),
             "turn left 15 degree"
         );
         let e = ActionPreset::named("habitat").unwrap_err().to_string();
@@ -166,7 +169,10 @@ mod tests {
     fn overrides_rename_and_are_checked() {
         let base = ActionPreset::named("vlnce").unwrap();
         let p = ActionPreset::with(base.clone(), Some(0.4), None, Some(20)).unwrap();
-        assert_eq!((p.name.as_str(), p.step_m, p.max_actions), ("custom", 0.4, 20));
+        assert_eq!(
+            (p.name.as_str(), p.step_m, p.max_actions),
+            ("custom", 0.4, 20)
+        );
         let same = ActionPreset::with(base.clone(), Some(0.25), None, None).unwrap();
         assert_eq!(same.name, "vlnce");
         assert!(ActionPreset::with(base.clone(), Some(0.0), None, None).is_err());

@@ -218,7 +218,8 @@ impl Plan {
     /// Bad settings, an unknown or empty split, an unreadable dataset or scenes folder.
     pub fn new(settings: &Settings) -> Result<Plan> {
         let env = settings.env_config()?;
-        let (file, episodes) = sage_bench::eval::split_episodes(&settings.dataset, &settings.split)?;
+        let (file, episodes) =
+            sage_bench::eval::split_episodes(&settings.dataset, &settings.split)?;
         let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
         let mut ignored: BTreeMap<String, usize> = BTreeMap::new();
         let mut goal: Vec<_> = episodes
@@ -349,7 +350,11 @@ pub fn render_scene(
     let record = |route: &Route, walk, error| RouteRecord {
         scene: route.scene.clone(),
         route: route.name.clone(),
-        episodes: route.episodes.iter().map(|e| e.episode_id.clone()).collect(),
+        episodes: route
+            .episodes
+            .iter()
+            .map(|e| e.episode_id.clone())
+            .collect(),
         suffixes: suffixes.clone(),
         walk,
         error,
@@ -380,9 +385,7 @@ pub fn render_scene(
         .map_init(
             || Env::new(ctx.clone(), plan.env.clone()),
             |env, route| {
-                let env = env
-                    .as_mut()
-                    .map_err(|e| Error::invalid(e.to_string()))?;
+                let env = env.as_mut().map_err(|e| Error::invalid(e.to_string()))?;
                 let dir = route_dir(out, route);
                 if dir.exists() {
                     std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
@@ -410,7 +413,10 @@ pub fn render_scene(
                         record(
                             route,
                             None,
-                            Some(err.within(format!("episode {}", route.episodes[0].episode_id)).to_string()),
+                            Some(
+                                err.within(format!("episode {}", route.episodes[0].episode_id))
+                                    .to_string(),
+                            ),
                         ),
                     ),
                 };
@@ -499,7 +505,12 @@ impl Manifest {
 pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
     let s = &plan.settings;
     let mut counts = Counts {
-        episodes: plan.routes.values().flatten().map(|r| r.episodes.len()).sum::<usize>()
+        episodes: plan
+            .routes
+            .values()
+            .flatten()
+            .map(|r| r.episodes.len())
+            .sum::<usize>()
             + plan.skipped.len(),
         routes: plan.route_count(),
         ignored: plan.ignored.clone(),
@@ -586,7 +597,10 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
 
 /// The frames of the kept samples as one entry: count, bytes and a hash over paths and bytes.
 fn images_entry(out: &Path, samples: &[EpisodeSample]) -> Result<FileEntry> {
-    let mut files: Vec<&String> = samples.iter().flat_map(|e| e.files.iter().flatten()).collect();
+    let mut files: Vec<&String> = samples
+        .iter()
+        .flat_map(|e| e.files.iter().flatten())
+        .collect();
     files.sort();
     files.dedup();
     let mut hash = sage_io::hash::Fnv1a128::new();

@@ -1,0 +1,347 @@
+//! Training-data renders on a small generated home: the formats' contents against the walks,
+//! determinism over thread counts, resumption of a broken render, and bad input.
+
+use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
+use sage_bench::dataset::split::SplitParams;
+use sage_traindata::encode::RgbCodec;
+use sage_traindata::{Format, Settings};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// A 3-room home and its dataset (every episode in `train`), built once: (scenes, dataset).
+fn data() -> (&'static Path, &'static Path) {
+    static DATA: OnceLock<(tempfile::TempDir, PathBuf, PathBuf)> = OnceLock::new();
+    let d = DATA.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let scenes = dir.path().join("scenes");
+        let home = scenes.join("home1");
+        sage_synth::generate(&sage_synth::SynthConfig {
+            seed: 1,
+            rooms: 3,
+            objects: 30,
+            gaussians: 3000,
+            ..sage_synth::SynthConfig::default()
+        })
+        .unwrap()
+        .save(&home, sage_scene::SplatLayout::Compressed)
+        .unwrap();
+        let dataset = dir.path().join("data");
+        let assemble = AssembleParams {
+            seed: 2,
+            split: SplitParams {
+                scene_unseen: 0.0,
+                val: 0.0,
+                donor_share: 0.0,
+            },
+            balanced: 0,
+        };
+        build::build(
+            std::slice::from_ref(&home),
+            &dataset,
+            &SceneParams::new(6, 2),
+            &assemble,
+            &|_| {},
+        )
+        .unwrap();
+        (dir, scenes, dataset)
+    });
+    (&d.1, &d.2)
+}
+
+fn settings(format: Format) -> Settings {
+    let (scenes, dataset) = data();
+    Settings {
+        width: 48,
+        height: 36,
+        format,
+        keep_failed: true,
+        shard_size: 7,
+        ..Settings::new(dataset, scenes).unwrap()
+    }
+}
+
+/// Every file under `root` (relative path → bytes), the run record aside (it names the
+/// command, not the data).
+fn tree(root: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut t = sage_io::files::read_tree(root).unwrap();
+    t.remove("sage3d_run.json");
+    t
+}
+
+fn render_with_threads(s: &Settings, out: &Path, threads: usize) -> sage_traindata::Manifest {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| sage_traindata::render(s, out, false, &|_| {}))
+        .unwrap()
+}
+
+#[test]
+fn navila_samples_match_the_walks_and_the_bytes_do_not_depend_on_threads() {
+    let s = settings(Format::Navila);
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let m = render_with_threads(&s, a.path(), 1);
+    render_with_threads(&s, b.path(), 2);
+    assert_eq!(tree(a.path()), tree(b.path()));
+    assert!(m.counts.kept > 3 && m.counts.skipped == 0, "{:?}", m.counts);
+
+    let info: serde_json::Value =
+        sage_io::files::read_json(&a.path().join("dataset_info.json")).unwrap();
+    let parts: Vec<String> = serde_json::from_value(info["part_files"].clone()).unwrap();
+    assert_eq!(info["total_samples"], m.counts.samples);
+    assert_eq!(parts.len(), m.counts.samples.div_ceil(7));
+    assert_eq!(info["data_format"]["move_distance"], "0.35 meter");
+    let mut samples = Vec::new();
+    for p in &parts {
+        let part: Vec<sage_traindata::output::NavilaSample> =
+            sage_io::files::read_json(&a.path().join(p)).unwrap();
+        assert!(part.len() <= 7);
+        samples.extend(part);
+    }
+    assert_eq!(samples.len(), m.counts.samples);
+    let allowed = [
+        "The next action is move forward 0.35 meter.",
+        "The next action is turn left 30 degree.",
+        "The next action is turn right 30 degree.",
+        "The next action is stop.",
+    ];
+    for x in &samples {
+        assert!(allowed.contains(&x.a.as_str()), "{}", x.a);
+        let step: usize = x.video_id.rsplit('-').next().unwrap().parse().unwrap();
+        assert_eq!(x.frames.len(), step + 1, "{}", x.video_id);
+        for (k, f) in x.frames.iter().enumerate() {
+            assert!(f.ends_with(&format!("/{k:04}.jpg")), "{f}");
+            let bytes = std::fs::read(a.path().join("images").join(f)).unwrap();
+            let mut dec = zune_jpeg::JpegDecoder::new(bytes.as_slice());
+            dec.decode_headers().unwrap();
+            assert_eq!(dec.dimensions(), Some((48, 36)));
+        }
+        // Each episode's last sample is its STOP.
+    }
+    let stops = samples.iter().filter(|x| x.a.ends_with("stop.")).count();
+    assert_eq!(stops, m.counts.kept);
+}
+
+#[test]
+fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
+    let s = settings(Format::Frames);
+    let out = tempfile::tempdir().unwrap();
+    let m = render_with_threads(&s, out.path(), 2);
+    let text = std::fs::read_to_string(out.path().join("episodes.jsonl")).unwrap();
+    let episodes: Vec<sage_traindata::sample::EpisodeSample> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(episodes.len(), m.counts.kept);
+    let (_, dataset) = data();
+    let (_, source) = sage_bench::eval::split_episodes(dataset, "train").unwrap();
+    let by_id: BTreeMap<&str, &sage_bench::dataset::Episode> =
+        source.iter().map(|e| (e.episode_id.as_str(), e)).collect();
+    let step = 0.35f32;
+    let turn = 30f32.to_radians();
+    for e in &episodes {
+        let src = by_id[e.episode_id.as_str()];
+        assert_eq!(e.instruction, src.instruction);
+        assert_eq!(e.actions.last().map(String::as_str), Some("STOP"));
+        assert_eq!(e.files.len(), e.actions.len());
+        assert_eq!(e.steps.len(), e.actions.len());
+        let first = e.steps[0].pose;
+        assert!((first[0] - src.start.position[0]).abs() < 1e-5);
+        assert!((first[1] - src.start.position[1]).abs() < 1e-5);
+        assert!((first[2] - src.start.yaw).abs() < 1e-5);
+        for w in e.steps.windows(2) {
+            // Each frame is taken where the previous action left the agent.
+            assert_eq!(w[1].pose, w[0].achieved);
+        }
+        for st in &e.steps {
+            let moved = ((st.commanded[0] - st.pose[0]).powi(2)
+                + (st.commanded[1] - st.pose[1]).powi(2))
+            .sqrt();
+            let turned = sage_core::wrap_angle(st.commanded[2] - st.pose[2]);
+            match st.action.as_str() {
+                "MOVE_FORWARD" => assert!((moved - step).abs() < 1e-4 && turned.abs() < 1e-5),
+                "TURN_LEFT" => assert!(moved < 1e-6 && (turned - turn).abs() < 1e-4),
+                "TURN_RIGHT" => assert!(moved < 1e-6 && (turned + turn).abs() < 1e-4),
+                _ => assert!(moved < 1e-6 && turned.abs() < 1e-6),
+            }
+            if !st.contact && e.verdict == sage_traindata::replay::Verdict::Clean {
+                // Free motion: physics achieves what was commanded.
+                let err = ((st.achieved[0] - st.commanded[0]).powi(2)
+                    + (st.achieved[1] - st.commanded[1]).powi(2))
+                .sqrt();
+                assert!(err < 0.02, "{} {:?}", e.episode_id, st);
+            }
+        }
+        if e.verdict == sage_traindata::replay::Verdict::Clean {
+            assert!(e.steps.iter().all(|s| !s.contact));
+        }
+    }
+}
+
+#[test]
+fn webdataset_shards_hold_every_frame_and_the_sample_json() {
+    let mut s = settings(Format::Webdataset);
+    s.sensors = "rgb,depth,semantic".parse().unwrap();
+    s.shard_size = 4;
+    let out = tempfile::tempdir().unwrap();
+    let m = render_with_threads(&s, out.path(), 2);
+    assert!(
+        !out.path().join("images").exists(),
+        "the shards hold the frames"
+    );
+    let shards: Vec<_> = m.files.iter().map(|f| f.path.clone()).collect();
+    assert_eq!(shards.len(), m.counts.kept.div_ceil(4));
+    let mut seen = 0;
+    for shard in &shards {
+        let bytes = std::fs::read(out.path().join(shard)).unwrap();
+        assert_eq!(
+            sage_io::hash::fnv1a64_hex(&bytes),
+            m.files.iter().find(|f| &f.path == shard).unwrap().fnv1a64
+        );
+        let mut files: BTreeMap<String, Vec<u8>> = BTreeMap::new();
+        let mut archive = tar::Archive::new(std::io::Cursor::new(bytes));
+        for entry in archive.entries().unwrap() {
+            let mut entry = entry.unwrap();
+            let name = entry.path().unwrap().to_string_lossy().into_owned();
+            let mut data = Vec::new();
+            std::io::Read::read_to_end(&mut entry, &mut data).unwrap();
+            files.insert(name, data);
+        }
+        for (name, json) in files.iter().filter(|(n, _)| n.ends_with(".json")) {
+            seen += 1;
+            let key = name.trim_end_matches(".json");
+            assert!(!key.contains('.'), "{key}");
+            let e: sage_traindata::sample::EpisodeSample = serde_json::from_slice(json).unwrap();
+            assert_eq!(e.files.len(), e.actions.len());
+            for (k, frame) in e.files.iter().enumerate() {
+                let want = [
+                    format!("{k:04}.jpg"),
+                    format!("{k:04}.depth.png"),
+                    format!("{k:04}.semantic.png"),
+                ];
+                assert_eq!(frame.as_slice(), &want);
+                for f in frame {
+                    assert!(files.contains_key(&format!("{key}.{f}")), "{key}.{f}");
+                }
+                let depth = png::Decoder::new(std::io::Cursor::new(
+                    files[&format!("{key}.{k:04}.depth.png")].clone(),
+                ))
+                .read_info()
+                .unwrap();
+                let info = depth.info();
+                assert_eq!((info.width, info.height), (48, 36));
+                assert_eq!(info.bit_depth, png::BitDepth::Sixteen);
+            }
+        }
+    }
+    assert_eq!(seen, m.counts.kept);
+}
+
+#[test]
+fn a_broken_render_resumes_to_the_same_bytes_and_a_finished_one_is_left_alone() {
+    let s = settings(Format::Navila);
+    let (whole, broken) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    render_with_threads(&s, whole.path(), 2);
+    render_with_threads(&s, broken.path(), 2);
+    // A crash mid-route: one route's record is gone and a frame cut short; the parts and the
+    // manifest were never written.
+    let images = broken.path().join("images").join("home1");
+    let route = std::fs::read_dir(&images)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .min()
+        .unwrap();
+    std::fs::remove_file(route.join("route.json")).unwrap();
+    std::fs::write(route.join("0001.jpg"), b"\xff\xd8").unwrap();
+    for f in [
+        "manifest.json",
+        "dataset_info.json",
+        "annotations_part_000.json",
+    ] {
+        std::fs::remove_file(broken.path().join(f)).unwrap();
+    }
+    let rendered = std::sync::atomic::AtomicUsize::new(0);
+    sage_traindata::render(&s, broken.path(), false, &|_| {
+        rendered.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(
+        rendered.into_inner(),
+        1,
+        "only the broken route is walked again"
+    );
+    assert_eq!(tree(whole.path()), tree(broken.path()));
+    // Finished: nothing is walked again.
+    let again = std::sync::atomic::AtomicUsize::new(0);
+    sage_traindata::render(&s, broken.path(), false, &|_| {
+        again.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(again.into_inner(), 0);
+}
+
+#[test]
+fn other_settings_or_foreign_files_in_the_output_are_refused() {
+    let s = settings(Format::Frames);
+    let out = tempfile::tempdir().unwrap();
+    render_with_threads(&s, out.path(), 2);
+    let other = Settings {
+        seed: 9,
+        ..s.clone()
+    };
+    let err = sage_traindata::render(&other, out.path(), false, &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("other settings") && err.contains("--force"),
+        "{err}"
+    );
+    // With force the old render's files are replaced.
+    sage_traindata::render(&other, out.path(), true, &|_| {}).unwrap();
+
+    let foreign = tempfile::tempdir().unwrap();
+    std::fs::write(foreign.path().join("notes.txt"), "mine").unwrap();
+    for force in [false, true] {
+        let err = sage_traindata::render(&s, foreign.path(), force, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("notes.txt"), "{err}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(foreign.path().join("notes.txt")).unwrap(),
+        "mine"
+    );
+}
+
+#[test]
+fn episodes_of_a_missing_scene_are_skipped_with_the_reason_and_the_rest_rendered() {
+    let (scenes, dataset) = data();
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("data");
+    std::fs::create_dir_all(copy.join("episodes")).unwrap();
+    let text = std::fs::read_to_string(dataset.join("episodes/train.jsonl")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let lost = lines
+        .iter()
+        .position(|l| l.contains("\"task\":\"vln\"") && l.contains("reference_path"))
+        .unwrap();
+    lines[lost] = lines[lost].replace("\"scene\":\"home1\"", "\"scene\":\"attic9\"");
+    std::fs::write(copy.join("episodes/train.jsonl"), lines.join("\n")).unwrap();
+    let s = Settings {
+        width: 32,
+        height: 24,
+        format: Format::Frames,
+        rgb_codec: RgbCodec::Png,
+        ..Settings::new(&copy, scenes).unwrap()
+    };
+    let out = dir.path().join("out");
+    let m = sage_traindata::render(&s, &out, false, &|_| {}).unwrap();
+    assert_eq!(m.counts.skipped, 1);
+    assert!(m.skipped_any());
+    assert!(m.skipped[0].reason.contains("attic9"), "{:?}", m.skipped);
+    assert!(m.counts.kept + m.counts.dropped.values().sum::<usize>() > 0);
+    let first = std::fs::read_to_string(out.join("episodes.jsonl")).unwrap();
+    assert!(first.contains(".png"));
+}
