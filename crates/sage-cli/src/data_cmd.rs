@@ -275,7 +275,7 @@ fn data_render(a: RenderArgs) -> Result<()> {
 
 /// Prints what a training-data render did: skipped episodes with their reasons, the counts
 /// and the rate.
-fn print_render(m: &sage_traindata::Manifest, out: &Path, rendered: usize, secs: f64) {
+pub fn print_render(m: &sage_traindata::Manifest, out: &Path, rendered: usize, secs: f64) {
     for s in &m.skipped {
         eprintln!("skipped {}: {}", s.episode_id, s.reason);
     }

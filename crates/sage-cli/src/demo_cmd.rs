@@ -98,7 +98,11 @@ fn print_step(step: &Step, report: &StepReport, secs: f64) {
         (Step::Eval { out, .. }, StepReport::Eval(r)) => {
             crate::eval_cmd::print_eval(&r.0, &r.1, out, secs);
         }
-        (_, StepReport::Dataset(_) | StepReport::Eval(_)) => {}
+        (Step::TrainData { out, .. }, StepReport::TrainData(Some(m))) => {
+            crate::data_cmd::print_render(m, out, m.counts.frames, secs);
+        }
+        (_, StepReport::TrainData(None)) => println!("the train split is empty: nothing to render"),
+        (_, StepReport::Dataset(_) | StepReport::Eval(_) | StepReport::TrainData(_)) => {}
     }
 }
 

@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 /// Settings of the demo (`sage3d demo`'s flags).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DemoSettings {
-    /// Output folder: scenes/, dataset/, runs/{agent}/, overview.png.
+    /// Output folder: scenes/, dataset/, train_data/, runs/{agent}/, overview.png.
     pub out: PathBuf,
     /// Number of synthetic scenes (homes, every third an office).
     pub scenes: usize,
@@ -112,6 +112,13 @@ pub enum Step {
         /// Assembly settings.
         assemble: AssembleParams,
     },
+    /// A small training set rendered from the dataset's train split, with a preview GIF.
+    TrainData {
+        /// The render.
+        settings: Box<sage_traindata::Settings>,
+        /// Output folder.
+        out: PathBuf,
+    },
     /// Evaluate one agent, with its report.
     Eval {
         /// The evaluation.
@@ -132,6 +139,8 @@ pub enum StepReport {
     Physics(Box<(Scene, SceneBodies, BuildReport)>),
     /// The dataset built.
     Dataset(Box<DatasetReport>),
+    /// The training set's manifest (`None`: the train split had no episode to render).
+    TrainData(Option<Box<sage_traindata::Manifest>>),
     /// The evaluation and its report.
     Eval(Box<(RunOutcome, ReportOutcome)>),
 }
@@ -159,6 +168,7 @@ impl Step {
             Step::NavMap { name, .. } => format!("semantic map and occupancy of {name}"),
             Step::Physics { name, .. } => format!("collision bodies of {name}"),
             Step::Dataset { .. } => "trajectories, instructions, episodes and splits".into(),
+            Step::TrainData { .. } => "a small training set (NaVILA layout) with a preview".into(),
             Step::Eval { settings, .. } => format!("evaluate the {} agent", settings.agent),
         }
     }
@@ -197,6 +207,19 @@ impl Step {
                 params.per_scene.to_string(),
                 "--seed".into(),
                 assemble.seed.to_string(),
+            ],
+            Step::TrainData { settings, out } => vec![
+                "data".into(),
+                "render".into(),
+                path_arg(&settings.dataset),
+                "--scenes".into(),
+                path_arg(&settings.scenes),
+                "--limit".into(),
+                settings.limit.unwrap_or(0).to_string(),
+                "--preview".into(),
+                settings.preview.to_string(),
+                "--out".into(),
+                path_arg(out),
             ],
             Step::Eval { settings, out } => vec![
                 "eval".into(),
@@ -254,6 +277,21 @@ impl Step {
                 assemble,
                 &|_, n| tick(n, "scenes"),
             )?)),
+            Step::TrainData { settings, out } => {
+                let (_, train) =
+                    sage_bench::eval::split_episodes(&settings.dataset, &settings.split)?;
+                StepReport::TrainData(if train.is_empty() {
+                    None
+                } else {
+                    let walks = sage_traindata::Plan::new(settings)?.route_count();
+                    Some(Box::new(sage_traindata::render(
+                        settings,
+                        out,
+                        false,
+                        &|_| tick(walks, "walks"),
+                    )?))
+                })
+            }
             Step::Eval { settings, out } => {
                 check_split(&settings.dataset, &settings.split)?;
                 StepReport::Eval(Box::new(crate::evaluate::evaluate(
@@ -328,6 +366,14 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
             split: SplitParams::default(),
             balanced: 1000,
         },
+    });
+    steps.push(Step::TrainData {
+        settings: Box::new(sage_traindata::Settings {
+            limit: Some(8),
+            preview: 2,
+            ..sage_traindata::Settings::new(&s.dataset(), &scenes)?
+        }),
+        out: s.out.join("train_data"),
     });
     for agent in &s.agents {
         let kind: AgentKind = agent
@@ -410,7 +456,7 @@ mod tests {
             ..DemoSettings::default()
         };
         let steps = plan(&s).unwrap();
-        assert_eq!(steps.len(), 3 * 3 + 1 + 3);
+        assert_eq!(steps.len(), 3 * 3 + 2 + 3);
         assert!(
             steps
                 .iter()

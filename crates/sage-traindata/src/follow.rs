@@ -3,16 +3,12 @@
 
 use crate::preset::ActionPreset;
 use glam::Vec2;
-use sage_core::{Error, Polygon2, Result, wrap_angle};
+use sage_core::{Error, Result, wrap_angle};
 use sage_env::agents::Agent;
 use sage_env::{Action, Env, EnvEpisode, Observation};
 
 /// Forward moves in a row that make almost no progress before the follower gives up.
 const MAX_BLOCKED: usize = 3;
-
-/// How far inside the success distance of an object goal the follower stops, metres: a
-/// reference path's end point may lie at the very edge of that distance.
-const SUCCESS_MARGIN: f32 = 0.05;
 
 /// How a follower's walk ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,8 +23,9 @@ pub enum Ending {
 
 /// Walks the reference path: skips waypoints closer than one step, turns towards the next one
 /// until it lies within half a turn of the heading, else moves forward; STOP within half a
-/// step of the path's end (for an object goal, once well inside the success distance of its
-/// footprint). Because every decision is taken from the achieved pose, a step that
+/// step of the path's end, as the published pipeline ends a trajectory where its path ends
+/// (an object goal is not approached further: the straight line to its footprint may cross a
+/// wall). Because every decision is taken from the achieved pose, a step that
 /// physics shortened is made up by the following ones, as a robot replaying the path would.
 #[derive(Debug, Clone)]
 pub struct PathFollower {
@@ -41,12 +38,6 @@ pub struct PathFollower {
     last_forward_from: Option<Vec2>,
     blocked: usize,
     ending: Option<Ending>,
-    /// The goal object's footprint, when the episode names one.
-    region: Option<Polygon2>,
-    /// The task's success distance to the goal region.
-    success: f32,
-    /// Past the path's end, closing in on an object goal's footprint.
-    approaching: bool,
 }
 
 impl PathFollower {
@@ -62,9 +53,6 @@ impl PathFollower {
             last_forward_from: None,
             blocked: 0,
             ending: None,
-            region: None,
-            success: 0.0,
-            approaching: false,
         }
     }
 
@@ -84,7 +72,7 @@ impl Agent for PathFollower {
         "path-follower"
     }
 
-    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
+    fn reset(&mut self, _env: &Env, episode: &EnvEpisode) -> Result<()> {
         if episode.reference_path.is_empty() {
             return Err(Error::invalid(format!(
                 "episode {}: no reference path to follow",
@@ -101,13 +89,6 @@ impl Agent for PathFollower {
         self.last_forward_from = None;
         self.blocked = 0;
         self.ending = None;
-        self.region = episode
-            .goal
-            .as_ref()
-            .and_then(|g| g.object.as_ref())
-            .and_then(|id| env.context().footprint(id).ok());
-        self.success = env.config().task.success_distance;
-        self.approaching = false;
         Ok(())
     }
 
@@ -127,28 +108,14 @@ impl Agent for PathFollower {
         while self.next < last && at.distance(self.waypoints[self.next]) < self.step {
             self.next += 1;
         }
-        self.approaching |=
-            self.next == last && at.distance(self.waypoints[last]) < 0.5 * self.step;
-        let target = if self.approaching {
-            // At the path's end: done, unless an object goal is not yet well inside the success
-            // distance; then on towards its footprint.
-            match &self.region {
-                Some(r) if self.blocked == 0 && !r.contains(at) => r
-                    .nearest_boundary_point(at)
-                    .filter(|q| at.distance(*q) > self.success - SUCCESS_MARGIN),
-                _ => None,
-            }
-        } else {
-            Some(self.waypoints[self.next])
-        };
-        let Some(target) = target else {
+        if self.next == last && at.distance(self.waypoints[last]) < 0.5 * self.step {
             return Ok(self.stop(Ending::Reached));
-        };
+        }
         if self.motions >= self.max_actions {
             return Ok(self.stop(Ending::Capped));
         }
         self.motions += 1;
-        let d = target - at;
+        let d = self.waypoints[self.next] - at;
         let error = wrap_angle(d.y.atan2(d.x) - obs.pose.yaw);
         Ok(if error > 0.5 * self.turn {
             Action::TurnLeft

@@ -78,11 +78,12 @@ pub struct WalkStep {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
-    /// Ended within the success distance of the goal without touching anything.
+    /// Ended within the success distance (1 m) of the goal position without touching
+    /// anything.
     Clean,
     /// Touched an obstacle on the way.
     Collided,
-    /// Ended farther than the success distance from the goal.
+    /// Ended farther than the success distance from the goal position.
     FarFromGoal,
 }
 
@@ -95,7 +96,7 @@ pub struct Walk {
     pub ending: String,
     /// Steps on which the agent touched something.
     pub contact_steps: usize,
-    /// Distance from the final position to the goal region, metres.
+    /// Straight-line distance from the final position to the goal position, metres.
     pub final_distance: Option<f32>,
     /// The verdict.
     pub verdict: Verdict,
@@ -154,17 +155,22 @@ pub fn walk(
         obs = next;
     }
     let contact_steps = steps.iter().filter(|s| s.contact).count();
+    // The goal is the episode's goal position (where its reference path ends); the distance
+    // is straight-line, as the success radius is.
+    let end = steps.last().map_or(glam::Vec2::ZERO, |s| {
+        glam::Vec2::new(s.achieved[0], s.achieved[1])
+    });
+    let final_distance = route.episodes[0]
+        .goal
+        .as_ref()
+        .map(|g| end.distance(glam::Vec2::new(g.position[0], g.position[1])));
     let verdict = if contact_steps > 0 {
         Verdict::Collided
-    } else if env.within_success_distance() {
+    } else if final_distance.is_some_and(|d| d <= env.config().task.success_distance) {
         Verdict::Clean
     } else {
         Verdict::FarFromGoal
     };
-    let final_distance = env
-        .trace()
-        .and_then(|t| t.steps.last())
-        .and_then(|s| s.distance_to_goal);
     Ok(Walk {
         steps,
         ending: match follower.ending() {

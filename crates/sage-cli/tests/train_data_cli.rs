@@ -1,0 +1,185 @@
+//! `sage3d data render`: a render killed with SIGKILL mid-run resumes to the bytes of an
+//! uninterrupted one; skipped episodes are named and set the exit status.
+
+mod common;
+
+use common::{ok, s, sage3d, small_scene};
+use std::path::Path;
+use std::time::Duration;
+
+/// Every file under `root`, the run record aside.
+fn tree(root: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut t = sage_io::files::read_tree(root).unwrap();
+    t.remove("sage3d_run.json");
+    t
+}
+
+/// A one-scene dataset with every episode in `train` (8 trajectories); (scenes, dataset).
+fn dataset(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let scenes = dir.join("scenes");
+    small_scene(&scenes.join("home1"), "1", "3000");
+    let data = dir.join("data");
+    ok(&[
+        "data",
+        "build",
+        s(&scenes),
+        "--out",
+        s(&data),
+        "--per-scene",
+        "8",
+        "--seed",
+        "2",
+        "--scene-unseen",
+        "0",
+        "--val",
+        "0",
+        "--balanced",
+        "0",
+    ]);
+    (scenes, data)
+}
+
+fn render_args<'a>(data: &'a Path, scenes: &'a Path, out: &'a Path) -> Vec<&'a str> {
+    vec![
+        "--threads",
+        "1",
+        "data",
+        "render",
+        s(data),
+        "--scenes",
+        s(scenes),
+        "--out",
+        s(out),
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--sensors",
+        "rgb,depth",
+        "--format",
+        "webdataset",
+        "--shard-size",
+        "5",
+        "--keep-failed",
+    ]
+}
+
+#[cfg(unix)]
+#[test]
+fn a_render_killed_mid_run_resumes_to_the_bytes_of_an_uninterrupted_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = dataset(dir.path());
+    let whole = dir.path().join("whole");
+    let printed = ok(&render_args(&data, &scenes, &whole));
+    assert!(
+        printed.contains("kept") && printed.contains("frames/s"),
+        "{printed}"
+    );
+
+    let killed = dir.path().join("killed");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_sage3d"))
+        .args(render_args(&data, &scenes, &killed))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Kill it as soon as the first walk is complete: later walks are then missing or half
+    // written, and no shard or manifest exists yet.
+    let images = killed.join("images").join("home1");
+    let finished_early = loop {
+        let done = std::fs::read_dir(&images).map_or(0, |d| {
+            d.filter_map(Result::ok)
+                .filter(|e| e.path().join("route.json").is_file())
+                .count()
+        });
+        if done >= 1 {
+            break false;
+        }
+        if child.try_wait().unwrap().is_some() {
+            break true;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    };
+    assert!(
+        !finished_early,
+        "the render ended before it could be killed"
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!killed.join("manifest.json").exists());
+
+    let resumed = ok(&render_args(&data, &scenes, &killed));
+    assert!(resumed.contains("kept"), "{resumed}");
+    assert_eq!(tree(&whole), tree(&killed));
+    // A finished render is not redone.
+    let again = ok(&render_args(&data, &scenes, &killed));
+    assert!(again.contains("already complete"), "{again}");
+}
+
+#[test]
+fn skipped_episodes_are_named_and_the_exit_status_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = dataset(dir.path());
+    let file = data.join("episodes").join("train.jsonl");
+    let text = std::fs::read_to_string(&file).unwrap();
+    let first = text
+        .lines()
+        .find(|l| l.contains("\"task\":\"vln\""))
+        .unwrap();
+    let id = serde_json::from_str::<serde_json::Value>(first).unwrap()["episode_id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    std::fs::write(
+        &file,
+        text.replacen(first, &first.replace("\"home1\"", "\"cellar\""), 1),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let run = sage3d(&[
+        "data",
+        "render",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--out",
+        s(&out),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--format",
+        "frames",
+    ]);
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains(&format!("skipped {id}")) && err.contains("cellar"),
+        "{err}"
+    );
+    assert!(err.contains("1 episodes were skipped"), "{err}");
+    // The rest was written, and the manifest lists the skip.
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["counts"]["skipped"], 1);
+    assert!(out.join("episodes.jsonl").is_file());
+
+    // Bad flags are named before any work.
+    let bad = sage3d(&[
+        "data",
+        "render",
+        s(&data),
+        "--scenes",
+        s(&scenes),
+        "--out",
+        s(&dir.path().join("bad")),
+        "--preset",
+        "tiny",
+    ]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        !bad.status.success() && err.contains("navila_small"),
+        "{err}"
+    );
+    assert!(!dir.path().join("bad").exists());
+}
