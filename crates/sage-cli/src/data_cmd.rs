@@ -18,6 +18,30 @@ pub enum DataCommand {
     /// discrete actions, walked through physics, a frame rendered before every action, written
     /// as NaVILA annotations, WebDataset shards or a folder tree (parallel, resumable).
     Render(RenderArgs),
+    /// Read episodes from a SAGE-Bench GVLN file or an R2R-VLNCE split into a dataset folder's
+    /// split (DATASET/episodes/SPLIT.jsonl), for `eval` and `data render`.
+    Import(ImportArgs),
+}
+
+#[derive(Args)]
+pub struct ImportArgs {
+    /// A GVLN JSON file, or an R2R-VLNCE folder (with --r2r-split).
+    source: PathBuf,
+    /// The dataset folder to write into.
+    #[arg(long)]
+    out: PathBuf,
+    /// The split to write.
+    #[arg(long, default_value = "train")]
+    split: String,
+    /// Read SOURCE as an R2R-VLNCE folder and take this split of it.
+    #[arg(long)]
+    r2r_split: Option<String>,
+    /// S-frame offset DX,DY of a GVLN file that does not state its frame (the published ones).
+    #[arg(long, default_value = "0,0", allow_hyphen_values = true)]
+    offset: String,
+    /// Replace the split when it exists.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -145,6 +169,7 @@ pub fn run(cmd: DataCommand) -> Result<()> {
     match cmd {
         DataCommand::Build(a) => data_build(a),
         DataCommand::Render(a) => data_render(a),
+        DataCommand::Import(a) => data_import(a),
     }
 }
 
@@ -177,6 +202,38 @@ fn data_build(a: BuildArgs) -> Result<()> {
     });
     bar.finish_and_clear();
     print_dataset(&report?, &a.out, start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn data_import(a: ImportArgs) -> Result<()> {
+    use sage_bench::dataset::import::{Source, import};
+    let source = match &a.r2r_split {
+        Some(split) => Source::R2r {
+            dir: a.source.clone(),
+            split: split.clone(),
+        },
+        None => {
+            let bad = || sage_core::Error::invalid(format!("--offset '{}' is not DX,DY", a.offset));
+            let (x, y) = a.offset.split_once(',').ok_or_else(bad)?;
+            let num = |v: &str| v.trim().parse::<f32>().map_err(|_| bad());
+            Source::Gvln {
+                file: a.source.clone(),
+                offset: glam::Vec2::new(num(x)?, num(y)?),
+            }
+        }
+    };
+    let episodes = import(&source, &a.out, &a.split, a.force)?;
+    let scenes: std::collections::BTreeSet<&str> =
+        episodes.iter().map(|e| e.scene.as_str()).collect();
+    println!(
+        "{} episodes of {} scenes -> {}",
+        episodes.len(),
+        scenes.len(),
+        a.out
+            .join("episodes")
+            .join(format!("{}.jsonl", a.split))
+            .display()
+    );
     Ok(())
 }
 

@@ -183,3 +183,59 @@ fn skipped_episodes_are_named_and_the_exit_status_says_so() {
     );
     assert!(!dir.path().join("bad").exists());
 }
+
+#[test]
+fn gvln_and_r2r_files_import_as_a_split_that_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = dataset(dir.path());
+    let built = std::fs::read_to_string(data.join("episodes/train.jsonl")).unwrap();
+    let imported = dir.path().join("imported");
+    let gvln = data.join("gvln/train.json");
+    let said = ok(&["data", "import", s(&gvln), "--out", s(&imported)]);
+    assert!(said.contains("episodes of 1 scenes"), "{said}");
+    let read = std::fs::read_to_string(imported.join("episodes/train.jsonl")).unwrap();
+    let ids = |text: &str| -> Vec<String> {
+        text.lines()
+            .map(|l| {
+                serde_json::from_str::<serde_json::Value>(l).unwrap()["episode_id"].to_string()
+            })
+            .collect()
+    };
+    assert_eq!(ids(&read), ids(&built));
+    // An existing split is not replaced without --force.
+    let again = sage3d(&["data", "import", s(&gvln), "--out", s(&imported)]);
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("--force"));
+    ok(&["data", "import", s(&gvln), "--out", s(&imported), "--force"]);
+    ok(&[
+        "data",
+        "import",
+        s(&data.join("r2r")),
+        "--r2r-split",
+        "train",
+        "--split",
+        "from_r2r",
+        "--out",
+        s(&imported),
+    ]);
+    let out = dir.path().join("out");
+    let printed = ok(&[
+        "data",
+        "render",
+        s(&imported),
+        "--scenes",
+        s(&scenes),
+        "--split",
+        "from_r2r",
+        "--out",
+        s(&out),
+        "--limit",
+        "4",
+        "--width",
+        "32",
+        "--height",
+        "24",
+    ]);
+    assert!(printed.contains("4 episodes"), "{printed}");
+    assert!(out.join("dataset_info.json").is_file());
+}

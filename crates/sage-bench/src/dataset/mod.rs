@@ -2,12 +2,13 @@
 //!
 //! [`episode`] is the record of one episode (SPEC §9), [`slices`] its complexity tags,
 //! [`split`] the train / val / test assignment with the three unseen test sets, [`selector`] the
-//! balanced test selection, [`formats`] the files (JSONL, GVLN, R2R-VLNCE) and [`build`] the
-//! whole pipeline over a folder of scenes.
+//! balanced test selection, [`formats`] the files (JSONL, GVLN, R2R-VLNCE), [`build`] the
+//! whole pipeline over a folder of scenes and [`import`] a split from other files.
 
 pub mod build;
 pub mod episode;
 pub mod formats;
+pub mod import;
 pub mod selector;
 pub mod slices;
 pub mod split;

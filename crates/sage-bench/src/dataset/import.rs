@@ -1,0 +1,54 @@
+//! Episodes from elsewhere (the published SAGE-Bench GVLN files, R2R-VLNCE splits) as one split
+//! of a dataset folder, so that `eval` and `data render` read them like a built dataset.
+
+use crate::dataset::Episode;
+use crate::dataset::formats::{gvln, jsonl, r2r};
+use glam::Vec2;
+use sage_core::{Error, Result};
+use sage_lang::ActionSpace;
+use std::path::{Path, PathBuf};
+
+/// Where the episodes come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Source {
+    /// A GVLN file; files that do not state their frame are in the S frame with this offset.
+    Gvln {
+        /// The file.
+        file: PathBuf,
+        /// The S-frame offset (δx, δy) of files without a `frame` field.
+        offset: Vec2,
+    },
+    /// The R2R-VLNCE split `split` in folder `dir` (`{split}/{split}.json.gz` and its `_gt`).
+    R2r {
+        /// The folder.
+        dir: PathBuf,
+        /// The split's name there.
+        split: String,
+    },
+}
+
+/// Reads `source` and writes its episodes as `dataset/episodes/{split}.jsonl`; returns them.
+/// An existing split file is replaced only with `force`.
+///
+/// # Errors
+///
+/// A bad source file (naming the file and field), an existing split without `force`, a write
+/// error.
+pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
+    let space = ActionSpace::default();
+    let episodes = match source {
+        Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
+        Source::R2r { dir, split } => r2r::read(dir, split, &space)?,
+    };
+    let dir = dataset.join("episodes");
+    let file = dir.join(format!("{split}.jsonl"));
+    if file.exists() && !force {
+        return Err(Error::invalid(
+            "this split exists already; choose another --split or pass --force to replace it",
+        )
+        .in_file(&file));
+    }
+    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    jsonl::write(&file, &episodes)?;
+    Ok(episodes)
+}
