@@ -13,7 +13,8 @@ use std::time::Instant;
 /// Flags of `sage3d demo`.
 #[derive(clap::Args)]
 pub struct DemoArgs {
-    /// Output folder: scenes/, dataset/, runs/{agent}/ (each with report.html), overview.png.
+    /// Output folder: scenes/, dataset/, train_data/, runs/{agent}/ (each with report.html),
+    /// overview.png.
     #[arg(long, default_value = "demo")]
     out: PathBuf,
     /// Number of synthetic scenes (homes, every third an office).
@@ -145,7 +146,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     print!("{}", agents_table(&runs));
     let out = s.out.display();
     println!(
-        "\n  scenes    {}/   (semantic maps in */nav/)\n  dataset   {out}/dataset/  (episodes/*.jsonl, R2R and GVLN files)\n  runs      {out}/runs/{{agent}}/  (episodes.jsonl, summary.json, report.html)\n  overview  {}",
+        "\n  scenes    {}/   (semantic maps in */nav/)\n  dataset   {out}/dataset/  (episodes/*.jsonl, R2R and GVLN files)\n  training  {out}/train_data/  (NaVILA annotations, frames, preview.gif)\n  runs      {out}/runs/{{agent}}/  (episodes.jsonl, summary.json, report.html)\n  overview  {}",
         s.scenes_folder().display(),
         overview.display()
     );

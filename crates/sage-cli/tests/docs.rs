@@ -125,6 +125,47 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
         "eval-record" => serde_json::from_str::<sage_bench::eval::EvalRecord>(body)
             .map(|_| ())
             .map_err(|e| e.to_string()),
+        "navila-part" => {
+            let part: Vec<sage_traindata::output::NavilaSample> =
+                serde_json::from_str(body).map_err(|e| e.to_string())?;
+            part.iter().try_for_each(|x| {
+                let step: usize = x
+                    .video_id
+                    .rsplit('-')
+                    .next()
+                    .unwrap_or("")
+                    .parse()
+                    .map_err(|_| format!("{}: no step", x.video_id))?;
+                (x.frames.len() == step + 1 && x.a.starts_with("The next action is "))
+                    .then_some(())
+                    .ok_or(format!("{}: frames or answer", x.video_id))
+            })
+        }
+        "train-episode" => {
+            let e: sage_traindata::sample::EpisodeSample =
+                serde_json::from_str(body).map_err(|e| e.to_string())?;
+            (e.files.len() == e.actions.len()
+                && e.steps.len() == e.actions.len()
+                && e.words.len() == e.actions.len())
+            .then_some(())
+            .ok_or("files, steps, words and actions differ in length".into())
+        }
+        "dataset-info" => {
+            let preset = sage_traindata::ActionPreset::named("navila_small").map_err(err)?;
+            sage_traindata::output::write_navila(dir.path(), &[], &preset, 10_000, 0, "x")
+                .map_err(err)?;
+            let real: Value =
+                sage_io::files::read_json(&dir.path().join("dataset_info.json")).map_err(err)?;
+            let example: Value = serde_json::from_str(body).map_err(|e| e.to_string())?;
+            same_shape(&example, &real, "info").and_then(|()| {
+                real.as_object()
+                    .unwrap()
+                    .keys()
+                    .all(|k| example.get(k).is_some())
+                    .then_some(())
+                    .ok_or("the example misses a field".into())
+            })
+        }
         "semantic-map" => {
             let scene = sage_synth::generate(&sage_synth::SynthConfig {
                 rooms: 2,
@@ -236,6 +277,9 @@ fn every_documented_example_is_read_by_sage3d() {
         "dtw",
         "metrics",
         "goal-box",
+        "navila-part",
+        "dataset-info",
+        "train-episode",
     ] {
         assert!(
             by_kind.contains_key(required),
