@@ -170,7 +170,7 @@ mod tests {
         let out = dir.path().join("demo");
         let a = Wrapper::parse_from(["demo", "--out", out.to_str().unwrap(), "--scenes", "3"]).demo;
         let steps = demo::plan(&DemoSettings::from(a)).unwrap();
-        assert_eq!(steps.len(), 3 * 3 + 1 + 3);
+        assert_eq!(steps.len(), 3 * 3 + 2 + 3);
         for s in &steps {
             let argv = std::iter::once("sage3d".to_string()).chain(s.command_line());
             crate::Cli::try_parse_from(argv)

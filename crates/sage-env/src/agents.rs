@@ -413,9 +413,10 @@ impl Agent for OracleAgent {
                 return Ok(Action::Stop);
             }
         }
-        // Skip waypoints already reached (closer than half a step).
+        // Skip waypoints within a step: a path followed cell by cell through a narrow place has
+        // waypoints closer than a step, which a step would overshoot and then turn back to.
         while self.next + 1 < self.waypoints.len()
-            && at.distance(self.waypoints[self.next]) < 0.5 * self.forward
+            && at.distance(self.waypoints[self.next]) < self.forward
         {
             self.next += 1;
         }

@@ -32,6 +32,16 @@ pub struct CostParams {
     pub area_weights: BTreeMap<String, f32>,
     /// Cost factor of rooms not listed and of cells outside every room (default 1).
     pub default_area_weight: f32,
+    /// Distance beyond the radius that shortcut segments keep from obstacles, metres (default
+    /// 0.1): a segment is taken only where every cell it crosses has that much more clearance,
+    /// so an agent a few centimetres off the line (discrete steps and turns) does not touch;
+    /// where the grid path itself is narrower, it is followed cell by cell.
+    #[serde(default = "default_shortcut_margin")]
+    pub shortcut_margin: f32,
+}
+
+fn default_shortcut_margin() -> f32 {
+    0.1
 }
 
 impl Default for CostParams {
@@ -42,6 +52,7 @@ impl Default for CostParams {
             narrow_distance: 0.3,
             area_weights: BTreeMap::new(),
             default_area_weight: 1.0,
+            shortcut_margin: default_shortcut_margin(),
         }
     }
 }
@@ -75,6 +86,9 @@ impl CostParams {
         }
         if !(self.default_area_weight > 0.0 && self.default_area_weight.is_finite()) {
             return Err(bad("default_area_weight (> 0)", self.default_area_weight));
+        }
+        if !(self.shortcut_margin >= 0.0 && self.shortcut_margin < 10.0) {
+            return Err(bad("shortcut_margin (0-10 m)", self.shortcut_margin));
         }
         Ok(())
     }

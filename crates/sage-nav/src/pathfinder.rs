@@ -53,6 +53,8 @@ pub struct PathFinder {
     pub clearance: Vec<f32>,
     /// Navigable cells (free with clearance ≥ robot radius).
     pub passable: Vec<bool>,
+    /// Cells a shortcut segment may cross (clearance ≥ robot radius + shortcut margin).
+    pub roomy: Vec<bool>,
     /// Cost multiplier per cell.
     pub weights: Vec<f32>,
     /// The cost parameters in force.
@@ -85,6 +87,11 @@ impl PathFinder {
         params.validate()?;
         let clearance = cost::clearance(&grid);
         let passable = cost::navigable(&grid, &clearance, params.robot_radius);
+        let roomy = cost::navigable(
+            &grid,
+            &clearance,
+            params.robot_radius + params.shortcut_margin,
+        );
         let navigable_cells: Vec<u32> = (0..passable.len() as u32)
             .filter(|&k| passable[k as usize])
             .collect();
@@ -105,6 +112,7 @@ impl PathFinder {
             grid,
             clearance,
             passable,
+            roomy,
             weights,
             params,
             min_weight,
@@ -255,7 +263,7 @@ impl PathFinder {
         let cost = search.astar(&self.graph(), start, goal)?;
         let mut cells = Vec::new();
         search.path_to(goal, &mut cells);
-        let waypoints = self.shortcut_points(&cells);
+        let waypoints = self.waypoints(&cells);
         Some(NavPath {
             cells,
             waypoints,
@@ -263,12 +271,21 @@ impl PathFinder {
         })
     }
 
-    /// World points of the line-of-sight shortcut of a grid path.
+    /// World points of the line-of-sight shortcut of a grid path: the shortest polyline in
+    /// the grid path's corridor (what geodesic distances measure).
     pub fn shortcut_points(&self, cells: &[usize]) -> Vec<Vec2> {
-        path::shortcut(self.grid.width, &self.passable, cells)
-            .into_iter()
-            .map(|k| self.grid.center_of(k))
-            .collect()
+        self.points(path::shortcut(self.grid.width, &self.passable, cells))
+    }
+
+    /// World points of a grid path for an agent to follow: shortcut segments only across
+    /// cells with the shortcut margin of clearance to spare, the grid path cell by cell
+    /// elsewhere (see [`CostParams::shortcut_margin`]).
+    pub fn waypoints(&self, cells: &[usize]) -> Vec<Vec2> {
+        self.points(path::shortcut(self.grid.width, &self.roomy, cells))
+    }
+
+    fn points(&self, cells: Vec<usize>) -> Vec<Vec2> {
+        cells.into_iter().map(|k| self.grid.center_of(k)).collect()
     }
 
     /// The geodesic distance between two navigable cells (see the module docs), or `None`.

@@ -259,7 +259,7 @@ fn plan_pair(
     search.path_to(g.cell, &mut cells);
     times.astar += t.elapsed();
     let t = Instant::now();
-    let waypoints = pf.shortcut_points(&cells);
+    let waypoints = pf.waypoints(&cells);
     times.shortcut += t.elapsed();
     let t = Instant::now();
     let pts = sage_core::geometry::resample_polyline(&waypoints, params.step);

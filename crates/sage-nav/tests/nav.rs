@@ -363,6 +363,19 @@ fn the_path_finder_answers_habitat_style_queries() {
         geo <= path.length() + 1e-3,
         "geodesic {geo} longer than the planned path"
     );
+    // The planned path keeps the shortcut margin wherever it takes a shortcut: each segment
+    // joins neighbouring cells or crosses only cells with radius + margin of clearance.
+    let need = pf.params.robot_radius + pf.params.shortcut_margin;
+    for w in path.waypoints.windows(2) {
+        let (p, q) = (pf.cell_of(w[0]).unwrap(), pf.cell_of(w[1]).unwrap());
+        let width = pf.grid.width;
+        let neighbours =
+            (p % width).abs_diff(q % width) <= 1 && (p / width).abs_diff(q / width) <= 1;
+        assert!(
+            neighbours || sage_nav::path::line_clear(width, &pf.roomy, p, q),
+            "segment {w:?} shortcuts through a cell with less than {need} m of clearance"
+        );
+    }
     // One field answers many goals as separate queries do.
     let field = pf.geodesic_field(a).unwrap();
     for &p in same.iter().step_by(same.len() / 7 + 1) {
