@@ -5,7 +5,8 @@
 //! buffers ([`sim`]), datasets, the evaluator with agents written in Python, and the per-scene
 //! steps of dataset generation and evaluation that `sage3d.distributed` spreads over a Ray
 //! cluster ([`bench`]), and the pipelines the CLI runs ([`pipeline`]: the demo, the dataset
-//! build). Long calls release the GIL. The Gymnasium classes are pure Python on
+//! build), and the training-data render with its per-scene steps ([`training`]). Long calls
+//! release the GIL. The Gymnasium classes are pure Python on
 //! top of this module (`python/sage3d/`).
 
 pub mod agent;
@@ -14,6 +15,7 @@ pub mod convert;
 pub mod pipeline;
 pub mod scene;
 pub mod sim;
+pub mod training;
 
 use pyo3::prelude::*;
 
@@ -36,5 +38,12 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bench::scene_dirs, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::demo, m)?)?;
     m.add_function(wrap_pyfunction!(pipeline::build_dataset, m)?)?;
+    m.add_function(wrap_pyfunction!(training::render_training_data, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_settings, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_plan_scenes, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_plan_routes, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_render_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_claim, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_finish, m)?)?;
     Ok(())
 }

@@ -7,15 +7,28 @@
 - ``evaluate(...)``: the evaluator of ``sage3d eval`` with built-in or Python agents.
 - ``demo(out)`` / ``build_dataset(scenes, out)``: the pipelines of ``sage3d demo`` and
   ``sage3d data build``, the same library functions the command line calls.
-- ``sage3d.distributed``: dataset generation and evaluation sharded over a Ray cluster.
+- ``render_training_data(dataset, scenes, out)`` / ``TrainingSet(out)``: training data for VLN
+  models as ``sage3d data render`` writes it (NaVILA, WebDataset or frames), and its reader
+  (``sage3d.training``, with a PyTorch dataset when torch is installed).
+- ``sage3d.distributed``: dataset generation, evaluation and training-data rendering sharded
+  over a Ray cluster.
 """
 
 import gymnasium
 
-from ._sage3d import PathFinder, Scene, __version__, build_dataset, demo, env_config
+from ._sage3d import (
+    PathFinder,
+    Scene,
+    __version__,
+    build_dataset,
+    demo,
+    env_config,
+    render_training_data,
+)
 from .dataset import Dataset, filter_episodes, load_dataset
 from .env import SageEnv, cache_dir, make_env, synth_scene
 from .evaluation import evaluate
+from .training import TrainingSet
 from .vector import SageVectorEnv, make_vec_env
 
 __all__ = [
@@ -24,6 +37,7 @@ __all__ = [
     "SageEnv",
     "SageVectorEnv",
     "Scene",
+    "TrainingSet",
     "__version__",
     "build_dataset",
     "cache_dir",
@@ -34,6 +48,7 @@ __all__ = [
     "load_dataset",
     "make_env",
     "make_vec_env",
+    "render_training_data",
     "synth_scene",
 ]
 
