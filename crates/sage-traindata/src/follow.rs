@@ -27,6 +27,7 @@ pub enum Ending {
 /// (an object goal is not approached further: the straight line to its footprint may cross a
 /// wall). Because every decision is taken from the achieved pose, a step that
 /// physics shortened is made up by the following ones, as a robot replaying the path would.
+/// A reference path of a single point is a rotation in place ([`PathFollower::rotate_in_place`]).
 #[derive(Debug, Clone)]
 pub struct PathFollower {
     step: f32,
@@ -38,6 +39,8 @@ pub struct PathFollower {
     last_forward_from: Option<Vec2>,
     blocked: usize,
     ending: Option<Ending>,
+    /// Turns left to take in place (negative: right), for an episode that only rotates.
+    spin: i32,
 }
 
 impl PathFollower {
@@ -53,7 +56,14 @@ impl PathFollower {
             last_forward_from: None,
             blocked: 0,
             ending: None,
+            spin: 0,
         }
+    }
+
+    /// Makes the next walk a rotation in place of `turns` turns (negative: to the right)
+    /// instead of a walk along the reference path: what a Base-Action rotation asks for.
+    pub fn rotate_in_place(&mut self, turns: i32) {
+        self.spin = turns;
     }
 
     /// How the last walk ended (`None` before STOP).
@@ -93,6 +103,15 @@ impl Agent for PathFollower {
     }
 
     fn act(&mut self, obs: &Observation) -> Result<Action> {
+        if self.waypoints.len() == 1 {
+            let turn = match self.spin.signum() {
+                1 => Action::TurnLeft,
+                -1 => Action::TurnRight,
+                _ => return Ok(self.stop(Ending::Reached)),
+            };
+            self.spin -= self.spin.signum();
+            return Ok(turn);
+        }
         let at = obs.pose.position.truncate();
         if let Some(from) = self.last_forward_from.take() {
             if at.distance(from) < 0.1 * self.step {

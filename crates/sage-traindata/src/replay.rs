@@ -102,10 +102,22 @@ pub struct Walk {
     pub verdict: Verdict,
 }
 
+/// The turns of the preset that a rotation in place of `degrees` (positive: left) takes: as
+/// many whole turns as fit, at least one (the published action generator's rule).
+pub fn turns_in_place(degrees: f32, preset: &ActionPreset) -> i32 {
+    if degrees == 0.0 {
+        return 0;
+    }
+    let n = ((degrees.abs() / preset.turn_deg) + 1e-4).floor().max(1.0) as i32;
+    n * degrees.signum() as i32
+}
+
 /// Walks `route` in `env` (already set up with the preset's action space and the sensors):
 /// `on_frame(k, images)` gets the observation taken before action `k` (the frame a model
 /// sees when it chooses that action). The walk is the route's first episode's: its start,
-/// reference path and goal, which the route's episodes share.
+/// reference path and goal, which the route's episodes share. A route whose path is a single
+/// point rotates in place by what its episode's ground-truth actions turn, at
+/// `dataset_turn_deg` degrees a turn (the dataset's action space).
 ///
 /// # Errors
 ///
@@ -115,10 +127,24 @@ pub fn walk(
     env: &mut Env,
     route: &Route,
     preset: &ActionPreset,
+    dataset_turn_deg: f32,
     mut on_frame: impl FnMut(usize, &Images) -> Result<()>,
 ) -> Result<Walk> {
-    let episode = route.episodes[0].env_episode();
+    let first = &route.episodes[0];
+    let episode = first.env_episode();
     let mut follower = PathFollower::new(preset);
+    if first.reference_path.len() == 1 {
+        let net: i32 = first
+            .actions
+            .iter()
+            .map(|a| match a {
+                sage_lang::Action::Left => 1,
+                sage_lang::Action::Right => -1,
+                _ => 0,
+            })
+            .sum();
+        follower.rotate_in_place(turns_in_place(net as f32 * dataset_turn_deg, preset));
+    }
     let mut obs = env.reset(&episode)?;
     follower.reset(env, &episode)?;
     let turn = preset.turn_deg.to_radians();
@@ -183,4 +209,21 @@ pub fn walk(
         final_distance,
         verdict,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rotations_take_whole_turns_of_the_preset_at_least_one() {
+        let p = ActionPreset::named("navila_small").unwrap();
+        assert_eq!(turns_in_place(180.0, &p), 6);
+        assert_eq!(turns_in_place(-90.0, &p), -3);
+        assert_eq!(turns_in_place(45.0, &p), 1);
+        assert_eq!(turns_in_place(15.0, &p), 1);
+        assert_eq!(turns_in_place(0.0, &p), 0);
+        let v = ActionPreset::named("vlnce").unwrap();
+        assert_eq!(turns_in_place(-45.0, &v), -3);
+    }
 }

@@ -203,9 +203,11 @@ pub struct Plan {
     /// Episodes whose scene is not among the scenes.
     pub skipped: Vec<Skip>,
     /// Episodes of the split with nothing to walk, by reason: `no_goal` (no-goal episodes)
-    /// and `in_place` (a reference path of one point: a Base-Action rotation in place, whose
-    /// turns a path does not record).
+    /// and `no_motion` (a reference path of one point and no net turn).
     pub ignored: BTreeMap<String, usize>,
+    /// Degrees of one turn of the dataset's ground-truth actions (its run record's action
+    /// space; 15, VLN-CE's, for datasets without one): how far a rotation in place turns.
+    pub dataset_turn_deg: f32,
     /// The split file's hash.
     pub dataset_hash: String,
 }
@@ -227,8 +229,8 @@ impl Plan {
             .filter(|e| {
                 let why = if e.task != Task::Vln {
                     "no_goal"
-                } else if e.reference_path.len() < 2 {
-                    "in_place"
+                } else if e.reference_path.len() < 2 && !turns(e) {
+                    "no_motion"
                 } else {
                     return true;
                 };
@@ -265,8 +267,14 @@ impl Plan {
         for r in replay::routes(&present) {
             routes.entry(r.scene.clone()).or_default().push(r);
         }
+        let dataset_turn_deg =
+            read_json::<serde_json::Value>(&settings.dataset.join(sage_io::run::RUN_RECORD))
+                .ok()
+                .and_then(|r| r.pointer("/config/scene/space/turn_deg")?.as_f64())
+                .map_or(sage_lang::ActionSpace::default().turn_deg, |t| t as f32);
         Ok(Plan {
             settings: settings.clone(),
+            dataset_turn_deg,
             env,
             routes,
             scene_dirs,
@@ -285,6 +293,13 @@ impl Plan {
     pub fn route_count(&self) -> usize {
         self.routes.values().map(Vec::len).sum()
     }
+}
+
+/// True when `e`'s ground-truth actions turn (a rotation in place has no path to walk).
+fn turns(e: &sage_bench::dataset::Episode) -> bool {
+    e.actions
+        .iter()
+        .any(|a| matches!(a, sage_lang::Action::Left | sage_lang::Action::Right))
 }
 
 /// A route finished by [`render_scene`] (for progress displays).
@@ -393,16 +408,17 @@ pub fn render_scene(
                 std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
                 // A write error stops the run; an error of the walk itself is the route's.
                 let mut write_error = None;
-                let walked = replay::walk(env, route, &s.preset, |k, images| {
-                    for (suffix, bytes) in encode::encode(images, s.rgb_codec)? {
-                        let path = dir.join(format!("{k:04}.{suffix}"));
-                        if let Err(e) = std::fs::write(&path, bytes) {
-                            write_error = Some(Error::io(&path, e));
-                            return Err(Error::invalid("a frame could not be written"));
+                let walked =
+                    replay::walk(env, route, &s.preset, plan.dataset_turn_deg, |k, images| {
+                        for (suffix, bytes) in encode::encode(images, s.rgb_codec)? {
+                            let path = dir.join(format!("{k:04}.{suffix}"));
+                            if let Err(e) = std::fs::write(&path, bytes) {
+                                write_error = Some(Error::io(&path, e));
+                                return Err(Error::invalid("a frame could not be written"));
+                            }
                         }
-                    }
-                    Ok(())
-                });
+                        Ok(())
+                    });
                 if let Some(err) = write_error {
                     return Err(err);
                 }
@@ -447,7 +463,7 @@ pub struct Counts {
     pub dropped: BTreeMap<String, usize>,
     /// Episodes skipped for an error (listed in `skipped`).
     pub skipped: usize,
-    /// Episodes of the split with nothing to walk, by reason (`no_goal`, `in_place`).
+    /// Episodes of the split with nothing to walk, by reason (`no_goal`, `no_motion`).
     pub ignored: BTreeMap<String, usize>,
     /// NaVILA samples (one per step of each kept episode).
     pub samples: usize,

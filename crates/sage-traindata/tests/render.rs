@@ -141,12 +141,34 @@ fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
         source.iter().map(|e| (e.episode_id.as_str(), e)).collect();
     let step = 0.35f32;
     let turn = 30f32.to_radians();
+    let mut rotations = 0;
     for e in &episodes {
         let src = by_id[e.episode_id.as_str()];
         assert_eq!(e.instruction, src.instruction);
         assert_eq!(e.actions.last().map(String::as_str), Some("STOP"));
         assert_eq!(e.files.len(), e.actions.len());
         assert_eq!(e.steps.len(), e.actions.len());
+        if src.reference_path.len() == 1 {
+            // A rotation in place: whole preset turns one way, as far as the dataset's turns
+            // go (15 degrees each), then STOP, without moving.
+            let net: i32 = src
+                .actions
+                .iter()
+                .map(|a| match a {
+                    sage_lang::Action::Left => 1,
+                    sage_lang::Action::Right => -1,
+                    _ => 0,
+                })
+                .sum();
+            let turns = sage_traindata::replay::turns_in_place(net as f32 * 15.0, &s.preset);
+            assert!(turns != 0, "{}", e.episode_id);
+            let name = if turns > 0 { "TURN_LEFT" } else { "TURN_RIGHT" };
+            assert_eq!(e.actions.len(), turns.unsigned_abs() as usize + 1);
+            assert!(e.actions[..e.actions.len() - 1].iter().all(|a| a == name));
+            let (a, b) = (e.steps[0].pose, e.steps.last().unwrap().achieved);
+            assert!((a[0] - b[0]).abs() < 1e-4 && (a[1] - b[1]).abs() < 1e-4);
+            rotations += 1;
+        }
         let first = e.steps[0].pose;
         assert!((first[0] - src.start.position[0]).abs() < 1e-5);
         assert!((first[1] - src.start.position[1]).abs() < 1e-5);
@@ -178,6 +200,10 @@ fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
             assert!(e.steps.iter().all(|s| !s.contact));
         }
     }
+    assert!(
+        rotations > 0,
+        "the dataset's rotations in place are rendered"
+    );
 }
 
 #[test]
