@@ -23,12 +23,14 @@ pub enum Ending {
 
 /// Walks the reference path: skips waypoints closer than one step, turns towards the next one
 /// until it lies within half a turn of the heading, else moves forward; STOP within half a
-/// step of the path's end, as the published pipeline ends a trajectory where its path ends
+/// step of the path's end — or earlier, once within the success distance of the goal, when the
+/// next step would leave the navigable grid (a path's end often lies beside its object with
+/// no room to spare) — as the published pipeline ends a trajectory where its path ends
 /// (an object goal is not approached further: the straight line to its footprint may cross a
 /// wall). Because every decision is taken from the achieved pose, a step that
 /// physics shortened is made up by the following ones, as a robot replaying the path would.
 /// A reference path of a single point is a rotation in place ([`PathFollower::rotate_in_place`]).
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct PathFollower {
     step: f32,
     turn: f32,
@@ -41,7 +43,14 @@ pub struct PathFollower {
     ending: Option<Ending>,
     /// Turns left to take in place (negative: right), for an episode that only rotates.
     spin: i32,
+    /// The scene (its navigable grid) and the goal with its success distance.
+    scene: Option<std::sync::Arc<sage_env::SceneContext>>,
+    goal: Option<Vec2>,
+    success: f32,
 }
+
+/// How far inside the success distance the follower must be to stop short of an obstacle.
+const STOP_MARGIN: f32 = 0.05;
 
 impl PathFollower {
     /// A follower with `preset`'s step, turn and cap.
@@ -57,6 +66,9 @@ impl PathFollower {
             blocked: 0,
             ending: None,
             spin: 0,
+            scene: None,
+            goal: None,
+            success: 0.0,
         }
     }
 
@@ -77,12 +89,34 @@ impl PathFollower {
     }
 }
 
+impl PathFollower {
+    /// True when a forward step from `at` along `yaw` would cross a cell the agent does not
+    /// fit in (sampled every 5 cm).
+    fn leaves_free_space(&self, at: Vec2, yaw: f32) -> bool {
+        let Some(ctx) = &self.scene else {
+            return false;
+        };
+        let dir = Vec2::from_angle(yaw);
+        let n = (self.step / 0.05).ceil().max(1.0) as usize;
+        (1..=n).any(|k| {
+            !ctx.pathfinder
+                .is_navigable(at + dir * (self.step * k as f32 / n as f32))
+        })
+    }
+
+    /// True when `at` is well inside the success distance of the goal position.
+    fn near_goal(&self, at: Vec2) -> bool {
+        self.goal
+            .is_some_and(|g| at.distance(g) <= self.success - STOP_MARGIN)
+    }
+}
+
 impl Agent for PathFollower {
     fn name(&self) -> &str {
         "path-follower"
     }
 
-    fn reset(&mut self, _env: &Env, episode: &EnvEpisode) -> Result<()> {
+    fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
         if episode.reference_path.is_empty() {
             return Err(Error::invalid(format!(
                 "episode {}: no reference path to follow",
@@ -99,6 +133,9 @@ impl Agent for PathFollower {
         self.last_forward_from = None;
         self.blocked = 0;
         self.ending = None;
+        self.scene = Some(env.context().clone());
+        self.goal = episode.goal.as_ref().map(|g| g.point.truncate());
+        self.success = env.config().task.success_distance;
         Ok(())
     }
 
@@ -140,6 +177,10 @@ impl Agent for PathFollower {
             Action::TurnLeft
         } else if error < -0.5 * self.turn {
             Action::TurnRight
+        } else if self.leaves_free_space(at, obs.pose.yaw) && self.near_goal(at) {
+            // The last stretch of a path often ends beside its object with no room to spare:
+            // stop within the success distance rather than step into it.
+            self.stop(Ending::Reached)
         } else {
             self.last_forward_from = Some(at);
             Action::MoveForward
