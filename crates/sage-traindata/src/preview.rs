@@ -50,8 +50,6 @@ const GIF_SPEED: i32 = 10;
 const BACKGROUND: [u8; 3] = [255, 255, 255];
 /// Text, and the heading tick.
 const INK: [u8; 3] = [20, 20, 20];
-/// Under the paths and markers, so they stand out on any category colour (as in the report).
-const HALO: [u8; 3] = [255, 255, 255];
 /// Radius of the current-pose marker, pixels.
 const AGENT_RADIUS: i64 = 5;
 /// Length of the heading tick from the marker's centre, pixels.
@@ -307,10 +305,10 @@ fn episode_base(panel: &Canvas, map: &SceneMap, episode: Option<&Episode>) -> Ca
         && poly.len() >= 2
     {
         let closed: Vec<Vec2> = poly.iter().chain(poly.first()).copied().collect();
-        polyline(&mut canvas, &closed, maps::GOAL, 3);
+        maps::polyline(&mut canvas, &closed, maps::GOAL, 3);
     }
     let reference: Vec<Vec2> = e.reference_path.iter().map(|p| xy(p[0], p[1])).collect();
-    polyline(
+    maps::polyline(
         &mut canvas,
         &reference,
         maps::REFERENCE,
@@ -390,9 +388,9 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
     let mut canvas = base.clone();
     let steps = &sample.steps[..=k.min(sample.steps.len() - 1)];
     let walked: Vec<Vec2> = steps.iter().map(|s| xy(s.pose[0], s.pose[1])).collect();
-    polyline(&mut canvas, &walked, maps::AGENT, maps::AGENT_WIDTH);
+    maps::polyline(&mut canvas, &walked, maps::AGENT, maps::AGENT_WIDTH);
     if let Some(start) = walked.first() {
-        marker(&mut canvas, *start, maps::MARKER_RADIUS, maps::START);
+        maps::marker(&mut canvas, *start, maps::MARKER_RADIUS, maps::START);
     }
     let goal = episode.and_then(|e| {
         e.goal
@@ -401,7 +399,7 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
             .or_else(|| e.reference_path.last().copied())
     });
     if let Some(g) = goal {
-        marker(&mut canvas, xy(g[0], g[1]), maps::MARKER_RADIUS, maps::GOAL);
+        maps::marker(&mut canvas, xy(g[0], g[1]), maps::MARKER_RADIUS, maps::GOAL);
     }
     // A contact happens during an action: it is shown where the action left the agent, once
     // that action has been taken.
@@ -411,7 +409,7 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
         .map(|s| xy(s.achieved[0], s.achieved[1]))
         .collect();
     for p in &hits {
-        canvas.disc(*p, maps::COLLISION_RADIUS + 1, HALO);
+        canvas.disc(*p, maps::COLLISION_RADIUS + 1, maps::HALO);
     }
     for p in &hits {
         canvas.disc(*p, maps::COLLISION_RADIUS, maps::COLLISION);
@@ -423,9 +421,9 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
         .to_pixel(here + Vec2::X)
         .distance(canvas.to_pixel(here));
     let tip = here + Vec2::from_angle(yaw) * (TICK_LENGTH / pixels_per_metre.max(1e-6));
-    canvas.line(here, tip, HALO, 5);
+    canvas.line(here, tip, maps::HALO, 5);
     canvas.line(here, tip, INK, 3);
-    marker(&mut canvas, here, AGENT_RADIUS, maps::AGENT);
+    maps::marker(&mut canvas, here, AGENT_RADIUS, maps::AGENT);
     canvas
 }
 
@@ -451,23 +449,6 @@ fn key(image: &mut Canvas, layout: &Layout, y: i64) {
 /// World point (x, y).
 fn xy(x: f32, y: f32) -> Vec2 {
     Vec2::new(x, y)
-}
-
-/// A path `width` pixels wide over a white halo one pixel wider on each side (as the report
-/// draws its paths).
-fn polyline(canvas: &mut Canvas, points: &[Vec2], c: [u8; 3], width: i64) {
-    for w in points.windows(2) {
-        canvas.line(w[0], w[1], HALO, width + 2);
-    }
-    for w in points.windows(2) {
-        canvas.line(w[0], w[1], c, width);
-    }
-}
-
-/// A disc over a white ring.
-fn marker(canvas: &mut Canvas, p: Vec2, radius: i64, c: [u8; 3]) {
-    canvas.disc(p, radius + 1, HALO);
-    canvas.disc(p, radius, c);
 }
 
 /// Copies `src` (`w × h` RGB) into `image` with its top-left at pixel (x0, y0), clipped to the

@@ -2,8 +2,8 @@
 //! frame on the left, a map and text beside and below it, the same bytes whichever format is
 //! written (the WebDataset render removes the frames the preview was made from).
 
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
+mod common;
+
 use sage_traindata::preview::{END_DELAY, MAX_WIDTH, PREVIEW_FILE, STEP_DELAY};
 use sage_traindata::sample::EpisodeSample;
 use sage_traindata::{Format, Settings};
@@ -12,36 +12,7 @@ use std::path::{Path, PathBuf};
 /// A 3-room home and its dataset, every episode in `train`: (dir, scenes, dataset).
 fn data() -> (tempfile::TempDir, PathBuf, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
-    let scenes = dir.path().join("scenes");
-    let home = scenes.join("home1");
-    sage_synth::generate(&sage_synth::SynthConfig {
-        seed: 1,
-        rooms: 3,
-        objects: 30,
-        gaussians: 3000,
-        ..sage_synth::SynthConfig::default()
-    })
-    .unwrap()
-    .save(&home, sage_scene::SplatLayout::Compressed)
-    .unwrap();
-    let dataset = dir.path().join("data");
-    let assemble = AssembleParams {
-        seed: 2,
-        split: SplitParams {
-            scene_unseen: 0.0,
-            val: 0.0,
-            donor_share: 0.0,
-        },
-        balanced: 0,
-    };
-    build::build(
-        std::slice::from_ref(&home),
-        &dataset,
-        &SceneParams::new(3, 2),
-        &assemble,
-        &|_| {},
-    )
-    .unwrap();
+    let (scenes, dataset) = common::home_dataset(dir.path(), 3);
     (dir, scenes, dataset)
 }
 

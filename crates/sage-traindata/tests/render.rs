@@ -1,8 +1,8 @@
 //! Training-data renders on a small generated home: the formats' contents against the walks,
 //! determinism over thread counts, resumption of a broken render, and bad input.
 
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
+mod common;
+
 use sage_traindata::encode::RgbCodec;
 use sage_traindata::{Format, Settings};
 use std::collections::BTreeMap;
@@ -14,36 +14,7 @@ fn data() -> (&'static Path, &'static Path) {
     static DATA: OnceLock<(tempfile::TempDir, PathBuf, PathBuf)> = OnceLock::new();
     let d = DATA.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let scenes = dir.path().join("scenes");
-        let home = scenes.join("home1");
-        sage_synth::generate(&sage_synth::SynthConfig {
-            seed: 1,
-            rooms: 3,
-            objects: 30,
-            gaussians: 3000,
-            ..sage_synth::SynthConfig::default()
-        })
-        .unwrap()
-        .save(&home, sage_scene::SplatLayout::Compressed)
-        .unwrap();
-        let dataset = dir.path().join("data");
-        let assemble = AssembleParams {
-            seed: 2,
-            split: SplitParams {
-                scene_unseen: 0.0,
-                val: 0.0,
-                donor_share: 0.0,
-            },
-            balanced: 0,
-        };
-        build::build(
-            std::slice::from_ref(&home),
-            &dataset,
-            &SceneParams::new(6, 2),
-            &assemble,
-            &|_| {},
-        )
-        .unwrap();
+        let (scenes, dataset) = common::home_dataset(dir.path(), 6);
         (dir, scenes, dataset)
     });
     (&d.1, &d.2)

@@ -52,10 +52,10 @@ fn xy(p: &[f32; 3]) -> Vec2 {
 }
 
 /// White under the paths and markers, so they stand out on any category colour.
-const HALO: [u8; 3] = [255, 255, 255];
+pub const HALO: [u8; 3] = [255, 255, 255];
 
 /// A path `width` pixels wide over a white halo one pixel wider on each side.
-fn polyline(canvas: &mut Canvas, points: &[Vec2], c: [u8; 3], width: i64) {
+pub fn polyline(canvas: &mut Canvas, points: &[Vec2], c: [u8; 3], width: i64) {
     for w in points.windows(2) {
         canvas.line(w[0], w[1], HALO, width + 2);
     }
@@ -65,7 +65,7 @@ fn polyline(canvas: &mut Canvas, points: &[Vec2], c: [u8; 3], width: i64) {
 }
 
 /// A disc over a white ring.
-fn marker(canvas: &mut Canvas, p: Vec2, radius: i64, c: [u8; 3]) {
+pub fn marker(canvas: &mut Canvas, p: Vec2, radius: i64, c: [u8; 3]) {
     canvas.disc(p, radius + 1, HALO);
     canvas.disc(p, radius, c);
 }
