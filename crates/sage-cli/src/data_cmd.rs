@@ -238,45 +238,28 @@ fn data_import(a: ImportArgs) -> Result<()> {
 }
 
 fn render_settings(a: &RenderArgs) -> Result<sage_traindata::Settings> {
-    use sage_traindata::encode::RgbCodec;
-    let format: sage_traindata::Format = a.format.parse()?;
-    let preset = sage_traindata::ActionPreset::with(
-        sage_traindata::ActionPreset::named(&a.preset)?,
-        a.step,
-        a.turn,
-        Some(a.max_actions),
-    )?;
-    let rgb_codec = match a.image.as_str() {
-        "jpg" | "jpeg" => RgbCodec::Jpeg {
-            quality: a.jpeg_quality,
-        },
-        "png" => RgbCodec::Png,
-        other => {
-            return Err(sage_core::Error::invalid(format!(
-                "--image: unknown type '{other}' (jpg or png)"
-            )));
-        }
-    };
-    Ok(sage_traindata::Settings {
+    sage_traindata::Options {
         split: a.split.clone(),
-        preset,
-        agent: a.agent.clone(),
+        preset: a.preset.clone(),
+        step: a.step,
+        turn: a.turn,
+        max_actions: a.max_actions,
         width: a.width,
         height: a.height,
-        hfov_deg: a.hfov,
-        sensors: a.sensors.parse()?,
-        rgb_codec,
-        format,
-        shard_size: a.shard_size.unwrap_or(match format {
-            sage_traindata::Format::Webdataset => 100,
-            _ => 10_000,
-        }),
+        hfov: a.hfov,
+        sensors: a.sensors.clone(),
+        format: a.format.clone(),
+        shard_size: a.shard_size,
         limit: a.limit,
         seed: a.seed,
+        agent: a.agent.clone(),
+        image: a.image.clone(),
+        jpeg_quality: a.jpeg_quality,
         keep_failed: a.keep_failed,
         preview: a.preview,
-        ..sage_traindata::Settings::new(&a.dataset, &a.scenes)?
-    })
+        ..sage_traindata::Options::new(a.dataset.clone(), a.scenes.clone())
+    }
+    .settings()
 }
 
 fn data_render(a: RenderArgs) -> Result<()> {

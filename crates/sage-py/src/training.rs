@@ -1,15 +1,13 @@
 //! Training data from Python: the render of `sage3d data render` (`sage-traindata`) in one
 //! call, and its steps (plan, claim, one scene, finish) that `sage3d.distributed` runs as Ray
 //! tasks. The steps take the render's settings as JSON (`sage_traindata::Settings`), made by
-//! [`training_settings`] from the same keyword arguments [`render_training_data`] takes, so
-//! every entry point builds its settings in one place, as the command line does.
+//! [`training_settings`] from the same keyword arguments [`render_training_data`] takes;
+//! both, like the command line, turn them into settings with `sage_traindata::Options`.
 
 use crate::convert::{PyResultExt, from_json, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sage_core::{Error, Result};
-use sage_traindata::encode::RgbCodec;
-use sage_traindata::{ActionPreset, Format, Plan, RouteDone, Settings};
+use sage_traindata::{Options, Plan, RouteDone, Settings};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -29,73 +27,6 @@ impl SensorList {
             SensorList::Names(v) => v.join(","),
         }
     }
-}
-
-/// The keyword arguments of a render, as `sage3d data render` takes its options.
-struct RenderArgs<'a> {
-    dataset: PathBuf,
-    scenes: PathBuf,
-    split: &'a str,
-    preset: &'a str,
-    step: Option<f32>,
-    turn: Option<f32>,
-    max_actions: usize,
-    width: u32,
-    height: u32,
-    hfov: f32,
-    sensors: String,
-    format: &'a str,
-    shard_size: Option<usize>,
-    limit: Option<usize>,
-    seed: u64,
-    agent: &'a str,
-    image: &'a str,
-    jpeg_quality: u8,
-    keep_failed: bool,
-    preview: usize,
-}
-
-/// The settings of a render from its keyword arguments: the same settings `sage3d data
-/// render` builds from the same options (defaults included).
-fn settings(a: &RenderArgs<'_>) -> Result<Settings> {
-    let format: Format = a.format.parse()?;
-    let preset = ActionPreset::with(
-        ActionPreset::named(a.preset)?,
-        a.step,
-        a.turn,
-        Some(a.max_actions),
-    )?;
-    let rgb_codec = match a.image {
-        "jpg" | "jpeg" => RgbCodec::Jpeg {
-            quality: a.jpeg_quality,
-        },
-        "png" => RgbCodec::Png,
-        other => {
-            return Err(Error::invalid(format!(
-                "image: unknown type '{other}' (jpg or png)"
-            )));
-        }
-    };
-    Ok(Settings {
-        split: a.split.to_string(),
-        preset,
-        agent: a.agent.to_string(),
-        width: a.width,
-        height: a.height,
-        hfov_deg: a.hfov,
-        sensors: a.sensors.parse()?,
-        rgb_codec,
-        format,
-        shard_size: a.shard_size.unwrap_or(match format {
-            Format::Webdataset => 100,
-            _ => 10_000,
-        }),
-        limit: a.limit,
-        seed: a.seed,
-        keep_failed: a.keep_failed,
-        preview: a.preview,
-        ..Settings::new(&a.dataset, &a.scenes)?
-    })
 }
 
 /// The settings of a render as JSON (`sage_traindata::Settings`), from the keyword arguments
@@ -125,11 +56,11 @@ pub fn training_settings(
     keep_failed: bool,
     preview: usize,
 ) -> PyResult<String> {
-    let s = settings(&RenderArgs {
+    let s = Options {
         dataset,
         scenes,
-        split,
-        preset,
+        split: split.into(),
+        preset: preset.into(),
         step,
         turn,
         max_actions,
@@ -137,16 +68,17 @@ pub fn training_settings(
         height,
         hfov,
         sensors: sensors.joined(),
-        format,
+        format: format.into(),
         shard_size,
         limit,
         seed,
-        agent,
-        image,
+        agent: agent.into(),
+        image: image.into(),
         jpeg_quality,
         keep_failed,
         preview,
-    })
+    }
+    .settings()
     .py()?;
     serde_json::to_string(&s).map_err(|e| PyValueError::new_err(e.to_string()))
 }
@@ -190,11 +122,11 @@ pub fn render_training_data<'py>(
     preview: usize,
     force: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let s = settings(&RenderArgs {
+    let s = Options {
         dataset,
         scenes,
-        split,
-        preset,
+        split: split.into(),
+        preset: preset.into(),
         step,
         turn,
         max_actions,
@@ -202,16 +134,17 @@ pub fn render_training_data<'py>(
         height,
         hfov,
         sensors: sensors.joined(),
-        format,
+        format: format.into(),
         shard_size,
         limit,
         seed,
-        agent,
-        image,
+        agent: agent.into(),
+        image: image.into(),
         jpeg_quality,
         keep_failed,
         preview,
-    })
+    }
+    .settings()
     .py()?;
     let manifest = py
         .detach(|| sage_traindata::render(&s, &out, force, &|_: &RouteDone| {}))

@@ -14,6 +14,7 @@
 
 pub mod encode;
 pub mod follow;
+pub mod options;
 pub mod output;
 pub mod preset;
 pub mod preview;
@@ -21,6 +22,7 @@ pub mod replay;
 pub mod run;
 pub mod sample;
 
+pub use options::Options;
 pub use output::Format;
 pub use preset::ActionPreset;
 pub use run::{Manifest, Plan, RouteDone, Sensors, Settings, claim, finish, render, render_scene};
