@@ -20,7 +20,7 @@ pub const END_DELAY: u16 = 200;
 /// The widest the preview gets, pixels: frame, map and margins together.
 pub const MAX_WIDTH: usize = 900;
 
-use crate::run::Plan;
+use crate::replay::Route;
 use crate::sample::{EpisodeSample, IMAGES_DIR};
 use glam::Vec2;
 use sage_bench::dataset::Episode;
@@ -55,6 +55,16 @@ const AGENT_RADIUS: i64 = 5;
 /// Length of the heading tick from the marker's centre, pixels.
 const TICK_LENGTH: f32 = 14.0;
 
+/// What the preview is drawn from besides the samples.
+pub struct Sources<'a> {
+    /// The render's routes by scene (each route's first episode: reference path and goal).
+    pub routes: &'a BTreeMap<String, Vec<Route>>,
+    /// Each scene's folder (for its map).
+    pub scene_dirs: &'a BTreeMap<String, std::path::PathBuf>,
+    /// The frames' size, (width, height).
+    pub frame_size: (usize, usize),
+}
+
 /// Writes `out/preview.gif` showing the first `n` of `samples`, one step per GIF frame (see
 /// the module's documentation). The RGB frames are read from `out/images` (so this runs
 /// before a WebDataset render removes that folder); each scene shown is loaded once for its
@@ -64,7 +74,7 @@ const TICK_LENGTH: f32 = 14.0;
 /// # Errors
 ///
 /// A frame or scene that cannot be read, or a write error, naming the file.
-pub fn write(plan: &Plan, out: &Path, samples: &[EpisodeSample], n: usize) -> Result<()> {
+pub fn write(from: &Sources<'_>, out: &Path, samples: &[EpisodeSample], n: usize) -> Result<()> {
     let shown: Vec<&EpisodeSample> = samples
         .iter()
         .take(n)
@@ -73,7 +83,7 @@ pub fn write(plan: &Plan, out: &Path, samples: &[EpisodeSample], n: usize) -> Re
     if shown.is_empty() {
         return Ok(());
     }
-    let episodes: Vec<Option<&Episode>> = shown.iter().map(|s| source_episode(plan, s)).collect();
+    let episodes: Vec<Option<&Episode>> = shown.iter().map(|s| source_episode(from, s)).collect();
     let mut scenes: BTreeMap<&str, SceneMap> = BTreeMap::new();
     for s in &shown {
         if !scenes.contains_key(s.scene.as_str()) {
@@ -84,12 +94,12 @@ pub fn write(plan: &Plan, out: &Path, samples: &[EpisodeSample], n: usize) -> Re
                 .filter(|(x, _)| x.scene == s.scene)
                 .filter_map(|(_, e)| object_goal(*e))
                 .collect();
-            scenes.insert(s.scene.as_str(), SceneMap::load(plan, &s.scene, &goals)?);
+            scenes.insert(s.scene.as_str(), SceneMap::load(from, &s.scene, &goals)?);
         }
     }
     let layout = Layout::new(
-        plan.settings.width as usize,
-        plan.settings.height as usize,
+        from.frame_size.0,
+        from.frame_size.1,
         scenes.values().map(SceneMap::aspect).fold(0.0, f32::max),
     );
     let (w16, h16) = match (u16::try_from(layout.width), u16::try_from(layout.height)) {
@@ -138,8 +148,8 @@ pub fn write(plan: &Plan, out: &Path, samples: &[EpisodeSample], n: usize) -> Re
 
 /// The dataset episode `sample` was made from: its route's first episode, whose start,
 /// reference path and goal every episode of the route shares.
-fn source_episode<'a>(plan: &'a Plan, sample: &EpisodeSample) -> Option<&'a Episode> {
-    plan.routes
+fn source_episode<'a>(from: &'a Sources<'_>, sample: &EpisodeSample) -> Option<&'a Episode> {
+    from.routes
         .get(&sample.scene)?
         .iter()
         .find(|r| r.name == sample.route)?
@@ -172,9 +182,9 @@ struct SceneMap {
 }
 
 impl SceneMap {
-    /// Loads scene `name` of `plan` and draws its map over its navigation grid.
-    fn load(plan: &Plan, name: &str, goals: &[&str]) -> Result<SceneMap> {
-        let dir = plan
+    /// Loads scene `name` and draws its map over its navigation grid.
+    fn load(from: &Sources<'_>, name: &str, goals: &[&str]) -> Result<SceneMap> {
+        let dir = from
             .scene_dirs
             .get(name)
             .ok_or_else(|| Error::invalid(format!("preview: scene '{name}' is not known")))?;

@@ -601,7 +601,12 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
         images,
     };
     if s.preview > 0 {
-        crate::preview::write(plan, out, &samples, s.preview)?;
+        let from = crate::preview::Sources {
+            routes: &plan.routes,
+            scene_dirs: &plan.scene_dirs,
+            frame_size: (s.width as usize, s.height as usize),
+        };
+        crate::preview::write(&from, out, &samples, s.preview)?;
     }
     write_json(&out.join(MANIFEST), &manifest)?;
     if s.format == Format::Webdataset {
