@@ -149,8 +149,14 @@ mod tests {
         assert_eq!((wds.shard_size, wds.rgb_codec), (100, RgbCodec::Png));
         let bad = Options {
             image: "gif".into(),
-            ..Options::new(d, s)
+            ..Options::new(d.clone(), s.clone())
         };
         assert!(bad.settings().unwrap_err().to_string().contains("gif"));
+        let uav = Options {
+            agent: "uav".into(),
+            ..Options::new(d, s)
+        };
+        let e = uav.settings().unwrap().env_config().unwrap_err().to_string();
+        assert!(e.contains("not a ground agent"), "{e}");
     }
 }
