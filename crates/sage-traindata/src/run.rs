@@ -615,9 +615,9 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
         crate::preview::write(&from, out, &samples, s.preview)?;
     }
     write_json(&out.join(MANIFEST), &manifest)?;
-    if s.format == Format::Webdataset {
-        let dir = out.join(IMAGES_DIR);
-        std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    let frames = out.join(IMAGES_DIR);
+    if s.format == Format::Webdataset && frames.exists() {
+        std::fs::remove_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
     }
     Ok(manifest)
 }
@@ -684,9 +684,18 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
             ))
             .in_file(out));
         }
-        let same = read_json::<serde_json::Value>(&record_path).is_ok_and(|old| {
-            old.get("command").and_then(|c| c.as_str()) == Some("data render")
-                && old.get("settings") == Some(&settings)
+        let record = read_json::<serde_json::Value>(&record_path).ok();
+        let rendered = record
+            .as_ref()
+            .is_some_and(|old| old.get("command").and_then(|c| c.as_str()) == Some("data render"));
+        if !names.is_empty() && !rendered {
+            return Err(Error::invalid(
+                "the output folder is not a training-data render's (its run record is missing or names another command); choose an empty or new folder",
+            )
+            .in_file(out));
+        }
+        let same = record.is_some_and(|old| {
+            old.get("settings") == Some(&settings)
                 && old.get("dataset_hash").and_then(|h| h.as_str())
                     == Some(plan.dataset_hash.as_str())
         });

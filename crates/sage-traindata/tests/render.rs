@@ -310,6 +310,20 @@ fn other_settings_or_foreign_files_in_the_output_are_refused() {
         std::fs::read_to_string(foreign.path().join("notes.txt")).unwrap(),
         "mine"
     );
+    // Files with a render's names in another command's folder are not a render's either.
+    let eval = tempfile::tempdir().unwrap();
+    sage_io::run::write_run_record(eval.path(), "eval", Some(0), serde_json::json!({})).unwrap();
+    std::fs::write(eval.path().join("episodes.jsonl"), "{}\n").unwrap();
+    for force in [false, true] {
+        let err = sage_traindata::render(&s, eval.path(), force, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("not a training-data render"), "{err}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(eval.path().join("episodes.jsonl")).unwrap(),
+        "{}\n"
+    );
 }
 
 #[test]
