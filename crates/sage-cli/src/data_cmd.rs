@@ -163,6 +163,9 @@ pub struct BuildArgs {
     /// LLM answer cache (default: OUT/llm_cache).
     #[arg(long)]
     llm_cache: Option<PathBuf>,
+    /// Write into an output folder that holds other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
 }
 
 pub fn run(cmd: DataCommand) -> Result<()> {
@@ -195,11 +198,12 @@ fn data_build(a: BuildArgs) -> Result<()> {
     let assemble = AssembleParams::new(a.seed, a.balanced, a.scene_unseen, a.val);
     let bar = crate::progress::bar("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
-    let report = sage_pipeline::dataset::build(&a.scenes, &a.out, &params, &assemble, &|o, n| {
-        bar.set_length(n as u64);
-        bar.set_message(o.scene.clone());
-        bar.inc(1);
-    });
+    let report =
+        sage_pipeline::dataset::build(&a.scenes, &a.out, &params, &assemble, a.force, &|o, n| {
+            bar.set_length(n as u64);
+            bar.set_message(o.scene.clone());
+            bar.inc(1);
+        });
     bar.finish_and_clear();
     print_dataset(&report?, &a.out, start.elapsed().as_secs_f64());
     Ok(())

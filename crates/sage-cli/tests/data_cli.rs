@@ -75,3 +75,48 @@ fn build_names_a_folder_without_scenes() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("neither a scene folder"), "{err}");
 }
+
+#[test]
+fn build_never_writes_over_files_it_did_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    common::small_scene(&scenes.join("home1"), "1", "1000");
+    let out = dir.path().join("mine");
+    std::fs::create_dir_all(out.join("episodes")).unwrap();
+    std::fs::write(out.join("episodes").join("train.jsonl"), "my own file\n").unwrap();
+    std::fs::write(out.join("notes.txt"), "mine\n").unwrap();
+    let build = |force: bool| {
+        let mut args = vec![
+            "data",
+            "build",
+            s(&scenes),
+            "--out",
+            s(&out),
+            "--per-scene",
+            "2",
+        ];
+        if force {
+            args.push("--force");
+        }
+        sage3d(&args)
+    };
+    for force in [false, true] {
+        let run = build(force);
+        assert!(!run.status.success());
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(err.contains("did not write"), "{err}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(out.join("episodes").join("train.jsonl")).unwrap(),
+        "my own file\n"
+    );
+    // Beside files of the user's own names --force writes, and a rerun resumes.
+    std::fs::remove_dir_all(out.join("episodes")).unwrap();
+    assert!(!build(false).status.success());
+    assert!(build(true).status.success());
+    assert!(build(false).status.success());
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "mine\n"
+    );
+}

@@ -1,7 +1,7 @@
 //! The run record: how an output folder was made (SPEC §13).
 
 use crate::files::write_json;
-use sage_core::Result;
+use sage_core::{Error, Result};
 use std::path::Path;
 
 /// The file in which a command records how its output folder was made (SPEC §13).
@@ -25,4 +25,74 @@ pub fn write_run_record(
         fields.extend(extra);
     }
     write_json(&dir.join(RUN_RECORD), &record)
+}
+
+/// The command named by the run record in `dir`, if there is a readable one.
+pub fn recorded_command(dir: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join(RUN_RECORD)).ok()?;
+    let record: serde_json::Value = serde_json::from_str(&text).ok()?;
+    record.get("command")?.as_str().map(String::from)
+}
+
+/// Checks that `command` may write its outputs (`names`: the files and folders it writes at
+/// the top of `dir`) into `dir`: a folder that does not exist, an empty one, or one whose run
+/// record names `command` (a rerun, which resumes). Any other folder holds files `command`
+/// did not write: it is refused unless `force`, and even then when it holds one of `names`,
+/// which would be replaced.
+///
+/// # Errors
+///
+/// An `invalid` error naming the folder and what it holds, or an unreadable folder.
+pub fn claim_folder(dir: &Path, command: &str, names: &[&str], force: bool) -> Result<()> {
+    if !dir.exists() {
+        return Ok(());
+    }
+    let mut held: Vec<String> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    held.sort();
+    if held.is_empty() || recorded_command(dir).as_deref() == Some(command) {
+        return Ok(());
+    }
+    if let Some(clash) = held.iter().find(|h| names.contains(&h.as_str())) {
+        return Err(Error::invalid(format!(
+            "the output folder holds '{clash}', which `sage3d {command}` did not write and would replace; choose an empty or new folder"
+        ))
+        .in_file(dir));
+    }
+    if !force {
+        return Err(Error::invalid(format!(
+            "the output folder holds files `sage3d {command}` did not write ('{}'); choose an empty or new folder, or pass --force to write beside them",
+            held[0]
+        ))
+        .in_file(dir));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_folder_is_claimed_only_when_new_empty_or_the_same_commands() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        claim_folder(&out, "data build", &["episodes"], false).unwrap();
+        std::fs::create_dir(&out).unwrap();
+        claim_folder(&out, "data build", &["episodes"], false).unwrap();
+        std::fs::write(out.join("notes.txt"), "mine").unwrap();
+        let e = claim_folder(&out, "data build", &["episodes"], false).unwrap_err();
+        assert!(e.to_string().contains("notes.txt") && e.to_string().contains("--force"));
+        claim_folder(&out, "data build", &["episodes"], true).unwrap();
+        std::fs::create_dir(out.join("episodes")).unwrap();
+        let e = claim_folder(&out, "data build", &["episodes"], true).unwrap_err();
+        assert!(e.to_string().contains("'episodes'"), "{e}");
+        write_run_record(&out, "data build", None, serde_json::json!({})).unwrap();
+        claim_folder(&out, "data build", &["episodes"], false).unwrap();
+        let e = claim_folder(&out, "nav trajectories", &["episodes"], true).unwrap_err();
+        assert!(e.to_string().contains("episodes"), "{e}");
+    }
 }

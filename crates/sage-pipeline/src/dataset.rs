@@ -17,17 +17,21 @@ pub struct DatasetReport {
 }
 
 /// Builds (or resumes) the dataset of the scenes under `scenes` into `out`; `on_scene(outcome,
-/// scenes)` is called as each of the `scenes` folders is done.
+/// scenes)` is called as each of the `scenes` folders is done. `out` must be new, empty or a
+/// dataset build's folder; with `force`, a folder of other files is written into, provided
+/// none of them would be replaced ([`sage_io::run::claim_folder`]).
 ///
 /// # Errors
 ///
-/// Bad settings (shares outside 0..1, naming the flags), no scenes, or a write error. A scene
-/// that fails is skipped with its reason (in the outcomes) and the build goes on.
+/// Bad settings (shares outside 0..1, naming the flags), no scenes, an output folder holding
+/// files the build did not write, or a write error. A scene that fails is skipped with its
+/// reason (in the outcomes) and the build goes on.
 pub fn build(
     scenes: &Path,
     out: &Path,
     params: &SceneParams,
     assemble: &AssembleParams,
+    force: bool,
     on_scene: &(dyn Fn(&SceneOutcome, usize) + Sync),
 ) -> Result<DatasetReport> {
     params.validate()?;
@@ -38,6 +42,7 @@ pub fn build(
         ));
     }
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
+    sage_io::run::claim_folder(out, "data build", &build::OUTPUTS, force)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let (outcomes, summary) =
         build::build(&dirs, out, params, assemble, &|o| on_scene(o, dirs.len()))?;

@@ -275,6 +275,7 @@ impl Step {
                 out,
                 params,
                 assemble,
+                false,
                 &|_, n| tick(n, "scenes"),
             )?)),
             Step::TrainData { settings, out } => {

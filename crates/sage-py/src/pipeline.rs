@@ -60,7 +60,9 @@ pub fn build_dataset<'py>(
     let params = SceneParams::new(per_scene, seed);
     let assemble = AssembleParams::new(seed, balanced, scene_unseen, val);
     let report = py
-        .detach(|| sage_pipeline::dataset::build(&scenes, &out, &params, &assemble, &|_, _| {}))
+        .detach(|| {
+            sage_pipeline::dataset::build(&scenes, &out, &params, &assemble, false, &|_, _| {})
+        })
         .py()?;
     to_py(py, &report.summary)
 }

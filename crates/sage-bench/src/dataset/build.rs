@@ -40,6 +40,19 @@ use std::path::{Path, PathBuf};
 pub const NOGOAL_TEXT: &str =
     "Explore this environment as much as possible, but avoid colliding with anything.";
 /// Draws per instruction before the grammar gives up on a type for a trajectory.
+/// What a dataset build writes at the top of its folder (the LLM cache is there by default).
+pub const OUTPUTS: [&str; 9] = [
+    "episodes",
+    "gvln",
+    "r2r",
+    "scenes",
+    "llm_cache",
+    "splits.json",
+    "summary.json",
+    "summary.txt",
+    sage_io::RUN_RECORD,
+];
+
 const ATTEMPTS: usize = 3;
 /// Stream offsets of the per-scene random streams (trajectories use stream `t`).
 const BASE_STREAM: u64 = 1 << 32;
