@@ -156,7 +156,12 @@ mod tests {
             agent: "uav".into(),
             ..Options::new(d, s)
         };
-        let e = uav.settings().unwrap().env_config().unwrap_err().to_string();
+        let e = uav
+            .settings()
+            .unwrap()
+            .env_config()
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("not a ground agent"), "{e}");
     }
 }
