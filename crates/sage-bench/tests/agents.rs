@@ -23,7 +23,6 @@ use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
-use std::time::Duration;
 
 /// One small home and its dataset, built once per test process: (temp dir, scenes, dataset).
 fn fixture() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
@@ -307,7 +306,8 @@ enum Fault {
     CloseEarly,
     HugeLength,
     NotJson,
-    Sleep,
+    /// Never answer: hold the connection until the client gives up and closes it.
+    Silent,
     Serve,
 }
 
@@ -328,11 +328,12 @@ fn socket_server(
             };
             let body: Value = serde_json::from_slice(&body).expect("the request is JSON");
             let fault = fault(n);
-            if let Fault::Sleep = fault {
-                // Sleep on its own thread so the retry is served at once.
+            if let Fault::Silent = fault {
+                // Wait on its own thread for the client to close (its timeout), so the retry is
+                // served at once; no clock of this side decides anything.
                 std::thread::spawn(move || {
-                    std::thread::sleep(Duration::from_millis(1200));
-                    drop(s);
+                    let mut sink = [0u8; 64];
+                    while matches!(s.read(&mut sink), Ok(n) if n > 0) {}
                 });
                 continue;
             }
@@ -349,7 +350,7 @@ fn socket_server(
                     write_frame(&mut s, b"<html>busy</html>");
                     continue;
                 }
-                Fault::Sleep | Fault::Serve => {}
+                Fault::Silent | Fault::Serve => {}
             }
             let images: Vec<String> = body["images"]
                 .as_array()
@@ -467,14 +468,16 @@ fn socket_faults_are_retried_and_recorded_and_a_dead_server_fails_episodes_not_t
         Fault::CloseEarly,
         Fault::HugeLength,
         Fault::NotJson,
-        Fault::Sleep,
+        Fault::Silent,
     ];
     let (port, _) = socket_server(navila(), move |n| {
         faults.get(n).copied().unwrap_or(Fault::Serve)
     });
     let dir = tempfile::tempdir().unwrap();
     let (_, records) = evaluate(
-        &format!("socket:127.0.0.1:{port}?timeout=0.5&retries=4"),
+        // A timeout far above any reply time of a loaded machine: only the silent connection
+        // reaches it.
+        &format!("socket:127.0.0.1:{port}?timeout=5&retries=4"),
         &dir.path().join("run"),
     );
     check_scripted_records(&records);
