@@ -34,6 +34,21 @@ pub fn recorded_command(dir: &Path) -> Option<String> {
     record.get("command")?.as_str().map(String::from)
 }
 
+/// The names of the entries of folder `dir`, sorted.
+///
+/// # Errors
+///
+/// An unreadable folder, naming it.
+pub fn entries(dir: &Path) -> Result<Vec<String>> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    Ok(names)
+}
+
 /// Checks that `command` may write its outputs (`names`: the files and folders it writes at
 /// the top of `dir`) into `dir`: a folder that does not exist, an empty one, or one whose run
 /// record names `command` (a rerun, which resumes). Any other folder holds files `command`
@@ -47,12 +62,7 @@ pub fn claim_folder(dir: &Path, command: &str, names: &[&str], force: bool) -> R
     if !dir.exists() {
         return Ok(());
     }
-    let mut held: Vec<String> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .collect();
-    held.sort();
+    let held = entries(dir)?;
     if held.is_empty() || recorded_command(dir).as_deref() == Some(command) {
         return Ok(());
     }

@@ -284,12 +284,11 @@ impl Step {
                 StepReport::TrainData(if train.is_empty() {
                     None
                 } else {
-                    let walks = sage_traindata::Plan::new(settings)?.route_count();
                     Some(Box::new(sage_traindata::render(
                         settings,
                         out,
                         false,
-                        &|_| tick(walks, "walks"),
+                        &|r| tick(r.of, "walks"),
                     )?))
                 })
             }

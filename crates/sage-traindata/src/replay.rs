@@ -102,6 +102,20 @@ pub struct Walk {
     pub verdict: Verdict,
 }
 
+/// The turns left of `episode`'s ground-truth actions less its turns right: how far a
+/// rotation in place turns, in the dataset's turns.
+pub fn net_turns(episode: &Episode) -> i32 {
+    episode
+        .actions
+        .iter()
+        .map(|a| match a {
+            sage_lang::Action::Left => 1,
+            sage_lang::Action::Right => -1,
+            _ => 0,
+        })
+        .sum()
+}
+
 /// The turns of the preset that a rotation in place of `degrees` (positive: left) takes: as
 /// many whole turns as fit, at least one (the published action generator's rule).
 pub fn turns_in_place(degrees: f32, preset: &ActionPreset) -> i32 {
@@ -134,15 +148,7 @@ pub fn walk(
     let episode = first.env_episode();
     let mut follower = PathFollower::new(preset);
     if first.reference_path.len() == 1 {
-        let net: i32 = first
-            .actions
-            .iter()
-            .map(|a| match a {
-                sage_lang::Action::Left => 1,
-                sage_lang::Action::Right => -1,
-                _ => 0,
-            })
-            .sum();
+        let net = net_turns(first);
         follower.rotate_in_place(turns_in_place(net as f32 * dataset_turn_deg, preset));
     }
     let mut obs = env.reset(&episode)?;

@@ -235,7 +235,7 @@ impl Plan {
             .filter(|e| {
                 let why = if e.task != Task::Vln {
                     "no_goal"
-                } else if e.reference_path.len() < 2 && !turns(e) {
+                } else if e.reference_path.len() < 2 && replay::net_turns(e) == 0 {
                     "no_motion"
                 } else {
                     return true;
@@ -301,13 +301,6 @@ impl Plan {
     }
 }
 
-/// True when `e`'s ground-truth actions turn (a rotation in place has no path to walk).
-fn turns(e: &sage_bench::dataset::Episode) -> bool {
-    e.actions
-        .iter()
-        .any(|a| matches!(a, sage_lang::Action::Left | sage_lang::Action::Right))
-}
-
 /// A route finished by [`render_scene`] (for progress displays).
 #[derive(Debug, Clone)]
 pub struct RouteDone {
@@ -317,6 +310,8 @@ pub struct RouteDone {
     pub route: String,
     /// Frames written.
     pub frames: usize,
+    /// Routes in the whole render (all scenes).
+    pub of: usize,
     /// Why it could not be walked.
     pub error: Option<String>,
 }
@@ -395,6 +390,7 @@ pub fn render_scene(
                     scene: scene.into(),
                     route: route.name.clone(),
                     frames: 0,
+                    of: plan.route_count(),
                     error: rec.error,
                 });
             }
@@ -447,6 +443,7 @@ pub fn render_scene(
                     scene: scene.into(),
                     route: route.name.clone(),
                     frames,
+                    of: plan.route_count(),
                     error: rec.error,
                 });
                 Ok(())
@@ -646,6 +643,9 @@ fn images_entry(out: &Path, samples: &[EpisodeSample]) -> Result<FileEntry> {
     })
 }
 
+/// The command a render's run record names.
+const COMMAND: &str = "data render";
+
 /// The files a render may have written in an output folder (nothing else is ever touched).
 const OWN: [&str; 7] = [
     IMAGES_DIR,
@@ -673,28 +673,21 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
     let record_path = out.join(sage_io::run::RUN_RECORD);
     let settings = plan.settings.recorded();
     if out.is_dir() {
-        let names: Vec<String> = std::fs::read_dir(out)
-            .map_err(|e| Error::io(out, e))?
-            .filter_map(|e| e.ok())
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .collect();
+        let names = sage_io::run::entries(out)?;
         if let Some(foreign) = names.iter().find(|n| !is_own(n)) {
             return Err(Error::invalid(format!(
                 "the output folder holds '{foreign}', which a training-data render did not write; choose an empty or new folder"
             ))
             .in_file(out));
         }
-        let record = read_json::<serde_json::Value>(&record_path).ok();
-        let rendered = record
-            .as_ref()
-            .is_some_and(|old| old.get("command").and_then(|c| c.as_str()) == Some("data render"));
+        let rendered = sage_io::run::recorded_command(out).as_deref() == Some(COMMAND);
         if !names.is_empty() && !rendered {
             return Err(Error::invalid(
                 "the output folder is not a training-data render's (its run record is missing or names another command); choose an empty or new folder",
             )
             .in_file(out));
         }
-        let same = record.is_some_and(|old| {
+        let same = read_json::<serde_json::Value>(&record_path).is_ok_and(|old| {
             old.get("settings") == Some(&settings)
                 && old.get("dataset_hash").and_then(|h| h.as_str())
                     == Some(plan.dataset_hash.as_str())
@@ -723,7 +716,7 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     sage_io::run::write_run_record(
         out,
-        "data render",
+        COMMAND,
         Some(plan.settings.seed),
         serde_json::json!({ "settings": settings, "dataset_hash": plan.dataset_hash }),
     )?;
