@@ -35,6 +35,15 @@ def small_scene(tmp_path_factory, sage3d):
     return out
 
 
+def write_split(data, name, lines):
+    """Writes the episode lines as split `name` of dataset `data` and lists it in its
+    `splits.json`, as a split made by hand must be (a `*.jsonl` not listed is not a split)."""
+    (data / "episodes" / f"{name}.jsonl").write_text("\n".join(lines) + "\n")
+    listed = json.loads((data / "splits.json").read_text())
+    listed["splits"][name] = [json.loads(line)["episode_id"] for line in lines]
+    (data / "splits.json").write_text(json.dumps(listed, indent=2) + "\n")
+
+
 def few_vln_split(sage3d, root):
     """A synthetic home under `root/scenes` and a dataset under `root/data` with a `few` split of
     three VLN episodes with distinct instructions (few rendered steps: the debug build renders
@@ -52,5 +61,5 @@ def few_vln_split(sage3d, root):
             vln.append(line)
     vln = vln[:3]
     assert len(vln) == 3, "expected the built dataset to hold 3 VLN episodes with distinct instructions"
-    (data / "episodes" / "few.jsonl").write_text("\n".join(vln) + "\n")
+    write_split(data, "few", vln)
     return scenes, data, {json.loads(line)["episode_id"]: json.loads(line)["instruction"] for line in vln}

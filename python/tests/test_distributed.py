@@ -51,8 +51,9 @@ def test_generate_equals_data_build(local_ray, scenes, cli_data, tmp_path):
     for rel in files(cli_data):
         assert (tmp_path / "ray" / rel).read_bytes() == (cli_data / rel).read_bytes(), rel
     run = lambda d: json.loads((d / "sage3d_run.json").read_text())  # noqa: E731
-    assert run(tmp_path / "ray")["config"] == run(cli_data)["config"]
-    assert run(tmp_path / "ray")["inputs"] == run(cli_data)["inputs"]
+    for key in ("config", "inputs"):
+        assert run(tmp_path / "ray")[key] == run(cli_data)[key], key
+    assert run(tmp_path / "ray")["scenes"]["absolute"] == run(cli_data)["scenes"]["absolute"]
     again = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)
     assert [o["status"] for o in again["scenes"]] == ["resumed"] * 3
 
@@ -65,21 +66,46 @@ class Forward:
 
 
 @pytest.mark.parametrize("agent", ["oracle", Forward()], ids=["builtin", "python"])
-def test_evaluate_equals_cli_eval(local_ray, scenes, cli_data, sage3d, tmp_path, agent):
+def test_evaluate_equals_cli_eval(local_ray, scenes, cli_data, sage3d, tmp_path, agent, capfd):
     from sage3d import distributed
 
     name = sg.evaluation.agent_name(agent)
     sage3d("eval", cli_data, "--scenes", scenes, "--agent", name, "--split", "test_balanced",
            "--out", tmp_path / "cli")
     kwargs = {"sensors": []} if not isinstance(agent, str) else {}
-    summary = distributed.evaluate(cli_data, scenes, agent, tmp_path / "ray", split="test_balanced", **kwargs)
-    assert (tmp_path / "ray" / "summary.json").read_bytes() == (tmp_path / "cli" / "summary.json").read_bytes()
+    # No scenes: the folder the dataset records.
+    summary = distributed.evaluate(cli_data, agent=agent, out=tmp_path / "ray", split="test_balanced", **kwargs)
+    # The same files byte for byte: records sorted by episode id in both, no timings in either.
+    for f in ("episodes.jsonl", "summary.json"):
+        assert (tmp_path / "ray" / f).read_bytes() == (tmp_path / "cli" / f).read_bytes(), f
     assert summary == json.loads((tmp_path / "cli" / "summary.json").read_text())
-    lines = lambda d: (d / "episodes.jsonl").read_text().splitlines()  # noqa: E731
-    ray_lines = lines(tmp_path / "ray")
+    ray_lines = (tmp_path / "ray" / "episodes.jsonl").read_text().splitlines()
     by_id = lambda line: json.loads(line)["episode_id"]  # noqa: E731
-    # The same records, one line each, sorted by episode id (the CLI's are in finishing order).
-    assert ray_lines == sorted(lines(tmp_path / "cli"), key=by_id)
     assert [by_id(line) for line in ray_lines] == sorted(map(by_id, ray_lines))
     shards = sorted(p.name for p in (tmp_path / "ray" / "shards").iterdir())
     assert shards == sorted({json.loads(line)["scene"] for line in ray_lines})
+    # Progress on stderr (a line per task, or a tqdm bar), in episodes of the split.
+    err = capfd.readouterr().err
+    assert f"{len(ray_lines)}/{len(ray_lines)}" in err, err
+
+
+class Crash:
+    """An agent whose worker process dies on its first step, as on a node that is lost."""
+
+    name = "crash"
+
+    def act(self, obs):
+        import os
+
+        os._exit(1)
+
+
+def test_a_task_whose_worker_dies_is_named_and_nothing_is_merged(local_ray, cli_data, tmp_path, capfd):
+    from sage3d import distributed
+
+    with pytest.raises(RuntimeError, match=r"scene tasks failed .*its worker process died \(WorkerCrashedError\)"):
+        distributed.evaluate(cli_data, agent=Crash(), out=tmp_path / "ray", split="test_balanced", sensors=[],
+                             max_retries=0)
+    err = capfd.readouterr().err
+    assert "task failed: its worker process died" in err, err
+    assert not (tmp_path / "ray" / "summary.json").exists()

@@ -114,7 +114,7 @@ def run_eval(sage3d, dataset, tmp_path, agent, expect_failure=False):
                   check=not expect_failure)
     if expect_failure:
         assert proc.returncode != 0, "a run whose every episode failed must exit non-zero"
-        assert "every episode of the run failed" in proc.stderr, proc.stderr
+        assert "every episode of the run faulted" in proc.stderr, proc.stderr
     records = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     summary = json.loads((out / "summary.json").read_text())
     run = json.loads((out / "sage3d_run.json").read_text())

@@ -148,12 +148,12 @@ def test_python_agents_see_images_and_their_errors_are_recorded(data, tmp_path):
         def act(self, obs):
             raise RuntimeError("no idea")
 
-    with pytest.warns(RuntimeWarning, match="every episode of the run failed"):
+    with pytest.warns(RuntimeWarning, match="every episode of the run faulted"):
         r = sg.evaluate(dataset, scenes, Broken(), tmp_path / "broken", split="test_balanced", sensors=[])
     recs = jsonl(tmp_path / "broken" / "episodes.jsonl")
     assert len(r["summary"]["failed"]) == len(recs) > 0
     assert all("no idea" in x["error"] and x["failure"] == "episode_error" for x in recs)
     assert r["summary"]["failures"] == {"episode_error": len(recs)}
     # strict: the same run (resumed from its folder) raises, as `sage3d eval --strict` exits 1.
-    with pytest.raises(ValueError, match=f"every episode of the run failed \\({len(recs)}\\)"):
+    with pytest.raises(ValueError, match=f"every episode of the run faulted \\({len(recs)}\\)"):
         sg.evaluate(dataset, scenes, Broken(), tmp_path / "broken", split="test_balanced", sensors=[], strict=True)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import sage3d as sg
+from conftest import write_split
 from sage3d.training import ACTIONS, TrainingSet
 
 FORMATS = ("navila", "webdataset", "frames")
@@ -45,7 +46,7 @@ def data(tmp_path_factory, sage3d):
         first, second = list(by_path.values())[:2]
         few += first[:2] + second[:1]
     assert len(few) == 6, "expected two scenes in train with two routes each"
-    (dataset / "episodes" / "few.jsonl").write_text("\n".join(few) + "\n")
+    write_split(dataset, "few", few)
     return scenes, dataset
 
 

@@ -19,7 +19,8 @@ pub enum DataCommand {
     /// as NaVILA annotations, WebDataset shards or a folder tree (parallel, resumable).
     Render(RenderArgs),
     /// Read episodes from a SAGE-Bench GVLN file or an R2R-VLNCE split into a dataset folder's
-    /// split (DATASET/episodes/SPLIT.jsonl), for `eval` and `data render`.
+    /// split (DATASET/episodes/SPLIT.jsonl, listed in DATASET/splits.json), for `eval` and
+    /// `data render`.
     Import(ImportArgs),
 }
 
@@ -48,13 +49,14 @@ pub struct ImportArgs {
 pub struct RenderArgs {
     /// The dataset folder (made by `sage3d data build`: episodes/{split}.jsonl).
     dataset: PathBuf,
-    /// A scene folder, or a folder of scene folders, holding the dataset's scenes.
+    /// A scene folder, or a folder of scene folders, holding the dataset's scenes (default: the
+    /// scenes folder the dataset was built from, as its sage3d_run.json records it).
     #[arg(long)]
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     /// Output folder (new or empty; rerun with the same settings to resume).
     #[arg(long)]
     out: PathBuf,
-    /// The split to render.
+    /// The split to render (one of those DATASET/splits.json lists).
     #[arg(long, default_value = "train")]
     split: String,
     /// Action preset: vlnce (0.25 m, 15°), navila_small (0.35 m, 30°), navila_large

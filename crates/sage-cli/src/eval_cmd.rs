@@ -1,8 +1,9 @@
-//! `sage3d eval DATASET --scenes SCENES --agent A --out RUN`: run an agent over a dataset split
+//! `sage3d eval DATASET [--scenes SCENES] --agent A --out RUN`: run an agent over a dataset split
 //! under a progress bar, resumably, print the summary tables and write the run's report
 //! (`docs/evaluation.md`).
 
 use crate::progress::bar;
+use sage_bench::dataset::folder::scenes_folder;
 use sage_bench::eval::{EvalSettings, RunOutcome};
 use sage_bench::report::ReportOutcome;
 use sage_core::{Error, Result};
@@ -14,9 +15,10 @@ use std::time::Instant;
 pub struct EvalArgs {
     /// Dataset folder (as `sage3d data build` writes it).
     dataset: PathBuf,
-    /// One scene folder or a folder of scene folders, named as the episodes' scenes.
+    /// One scene folder or a folder of scene folders, named as the episodes' scenes (default:
+    /// the scenes folder the dataset was built from, as its sage3d_run.json records it).
     #[arg(long)]
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     /// Agent: random, forward, oracle; replay:FILE (JSONL of recorded actions or poses per
     /// episode); socket:HOST:PORT (SAGE socket protocol), http:URL (POST /vln_step) or
     /// chat:MODEL@BASE_URL (OpenAI-compatible; key from OPENAI_API_KEY), with options
@@ -25,7 +27,7 @@ pub struct EvalArgs {
     /// See docs/evaluation.md.
     #[arg(long)]
     agent: String,
-    /// Dataset split (`DATASET/episodes/{split}.jsonl`).
+    /// Dataset split, one of those DATASET/splits.json lists (`DATASET/episodes/{split}.jsonl`).
     #[arg(long, default_value = "test_balanced")]
     split: String,
     /// Metric mode: sage, vlnce or sage-official.
@@ -51,8 +53,8 @@ pub struct EvalArgs {
 /// Runs or resumes the evaluation and prints its tables.
 pub fn run(a: EvalArgs) -> Result<()> {
     let settings = EvalSettings {
+        scenes: scenes_folder(&a.dataset, a.scenes.as_deref())?,
         dataset: a.dataset,
-        scenes: a.scenes,
         split: a.split,
         agent: a
             .agent

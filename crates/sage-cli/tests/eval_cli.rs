@@ -1,6 +1,8 @@
-//! `sage3d eval`: the oracle solves every VLN episode of a dataset; the summary does not depend
-//! on the thread count; a run cut short (lines lost, last line half-written) resumes to the same
-//! summary with every episode recorded once; bad input gives clear errors.
+//! `sage3d eval`: the oracle solves every VLN episode of a dataset; the summary and the records
+//! file do not depend on the thread count; a run cut short (lines lost, last line half-written)
+//! resumes to the same files with every episode recorded once; the scenes folder comes from the
+//! dataset unless `--scenes` says otherwise; splits are those the dataset lists; bad input gives
+//! clear errors.
 
 mod common;
 
@@ -57,12 +59,17 @@ fn oracle_solves_the_vln_episodes_independent_of_threads_and_resumes_exactly() {
     assert_eq!(run["settings"]["agent"], "oracle");
     assert!(run["dataset_hash"].as_str().is_some());
 
-    // Two threads: records finish in another order, the summary is the same bytes.
+    // Two threads: records finish in another order, the files are the same bytes (the records
+    // end sorted by episode id).
     let two = dir.path().join("two");
     eval("2", &data, &scenes, &two, &["--agent", "oracle"]);
     assert_eq!(
         read(&two.join("summary.json")),
         read(&one.join("summary.json"))
+    );
+    assert_eq!(
+        read(&two.join("episodes.jsonl")),
+        read(&one.join("episodes.jsonl"))
     );
     assert_eq!(ids(&two), ids(&one));
 
@@ -82,6 +89,10 @@ fn oracle_solves_the_vln_episodes_independent_of_threads_and_resumes_exactly() {
     let out = eval("2", &data, &scenes, &two, &["--agent", "oracle"]);
     assert!(out.contains("3 run now"), "{out}");
     assert_eq!(ids(&two), ids(&one));
+    assert_eq!(
+        read(&two.join("episodes.jsonl")),
+        read(&one.join("episodes.jsonl"))
+    );
     assert_eq!(
         read(&two.join("summary.json")),
         read(&one.join("summary.json"))
@@ -142,11 +153,11 @@ fn bad_input_gives_clear_errors() {
         e.contains("unknown split 'tset'") && e.contains("train, val"),
         "{e}"
     );
-    // An empty split is an error naming the splits that hold episodes; no run folder is made.
-    std::fs::write(data.join("episodes/empty.jsonl"), "").unwrap();
-    let e = err(&data, "empty", "oracle");
+    // An empty split (one scene: no validation scenes) is an error naming the splits that hold
+    // episodes; no run folder is made.
+    let e = err(&data, "val", "oracle");
     assert!(
-        e.contains("split 'empty' has no episodes") && e.contains("train") && !e.contains("empty,"),
+        e.contains("split 'val' has no episodes (splits with episodes: train)"),
         "{e}"
     );
     assert!(!run.exists(), "no run folder for an empty split");
@@ -192,11 +203,11 @@ fn a_scene_that_cannot_be_loaded_fails_its_episodes_and_the_run_goes_on() {
     );
     assert!(!out.status.success(), "{stdout}");
     assert!(
-        stderr.contains("every episode of the run failed") && stderr.contains("scene_load"),
+        stderr.contains("every episode of the run faulted") && stderr.contains("scene_load"),
         "{stderr}"
     );
     assert!(
-        stdout.starts_with("FAILED: "),
+        stdout.starts_with("FAULTED: "),
         "the failures come first: {stdout}"
     );
     let records: Vec<serde_json::Value> = read(&run.join("episodes.jsonl"))
@@ -237,7 +248,7 @@ fn strict_fails_a_run_with_any_failed_episode() {
         summary["failures"],
         serde_json::json!({"episode_error": failed})
     );
-    assert!(out.starts_with(&format!("FAILED: {failed} of ")), "{out}");
+    assert!(out.starts_with(&format!("FAULTED: {failed} of ")), "{out}");
     let strict = dir.path().join("strict");
     let run = eval_output(
         "2",
@@ -256,4 +267,68 @@ fn strict_fails_a_run_with_any_failed_episode() {
         read(&strict.join("summary.json")),
         read(&lenient.join("summary.json"))
     );
+}
+
+#[test]
+fn eval_runs_in_the_scenes_the_dataset_records_unless_told_otherwise() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let eval_in = |scenes: Option<&Path>, split: &str, run: &Path| {
+        let mut args = vec!["eval", s(&data), "--split", split, "--agent", "forward"];
+        args.extend(["--out", s(run)]);
+        if let Some(scenes) = scenes {
+            args.extend(["--scenes", s(scenes)]);
+        }
+        sage3d(&args)
+    };
+    let stderr = |out: &std::process::Output| String::from_utf8_lossy(&out.stderr).into_owned();
+    // Without --scenes: the recorded folder, the same run as with it.
+    let (recorded, given) = (dir.path().join("recorded"), dir.path().join("given"));
+    let out = eval_in(None, "train", &recorded);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(eval_in(Some(&scenes), "train", &given).status.success());
+    for f in ["episodes.jsonl", "summary.json"] {
+        assert_eq!(read(&recorded.join(f)), read(&given.join(f)), "{f}");
+    }
+    // --scenes overrides the record: a folder without the dataset's scene is refused.
+    let others = dir.path().join("others");
+    small_scene(&others.join("office9"), "3", "1000");
+    let e = stderr(&eval_in(Some(&others), "train", &dir.path().join("o")));
+    assert!(
+        e.contains("scene 'home1'") && e.contains("not among the scenes"),
+        "{e}"
+    );
+
+    // Splits are those splits.json lists: a stray *.jsonl is not one.
+    let train = read(&data.join("episodes/train.jsonl"));
+    let first = train.lines().next().unwrap();
+    std::fs::write(data.join("episodes/notes.jsonl"), format!("{first}\n")).unwrap();
+    let e = stderr(&eval_in(None, "notes", &dir.path().join("n")));
+    assert!(
+        e.contains("unknown split 'notes' (this dataset has: test_balanced, test_instruction_unseen, test_scene_unseen, test_trajectory_unseen, train, val)"),
+        "{e}"
+    );
+
+    // The recorded folder gone: a clear error naming it.
+    let moved = dir.path().join("scenes_moved");
+    std::fs::rename(&scenes, &moved).unwrap();
+    let e = stderr(&eval_in(None, "train", &dir.path().join("m")));
+    assert!(
+        e.contains("the recorded scenes folder") && e.contains("does not exist; pass --scenes"),
+        "{e}"
+    );
+
+    // A dataset written before the list and the record: every *.jsonl is a split, and the
+    // scenes must be given.
+    std::fs::remove_file(data.join("splits.json")).unwrap();
+    std::fs::remove_file(data.join("sage3d_run.json")).unwrap();
+    let e = stderr(&eval_in(None, "train", &dir.path().join("l")));
+    assert!(
+        e.contains("the dataset does not record its scenes folder; pass --scenes"),
+        "{e}"
+    );
+    let legacy = dir.path().join("legacy");
+    let out = eval_in(Some(&moved), "notes", &legacy);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(read(&legacy.join("episodes.jsonl")).lines().count(), 1);
 }

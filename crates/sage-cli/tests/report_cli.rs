@@ -1,6 +1,6 @@
 //! `sage3d report` and the report `sage3d eval` writes: eval prints the report's path, a
-//! regenerated report is the same bytes (also with the run's own scenes folder), and bad run
-//! folders give errors naming the file.
+//! regenerated report is the same bytes (also with the run's own scenes folder), faulted
+//! episodes are listed under a banner, and bad run folders give errors naming the file.
 
 mod common;
 
@@ -41,30 +41,35 @@ fn eval_writes_the_report_and_report_regenerates_the_same_bytes() {
 }
 
 #[test]
-fn failed_episodes_are_listed_with_their_errors() {
+fn faulted_episodes_are_listed_with_their_errors() {
     let dir = tempfile::tempdir().unwrap();
     let (scenes, data) = small_dataset(dir.path());
     let run = dir.path().join("run");
-    // The oracle cannot act on a no-goal episode: it is recorded with an error.
+    // The oracle cannot act on a no-goal episode: it is recorded with an error, never scored.
     eval("2", &data, &scenes, &run, &["--agent", "oracle"]);
     let records = std::fs::read_to_string(run.join("episodes.jsonl")).unwrap();
-    let failed: Vec<serde_json::Value> = records
+    let faulted: Vec<serde_json::Value> = records
         .lines()
         .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
         .filter(|r| r.get("error").is_some())
         .collect();
-    assert!(!failed.is_empty());
+    assert!(!faulted.is_empty());
     let html = std::fs::read_to_string(run.join("report.html")).unwrap();
-    assert!(html.contains(&format!("episodes failed</th><td>{}", failed.len())));
+    assert!(html.contains(&format!("episodes faulted</th><td>{}", faulted.len())));
     // A banner above everything says so and links the list.
     let banner = &html[..html.find("<h2>Run</h2>").unwrap()];
     assert!(
-        banner.contains(&format!("{} of ", failed.len())) && banner.contains("href=\"#failed\""),
+        banner.contains(&format!("{} of ", faulted.len()))
+            && banner.contains("episodes faulted")
+            && banner.contains("href=\"#faulted\""),
         "{banner}"
     );
-    let section = &html[html.find("<h2 id=\"failed\">Failed episodes</h2>").unwrap() + 4..];
+    let section = &html[html
+        .find("<h2 id=\"faulted\">Faulted episodes</h2>")
+        .unwrap()
+        + 4..];
     let section = &section[..section.find("<h2>").unwrap()];
-    for r in failed {
+    for r in faulted {
         let id = r["episode_id"].as_str().unwrap();
         let error = r["error"]
             .as_str()

@@ -136,12 +136,11 @@ fn skipped_episodes_are_named_and_the_exit_status_says_so() {
     )
     .unwrap();
     let out = dir.path().join("out");
+    // Without --scenes: the scenes folder the dataset records.
     let run = sage3d(&[
         "data",
         "render",
         s(&data),
-        "--scenes",
-        s(&scenes),
         "--out",
         s(&out),
         "--width",
@@ -218,6 +217,27 @@ fn gvln_and_r2r_files_import_as_a_split_that_renders() {
         "--out",
         s(&imported),
     ]);
+    // Both imports are listed as splits; the imported dataset records no scenes folder.
+    let listed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(imported.join("splits.json")).unwrap())
+            .unwrap();
+    let names: Vec<&String> = listed["splits"].as_object().unwrap().keys().collect();
+    assert_eq!(names, ["from_r2r", "train"]);
+    let unplaced = sage3d(&[
+        "data",
+        "render",
+        s(&imported),
+        "--split",
+        "from_r2r",
+        "--out",
+        s(&dir.path().join("unplaced")),
+    ]);
+    let err = String::from_utf8_lossy(&unplaced.stderr);
+    assert!(
+        !unplaced.status.success()
+            && err.contains("the dataset does not record its scenes folder; pass --scenes"),
+        "{err}"
+    );
     let out = dir.path().join("out");
     let printed = ok(&[
         "data",

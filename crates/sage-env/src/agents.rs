@@ -13,6 +13,8 @@ use glam::Vec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Polygon2, Result, wrap_angle};
+use sage_metrics::distance::POSE_SUCCESS_DISTANCE;
+use sage_nav::PathFinder;
 use serde::{Deserialize, Serialize};
 
 /// Something that chooses actions from observations.
@@ -309,16 +311,21 @@ pub struct OracleAgent {
     goal: Vec2,
     forward: f32,
     turn: f32,
-    last: Option<(Action, Vec2)>,
+    last: Option<(Action, Vec2, f32)>,
     replans: usize,
     stop_radius: f32,
     /// The goal object's footprint, when the episode names one.
     region: Option<Polygon2>,
     /// The task's success distance to the goal region.
     success: f32,
-    /// Past the end point, closing in on an object goal's footprint.
+    /// Past the end point, closing in on an object goal's footprint or turning to a pose
+    /// goal's heading.
     approaching: bool,
+    /// A pose goal's heading (Base-Action): the oracle stops at the point facing it.
+    heading: Option<f32>,
     scene: Option<std::sync::Arc<crate::SceneContext>>,
+    /// The path finder for the agent's profile (its radius).
+    planner: Option<std::sync::Arc<PathFinder>>,
 }
 
 /// How far inside the success distance of an object goal the oracle stops, metres: its end
@@ -337,23 +344,41 @@ impl OracleAgent {
         }
     }
 
+    /// Plans from `from` to the goal on the agent's own path finder (its profile's radius), or
+    /// where that finds no way, on the scene's.
     fn plan(&mut self, from: Vec2) -> Result<()> {
         let ctx = self.scene.as_ref().expect("set at reset");
-        let pf = &ctx.pathfinder;
-        let start = if pf.is_navigable(from) {
-            from
-        } else {
-            pf.snap_point(from, 1.0).ok_or_else(|| {
-                Error::invalid(format!(
-                    "oracle: no navigable cell within 1 m of ({:.2}, {:.2})",
-                    from.x, from.y
-                ))
-            })?
-        };
-        self.waypoints = pf.find_path(start, self.goal)?.waypoints;
+        let own = self.planner.as_ref().expect("set at reset");
+        let path =
+            path_on(own, from, self.goal).or_else(|_| path_on(&ctx.pathfinder, from, self.goal))?;
+        // A point every step along the path, as the reference paths are resampled: the oracle
+        // heads for one between one and two steps ahead, so a heading that is up to half a turn
+        // off strays a few centimetres from the line before it is corrected, where aiming at a
+        // corner metres away would stray decimetres (and touch what the line passes closely).
+        self.waypoints = sage_core::geometry::resample_polyline(&path, self.forward);
         self.next = 1.min(self.waypoints.len() - 1);
         Ok(())
     }
+}
+
+/// The waypoints of a path on `pf` from `from` to `goal`, each snapped to its navigable grid
+/// within 1 m (an agent pressed against an obstacle, a goal point closer to furniture than a
+/// wide agent may come); the goal itself ends the path.
+fn path_on(pf: &PathFinder, from: Vec2, goal: Vec2) -> Result<Vec<Vec2>> {
+    let snap = |p: Vec2| {
+        pf.snap_point(p, 1.0).ok_or_else(|| {
+            Error::invalid(format!(
+                "oracle: no navigable cell within 1 m of ({:.2}, {:.2})",
+                p.x, p.y
+            ))
+        })
+    };
+    let (start, end) = (snap(from)?, snap(goal)?);
+    let mut waypoints = pf.find_path(start, end)?.waypoints;
+    if end != goal {
+        waypoints.push(goal);
+    }
+    Ok(waypoints)
 }
 
 impl Agent for OracleAgent {
@@ -373,12 +398,19 @@ impl Agent for OracleAgent {
             .as_ref()
             .and_then(|id| env.context().footprint(id).ok());
         self.success = env.config().task.success_distance;
+        self.heading = goal.heading;
         self.approaching = false;
         self.forward = forward;
         self.turn = turn;
         self.last = None;
         self.replans = 0;
         self.scene = Some(env.context().clone());
+        // A scene with no room at all for an agent that wide: it plans on the scene's grid.
+        let ctx = env.context();
+        self.planner = Some(
+            ctx.planner(env.profile().radius)
+                .unwrap_or_else(|_| ctx.pathfinder.clone()),
+        );
         // An unreachable goal is the episode's property, not a fault: the oracle then stops.
         if self.plan(episode.start.position.truncate()).is_err() {
             self.waypoints.clear();
@@ -388,14 +420,28 @@ impl Agent for OracleAgent {
 
     fn act(&mut self, obs: &Observation) -> Result<Action> {
         let at = obs.pose.position.truncate();
-        let blocked = matches!(self.last, Some((Action::MoveForward, before)) if at.distance(before) < 0.1 * self.forward);
+        // Blocked: the last forward step made little headway along its heading (sliding along
+        // a wall beside an opening it missed moves the agent, but not where it was going).
+        let blocked = matches!(self.last, Some((Action::MoveForward, before, yaw))
+            if (at - before).dot(Vec2::from_angle(yaw)) < 0.5 * self.forward);
         if self.waypoints.is_empty() {
             return Ok(Action::Stop);
         }
-        if self.approaching || at.distance(self.goal) <= self.stop_radius {
+        // A pose goal is reached only at its point (the success test's distance), facing its
+        // heading.
+        let arrival = match self.heading {
+            Some(_) => self.stop_radius.min(POSE_SUCCESS_DISTANCE as f32),
+            None => self.stop_radius,
+        };
+        if self.approaching || at.distance(self.goal) <= arrival {
             self.approaching = true;
+            if let Some(heading) = self.heading {
+                return Ok(self.steer(wrap_angle(heading - obs.pose.yaw), Action::Stop));
+            }
             // At the end point: done, unless an object goal is still not well inside the
-            // success distance; then step straight towards its footprint (contact stops it).
+            // success distance; then a step straight towards its footprint, unless that step
+            // would leave the navigable area (touch what stands there) where the episode
+            // already succeeds.
             let target = match &self.region {
                 Some(r) if !blocked && !r.contains(at) => r
                     .nearest_boundary_point(at)
@@ -403,7 +449,15 @@ impl Agent for OracleAgent {
                 _ => None,
             };
             return Ok(match target {
-                Some(q) => self.head_for(q, at, obs.pose.yaw),
+                Some(q) => match self.head_for(q, at, obs.pose.yaw) {
+                    Action::MoveForward
+                        if at.distance(q) <= self.success
+                            && self.step_leaves_navigable(at, obs.pose.yaw) =>
+                    {
+                        Action::Stop
+                    }
+                    action => action,
+                },
                 None => Action::Stop,
             });
         }
@@ -420,7 +474,38 @@ impl Agent for OracleAgent {
         {
             self.next += 1;
         }
-        Ok(self.head_for(self.waypoints[self.next], at, obs.pose.yaw))
+        let action = self.head_for(self.waypoints[self.next], at, obs.pose.yaw);
+        // Near the goal a last step that would leave the navigable area (a goal point beside
+        // furniture, approached a few degrees off) would touch it: where the episode already
+        // succeeds, the oracle stops instead.
+        if action == Action::MoveForward
+            && self.heading.is_none()
+            && self.goal_distance(at) <= self.success - SUCCESS_MARGIN
+            && self.step_leaves_navigable(at, obs.pose.yaw)
+        {
+            return Ok(Action::Stop);
+        }
+        Ok(action)
+    }
+}
+
+impl OracleAgent {
+    /// Euclidean distance from `at` to the goal region (0 inside an object's footprint).
+    fn goal_distance(&self, at: Vec2) -> f32 {
+        match &self.region {
+            Some(r) if r.contains(at) => 0.0,
+            Some(r) => r.distance_to_boundary(at),
+            None => at.distance(self.goal),
+        }
+    }
+
+    /// True when a forward step from `at` facing `yaw` crosses a cell the agent's path finder
+    /// does not count navigable.
+    fn step_leaves_navigable(&self, at: Vec2, yaw: f32) -> bool {
+        let pf = self.planner.as_ref().expect("set at reset");
+        let dir = Vec2::from_angle(yaw);
+        let n = (self.forward / 0.05).ceil().max(1.0) as usize;
+        (1..=n).any(|k| !pf.is_navigable(at + dir * (self.forward * k as f32 / n as f32)))
     }
 }
 
@@ -428,16 +513,21 @@ impl OracleAgent {
     /// Turns towards `target` until it is within half a turn step, else moves forward.
     fn head_for(&mut self, target: Vec2, at: Vec2, yaw: f32) -> Action {
         let d = target - at;
-        let error = wrap_angle(d.y.atan2(d.x) - yaw);
-        let action = if error > 0.5 * self.turn {
+        let action = self.steer(wrap_angle(d.y.atan2(d.x) - yaw), Action::MoveForward);
+        self.last = Some((action, at, yaw));
+        action
+    }
+
+    /// A turn towards a heading `error` radians away, or `aligned` once it is within half a
+    /// turn step.
+    fn steer(&self, error: f32, aligned: Action) -> Action {
+        if error > 0.5 * self.turn {
             Action::TurnLeft
         } else if error < -0.5 * self.turn {
             Action::TurnRight
         } else {
-            Action::MoveForward
-        };
-        self.last = Some((action, at));
-        action
+            aligned
+        }
     }
 }
 

@@ -5,7 +5,9 @@ use sage_metrics::distance::LabelledBox;
 use sage_nav::{CostParams, GridParams, PathFinder, PublishedMap, SemanticMap, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies, World, WorldOptions, default_cache_dir};
 use sage_scene::Scene;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// A loaded scene with its semantic map, collision bodies and path finder.
 ///
@@ -23,8 +25,11 @@ pub struct SceneContext {
     pub published_boxes: Option<Vec<LabelledBox>>,
     /// The physics world at rest, built once; every episode starts from a copy.
     world: World,
-    /// The navigable grid for geodesic distances and the oracle.
-    pub pathfinder: PathFinder,
+    /// The navigable grid for geodesic distances (every agent profile is scored on it).
+    pub pathfinder: Arc<PathFinder>,
+    /// Path finders over the same grid for agents wider than its planning radius, built on
+    /// first use, by radius in millimetres.
+    planners: Mutex<BTreeMap<u32, Arc<PathFinder>>>,
 }
 
 impl SceneContext {
@@ -60,8 +65,38 @@ impl SceneContext {
             semantic,
             published_boxes,
             world,
-            pathfinder,
+            pathfinder: Arc::new(pathfinder),
+            planners: Mutex::new(BTreeMap::new()),
         })
+    }
+
+    /// The path finder an agent of `radius` metres plans its own way with: the scene's where
+    /// `radius` is within its planning radius, else one over the same grid whose navigable
+    /// cells keep `radius` from obstacles (so a wider robot is not routed through gaps it
+    /// touches), built once per radius and kept.
+    ///
+    /// # Errors
+    ///
+    /// No cell of the scene is navigable for an agent that wide.
+    pub fn planner(&self, radius: f32) -> Result<Arc<PathFinder>> {
+        if radius <= self.pathfinder.params.robot_radius {
+            return Ok(self.pathfinder.clone());
+        }
+        let key = (radius * 1000.0).round() as u32;
+        let mut planners = self.planners.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(pf) = planners.get(&key) {
+            return Ok(pf.clone());
+        }
+        let params = CostParams {
+            robot_radius: key as f32 / 1000.0,
+            ..self.pathfinder.params.clone()
+        };
+        let pf = Arc::new(
+            PathFinder::new(self.pathfinder.grid.clone(), &self.scene.floorplan, params)
+                .map_err(|e| e.within(format!("planning for a {radius} m agent")))?,
+        );
+        planners.insert(key, pf.clone());
+        Ok(pf)
     }
 
     /// Loads a scene folder with its collision bodies (hulls cached in `cache`, by default

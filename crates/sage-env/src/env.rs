@@ -7,6 +7,7 @@ use crate::episode::{EnvEpisode, EpisodeTrace, StepInfo, Termination, TraceGeode
 use glam::{Vec2, Vec3};
 use sage_core::Task;
 use sage_core::{Error, Polygon2, Pose, Result};
+use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
 use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
 use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
@@ -114,6 +115,11 @@ impl Env {
         &self.config
     }
 
+    /// The agent's profile (its body's size, camera height, speeds).
+    pub fn profile(&self) -> &AgentProfile {
+        &self.profile
+    }
+
     /// The scene context.
     pub fn context(&self) -> &Arc<SceneContext> {
         &self.ctx
@@ -213,6 +219,8 @@ impl Env {
             Some(Termination::Collision)
         } else if s.trace.episode.task == Task::Nogoal && s.time >= task.nogoal_time_limit {
             Some(Termination::TimeLimit)
+        } else if left_scene(&self.ctx, s.body.pose.position.truncate()) {
+            Some(Termination::LeftScene)
         } else if steps >= task.max_steps {
             Some(Termination::MaxSteps)
         } else {
@@ -242,13 +250,29 @@ impl Env {
     }
 
     /// True when the task's success test passes now: within the success distance of the goal
-    /// region (the agent must still call STOP for the episode to succeed).
+    /// region, or for a pose goal (Base-Action) at its pose
+    /// ([`sage_metrics::distance::pose_reached`]); the agent must still call STOP for the
+    /// episode to succeed.
     pub fn within_success_distance(&self) -> bool {
         let Some(s) = &self.state else {
             return false;
         };
-        s.goal_distance(s.body.pose.position.truncate())
-            .is_some_and(|d| d <= self.config.task.success_distance)
+        let pose = s.body.pose;
+        match s
+            .trace
+            .episode
+            .goal
+            .as_ref()
+            .and_then(|g| Some((g, g.heading?)))
+        {
+            Some((goal, heading)) => pose_reached(
+                f64::from(pose.position.truncate().distance(goal.point.truncate())),
+                f64::from(pose.yaw - heading),
+            ),
+            None => s
+                .goal_distance(pose.position.truncate())
+                .is_some_and(|d| d <= self.config.task.success_distance),
+        }
     }
 
     /// The physics command, simulated seconds and camera tilt of `action`.
@@ -381,8 +405,29 @@ impl Env {
 }
 
 /// How far a position off the navigable grid (an agent pressed against an obstacle, inside the
-/// grid's safety inflation) is snapped to the nearest navigable cell for geodesic distances.
-pub const SNAP_DISTANCE: f32 = 0.5;
+/// grid's safety inflation, or one step past [`LEAVE_DISTANCE`] where it left the scene) is
+/// snapped to the nearest navigable cell for geodesic distances, metres.
+pub const SNAP_DISTANCE: f32 = 2.0;
+
+/// How far from the navigable area an agent outside every room may go before the episode ends
+/// with [`Termination::LeftScene`], metres: beyond a wall's thickness and the planning radius,
+/// so no position inside the building ends an episode.
+pub const LEAVE_DISTANCE: f32 = 1.0;
+
+/// True when `p` (floor plane) is outside every room of the scene and farther than
+/// [`LEAVE_DISTANCE`] from its navigable area. A scene without rooms is bounded by the
+/// navigable area alone.
+fn left_scene(ctx: &SceneContext, p: Vec2) -> bool {
+    let pf = &ctx.pathfinder;
+    !pf.is_navigable(p)
+        && !ctx
+            .scene
+            .floorplan
+            .rooms
+            .iter()
+            .any(|r| r.profile.contains(p))
+        && pf.snap_cell(p, LEAVE_DISTANCE).is_none()
+}
 
 /// `p` on the navigable grid: itself when navigable, else the nearest navigable cell centre
 /// within [`SNAP_DISTANCE`]; with the gap between the two.

@@ -20,6 +20,10 @@ pub struct EnvGoal {
     /// the goal region.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub object: Option<String>,
+    /// The heading a pose goal asks for (a Base-Action motion's end), radians: success then
+    /// needs the pose, not only the place (`sage_metrics::distance::GoalRegion::reached`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading: Option<f32>,
 }
 
 /// One episode as the environment runs it.
@@ -53,13 +57,21 @@ pub enum Termination {
     Collision,
     /// NoGoal: the simulated time limit was reached.
     TimeLimit,
+    /// The agent left the scene: outside every room and farther than
+    /// [`crate::env::LEAVE_DISTANCE`] from the navigable area (through an exterior opening,
+    /// say). Ends the episode unsuccessfully, whatever the task.
+    LeftScene,
 }
 
 impl Termination {
-    /// True when the task itself ended the episode (STOP, a NoGoal collision): Gymnasium's
-    /// `terminated`. The other endings are limits: [`Termination::is_truncation`].
+    /// True when the task itself ended the episode (STOP, a NoGoal collision, leaving the
+    /// scene): Gymnasium's `terminated`. The other endings are limits:
+    /// [`Termination::is_truncation`].
     pub fn is_terminal(self) -> bool {
-        matches!(self, Termination::Stop | Termination::Collision)
+        matches!(
+            self,
+            Termination::Stop | Termination::Collision | Termination::LeftScene
+        )
     }
 
     /// True when a step or time limit cut the episode: Gymnasium's `truncated`.
@@ -145,6 +157,7 @@ impl EnvEpisode {
             goal: Some(EnvGoal {
                 point: Vec3::from(t.goal.point),
                 object,
+                heading: None,
             }),
             reference_path: t.points.iter().map(|&p| Vec3::from(p)).collect(),
         }

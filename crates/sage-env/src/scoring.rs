@@ -21,6 +21,7 @@ pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
                 .map(|q| [f64::from(q[0]), f64::from(q[1])])
                 .collect()
         }),
+        heading: g.heading.map(f64::from),
     });
     let official_goal = match &ctx.published_boxes {
         None => OfficialGoal::NoMap,

@@ -49,6 +49,15 @@ impl Canvas {
         )
     }
 
+    /// The world point at pixel coordinates `q` (continuous): the inverse of [`Canvas::to_pixel`],
+    /// so marks placed in pixels (a legend) can be drawn with the world-space primitives.
+    pub fn to_world(&self, q: Vec2) -> Vec2 {
+        Vec2::new(
+            self.origin.x + q.x * self.scale,
+            self.top - q.y * self.scale,
+        )
+    }
+
     /// Sets pixel (x, y) when inside the image.
     pub fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
         if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
@@ -251,5 +260,6 @@ mod tests {
         assert!((100..=121).contains(&red), "{red}");
         // World y up = image row down: (1.0, 1.0) is at row 10, column 10.
         assert_eq!(c.to_pixel(Vec2::new(1.0, 1.0)), Vec2::new(10.0, 10.0));
+        assert_eq!(c.to_world(Vec2::new(10.0, 10.0)), Vec2::new(1.0, 1.0));
     }
 }

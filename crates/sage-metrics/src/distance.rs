@@ -2,6 +2,7 @@
 //! three modes (SPEC §10, §10.1).
 
 use super::dtw::euclidean;
+use super::smoothness::wrap;
 use serde::{Deserialize, Serialize};
 
 /// Success radius of mode `sage` (metres; the test is `≤`).
@@ -10,6 +11,13 @@ pub const SAGE_SUCCESS_DISTANCE: f64 = 1.0;
 pub const VLNCE_SUCCESS_DISTANCE: f64 = 3.0;
 /// Tolerance around the reference path for CSR in mode `sage` (metres).
 pub const CSR_TOLERANCE: f64 = 1.0;
+/// Success distance of a pose goal (a Base-Action motion's end) in mode `sage`, metres: less
+/// than half the smallest motion an instruction asks for (one 0.25 m step), so staying put
+/// never succeeds.
+pub const POSE_SUCCESS_DISTANCE: f64 = 0.1;
+/// Heading tolerance of a pose goal in mode `sage`, degrees: less than half the smallest turn
+/// an instruction asks for (30°).
+pub const POSE_SUCCESS_HEADING_DEG: f64 = 10.0;
 
 /// Σ‖p_t − p_{t−1}‖ over consecutive points.
 pub fn path_length(points: &[[f64; 2]]) -> f64 {
@@ -40,6 +48,13 @@ pub fn point_polyline(p: &[f64; 2], line: &[[f64; 2]]) -> f64 {
     }
 }
 
+/// The pose test of a pose goal: `distance` (metres) from its point within
+/// [`POSE_SUCCESS_DISTANCE`] and the heading difference `dyaw` (radians, any winding) within
+/// [`POSE_SUCCESS_HEADING_DEG`].
+pub fn pose_reached(distance: f64, dyaw: f64) -> bool {
+    distance <= POSE_SUCCESS_DISTANCE && wrap(dyaw).abs().to_degrees() <= POSE_SUCCESS_HEADING_DEG
+}
+
 /// True when `p` lies inside the polygon (even-odd rule).
 pub fn polygon_contains(poly: &[[f64; 2]], p: &[f64; 2]) -> bool {
     let mut inside = false;
@@ -64,9 +79,23 @@ pub struct GoalRegion {
     /// The end object's footprint polygon, when there is one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub footprint: Option<Vec<[f64; 2]>>,
+    /// The heading a pose goal asks for (radians): set for Base-Action motions, whose success
+    /// in mode `sage` is the pose test ([`GoalRegion::reached`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub heading: Option<f64>,
 }
 
 impl GoalRegion {
+    /// The success test of mode `sage` at position `p` and heading `yaw`: a pose goal is
+    /// reached within [`POSE_SUCCESS_DISTANCE`] of its point and [`POSE_SUCCESS_HEADING_DEG`]
+    /// of its heading; any other goal within `radius` of the region (`≤`).
+    pub fn reached(&self, p: &[f64; 2], yaw: f64, radius: f64) -> bool {
+        match self.heading {
+            Some(h) => pose_reached(euclidean(p, &self.point), yaw - h),
+            None => self.distance(p) <= radius,
+        }
+    }
+
     /// Euclidean distance from `p` to the region (0 inside the footprint).
     pub fn distance(&self, p: &[f64; 2]) -> f64 {
         match &self.footprint {
@@ -280,6 +309,7 @@ mod tests {
         let g = GoalRegion {
             point: [1.0, -1.0],
             footprint: Some(sq),
+            heading: None,
         };
         assert_eq!(g.distance(&[1.0, 1.0]), 0.0);
         assert_eq!(g.distance(&[3.0, 1.0]), 1.0);
@@ -289,6 +319,7 @@ mod tests {
         let p = GoalRegion {
             point: [1.0, 1.0],
             footprint: None,
+            heading: None,
         };
         assert_eq!(p.distance(&[4.0, 5.0]), 5.0);
     }

@@ -415,9 +415,19 @@ fn vln_metrics(
     let (success, ndtw) = match mode {
         Mode::Sage => {
             let r = distance::SAGE_SUCCESS_DISTANCE;
-            let success = rec.stop_called && goal.distance(&last) <= r;
+            let yaws: Vec<f64> = std::iter::once(rec.start_yaw)
+                .chain(rec.steps.iter().map(|s| s.yaw))
+                .map(f64::from)
+                .collect();
+            let last_yaw = *yaws.last().unwrap_or(&yaws[0]);
+            let success = rec.stop_called && goal.reached(&last, last_yaw, r);
             m.ne = Some(opt(rec.geodesics.final_to_region));
-            m.osr = Some(flag(trace[1..].iter().any(|p| goal.distance(p) <= r)));
+            m.osr = Some(flag(
+                trace[1..]
+                    .iter()
+                    .zip(&yaws[1..])
+                    .any(|(p, &yaw)| goal.reached(p, yaw, r)),
+            ));
             m.spl = Some(
                 distance::spl(success, opt(rec.geodesics.start_to_region), tl)
                     .unwrap_or(flag(success)),

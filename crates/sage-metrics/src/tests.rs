@@ -40,6 +40,7 @@ fn vln_record(official_goal: OfficialGoal) -> EpisodeRecord {
         goal: Some(GoalRegion {
             point: [2.0, 0.0],
             footprint: Some(vec![[2.5, -0.5], [3.5, -0.5], [3.5, 0.5], [2.5, 0.5]]),
+            heading: None,
         }),
         geodesics: Geodesics {
             start_to_region: Some(2.5),
@@ -235,6 +236,7 @@ fn zero_shortest_distance_spl() {
     r.goal = Some(GoalRegion {
         point: [0.0, 0.0],
         footprint: None,
+        heading: None,
     });
     r.geodesics = Geodesics {
         start_to_region: Some(0.0),
@@ -420,6 +422,7 @@ mod properties {
                     goal: Some(GoalRegion {
                         point: [f64::from(end[0]), f64::from(end[1])],
                         footprint: None,
+                        heading: None,
                     }),
                     geodesics: Geodesics {
                         start_to_region: Some(2.0),
@@ -455,4 +458,45 @@ mod properties {
             }
         }
     }
+}
+
+#[test]
+fn pose_goal_needs_the_pose_in_sage_mode() {
+    // "Turn 90 degrees to the left in place": the goal is the start point facing +y.
+    let mut r = vln_record(OfficialGoal::NoMap);
+    r.reference_path = vec![[0.0, 0.0, 0.0]];
+    r.goal = Some(GoalRegion {
+        point: [0.0, 0.0],
+        footprint: None,
+        heading: Some(FRAC_PI_2),
+    });
+    r.geodesics = Geodesics {
+        start_to_region: Some(0.0),
+        final_to_region: Some(0.0),
+        start_to_point: Some(0.0),
+    };
+    let stop = |yaw: f64| vec![step(0.0, 0.0, yaw, (0.0, 0.0), (false, 0.0), 0.0)];
+    // STOP at once: in place, facing the start heading: not the pose asked for.
+    r.steps = stop(0.0);
+    let m = evaluate(&r, Mode::Sage).unwrap();
+    close(m.sr, 0.0);
+    close(m.osr, 0.0);
+    close(m.spl, 0.0);
+    close(m.sdtw, 0.0);
+    // Turned as asked (within 10°, across the ±π seam too).
+    r.steps = stop(FRAC_PI_2 + 0.1);
+    close(evaluate(&r, Mode::Sage).unwrap().sr, 1.0);
+    r.goal.as_mut().unwrap().heading = Some(std::f64::consts::PI);
+    r.steps = stop(-std::f64::consts::PI + 0.05);
+    close(evaluate(&r, Mode::Sage).unwrap().sr, 1.0);
+    // Facing right but 0.15 m off the point: more than the pose distance.
+    r.steps = vec![step(
+        0.15,
+        0.0,
+        std::f64::consts::PI,
+        (0.15, 0.15),
+        (false, 0.0),
+        0.15,
+    )];
+    close(evaluate(&r, Mode::Sage).unwrap().sr, 0.0);
 }

@@ -1,7 +1,7 @@
 //! The occupancy grid of an agent's height slab (SPEC §7).
 //!
 //! A cell is an obstacle when any object or wall geometry intersects the slab from
-//! [`GridParams::slab_bottom`] (0.1 m) to [`GridParams::agent_height`] (1.2 m) above the floor
+//! [`GridParams::slab_bottom`] (0.03 m) to [`GridParams::agent_height`] (1.2 m) above the floor
 //! over the cell's square: mesh triangles are clipped to the slab and every cell their floor
 //! projection touches is blocked (exact triangle–slab–cell overlap, so thin walls and table tops
 //! do not leak), and the inside of each object's closed outline is filled. Walls come from
@@ -29,7 +29,9 @@ pub struct GridParams {
     pub cell: f32,
     /// Top of the agent's slab above the floor, metres (default 1.2).
     pub agent_height: f32,
-    /// Bottom of the slab, metres (default 0.1): rugs and thresholds below it do not block.
+    /// Bottom of the slab, metres (default 0.03, the lowest body clearance of the agent
+    /// profiles, the wheeled robot's): rugs and thresholds below it do not block, an office
+    /// chair's star base or a sofa's plinth does, as it blocks the agent's body.
     pub slab_bottom: f32,
     /// Unknown margin around the mapped area, metres (default 0.5).
     pub margin: f32,
@@ -40,7 +42,7 @@ impl Default for GridParams {
         GridParams {
             cell: 0.05,
             agent_height: 1.2,
-            slab_bottom: 0.1,
+            slab_bottom: 0.03,
             margin: 0.5,
         }
     }

@@ -4,7 +4,9 @@
 //! - An **object** endpoint stands beside its footprint: a navigable cell whose distance to the
 //!   polygon lies between `stand_min` (the safety distance) and `stand_max`, facing the object's
 //!   centre. Up to eight stand points are kept, one per 45° sector around the object; a pair
-//!   uses the one on the side facing the other endpoint.
+//!   uses the one on the side facing the other endpoint. Only roomy cells (clearance ≥ robot
+//!   radius + shortcut margin) stand when the object has any: an agent stopping at bare radius
+//!   clearance touches what is beside it.
 //! - An **area** is a functional group around an anchor object (a dining table and the chairs
 //!   around it, a bed and its nightstands, …): the objects of the anchor's room whose footprints
 //!   lie within `area_reach` of the anchor's; its polygon is the hull of their footprints, and it
@@ -406,6 +408,21 @@ fn room_stands(pf: &PathFinder, room: usize, clearance: f32) -> Vec<Stand> {
 
 /// Up to eight stand points around a polygon (see the module docs).
 fn ring_stands(pf: &PathFinder, polygon: &Polygon2, params: &SamplingParams) -> Vec<Stand> {
+    let roomy = ring_stands_on(pf, polygon, params, true);
+    if roomy.is_empty() {
+        ring_stands_on(pf, polygon, params, false)
+    } else {
+        roomy
+    }
+}
+
+/// [`ring_stands`] among the roomy cells only (`roomy_only`) or among all navigable ones.
+fn ring_stands_on(
+    pf: &PathFinder,
+    polygon: &Polygon2,
+    params: &SamplingParams,
+    roomy_only: bool,
+) -> Vec<Stand> {
     if polygon.points.is_empty() {
         return Vec::new();
     }
@@ -421,7 +438,13 @@ fn ring_stands(pf: &PathFinder, polygon: &Polygon2, params: &SamplingParams) -> 
     for j in j0..=j1 {
         for i in i0..=i1 {
             let k = g.index(i, j);
-            if !pf.passable[k] {
+            // Stand points keep the shortcut margin where the object's surroundings allow: the
+            // agent stops there, and at bare radius clearance it touches what is beside it.
+            if !(if roomy_only {
+                pf.roomy[k]
+            } else {
+                pf.passable[k]
+            }) {
                 continue;
             }
             let p = g.center(i, j);

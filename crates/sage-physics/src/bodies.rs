@@ -7,7 +7,7 @@ use crate::hull::ConvexPart;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use sage_core::{Error, InstanceId, Obb, Result};
-use sage_scene::{HoleKind, InstanceKind, PhysicsRole, RigidBody, Scene, Wall};
+use sage_scene::{DoorState, HoleKind, InstanceKind, PhysicsRole, RigidBody, Scene, Wall};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -203,6 +203,14 @@ impl SceneBodies {
                     hull_volume: parts.iter().map(ConvexPart::volume).sum(),
                     source,
                 });
+            }
+            // An open door leaf known only by its box is no body (SPEC §6), as the navigation
+            // grid leaves it free: a body there would stop agents on paths planned through it.
+            if o.mesh.is_none()
+                && o.category.contains("door")
+                && o.door_state() == Some(DoorState::Open)
+            {
+                continue;
             }
             bodies.push(Body {
                 kind: BodyKind::Object(oi),

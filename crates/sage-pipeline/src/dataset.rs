@@ -46,7 +46,7 @@ pub fn build(
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let (outcomes, summary) =
         build::build(&dirs, out, params, assemble, &|o| on_scene(o, dirs.len()))?;
-    build::write_run_record(out, &dirs, params, assemble)?;
+    build::write_run_record(out, scenes, &dirs, params, assemble)?;
     Ok(DatasetReport {
         dirs,
         outcomes,

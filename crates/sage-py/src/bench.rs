@@ -8,6 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use sage_bench::agents::{AgentKind, AgentMaker};
 use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
+use sage_bench::dataset::folder;
 use sage_bench::eval::{self, EvalSettings, Runner, Summary};
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
@@ -37,10 +38,19 @@ pub fn agent_spec<'py>(py: Python<'py>, spec: &str) -> PyResult<Bound<'py, PyAny
     )
 }
 
-/// The split names of a dataset folder (its `episodes/*.jsonl`), sorted.
+/// The split names of a dataset folder (those its `splits.json` lists; for a dataset written
+/// before the list, its `episodes/*.jsonl`), sorted.
 #[pyfunction]
 pub fn list_splits(dataset: PathBuf) -> PyResult<Vec<String>> {
     eval::dataset_splits(&dataset).py()
+}
+
+/// The scenes folder of an evaluation or render of `dataset`: `scenes` when given, else the
+/// folder the dataset records (relative to the dataset first, then absolute).
+#[pyfunction]
+#[pyo3(signature = (dataset, scenes=None))]
+pub fn scenes_folder(dataset: PathBuf, scenes: Option<PathBuf>) -> PyResult<PathBuf> {
+    folder::scenes_folder(&dataset, scenes.as_deref()).py()
 }
 
 /// The scene folders under `root` (itself when it is one), sorted by name.
@@ -62,7 +72,7 @@ fn scoring(mode: &str, dtw: &str) -> PyResult<Scoring> {
 /// overrides in every file.
 fn settings(
     dataset: PathBuf,
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     split: &str,
     agent: &str,
     scoring: Scoring,
@@ -70,8 +80,8 @@ fn settings(
     preset: &str,
 ) -> PyResult<EvalSettings> {
     Ok(EvalSettings {
+        scenes: folder::scenes_folder(&dataset, scenes.as_deref()).py()?,
         dataset,
-        scenes,
         split: split.to_string(),
         agent: agent.parse().unwrap_or(AgentKind::Forward),
         mode: scoring.mode,
@@ -87,13 +97,14 @@ fn settings(
 /// `agent_name`. With a built-in agent and no `overrides` or `scenes_only`, this is exactly
 /// `sage3d eval`; otherwise the environment is `preset` with `overrides` (JSON; a Python agent
 /// sees the preset's images) and only the episodes of the scenes in `scenes_only` run.
+/// `scenes=None` runs in the scenes folder the dataset records.
 #[pyfunction]
 #[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
     dataset: PathBuf,
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     out: PathBuf,
     agent: &Bound<'py, PyAny>,
     agent_name: Option<String>,
@@ -188,7 +199,7 @@ struct Evaluated {
 
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
 /// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
-/// `sage3d_run.json`, as one `sage3d eval` over the union writes them (up to line order).
+/// `sage3d_run.json`, the same bytes as one `sage3d eval` over the union writes them.
 /// Returns the summary. An episode recorded by two shards is an error.
 #[pyfunction]
 #[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage", dtw="exact"))]
@@ -196,7 +207,7 @@ struct Evaluated {
 pub fn merge_eval<'py>(
     py: Python<'py>,
     dataset: PathBuf,
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     out: PathBuf,
     agent_name: String,
     shards: Vec<String>,
@@ -264,16 +275,18 @@ pub fn build_scene<'py>(
     Ok((to_py(py, &outcome)?, text))
 }
 
-/// Assembles a dataset from its scene files (`out/scenes/*.json`, one per name in `scenes`):
+/// Assembles a dataset from its scene files (`out/scenes/*.json`, one per folder in `scenes`):
 /// splits, balanced test selection, JSONL / GVLN / R2R files and the summary, then the run
-/// record, as `sage3d data build` ends. Returns the summary.
+/// record (naming `root`, the folder the scene folders were found in), as `sage3d data build`
+/// ends. Returns the summary.
 #[pyfunction]
-#[pyo3(signature = (out, scenes, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1, balanced=1000, scene_unseen=0.15, val=0.1))]
+#[pyo3(signature = (out, scenes, root, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1, balanced=1000, scene_unseen=0.15, val=0.1))]
 #[allow(clippy::too_many_arguments)]
 pub fn assemble_dataset<'py>(
     py: Python<'py>,
     out: PathBuf,
     scenes: Vec<PathBuf>,
+    root: PathBuf,
     per_scene: usize,
     seed: u64,
     base_actions: Option<usize>,
@@ -298,7 +311,7 @@ pub fn assemble_dataset<'py>(
         .detach(|| {
             let names: Vec<String> = scenes.iter().map(|d| name(d)).collect();
             let summary = build::assemble(&out, &names, &assemble, &params.space)?;
-            build::write_run_record(&out, &scenes, &params, &assemble)?;
+            build::write_run_record(&out, &root, &scenes, &params, &assemble)?;
             Ok::<_, Error>(summary)
         })
         .py()?;

@@ -30,6 +30,7 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::env_config, m)?)?;
     m.add_function(wrap_pyfunction!(bench::read_split, m)?)?;
     m.add_function(wrap_pyfunction!(bench::list_splits, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::scenes_folder, m)?)?;
     m.add_function(wrap_pyfunction!(bench::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(bench::agent_spec, m)?)?;
     m.add_function(wrap_pyfunction!(bench::merge_eval, m)?)?;

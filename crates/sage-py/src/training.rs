@@ -36,7 +36,7 @@ impl SensorList {
 #[allow(clippy::too_many_arguments)]
 pub fn training_settings(
     dataset: PathBuf,
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     split: &str,
     preset: &str,
     step: Option<f32>,
@@ -84,7 +84,8 @@ pub fn training_settings(
 }
 
 /// Renders (or resumes) a training set into `out`, as `sage3d data render DATASET --scenes
-/// SCENES --out OUT ...` does (the same library function, the same files byte for byte):
+/// SCENES --out OUT ...` does (the same library function, the same files byte for byte;
+/// `scenes=None`: the scenes folder the dataset records, as without `--scenes`):
 /// the split's goal-directed episodes walked with the preset's discrete actions, a frame
 /// rendered before every action, written as NaVILA annotation parts (`format="navila"`),
 /// WebDataset shards (`"webdataset"`) or a folder tree (`"frames"`). `sensors`: `"rgb"`,
@@ -100,7 +101,7 @@ pub fn training_settings(
 pub fn render_training_data<'py>(
     py: Python<'py>,
     dataset: PathBuf,
-    scenes: PathBuf,
+    scenes: Option<PathBuf>,
     out: PathBuf,
     split: &str,
     preset: &str,

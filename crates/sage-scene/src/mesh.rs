@@ -157,8 +157,35 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
     Ok(mesh)
 }
 
+/// Checks what the glTF reader's own validation assumes: it looks up a primitive's POSITION
+/// accessor before checking that the index exists, and panics on one that does not.
+fn check_position_accessors(bytes: &[u8]) -> Result<()> {
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| Error::format("gltf", e.to_string()))?;
+    let root = unchecked.document.as_json();
+    let position = gltf::json::validation::Checked::Valid(gltf::json::mesh::Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(a) = primitive.attributes.get(&position)
+                && a.value() >= root.accessors.len()
+            {
+                return Err(Error::format(
+                    format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
+                    format!(
+                        "accessor {} does not exist (the file has {})",
+                        a.value(),
+                        root.accessors.len()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn load_gltf(path: &Path) -> Result<TriMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    check_position_accessors(&bytes)?;
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::format("gltf", e.to_string()))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut buffers = Vec::new();

@@ -144,9 +144,10 @@ fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<[f64; 3]> {
         .ok_or_else(|| Error::format(key, "expected an array of 2 or 3 numbers"))?;
     let mut out = [0.0; 3];
     for (i, x) in arr.iter().enumerate() {
+        // The map holds the bounds as f32: a value beyond its range is not finite there.
         out[i] = x
             .as_f64()
-            .filter(|f| f.is_finite())
+            .filter(|f| (*f as f32).is_finite())
             .ok_or_else(|| Error::format(format!("{key}[{i}]"), "expected a finite number"))?;
     }
     Ok(out)
@@ -160,7 +161,7 @@ pub fn parse_placement(text: &str) -> Result<(f64, [f64; 3], [f64; 3])> {
     let scale = v
         .get("scale")
         .and_then(Value::as_f64)
-        .filter(|s| *s > 0.0 && s.is_finite())
+        .filter(|s| *s > 0.0 && (*s as f32) > 0.0 && (*s as f32).is_finite())
         .ok_or_else(|| Error::format("scale", "missing or not a positive number"))?;
     Ok((
         scale,

@@ -162,9 +162,14 @@ impl Camera {
         {
             return Err(Error::invalid("focal lengths must be positive and finite"));
         }
-        if !(self.near > 0.0 && self.far > self.near) {
+        if !(self.intrinsics.cx.is_finite() && self.intrinsics.cy.is_finite()) {
+            return Err(Error::invalid(
+                "the principal point (cx, cy) must be finite",
+            ));
+        }
+        if !(self.near > 0.0 && self.far > self.near && self.far.is_finite()) {
             return Err(Error::invalid(format!(
-                "need 0 < near < far, got near {} far {}",
+                "need 0 < near < far, both finite, got near {} far {}",
                 self.near, self.far
             )));
         }

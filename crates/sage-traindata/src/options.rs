@@ -5,6 +5,7 @@ use crate::encode::RgbCodec;
 use crate::output::Format;
 use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS};
 use crate::run::Settings;
+use sage_bench::dataset::folder::scenes_folder;
 use sage_core::{Error, Result};
 use std::path::PathBuf;
 
@@ -14,8 +15,9 @@ use std::path::PathBuf;
 pub struct Options {
     /// The dataset folder.
     pub dataset: PathBuf,
-    /// The scenes folder.
-    pub scenes: PathBuf,
+    /// The scenes folder (`None`: the one the dataset records,
+    /// [`sage_bench::dataset::folder::scenes_folder`]).
+    pub scenes: Option<PathBuf>,
     /// The split.
     pub split: String,
     /// The action preset's name.
@@ -56,7 +58,7 @@ pub struct Options {
 
 impl Options {
     /// The defaults for `dataset` and `scenes` (those of [`Settings::new`]).
-    pub fn new(dataset: PathBuf, scenes: PathBuf) -> Options {
+    pub fn new(dataset: PathBuf, scenes: Option<PathBuf>) -> Options {
         Options {
             dataset,
             scenes,
@@ -85,8 +87,10 @@ impl Options {
     ///
     /// # Errors
     ///
-    /// An unknown preset, format, sensor or image type, or a step, turn or cap out of range.
+    /// An unknown preset, format, sensor or image type, a step, turn or cap out of range, or no
+    /// scenes folder given nor recorded by the dataset.
     pub fn settings(&self) -> Result<Settings> {
+        let scenes = scenes_folder(&self.dataset, self.scenes.as_deref())?;
         let format: Format = self.format.parse()?;
         let preset = ActionPreset::with(
             ActionPreset::named(&self.preset)?,
@@ -123,7 +127,7 @@ impl Options {
             seed: self.seed,
             keep_failed: self.keep_failed,
             preview: self.preview,
-            ..Settings::new(&self.dataset, &self.scenes)?
+            ..Settings::new(&self.dataset, &scenes)?
         })
     }
 }
@@ -136,25 +140,25 @@ mod tests {
     fn the_default_options_are_the_default_settings() {
         let (d, s) = (PathBuf::from("d"), PathBuf::from("s"));
         assert_eq!(
-            Options::new(d.clone(), s.clone()).settings().unwrap(),
+            Options::new(d.clone(), Some(s.clone())).settings().unwrap(),
             Settings::new(&d, &s).unwrap()
         );
         let wds = Options {
             format: "webdataset".into(),
             image: "png".into(),
-            ..Options::new(d.clone(), s.clone())
+            ..Options::new(d.clone(), Some(s.clone()))
         }
         .settings()
         .unwrap();
         assert_eq!((wds.shard_size, wds.rgb_codec), (100, RgbCodec::Png));
         let bad = Options {
             image: "gif".into(),
-            ..Options::new(d.clone(), s.clone())
+            ..Options::new(d.clone(), Some(s.clone()))
         };
         assert!(bad.settings().unwrap_err().to_string().contains("gif"));
         let uav = Options {
             agent: "uav".into(),
-            ..Options::new(d, s)
+            ..Options::new(d, Some(s))
         };
         let e = uav
             .settings()

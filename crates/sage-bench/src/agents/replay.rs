@@ -180,6 +180,12 @@ fn action(v: &Value) -> std::result::Result<Action, String> {
         Some(Action::Fly { .. }) => {
             Err("fly actions cannot be replayed (the evaluator's robots are ground robots)".into())
         }
+        // A number too large for f32 reads as infinity; it would only fail later, mid-episode.
+        Some(Action::Velocity { vx, vy, wz, dt })
+            if ![vx, vy, wz, dt].iter().all(|n| n.is_finite()) =>
+        {
+            Err(format!("{v}: velocity values must be finite numbers"))
+        }
         Some(a) => Ok(a),
         None => Err(format!("{v}: {expected}")),
     }

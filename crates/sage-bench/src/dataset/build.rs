@@ -12,6 +12,7 @@
 //! seed gives the same bytes with any thread count.
 
 use crate::dataset::episode::{Episode, Goal, StartPose, Task};
+use crate::dataset::folder;
 use crate::dataset::formats::gvln::{self, GvlnFrame};
 use crate::dataset::formats::{jsonl, r2r};
 use crate::dataset::selector;
@@ -39,7 +40,6 @@ use std::path::{Path, PathBuf};
 /// The no-goal instruction (the published default, completed).
 pub const NOGOAL_TEXT: &str =
     "Explore this environment as much as possible, but avoid colliding with anything.";
-/// Draws per instruction before the grammar gives up on a type for a trajectory.
 /// What a dataset build writes at the top of its folder (the LLM cache is there by default).
 pub const OUTPUTS: [&str; 9] = [
     "episodes",
@@ -47,12 +47,13 @@ pub const OUTPUTS: [&str; 9] = [
     "r2r",
     "scenes",
     "llm_cache",
-    "splits.json",
+    folder::SPLITS_FILE,
     "summary.json",
     "summary.txt",
     sage_io::RUN_RECORD,
 ];
 
+/// Draws per instruction before the grammar gives up on a type for a trajectory.
 const ATTEMPTS: usize = 3;
 /// Stream offsets of the per-scene random streams (trajectories use stream `t`).
 const BASE_STREAM: u64 = 1 << 32;
@@ -311,6 +312,7 @@ pub fn scene_episodes(
                 reference: t.goal.reference.clone(),
                 kind: t.goal.kind.as_str().into(),
                 position: t.goal.point,
+                yaw: None,
             };
             let mut e = make(
                 format!("{}-t{}-{k}", scene.name, t.id),
@@ -356,6 +358,7 @@ pub fn scene_episodes(
             reference: String::new(),
             kind: "pose".into(),
             position: end,
+            yaw: poses.last().map(|p| sage_core::wrap_angle(p.yaw)),
         };
         let start = StartPose {
             position: plan.start.position.into(),
@@ -467,15 +470,18 @@ pub fn run_scene(
     }
 }
 
-/// Writes the dataset's run record into `out`: the settings of both steps and the fingerprints
-/// of every scene's input files (`dirs`, the scene folders), as `sage3d data build` and the
-/// distributed build leave it.
+/// Writes the dataset's run record into `out`: the scenes folder `scenes` the dataset was
+/// built from ([`folder::scenes_record`]: absolute and relative to `out`, so `eval` and `data
+/// render` find it), the settings of both steps and the fingerprints of every scene's input
+/// files (`dirs`, the scene folders), as `sage3d data build` and the distributed build leave
+/// it.
 ///
 /// # Errors
 ///
 /// The record cannot be written.
 pub fn write_run_record(
     out: &Path,
+    scenes: &Path,
     dirs: &[std::path::PathBuf],
     params: &SceneParams,
     assemble: &AssembleParams,
@@ -494,6 +500,7 @@ pub fn write_run_record(
         "data build",
         Some(assemble.seed),
         serde_json::json!({
+            "scenes": folder::scenes_record(out, scenes),
             "config": {"scene": params, "assemble": assemble},
             "inputs": inputs,
         }),
@@ -741,16 +748,19 @@ pub fn assemble(
         summary.unfollowable += f.report.unfollowable;
         summary.llm_failures += f.report.llm_failures;
     }
+    // The list of splits: the files just written, `test_balanced` only when it was.
     let split_ids: BTreeMap<&str, Vec<&str>> = by_split
         .iter()
         .map(|(k, v)| (*k, v.iter().map(|e| e.episode_id.as_str()).collect()))
-        .chain(std::iter::once((
-            "test_balanced",
-            balanced.iter().map(String::as_str).collect(),
-        )))
+        .chain((params.balanced > 0).then(|| {
+            (
+                "test_balanced",
+                balanced.iter().map(String::as_str).collect(),
+            )
+        }))
         .collect();
     write_json(
-        &out.join("splits.json"),
+        &out.join(folder::SPLITS_FILE),
         &serde_json::json!({"seed": params.seed, "params": params, "splits": split_ids}),
     )?;
     write_json(&out.join("summary.json"), &summary)?;

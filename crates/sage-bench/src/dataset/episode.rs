@@ -1,7 +1,7 @@
 //! One episode of the benchmark (SPEC §9), W frame.
 
 use crate::dataset::slices::Slices;
-use sage_core::{Pose, Vec3};
+use sage_core::{Error, Pose, Result, Vec3};
 use sage_env::{EnvEpisode, EnvGoal};
 use sage_lang::{Action, InstructionType, Level, SingleGoalKind, Source};
 use serde::{Deserialize, Serialize};
@@ -34,6 +34,10 @@ pub struct Goal {
     pub kind: String,
     /// Goal point `[x, y, z]` (the reference path's end), metres.
     pub position: [f32; 3],
+    /// The heading a pose goal ends at (Base-Action), radians: its success in mode `sage` is
+    /// the pose test of docs/metrics.md. Absent in other goals and older datasets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw: Option<f32>,
 }
 
 /// One episode.
@@ -81,7 +85,62 @@ pub struct Episode {
     pub slices: Slices,
 }
 
+/// The largest coordinate magnitude an episode file may hold, metres: far beyond any indoor
+/// scene, small enough that f32 keeps millimetres there and that following a path takes a
+/// bounded number of steps (a number too large for f32 reads as infinity).
+pub const MAX_COORDINATE: f32 = 1.0e4;
+
+/// Checks a point read from a file: finite, each coordinate within [`MAX_COORDINATE`].
+///
+/// # Errors
+///
+/// At `at`, naming the offending value.
+pub fn check_point(p: [f32; 3], at: &str) -> Result<()> {
+    if p.iter().all(|c| c.abs() <= MAX_COORDINATE) {
+        Ok(())
+    } else {
+        Err(Error::format(
+            at,
+            format!("{p:?}: expected finite coordinates within ±{MAX_COORDINATE} m"),
+        ))
+    }
+}
+
 impl Episode {
+    /// Checks the numbers of an episode read from a file: finite points within
+    /// [`MAX_COORDINATE`], finite headings and finite, non-negative lengths.
+    ///
+    /// # Errors
+    ///
+    /// The first bad field, named.
+    pub fn check(&self) -> Result<()> {
+        check_point(self.start.position, "start.position")?;
+        if !self.start.yaw.is_finite() {
+            return Err(Error::format("start.yaw", "expected a finite number"));
+        }
+        if let Some(g) = &self.goal {
+            check_point(g.position, "goal.position")?;
+            if g.yaw.is_some_and(|y| !y.is_finite()) {
+                return Err(Error::format("goal.yaw", "expected a finite number"));
+            }
+        }
+        for (i, p) in self.reference_path.iter().enumerate() {
+            check_point(*p, &format!("reference_path[{i}]"))?;
+        }
+        for (key, v) in [
+            ("path_length", self.path_length),
+            ("geodesic_distance", self.geodesic_distance),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::format(
+                    key,
+                    format!("{v}: expected a finite length >= 0"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The environment's view of this episode: an object goal names its item id, so the
     /// object's footprint becomes the goal region.
     pub fn env_episode(&self) -> EnvEpisode {
@@ -93,6 +152,7 @@ impl Episode {
             goal: self.goal.as_ref().map(|g| EnvGoal {
                 point: Vec3::from(g.position),
                 object: (g.kind == "object").then(|| g.reference.clone()),
+                heading: g.yaw.filter(|_| g.kind == "pose"),
             }),
             reference_path: self.reference_path.iter().map(|&p| Vec3::from(p)).collect(),
         }

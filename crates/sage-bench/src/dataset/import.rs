@@ -1,8 +1,8 @@
 //! Episodes from elsewhere (the published SAGE-Bench GVLN files, R2R-VLNCE splits) as one split
 //! of a dataset folder, so that `eval` and `data render` read them like a built dataset.
 
-use crate::dataset::Episode;
 use crate::dataset::formats::{gvln, jsonl, r2r};
+use crate::dataset::{Episode, folder};
 use glam::Vec2;
 use sage_core::{Error, Result};
 use sage_lang::ActionSpace;
@@ -27,8 +27,9 @@ pub enum Source {
     },
 }
 
-/// Reads `source` and writes its episodes as `dataset/episodes/{split}.jsonl`; returns them.
-/// An existing split file is replaced only with `force`.
+/// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
+/// in the dataset's `splits.json` ([`folder::add_split`]); returns the episodes. An existing
+/// split file is replaced only with `force`.
 ///
 /// # Errors
 ///
@@ -50,5 +51,6 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     }
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     jsonl::write(&file, &episodes)?;
+    folder::add_split(dataset, split, &episodes)?;
     Ok(episodes)
 }

@@ -6,7 +6,8 @@
 //! episode is appended to `RUN/episodes.jsonl` as one flushed line, so a crashed run resumes by
 //! skipping the ids already recorded ([`records`]); the summary is computed from the records
 //! sorted by episode id, so it does not depend on the thread count or finishing order
-//! ([`summary`]). Agents whose server holds one episode's state (NaVid) run their episodes one
+//! ([`summary`]); at the end the records file itself is rewritten in episode-id order, so it
+//! is the same bytes however the run went (threads, resumes, shards merged). Agents whose server holds one episode's state (NaVid) run their episodes one
 //! at a time.
 
 pub mod merge;
@@ -14,6 +15,7 @@ pub mod records;
 pub mod summary;
 
 use crate::agents::{AgentKind, AgentMaker};
+use crate::dataset::folder;
 use crate::dataset::slices::Slices;
 use crate::dataset::{Episode, Task};
 pub use merge::merge_shards;
@@ -162,11 +164,11 @@ pub struct RunOutcome {
 
 impl RunOutcome {
     /// Whether the run did what was asked: `Err` with the reason when every episode of the run
-    /// failed (nothing was scored) or, if `strict`, when any did.
+    /// faulted (none was scored) or, if `strict`, when any did.
     ///
     /// # Errors
     ///
-    /// The verdict, naming the failed count and the summary's failure kinds.
+    /// The verdict, naming the faulted count and the summary's failure kinds.
     pub fn verdict(&self, strict: bool) -> Result<()> {
         let failed = self.summary.failed.len();
         let episodes = self.summary.episodes;
@@ -174,9 +176,9 @@ impl RunOutcome {
             return Ok(());
         }
         let what = if failed == episodes {
-            format!("every episode of the run failed ({failed})")
+            format!("every episode of the run faulted ({failed})")
         } else {
-            format!("{failed} of {episodes} episodes failed (--strict)")
+            format!("{failed} of {episodes} episodes faulted (--strict)")
         };
         Err(Error::invalid(format!(
             "{what}: {}; see the records' \"error\" fields",
@@ -185,31 +187,14 @@ impl RunOutcome {
     }
 }
 
-/// The splits of `dataset` (the names of its `episodes/*.jsonl`), sorted.
+/// The splits of `dataset`, sorted: those its `splits.json` lists, or for a dataset written
+/// before the list every `episodes/*.jsonl` ([`folder::splits`]).
 ///
 /// # Errors
 ///
-/// An `invalid` error when `dataset` has no `episodes/` folder, or its read error.
+/// An `invalid` error when `dataset` has no `episodes/` folder, or a read error.
 pub fn dataset_splits(dataset: &Path) -> Result<Vec<String>> {
-    let dir = dataset.join("episodes");
-    if !dir.is_dir() {
-        return Err(Error::invalid(
-            "not a dataset folder (no episodes/ in it; make one with `sage3d data build`)",
-        )
-        .in_file(dataset));
-    }
-    let mut splits: Vec<String> = std::fs::read_dir(&dir)
-        .map_err(|e| Error::io(&dir, e))?
-        .filter_map(|e| e.ok())
-        .filter_map(|e| {
-            e.file_name()
-                .to_string_lossy()
-                .strip_suffix(".jsonl")
-                .map(str::to_string)
-        })
-        .collect();
-    splits.sort();
-    Ok(splits)
+    folder::splits(dataset)
 }
 
 /// The splits of `dataset` that hold at least one episode, sorted.
@@ -231,17 +216,24 @@ pub fn non_empty_splits(dataset: &Path) -> Result<Vec<String>> {
 ///
 /// # Errors
 ///
-/// An `invalid` error listing the dataset's splits when `split` has no file, or the file's
-/// read error.
+/// An `invalid` error listing the dataset's splits when `split` is not one of them, an
+/// error naming the missing file of a listed split, or the file's read error.
 pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
     let splits = dataset_splits(dataset)?;
     let file = dataset.join("episodes").join(format!("{split}.jsonl"));
-    if !file.is_file() {
+    if !splits.iter().any(|s| s == split) {
         return Err(Error::invalid(format!(
             "unknown split '{split}' (this dataset has: {})",
             splits.join(", ")
         ))
         .in_file(dataset));
+    }
+    if !file.is_file() {
+        return Err(Error::invalid(format!(
+            "split '{split}' is listed in {} but has no episodes file",
+            folder::SPLITS_FILE
+        ))
+        .in_file(&file));
     }
     let episodes = crate::dataset::formats::jsonl::read(&file)?;
     Ok((file, episodes))
@@ -512,7 +504,10 @@ pub fn run_with(
             .par_iter()
             .try_for_each(|(scene, eps)| run_scene(scene, eps))?;
     }
-    let all = records::read(&records_path, &ids)?;
+    drop(writer);
+    // Finishing order depends on the threads; sorted by id, the file is the same bytes for
+    // any thread count, resume or shard merge (`merge_shards` writes this order).
+    let all = records::sort(&records_path, &ids)?;
     let summary = Summary {
         agent: runner.agent_name.clone(),
         ..Summary::of(settings, &all)

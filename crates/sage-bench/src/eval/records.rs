@@ -1,5 +1,5 @@
-//! The per-episode records file (`RUN/episodes.jsonl`): appending flushed lines, and reading it
-//! back on resume.
+//! The per-episode records file (`RUN/episodes.jsonl`): appending flushed lines, reading it
+//! back on resume, and putting it in episode-id order when the run ends.
 //!
 //! A crash can only cut the last line short (every line is written whole and flushed before
 //! the next starts), so on resume an unfinished or unreadable last line is dropped and the file
@@ -123,16 +123,30 @@ pub fn resume(path: &Path, ids: &BTreeSet<&str>) -> Result<BTreeSet<String>> {
     Ok(records.into_iter().map(|r| r.episode_id).collect())
 }
 
-/// Every record of `path`, sorted by episode id.
+/// Every record of `path`, sorted by episode id, with the file rewritten in that order when
+/// it is not (each line kept byte for byte: printing a parsed record again could move a float
+/// by an ulp).
 ///
 /// # Errors
 ///
-/// As [`resume`], and a cut-short last line is an error here too.
-pub fn read(path: &Path, ids: &BTreeSet<&str>) -> Result<Vec<EvalRecord>> {
+/// As [`resume`], and a cut-short last line is an error here too; a write error.
+pub fn sort(path: &Path, ids: &BTreeSet<&str>) -> Result<Vec<EvalRecord>> {
     let text = read_text(path)?;
-    let (mut records, _) = parse(path, &text, ids, false)?;
-    records.sort_by(|a, b| a.episode_id.cmp(&b.episode_id));
-    Ok(records)
+    let (records, _) = parse(path, &text, ids, false)?;
+    // Strict parsing read every line into a record, so lines and records pair up.
+    let mut lines: Vec<(EvalRecord, &str)> = records
+        .into_iter()
+        .zip(text.split_inclusive('\n'))
+        .collect();
+    if !lines.is_sorted_by(|a, b| a.0.episode_id <= b.0.episode_id) {
+        lines.sort_by(|a, b| a.0.episode_id.cmp(&b.0.episode_id));
+        sage_io::files::write_atomic(path, |w| {
+            lines
+                .iter()
+                .try_for_each(|(_, l)| w.write_all(l.as_bytes()))
+        })?;
+    }
+    Ok(lines.into_iter().map(|(r, _)| r).collect())
 }
 
 #[cfg(test)]
@@ -184,8 +198,15 @@ mod tests {
             whole.lines().next().unwrap().to_string() + "\n"
         );
         Appender::open(&path).unwrap().append(&rec("a")).unwrap();
-        let all = read(&path, &ids).unwrap();
+        let all = sort(&path, &ids).unwrap();
         assert_eq!(all, vec![rec("a"), rec("b")]);
+        // The file now holds the same lines in id order.
+        let mut lines: Vec<&str> = whole.lines().collect();
+        lines.reverse();
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            lines.join("\n") + "\n"
+        );
         // A damaged line before the last, a duplicate, a foreign id: errors naming the line.
         for (text, needle) in [
             (format!("{{oops\n{whole}"), "line 1"),

@@ -8,11 +8,48 @@ use super::{EvalRecord, EvalSettings, Failure};
 use sage_env::agents::FaultKind;
 use sage_metrics::{Aggregate, Dtw, Mode, aggregate};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
 
 /// The slice axes, in table order.
 pub const AXES: [&str; 5] = ["task", "level", "instruction_type", "assets", "path"];
+
+/// A metric column of the summary tables: the text tables and the report show the same ones.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Column {
+    /// The metric's name in the aggregates (`summary.json`).
+    pub metric: &'static str,
+    /// The column's heading.
+    pub head: &'static str,
+    /// The unit of the mean (empty for ratios, scores and counts).
+    pub unit: &'static str,
+}
+
+/// Every metric column, in table order: VLN success and path, collisions, the continuous
+/// metrics, path fidelity, then the no-goal metrics and the step count.
+pub const COLUMNS: [Column; 16] = {
+    const fn col(metric: &'static str, head: &'static str, unit: &'static str) -> Column {
+        Column { metric, head, unit }
+    }
+    [
+        col("sr", "SR", ""),
+        col("osr", "OSR", ""),
+        col("spl", "SPL", ""),
+        col("ne", "NE", "m"),
+        col("tl", "TL", "m"),
+        col("cr", "CR", ""),
+        col("csr", "CSR", ""),
+        col("icp", "ICP", ""),
+        col("ps", "PS", ""),
+        col("ndtw", "nDTW", ""),
+        col("sdtw", "SDTW", ""),
+        col("episode_time", "time", "s"),
+        col("explored_area", "area", "m²"),
+        col("explored_cells", "cells", ""),
+        col("coverage", "coverage", ""),
+        col("steps", "steps", ""),
+    ]
+};
 
 /// `RUN/summary.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -28,12 +65,13 @@ pub struct Summary {
     pub dtw: Dtw,
     /// Episodes recorded.
     pub episodes: usize,
-    /// Ids of episodes that failed (recorded with an error, left out of the means).
+    /// Ids of the faulted episodes: recorded with an error, never scored, left out of the means
+    /// (the field keeps its first name for readers of older summaries).
     pub failed: Vec<String>,
-    /// Failed episodes per kind of failure (kinds that occurred).
+    /// Faulted episodes per kind of failure (kinds that occurred).
     #[serde(default)]
     pub failures: BTreeMap<Failure, usize>,
-    /// For each kind of failure, the first failed episode (by id) and its error:
+    /// For each kind of failure, the first faulted episode (by id) and its error:
     /// `"home1-n0: agent oracle on episode home1-n0: …"`.
     #[serde(default)]
     pub failure_examples: BTreeMap<Failure, String>,
@@ -112,7 +150,7 @@ impl Summary {
         }
     }
 
-    /// The failed episodes per kind, as text: `2 model_server, 1 scene` (`none`).
+    /// The faulted episodes per kind, as text: `2 model_server, 1 scene` (`none`).
     pub fn failure_counts(&self) -> String {
         counts(self.failures.iter().map(|(k, n)| (k.as_str(), *n)))
     }
@@ -122,25 +160,26 @@ impl Summary {
         counts(self.faults.iter().map(|(k, n)| (k.as_str(), *n)))
     }
 
-    /// Short text tables: first what failed and the faults (when any), then the overall row
-    /// and one block per axis.
+    /// The metric columns of the tables (text and report) that any aggregate of the summary
+    /// holds, in [`COLUMNS`] order; every table of a summary has the same columns.
+    pub fn columns(&self) -> Vec<&'static Column> {
+        let held: BTreeSet<&str> = std::iter::once(&self.overall)
+            .chain(self.slices.values().flat_map(|s| s.values()))
+            .flat_map(|a| a.means.keys().map(String::as_str))
+            .collect();
+        COLUMNS.iter().filter(|c| held.contains(c.metric)).collect()
+    }
+
+    /// Short text tables: first the faulted episodes and the faults (when any), then the
+    /// overall row and one block per axis, with the report's metric columns
+    /// ([`Summary::columns`]).
     pub fn table(&self) -> String {
-        const COLS: [&str; 9] = [
-            "sr",
-            "osr",
-            "spl",
-            "ne",
-            "tl",
-            "cr",
-            "ndtw",
-            "episode_time",
-            "explored_area",
-        ];
+        let cols = self.columns();
         let mut t = String::new();
         if !self.failed.is_empty() {
             let _ = writeln!(
                 t,
-                "FAILED: {} of {} episodes were not scored ({}):",
+                "FAULTED: {} of {} episodes were never scored ({}):",
                 self.failed.len(),
                 self.episodes,
                 self.failure_counts()
@@ -154,7 +193,7 @@ impl Summary {
         }
         let _ = writeln!(
             t,
-            "agent {} · split {} · mode {} · {} DTW · {} episodes ({} failed)",
+            "agent {} · split {} · mode {} · {} DTW · {} episodes ({} faulted)",
             self.agent,
             self.split,
             self.mode,
@@ -162,17 +201,24 @@ impl Summary {
             self.episodes,
             self.failed.len()
         );
+        // The name column fits the longest slice value or axis name (and `overall`).
+        let name_w = self
+            .slices
+            .iter()
+            .flat_map(|(axis, s)| std::iter::once(axis).chain(s.keys()))
+            .map(|n| n.chars().count())
+            .fold("overall".len(), usize::max);
         let header = |t: &mut String, axis: &str| {
-            let _ = write!(t, "{axis:<22} {:>5}", "n");
-            for c in COLS {
-                let _ = write!(t, " {:>8}", short(c));
+            let _ = write!(t, "{axis:<name_w$} {:>5}", "n");
+            for c in &cols {
+                let _ = write!(t, " {:>8}", c.head);
             }
             t.push('\n');
         };
         let row = |t: &mut String, name: &str, a: &Aggregate| {
-            let _ = write!(t, "{name:<22} {:>5}", a.episodes);
-            for c in COLS {
-                match a.means.get(c) {
+            let _ = write!(t, "{name:<name_w$} {:>5}", a.episodes);
+            for c in &cols {
+                match a.means.get(c.metric) {
                     Some(v) => {
                         let _ = write!(t, " {v:>8.3}");
                     }
@@ -203,14 +249,5 @@ fn counts<'a>(pairs: impl Iterator<Item = (&'a str, usize)>) -> String {
         "none".to_string()
     } else {
         text.join(", ")
-    }
-}
-
-/// A column's heading.
-fn short(metric: &str) -> &str {
-    match metric {
-        "episode_time" => "time",
-        "explored_area" => "area",
-        m => m,
     }
 }

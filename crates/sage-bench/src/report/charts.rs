@@ -1,66 +1,95 @@
-//! Grouped bar charts of the per-slice means: one chart per slice axis, one group of bars per
-//! slice value, one bar per metric (SR, SPL, nDTW on a 0–1 scale; CR, a count, on its own
-//! scale named in the legend).
+//! Per-slice charts: one chart per slice axis, drawn as small multiples — a panel per metric
+//! (SR, SPL, nDTW, NE, CR), each with its own axis, and in every panel one bar per slice value
+//! — so no metric is read against another's scale.
+//!
+//! A metric has one scale in the whole report ([`scale_ends`]): SR, SPL and nDTW are ratios
+//! on 0–1; NE (metres) and CR (collisions per episode) run from 0 to the smallest 1, 2 or
+//! 5 × 10^k at or above the largest mean the summary holds for them (overall or any slice of
+//! any axis), so a bar of the same length means the same value in every chart.
 //!
 //! A chart is laid out once as a list of pixel [`Mark`]s; the same marks become the page's
 //! inline SVG and the PNG (drawn with the map canvas and its bitmap font), so both show the
 //! same picture. Bars run horizontally so long slice names stay legible.
 
+use crate::eval::Summary;
 use glam::Vec2;
 use sage_io::canvas::Canvas;
+use sage_io::palette::OKABE_ITO;
 use sage_metrics::Aggregate;
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
-/// One bar per group: a metric, its colour, and whether it has its own scale (counts).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Series {
+/// A metric the charts show.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Metric {
     /// Metric name as in `summary.json`.
     pub metric: &'static str,
-    /// Legend label.
+    /// Panel heading.
     pub label: &'static str,
+    /// What the axis counts, named under its ticks.
+    pub unit: &'static str,
     /// Bar colour.
     pub colour: [u8; 3],
-    /// Scaled to the series' own maximum instead of 0–1.
-    pub own_scale: bool,
+    /// A ratio on 0–1; otherwise the scale is fitted to the report's largest mean.
+    pub ratio: bool,
 }
 
-/// The metrics the slice charts show, when the summary has them.
-pub const SERIES: [Series; 4] = [
-    Series {
+/// The metrics the slice charts show, when the summary has them, in panel order.
+pub const METRICS: [Metric; 5] = [
+    Metric {
         metric: "sr",
         label: "SR",
-        colour: [46, 125, 50],
-        own_scale: false,
+        unit: "rate",
+        colour: OKABE_ITO[3],
+        ratio: true,
     },
-    Series {
+    Metric {
         metric: "spl",
         label: "SPL",
-        colour: [25, 118, 210],
-        own_scale: false,
+        unit: "score",
+        colour: OKABE_ITO[5],
+        ratio: true,
     },
-    Series {
+    Metric {
         metric: "ndtw",
         label: "nDTW",
-        colour: [123, 31, 162],
-        own_scale: false,
+        unit: "score",
+        colour: OKABE_ITO[7],
+        ratio: true,
     },
-    Series {
+    Metric {
+        metric: "ne",
+        label: "NE",
+        unit: "metres",
+        colour: OKABE_ITO[1],
+        ratio: false,
+    },
+    Metric {
         metric: "cr",
         label: "CR",
-        colour: [211, 47, 47],
-        own_scale: true,
+        unit: "collisions",
+        colour: OKABE_ITO[6],
+        ratio: false,
     },
 ];
 
-/// A grouped bar chart.
+/// One panel of a chart: a metric on its scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Panel {
+    /// The metric.
+    pub metric: Metric,
+    /// The value at the panel's full width (the report-wide scale end).
+    pub end: f64,
+}
+
+/// A chart of one slice axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BarChart {
     /// Title line.
     pub title: String,
-    /// The bars of each group, in order.
-    pub series: Vec<Series>,
-    /// Group label and one value per series (`None`: the slice does not define it).
+    /// The panels, in order.
+    pub panels: Vec<Panel>,
+    /// Group label and one value per panel (`None`: the slice does not define it).
     pub groups: Vec<(String, Vec<Option<f64>>)>,
 }
 
@@ -108,10 +137,12 @@ const CHAR_W: i64 = 12;
 const CHAR_H: i64 = 14;
 /// Pixel height of a bar.
 const BAR_H: i64 = 16;
-/// Pixel gap between the bars of a group, so their value texts do not touch.
-const BAR_GAP: i64 = 4;
-/// Pixel width of the bars' full scale.
-const PLOT_W: i64 = 400;
+/// Pixel gap between the bars of neighbouring slice values.
+const BAR_GAP: i64 = 6;
+/// Pixel width of a panel's full scale.
+const PLOT_W: i64 = 120;
+/// Pixel room after the full scale for a bar's value (`0.000`) and the gap to the next panel.
+const VALUE_W: i64 = 6 * CHAR_W + 12;
 const INK: [u8; 3] = [20, 20, 20];
 const GRID: [u8; 3] = [220, 220, 220];
 
@@ -131,151 +162,159 @@ pub fn nice_ceiling(v: f64) -> f64 {
     }
 }
 
-/// The chart of one slice axis of a summary: SR, SPL, nDTW and CR where any slice has them.
-pub fn slice_chart(axis: &str, slices: &BTreeMap<String, Aggregate>) -> BarChart {
-    let series: Vec<Series> = SERIES
+/// The scale end of every chart metric for the whole report: 1 for ratios, a
+/// [`nice_ceiling`] of the largest mean over the overall row and every slice of every axis
+/// for the others.
+pub fn scale_ends(summary: &Summary) -> BTreeMap<&'static str, f64> {
+    let aggregates: Vec<&Aggregate> = std::iter::once(&summary.overall)
+        .chain(summary.slices.values().flat_map(|s| s.values()))
+        .collect();
+    METRICS
         .iter()
-        .filter(|s| slices.values().any(|a| a.means.contains_key(s.metric)))
-        .cloned()
+        .map(|m| {
+            let end = if m.ratio {
+                1.0
+            } else {
+                let max = aggregates
+                    .iter()
+                    .filter_map(|a| a.means.get(m.metric).copied())
+                    .fold(0.0, f64::max);
+                nice_ceiling(max)
+            };
+            (m.metric, end)
+        })
+        .collect()
+}
+
+/// The chart of one slice axis: a panel for each of [`METRICS`] that any slice has, on the
+/// report-wide scale `ends` ([`scale_ends`]).
+pub fn slice_chart(
+    axis: &str,
+    slices: &BTreeMap<String, Aggregate>,
+    ends: &BTreeMap<&'static str, f64>,
+) -> BarChart {
+    let panels: Vec<Panel> = METRICS
+        .iter()
+        .filter(|m| slices.values().any(|a| a.means.contains_key(m.metric)))
+        .map(|m| Panel {
+            metric: *m,
+            end: ends.get(m.metric).copied().unwrap_or(1.0),
+        })
         .collect();
     let groups = slices
         .iter()
         .map(|(name, a)| {
-            let values = series
+            let values = panels
                 .iter()
-                .map(|s| a.means.get(s.metric).copied())
+                .map(|p| a.means.get(p.metric.metric).copied())
                 .collect();
             (format!("{name} (n {})", a.episodes), values)
         })
         .collect();
     BarChart {
         title: format!("per {axis}"),
-        series,
+        panels,
         groups,
     }
 }
 
-impl BarChart {
-    /// The end of each series' scale: 1 for ratios, a [`nice_ceiling`] of the largest value
-    /// for counts.
-    fn scale_ends(&self) -> Vec<f64> {
-        self.series
-            .iter()
-            .enumerate()
-            .map(|(k, s)| {
-                if s.own_scale {
-                    let max = self
-                        .groups
-                        .iter()
-                        .filter_map(|(_, v)| v[k])
-                        .fold(0.0, f64::max);
-                    nice_ceiling(max)
-                } else {
-                    1.0
-                }
-            })
-            .collect()
-    }
+/// A tick value as text: `0`, `0.5`, `2.5`, `10`.
+fn tick_text(v: f64) -> String {
+    let t = format!("{:.3}", v);
+    t.trim_end_matches('0').trim_end_matches('.').to_string()
+}
 
+impl BarChart {
     /// The chart's size in pixels and its marks.
     pub fn layout(&self) -> (usize, usize, Vec<Mark>) {
-        let ends = self.scale_ends();
         let label_chars = self
             .groups
             .iter()
             .map(|(l, _)| l.chars().count())
             .max()
             .unwrap_or(0) as i64;
-        let x0 = 10 + label_chars * CHAR_W + 10;
-        let mut legend_x = 10;
+        let x0 = 10 + label_chars * CHAR_W + 16;
+        let panel_w = PLOT_W + VALUE_W;
         let mut marks = vec![Mark::Text {
             x: 10,
             y: 8,
             text: self.title.clone(),
             colour: INK,
         }];
-        for (s, end) in self.series.iter().zip(&ends) {
-            let label = if s.own_scale {
-                format!("{} (0-{end})", s.label)
-            } else {
-                s.label.to_string()
-            };
-            marks.push(Mark::Rect {
-                x: legend_x,
-                y: 32,
-                w: 12,
-                h: 12,
-                colour: s.colour,
-            });
+        let head = 34;
+        let top = head + CHAR_H + 10;
+        let bottom = top + self.groups.len() as i64 * (BAR_H + BAR_GAP);
+        for (k, p) in self.panels.iter().enumerate() {
+            let px = x0 + k as i64 * panel_w;
             marks.push(Mark::Text {
-                x: legend_x + 18,
-                y: 31,
-                text: label.clone(),
+                x: px,
+                y: head,
+                text: p.metric.label.to_string(),
                 colour: INK,
             });
-            legend_x += 18 + label.chars().count() as i64 * CHAR_W + 20;
-        }
-        let top = 60;
-        let block = self.series.len().max(1) as i64 * (BAR_H + BAR_GAP) + 12;
-        let bottom = top + self.groups.len() as i64 * block;
-        let ticks = [0.0, 0.25, 0.5, 0.75, 1.0];
-        for t in ticks {
-            let x = x0 + (t * PLOT_W as f64).round() as i64;
-            marks.push(Mark::Line {
-                from: (x, top - 4),
-                to: (x, bottom),
-                colour: GRID,
-            });
-            let text = format!("{t}");
+            for q in 0..=4 {
+                let x = px + PLOT_W * q / 4;
+                marks.push(Mark::Line {
+                    from: (x, top - 4),
+                    to: (x, bottom),
+                    colour: if q == 0 { INK } else { GRID },
+                });
+                // Labels at both ends and the middle; quarters are gridlines only.
+                if q % 2 == 0 {
+                    let text = tick_text(p.end * q as f64 / 4.0);
+                    let w = text.chars().count() as i64 * CHAR_W;
+                    marks.push(Mark::Text {
+                        x: (x - w / 2).max(px - CHAR_W / 2),
+                        y: bottom + 6,
+                        text,
+                        colour: INK,
+                    });
+                }
+            }
             marks.push(Mark::Text {
-                x: x - text.len() as i64 * CHAR_W / 2,
-                y: bottom + 8,
-                text,
+                x: px,
+                y: bottom + 6 + CHAR_H + 6,
+                text: p.metric.unit.to_string(),
                 colour: INK,
             });
         }
-        marks.push(Mark::Line {
-            from: (x0, top - 4),
-            to: (x0, bottom),
-            colour: INK,
-        });
         for (g, (label, values)) in self.groups.iter().enumerate() {
-            let gy = top + g as i64 * block;
-            let bars_h = block - 12;
+            let y = top + g as i64 * (BAR_H + BAR_GAP);
             marks.push(Mark::Text {
                 x: 10,
-                y: gy + (bars_h - CHAR_H) / 2,
+                y: y + (BAR_H - CHAR_H) / 2,
                 text: label.clone(),
                 colour: INK,
             });
-            for (k, (s, v)) in self.series.iter().zip(values).enumerate() {
-                let y = gy + k as i64 * (BAR_H + BAR_GAP);
+            for (k, (p, v)) in self.panels.iter().zip(values).enumerate() {
+                let px = x0 + k as i64 * panel_w;
                 let (w, text) = match v {
                     Some(v) => {
-                        let frac = (v / ends[k]).clamp(0.0, 1.0);
+                        let frac = (v / p.end).clamp(0.0, 1.0);
                         ((frac * PLOT_W as f64).round() as i64, format!("{v:.3}"))
                     }
                     None => (0, "-".to_string()),
                 };
                 if w > 0 {
                     marks.push(Mark::Rect {
-                        x: x0,
+                        x: px,
                         y,
                         w,
                         h: BAR_H,
-                        colour: s.colour,
+                        colour: p.metric.colour,
                     });
                 }
                 marks.push(Mark::Text {
-                    x: x0 + w + 6,
+                    x: px + w + 6,
                     y: y + 1,
                     text,
                     colour: INK,
                 });
             }
         }
-        let width = (x0 + PLOT_W + 6 + 7 * CHAR_W + 10).max(legend_x) as usize;
-        let height = (bottom + 8 + CHAR_H + 10) as usize;
+        let title_w = 10 + self.title.chars().count() as i64 * CHAR_W + 10;
+        let width = (x0 + self.panels.len() as i64 * panel_w).max(title_w) as usize;
+        let height = (bottom + 6 + 2 * CHAR_H + 6 + 10) as usize;
         (width, height, marks)
     }
 
@@ -370,6 +409,10 @@ mod tests {
         ] {
             assert_eq!(nice_ceiling(v), e, "{v}");
         }
+        assert_eq!(
+            [0.0, 0.25, 0.5, 2.5, 10.0].map(tick_text),
+            ["0", "0.25", "0.5", "2.5", "10"]
+        );
     }
 
     fn agg(n: usize, means: &[(&str, f64)]) -> Aggregate {
@@ -381,7 +424,7 @@ mod tests {
     }
 
     #[test]
-    fn bars_are_as_long_as_their_values_and_the_png_matches_the_marks() {
+    fn bars_are_as_long_as_their_values_on_their_metric_scale_and_the_png_matches_the_marks() {
         let slices: BTreeMap<String, Aggregate> = [
             (
                 "vln".to_string(),
@@ -390,10 +433,18 @@ mod tests {
             ("nogoal".to_string(), agg(1, &[("cr", 1.0)])),
         ]
         .into();
-        let chart = slice_chart("task", &slices);
-        // nDTW is in no slice: no series for it.
-        let names: Vec<&str> = chart.series.iter().map(|s| s.metric).collect();
-        assert_eq!(names, ["sr", "spl", "cr"]);
+        // CR's report-wide scale ends at 5 (say another axis has a mean of 4.2).
+        let ends: BTreeMap<&str, f64> = [("sr", 1.0), ("spl", 1.0), ("ndtw", 1.0), ("cr", 5.0)]
+            .into_iter()
+            .collect();
+        let chart = slice_chart("task", &slices, &ends);
+        // nDTW and NE are in no slice: no panel for them.
+        let names: Vec<(&str, f64)> = chart
+            .panels
+            .iter()
+            .map(|p| (p.metric.metric, p.end))
+            .collect();
+        assert_eq!(names, [("sr", 1.0), ("spl", 1.0), ("cr", 5.0)]);
         let (w, h, marks) = chart.layout();
         let bars: Vec<(i64, [u8; 3])> = marks
             .iter()
@@ -402,16 +453,9 @@ mod tests {
                 _ => None,
             })
             .collect();
-        // nogoal: CR 1 of a 0-5 scale; vln: SR 0.5, SPL 0.25 of 1, CR 3 of 5.
-        assert_eq!(
-            bars,
-            [
-                (80, SERIES[3].colour),
-                (200, SERIES[0].colour),
-                (100, SERIES[1].colour),
-                (240, SERIES[3].colour),
-            ]
-        );
+        // nogoal: CR 1 of 0-5; vln: SR 0.5, SPL 0.25 of 1, CR 3 of 5.
+        let (sr, spl, cr) = (METRICS[0].colour, METRICS[1].colour, METRICS[4].colour);
+        assert_eq!(bars, [(24, cr), (60, sr), (30, spl), (72, cr)]);
         let canvas = chart.to_canvas();
         assert_eq!((canvas.width, canvas.height), (w, h));
         for m in &marks {
@@ -426,9 +470,41 @@ mod tests {
         }
         let svg = chart.to_svg();
         assert!(
-            svg.contains("width=\"240\"") && svg.contains(">0.250<"),
+            svg.contains("width=\"72\"") && svg.contains(">0.250<"),
             "{svg}"
         );
-        assert!(svg.contains("CR (0-5)") && !svg.contains("http"));
+        // Each panel is labelled with its ticks and unit: CR's axis reads 0, 2.5, 5 collisions.
+        for text in [">CR<", ">2.5<", ">5<", ">collisions<", ">rate<"] {
+            assert!(svg.contains(text), "{text}");
+        }
+        assert!(!svg.contains("http"));
+    }
+
+    #[test]
+    fn fitted_scales_cover_the_largest_mean_of_the_whole_summary() {
+        let settings = crate::eval::EvalSettings {
+            dataset: "d".into(),
+            scenes: "s".into(),
+            split: "train".into(),
+            agent: "forward".parse().unwrap(),
+            mode: Mode::Sage,
+            dtw: Default::default(),
+            seed: 0,
+            preset: "sage".into(),
+        };
+        let mut s = Summary::of(&settings, &[]);
+        s.overall = agg(4, &[("cr", 0.4), ("ne", 2.0), ("sr", 0.5)]);
+        s.slices.insert(
+            "task".into(),
+            [("vln".to_string(), agg(2, &[("cr", 0.3), ("ne", 3.1)]))].into(),
+        );
+        s.slices.insert(
+            "path".into(),
+            [("long".to_string(), agg(1, &[("cr", 1.4)]))].into(),
+        );
+        let ends = scale_ends(&s);
+        assert_eq!(ends["cr"], 2.0);
+        assert_eq!(ends["ne"], 5.0);
+        assert_eq!((ends["sr"], ends["spl"], ends["ndtw"]), (1.0, 1.0, 1.0));
     }
 }

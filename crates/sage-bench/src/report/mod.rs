@@ -1,14 +1,16 @@
 //! The report of an evaluation run (`docs/evaluation.md`, "Report"): `RUN/report.html`, one
 //! self-contained page that opens offline, and the PNGs it shows under `RUN/report/`.
 //!
-//! The page states the run (mode, agent, split, dataset hash, version, episode counts, failed
-//! episodes with their errors), holds the metric tables overall and per slice ([`html`]), one
-//! grouped bar chart per slice axis as inline SVG ([`charts`], also written as PNG) and a gallery
-//! of per-episode top-down maps — the semantic map with the reference path, the agent's path and
+//! The page states the run (mode, agent, split, dataset hash, version, episode counts, faulted
+//! episodes — never scored — with their errors, under a banner), holds the metric tables overall
+//! and per slice ([`html`]), one chart per slice axis with a panel per metric on one scale per
+//! metric for the whole report, as inline SVG ([`charts`], also written as PNG), a gallery of
+//! per-episode top-down maps — the semantic map with the reference path, the agent's path and
 //! its collision points, the paper's figure of ground truth against agent trajectories
-//! ([`maps`]). Everything is read back from the run folder (`summary.json`, `episodes.jsonl`,
-//! `sage3d_run.json`) plus the scenes, so a report can be regenerated at any time; the same
-//! inputs give the same bytes.
+//! ([`maps`]) — and a table of the episodes with their instructions. Everything is read back
+//! from the run folder (`summary.json`, `episodes.jsonl`, `sage3d_run.json`) plus the scenes
+//! and the instructions of the run's dataset, so a report can be regenerated at any time; the
+//! same inputs give the same bytes.
 
 pub mod charts;
 pub mod html;
@@ -122,12 +124,15 @@ pub fn read_run(run_dir: &Path) -> Result<RunFiles> {
 }
 
 /// True when the episode reached what it was asked: SR = 1 for a VLN episode, no collision
-/// ending for a no-goal one.
+/// ending (and not leaving the scene) for a no-goal one.
 pub fn succeeded(rec: &EvalRecord) -> bool {
     match &rec.metrics {
         Some(m) => match m.sr {
             Some(sr) => sr >= 1.0,
-            None => rec.termination != Some(sage_env::Termination::Collision),
+            None => !matches!(
+                rec.termination,
+                Some(sage_env::Termination::Collision | sage_env::Termination::LeftScene)
+            ),
         },
         None => false,
     }
@@ -166,6 +171,36 @@ pub fn gallery_order<'a>(maps: &[MapFile<'a>]) -> Vec<MapFile<'a>> {
     order
 }
 
+/// The instruction of each episode of `split`, by id, from the split's episodes file in the
+/// dataset the run record (`sage3d_run.json`) names.
+///
+/// # Errors
+///
+/// The record names no dataset, the split's file cannot be read, or it is not the file the run
+/// was made from (its hash differs from the record's `dataset_hash`), so its texts may not be
+/// the ones the agent was given.
+pub fn read_instructions(run: &serde_json::Value, split: &str) -> Result<BTreeMap<String, String>> {
+    let dataset = run
+        .get("settings")
+        .and_then(|s| s.get("dataset"))
+        .and_then(|d| d.as_str())
+        .ok_or_else(|| Error::invalid(format!("{RUN_RECORD} names no dataset")))?;
+    let (file, episodes) = crate::eval::split_episodes(Path::new(dataset), split)?;
+    if let Some(hash) = run.get("dataset_hash").and_then(|h| h.as_str()) {
+        let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+        if sage_io::hash::fnv1a64_hex(&bytes) != hash {
+            return Err(Error::invalid(
+                "the episodes file changed since the run (its hash is not the run's dataset_hash)",
+            )
+            .in_file(&file));
+        }
+    }
+    Ok(episodes
+        .into_iter()
+        .map(|e| (e.episode_id, e.instruction))
+        .collect())
+}
+
 /// The grid and semantic map of a scene, as the evaluator's path finder sees it (the default
 /// trajectory grid settings).
 ///
@@ -179,7 +214,9 @@ pub fn scene_map(dir: &Path) -> Result<(NavGrid, SemanticMap)> {
 }
 
 /// Writes the report of the run in `run_dir` (see the module docs); the scenes are read from
-/// `scenes_dir` (one scene folder or a folder of them, as for `sage3d eval`).
+/// `scenes_dir` (one scene folder or a folder of them, as for `sage3d eval`). When the run's
+/// dataset cannot be read ([`read_instructions`]) the page says why instead of showing the
+/// instructions.
 ///
 /// # Errors
 ///
@@ -248,12 +285,13 @@ pub fn write_with(
     let mut map_files: Vec<MapFile> = scene_maps.into_iter().flatten().collect();
     map_files.sort_by(|a, b| a.record.episode_id.cmp(&b.record.episode_id));
 
+    let scale_ends = charts::scale_ends(&files.summary);
     let mut chart_list = Vec::new();
     for axis in AXES {
         let Some(slices) = files.summary.slices.get(axis).filter(|s| !s.is_empty()) else {
             continue;
         };
-        let chart = charts::slice_chart(axis, slices);
+        let chart = charts::slice_chart(axis, slices, &scale_ends);
         let rel = format!("{REPORT_DIR}/chart_{axis}.png");
         chart.to_canvas().save_png(&run_dir.join(&rel))?;
         chart_list.push((axis, chart, rel));
@@ -267,6 +305,8 @@ pub fn write_with(
         charts: &chart_list,
         gallery: &gallery,
         embed: embedded,
+        scale_ends: &scale_ends,
+        instructions: &read_instructions(&files.run, &files.summary.split),
     })?;
     let html_path = run_dir.join(REPORT_FILE);
     sage_io::files::write_atomic(&html_path, |w| {

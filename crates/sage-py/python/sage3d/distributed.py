@@ -4,9 +4,15 @@ task per scene, results merged deterministically into the files ``sage3d data bu
 
 Scenes and datasets must be readable at the same paths on every node (a shared file system);
 the per-scene outputs travel back to the driver, which writes the merged files. Start a
-cluster with ``ray start --head`` (then ``ray start --address=HEAD:6379`` on each worker) and
-call these functions after ``ray.init(address="auto")``; without a cluster, ``ray.init()``
-runs them on this machine.
+cluster with ``ray start --head`` (then ``ray start --address=HEAD:6379`` on each worker; with
+token authentication, the same token and ``RAY_AUTH_MODE=token`` on every node, see
+``docs/python.md``) and call these functions after ``ray.init(address="auto")`` on a node of
+the cluster; without a cluster, ``ray.init()`` runs them on this machine.
+
+While tasks run, the driver prints progress to stderr (a tqdm bar when tqdm is installed) and a
+line when a node of the cluster is lost. A task whose worker or node dies is rerun by Ray (its
+``max_retries``); a task that still fails is named with its scene and what was lost, and once
+the other tasks are done the call raises ``RuntimeError``: a rerun redoes only what is missing.
 """
 
 from __future__ import annotations
@@ -32,19 +38,113 @@ def _ray():
     return ray
 
 
+# Ray's errors for a task that did not fail by itself: what was lost, by class name (looked up
+# on ``ray.exceptions``, so a Ray without one of them still works).
+_LOST = (
+    ("NodeDiedError", "its node was lost"),
+    ("LocalRayletDiedError", "its node's raylet died"),
+    ("WorkerCrashedError", "its worker process died"),
+    ("OutOfMemoryError", "its worker was killed for lack of memory"),
+    ("ActorDiedError", "the actor running it died"),
+    ("ObjectLostError", "its result was lost with the node holding it"),
+)
+
+
+def _lost(ray, err):
+    """What a Ray system failure lost (a node, a worker process, an actor, a result), or
+    ``None`` when the task itself raised. A task error wrapping such a failure (a task that
+    waited on a lost object) counts as the failure it wraps."""
+    for name, what in _LOST:
+        cls = getattr(ray.exceptions, name, None)
+        if cls is not None and isinstance(err, cls):
+            return what
+    cause = getattr(err, "cause", None)
+    if isinstance(err, ray.exceptions.RayTaskError) and isinstance(cause, BaseException) \
+            and cause is not err:
+        return _lost(ray, cause)
+    return None
+
+
+def _describe(ray, err):
+    """A failed task's error in one line: what was lost, or the task's own exception."""
+    what = _lost(ray, err)
+    if what is not None:
+        return f"{what} ({type(err).__name__})"
+    return _cause(err)
+
+
+class _Tasks:
+    """Waits on Ray tasks as they finish (``ray.wait``): progress in ``unit`` up to ``total``,
+    a line when a node of the cluster is lost, and each failed task kept with its key."""
+
+    def __init__(self, ray, total, unit, desc, progress=True):
+        self.ray = ray
+        self.failed = []
+        self.step, self.note, self.close = _progress(total, unit, desc, progress)
+        self.nodes = self._alive()
+
+    def _alive(self):
+        try:
+            return {n["NodeID"]: n.get("NodeManagerAddress", "?")
+                    for n in self.ray.nodes() if n.get("Alive")}
+        except Exception:  # pragma: no cover - a driver without the cluster's state API
+            return {}
+
+    def _watch_nodes(self):
+        alive = self._alive()
+        for node, address in self.nodes.items():
+            if node not in alive:
+                self.note(f"node {node[:12]} ({address}) was lost; Ray reruns the tasks it held "
+                          "(up to their max_retries), which resume what was written")
+        self.nodes = alive
+
+    def gather(self, refs, on_result):
+        """Waits on ``refs`` (ref -> key); ``on_result(key, value)`` returns ``(units done,
+        note)`` for the progress line. A failed task is noted at once and kept in
+        ``failed`` as ``(key, error)``."""
+        waiting = list(refs)
+        while waiting:
+            ready, waiting = self.ray.wait(waiting, num_returns=1, timeout=10.0)
+            self._watch_nodes()
+            for ref in ready:
+                key = refs[ref]
+                try:
+                    value = self.ray.get(ref)
+                except self.ray.exceptions.RayError as e:
+                    self.failed.append((key, e))
+                    self.note(f"{key}: task failed: {_describe(self.ray, e)}")
+                    self.step(key, "failed", 0)
+                    continue
+                done, note = on_result(key, value)
+                self.step(key, note, done)
+
+    def raise_failed(self, what, tasks, out):
+        """Raises ``RuntimeError`` naming the failed tasks' keys and the first one's error."""
+        if not self.failed:
+            return
+        names = ", ".join(k for k, _ in self.failed)
+        key, err = self.failed[0]
+        raise RuntimeError(
+            f"{what}: {len(self.failed)} of {tasks} scene tasks failed ({names}); scene {key}: "
+            f"{_describe(self.ray, err)}; the other scenes are written to {out}, run again to do "
+            "what is missing") from err
+
+
 def _build_scene(scene_dir, out, params):
     return _sage3d.build_scene(scene_dir, out, **params)
 
 
 def generate(scenes, out, per_scene: int = 20, seed: int = 0, base_actions: int | None = None,
              nogoal: int = 1, high_per_type: int = 1, balanced: int = 1000,
-             scene_unseen: float = 0.15, val: float = 0.1, num_cpus: float = 1) -> dict:
+             scene_unseen: float = 0.15, val: float = 0.1, num_cpus: float = 1,
+             progress: bool = True) -> dict:
     """``sage3d data build SCENES --out OUT ...`` with one Ray task per scene.
 
     Each task writes (or resumes) ``out/scenes/{scene}.json``; the driver writes any scene file
     it does not see (no shared output folder), then assembles splits, files and summary in scene
-    name order, so the dataset is byte-identical to the CLI's. Returns ``{"scenes": [outcome per
-    scene], "summary": ...}``.
+    name order, so the dataset is byte-identical to the CLI's, and its run record names the
+    scenes folder as the CLI's does. ``progress`` prints a line per finished scene. Returns
+    ``{"scenes": [outcome per scene], "summary": ...}``.
     """
     ray = _ray()
     out = os.fspath(out)
@@ -52,8 +152,11 @@ def generate(scenes, out, per_scene: int = 20, seed: int = 0, base_actions: int 
     params = dict(per_scene=per_scene, seed=seed, base_actions=base_actions, nogoal=nogoal,
                   high_per_type=high_per_type)
     task = ray.remote(num_cpus=num_cpus)(_build_scene)
-    results = ray.get([task.remote(d, out, params) for d in dirs])
-    for outcome, text in results:
+    refs = {task.remote(d, out, params): os.path.basename(d) for d in dirs}
+    outcomes = {}
+
+    def written(scene, result):
+        outcome, text = result
         path = os.path.join(out, "scenes", f"{outcome['scene']}.json")
         if text is not None and not os.path.exists(path):
             os.makedirs(os.path.dirname(path), exist_ok=True)
@@ -61,9 +164,18 @@ def generate(scenes, out, per_scene: int = 20, seed: int = 0, base_actions: int 
             with open(tmp, "w") as f:
                 f.write(text)
             os.replace(tmp, path)
-    summary = _sage3d.assemble_dataset(out, dirs, balanced=balanced, scene_unseen=scene_unseen,
-                                       val=val, **params)
-    return {"scenes": [o for o, _ in results], "summary": summary}
+        outcomes[scene] = outcome
+        return 1, f"{outcome['status']}, {outcome['episodes']} episodes"
+
+    tasks = _Tasks(ray, len(refs), "scenes", "dataset", progress)
+    try:
+        tasks.gather(refs, written)
+    finally:
+        tasks.close()
+    tasks.raise_failed("dataset generation", len(refs), out)
+    summary = _sage3d.assemble_dataset(out, dirs, os.fspath(scenes), balanced=balanced,
+                                       scene_unseen=scene_unseen, val=val, **params)
+    return {"scenes": [outcomes[os.path.basename(d)] for d in dirs], "summary": summary}
 
 
 def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
@@ -72,38 +184,64 @@ def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
         return f.read()
 
 
-def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: str = "sage",
-             seed: int = 0, preset: str = "sage", width: int | None = None,
+def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_balanced",
+             mode: str = "sage", seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             num_cpus: float = 1, dtw: str = "exact") -> dict:
+             num_cpus: float = 1, dtw: str = "exact", max_retries: int = 3,
+             progress: bool = True) -> dict:
     """:func:`sage3d.evaluate` with one Ray task per scene of the split.
 
+    ``scenes=None`` uses the scenes folder the dataset records (resolved once, on the driver).
     Task ``scene`` runs (or resumes) the run folder ``out/shards/{scene}``; the driver merges
-    the shards' records into ``out/episodes.jsonl`` sorted by episode id, with ``summary.json``
-    and ``sage3d_run.json`` equal to one ``sage3d eval`` over the whole split. ``agent`` as in
-    :func:`sage3d.evaluate` (a Python agent must be picklable). An agent whose server holds one
-    episode's state (``socket:HOST:PORT?server=navid``) gets its tasks one after another, as
-    ``sage3d eval`` runs its episodes one at a time. Returns the summary.
+    the shards' records into ``out/episodes.jsonl`` sorted by episode id, with
+    ``episodes.jsonl``, ``summary.json`` and ``sage3d_run.json`` the same bytes as one ``sage3d
+    eval`` over the whole split. ``agent`` as in :func:`sage3d.evaluate` (a Python agent must
+    be picklable). An agent whose server holds one episode's state
+    (``socket:HOST:PORT?server=navid``) gets its tasks one after another, as ``sage3d eval``
+    runs its episodes one at a time. ``progress`` prints the episodes done (of the split) as
+    tasks finish. A task whose worker or node dies is rerun up to ``max_retries`` times (Ray's
+    task option; the rerun resumes its shard); a task that still fails is reported with its
+    scene, and once the others are done ``RuntimeError`` is raised, nothing merged: a rerun
+    runs only the missing episodes. Returns the summary.
     """
+    if agent is None or out is None:
+        raise TypeError("evaluate() needs agent and out")
     ray = _ray()
-    dataset, scenes, out = os.fspath(dataset), os.fspath(scenes), os.fspath(out)
-    names = sorted({e["scene"] for e in _sage3d.read_split(dataset, split)})
+    dataset, out = os.fspath(dataset), os.fspath(out)
+    scenes = os.fspath(_sage3d.scenes_folder(dataset, None if scenes is None else os.fspath(scenes)))
+    episodes = _sage3d.read_split(dataset, split)
+    names = sorted({e["scene"] for e in episodes})
     overrides = overrides_json(width, height, sensors, config)
     spec = _sage3d.agent_spec(agent) if isinstance(agent, str) else None
     name = spec["name"] if spec else agent_name(agent)
     kwargs = dict(agent_name=None if isinstance(agent, str) else name, split=split, mode=mode,
                   seed=seed, preset=preset, overrides=overrides, dtw=dtw)
     factory = agent_factory(agent)
-    task = ray.remote(num_cpus=num_cpus)(_evaluate_shard)
+    task = ray.remote(num_cpus=num_cpus, max_retries=max_retries)(_evaluate_shard)
+    texts = {}
 
     def shard(n):
-        return task.remote(dataset, scenes, factory, os.path.join(out, "shards", n), kwargs, n)
+        return {task.remote(dataset, scenes, factory, os.path.join(out, "shards", n), kwargs, n): n}
 
-    if spec and spec["serial"]:
-        shards = [ray.get(shard(n)) for n in names]
-    else:
-        shards = ray.get([shard(n) for n in names])
-    return _sage3d.merge_eval(dataset, scenes, out, name, shards, split=split,
+    def merged(scene, text):
+        texts[scene] = text
+        n = sum(1 for line in text.splitlines() if line.strip())
+        return n, f"{n} episodes"
+
+    tasks = _Tasks(ray, len(episodes), "episodes", "evaluation", progress)
+    try:
+        if spec and spec["serial"]:
+            for n in names:
+                tasks.gather(shard(n), merged)
+        else:
+            refs = {}
+            for n in names:
+                refs.update(shard(n))
+            tasks.gather(refs, merged)
+    finally:
+        tasks.close()
+    tasks.raise_failed("distributed evaluation", len(names), os.path.join(out, "shards"))
+    return _sage3d.merge_eval(dataset, scenes, out, name, [texts[n] for n in names], split=split,
                               mode=mode, seed=seed, preset=preset, dtw=dtw)
 
 
@@ -163,35 +301,42 @@ def _write_routes(out, files):
             _write_atomic(os.path.join(out, rel), data)
 
 
-def _progress(total):
-    """A progress display: tqdm when installed, else one line per scene on stderr."""
+def _progress(total, unit, desc, show=True):
+    """A progress display of ``total`` ``unit``: tqdm when installed, else one line per finished
+    task on stderr. Returns ``(step(key, note, done), note(text), close())``; ``note`` prints a
+    line whether or not progress is shown."""
     try:
         from tqdm.auto import tqdm
     except ImportError:
         tqdm = None
-    if tqdm is not None:
-        bar = tqdm(total=total, unit="scene", desc="training data")
+    if show and tqdm is not None:
+        bar = tqdm(total=total, unit=unit.rstrip("s"), desc=desc)
 
-        def step(scene, note):
-            bar.set_postfix_str(f"{scene}: {note}")
-            bar.update(1)
+        def step(key, note, done):
+            bar.set_postfix_str(f"{key}: {note}")
+            bar.update(done)
 
-        return step, bar.close
+        return step, lambda text: bar.write(text, file=sys.stderr), bar.close
     state = {"done": 0, "start": time.monotonic()}
 
-    def step(scene, note):
-        state["done"] += 1
-        print(f"[{state['done']}/{total}] {scene}: {note} "
-              f"({time.monotonic() - state['start']:.1f} s)", file=sys.stderr, flush=True)
+    def note(text):
+        print(text, file=sys.stderr, flush=True)
 
-    return step, lambda: None
+    def step(key, text, done):
+        state["done"] += done
+        if show:
+            note(f"[{state['done']}/{total} {unit}] {key}: {text} "
+                 f"({time.monotonic() - state['start']:.1f} s)")
+
+    return step, note, lambda: None
 
 
 def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool = False,
                          progress: bool = True, **kwargs) -> dict:
     """:func:`sage3d.render_training_data` with one Ray task per scene.
 
-    ``kwargs`` are those of :func:`sage3d.render_training_data` (``split``, ``preset``,
+    ``scenes=None`` uses the scenes folder the dataset records. ``kwargs`` are those of
+    :func:`sage3d.render_training_data` (``split``, ``preset``,
     ``format``, ``sensors``, ``limit``, …). The driver claims ``out`` (as the command line
     does: a new or empty folder, or the same render's to resume; ``force`` replaces another
     render's output); each task renders its scene into a temporary folder of its node and
@@ -207,7 +352,8 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     Returns the manifest.
     """
     ray = _ray()
-    dataset, scenes, out = os.fspath(dataset), os.fspath(scenes), os.fspath(out)
+    dataset, out = os.fspath(dataset), os.fspath(out)
+    scenes = None if scenes is None else os.fspath(scenes)
     settings = _sage3d.training_settings(dataset, scenes, **kwargs)
     finished = _sage3d.training_claim(settings, out, force)
     if finished is not None:
@@ -225,34 +371,22 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
             pending[scene] = done
     task = ray.remote(num_cpus=num_cpus)(_render_training_scene)
     refs = {task.remote(settings, scene, done): scene for scene, done in pending.items()}
-    step, close = _progress(len(refs)) if progress else (lambda *a: None, lambda: None)
-    failed = []
+
+    def written(scene, result):
+        n, files = result
+        _write_routes(out, files)
+        frames = sum(1 for rel in files if _frame_rgb(rel))
+        errors = sum(1 for rel, data in files.items()
+                     if rel.endswith("/route.json") and "error" in json.loads(data))
+        return 1, (f"{n} walks, {frames} frames"
+                   + (f", {errors} could not be walked" if errors else ""))
+
+    tasks = _Tasks(ray, len(refs), "scenes", "training data", progress)
     try:
-        waiting = list(refs)
-        while waiting:
-            ready, waiting = ray.wait(waiting, num_returns=1)
-            scene = refs[ready[0]]
-            try:
-                n, files = ray.get(ready[0])
-            except ray.exceptions.RayError as e:
-                failed.append((scene, e))
-                step(scene, f"failed: {type(e).__name__}")
-                continue
-            _write_routes(out, files)
-            frames = sum(1 for rel in files if _frame_rgb(rel))
-            errors = sum(1 for rel, data in files.items()
-                         if rel.endswith("/route.json") and "error" in json.loads(data))
-            step(scene, f"{n} walks, {frames} frames"
-                 + (f", {errors} could not be walked" if errors else ""))
+        tasks.gather(refs, written)
     finally:
-        close()
-    if failed:
-        names = ", ".join(s for s, _ in failed)
-        scene, err = failed[0]
-        raise RuntimeError(
-            f"training-data render: {len(failed)} of {len(refs)} scene tasks failed ({names}); "
-            f"scene {scene}: {_cause(err)}; the other scenes are written to {out}, run again to "
-            "render what is missing") from err
+        tasks.close()
+    tasks.raise_failed("training-data render", len(refs), out)
     return _sage3d.training_finish(settings, out)
 
 

@@ -50,14 +50,16 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
     return _json(config_overrides(width, height, sensors, config=config))
 
 
-def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: str = "sage",
-             seed: int = 0, preset: str = "sage", width: int | None = None,
+def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_balanced",
+             mode: str = "sage", seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
              scenes_only: list[str] | None = None, dtw: str = "exact",
              strict: bool = False) -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
     resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json`` and
-    ``sage3d_run.json`` as ``sage3d eval`` writes them.
+    ``sage3d_run.json`` as ``sage3d eval`` writes them. ``scenes=None`` uses the scenes folder
+    the dataset records (as ``sage3d eval`` without ``--scenes``); ``agent`` and ``out`` are
+    required.
 
     ``agent`` is an agent string as ``sage3d eval --agent`` takes it (``"oracle"``,
     ``"socket:HOST:PORT?server=navila"``, …; then exactly the CLI's run), or a Python agent: an object (or class) with ``act(obs) -> action`` and optionally
@@ -67,19 +69,22 @@ def evaluate(dataset, scenes, agent, out, split: str = "test_balanced", mode: st
     run in parallel; Python agents decide one at a time under the GIL while rendering and
     physics run in parallel. ``scenes_only`` runs only the episodes of those scenes (a shard).
     ``mode`` and ``dtw`` (``"exact"`` or ``"fast"``, VLN-CE's FastDTW) choose how episodes are
-    scored, as ``sage3d eval --mode/--dtw``. Failed episodes are recorded and listed in
+    scored, as ``sage3d eval --mode/--dtw``. Faulted episodes (never scored) are recorded and listed in
     ``summary["failed"]`` (per kind in ``summary["failures"]``); with ``strict=True`` any failure
     raises ``ValueError`` after the run folder is written, as ``sage3d eval --strict`` exits
     non-zero, and a run in which every episode failed warns (``RuntimeWarning``).
     """
+    if agent is None or out is None:
+        raise TypeError("evaluate() needs agent and out")
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
-        os.fspath(dataset), os.fspath(scenes), os.fspath(out), agent_factory(agent),
+        os.fspath(dataset), None if scenes is None else os.fspath(scenes), os.fspath(out),
+        agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), split=split,
         mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only, dtw=dtw,
         strict=strict)
     summary = result["summary"]
     if summary["episodes"] and len(summary["failed"]) == summary["episodes"]:
-        warnings.warn(f"every episode of the run failed ({summary['episodes']}); see the records' "
+        warnings.warn(f"every episode of the run faulted ({summary['episodes']}); see the records' "
                       f"\"error\" fields in {os.fspath(out)}/episodes.jsonl", RuntimeWarning, stacklevel=2)
     return result

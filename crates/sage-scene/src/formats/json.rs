@@ -21,15 +21,15 @@ pub fn field<'a>(v: &'a Value, key: &str) -> Result<&'a Value> {
         .ok_or_else(|| Error::format(key, "missing"))
 }
 
-/// A finite number.
+/// A number finite in single precision (1e300 is finite as f64 but not as f32).
 pub fn number(v: &Value, at: &str) -> Result<f32> {
     let f = match v {
         Value::Number(n) => n.as_f64(),
         Value::String(s) => s.trim().parse::<f64>().ok(),
         _ => None,
     };
-    f.filter(|f| f.is_finite())
-        .map(|f| f as f32)
+    f.map(|f| f as f32)
+        .filter(|f| f.is_finite())
         .ok_or_else(|| Error::format(at, format!("expected a finite number, found {}", short(v))))
 }
 

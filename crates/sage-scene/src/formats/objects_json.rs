@@ -10,25 +10,23 @@
 //! ```
 //! Entries are matched to `labels.json` by `ins_id`; fields left out keep their defaults.
 
-use super::json::parse_text;
+use super::json::{array, parse_text};
 use crate::floorplan::Floorplan;
 use crate::object::{Attributes, Object, PhysicsRole, RigidBody};
-use sage_core::{Error, Result};
-use serde::{Deserialize, Serialize};
+use sage_core::{Error, Result, ResultExt};
+use serde::Serialize;
+use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 /// Version written into the file.
 pub const VERSION: u32 = 1;
 
-#[derive(Debug, Serialize, Deserialize)]
+/// Left-out physics fields keep the [`RigidBody`] defaults (and the static role).
+#[derive(Debug, Serialize)]
 struct Physics {
-    #[serde(default)]
     role: PhysicsRole,
-    #[serde(default = "default_mass")]
     mass: f32,
-    #[serde(default = "default_friction")]
     friction: f32,
-    #[serde(default)]
     restitution: f32,
 }
 
@@ -40,28 +38,60 @@ fn default_friction() -> f32 {
     RigidBody::default().friction
 }
 
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Debug, Serialize)]
 struct Entry {
     ins_id: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     category: Option<String>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     room: Option<usize>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     room_type: Option<String>,
-    #[serde(default)]
     attributes: Attributes,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     physics: Option<Physics>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     mesh: Option<String>,
 }
 
-#[derive(Debug, Deserialize)]
-struct File {
-    #[serde(default)]
-    version: Option<u32>,
-    objects: Vec<Entry>,
+/// `v[key]` as a `T`, `None` when absent or null; an error names `key`.
+fn optional<T: DeserializeOwned>(v: &Value, key: &str) -> Result<Option<T>> {
+    match v.get(key) {
+        None | Some(Value::Null) => Ok(None),
+        Some(x) => serde_json::from_value(x.clone())
+            .map(Some)
+            .map_err(|e| Error::format(key, e.to_string())),
+    }
+}
+
+fn parse_physics(p: &Value) -> Result<Physics> {
+    Ok(Physics {
+        role: optional(p, "role")?.unwrap_or_default(),
+        mass: optional(p, "mass")?.unwrap_or_else(default_mass),
+        friction: optional(p, "friction")?.unwrap_or_else(default_friction),
+        restitution: optional(p, "restitution")?.unwrap_or_default(),
+    })
+}
+
+/// One entry, field by field, so that an error names the field at fault.
+fn parse_entry(v: &Value) -> Result<Entry> {
+    if !v.is_object() {
+        return Err(Error::format("(entry)", "expected an object"));
+    }
+    let physics = match v.get("physics") {
+        None | Some(Value::Null) => None,
+        Some(p) if p.is_object() => Some(parse_physics(p).within("physics")?),
+        Some(_) => return Err(Error::format("physics", "expected an object")),
+    };
+    Ok(Entry {
+        ins_id: optional(v, "ins_id")?.ok_or_else(|| Error::format("ins_id", "missing"))?,
+        category: optional(v, "category")?,
+        room: optional(v, "room")?,
+        room_type: optional(v, "room_type")?,
+        attributes: optional(v, "attributes")?.unwrap_or_default(),
+        physics,
+        mesh: optional(v, "mesh")?,
+    })
 }
 
 /// What applying `objects.json` found beyond the attributes it set.
@@ -75,20 +105,32 @@ pub struct Applied {
 
 /// Applies `objects.json` to objects read from `labels.json`.
 pub fn apply(text: &str, objects: &mut [Object]) -> Result<Applied> {
-    let value = parse_text(text)?;
-    let file: File =
-        serde_json::from_value(value).map_err(|e| Error::format("objects", e.to_string()))?;
-    if let Some(v) = file.version.filter(|v| *v > VERSION) {
+    let root = parse_text(text)?;
+    if !root.is_object() {
+        return Err(Error::format(
+            "(top level)",
+            "expected an object with objects",
+        ));
+    }
+    if let Some(v) = optional::<u32>(&root, "version")?.filter(|v| *v > VERSION) {
         return Err(Error::format(
             "version",
             format!("version {v} is newer than this reader ({VERSION})"),
         ));
     }
+    let entries = match root.get("objects") {
+        None | Some(Value::Null) => return Err(Error::format("objects", "missing")),
+        Some(list) => array(list, "objects")?
+            .iter()
+            .enumerate()
+            .map(|(i, v)| parse_entry(v).within(format!("objects[{i}]")))
+            .collect::<Result<Vec<_>>>()?,
+    };
     let mut applied = Applied {
         unmatched: 0,
         mesh_files: vec![None; objects.len()],
     };
-    for (i, e) in file.objects.into_iter().enumerate() {
+    for (i, e) in entries.into_iter().enumerate() {
         let Some(k) = objects.iter().position(|o| o.ins_id == e.ins_id) else {
             applied.unmatched += 1;
             continue;
@@ -101,14 +143,16 @@ pub fn apply(text: &str, objects: &mut [Object]) -> Result<Applied> {
         o.room = e.room;
         o.attributes = e.attributes;
         if let Some(p) = e.physics {
+            // A number too large for f32 reads as infinity: finite bounds reject it.
             if !(p.mass > 0.0
                 && p.mass.is_finite()
                 && p.friction >= 0.0
+                && p.friction.is_finite()
                 && (0.0..=1.0).contains(&p.restitution))
             {
                 return Err(Error::format(
                     format!("objects[{i}].physics"),
-                    "expected mass > 0, friction >= 0 and restitution in [0, 1]",
+                    "expected finite mass > 0, finite friction >= 0 and restitution in [0, 1]",
                 ));
             }
             o.role = p.role;

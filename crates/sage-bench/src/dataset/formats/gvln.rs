@@ -18,7 +18,7 @@
 //!   the points; the type `Default` (the published generator's failure text) reads as
 //!   Single-Goal.
 
-use crate::dataset::episode::{Episode, Goal, StartPose, Task};
+use crate::dataset::episode::{Episode, Goal, StartPose, Task, check_point};
 use crate::dataset::slices::{Slices, path_slice};
 use glam::{Vec2, Vec3};
 use sage_core::frame::SageFrame;
@@ -210,10 +210,12 @@ fn floats<const N: usize>(v: &Value, key: &str) -> Result<[f32; N]> {
     }
     let mut out = [0.0; N];
     for (o, x) in out.iter_mut().zip(a) {
+        // Finite in single precision: 1e300 is a finite f64 but an infinite f32.
         *o = x
             .as_f64()
+            .map(|f| f as f32)
             .filter(|f| f.is_finite())
-            .ok_or_else(|| Error::format(key, "expected finite numbers"))? as f32;
+            .ok_or_else(|| Error::format(key, "expected finite numbers"))?;
     }
     Ok(out)
 }
@@ -230,9 +232,7 @@ fn text(v: &Value, key: &str) -> String {
 /// Asset slices are unknown in the file and read as `medium` unless the caller re-tags them.
 pub fn read(path: &Path, sage_offset: Vec2, space: &ActionSpace) -> Result<Vec<Episode>> {
     let text_in = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let root: Value = serde_json::from_str(&text_in)
-        .map_err(|e| Error::format("", format!("not JSON: {e}")))
-        .in_file(path)?;
+    let root: Value = sage_io::files::parse_json(&text_in, path)?;
     let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);
     let frame = match meta.get("frame").and_then(Value::as_str) {
         Some("W") => GvlnFrame::World,
@@ -288,7 +288,9 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &ActionSpace) -> Result<Vec<E
                 for (pi, p) in pts.iter().enumerate() {
                     let pos: [f32; 3] = floats(p, "position").within(format!("points[{pi}]"))?;
                     let rot: [f32; 4] = floats(p, "rotation").within(format!("points[{pi}]"))?;
-                    positions.push(frame.point_back(pos));
+                    let pos = frame.point_back(pos);
+                    check_point(pos, "position").within(format!("points[{pi}]"))?;
+                    positions.push(pos);
                     yaws.push(
                         (rot != [0.0, 0.0, 0.0, 1.0])
                             .then(|| frame.heading_back(decode_rotation(rot))),
@@ -368,6 +370,7 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &ActionSpace) -> Result<Vec<E
                             kind: goal_kind(&end).into(),
                             reference: end,
                             position: *positions.last().unwrap_or(&positions[0]),
+                            yaw: None,
                         }),
                         reference_path: positions.clone(),
                         actions,

@@ -23,11 +23,12 @@ pub fn read(path: &Path) -> Result<Vec<Episode>> {
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
         .map(|(i, l)| {
-            serde_json::from_str(l)
-                .map_err(|e| {
-                    Error::format(format!("line {}", i + 1), format!("not an episode: {e}"))
-                })
-                .in_file(path)
+            let at = format!("line {}", i + 1);
+            let episode: Episode = serde_json::from_str(l)
+                .map_err(|e| Error::format(&at, format!("not an episode: {e}")))
+                .in_file(path)?;
+            episode.check().within(at).in_file(path)?;
+            Ok(episode)
         })
         .collect()
 }

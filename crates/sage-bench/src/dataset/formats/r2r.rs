@@ -12,7 +12,7 @@
 //! No-goal episodes have no goal and are not written. gzip with a fixed header (no time stamp),
 //! so the bytes depend only on the episodes.
 
-use crate::dataset::episode::{Episode, Goal, StartPose, Task};
+use crate::dataset::episode::{Episode, Goal, StartPose, Task, check_point};
 use crate::dataset::slices::Slices;
 use flate2::Compression;
 use flate2::read::GzDecoder;
@@ -50,6 +50,9 @@ struct Extra {
     start_ref: Option<String>,
     goal_ref: String,
     goal_kind: String,
+    /// A pose goal's heading, W frame, radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    goal_yaw: Option<f32>,
     slices: Slices,
     path_length: f32,
 }
@@ -220,6 +223,7 @@ pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &ActionSpace)
                 start_ref: e.start_ref.clone(),
                 goal_ref: goal.reference.clone(),
                 goal_kind: goal.kind.clone(),
+                goal_yaw: goal.yaw,
                 slices: e.slices.clone(),
                 path_length: e.path_length,
             }),
@@ -284,6 +288,23 @@ pub fn read(dir: &Path, split: &str, space: &ActionSpace) -> Result<Vec<Episode>
             };
             let path: Vec<[f32; 3]> = path.into_iter().map(world).collect();
             let yaw = habitat_quat_to_heading(r.start_rotation);
+            // Checked before the path is followed: an infinite or far-off point would make
+            // the walk along it endless.
+            let checked = check_point(world(r.start_position), "start_position")
+                .and_then(|()| check_point(world(goal.position), "goals[0].position"))
+                .and_then(|()| {
+                    path.iter()
+                        .enumerate()
+                        .try_for_each(|(k, p)| check_point(*p, &format!("reference_path[{k}]")))
+                })
+                .and_then(|()| {
+                    if yaw.is_finite() {
+                        Ok(())
+                    } else {
+                        Err(Error::format("start_rotation", "expected finite numbers"))
+                    }
+                });
+            checked.within(&ctx).in_file(&main)?;
             let actions = match gt.get(&r.episode_id.to_string()) {
                 Some(g) => g
                     .actions
@@ -308,7 +329,7 @@ pub fn read(dir: &Path, split: &str, space: &ActionSpace) -> Result<Vec<Episode>
                 .map(|w| Vec3::from(w[0]).distance(Vec3::from(w[1])))
                 .sum();
             let x = r.sage3d.clone();
-            Ok(Episode {
+            let episode = Episode {
                 episode_id: x
                     .as_ref()
                     .map_or_else(|| r.episode_id.to_string(), |x| x.episode_id.clone()),
@@ -338,6 +359,7 @@ pub fn read(dir: &Path, split: &str, space: &ActionSpace) -> Result<Vec<Episode>
                         .as_ref()
                         .map_or_else(|| "pose".into(), |x| x.goal_kind.clone()),
                     position: world(goal.position),
+                    yaw: x.as_ref().and_then(|x| x.goal_yaw),
                 }),
                 reference_path: path,
                 actions,
@@ -350,7 +372,10 @@ pub fn read(dir: &Path, split: &str, space: &ActionSpace) -> Result<Vec<Episode>
                     },
                     |x| x.slices,
                 ),
-            })
+            };
+            // The lengths and heading come from the file too.
+            episode.check().within(&ctx).in_file(&main)?;
+            Ok(episode)
         })
         .collect()
 }
