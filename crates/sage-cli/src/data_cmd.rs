@@ -28,7 +28,7 @@ pub enum DataCommand {
 pub struct ImportArgs {
     /// A GVLN JSON file, or an R2R-VLNCE folder (with --r2r-split).
     source: PathBuf,
-    /// The dataset folder to write into.
+    /// The dataset folder to write into: new, empty, or one `data build` or `data import` wrote.
     #[arg(long)]
     out: PathBuf,
     /// The split to write.
@@ -40,7 +40,8 @@ pub struct ImportArgs {
     /// S-frame offset DX,DY of a GVLN file that does not state its frame (the published ones).
     #[arg(long, default_value = "0,0", allow_hyphen_values = true)]
     offset: String,
-    /// Replace the split when it exists.
+    /// Replace the split when it exists, and write into a folder holding other files (never
+    /// replacing one of them).
     #[arg(long)]
     force: bool,
 }
@@ -132,6 +133,10 @@ pub struct BuildArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Ground agent profile the reference paths are planned for (wheeled, go2, g1, h1): its
+    /// radius is the planner's inflation, so the paths leave that robot room to pass.
+    #[arg(long, default_value = "wheeled")]
+    agent: String,
     /// Base-Action episodes per scene (default: a quarter of --per-scene).
     #[arg(long)]
     base_actions: Option<usize>,
@@ -179,7 +184,9 @@ pub fn run(cmd: DataCommand) -> Result<()> {
 }
 
 fn data_build(a: BuildArgs) -> Result<()> {
-    let mut params = SceneParams::new(a.per_scene, a.seed);
+    let mut params = SceneParams::new(a.per_scene, a.seed)
+        .for_agent(&a.agent)
+        .map_err(|e| e.within("--agent"))?;
     if let Some(b) = a.base_actions {
         params.base_actions = b;
     }

@@ -14,9 +14,12 @@ use std::time::Instant;
 #[derive(clap::Args)]
 pub struct DemoArgs {
     /// Output folder: scenes/, dataset/, train_data/, runs/{agent}/ (each with report.html),
-    /// overview.png.
+    /// overview.png; new, empty, or a demo's (rerunning resumes).
     #[arg(long, default_value = "demo")]
     out: PathBuf,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Number of synthetic scenes (homes, every third an office).
     #[arg(long, default_value_t = 3)]
     scenes: usize,
@@ -109,7 +112,9 @@ fn print_step(step: &Step, report: &StepReport, secs: f64) {
 
 /// Runs the demo and prints where everything is.
 pub fn run(a: DemoArgs) -> Result<()> {
+    let force = a.force;
     let s = DemoSettings::from(a);
+    sage_pipeline::demo_folder::claim(&s, force)?;
     let start = Instant::now();
     let step_start = std::cell::Cell::new(Instant::now());
     let bar = crate::progress::bar("{bar:30} {pos}/{len} {msg} {elapsed}");

@@ -42,9 +42,13 @@ pub struct EvalArgs {
     /// Environment preset: sage or vlnce.
     #[arg(long, default_value = "sage")]
     preset: String,
-    /// Run folder: episodes.jsonl, summary.json, sage3d_run.json. Rerunning into it resumes.
+    /// Run folder: episodes.jsonl, summary.json, sage3d_run.json, report.html; new, empty, or
+    /// an evaluation's. Rerunning into it resumes.
     #[arg(long)]
     out: PathBuf,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Exit non-zero when any episode failed (without it: only when every episode failed).
     #[arg(long)]
     strict: bool,
@@ -68,9 +72,10 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let episodes = bar("{bar:30} {pos}/{len} episodes {elapsed} (eta {eta}) {msg}");
     let maps = bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
-    let result = sage_pipeline::evaluate::evaluate(
+    let result = sage_pipeline::evaluate::evaluate_into(
         &settings,
         &a.out,
+        a.force,
         &|rec, to_run| {
             episodes.set_length(to_run as u64);
             episodes.set_message(rec.episode_id.clone());

@@ -1,13 +1,10 @@
 //! `sage3d nav …`: semantic maps, occupancy grids and trajectories.
 
 use clap::{Args, Subcommand};
-use indicatif::ParallelProgressIterator;
-use rayon::prelude::*;
 use sage_core::{Error, Result};
-use sage_io::run::write_run_record;
 use sage_io::runner::{Status, Tally};
 use sage_nav::GridParams;
-use sage_nav::trajectory::{self, TrajectoryParams};
+use sage_nav::trajectory::TrajectoryParams;
 use sage_pipeline::nav::MapReport;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -50,9 +47,13 @@ impl GridArgs {
 pub struct MapArgs {
     /// Scene folder.
     scene: PathBuf,
-    /// Output folder (default: SCENE/nav).
+    /// Output folder (default: SCENE/nav): new, empty, or a nav folder this command or
+    /// `nav trajectories` wrote (rerunning replaces the maps).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     #[command(flatten)]
     grid: GridArgs,
 }
@@ -68,9 +69,13 @@ pub struct TrajectoriesArgs {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Output folder: one sub-folder per scene, and sage3d_run.json (default: SCENES/nav for a
-    /// scene, SCENES/../nav_trajectories for a folder of scenes).
+    /// scene, SCENES/../nav_trajectories for a folder of scenes); new, empty, or a nav folder
+    /// this command or `nav map` wrote (rerunning resumes).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Resampling step, metres.
     #[arg(long, default_value_t = 0.25)]
     step: f32,
@@ -98,7 +103,7 @@ pub fn run(cmd: NavCommand) -> Result<()> {
 }
 
 fn map(a: MapArgs) -> Result<()> {
-    let report = sage_pipeline::nav::map(&a.scene, a.out.as_deref(), &a.grid.grid())?;
+    let report = sage_pipeline::nav::map_into(&a.scene, a.out.as_deref(), &a.grid.grid(), a.force)?;
     print_map(&report);
     Ok(())
 }
@@ -157,31 +162,16 @@ fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {
 
 fn trajectories(a: TrajectoriesArgs) -> Result<()> {
     let params = trajectory_params(&a)?;
-    let dirs = sage_io::scenes::scene_dirs(&a.scenes)?;
-    let single = dirs.len() == 1 && dirs[0] == a.scenes;
-    let out = a.out.clone().unwrap_or_else(|| {
-        if single {
-            a.scenes.join("nav")
-        } else {
-            a.scenes.with_file_name("nav_trajectories")
-        }
-    });
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let bar = crate::progress::bar("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta})");
-    bar.set_length(dirs.len() as u64);
     let start = Instant::now();
-    let outcomes: Vec<_> = dirs
-        .par_iter()
-        .progress_with(bar.clone())
-        .map(|dir| {
-            let name = dir
-                .file_name()
-                .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned());
-            let target = if single { out.clone() } else { out.join(name) };
-            trajectory::run_scene(dir, &target, &params)
-        })
-        .collect();
+    let report =
+        sage_pipeline::nav::trajectories(&a.scenes, a.out.as_deref(), &params, a.force, &|_, n| {
+            bar.set_length(n as u64);
+            bar.inc(1);
+        });
     bar.finish_and_clear();
+    let report = report?;
+    let outcomes = &report.outcomes;
     let tally = Tally::of(outcomes.iter().map(|o| o.status));
     let total: usize = outcomes.iter().map(|o| o.trajectories).sum();
     for o in outcomes.iter().filter(|o| o.status == Status::Skipped) {
@@ -191,19 +181,10 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
             o.reason.as_deref().unwrap_or("")
         );
     }
-    write_run_record(
-        &out,
-        "nav trajectories",
-        Some(params.seed),
-        serde_json::json!({
-            "config": params,
-            "scenes": outcomes,
-        }),
-    )?;
     println!(
         "{} scenes: {tally}; {total} trajectories in {} ({:.1} s)",
         outcomes.len(),
-        out.display(),
+        report.out.display(),
         start.elapsed().as_secs_f64()
     );
     Ok(())

@@ -120,9 +120,12 @@ pub struct PendingArgs {
     scene: PathBuf,
     #[command(flatten)]
     decomp: DecompArgs,
-    /// Output JSON file.
+    /// Output JSON file (an existing one is refused without --force).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -157,8 +160,11 @@ pub struct DriveArgs {
 pub struct UsdArgs {
     /// Scene folder.
     scene: PathBuf,
-    /// Output `.usda` file.
+    /// Output `.usda` file (an existing one is refused without --force).
     out: PathBuf,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
     #[command(flatten)]
     decomp: DecompArgs,
 }
@@ -239,6 +245,7 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
 }
 
 fn pending(a: PendingArgs) -> Result<()> {
+    sage_io::run::claim_file(&a.out, a.force)?;
     let (scene, _) = Scene::load(&a.scene)?;
     let list = WorkList::of(&scene, &a.decomp.decomposer()?, &a.decomp.cache(&a.scene));
     write_json(&a.out, &list)?;
@@ -307,6 +314,7 @@ fn relative_path(target: &Path, base: &Path) -> String {
 }
 
 fn export_usd(a: UsdArgs) -> Result<()> {
+    sage_io::run::claim_file(&a.out, a.force)?;
     let (scene, bodies, report) = a.decomp.bodies(&a.scene)?;
     let out_dir = match a.out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),

@@ -43,9 +43,12 @@ pub struct PlanArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Output folder.
+    /// Output folder: new, empty, or a reconstruction folder (rerunning replaces its plan).
     #[arg(long)]
     out: PathBuf,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Horizontal field of view of the views, degrees.
     #[arg(long, default_value_t = 90.0)]
     hfov: f32,
@@ -91,9 +94,12 @@ pub struct FitArgs {
     /// Optimisation steps (one training view each).
     #[arg(long, default_value_t = 2000)]
     iterations: usize,
-    /// Output scene folder.
+    /// Output scene folder: new, empty, or one this command wrote (rerunning replaces it).
     #[arg(long)]
     out: PathBuf,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Scene folder (default: the one the plan was made from).
     #[arg(long)]
     scene: Option<PathBuf>,
@@ -144,7 +150,7 @@ fn plan(a: PlanArgs) -> Result<()> {
         },
         ..PlanSettings::default()
     };
-    let r = recon::plan(&a.scene, &settings, &a.out)?;
+    let r = recon::plan(&a.scene, &settings, &a.out, a.force)?;
     println!(
         "{}: {:?} policy, budget {}, sampled {}, kept {}, dropped {} (closer than {} m to a surface)",
         r.scene, r.policy, r.budget, r.sampled, r.kept, r.dropped, r.safety_threshold
@@ -223,6 +229,7 @@ fn fit(a: FitArgs) -> Result<()> {
         a.scene.as_deref(),
         &settings,
         &a.out,
+        a.force,
         &|it, loss| {
             progress.set_position(it as u64);
             progress.set_message(format!("loss {loss:.4}"));

@@ -15,9 +15,12 @@ use std::path::{Path, PathBuf};
 pub struct RenderArgs {
     /// Scene folder.
     scene: PathBuf,
-    /// Output folder.
+    /// Output folder: new, empty, or one this command wrote (rerunning replaces its images).
     #[arg(long)]
     out: PathBuf,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Camera JSON: width, height, hfov_deg (or fx, fy, cx, cy), position with yaw_deg and
     /// pitch_deg (or c2w: 4x4, row-major, OpenCV axes), near, far. Without it the camera
     /// stands at 1.2 m in the middle of the largest room, set by the flags below.
@@ -102,18 +105,42 @@ pub fn run(a: RenderArgs) -> Result<()> {
         &RenderOptions { background },
         &a.out,
         a.turntable,
+        a.force,
     )
 }
 
-/// Renders `scene` from `camera` into `out`: every channel, the legend, `render.json`, and a
-/// turntable of `turntable` frames if asked.
+/// The command, as the run record names it.
+const COMMAND: &str = "render";
+
+/// Everything the command may write at the top of its output folder.
+const OUTPUTS: [&str; 12] = [
+    "rgb.png",
+    "depth.npy",
+    "depth_median.npy",
+    "alpha.npy",
+    "depth.png",
+    "instance.png",
+    "semantic.png",
+    "legend.json",
+    "render.json",
+    "turntable",
+    "turntable.gif",
+    sage_io::RUN_RECORD,
+];
+
+/// Renders `scene` from `camera` into `out`: every channel, the legend, `render.json`, a
+/// turntable of `turntable` frames if asked, and the run record. `out` must be new, empty or
+/// a render's; with `force`, a folder of other files is written into, provided none of them
+/// would be replaced ([`sage_io::run::claim_folder`]).
 pub fn render_to_dir(
     scene: &Scene,
     camera: &Camera,
     options: &RenderOptions,
     out: &Path,
     turntable: Option<usize>,
+    force: bool,
 ) -> Result<()> {
+    sage_io::run::claim_folder(out, &[COMMAND], &OUTPUTS, force)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let mut renderer = Renderer::new(&scene.gaussians);
     let image = renderer.render(
@@ -144,6 +171,12 @@ pub fn render_to_dir(
     if let Some(n) = turntable {
         write_turntable(out, &mut renderer, scene, camera, options, n)?;
     }
+    sage_io::run::write_run_record(
+        out,
+        COMMAND,
+        None,
+        serde_json::json!({ "scene": scene.name, "camera": record["camera"], "turntable": turntable }),
+    )?;
     eprintln!(
         "rendered {}x{} in {:.1} ms ({} splats) -> {}",
         camera.intrinsics.width,

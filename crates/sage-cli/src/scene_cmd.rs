@@ -40,9 +40,12 @@ pub struct SynthArgs {
     /// Random seed: every byte of the output follows from it and the options.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Output folder (created; existing files of the layout are replaced).
+    /// Output folder: new, empty, or a scene this command wrote (rerunning replaces its files).
     #[arg(long)]
     out: PathBuf,
+    /// Write into a folder holding other files (never replacing one of them).
+    #[arg(long)]
+    force: bool,
     /// Kind of space.
     #[arg(long, default_value = "home")]
     kind: SceneKind,
@@ -73,9 +76,12 @@ pub struct InfoArgs {
 pub struct PreviewArgs {
     /// Scene folder.
     dir: PathBuf,
-    /// Output PNG (default: DIR/preview.png).
+    /// Output PNG (default: DIR/preview.png); an existing file is refused without --force.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Replace an existing output file.
+    #[arg(long)]
+    force: bool,
     /// Metres per pixel.
     #[arg(long, default_value_t = 0.02)]
     resolution: f32,
@@ -98,7 +104,7 @@ pub fn run(cmd: SceneCommand) -> Result<()> {
             if let Some(g) = a.gaussians {
                 config.gaussians = g;
             }
-            let scene = synthesize(&config, &a.out, a.layout.into())?;
+            let scene = synthesize(&config, &a.out, a.layout.into(), a.force)?;
             println!("{}", scene.summary());
             Ok(())
         }
@@ -106,18 +112,20 @@ pub fn run(cmd: SceneCommand) -> Result<()> {
         SceneCommand::Preview(a) => {
             let (scene, _) = Scene::load(&a.dir)?;
             let out = a.out.unwrap_or_else(|| a.dir.join("preview.png"));
-            write_preview(&scene, &out, a.resolution)
+            write_preview(&scene, &out, a.resolution, a.force)
         }
     }
 }
 
-/// Writes the plan view of `scene` and says where.
-fn write_preview(scene: &Scene, out: &Path, resolution: f32) -> Result<()> {
+/// Writes the plan view of `scene` (replacing an existing `out` only with `force`) and says
+/// where.
+fn write_preview(scene: &Scene, out: &Path, resolution: f32, force: bool) -> Result<()> {
     if resolution.is_nan() || resolution <= 0.0 {
         return Err(Error::invalid(format!(
             "--resolution must be > 0, got {resolution}"
         )));
     }
+    sage_io::run::claim_file(out, force)?;
     let cut = scene.floorplan.ceiling_height() - 0.1;
     let image = sage_scene::preview::plan_view(&scene.gaussians, resolution, cut);
     image.save_png(out)?;
@@ -131,14 +139,14 @@ fn write_preview(scene: &Scene, out: &Path, resolution: f32) -> Result<()> {
 }
 
 /// Synthesises a scene folder under a spinner; returns the scene.
-fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout) -> Result<Scene> {
+fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout, force: bool) -> Result<Scene> {
     let start = Instant::now();
     let bar = crate::progress::spinner(&format!(
         "generating a {} scene (seed {})",
         config.kind.as_str(),
         config.seed
     ));
-    let scene = sage_pipeline::scene::synthesize(config, out, layout, &|stage| {
+    let scene = sage_pipeline::scene::synthesize_into(config, out, layout, force, &|stage| {
         if stage == sage_pipeline::scene::Stage::Writing {
             bar.set_message(format!("writing {}", out.display()));
         }

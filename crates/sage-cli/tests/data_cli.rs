@@ -77,6 +77,27 @@ fn build_names_a_folder_without_scenes() {
 }
 
 #[test]
+fn build_plans_for_the_agent_profile_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = sage3d(&[
+        "data",
+        "build",
+        s(dir.path()),
+        "--out",
+        s(&dir.path().join("o")),
+        "--agent",
+        "uav",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--agent") && err.contains("ground agents"),
+        "{err}"
+    );
+    assert!(!dir.path().join("o").exists());
+}
+
+#[test]
 fn build_never_writes_over_files_it_did_not_write() {
     let dir = tempfile::tempdir().unwrap();
     let scenes = dir.path().join("scenes");

@@ -49,21 +49,30 @@ pub fn entries(dir: &Path) -> Result<Vec<String>> {
     Ok(names)
 }
 
-/// Checks that `command` may write its outputs (`names`: the files and folders it writes at
+/// Checks that `commands[0]` may write its outputs (`names`: the files and folders it writes at
 /// the top of `dir`) into `dir`: a folder that does not exist, an empty one, or one whose run
-/// record names `command` (a rerun, which resumes). Any other folder holds files `command`
-/// did not write: it is refused unless `force`, and even then when it holds one of `names`,
-/// which would be replaced.
+/// record names one of `commands` (a rerun, which resumes; the commands after the first are
+/// those whose folders it shares, such as `nav map` and `nav trajectories` in `SCENE/nav`).
+/// Any other folder holds files it did not write: it is refused unless `force`, and even then
+/// when it holds one of `names`, which would be replaced.
 ///
 /// # Errors
 ///
 /// An `invalid` error naming the folder and what it holds, or an unreadable folder.
-pub fn claim_folder(dir: &Path, command: &str, names: &[&str], force: bool) -> Result<()> {
+pub fn claim_folder(dir: &Path, commands: &[&str], names: &[&str], force: bool) -> Result<()> {
+    let command = commands.first().copied().unwrap_or("");
     if !dir.exists() {
         return Ok(());
     }
+    if !dir.is_dir() {
+        return Err(Error::invalid(format!(
+            "the output folder is a file; `sage3d {command}` writes a folder there, choose a new or empty one"
+        ))
+        .in_file(dir));
+    }
     let held = entries(dir)?;
-    if held.is_empty() || recorded_command(dir).as_deref() == Some(command) {
+    let recorded = recorded_command(dir);
+    if held.is_empty() || recorded.is_some_and(|r| commands.contains(&r.as_str())) {
         return Ok(());
     }
     if let Some(clash) = held.iter().find(|h| names.contains(&h.as_str())) {
@@ -82,6 +91,27 @@ pub fn claim_folder(dir: &Path, command: &str, names: &[&str], force: bool) -> R
     Ok(())
 }
 
+/// Checks that an output file may be written at `path`: one that does not exist yet, or any
+/// with `force`. An existing file may be the user's, and a file carries no record of who
+/// wrote it, so it is replaced only when asked.
+///
+/// # Errors
+///
+/// An `invalid` error naming the file when it exists and `force` is not given, or when `path`
+/// is a folder.
+pub fn claim_file(path: &Path, force: bool) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::invalid("the output is a folder; name a file to write").in_file(path));
+    }
+    if path.exists() && !force {
+        return Err(Error::invalid(
+            "the output file exists; choose another name, or pass --force to replace it",
+        )
+        .in_file(path));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -90,19 +120,34 @@ mod tests {
     fn a_folder_is_claimed_only_when_new_empty_or_the_same_commands() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out");
-        claim_folder(&out, "data build", &["episodes"], false).unwrap();
+        claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
         std::fs::create_dir(&out).unwrap();
-        claim_folder(&out, "data build", &["episodes"], false).unwrap();
+        claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
         std::fs::write(out.join("notes.txt"), "mine").unwrap();
-        let e = claim_folder(&out, "data build", &["episodes"], false).unwrap_err();
+        let e = claim_folder(&out, &["data build"], &["episodes"], false).unwrap_err();
         assert!(e.to_string().contains("notes.txt") && e.to_string().contains("--force"));
-        claim_folder(&out, "data build", &["episodes"], true).unwrap();
+        claim_folder(&out, &["data build"], &["episodes"], true).unwrap();
         std::fs::create_dir(out.join("episodes")).unwrap();
-        let e = claim_folder(&out, "data build", &["episodes"], true).unwrap_err();
+        let e = claim_folder(&out, &["data build"], &["episodes"], true).unwrap_err();
         assert!(e.to_string().contains("'episodes'"), "{e}");
         write_run_record(&out, "data build", None, serde_json::json!({})).unwrap();
-        claim_folder(&out, "data build", &["episodes"], false).unwrap();
-        let e = claim_folder(&out, "nav trajectories", &["episodes"], true).unwrap_err();
+        claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
+        let e = claim_folder(&out, &["nav trajectories"], &["episodes"], true).unwrap_err();
         assert!(e.to_string().contains("episodes"), "{e}");
+        claim_folder(&out, &["data import", "data build"], &["episodes"], false).unwrap();
+        std::fs::write(dir.path().join("file"), "x").unwrap();
+        assert!(claim_folder(&dir.path().join("file"), &["render"], &[], true).is_err());
+    }
+
+    #[test]
+    fn an_existing_file_is_replaced_only_with_force() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("out.json");
+        claim_file(&file, false).unwrap();
+        std::fs::write(&file, "mine").unwrap();
+        let e = claim_file(&file, false).unwrap_err().to_string();
+        assert!(e.contains("out.json") && e.contains("--force"), "{e}");
+        claim_file(&file, true).unwrap();
+        assert!(claim_file(dir.path(), true).is_err());
     }
 }

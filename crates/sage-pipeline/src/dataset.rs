@@ -42,7 +42,7 @@ pub fn build(
         ));
     }
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
-    sage_io::run::claim_folder(out, "data build", &build::OUTPUTS, force)?;
+    sage_io::run::claim_folder(out, &["data build"], &build::OUTPUTS, force)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let (outcomes, summary) =
         build::build(&dirs, out, params, assemble, &|o| on_scene(o, dirs.len()))?;

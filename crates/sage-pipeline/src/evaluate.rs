@@ -6,18 +6,36 @@ use sage_bench::report::{self, ReportOutcome};
 use sage_core::Result;
 use std::path::Path;
 
-/// Runs or resumes the evaluation of `settings` into `out` (`on_episode(record, to_run)` after
-/// each episode), then writes its report (`on_map(episode_id, maps)` after each map).
+/// [`evaluate_into`] without `force`.
 ///
 /// # Errors
 ///
-/// As [`eval::run`] and [`report::write_with`].
+/// As [`evaluate_into`].
 pub fn evaluate(
     settings: &EvalSettings,
     out: &Path,
     on_episode: &(dyn Fn(&EvalRecord, usize) + Sync),
     on_map: &(dyn Fn(&str, usize) + Sync),
 ) -> Result<(RunOutcome, ReportOutcome)> {
+    evaluate_into(settings, out, false, on_episode, on_map)
+}
+
+/// Runs or resumes the evaluation of `settings` into `out` (`on_episode(record, to_run)` after
+/// each episode), then writes its report (`on_map(episode_id, maps)` after each map). `out`
+/// must be new, empty or an evaluation's run folder; with `force`, a folder of other files is
+/// written into, provided none of them would be replaced ([`eval::claim`]).
+///
+/// # Errors
+///
+/// As [`eval::claim`], [`eval::run`] and [`report::write_with`].
+pub fn evaluate_into(
+    settings: &EvalSettings,
+    out: &Path,
+    force: bool,
+    on_episode: &(dyn Fn(&EvalRecord, usize) + Sync),
+    on_map: &(dyn Fn(&str, usize) + Sync),
+) -> Result<(RunOutcome, ReportOutcome)> {
+    eval::claim(out, force)?;
     let outcome = eval::run(settings, out, on_episode)?;
     let report = report::write_with(out, &settings.scenes, on_map)?;
     Ok((outcome, report))

@@ -1,8 +1,11 @@
 //! A scene's navigation map step: the semantic top-down map and the occupancy grid of an
 //! agent's height slab, written beside the scene, and the published SAGE-3D builder's map of
-//! the scene's own occupancy image (the file the published harness reads).
+//! the scene's own occupancy image (the file the published harness reads); and the
+//! trajectories of a scene or a folder of scenes.
 
+use rayon::prelude::*;
 use sage_core::{Error, Result};
+use sage_nav::trajectory::{self, SceneOutcome, TrajectoryParams};
 use sage_nav::{GridParams, NavGrid, PublishedMap, SemanticMap, published_map};
 use sage_scene::Scene;
 use serde::Serialize;
@@ -42,16 +45,54 @@ pub struct MapReport {
     pub out: PathBuf,
 }
 
-/// Writes `semantic_map.json`, `semantic_map.png`, `occupancy.png` + `occupancy.json`, the
-/// published map `2D_Semantic_Map_{scene}_Complete.json` (when the scene has an occupancy
-/// image) and the run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`).
+/// The command that writes a scene's maps, as its run record names it.
+pub const MAP_COMMAND: &str = "nav map";
+
+/// The command that writes trajectories, as its run record names it.
+pub const TRAJECTORIES_COMMAND: &str = "nav trajectories";
+
+/// The commands whose outputs share a scene's `nav` folder (the default of both): each
+/// accepts a folder the other wrote as its own.
+const NAV_COMMANDS: [&str; 2] = [MAP_COMMAND, TRAJECTORIES_COMMAND];
+
+/// [`map_into`] without `force`.
 ///
 /// # Errors
 ///
-/// The scene cannot be loaded, its grid cannot be built, or a write error.
+/// As [`map_into`].
 pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Result<MapReport> {
+    map_into(scene_dir, out, grid_params, false)
+}
+
+/// Writes `semantic_map.json`, `semantic_map.png`, `occupancy.png` + `occupancy.json`, the
+/// published map `2D_Semantic_Map_{scene}_Complete.json` (when the scene has an occupancy
+/// image) and the run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`).
+/// `out` must be new, empty or a `nav` folder (a rerun replaces its maps); with `force`, a
+/// folder of other files is written into, provided none of them would be replaced
+/// ([`sage_io::run::claim_folder`]).
+///
+/// # Errors
+///
+/// The scene cannot be loaded, an output folder holding files the command did not write, its
+/// grid cannot be built, or a write error.
+pub fn map_into(
+    scene_dir: &Path,
+    out: Option<&Path>,
+    grid_params: &GridParams,
+    force: bool,
+) -> Result<MapReport> {
     let (scene, _) = Scene::load(scene_dir)?;
     let out = out.map_or_else(|| scene_dir.join("nav"), Path::to_path_buf);
+    let published_name = published_map::file_name(&scene.name);
+    let names = [
+        "semantic_map.json",
+        "semantic_map.png",
+        "occupancy.png",
+        "occupancy.json",
+        published_name.as_str(),
+        sage_io::RUN_RECORD,
+    ];
+    sage_io::run::claim_folder(&out, &NAV_COMMANDS, &names, force)?;
     let (grid, source) = NavGrid::from_scene(&scene, grid_params)?;
     let map = SemanticMap::build(&scene);
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
@@ -66,15 +107,12 @@ pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Re
         .as_ref()
         .map(|occ| PublishedMap::build(&scene.objects, occ));
     if let Some(p) = &published {
-        sage_io::files::write_json(
-            &out.join(published_map::file_name(&scene.name)),
-            &p.to_json(),
-        )?;
+        sage_io::files::write_json(&out.join(&published_name), &p.to_json())?;
     }
     let (free, occupied, unknown) = grid.counts();
     sage_io::run::write_run_record(
         &out,
-        "nav map",
+        MAP_COMMAND,
         None,
         serde_json::json!({
             "config": {
@@ -103,4 +141,88 @@ pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Re
         published_entries: published.map(|p| p.entries.len()),
         out,
     })
+}
+
+/// What [`trajectories`] did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrajectoriesReport {
+    /// The output folder.
+    pub out: PathBuf,
+    /// Per scene: made, resumed or skipped.
+    pub outcomes: Vec<SceneOutcome>,
+}
+
+/// Generates (or resumes) the trajectories of the scene folder, or of every scene folder
+/// inside the folder, `scenes` into `out` (default: `scenes/nav` for a scene,
+/// `scenes/../nav_trajectories` for a folder of scenes: one sub-folder per scene there),
+/// parallel over scenes, then the run record; `on_scene(outcome, scenes)` is called as each
+/// of the `scenes` folders is done. `out` must be new, empty or a `nav` folder; with `force`, a
+/// folder of other files is written into, provided none of them would be replaced
+/// ([`sage_io::run::claim_folder`]).
+///
+/// # Errors
+///
+/// No scenes, an output folder holding files the command did not write, or a write error. A
+/// scene that fails is skipped with its reason (in the outcomes).
+pub fn trajectories(
+    scenes: &Path,
+    out: Option<&Path>,
+    params: &TrajectoryParams,
+    force: bool,
+    on_scene: &(dyn Fn(&SceneOutcome, usize) + Sync),
+) -> Result<TrajectoriesReport> {
+    let dirs = sage_io::scenes::scene_dirs(scenes)?;
+    let single = dirs.len() == 1 && dirs[0] == scenes;
+    let out = out.map_or_else(
+        || {
+            if single {
+                scenes.join("nav")
+            } else {
+                scenes.with_file_name("nav_trajectories")
+            }
+        },
+        Path::to_path_buf,
+    );
+    let target_name = |dir: &Path| {
+        dir.file_name()
+            .map_or_else(|| "scene".to_string(), |n| n.to_string_lossy().into_owned())
+    };
+    let mut names: Vec<String> = if single {
+        vec![
+            trajectory::TRAJECTORIES_FILE.into(),
+            trajectory::TRAJECTORIES_PNG.into(),
+        ]
+    } else {
+        dirs.iter().map(|d| target_name(d)).collect()
+    };
+    names.push(sage_io::RUN_RECORD.into());
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    sage_io::run::claim_folder(&out, &[TRAJECTORIES_COMMAND, MAP_COMMAND], &names, force)?;
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let record = |outcomes: &[SceneOutcome]| {
+        sage_io::run::write_run_record(
+            &out,
+            TRAJECTORIES_COMMAND,
+            Some(params.seed),
+            serde_json::json!({ "config": params, "scenes": outcomes }),
+        )
+    };
+    // Recorded before the scenes too, so that an interrupted run is recognised as this
+    // command's when it is rerun to resume.
+    record(&[])?;
+    let outcomes: Vec<SceneOutcome> = dirs
+        .par_iter()
+        .map(|dir| {
+            let target = if single {
+                out.clone()
+            } else {
+                out.join(target_name(dir))
+            };
+            let outcome = trajectory::run_scene(dir, &target, params);
+            on_scene(&outcome, dirs.len());
+            outcome
+        })
+        .collect();
+    record(&outcomes)?;
+    Ok(TrajectoriesReport { out, outcomes })
 }

@@ -59,13 +59,39 @@ pub struct PlanReport {
     pub groups: BTreeMap<String, (usize, usize)>,
 }
 
+/// The command that plans a reconstruction folder, as its run record names it.
+pub const PLAN_COMMAND: &str = "recon plan";
+
+/// The command that fits a scene folder, as its run record names it.
+pub const FIT_COMMAND: &str = "recon fit";
+
+/// Everything the reconstruction steps write at the top of the folder [`plan`] makes (the
+/// later steps write into the plan's folder).
+const RECON_OUTPUTS: [&str; 6] = [
+    PLAN_FILE,
+    PLAN_PNG,
+    views::VIEWS_DIR,
+    TRANSFORMS_FILE,
+    POINTS_FILE,
+    sage_io::RUN_RECORD,
+];
+
 /// Plans the cameras of the scene in `scene_dir` into `out` (`plan.json`, `plan.png`, the run
-/// record).
+/// record). `out` must be new, empty or a reconstruction folder (a rerun replaces its plan);
+/// with `force`, a folder of other files is written into, provided none of them would be
+/// replaced ([`sage_io::run::claim_folder`]).
 ///
 /// # Errors
 ///
-/// The scene cannot be loaded or planned, or a file cannot be written.
-pub fn plan(scene_dir: &Path, settings: &PlanSettings, out: &Path) -> Result<PlanReport> {
+/// An output folder holding files the command did not write, the scene cannot be loaded or
+/// planned, or a file cannot be written.
+pub fn plan(
+    scene_dir: &Path,
+    settings: &PlanSettings,
+    out: &Path,
+    force: bool,
+) -> Result<PlanReport> {
+    sage_io::run::claim_folder(out, &[PLAN_COMMAND], &RECON_OUTPUTS, force)?;
     let (scene, surfaces) = load_mesh_scene(scene_dir)?;
     let plan = make_plan(&scene, &scene_dir.to_string_lossy(), &surfaces, settings)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -90,7 +116,7 @@ pub fn plan(scene_dir: &Path, settings: &PlanSettings, out: &Path) -> Result<Pla
     }
     write_run_record(
         out,
-        "recon plan",
+        PLAN_COMMAND,
         Some(settings.seed),
         serde_json::json!({
             "scene": plan.scene,
@@ -254,18 +280,25 @@ pub struct FitReport {
 /// → fit): starts from surface samples of the scene's meshes, optimises with `sage-train`
 /// (`on_iteration(iteration, loss)`), and writes the scene folder `out` (the fitted Gaussians
 /// with the original labels, structure and meshes), `out/fit_report.json` and the run record.
+/// `out` must be new, empty or a fit's (a rerun replaces its files); with `force`, a folder of
+/// other files is written into, provided none of them would be replaced
+/// ([`sage_io::run::claim_folder`]).
 ///
 /// # Errors
 ///
-/// No plan or rendered views, no points asked for, the scene cannot be loaded, the fit fails,
-/// or a write error.
+/// An output folder holding files the command did not write, no plan or rendered views, no
+/// points asked for, the scene cannot be loaded, the fit fails, or a write error.
 pub fn fit(
     dir: &Path,
     scene: Option<&Path>,
     settings: &FitSettings,
     out: &Path,
+    force: bool,
     on_iteration: &(dyn Fn(usize, f32) + Sync),
 ) -> Result<FitReport> {
+    let mut names = sage_scene::scene::files::WRITTEN.to_vec();
+    names.extend([FIT_REPORT, sage_io::RUN_RECORD]);
+    sage_io::run::claim_folder(out, &[FIT_COMMAND], &names, force)?;
     let plan = Plan::load(&dir.join(PLAN_FILE))?;
     let exported = views::export_views(dir, &plan)?;
     let manifest = views::read_manifest(dir)?
@@ -324,7 +357,7 @@ pub fn fit(
     write_json(&out.join(FIT_REPORT), &details)?;
     write_run_record(
         out,
-        "recon fit",
+        FIT_COMMAND,
         Some(seed),
         serde_json::json!({ "recon": dir.to_string_lossy(), "iterations": settings.iterations, "points": settings.points }),
     )?;

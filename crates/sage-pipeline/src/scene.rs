@@ -14,19 +14,42 @@ pub enum Stage {
     Writing,
 }
 
-/// Generates the scene of `config` and writes it to `out` in the InteriorGS layout with
-/// Gaussians in `layout`, then the run record (written last: its presence marks a complete
-/// folder). `on_stage` is told each [`Stage`] as it starts.
+/// The command that writes synthetic scene folders, as their run record names it.
+pub const SYNTH_COMMAND: &str = "scene synth";
+
+/// [`synthesize_into`] without `force`: `out` must be new, empty or a synthesised scene's.
 ///
 /// # Errors
 ///
-/// Bad settings, or a write error.
+/// As [`synthesize_into`].
 pub fn synthesize(
     config: &SynthConfig,
     out: &Path,
     layout: SplatLayout,
     on_stage: &dyn Fn(Stage),
 ) -> Result<Scene> {
+    synthesize_into(config, out, layout, false, on_stage)
+}
+
+/// Generates the scene of `config` and writes it to `out` in the InteriorGS layout with
+/// Gaussians in `layout`, then the run record (written last: its presence marks a complete
+/// folder). `out` must be new, empty or a synthesised scene's (a rerun replaces its files);
+/// with `force`, a folder of other files is written into, provided none of them would be
+/// replaced ([`sage_io::run::claim_folder`]). `on_stage` is told each [`Stage`] as it starts.
+///
+/// # Errors
+///
+/// Bad settings, an output folder holding files the command did not write, or a write error.
+pub fn synthesize_into(
+    config: &SynthConfig,
+    out: &Path,
+    layout: SplatLayout,
+    force: bool,
+    on_stage: &dyn Fn(Stage),
+) -> Result<Scene> {
+    let mut names = sage_scene::scene::files::WRITTEN.to_vec();
+    names.push(sage_io::RUN_RECORD);
+    sage_io::run::claim_folder(out, &[SYNTH_COMMAND], &names, force)?;
     on_stage(Stage::Generating);
     let scene = sage_synth::generate(config)?;
     on_stage(Stage::Writing);
@@ -43,6 +66,6 @@ pub fn synthesize(
         },
         "inputs": [],
     });
-    sage_io::run::write_run_record(out, "scene synth", Some(config.seed), details)?;
+    sage_io::run::write_run_record(out, SYNTH_COMMAND, Some(config.seed), details)?;
     Ok(scene)
 }

@@ -135,6 +135,7 @@ pub fn evaluate<'py>(
         seed,
         preset,
     )?;
+    eval::claim(&out, false).py()?;
     let factory = agent.clone().unbind();
     let outcome = if builtin.is_some() && overrides.is_none() && scenes_only.is_none() {
         py.detach(|| eval::run(&settings, &out, &|_, _| {}))

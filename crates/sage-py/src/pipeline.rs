@@ -10,7 +10,8 @@ use std::path::PathBuf;
 
 /// Runs the demo into `out` (synthetic scenes, or the scene folders of `from_dir`): scenes,
 /// maps, collision bodies, the dataset, an evaluation with its report per agent and
-/// `overview.png`. Returns each agent's summary, by agent.
+/// `overview.png`. `out` must be new, empty or a demo's (rerunning resumes). Returns each
+/// agent's summary, by agent.
 #[pyfunction]
 #[pyo3(signature = (out, scenes=3, seed=0, per_scene=12, gaussians=150_000, agents=None, split="test_balanced", from_dir=None))]
 #[allow(clippy::too_many_arguments)]
@@ -36,7 +37,10 @@ pub fn demo<'py>(
         from: from_dir,
     };
     let runs = py
-        .detach(|| sage_pipeline::demo::run(&settings, &|_, _, _| {}, &|_| {}, &|_, _| {}))
+        .detach(|| {
+            sage_pipeline::demo_folder::claim(&settings, false)?;
+            sage_pipeline::demo::run(&settings, &|_, _, _| {}, &|_| {}, &|_, _| {})
+        })
         .py()?;
     let by_agent: BTreeMap<String, _> = runs.into_iter().collect();
     to_py(py, &by_agent)

@@ -84,6 +84,19 @@ pub mod files {
     pub const MESHES: &str = "meshes";
     /// Structure mesh inside the mesh folder.
     pub const STRUCTURE_MESH: &str = "structure.obj";
+    /// Everything [`Scene::save`](super::Scene::save) may write at the top of a scene folder
+    /// (the occupancy map's two files included), so that a command writing a scene can refuse
+    /// a folder where it would replace someone else's file.
+    pub const WRITTEN: [&str; 8] = [
+        COMPRESSED_PLY,
+        STANDARD_PLY,
+        LABELS,
+        STRUCTURE,
+        OBJECTS,
+        "occupancy.png",
+        "occupancy.json",
+        MESHES,
+    ];
 }
 
 impl Scene {

@@ -100,6 +100,24 @@ impl SceneParams {
         }
     }
 
+    /// The settings with trajectories planned for the ground agent profile `agent` (`wheeled`,
+    /// `go2`, `g1`, `h1`): its radius is the planner's inflation, so every reference path leaves
+    /// that robot room to pass (docs/dataset.md). The default plans for `wheeled` (0.2 m).
+    ///
+    /// # Errors
+    ///
+    /// An unknown profile, or one that does not walk (the UAV).
+    pub fn for_agent(mut self, agent: &str) -> Result<SceneParams> {
+        let profile: sage_physics::AgentProfile = agent.parse()?;
+        if profile.kind != sage_physics::AgentKind::Ground {
+            return Err(Error::invalid(format!(
+                "agent '{agent}': datasets are planned for ground agents (wheeled, go2, g1, h1)"
+            )));
+        }
+        self.trajectories.cost.robot_radius = profile.radius;
+        Ok(self)
+    }
+
     /// Checks the settings.
     pub fn validate(&self) -> Result<()> {
         if !(self.space.forward > 0.0 && self.space.turn_deg > 0.0 && self.space.turn_deg <= 180.0)
@@ -796,4 +814,28 @@ pub fn build(
         .collect();
     let summary = assemble(out, &names, assemble_params, &params.space)?;
     Ok((outcomes, summary))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn datasets_are_planned_for_the_ground_profile_asked_for() {
+        let radius = |agent: &str| {
+            SceneParams::new(3, 0)
+                .for_agent(agent)
+                .map(|p| p.trajectories.cost.robot_radius)
+        };
+        assert_eq!(radius("wheeled").unwrap(), 0.2);
+        assert_eq!(radius("go2").unwrap(), 0.28);
+        assert_eq!(radius("H1").unwrap(), 0.30);
+        assert!(
+            radius("uav")
+                .unwrap_err()
+                .to_string()
+                .contains("ground agents")
+        );
+        assert!(radius("robot").is_err());
+    }
 }

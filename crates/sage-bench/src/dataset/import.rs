@@ -27,15 +27,23 @@ pub enum Source {
     },
 }
 
+/// The command, as the run record of a dataset folder it made names it.
+pub const COMMAND: &str = "data import";
+
 /// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
-/// in the dataset's `splits.json` ([`folder::add_split`]); returns the episodes. An existing
-/// split file is replaced only with `force`.
+/// in the dataset's `splits.json` ([`folder::add_split`]); returns the episodes. `dataset` must
+/// be new, empty, or a dataset folder written by `data build` or `data import` (a folder
+/// without a run record gets this command's); with `force`, a folder of other files is
+/// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]), and
+/// an existing split file is replaced.
 ///
 /// # Errors
 ///
-/// A bad source file (naming the file and field), an existing split without `force`, a write
-/// error.
+/// An output folder holding files a dataset command did not write, a bad source file (naming
+/// the file and field), an existing split without `force`, a write error.
 pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
+    let names = ["episodes", folder::SPLITS_FILE, sage_io::RUN_RECORD];
+    sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
     let space = ActionSpace::default();
     let episodes = match source {
         Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
@@ -52,5 +60,9 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     jsonl::write(&file, &episodes)?;
     folder::add_split(dataset, split, &episodes)?;
+    // A built dataset keeps its build's record (it names the scenes folder `eval` reads).
+    if sage_io::run::recorded_command(dataset).is_none() {
+        sage_io::run::write_run_record(dataset, COMMAND, None, serde_json::json!({}))?;
+    }
     Ok(episodes)
 }

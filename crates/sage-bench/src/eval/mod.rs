@@ -336,6 +336,26 @@ fn run_one(
     rec
 }
 
+/// Everything an evaluation and its report write at the top of a run folder.
+const RUN_OUTPUTS: [&str; 5] = [
+    RECORDS_FILE,
+    SUMMARY_FILE,
+    RUN_RECORD,
+    crate::report::REPORT_FILE,
+    crate::report::REPORT_DIR,
+];
+
+/// Checks that `out` may be an evaluation's run folder: new, empty or an evaluation's (a rerun,
+/// which resumes when its settings are the same); with `force`, a folder of other files is
+/// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]).
+///
+/// # Errors
+///
+/// A folder holding files an evaluation did not write, naming it and one of them.
+pub fn claim(out: &Path, force: bool) -> Result<()> {
+    sage_io::run::claim_folder(out, &["eval"], &RUN_OUTPUTS, force)
+}
+
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
 /// run) and writes the run record.
 fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str) -> Result<()> {
@@ -390,6 +410,7 @@ fn write_run_record(out: &Path, recorded: &serde_json::Value, dataset_hash: &str
 
 /// Runs (or resumes) an evaluation into `out`, calling `on_done(record, to_run)` after each
 /// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`.
+/// Callers [`claim`] `out` first.
 ///
 /// # Errors
 ///

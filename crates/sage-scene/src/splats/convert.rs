@@ -58,13 +58,8 @@ pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<C
                 output.display()
             )));
         }
-        if !options.force {
-            return Err(Error::invalid(format!(
-                "{} exists; pass --force to replace it",
-                output.display()
-            )));
-        }
     }
+    sage_io::run::claim_file(output, options.force)?;
     // Errors of the input name it; the output's name the output already.
     with_mapped_file(input, |bytes| {
         convert_bytes(bytes, output, output_format, options.sh_degree)

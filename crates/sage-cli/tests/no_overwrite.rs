@@ -1,0 +1,318 @@
+//! No silent overwrites: every command that writes a folder refuses one holding files it did
+//! not write (naming the folder and a file, exiting non-zero, touching nothing), writes beside
+//! them with `--force`, refuses even then a file it would replace, and resumes in its own
+//! folder; a command that writes a file refuses an existing one without `--force`.
+
+mod common;
+
+use common::{ok, s, sage3d, small_dataset, small_scene};
+use std::path::Path;
+use std::process::Output;
+
+const MINE: &[u8] = b"the user's own bytes";
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Checks the folder rule of a command: `run(out, force)` runs it writing into `out`; `own` is
+/// one of the names it writes at the top of its folder; `command` is what its run record names.
+fn claims_its_folder(
+    dir: &Path,
+    name: &str,
+    own: &str,
+    command: &str,
+    run: &dyn Fn(&Path, bool) -> Output,
+) {
+    // A folder of the user's files is refused, naming the folder and the file.
+    let out = dir.join(name);
+    std::fs::create_dir_all(&out).unwrap();
+    let notes = out.join("notes.txt");
+    std::fs::write(&notes, MINE).unwrap();
+    let refused = run(&out, false);
+    let e = stderr(&refused);
+    assert!(!refused.status.success(), "{name}: {e}");
+    assert!(
+        e.contains(s(&out)) && e.contains("notes.txt") && e.contains("--force"),
+        "{name}: {e}"
+    );
+    assert_eq!(std::fs::read(&notes).unwrap(), MINE, "{name}");
+    assert_eq!(
+        sage_io::run::entries(&out).unwrap(),
+        ["notes.txt"],
+        "{name}"
+    );
+    // With --force the command writes beside them, and records itself.
+    let forced = run(&out, true);
+    assert!(forced.status.success(), "{name}: {}", stderr(&forced));
+    assert_eq!(std::fs::read(&notes).unwrap(), MINE, "{name}");
+    assert_eq!(
+        sage_io::run::recorded_command(&out).as_deref(),
+        Some(command),
+        "{name}"
+    );
+    // The folder is now the command's own: a rerun needs no --force.
+    let again = run(&out, false);
+    assert!(again.status.success(), "{name}: {}", stderr(&again));
+    assert_eq!(std::fs::read(&notes).unwrap(), MINE, "{name}");
+    // A file of the user's under one of the command's own names is refused even with --force.
+    let clash = dir.join(format!("{name}_clash"));
+    std::fs::create_dir_all(&clash).unwrap();
+    let theirs = clash.join(own);
+    std::fs::write(&theirs, MINE).unwrap();
+    let refused = run(&clash, true);
+    let e = stderr(&refused);
+    assert!(!refused.status.success(), "{name}: {e}");
+    assert!(e.contains(s(&clash)) && e.contains(own), "{name}: {e}");
+    assert_eq!(std::fs::read(&theirs).unwrap(), MINE, "{name}");
+    assert_eq!(sage_io::run::entries(&clash).unwrap(), [own], "{name}");
+}
+
+/// `args` followed by `--force` when `force`.
+fn with_force<'a>(args: &[&'a str], force: bool) -> Vec<&'a str> {
+    let mut v = args.to_vec();
+    if force {
+        v.push("--force");
+    }
+    v
+}
+
+#[test]
+fn scene_render_and_nav_commands_claim_their_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    small_scene(&scene, "3", "1500");
+    let synth = |out: &Path, force: bool| {
+        let args = [
+            "scene",
+            "synth",
+            "--rooms",
+            "2",
+            "--objects",
+            "6",
+            "--gaussians",
+            "1000",
+            "--out",
+            s(out),
+        ];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "synth", "labels.json", "scene synth", &synth);
+    let render = |out: &Path, force: bool| {
+        let args = [
+            "render",
+            s(&scene),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--out",
+            s(out),
+        ];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "render", "rgb.png", "render", &render);
+    let map = |out: &Path, force: bool| {
+        let args = ["nav", "map", s(&scene), "--cell", "0.1", "--out", s(out)];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "map", "semantic_map.json", "nav map", &map);
+    let trajectories = |out: &Path, force: bool| {
+        let args = [
+            "nav",
+            "trajectories",
+            s(&scene),
+            "--count",
+            "2",
+            "--cell",
+            "0.1",
+            "--out",
+            s(out),
+        ];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(
+        dir.path(),
+        "trajectories",
+        "trajectories.json",
+        "nav trajectories",
+        &trajectories,
+    );
+    // Both nav commands share their default folder, SCENE/nav, in either order and on reruns.
+    for args in [
+        &["nav", "map", s(&scene), "--cell", "0.1"][..],
+        &[
+            "nav",
+            "trajectories",
+            s(&scene),
+            "--count",
+            "2",
+            "--cell",
+            "0.1",
+        ],
+        &["nav", "map", s(&scene), "--cell", "0.1"],
+    ] {
+        ok(args);
+    }
+    assert!(scene.join("nav/semantic_map.json").is_file());
+    assert!(scene.join("nav/trajectories.json").is_file());
+}
+
+#[test]
+fn recon_plan_and_fit_claim_their_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    small_scene(&scene, "4", "1000");
+    let plan_args = |out: &Path| {
+        vec![
+            "recon".to_string(),
+            "plan".into(),
+            s(&scene).into(),
+            "--policy".into(),
+            "volume".into(),
+            "--budget".into(),
+            "20".into(),
+            "--out".into(),
+            s(out).into(),
+        ]
+    };
+    let plan = |out: &Path, force: bool| {
+        let args = plan_args(out);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "plan", "plan.json", "recon plan", &plan);
+    let recon = dir.path().join("recon");
+    let args = plan_args(&recon);
+    ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    ok(&["recon", "render", s(&recon), "--size", "24x18"]);
+    let fit = |out: &Path, force: bool| {
+        let args = [
+            "recon",
+            "fit",
+            s(&recon),
+            "--iterations",
+            "2",
+            "--points",
+            "200",
+            "--out",
+            s(out),
+        ];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "fit", "structure.json", "recon fit", &fit);
+}
+
+#[test]
+fn data_import_and_eval_claim_their_folders() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let gvln = data.join("gvln/train.json");
+    // Each import adds a split of its own name (an existing split is the other rule).
+    let imports = std::cell::Cell::new(0);
+    let import = |out: &Path, force: bool| {
+        imports.set(imports.get() + 1);
+        let split = format!("split{}", imports.get());
+        let args = [
+            "data",
+            "import",
+            s(&gvln),
+            "--split",
+            &split,
+            "--out",
+            s(out),
+        ];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "import", "splits.json", "data import", &import);
+    // A dataset folder `data build` wrote takes a split, and keeps the build's record.
+    ok(&[
+        "data",
+        "import",
+        s(&gvln),
+        "--split",
+        "again",
+        "--out",
+        s(&data),
+    ]);
+    assert!(data.join("episodes/again.jsonl").is_file());
+    assert_eq!(
+        sage_io::run::recorded_command(&data).as_deref(),
+        Some("data build")
+    );
+    let eval = |out: &Path, force: bool| {
+        let args = [
+            "eval",
+            s(&data),
+            "--scenes",
+            s(&scenes),
+            "--split",
+            "train",
+            "--agent",
+            "forward",
+            "--out",
+            s(out),
+        ];
+        sage3d(&with_force(&args, force))
+    };
+    claims_its_folder(dir.path(), "run", "summary.json", "eval", &eval);
+}
+
+#[test]
+fn the_demo_refuses_a_folder_of_other_files_before_it_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    std::fs::create_dir_all(&out).unwrap();
+    let notes = out.join("notes.txt");
+    std::fs::write(&notes, MINE).unwrap();
+    let refused = sage3d(&["demo", "--out", s(&out), "--scenes", "1"]);
+    let e = stderr(&refused);
+    assert!(!refused.status.success() && e.contains("notes.txt") && e.contains(s(&out)));
+    std::fs::create_dir_all(out.join("dataset")).unwrap();
+    let refused = sage3d(&["demo", "--out", s(&out), "--scenes", "1", "--force"]);
+    let e = stderr(&refused);
+    assert!(!refused.status.success() && e.contains("'dataset'"), "{e}");
+    assert_eq!(
+        sage_io::run::entries(&out).unwrap(),
+        ["dataset", "notes.txt"]
+    );
+    assert_eq!(std::fs::read(&notes).unwrap(), MINE);
+}
+
+#[test]
+fn output_files_are_replaced_only_with_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    small_scene(&scene, "5", "1000");
+    let file = |name: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, MINE).unwrap();
+        p
+    };
+    let pending = file("pending.json");
+    let usd = file("scene.usda");
+    let preview = file("preview.png");
+    let cases: [(Vec<&str>, &Path); 3] = [
+        (
+            vec!["physics", "pending", s(&scene), "--out", s(&pending)],
+            &pending,
+        ),
+        (vec!["export", "usd", s(&scene), s(&usd)], &usd),
+        (
+            vec!["scene", "preview", s(&scene), "--out", s(&preview)],
+            &preview,
+        ),
+    ];
+    for (args, path) in &cases {
+        let refused = sage3d(args);
+        let e = stderr(&refused);
+        assert!(!refused.status.success(), "{args:?}: {e}");
+        assert!(
+            e.contains(s(path)) && e.contains("--force"),
+            "{args:?}: {e}"
+        );
+        assert_eq!(std::fs::read(path).unwrap(), MINE, "{args:?}");
+        ok(&with_force(args, true));
+        assert_ne!(std::fs::read(path).unwrap(), MINE, "{args:?}");
+    }
+}
