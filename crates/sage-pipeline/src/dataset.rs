@@ -44,6 +44,9 @@ pub fn build(
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
     sage_io::run::claim_folder(out, &["data build"], &build::OUTPUTS, force)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    // Recorded before the work too, so a build that crashes halfway is this command's folder
+    // and its rerun resumes instead of being refused.
+    build::write_run_record(out, scenes, &dirs, params, assemble)?;
     let (outcomes, summary) =
         build::build(&dirs, out, params, assemble, &|o| on_scene(o, dirs.len()))?;
     build::write_run_record(out, scenes, &dirs, params, assemble)?;
