@@ -492,21 +492,23 @@ impl Agent for OracleAgent {
 impl OracleAgent {
     /// Euclidean distance from `at` to the goal region (0 inside an object's footprint).
     fn goal_distance(&self, at: Vec2) -> f32 {
-        match &self.region {
-            Some(r) if r.contains(at) => 0.0,
-            Some(r) => r.distance_to_boundary(at),
-            None => at.distance(self.goal),
-        }
+        crate::env::region_distance(self.region.as_ref(), self.goal, at)
     }
 
     /// True when a forward step from `at` facing `yaw` crosses a cell the agent's path finder
     /// does not count navigable.
     fn step_leaves_navigable(&self, at: Vec2, yaw: f32) -> bool {
         let pf = self.planner.as_ref().expect("set at reset");
-        let dir = Vec2::from_angle(yaw);
-        let n = (self.forward / 0.05).ceil().max(1.0) as usize;
-        (1..=n).any(|k| !pf.is_navigable(at + dir * (self.forward * k as f32 / n as f32)))
+        step_leaves_navigable(pf, at, yaw, self.forward)
     }
+}
+
+/// True when a straight step of `length` metres from `at` along `yaw` crosses a cell `pf` does
+/// not count navigable (sampled every 5 cm): a step the agent would take touching something.
+pub fn step_leaves_navigable(pf: &PathFinder, at: Vec2, yaw: f32, length: f32) -> bool {
+    let dir = Vec2::from_angle(yaw);
+    let n = (length / 0.05).ceil().max(1.0) as usize;
+    (1..=n).any(|k| !pf.is_navigable(at + dir * (length * k as f32 / n as f32)))
 }
 
 impl OracleAgent {

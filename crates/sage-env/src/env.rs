@@ -70,11 +70,21 @@ impl Running {
     /// without a goal.
     fn goal_distance(&self, at: Vec2) -> Option<f32> {
         let goal = self.trace.episode.goal.as_ref()?;
-        Some(match &self.region {
-            Some(r) if r.contains(at) => 0.0,
-            Some(r) => r.distance_to_boundary(at),
-            None => at.distance(goal.point.truncate()),
-        })
+        Some(region_distance(
+            self.region.as_ref(),
+            goal.point.truncate(),
+            at,
+        ))
+    }
+}
+
+/// Euclidean distance from `at` to a goal region: 0 inside the footprint `region`, else to
+/// its boundary; to the goal `point` when there is no footprint.
+pub(crate) fn region_distance(region: Option<&Polygon2>, point: Vec2, at: Vec2) -> f32 {
+    match region {
+        Some(r) if r.contains(at) => 0.0,
+        Some(r) => r.distance_to_boundary(at),
+        None => at.distance(point),
     }
 }
 

@@ -93,14 +93,8 @@ impl PathFollower {
     /// True when a forward step from `at` along `yaw` would cross a cell the agent does not
     /// fit in (sampled every 5 cm).
     fn leaves_free_space(&self, at: Vec2, yaw: f32) -> bool {
-        let Some(ctx) = &self.scene else {
-            return false;
-        };
-        let dir = Vec2::from_angle(yaw);
-        let n = (self.step / 0.05).ceil().max(1.0) as usize;
-        (1..=n).any(|k| {
-            !ctx.pathfinder
-                .is_navigable(at + dir * (self.step * k as f32 / n as f32))
+        self.scene.as_ref().is_some_and(|ctx| {
+            sage_env::agents::step_leaves_navigable(&ctx.pathfinder, at, yaw, self.step)
         })
     }
 
