@@ -3,6 +3,7 @@
 
 use sage_core::{Error, Result};
 use sage_physics::AgentProfile;
+use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 
 /// What actions the agent may send (STOP is allowed in every space).
@@ -124,6 +125,9 @@ pub struct EnvConfig {
     pub sensors: SensorConfig,
     /// The task limits.
     pub task: TaskConfig,
+    /// Where the sensors' images are rendered (`cpu`, `gpu`, `auto`; the CPU by default).
+    #[serde(default)]
+    pub device: Device,
 }
 
 impl Default for EnvConfig {
@@ -135,6 +139,7 @@ impl Default for EnvConfig {
             actions: ActionSpace::default(),
             sensors: SensorConfig::default(),
             task: TaskConfig::default(),
+            device: Device::default(),
         }
     }
 }

@@ -20,7 +20,10 @@
 //! ```
 
 pub mod camera;
+pub mod device;
 pub mod fastmath;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod index;
 pub mod project;
 pub mod render;
@@ -28,4 +31,5 @@ pub mod sh;
 pub mod tile;
 
 pub use camera::{Camera, CameraSpec, Intrinsics};
+pub use device::{Backend, Device};
 pub use render::{RenderOptions, RenderOutput, RenderStats, Renderer};

@@ -1,0 +1,217 @@
+//! Choosing the executor: the CPU tile renderer ([`Renderer`]) or the wgpu compute renderer
+//! ([`crate::gpu::GpuRenderer`], cargo feature `gpu`). Both form the same images (SPEC §3);
+//! [`Backend`] is what commands and environments hold, whichever was chosen.
+
+use crate::camera::Camera;
+use crate::render::{RenderOptions, RenderOutput, Renderer};
+use sage_core::{Error, Result};
+use sage_scene::Gaussians;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+#[cfg(feature = "gpu")]
+use std::sync::Arc;
+
+/// Where images are rendered: `cpu`, `gpu`, or `auto` (a hardware GPU when there is one,
+/// else the CPU).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Device {
+    /// The CPU tile renderer: works everywhere, results independent of the thread count.
+    #[default]
+    Cpu,
+    /// The GPU compute renderer on any adapter wgpu finds, software ones (Mesa's lavapipe)
+    /// included; an error when there is none.
+    Gpu,
+    /// The GPU renderer on a hardware adapter when one exists, else the CPU renderer.
+    Auto,
+}
+
+impl Device {
+    /// The names accepted by [`Device::from_str`].
+    pub const NAMES: [&'static str; 3] = ["cpu", "gpu", "auto"];
+}
+
+impl fmt::Display for Device {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Device::Cpu => "cpu",
+            Device::Gpu => "gpu",
+            Device::Auto => "auto",
+        })
+    }
+}
+
+impl FromStr for Device {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Device> {
+        match s {
+            "cpu" => Ok(Device::Cpu),
+            "gpu" => Ok(Device::Gpu),
+            "auto" => Ok(Device::Auto),
+            _ => Err(Error::invalid(format!(
+                "unknown device {s:?}: expected one of cpu, gpu, auto"
+            ))),
+        }
+    }
+}
+
+/// The executor behind a [`Backend`].
+enum Executor {
+    Cpu(Box<Renderer>),
+    #[cfg(feature = "gpu")]
+    Gpu(Arc<crate::gpu::GpuRenderer>),
+}
+
+/// A renderer for one set of Gaussians on the chosen device.
+pub struct Backend {
+    executor: Executor,
+    description: String,
+}
+
+impl Backend {
+    /// The CPU renderer for `gaussians`.
+    pub fn cpu(gaussians: &Gaussians) -> Backend {
+        Backend {
+            executor: Executor::Cpu(Box::new(Renderer::new(gaussians))),
+            description: format!("cpu ({} threads)", rayon::current_num_threads()),
+        }
+    }
+
+    /// A renderer for `gaussians` on `device`. `auto` falls back to the CPU when there is no
+    /// hardware GPU or it fails, and says why in [`Backend::describe`].
+    ///
+    /// # Errors
+    ///
+    /// `gpu` without a usable adapter (or in a build without the `gpu` feature), or a scene too
+    /// large for the adapter's buffers.
+    pub fn open(device: Device, gaussians: &Gaussians) -> Result<Backend> {
+        match device {
+            Device::Cpu => Ok(Backend::cpu(gaussians)),
+            Device::Gpu => Backend::gpu(gaussians, false),
+            Device::Auto => Backend::gpu(gaussians, true).or_else(|e| {
+                let mut b = Backend::cpu(gaussians);
+                b.description = format!("{} (auto: {})", b.description, e.message());
+                Ok(b)
+            }),
+        }
+    }
+
+    #[cfg(feature = "gpu")]
+    fn gpu(gaussians: &Gaussians, hardware_only: bool) -> Result<Backend> {
+        let gpu = crate::gpu::Gpu::shared(hardware_only)?;
+        Ok(Backend::from_gpu(crate::gpu::GpuRenderer::new(
+            &gpu, gaussians,
+        )?))
+    }
+
+    #[cfg(not(feature = "gpu"))]
+    fn gpu(_: &Gaussians, _: bool) -> Result<Backend> {
+        Err(Error::invalid(
+            "this build has no GPU renderer (it was built without the cargo feature `gpu`)",
+        ))
+    }
+
+    /// A backend over a GPU renderer that may be shared (one resident copy of a scene for
+    /// every environment over it).
+    #[cfg(feature = "gpu")]
+    pub fn from_gpu(renderer: Arc<crate::gpu::GpuRenderer>) -> Backend {
+        Backend {
+            description: format!("gpu: {}", renderer.gpu().describe()),
+            executor: Executor::Gpu(renderer),
+        }
+    }
+
+    /// Which executor renders, in words: `cpu (2 threads)`, `gpu: NVIDIA H100 (Vulkan)`, or
+    /// the CPU with the reason `auto` did not take a GPU.
+    pub fn describe(&self) -> &str {
+        &self.description
+    }
+
+    /// Another handle on the same resident scene when the GPU renders (every environment over a
+    /// scene shares one upload); `None` for the CPU renderer, whose buffers are per frame.
+    pub fn shared_clone(&self) -> Option<Backend> {
+        match &self.executor {
+            Executor::Cpu(_) => None,
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => Some(Backend {
+                executor: Executor::Gpu(r.clone()),
+                description: self.description.clone(),
+            }),
+        }
+    }
+
+    /// True when the GPU renders.
+    pub fn is_gpu(&self) -> bool {
+        !matches!(self.executor, Executor::Cpu(_))
+    }
+
+    /// The CPU renderer, when it is the executor (for its timings and index).
+    pub fn as_cpu(&self) -> Option<&Renderer> {
+        match &self.executor {
+            Executor::Cpu(r) => Some(r),
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(_) => None,
+        }
+    }
+
+    /// Renders `gaussians` (the set the backend was opened for) from `camera`;
+    /// `categories[instance]` gives each instance's semantic id.
+    ///
+    /// # Errors
+    ///
+    /// A camera the renderer refuses, another set of Gaussians, or a GPU fault.
+    pub fn render(
+        &mut self,
+        gaussians: &Gaussians,
+        categories: &[u16],
+        camera: &Camera,
+        options: &RenderOptions,
+    ) -> Result<RenderOutput> {
+        match &mut self.executor {
+            Executor::Cpu(r) => r.render(gaussians, categories, camera, options),
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => r.render(gaussians, categories, camera, options),
+        }
+    }
+
+    /// Renders every camera of `cameras` (any sizes), in order: on the GPU in one submission
+    /// with one read-back, on the CPU one after the other.
+    ///
+    /// # Errors
+    ///
+    /// As [`Backend::render`], for any camera.
+    pub fn render_batch(
+        &mut self,
+        gaussians: &Gaussians,
+        categories: &[u16],
+        cameras: &[Camera],
+        options: &RenderOptions,
+    ) -> Result<Vec<RenderOutput>> {
+        match &mut self.executor {
+            Executor::Cpu(r) => cameras
+                .iter()
+                .map(|c| r.render(gaussians, categories, c, options))
+                .collect(),
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => r.render_batch(gaussians, categories, cameras, options),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for name in Device::NAMES {
+            let d: Device = name.parse().unwrap();
+            assert_eq!(d.to_string(), name);
+            assert_eq!(serde_json::to_string(&d).unwrap(), format!("\"{name}\""));
+        }
+        let e = "tpu".parse::<Device>().unwrap_err();
+        assert!(e.message().contains("cpu, gpu, auto"), "{e}");
+    }
+}

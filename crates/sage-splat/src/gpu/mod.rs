@@ -1,0 +1,11 @@
+//! The wgpu compute renderer (cargo feature `gpu`): the image formation of the CPU renderer
+//! (the same constants, from [`crate::project`], [`crate::tile`] and [`crate::sh`]) run as
+//! compute shaders — projection with EWA covariance and SH colour, tile binning with a GPU
+//! radix sort by depth and tile, and per-tile front-to-back blending — with a scene's
+//! Gaussians uploaded once and kept resident, and many cameras rendered in one submission.
+
+mod context;
+mod renderer;
+
+pub use context::Gpu;
+pub use renderer::GpuRenderer;
