@@ -5,15 +5,18 @@ use glam::Vec3;
 
 /// `Y_0^0`.
 pub const C0: f32 = 0.282_094_8;
-const C1: f32 = 0.488_602_52;
-const C2: [f32; 5] = [
+/// The degree-1 constant.
+pub const C1: f32 = 0.488_602_52;
+/// The degree-2 constants, in basis order.
+pub const C2: [f32; 5] = [
     1.092_548_4,
     -1.092_548_4,
     0.315_391_57,
     -1.092_548_4,
     0.546_274_2,
 ];
-const C3: [f32; 7] = [
+/// The degree-3 constants, in basis order.
+pub const C3: [f32; 7] = [
     -0.590_043_6,
     2.890_611_4,
     -0.457_045_8,

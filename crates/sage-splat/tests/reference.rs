@@ -10,6 +10,7 @@ use sage_scene::gaussians::sh_rest_count;
 use sage_scene::{Gaussian, Gaussians};
 use sage_splat::{Camera, Intrinsics, RenderOptions, RenderOutput, Renderer, sh};
 use sage_synth::{SynthConfig, generate};
+use sage_testkit::splats::random_gaussians;
 
 /// One projected Gaussian of the reference.
 struct RefSplat {
@@ -310,51 +311,6 @@ fn compare(gs: &Gaussians, cam: &Camera, what: &str) -> f64 {
         "{what}: nothing opaque to compare"
     );
     p
-}
-
-fn random_gaussians(seed: u64, n: usize, degree: u8, spread: f32) -> Gaussians {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut g = Gaussians::new(degree).unwrap();
-    for i in 0..n {
-        let q = Quat::from_xyzw(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        let mut x = Gaussian {
-            position: Vec3::new(
-                rng.random_range(1.0..6.0),
-                rng.random_range(-spread..spread),
-                rng.random_range(-spread..spread) + 1.2,
-            ),
-            rotation: if q.length() > 0.1 { q } else { Quat::IDENTITY },
-            log_scale: Vec3::new(
-                rng.random_range(-4.5..-1.5),
-                rng.random_range(-4.5..-1.5),
-                rng.random_range(-4.5..-1.5),
-            ),
-            opacity_logit: rng.random_range(-3.0..5.0),
-            sh_dc: [
-                rng.random_range(-1.5..1.5),
-                rng.random_range(-1.5..1.5),
-                rng.random_range(-1.5..1.5),
-            ],
-            instance: (i % 7) as u32 + 1,
-            ..Gaussian::default()
-        };
-        // Higher bands large enough that a wrong sign or order in any of them costs far more
-        // than the PSNR bound allows.
-        for coeff in x.sh_rest.iter_mut() {
-            *coeff = [
-                rng.random_range(-0.5..0.5),
-                rng.random_range(-0.5..0.5),
-                rng.random_range(-0.5..0.5),
-            ];
-        }
-        g.push(&x);
-    }
-    g
 }
 
 fn camera(w: u32, h: u32, position: Vec3, yaw: f32, pitch: f32) -> Camera {

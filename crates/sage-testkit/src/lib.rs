@@ -1,7 +1,10 @@
 //! What sage3d's test suites share: mutations of JSON documents for the fuzz tests of every
-//! JSON and JSONL reader (scene files, dataset and record files, camera files). A test draws
+//! JSON and JSONL reader (scene files, dataset and record files, camera files) — a test draws
 //! [`Edit`]s with [`edit`] and applies them with [`mutate`]: node replacements by odd values
-//! ([`ODD`]), node removals, byte flips and truncations.
+//! ([`ODD`]), node removals, byte flips and truncations — and random Gaussians for the
+//! renderers' tests ([`splats`]).
+
+pub mod splats;
 
 use proptest::prelude::*;
 use serde_json::Value;

@@ -118,6 +118,14 @@ impl Gpu {
         self.device.limits()
     }
 
+    /// The largest storage buffer one binding may see, in bytes.
+    pub(crate) fn largest_binding(&self) -> u64 {
+        let limits = self.device.limits();
+        limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
+    }
+
     /// The first error the device reported, as an error naming the adapter.
     pub(crate) fn check(&self) -> Result<()> {
         let slot = self.fault.lock().unwrap_or_else(|p| p.into_inner());

@@ -5,7 +5,9 @@
 //! Gaussians uploaded once and kept resident, and many cameras rendered in one submission.
 
 mod context;
+mod kernel;
 mod renderer;
+mod sort;
 
 pub use context::Gpu;
-pub use renderer::GpuRenderer;
+pub use renderer::{GpuRenderer, GpuStats};

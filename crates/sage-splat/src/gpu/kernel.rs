@@ -1,0 +1,161 @@
+//! Small helpers over wgpu for compute kernels: bind group layouts, bind groups, pipelines and
+//! dispatches over grids larger than one dimension allows.
+
+use super::Gpu;
+use wgpu::util::DeviceExt;
+
+/// A storage buffer binding.
+pub(crate) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A storage buffer binding whose offset is given at dispatch.
+pub(crate) fn storage_at_offset(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    let mut entry = storage(binding, false);
+    if let wgpu::BindingType::Buffer {
+        has_dynamic_offset, ..
+    } = &mut entry.ty
+    {
+        *has_dynamic_offset = true;
+    }
+    entry
+}
+
+/// A uniform buffer binding, its offset given at dispatch when `dynamic`.
+pub(crate) fn uniform(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A bind group layout of `entries`.
+pub(crate) fn layout(gpu: &Gpu, entries: &[wgpu::BindGroupLayoutEntry]) -> wgpu::BindGroupLayout {
+    gpu.device
+        .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: None,
+            entries,
+        })
+}
+
+/// A bind group of `layout` with `resources` at bindings 0, 1, …
+pub(crate) fn bind(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    resources: &[wgpu::BindingResource<'_>],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry<'_>> = resources
+        .iter()
+        .enumerate()
+        .map(|(i, r)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: r.clone(),
+        })
+        .collect();
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout,
+        entries: &entries,
+    })
+}
+
+/// A uniform buffer holding `words`.
+pub(crate) fn uniform_buffer(gpu: &Gpu, words: &[u32]) -> wgpu::Buffer {
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::cast_slice(words),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+}
+
+/// One entry point of a shader module with its pipeline layout.
+pub(crate) struct Kernel {
+    pipeline: wgpu::ComputePipeline,
+}
+
+/// The most workgroups one dispatch dimension takes (the WebGPU default limit).
+const MAX_GROUPS: u32 = 65_535;
+
+impl Kernel {
+    /// The pipeline of `entry` in `module` over bind groups of `layouts`.
+    pub(crate) fn new(
+        gpu: &Gpu,
+        module: &wgpu::ShaderModule,
+        entry: &str,
+        layouts: &[&wgpu::BindGroupLayout],
+    ) -> Kernel {
+        let layouts: Vec<Option<&wgpu::BindGroupLayout>> =
+            layouts.iter().map(|l| Some(*l)).collect();
+        let pipeline_layout = gpu
+            .device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(entry),
+                bind_group_layouts: &layouts,
+                immediate_size: 0,
+            });
+        let pipeline = gpu
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        Kernel { pipeline }
+    }
+
+    /// Dispatches `workgroups` linear workgroups (folded into a 2-D grid when more than one
+    /// dimension takes; the shaders rebuild the linear index and skip the excess).
+    pub(crate) fn run(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        groups: &[&wgpu::BindGroup],
+        workgroups: u32,
+    ) {
+        let x = workgroups.clamp(1, MAX_GROUPS);
+        self.run_grid(
+            pass,
+            &groups.iter().map(|g| (*g, &[][..])).collect::<Vec<_>>(),
+            (x, workgroups.max(1).div_ceil(x)),
+        );
+    }
+
+    /// Dispatches a `grid` of workgroups with bind groups and their dynamic offsets.
+    pub(crate) fn run_grid(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        groups: &[(&wgpu::BindGroup, &[u32])],
+        grid: (u32, u32),
+    ) {
+        pass.set_pipeline(&self.pipeline);
+        for (i, (group, offsets)) in groups.iter().enumerate() {
+            pass.set_bind_group(i as u32, *group, offsets);
+        }
+        pass.dispatch_workgroups(grid.0, grid.1, 1);
+    }
+}
+
+/// Linear workgroups of 256 threads for `threads` threads, as a 2-D grid.
+pub(crate) fn threads_grid(threads: u32) -> (u32, u32) {
+    let groups = threads.div_ceil(256).max(1);
+    let x = groups.min(MAX_GROUPS);
+    (x, groups.div_ceil(x))
+}
