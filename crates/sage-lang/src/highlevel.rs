@@ -194,7 +194,8 @@ fn area_goal(tm: &TextMap, goal: &EndRef) -> Option<String> {
         EndpointKind::Area => refexp::area_phrase(tm, &goal.reference),
         EndpointKind::Room => {
             let p = refexp::room_phrase(tm, room_index(&goal.reference)?)?;
-            (!p.contains(" with ")).then(|| format!("{p} area"))
+            // "the bedroom with the desk area" would not parse as one place.
+            (!p.contains(" with ") && !p.contains(" next to ")).then(|| format!("{p} area"))
         }
         EndpointKind::Object => {
             let area = tm

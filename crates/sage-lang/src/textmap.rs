@@ -54,7 +54,14 @@ pub struct TmRoom {
     pub area_m2: f32,
     /// Centre of its outline.
     pub centre: [f32; 2],
+    /// Indices of the rooms whose outlines come within [`NEIGHBOUR_GAP`] of this one (across
+    /// one wall), in index order.
+    #[serde(skip)]
+    pub neighbours: Vec<usize>,
 }
+
+/// Rooms whose outlines come this close (metres; a wall's thickness and some) are neighbours.
+pub const NEIGHBOUR_GAP: f32 = 0.35;
 
 /// A functional area (from the navigation layer's area endpoints).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -215,9 +222,31 @@ impl TextMap {
                     name: words::room_name(&r.room_type),
                     area_m2: r.area_m2,
                     centre: [c.x, c.y],
+                    neighbours: Vec::new(),
                 }
             })
             .collect();
+        let mut rooms = rooms;
+        let outlines: Vec<Polygon2> = map
+            .rooms
+            .iter()
+            .map(|r| Polygon2::new(r.polygon.clone()))
+            .collect();
+        // Two outlines are within the gap when a vertex of one is near the other's boundary
+        // (rooms sharing a stretch of wall have a corner at one end of it).
+        let near = |a: &Polygon2, b: &Polygon2| {
+            a.points
+                .iter()
+                .any(|&p| b.distance_to_boundary(p) <= NEIGHBOUR_GAP)
+        };
+        for i in 0..rooms.len() {
+            rooms[i].neighbours = (0..rooms.len())
+                .filter(|&j| {
+                    j != i && (near(&outlines[i], &outlines[j]) || near(&outlines[j], &outlines[i]))
+                })
+                .map(|j| rooms[j].index)
+                .collect();
+        }
         let objects: Vec<TmObject> = map
             .items
             .iter()

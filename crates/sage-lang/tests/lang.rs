@@ -16,9 +16,18 @@ fn scene(
     rooms: usize,
     objects: usize,
 ) -> (sage_scene::Scene, Prepared, TrajectorySet, TextMap) {
+    scene_of(SceneKind::Home, seed, rooms, objects)
+}
+
+fn scene_of(
+    kind: SceneKind,
+    seed: u64,
+    rooms: usize,
+    objects: usize,
+) -> (sage_scene::Scene, Prepared, TrajectorySet, TextMap) {
     let s = generate(&SynthConfig {
         seed,
-        kind: SceneKind::Home,
+        kind,
         rooms,
         objects,
         gaussians: 1000,
@@ -107,8 +116,49 @@ fn a_category_with_one_instance_is_said_bare_and_ambiguous_ones_are_qualified() 
             .filter(|x| x.category == o.category)
             .count();
         if let Some(d) = refexp::describe(&tm, k, Style::Any) {
-            let bare = d.attribute.is_none() && d.room_type.is_none() && d.relation.is_none();
+            let bare = d.attribute.is_none() && d.place.is_none() && d.relation.is_none();
             assert_eq!(bare, n == 1, "{} ({n} of them)", d.render());
+        }
+    }
+}
+
+#[test]
+fn rooms_of_a_repeated_type_are_told_apart_in_large_scenes() {
+    // 28 rooms and 420 objects: rooms of one type repeat and hold the same categories.
+    for kind in [SceneKind::Home, SceneKind::Office] {
+        let (_, _, _, tm) = scene_of(kind, 6, 28, 420);
+        let said: Vec<String> = tm
+            .rooms
+            .iter()
+            .filter_map(|r| refexp::room_phrase(&tm, r.index))
+            .collect();
+        let mut distinct = said.clone();
+        distinct.sort();
+        distinct.dedup();
+        assert_eq!(
+            distinct.len(),
+            said.len(),
+            "{kind:?}: a phrase names two rooms"
+        );
+        let described: Vec<String> = (0..tm.objects.len())
+            .filter_map(|k| refexp::describe(&tm, k, Style::Any).map(|d| d.render()))
+            .collect();
+        eprintln!(
+            "{kind:?}: {} of {} rooms said, {} of {} objects described",
+            said.len(),
+            tm.rooms.len(),
+            described.len(),
+            tm.objects.len()
+        );
+        assert!(said.len() * 10 >= tm.rooms.len() * 8, "{kind:?}: {said:?}");
+        assert!(described.len() * 4 >= tm.objects.len() * 3, "{kind:?}");
+        // Every description is unique by construction (checked by `describe`); here, that an
+        // object is never placed by itself ("the cup in the room with the cup").
+        for d in &described {
+            let words: Vec<&str> = d.split_whitespace().collect();
+            let noun_end = words.iter().position(|w| *w == "in").unwrap_or(words.len());
+            let head = words[..noun_end].join(" ");
+            assert!(!d.contains(&format!("with {head}")), "{kind:?}: {d}");
         }
     }
 }
