@@ -68,6 +68,8 @@ enum Executor {
 pub struct Backend {
     executor: Executor,
     description: String,
+    /// Opened by `auto`: a GPU that fails while rendering hands over to the CPU renderer.
+    auto: bool,
 }
 
 impl Backend {
@@ -76,6 +78,7 @@ impl Backend {
         Backend {
             executor: Executor::Cpu(Box::new(Renderer::new(gaussians))),
             description: format!("cpu ({} threads)", rayon::current_num_threads()),
+            auto: false,
         }
     }
 
@@ -90,11 +93,40 @@ impl Backend {
         match device {
             Device::Cpu => Ok(Backend::cpu(gaussians)),
             Device::Gpu => Backend::gpu(gaussians, false),
-            Device::Auto => Backend::gpu(gaussians, true).or_else(|e| {
-                let mut b = Backend::cpu(gaussians);
-                b.description = format!("{} (auto: {})", b.description, e.message());
-                Ok(b)
-            }),
+            Device::Auto => match Backend::gpu(gaussians, true) {
+                Ok(mut b) => {
+                    b.auto = true;
+                    Ok(b)
+                }
+                Err(e) => Ok(Backend::cpu(gaussians).because(&e)),
+            },
+        }
+    }
+
+    /// This CPU backend, saying that `auto` chose it because of `e`.
+    fn because(mut self, e: &Error) -> Backend {
+        self.description = format!("{} (auto: {})", self.description, e.message());
+        self
+    }
+
+    /// After a GPU fault under `auto`: the CPU renderer from now on (it says why), or the
+    /// error where the device was asked for explicitly.
+    #[cfg(feature = "gpu")]
+    fn fall_back(&mut self, gaussians: &Gaussians, e: Error) -> Result<()> {
+        if !self.auto || gaussians.len() != self.gaussian_count() {
+            return Err(e);
+        }
+        eprintln!("warning: the GPU renderer failed ({e}); rendering on the CPU from now on");
+        *self = Backend::cpu(gaussians).because(&e);
+        Ok(())
+    }
+
+    /// How many Gaussians the backend was opened for.
+    #[cfg(feature = "gpu")]
+    fn gaussian_count(&self) -> usize {
+        match &self.executor {
+            Executor::Cpu(r) => r.gaussian_count(),
+            Executor::Gpu(r) => r.gaussian_count(),
         }
     }
 
@@ -120,6 +152,7 @@ impl Backend {
         Backend {
             description: format!("gpu: {}", renderer.gpu().describe()),
             executor: Executor::Gpu(renderer),
+            auto: false,
         }
     }
 
@@ -138,6 +171,7 @@ impl Backend {
             Executor::Gpu(r) => Some(Backend {
                 executor: Executor::Gpu(r.clone()),
                 description: self.description.clone(),
+                auto: self.auto,
             }),
         }
     }
@@ -161,7 +195,8 @@ impl Backend {
     ///
     /// # Errors
     ///
-    /// A camera the renderer refuses, another set of Gaussians, or a GPU fault.
+    /// A camera the renderer refuses, another set of Gaussians, or a GPU fault (under `auto`
+    /// the CPU renderer takes over instead).
     pub fn render(
         &mut self,
         gaussians: &Gaussians,
@@ -169,11 +204,9 @@ impl Backend {
         camera: &Camera,
         options: &RenderOptions,
     ) -> Result<RenderOutput> {
-        match &mut self.executor {
-            Executor::Cpu(r) => r.render(gaussians, categories, camera, options),
-            #[cfg(feature = "gpu")]
-            Executor::Gpu(r) => r.render(gaussians, categories, camera, options),
-        }
+        let mut out =
+            self.render_batch(gaussians, categories, std::slice::from_ref(camera), options)?;
+        Ok(out.remove(0))
     }
 
     /// Renders every camera of `cameras` (any sizes), in order: on the GPU in one submission
@@ -189,6 +222,14 @@ impl Backend {
         cameras: &[Camera],
         options: &RenderOptions,
     ) -> Result<Vec<RenderOutput>> {
+        #[cfg(feature = "gpu")]
+        if let Executor::Gpu(r) = &self.executor {
+            match r.render_batch(gaussians, categories, cameras, options) {
+                Ok(out) => return Ok(out),
+                Err(e) if crate::gpu::is_fault(&e) => self.fall_back(gaussians, e)?,
+                Err(e) => return Err(e),
+            }
+        }
         match &mut self.executor {
             Executor::Cpu(r) => cameras
                 .iter()

@@ -186,6 +186,11 @@ impl Renderer {
         }
     }
 
+    /// How many Gaussians it was built for.
+    pub fn gaussian_count(&self) -> usize {
+        self.count
+    }
+
     /// The spatial index.
     pub fn index(&self) -> &SplatIndex {
         &self.index

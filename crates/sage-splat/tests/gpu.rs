@@ -252,3 +252,26 @@ fn the_backend_opens_the_gpu_and_refuses_another_scene() {
         .unwrap_err();
     assert!(e.message().contains("built for 3000 Gaussians"), "{e}");
 }
+
+#[test]
+fn auto_takes_a_hardware_gpu_or_says_why_it_renders_on_the_cpu() {
+    let g = testdata("random_3k_sh0.ply");
+    let backend = Backend::open(Device::Auto, &g).unwrap();
+    match Gpu::shared(true) {
+        Ok(gpu) => {
+            assert!(backend.is_gpu(), "{}", backend.describe());
+            assert!(!gpu.is_software());
+        }
+        Err(e) => {
+            assert!(!backend.is_gpu());
+            assert!(
+                backend.describe().starts_with("cpu (")
+                    && backend
+                        .describe()
+                        .contains(&format!("auto: {}", e.message())),
+                "{}",
+                backend.describe()
+            );
+        }
+    }
+}

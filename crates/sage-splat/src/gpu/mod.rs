@@ -10,4 +10,10 @@ mod renderer;
 mod sort;
 
 pub use context::Gpu;
+
+/// True when `e` is a fault of the GPU itself (every such error names the adapter first:
+/// `GPU <name>: …`), not of the request (a bad camera, another scene).
+pub fn is_fault(e: &sage_core::Error) -> bool {
+    e.message().starts_with("GPU ")
+}
 pub use renderer::{GpuRenderer, GpuStats};

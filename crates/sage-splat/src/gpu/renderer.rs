@@ -363,6 +363,11 @@ impl GpuRenderer {
         )
     }
 
+    /// How many Gaussians it holds.
+    pub fn gaussian_count(&self) -> usize {
+        self.count
+    }
+
     /// The work of the last batch.
     pub fn stats(&self) -> GpuStats {
         self.state.lock().unwrap_or_else(|p| p.into_inner()).stats
