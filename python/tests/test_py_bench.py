@@ -1,6 +1,7 @@
 """Datasets and the evaluator from Python against the CLI: the dataset API reads what
 `sage3d data build` wrote, an environment runs its episodes, and `sage3d.evaluate` gives the
-records and summary of `sage3d eval` — with the built-in agents and with a Python agent."""
+records and summary of `sage3d eval` — with the built-in agents and with a Python agent, on the
+CPU or the GPU."""
 
 import json
 
@@ -157,3 +158,33 @@ def test_python_agents_see_images_and_their_errors_are_recorded(data, tmp_path):
     # strict: the same run (resumed from its folder) raises, as `sage3d eval --strict` exits 1.
     with pytest.raises(ValueError, match=f"every episode of the run faulted \\({len(recs)}\\)"):
         sg.evaluate(dataset, scenes, Broken(), tmp_path / "broken", split="test_balanced", sensors=[], strict=True)
+
+
+class Looker:
+    """FORWARD three times, then STOP, checking it is shown the colour image."""
+
+    def __init__(self):
+        self.steps = 0
+
+    def act(self, obs):
+        assert obs["rgb"].shape == (12, 16, 3) and obs["rgb"].dtype == np.uint8
+        self.steps += 1
+        return 0 if self.steps > 3 else 1
+
+
+def test_evaluation_renders_on_the_device_asked_for(data, tmp_path):
+    scenes, dataset = data
+    records = {}
+    for device in ("cpu", "gpu"):
+        sg.evaluate(dataset, scenes, Looker, tmp_path / device, split="test_balanced", width=16,
+                    height=12, sensors=["rgb"], device=device)
+        records[device] = jsonl(tmp_path / device / "episodes.jsonl")
+    # The policy does not depend on the pixels: the same records on either device.
+    assert records["cpu"] == records["gpu"] and records["cpu"]
+    # The run record names a device other than the CPU (a CPU run's record is as before).
+    def settings(device):
+        return json.loads((tmp_path / device / "sage3d_run.json").read_text())["settings"]
+
+    assert settings("gpu")["device"] == "gpu" and "device" not in settings("cpu")
+    with pytest.raises(ValueError, match="cpu, gpu, auto"):
+        sg.evaluate(dataset, scenes, Looker, tmp_path / "bad", device="tpu")

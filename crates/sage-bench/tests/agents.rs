@@ -47,6 +47,7 @@ fn settings(agent: &str) -> EvalSettings {
         dtw: Default::default(),
         seed: 0,
         preset: "sage".into(),
+        device: Default::default(),
     }
 }
 

@@ -55,6 +55,7 @@ fn settings(data: &Path, scenes: &Path) -> EvalSettings {
         dtw: Default::default(),
         seed: 0,
         preset: "sage".into(),
+        device: Default::default(),
     }
 }
 

@@ -25,7 +25,8 @@ pub enum BenchCommand {
     /// case).
     Load(LoadArgs),
     /// Render a ≥1M-Gaussian synthetic home from cameras inside its largest room at 224×224
-    /// and 640×480; report the median frame time and its breakdown.
+    /// and 640×480 (and 1024×768 on a GPU); report the median frame time and its breakdown,
+    /// and on a GPU the frames per second of batches of cameras rendered in one submission.
     Render(RenderBenchArgs),
     /// Plan trajectories in a 20 × 20 m synthetic home: grid and EDT once, then sampling, A*,
     /// shortcut and resampling per trajectory, in parallel; report trajectories per second.
@@ -113,15 +114,24 @@ pub struct RenderBenchArgs {
     /// Frames per resolution (headings spread over a full turn).
     #[arg(long, default_value_t = 24)]
     frames: usize,
-    /// Resolutions as WxH.
-    #[arg(long, value_delimiter = ',', default_value = "224x224,640x480")]
-    sizes: Vec<String>,
+    /// Resolutions as WxH (default: 224x224,640x480, and 1024x768 when the GPU renders).
+    #[arg(long, value_delimiter = ',')]
+    sizes: Option<Vec<String>>,
     /// Camera pitch in degrees (0: level, as the SAGE-Bench camera).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pitch: f32,
     /// Give the scene SH degree 3 (bands 2–3 filled from a seeded hash), the memory worst case.
     #[arg(long)]
     sh3: bool,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
+    /// Cameras per batch for the batched figures, measured when the GPU renders (headings
+    /// spread over a full turn, all rendered in one submission).
+    #[arg(long, value_delimiter = ',', default_value = "1,16,64,256")]
+    batches: Vec<usize>,
+    /// Resolution of the batched cameras as WxH.
+    #[arg(long, default_value = "224x224")]
+    batch_size: String,
     /// Print the report as JSON: how the measuring process hands it back.
     #[arg(long, hide = true)]
     json: bool,
@@ -235,9 +245,12 @@ impl RenderBenchArgs {
             scene: self.scene.clone(),
             gaussians: self.gaussians,
             frames: self.frames,
-            sizes: sizes(&self.sizes)?,
+            sizes: self.sizes.as_deref().map(sizes).transpose()?,
             pitch: self.pitch,
             sh3: self.sh3,
+            device: self.device.device,
+            batches: self.batches.clone(),
+            batch_size: parse_size(&self.batch_size)?,
         })
     }
 }
@@ -312,17 +325,31 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
             print_report(&report, a.json)
         }
         BenchCommand::Render(a) => {
-            let report = sage_perf::render::run(&a.settings()?, &|s| {
-                let sizes: Vec<String> = s.sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect();
+            let settings = a.settings()?;
+            // A GPU that cannot be had fails before the scene is generated; the measuring
+            // process says which renderer it measures.
+            a.device.probe()?;
+            let report = sage_perf::render::run(&settings, &|s| {
+                let batches: Vec<String> = s.batches.iter().map(usize::to_string).collect();
+                let (bw, bh) = s.batch_size;
                 let mut args: Vec<OsString> = vec![
                     "render".into(),
                     "--frames".into(),
                     s.frames.to_string().into(),
-                    "--sizes".into(),
-                    sizes.join(",").into(),
                     "--pitch".into(),
                     s.pitch.to_string().into(),
+                    "--device".into(),
+                    s.device.to_string().into(),
+                    "--batches".into(),
+                    batches.join(",").into(),
+                    "--batch-size".into(),
+                    format!("{bw}x{bh}").into(),
                 ];
+                if let Some(sizes) = &s.sizes {
+                    let sizes: Vec<String> =
+                        sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect();
+                    args.extend(["--sizes".into(), sizes.join(",").into()]);
+                }
                 if let Some(scene) = &s.scene {
                     args.extend(["--scene".into(), scene.into()]);
                 }

@@ -118,6 +118,8 @@ pub struct RenderArgs {
     /// touched).
     #[arg(long)]
     force: bool,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
 }
 
 #[derive(Args)]
@@ -270,6 +272,7 @@ fn render_settings(a: &RenderArgs) -> Result<sage_traindata::Settings> {
         jpeg_quality: a.jpeg_quality,
         keep_failed: a.keep_failed,
         preview: a.preview,
+        device: a.device.device.to_string(),
         ..sage_traindata::Options::new(a.dataset.clone(), a.scenes.clone())
     }
     .settings()
@@ -277,6 +280,7 @@ fn render_settings(a: &RenderArgs) -> Result<sage_traindata::Settings> {
 
 fn data_render(a: RenderArgs) -> Result<()> {
     let settings = render_settings(&a)?;
+    eprintln!("renderer: {}", a.device.probe()?);
     let bar = crate::progress::bar("{bar:30} {pos}/{len} walks {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
     let frames = std::sync::atomic::AtomicUsize::new(0);

@@ -52,6 +52,8 @@ pub struct RunArgs {
     /// Hull cache folder (default: beside the scene).
     #[arg(long)]
     cache: Option<PathBuf>,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
 }
 
 pub fn run(cmd: EnvCommand) -> Result<()> {
@@ -66,6 +68,7 @@ fn run_one(a: RunArgs) -> Result<()> {
         dtw: a.dtw.parse().map_err(|e: Error| e.within("--dtw"))?,
     };
     let mut config = EnvConfig::preset(&a.preset).map_err(|e| e.within("--preset"))?;
+    config.device = a.device.device;
     if !a.render {
         config.sensors = SensorConfig {
             rgb: false,
@@ -80,6 +83,12 @@ fn run_one(a: RunArgs) -> Result<()> {
         .parse::<AgentKind>()
         .map_err(|e| e.within(format!("--agent '{}'", a.agent)))?
         .build(a.seed)?;
+    let renderer = a.device.probe()?;
+    if a.render {
+        eprintln!("renderer: {renderer}");
+    } else {
+        eprintln!("renderer: {renderer} (not used: without --render no images are rendered)");
+    }
     let ctx = Arc::new(SceneContext::load(&a.scene, a.cache)?);
     let episodes = sage_bench::dataset::formats::jsonl::read(&a.episodes)?;
     let episode = episodes

@@ -52,6 +52,8 @@ pub struct EvalArgs {
     /// Exit non-zero when any episode failed (without it: only when every episode failed).
     #[arg(long)]
     strict: bool,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
 }
 
 /// Runs or resumes the evaluation and prints its tables.
@@ -68,7 +70,11 @@ pub fn run(a: EvalArgs) -> Result<()> {
         dtw: a.dtw.parse().map_err(|e: Error| e.within("--dtw"))?,
         seed: a.seed,
         preset: a.preset,
+        device: a.device.device,
     };
+    // Agents that read no images run blind, yet a GPU that cannot be had is refused for them
+    // too: a command line that works with one agent works with any.
+    eprintln!("renderer: {}", a.device.probe()?);
     let episodes = bar("{bar:30} {pos}/{len} episodes {elapsed} (eta {eta}) {msg}");
     let maps = bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();

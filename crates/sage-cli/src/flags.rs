@@ -1,6 +1,7 @@
 //! Flag values that several commands parse the same way.
 
 use sage_core::{Error, Result};
+use sage_splat::Device;
 
 /// A `WxH` image size (`--size`, `--sizes`) as (width, height).
 pub fn parse_size(s: &str) -> Result<(u32, u32)> {
@@ -13,4 +14,26 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
             .map_err(|_| Error::invalid(format!("size '{s}' is not WxH")))
     };
     Ok((parse(w)?, parse(h)?))
+}
+
+/// `--device`, the same on every command that renders.
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub struct DeviceFlag {
+    /// Where images are rendered: cpu; gpu (any GPU adapter, a software one such as Mesa's
+    /// lavapipe included; an error when there is none); or auto (a hardware GPU when there is
+    /// one, else the CPU).
+    #[arg(long, value_name = "cpu|gpu|auto", default_value = "cpu")]
+    pub device: Device,
+}
+
+impl DeviceFlag {
+    /// Opens the device before any work, so that a GPU that cannot be had fails the command
+    /// at once, and returns the renderer in words ([`Device::probe`]).
+    ///
+    /// # Errors
+    ///
+    /// `gpu` without a usable adapter, or a build without the GPU renderer.
+    pub fn probe(&self) -> Result<String> {
+        self.device.probe().map_err(|e| e.within("--device"))
+    }
 }

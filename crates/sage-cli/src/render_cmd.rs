@@ -7,9 +7,12 @@ use sage_core::{Error, Result};
 use sage_io::files::{write_json, write_npy_f32, write_png, write_rgb_png};
 use sage_scene::{InstanceKind, Scene};
 use sage_splat::camera::default_eye;
-use sage_splat::{Camera, CameraSpec, Intrinsics, RenderOptions, RenderOutput, Renderer};
+use sage_splat::{
+    Backend, Camera, CameraSpec, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
+};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -61,6 +64,8 @@ pub struct RenderArgs {
     /// turntable.gif.
     #[arg(long)]
     turntable: Option<usize>,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
 }
 
 fn camera_from_args(a: &RenderArgs, scene: &Scene) -> Result<Camera> {
@@ -101,6 +106,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     })?;
     render_to_dir(
         &scene,
+        a.device.device,
         &camera,
         &RenderOptions { background },
         &a.out,
@@ -128,12 +134,12 @@ const OUTPUTS: [&str; 12] = [
     sage_io::RUN_RECORD,
 ];
 
-/// Renders `scene` from `camera` into `out`: every channel, the legend, `render.json`, a
-/// turntable of `turntable` frames if asked, and the run record. `out` must be new, empty or
-/// a render's; with `force`, a folder of other files is written into, provided none of them
-/// would be replaced ([`sage_io::run::claim_folder`]).
-pub fn render_to_dir(
+/// Renders `scene` on `device` from `camera` into `out`: every channel, the legend,
+/// `render.json`, a turntable of `turntable` frames if asked, and the run record. `out` must be new, empty or a render's; with `force`, a folder of other files is
+/// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]).
+fn render_to_dir(
     scene: &Scene,
+    device: Device,
     camera: &Camera,
     options: &RenderOptions,
     out: &Path,
@@ -141,18 +147,24 @@ pub fn render_to_dir(
     force: bool,
 ) -> Result<()> {
     sage_io::run::claim_folder(out, &[COMMAND], &OUTPUTS, force)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let mut renderer = Renderer::new(&scene.gaussians);
-    let image = renderer.render(
+    let mut backend = Backend::open(device, &scene.gaussians)?;
+    eprintln!("renderer: {}", backend.describe());
+    let start = Instant::now();
+    let image = backend.render(
         &scene.gaussians,
         &scene.instances.category_ids,
         camera,
         options,
     )?;
-    let stats = renderer.stats();
+    // The CPU renderer times its stages; the GPU's frame is timed whole, read-back included.
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let stats = backend.as_cpu().map(Renderer::stats);
+    // Made only now, so a render that failed leaves no empty folder behind.
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     write_images(out, &image)?;
     write_legend(&out.join("legend.json"), scene, &image)?;
-    let record = serde_json::json!({
+    let mut record = serde_json::json!({
+        "renderer": backend.describe(),
         "camera": {"width": camera.intrinsics.width, "height": camera.intrinsics.height, "fx": camera.intrinsics.fx, "fy": camera.intrinsics.fy, "cx": camera.intrinsics.cx, "cy": camera.intrinsics.cy,
                    "c2w_row_major": camera.c2w().transpose().to_cols_array_2d(), "near": camera.near, "far": camera.far},
         "files": {
@@ -164,25 +176,35 @@ pub fn render_to_dir(
             "instance.png": "instance of the largest blending weight, colour-coded (legend.json)",
             "semantic.png": "category of that instance, colour-coded (legend.json)",
         },
-        "stats_ms": {"cull": stats.cull_ms, "project": stats.project_ms, "sort": stats.sort_ms, "raster": stats.raster_ms},
-        "splats": stats.splats,
     });
+    let (ms, splats) = match stats {
+        Some(stats) => {
+            record["stats_ms"] = serde_json::json!({"cull": stats.cull_ms, "project": stats.project_ms, "sort": stats.sort_ms, "raster": stats.raster_ms});
+            record["splats"] = stats.splats.into();
+            (
+                stats.cull_ms + stats.project_ms + stats.sort_ms + stats.raster_ms,
+                format!(" ({} splats)", stats.splats),
+            )
+        }
+        None => {
+            record["frame_ms"] = wall_ms.into();
+            (wall_ms, String::new())
+        }
+    };
     write_json(&out.join("render.json"), &record)?;
     if let Some(n) = turntable {
-        write_turntable(out, &mut renderer, scene, camera, options, n)?;
+        write_turntable(out, &mut backend, scene, camera, options, n)?;
     }
     sage_io::run::write_run_record(
         out,
         COMMAND,
         None,
-        serde_json::json!({ "scene": scene.name, "camera": record["camera"], "turntable": turntable }),
+        serde_json::json!({ "scene": scene.name, "camera": record["camera"], "turntable": turntable, "device": device }),
     )?;
     eprintln!(
-        "rendered {}x{} in {:.1} ms ({} splats) -> {}",
+        "rendered {}x{} in {ms:.1} ms{splats} -> {}",
         camera.intrinsics.width,
         camera.intrinsics.height,
-        stats.cull_ms + stats.project_ms + stats.sort_ms + stats.raster_ms,
-        stats.splats,
         out.display()
     );
     Ok(())
@@ -266,9 +288,13 @@ fn write_legend(path: &Path, scene: &Scene, image: &RenderOutput) -> Result<()> 
     write_json(path, &legend)
 }
 
+/// Turntable frames rendered per [`Backend::render_batch`] call: one GPU submission each,
+/// while the images held at once stay small.
+const TURNTABLE_BATCH: usize = 32;
+
 fn write_turntable(
     dir: &Path,
-    renderer: &mut Renderer,
+    backend: &mut Backend,
     scene: &Scene,
     camera: &Camera,
     options: &RenderOptions,
@@ -286,27 +312,34 @@ fn write_turntable(
         forward.y.atan2(forward.x),
         forward.z.clamp(-1.0, 1.0).asin(),
     );
+    let cameras: Vec<Camera> = (0..frames)
+        .map(|f| {
+            let yaw = yaw0 + std::f32::consts::TAU * f as f32 / frames as f32;
+            Camera {
+                near: camera.near,
+                far: camera.far,
+                ..Camera::from_yaw_pitch(camera.intrinsics, camera.position, yaw, pitch)
+            }
+        })
+        .collect();
     let mut images = Vec::with_capacity(frames);
-    for f in 0..frames {
-        let yaw = yaw0 + std::f32::consts::TAU * f as f32 / frames as f32;
-        let cam = Camera {
-            near: camera.near,
-            far: camera.far,
-            ..Camera::from_yaw_pitch(camera.intrinsics, camera.position, yaw, pitch)
-        };
-        let image = renderer.render(
+    for batch in cameras.chunks(TURNTABLE_BATCH) {
+        let rendered = backend.render_batch(
             &scene.gaussians,
             &scene.instances.category_ids,
-            &cam,
+            batch,
             options,
         )?;
-        write_rgb_png(
-            &folder.join(format!("rgb_{f:03}.png")),
-            image.width,
-            image.height,
-            &image.rgb,
-        )?;
-        images.push(image.rgb);
+        for image in rendered {
+            let f = images.len();
+            write_rgb_png(
+                &folder.join(format!("rgb_{f:03}.png")),
+                image.width,
+                image.height,
+                &image.rgb,
+            )?;
+            images.push(image.rgb);
+        }
     }
     let (w, h) = (
         camera.intrinsics.width as u16,

@@ -126,8 +126,16 @@ pub struct EnvConfig {
     /// The task limits.
     pub task: TaskConfig,
     /// Where the sensors' images are rendered (`cpu`, `gpu`, `auto`; the CPU by default).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "device_field")]
     pub device: Device,
+}
+
+/// Reads [`EnvConfig::device`], naming the field and the accepted names when the value is
+/// not one of them (serde's own message names neither the field nor the key path).
+fn device_field<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Device, D::Error> {
+    let name = String::deserialize(d)?;
+    name.parse()
+        .map_err(|e: Error| serde::de::Error::custom(format!("device: {}", e.message())))
 }
 
 impl Default for EnvConfig {
@@ -339,5 +347,24 @@ mod tests {
             EnvConfig::with_overrides("sage", &json!({"sensors": {"width": "wide"}})).unwrap_err();
         assert!(e.to_string().contains("environment config"), "{e}");
         assert!(EnvConfig::with_overrides("habitat", &json!({})).is_err());
+    }
+
+    #[test]
+    fn device_defaults_to_the_cpu_and_a_bad_name_is_an_error_naming_the_field() {
+        assert_eq!(EnvConfig::default().device, Device::Cpu);
+        let mut without: serde_json::Value = serde_json::to_value(EnvConfig::default()).unwrap();
+        without.as_object_mut().unwrap().remove("device");
+        let read: EnvConfig = serde_json::from_value(without).unwrap();
+        assert_eq!(read.device, Device::Cpu);
+        for name in Device::NAMES {
+            let c = EnvConfig::with_overrides("vlnce", &json!({ "device": name })).unwrap();
+            assert_eq!(c.device.to_string(), name);
+        }
+        let e = EnvConfig::with_overrides("sage", &json!({"device": "tpu"})).unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("device") && text.contains("tpu"), "{text}");
+        assert!(text.contains("cpu, gpu, auto"), "{text}");
+        let e = EnvConfig::with_overrides("sage", &json!({"device": 1})).unwrap_err();
+        assert!(e.to_string().contains("environment config"), "{e}");
     }
 }

@@ -5,15 +5,18 @@ use sage_metrics::distance::LabelledBox;
 use sage_nav::{CostParams, GridParams, PathFinder, PublishedMap, SemanticMap, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies, World, WorldOptions, default_cache_dir};
 use sage_scene::Scene;
+use sage_splat::{Backend, Device};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 /// A loaded scene with its semantic map, collision bodies and path finder.
 ///
-/// Immutable once built: share it (`Arc`) between the environments of all worker threads. What
-/// changes during an episode (the physics world with its movable bodies, the renderer's buffers)
-/// lives in each [`crate::Env`], which copies its world from the context's pristine one.
+/// Immutable once built (but for what it builds on first use and keeps: path finders for wide
+/// agents, the scene's upload to the GPU): share it (`Arc`) between the environments of all
+/// worker threads. What changes during an episode (the physics world with its movable bodies,
+/// the CPU renderer's buffers) lives in each [`crate::Env`], which copies its world from the
+/// context's pristine one.
 pub struct SceneContext {
     /// The scene.
     pub scene: Scene,
@@ -30,6 +33,9 @@ pub struct SceneContext {
     /// Path finders over the same grid for agents wider than its planning radius, built on
     /// first use, by radius in millimetres.
     planners: Mutex<BTreeMap<u32, Arc<PathFinder>>>,
+    /// The scene's Gaussians resident on a GPU, uploaded by the first environment that renders
+    /// there, by the device it was asked for (`gpu` and `auto` may choose different adapters).
+    gpu: Mutex<Vec<(Device, Backend)>>,
 }
 
 impl SceneContext {
@@ -67,7 +73,39 @@ impl SceneContext {
             world,
             pathfinder: Arc::new(pathfinder),
             planners: Mutex::new(BTreeMap::new()),
+            gpu: Mutex::new(Vec::new()),
         })
+    }
+
+    /// A renderer of the scene's Gaussians on `device`. On a GPU every call hands out a handle
+    /// on one upload (the first call's; a scene is uploaded once however many environments
+    /// render it); the CPU renderer is built anew for each call, since its buffers are per
+    /// frame. `auto` without a usable hardware GPU gives a CPU renderer that says why in
+    /// [`Backend::describe`].
+    ///
+    /// # Errors
+    ///
+    /// `gpu` without a usable adapter (or in a build without the GPU renderer), or a scene too
+    /// large for the adapter.
+    pub fn renderer(&self, device: Device) -> Result<Backend> {
+        if device == Device::Cpu {
+            return Ok(Backend::cpu(&self.scene.gaussians));
+        }
+        // Held while uploading, so that environments created at once upload the scene once.
+        let mut uploads = self.gpu.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(shared) = uploads
+            .iter()
+            .find(|(d, _)| *d == device)
+            .and_then(|(_, b)| b.shared_clone())
+        {
+            return Ok(shared);
+        }
+        let backend = Backend::open(device, &self.scene.gaussians)
+            .map_err(|e| e.within(format!("device {device}")))?;
+        if let Some(shared) = backend.shared_clone() {
+            uploads.push((device, shared));
+        }
+        Ok(backend)
     }
 
     /// The path finder an agent of `radius` metres plans its own way with: the scene's where
@@ -112,6 +150,12 @@ impl SceneContext {
         let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
         let params = TrajectoryParams::default();
         SceneContext::new(scene, bodies, &params.grid, params.cost)
+    }
+
+    /// How many uploads of the scene are resident on GPUs: one per device asked for (`gpu`,
+    /// `auto` where it took a GPU), however many environments render from it.
+    pub fn uploads(&self) -> usize {
+        self.gpu.lock().unwrap_or_else(|e| e.into_inner()).len()
     }
 
     /// A fresh physics world (movable bodies at their scene poses): a copy of the one built

@@ -10,7 +10,7 @@ use sage_core::{Error, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
 use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
-use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
+use sage_splat::{Backend, Camera, Intrinsics, RenderOptions, RenderOutput};
 use std::sync::Arc;
 
 /// Largest camera tilt reachable with look actions (degrees).
@@ -88,29 +88,49 @@ pub(crate) fn region_distance(region: Option<&Polygon2>, point: Vec2, at: Vec2) 
     }
 }
 
+/// A reset or step whose observation waits for its images: the cameras to render (none when
+/// no image is configured) and the bodies touched. [`Env::reset`] and [`Env::step`] render
+/// them at once; a vector environment gathers the cameras of all its environments over a scene
+/// into one batch first.
+pub(crate) struct Pending {
+    contacts: Vec<Touch>,
+    cameras: Vec<Camera>,
+}
+
+impl Pending {
+    /// The cameras to render, in order: the colour camera, then the depth camera when depth
+    /// has a size of its own.
+    pub(crate) fn cameras(&self) -> &[Camera] {
+        &self.cameras
+    }
+}
+
 /// The executable environment over one scene; one per worker thread.
 pub struct Env {
     ctx: Arc<SceneContext>,
     config: EnvConfig,
     profile: AgentProfile,
-    renderer: Option<Renderer>,
+    renderer: Option<Backend>,
     state: Option<Running>,
 }
 
 impl Env {
-    /// An environment over `ctx` with `config` (validated). The renderer's index is built here
-    /// when the sensors produce images.
+    /// An environment over `ctx` with `config` (validated). When the sensors produce images,
+    /// the renderer on `config.device` is opened here ([`SceneContext::renderer`]: the CPU
+    /// renderer's index is built, or the scene's one GPU upload shared).
     ///
     /// # Errors
     ///
-    /// A bad configuration, naming the field.
+    /// A bad configuration, naming the field, or a device that cannot render (`gpu` without
+    /// a usable adapter).
     pub fn new(ctx: Arc<SceneContext>, config: EnvConfig) -> Result<Env> {
         config.validate()?;
         let profile = config.profile()?;
-        let renderer = config
-            .sensors
-            .renders()
-            .then(|| Renderer::new(&ctx.scene.gaussians));
+        let renderer = if config.sensors.renders() {
+            Some(ctx.renderer(config.device)?)
+        } else {
+            None
+        };
         Ok(Env {
             ctx,
             config,
@@ -135,12 +155,31 @@ impl Env {
         &self.ctx
     }
 
+    /// Which renderer forms the images, in words ([`Backend::describe`]: `cpu (2 threads)`,
+    /// `gpu: …`, or the CPU with the reason `auto` took no GPU); `None` when no image is
+    /// configured (nothing is rendered).
+    pub fn render_device(&self) -> Option<&str> {
+        self.renderer.as_ref().map(Backend::describe)
+    }
+
+    /// True when the renderer is a handle on the scene's shared GPU upload, so the cameras of
+    /// every environment over the scene can go to it in one batch.
+    pub(crate) fn shares_renderer(&self) -> bool {
+        self.renderer.as_ref().is_some_and(Backend::is_gpu)
+    }
+
     /// Starts `episode`: a fresh physics world, the agent at the start pose, time 0.
     ///
     /// # Errors
     ///
     /// A VLN episode without a goal, a goal object missing from the scene, or a render error.
     pub fn reset(&mut self, episode: &EnvEpisode) -> Result<Observation> {
+        let pending = self.reset_unrendered(episode)?;
+        self.finish(pending)
+    }
+
+    /// [`Env::reset`] up to the rendering: the cameras of the first observation.
+    pub(crate) fn reset_unrendered(&mut self, episode: &EnvEpisode) -> Result<Pending> {
         let region = match (&episode.task, &episode.goal) {
             (Task::Vln, None) => {
                 return Err(Error::invalid(format!(
@@ -177,7 +216,7 @@ impl Env {
             region,
             trace,
         });
-        self.observe(Vec::new())
+        self.pending(Vec::new())
     }
 
     /// True when the current episode has ended (or none was started).
@@ -204,6 +243,13 @@ impl Env {
     /// No running episode, an episode that has ended, an action outside the action space, a
     /// non-finite or out-of-range velocity, or a render error.
     pub fn step(&mut self, action: Action) -> Result<(Observation, StepInfo)> {
+        let (pending, info) = self.step_unrendered(action)?;
+        Ok((self.finish(pending)?, info))
+    }
+
+    /// [`Env::step`] up to the rendering: the step's record and the cameras of its
+    /// observation.
+    pub(crate) fn step_unrendered(&mut self, action: Action) -> Result<(Pending, StepInfo)> {
         if self.done() {
             return Err(Error::invalid(
                 "step called with no running episode (reset first, and not after the end)",
@@ -255,8 +301,7 @@ impl Env {
             s.trace.termination = termination;
             s.trace.geodesics = geodesics(&self.ctx, &s.trace, s.region.as_ref());
         }
-        let obs = self.observe(report.touched)?;
-        Ok((obs, info))
+        Ok((self.pending(report.touched)?, info))
     }
 
     /// True when the task's success test passes now: within the success distance of the goal
@@ -345,68 +390,107 @@ impl Env {
         }
     }
 
-    /// Renders the configured images from the agent's camera.
-    fn observe(&mut self, contacts: Vec<Touch>) -> Result<Observation> {
+    /// The cameras of the observation after a reset or step that touched `contacts`.
+    fn pending(&self, contacts: Vec<Touch>) -> Result<Pending> {
         let s = self.state.as_ref().expect("an episode is running");
         let sensors = self.config.sensors;
-        let height = sensors.camera_height.unwrap_or(self.profile.camera_height);
-        let eye = if self.profile.kind == AgentKind::Uav {
-            s.body.pose.position
-        } else {
-            s.body.pose.position + Vec3::Z * height
-        };
-        let (yaw, pitch) = (s.body.pose.yaw, s.pitch);
-        let images = match self.renderer.as_mut() {
-            None => None,
-            Some(renderer) => {
-                let scene = &self.ctx.scene;
-                let categories = &scene.instances.category_ids;
-                let camera = |w: u32, h: u32| -> Result<Camera> {
-                    Ok(Camera::from_yaw_pitch(
-                        Intrinsics::from_hfov(w, h, sensors.hfov_deg)?,
-                        eye,
-                        yaw,
-                        pitch,
-                    ))
-                };
-                let options = RenderOptions::default();
-                let main = renderer.render(
-                    &scene.gaussians,
-                    categories,
-                    &camera(sensors.width, sensors.height)?,
-                    &options,
-                )?;
-                let (depth_size, depth) = match sensors.depth_size {
-                    Some([w, h]) if sensors.depth && (w, h) != (sensors.width, sensors.height) => {
-                        let d = renderer.render(
-                            &scene.gaussians,
-                            categories,
-                            &camera(w, h)?,
-                            &options,
-                        )?;
-                        ((d.width, d.height), Some(d.depth_median))
-                    }
-                    _ => (
-                        (main.width, main.height),
-                        sensors.depth.then(|| main.depth_median.clone()),
-                    ),
-                };
-                Some(Images {
-                    width: main.width,
-                    height: main.height,
-                    depth_size,
-                    depth,
-                    rgb: sensors.rgb.then_some(main.rgb),
-                    semantic: sensors.semantic.then_some(main.semantic),
-                    instance: sensors.instance.then_some(main.instance),
-                })
+        let mut cameras = Vec::new();
+        if self.renderer.is_some() {
+            let height = sensors.camera_height.unwrap_or(self.profile.camera_height);
+            let eye = if self.profile.kind == AgentKind::Uav {
+                s.body.pose.position
+            } else {
+                s.body.pose.position + Vec3::Z * height
+            };
+            let camera = |w: u32, h: u32| -> Result<Camera> {
+                Ok(Camera::from_yaw_pitch(
+                    Intrinsics::from_hfov(w, h, sensors.hfov_deg)?,
+                    eye,
+                    s.body.pose.yaw,
+                    s.pitch,
+                ))
+            };
+            cameras.push(camera(sensors.width, sensors.height)?);
+            if let Some([w, h]) = sensors.depth_size
+                && sensors.depth
+                && (w, h) != (sensors.width, sensors.height)
+            {
+                cameras.push(camera(w, h)?);
             }
-        };
+        }
+        Ok(Pending { contacts, cameras })
+    }
+
+    /// Renders `cameras` (of this environment's or another's [`Pending`] over the same scene)
+    /// with this environment's renderer, in one batch.
+    ///
+    /// # Errors
+    ///
+    /// A render error.
+    pub(crate) fn render(&mut self, cameras: &[Camera]) -> Result<Vec<RenderOutput>> {
+        match self.renderer.as_mut() {
+            Some(renderer) if !cameras.is_empty() => {
+                let scene = &self.ctx.scene;
+                renderer.render_batch(
+                    &scene.gaussians,
+                    &scene.instances.category_ids,
+                    cameras,
+                    &RenderOptions::default(),
+                )
+            }
+            _ => Ok(Vec::new()),
+        }
+    }
+
+    /// Renders `pending`'s cameras and assembles the observation.
+    fn finish(&mut self, pending: Pending) -> Result<Observation> {
+        let outputs = self.render(pending.cameras())?;
+        self.observation(pending, outputs)
+    }
+
+    /// The observation of `pending` with `outputs`, the renders of its cameras in order.
+    ///
+    /// # Errors
+    ///
+    /// Not one render per camera.
+    pub(crate) fn observation(
+        &self,
+        pending: Pending,
+        outputs: Vec<RenderOutput>,
+    ) -> Result<Observation> {
+        if outputs.len() != pending.cameras.len() {
+            return Err(Error::invalid(format!(
+                "{} images rendered for {} cameras",
+                outputs.len(),
+                pending.cameras.len()
+            )));
+        }
+        let s = self.state.as_ref().expect("an episode is running");
+        let sensors = self.config.sensors;
+        let mut outputs = outputs.into_iter();
+        let images = outputs.next().map(|main| {
+            let (depth_size, depth) = match outputs.next() {
+                Some(d) => ((d.width, d.height), Some(d.depth_median)),
+                None => (
+                    (main.width, main.height),
+                    sensors.depth.then_some(main.depth_median),
+                ),
+            };
+            Images {
+                width: main.width,
+                height: main.height,
+                depth_size,
+                depth,
+                rgb: sensors.rgb.then_some(main.rgb),
+                semantic: sensors.semantic.then_some(main.semantic),
+                instance: sensors.instance.then_some(main.instance),
+            }
+        });
         Ok(Observation {
             images,
             pose: s.body.pose,
-            pitch,
-            contacts,
+            pitch: s.pitch,
+            contacts: pending.contacts,
             instruction: s.instruction.clone(),
             time: s.time,
             step: s.trace.steps.len(),

@@ -14,6 +14,11 @@
 //! pool of episodes in many scenes, one at a time or several in parallel (what the Python
 //! environments and vector environments wrap). Episodes come in as [`EnvEpisode`] (the part of
 //! a dataset episode the environment uses), so this crate never depends on the benchmark crate.
+//!
+//! Images are rendered on the configuration's device ([`EnvConfig::device`], through
+//! `sage_splat::Backend`): on the CPU each environment has its own renderer; on a GPU every
+//! environment over a scene renders from one upload of it ([`SceneContext::renderer`]), and a
+//! [`VecEnv`] sends the cameras of its environments over a scene in one batch per step.
 
 pub mod action;
 pub mod agents;

@@ -5,14 +5,16 @@
 use crate::action::Action;
 use crate::config::EnvConfig;
 use crate::context::SceneContext;
-use crate::env::{Env, Observation};
+use crate::env::{Env, Observation, Pending};
 use crate::episode::EnvEpisode;
 use crate::episode::{StepInfo, Termination};
 use crate::reward::Reward;
 use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_metrics::{EpisodeMetrics, Mode};
+use sage_splat::{Camera, RenderOutput};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// One episode of a pool: the index of its scene among the pool's contexts, the scene's name as
@@ -170,40 +172,38 @@ impl PooledEnv {
         Ok((env, reward, *k))
     }
 
+    /// The environment of the pool's scene `scene`, built now if this one has not run an
+    /// episode there yet (otherwise the first reset into the scene builds it): a renderer that
+    /// cannot open (`device: gpu` without an adapter) fails here.
+    ///
+    /// # Errors
+    ///
+    /// `scene` out of range, or [`Env::new`] fails.
+    pub fn open(&mut self, scene: usize) -> Result<&Env> {
+        Ok(self.open_mut(scene)?)
+    }
+
+    fn open_mut(&mut self, scene: usize) -> Result<&mut Env> {
+        let ctx = self
+            .pool
+            .scenes
+            .get(scene)
+            .ok_or_else(|| Error::invalid(format!("scene index {scene} out of range")))?;
+        let slot = &mut self.envs[scene];
+        if slot.is_none() {
+            *slot = Some(Env::new(ctx.clone(), self.config.clone())?);
+        }
+        slot.as_mut()
+            .ok_or_else(|| Error::invalid("no environment for the scene"))
+    }
+
     /// Starts episode `k` of the pool.
     ///
     /// # Errors
     ///
     /// `k` out of range, or the environment's reset fails (no episode is running then).
     pub fn reset(&mut self, k: usize) -> Result<Transition> {
-        let pool = self.pool.clone();
-        let entry = pool
-            .episodes
-            .get(k)
-            .ok_or_else(|| Error::invalid(format!("episode index {k} out of range")))?;
-        let slot = &mut self.envs[entry.scene];
-        if slot.is_none() {
-            *slot = Some(Env::new(
-                pool.scenes[entry.scene].clone(),
-                self.config.clone(),
-            )?);
-        }
-        // A failed reset leaves no running episode (not the previous one, half replaced).
-        self.running = None;
-        let obs = slot
-            .as_mut()
-            .ok_or_else(|| Error::invalid("no environment for the scene"))?
-            .reset(&entry.episode)?;
-        let reward = Reward::start(&pool.scenes[entry.scene], &entry.episode);
-        self.running = Some((k, reward));
-        let info = self.info(None, &obs)?;
-        Ok(Transition {
-            obs,
-            reward: 0.0,
-            terminated: false,
-            truncated: false,
-            info,
-        })
+        self.run(Order::Reset(k))
     }
 
     /// Applies one action to the running episode.
@@ -212,17 +212,96 @@ impl PooledEnv {
     ///
     /// No running episode, or the environment refuses the action.
     pub fn step(&mut self, action: Action) -> Result<Transition> {
-        let (env, reward, _) = self.env()?;
-        let (obs, step) = env.step(action)?;
-        let reward = reward.step(&step, env.within_success_distance());
-        let info = self.info(Some(&step), &obs)?;
+        self.run(Order::Step(action))
+    }
+
+    /// Runs `order` with its observation rendered by this environment's own renderer.
+    fn run(&mut self, order: Order) -> Result<Transition> {
+        let begun = self.begin(order)?;
+        let outputs = self
+            .env()
+            .and_then(|(env, ..)| env.render(begun.pending.cameras()));
+        self.complete(begun, outputs)
+    }
+
+    /// Runs `order` up to the rendering of its observation.
+    fn begin(&mut self, order: Order) -> Result<Begun> {
+        match order {
+            Order::Reset(k) => {
+                let pool = self.pool.clone();
+                let entry = pool
+                    .episodes
+                    .get(k)
+                    .ok_or_else(|| Error::invalid(format!("episode index {k} out of range")))?;
+                // A failed reset leaves no running episode (not the previous one, half
+                // replaced).
+                self.running = None;
+                let pending = self
+                    .open_mut(entry.scene)?
+                    .reset_unrendered(&entry.episode)?;
+                let reward = Reward::start(&pool.scenes[entry.scene], &entry.episode);
+                self.running = Some((k, reward));
+                Ok(Begun {
+                    pending,
+                    step: None,
+                    reward: 0.0,
+                })
+            }
+            Order::Step(action) => {
+                let (env, reward, _) = self.env()?;
+                let (pending, step) = env.step_unrendered(action)?;
+                let reward = reward.step(&step, env.within_success_distance());
+                Ok(Begun {
+                    pending,
+                    step: Some(step),
+                    reward,
+                })
+            }
+        }
+    }
+
+    /// The transition of `begun` with `outputs`, the renders of its cameras. A reset whose
+    /// images failed leaves no running episode.
+    fn complete(&mut self, begun: Begun, outputs: Result<Vec<RenderOutput>>) -> Result<Transition> {
+        let Begun {
+            pending,
+            step,
+            reward,
+        } = begun;
+        let obs = outputs.and_then(|outputs| {
+            let (env, ..) = self.env()?;
+            env.observation(pending, outputs)
+        });
+        let obs = match obs {
+            Ok(obs) => obs,
+            Err(e) => {
+                if step.is_none() {
+                    self.running = None;
+                }
+                return Err(e);
+            }
+        };
+        let info = self.info(step.as_ref(), &obs)?;
+        let termination = step.and_then(|s| s.termination);
         Ok(Transition {
             obs,
             reward,
-            terminated: step.termination.is_some_and(Termination::is_terminal),
-            truncated: step.termination.is_some_and(Termination::is_truncation),
+            terminated: termination.is_some_and(Termination::is_terminal),
+            truncated: termination.is_some_and(Termination::is_truncation),
             info,
         })
+    }
+
+    /// The pool's scene of the running episode, when its images can be rendered in one batch
+    /// with those of other environments over the scene (the renderer is the scene's shared
+    /// GPU upload).
+    fn batch_scene(&self) -> Option<usize> {
+        let (k, _) = self.running.as_ref()?;
+        let scene = self.pool.episodes[*k].scene;
+        self.envs[scene]
+            .as_ref()?
+            .shares_renderer()
+            .then_some(scene)
     }
 
     fn info(&mut self, step: Option<&StepInfo>, obs: &Observation) -> Result<Info> {
@@ -283,6 +362,14 @@ impl PooledEnv {
     }
 }
 
+/// A reset or step of a [`PooledEnv`] waiting for its images.
+struct Begun {
+    pending: Pending,
+    /// The step's record; `None` for a reset.
+    step: Option<StepInfo>,
+    reward: f32,
+}
+
 /// What one sub-environment of a [`VecEnv`] does in a batch.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Order {
@@ -319,8 +406,22 @@ impl VecEnv {
         &self.envs
     }
 
-    /// Runs `orders[i]` in sub-environment `i`, all in parallel; the transitions come back in
-    /// order.
+    /// The environment of the pool's scene `scene` in the first sub-environment, built now
+    /// ([`PooledEnv::open`]): every sub-environment has the same configuration, so a renderer
+    /// that cannot open fails here rather than at the first reset.
+    ///
+    /// # Errors
+    ///
+    /// As [`PooledEnv::open`].
+    pub fn open(&mut self, scene: usize) -> Result<&Env> {
+        self.envs[0].open(scene)
+    }
+
+    /// Runs `orders[i]` in sub-environment `i`; the transitions come back in order. The
+    /// physics of all sub-environments runs in parallel; then the cameras of the
+    /// sub-environments whose scene is on the GPU are rendered in one batch per scene, each
+    /// other sub-environment renders its own (all in parallel); then the observations and
+    /// info records are assembled in parallel.
     ///
     /// # Errors
     ///
@@ -334,17 +435,95 @@ impl VecEnv {
                 orders.len()
             )));
         }
-        self.envs
+        let within = |i: usize| move |e: Error| e.within(format!("sub-environment {i}"));
+        let begun: Vec<Begun> = first_error(
+            self.envs
+                .par_iter_mut()
+                .zip(orders)
+                .enumerate()
+                .map(|(i, (env, order))| env.begin(order).map_err(within(i)))
+                .collect(),
+        )?;
+        let batches = self.batches(&begun);
+        // Each batch is rendered by its first sub-environment's renderer.
+        let mut leads: Vec<Option<Vec<Camera>>> = self.envs.iter().map(|_| None).collect();
+        for batch in &batches {
+            let cameras = batch
+                .iter()
+                .flat_map(|&i| begun[i].pending.cameras().iter().copied())
+                .collect();
+            leads[batch[0]] = Some(cameras);
+        }
+        let mut rendered: Vec<Option<Result<Vec<RenderOutput>>>> = self
+            .envs
             .par_iter_mut()
-            .zip(orders)
-            .enumerate()
-            .map(|(i, (env, order))| {
-                match order {
-                    Order::Reset(k) => env.reset(k),
-                    Order::Step(a) => env.step(a),
+            .zip(leads)
+            .map(|(env, cameras)| cameras.map(|c| env.env().and_then(|(env, ..)| env.render(&c))))
+            .collect();
+        let mut outputs: Vec<Option<Result<Vec<RenderOutput>>>> =
+            self.envs.iter().map(|_| None).collect();
+        for batch in &batches {
+            let lead = batch[0];
+            match rendered[lead].take().expect("every batch was rendered") {
+                Ok(all) => {
+                    let mut all = all.into_iter();
+                    for &i in batch {
+                        let n = begun[i].pending.cameras().len();
+                        outputs[i] = Some(Ok(all.by_ref().take(n).collect()));
+                    }
                 }
-                .map_err(|e| e.within(format!("sub-environment {i}")))
-            })
-            .collect()
+                Err(e) => {
+                    for &i in &batch[1..] {
+                        outputs[i] = Some(Err(Error::invalid(format!(
+                            "not rendered: the batch of sub-environment {lead} failed"
+                        ))));
+                    }
+                    outputs[lead] = Some(Err(e));
+                }
+            }
+        }
+        first_error(
+            self.envs
+                .par_iter_mut()
+                .zip(begun)
+                .zip(outputs)
+                .enumerate()
+                .map(|(i, ((env, begun), outputs))| {
+                    env.complete(begun, outputs.unwrap_or_else(|| Ok(Vec::new())))
+                        .map_err(within(i))
+                })
+                .collect(),
+        )
     }
+
+    /// The render batches of `begun`, sub-environment indices in order, each batch's first
+    /// the one that renders it: one per scene for the sub-environments on the scene's shared
+    /// GPU upload, one per sub-environment for the others (a CPU renderer has its own
+    /// buffers, and renders independently in parallel). Sub-environments without cameras are
+    /// in none.
+    fn batches(&self, begun: &[Begun]) -> Vec<Vec<usize>> {
+        let mut batches: Vec<Vec<usize>> = Vec::new();
+        let mut by_scene: BTreeMap<usize, usize> = BTreeMap::new();
+        for (i, env) in self.envs.iter().enumerate() {
+            if begun[i].pending.cameras().is_empty() {
+                continue;
+            }
+            match env.batch_scene() {
+                Some(scene) => match by_scene.get(&scene) {
+                    Some(&b) => batches[b].push(i),
+                    None => {
+                        by_scene.insert(scene, batches.len());
+                        batches.push(vec![i]);
+                    }
+                },
+                None => batches.push(vec![i]),
+            }
+        }
+        batches
+    }
+}
+
+/// The values of `results`, or the error of the first that failed.
+fn first_error<T>(results: Vec<Result<T>>) -> Result<Vec<T>> {
+    results.into_iter().collect()
 }

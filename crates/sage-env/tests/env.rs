@@ -1,5 +1,6 @@
 //! The environment on a small synthetic scene: observations, actions, termination, the oracle's
-//! success, determinism across runs and thread counts.
+//! success, determinism across runs and thread counts, vector environments, and rendering on
+//! the GPU.
 
 use sage_core::Pose;
 use sage_env::agents::{Agent, ForwardAgent, OracleAgent, RandomAgent, run_episode};
@@ -8,11 +9,14 @@ use sage_env::{
 };
 use sage_nav::TrajectoryParams;
 use sage_physics::{Decomposer, HullCache, SceneBodies};
+use sage_splat::Device;
 use sage_synth::{SceneKind, SynthConfig, generate};
 use std::sync::{Arc, OnceLock};
 
 struct Fixture {
     ctx: Arc<SceneContext>,
+    /// The scene's bodies, for contexts of a test's own.
+    bodies: SceneBodies,
     episodes: Vec<EnvEpisode>,
 }
 
@@ -53,9 +57,11 @@ fn fixture() -> &'static Fixture {
             .map(|t| EnvEpisode::from_trajectory(format!("t{}", t.id), t, "go to the goal"))
             .collect();
         assert!(episodes.len() >= 4, "{} trajectories", episodes.len());
-        let ctx = SceneContext::new(scene, bodies, &params.grid, params.cost.clone()).unwrap();
+        let ctx =
+            SceneContext::new(scene, bodies.clone(), &params.grid, params.cost.clone()).unwrap();
         Fixture {
             ctx: Arc::new(ctx),
+            bodies,
             episodes,
         }
     })
@@ -418,5 +424,203 @@ fn pooled_environments_pay_habitat_rewards_and_vector_ones_equal_single_ones() {
             (s.reward, s.info.pose, s.info.step),
             (step[i].reward, step[i].info.pose, step[i].info.step)
         );
+    }
+}
+
+/// The images of a vector environment equal those of single environments, sub-environment
+/// for sub-environment and in order, when sub-environments share scenes (two pool scenes over
+/// one context, so rendering groups by scene index while sharing one upload) and some have
+/// no camera change.
+#[test]
+fn vector_observations_equal_single_ones_with_images() {
+    use sage_env::pool::Order;
+    use sage_env::{Pool, PoolEpisode, PooledEnv, VecEnv};
+    use sage_metrics::Mode;
+    let f = fixture();
+    let entries: Vec<PoolEpisode> = f
+        .episodes
+        .iter()
+        .take(4)
+        .enumerate()
+        .map(|(i, e)| PoolEpisode {
+            scene: i % 2,
+            scene_name: format!("home{}", i % 2),
+            episode: e.clone(),
+        })
+        .collect();
+    let pool = Arc::new(Pool::new(vec![f.ctx.clone(), f.ctx.clone()], entries).unwrap());
+    let mut vec_env = VecEnv::new(4, pool.clone(), tiny_camera(), Mode::Sage).unwrap();
+    assert!(
+        vec_env
+            .open(1)
+            .unwrap()
+            .render_device()
+            .unwrap()
+            .starts_with("cpu")
+    );
+    let resets: Vec<Order> = (0..4).map(|i| Order::Reset(3 - i)).collect();
+    let actions = [
+        Action::MoveForward,
+        Action::TurnLeft,
+        Action::LookUp,
+        Action::Stop,
+    ];
+    let batch = vec_env.run(resets).unwrap();
+    let steps = vec_env
+        .run(actions.iter().map(|&a| Order::Step(a)).collect())
+        .unwrap();
+    // A finished sub-environment resets beside the others stepping.
+    let mixed = vec_env
+        .run(vec![
+            Order::Step(Action::TurnRight),
+            Order::Step(Action::MoveForward),
+            Order::Step(Action::LookDown),
+            Order::Reset(0),
+        ])
+        .unwrap();
+    for i in 0..4 {
+        let mut single = PooledEnv::new(pool.clone(), tiny_camera(), Mode::Sage);
+        let r = single.reset(3 - i).unwrap();
+        assert_eq!(r.obs, batch[i].obs, "reset of sub-environment {i}");
+        assert_eq!(r.info.episode_index, batch[i].info.episode_index);
+        let s = single.step(actions[i]).unwrap();
+        assert_eq!(s.obs, steps[i].obs, "step of sub-environment {i}");
+        assert_eq!(s.reward, steps[i].reward);
+        let m = if i == 3 {
+            single.reset(0).unwrap()
+        } else {
+            single
+                .step([Action::TurnRight, Action::MoveForward, Action::LookDown][i])
+                .unwrap()
+        };
+        assert_eq!(m.obs, mixed[i].obs, "third order of sub-environment {i}");
+        assert_eq!(m.info.step, mixed[i].info.step);
+    }
+    assert!(batch[0].obs.images.as_ref().unwrap().rgb.is_some());
+}
+
+/// `gpu` opens on any adapter (Mesa's software one where there is no GPU) and every
+/// environment over a scene renders from one upload of it; `auto` takes only a hardware GPU,
+/// falling back to the CPU with the reason.
+#[test]
+fn gpu_environments_share_one_upload_per_scene() {
+    let f = fixture();
+    // A context of its own: other tests' environments do not count.
+    let ctx = Arc::new(
+        SceneContext::new(
+            f.ctx.scene.clone(),
+            f.bodies.clone(),
+            &TrajectoryParams::default().grid,
+            TrajectoryParams::default().cost,
+        )
+        .unwrap(),
+    );
+    let mut cfg = tiny_camera();
+    cfg.device = Device::Gpu;
+    assert_eq!(ctx.uploads(), 0);
+    let envs: Vec<Env> = (0..3)
+        .map(|_| Env::new(ctx.clone(), cfg.clone()).unwrap())
+        .collect();
+    assert_eq!(ctx.uploads(), 1);
+    for env in &envs {
+        let device = env.render_device().unwrap();
+        assert!(device.starts_with("gpu: "), "{device}");
+    }
+    // Environments that render nothing open no renderer.
+    let mut blind_gpu = blind();
+    blind_gpu.device = Device::Gpu;
+    assert_eq!(
+        Env::new(ctx.clone(), blind_gpu).unwrap().render_device(),
+        None
+    );
+    cfg.device = Device::Cpu;
+    let cpu = Env::new(ctx.clone(), cfg.clone()).unwrap();
+    assert!(cpu.render_device().unwrap().starts_with("cpu ("));
+    assert_eq!(ctx.uploads(), 1);
+    cfg.device = Device::Auto;
+    let auto = Env::new(ctx.clone(), cfg).unwrap();
+    let device = auto.render_device().unwrap();
+    if device.starts_with("gpu: ") {
+        assert!(!device.contains("software"), "auto took {device}");
+        assert_eq!(ctx.uploads(), 2);
+    } else {
+        assert!(
+            device.starts_with("cpu (") && device.contains("auto: "),
+            "{device}"
+        );
+        assert_eq!(ctx.uploads(), 1);
+    }
+}
+
+/// The GPU forms the CPU's images: same sizes, RGB within 40 dB PSNR, depth and labels where
+/// both see the same thing; a vector environment on the GPU (one batch per scene) gives the
+/// single environments' images.
+#[test]
+fn gpu_observations_match_the_cpu() {
+    use sage_env::pool::Order;
+    use sage_env::{Pool, PoolEpisode, PooledEnv, VecEnv};
+    use sage_metrics::Mode;
+    let f = fixture();
+    let mut cfg = tiny_camera();
+    cfg.sensors.width = 64;
+    cfg.sensors.height = 48;
+    cfg.sensors.instance = true;
+    let mut gpu_cfg = cfg.clone();
+    gpu_cfg.device = Device::Gpu;
+    let mut cpu = Env::new(f.ctx.clone(), cfg).unwrap();
+    let mut gpu = Env::new(f.ctx.clone(), gpu_cfg.clone()).unwrap();
+    let e = &f.episodes[0];
+    let mut pairs = vec![(cpu.reset(e).unwrap(), gpu.reset(e).unwrap())];
+    for a in [Action::MoveForward, Action::TurnLeft, Action::LookDown] {
+        pairs.push((cpu.step(a).unwrap().0, gpu.step(a).unwrap().0));
+    }
+    for (c, g) in &pairs {
+        assert_eq!((c.pose, c.pitch, c.step), (g.pose, g.pitch, g.step));
+        let (ci, gi) = (c.images.as_ref().unwrap(), g.images.as_ref().unwrap());
+        assert_eq!(
+            (ci.width, ci.height, ci.depth_size),
+            (gi.width, gi.height, gi.depth_size)
+        );
+        let (cr, gr) = (ci.rgb.as_ref().unwrap(), gi.rgb.as_ref().unwrap());
+        assert_eq!(cr.len(), gr.len());
+        let mse = cr
+            .iter()
+            .zip(gr)
+            .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+            .sum::<f64>()
+            / cr.len() as f64;
+        let psnr = 10.0 * (255.0f64.powi(2) / mse.max(1e-12)).log10();
+        assert!(psnr >= 40.0, "RGB PSNR {psnr:.1} dB");
+        let (cd, gd) = (ci.depth.as_ref().unwrap(), gi.depth.as_ref().unwrap());
+        let near = cd
+            .iter()
+            .zip(gd)
+            .filter(|(a, b)| (*a - *b).abs() <= 0.01 * a.max(**b) + 1e-3)
+            .count();
+        assert!(near * 100 >= cd.len() * 98, "{near} of {} depths", cd.len());
+        let (cs, gs) = (ci.instance.as_ref().unwrap(), gi.instance.as_ref().unwrap());
+        let same = cs.iter().zip(gs).filter(|(a, b)| a == b).count();
+        assert!(
+            same * 100 >= cs.len() * 98,
+            "{same} of {} instances",
+            cs.len()
+        );
+    }
+    let entries: Vec<PoolEpisode> = f
+        .episodes
+        .iter()
+        .take(3)
+        .map(|e| PoolEpisode {
+            scene: 0,
+            scene_name: "home".into(),
+            episode: e.clone(),
+        })
+        .collect();
+    let pool = Arc::new(Pool::new(vec![f.ctx.clone()], entries).unwrap());
+    let mut vec_env = VecEnv::new(3, pool.clone(), gpu_cfg.clone(), Mode::Sage).unwrap();
+    let batch = vec_env.run((0..3).map(Order::Reset).collect()).unwrap();
+    for (i, t) in batch.iter().enumerate() {
+        let mut single = PooledEnv::new(pool.clone(), gpu_cfg.clone(), Mode::Sage);
+        assert_eq!(single.reset(i).unwrap().obs, t.obs, "sub-environment {i}");
     }
 }

@@ -1,11 +1,12 @@
 //! `sage3d bench render`: frame times of the renderer from cameras inside a scene's largest
-//! room, with their breakdown, and the process's resident memory per Gaussian.
+//! room, with their breakdown (CPU), the frames per second of batched cameras (GPU), and the
+//! process's resident memory per Gaussian.
 
 use crate::machine;
 use sage_core::Result;
 use sage_scene::Scene;
 use sage_scene::ply::SplatLayout;
-use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
+use sage_splat::{Backend, Camera, Device, Intrinsics, RenderOptions, Renderer};
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -21,13 +22,28 @@ pub struct RenderSettings {
     pub gaussians: usize,
     /// Frames per resolution (headings spread over a full turn).
     pub frames: usize,
-    /// Resolutions, (width, height).
-    pub sizes: Vec<(u32, u32)>,
+    /// Resolutions, (width, height) (`None`: [`CPU_SIZES`], or [`GPU_SIZES`] when the GPU
+    /// renders).
+    pub sizes: Option<Vec<(u32, u32)>>,
     /// Camera pitch in degrees (0: level, as the SAGE-Bench camera).
     pub pitch: f32,
     /// Give the scene SH degree 3 (bands 2–3 filled from a seeded hash), the memory worst case.
     pub sh3: bool,
+    /// Where the frames are rendered.
+    pub device: Device,
+    /// Cameras per batch of the batched figures, measured when the GPU renders (the CPU
+    /// renders a batch one camera after the other, so its rate is that of single frames).
+    pub batches: Vec<usize>,
+    /// Resolution of the batched cameras, (width, height).
+    pub batch_size: (u32, u32),
 }
+
+/// The resolutions measured on the CPU unless asked otherwise.
+pub const CPU_SIZES: [(u32, u32); 2] = [(224, 224), (640, 480)];
+
+/// The resolutions measured on the GPU unless asked otherwise: the CPU's and the published
+/// pipeline's 1024×768.
+pub const GPU_SIZES: [(u32, u32); 3] = [(224, 224), (640, 480), (1024, 768)];
 
 impl Default for RenderSettings {
     fn default() -> Self {
@@ -35,9 +51,12 @@ impl Default for RenderSettings {
             scene: None,
             gaussians: 1_000_000,
             frames: 24,
-            sizes: vec![(224, 224), (640, 480)],
+            sizes: None,
             pitch: 0.0,
             sh3: false,
+            device: Device::Cpu,
+            batches: vec![1, 16, 64, 256],
+            batch_size: (224, 224),
         }
     }
 }
@@ -48,6 +67,9 @@ impl Default for RenderSettings {
 pub struct RenderReport {
     /// The machine ([`machine::describe`]).
     pub machine: String,
+    /// The renderer that measured ([`Backend::describe`]: the CPU's threads or the GPU
+    /// adapter).
+    pub renderer: String,
     /// Gaussians in the scene.
     pub gaussians: usize,
     /// Their SH degree.
@@ -56,15 +78,21 @@ pub struct RenderReport {
     pub eye: [f32; 3],
     /// Camera pitch, degrees.
     pub pitch: f32,
-    /// Milliseconds to build the renderer's spatial index.
+    /// Milliseconds to set the renderer up: the CPU's spatial index, or the GPU's device (on
+    /// first use) and the upload of the scene.
     pub index_ms: f64,
-    /// Heap bytes of the index.
-    pub index_bytes: usize,
+    /// Heap bytes of the CPU renderer's index (none on the GPU).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub index_bytes: Option<usize>,
     /// Heap bytes of the Gaussian arrays.
     pub store_bytes: usize,
     /// One entry per resolution, in the order asked.
     pub sizes: Vec<FrameTimes>,
-    /// Resident set of the whole process after rendering, bytes (where the OS tells it).
+    /// One entry per batch size (GPU only), in the order asked.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub batches: Vec<BatchRate>,
+    /// Resident set of the whole process after rendering, bytes (where the OS tells it; GPU
+    /// memory is not in it).
     pub resident_bytes: Option<u64>,
 }
 
@@ -79,6 +107,15 @@ pub struct FrameTimes {
     pub median_ms: f64,
     /// The slowest frame, milliseconds.
     pub worst_ms: f64,
+    /// Where the CPU renderer's time went (the GPU's frames are timed whole, read-back
+    /// included).
+    #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
+    pub breakdown: Option<Breakdown>,
+}
+
+/// The CPU renderer's stages and work, medians over the frames.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Breakdown {
     /// Frustum culling, milliseconds.
     pub cull_ms: f64,
     /// Projection, milliseconds.
@@ -93,47 +130,88 @@ pub struct FrameTimes {
     pub splats: f64,
 }
 
+/// Batches of cameras rendered in one call ([`Backend::render_batch`]: on the GPU one
+/// submission and one read-back): medians over the timed batches.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BatchRate {
+    /// Cameras per batch.
+    pub cameras: usize,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Milliseconds per batch, read-back included.
+    pub batch_ms: f64,
+    /// Frames per second: cameras over the batch's time.
+    pub frames_per_s: f64,
+}
+
 impl fmt::Display for RenderReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let n = self.gaussians.max(1) as f64;
         let [x, y, z] = self.eye;
         writeln!(f, "machine          {}", self.machine)?;
+        writeln!(f, "renderer         {}", self.renderer)?;
         writeln!(
             f,
             "scene            {} Gaussians (SH degree {}), camera at ({x:.2}, {y:.2}, {z:.2}) in the largest room, pitch {}°, HFOV 90°",
             self.gaussians, self.sh_degree, self.pitch
         )?;
-        writeln!(
-            f,
-            "index            built in {:.0} ms, {:.1} bytes/Gaussian",
-            self.index_ms,
-            self.index_bytes as f64 / n
-        )?;
-        for t in &self.sizes {
-            writeln!(
+        match self.index_bytes {
+            Some(bytes) => writeln!(
                 f,
-                "{}x{:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians examined, {:.0} splats",
+                "index            built in {:.0} ms, {:.1} bytes/Gaussian",
+                self.index_ms,
+                bytes as f64 / n
+            )?,
+            None => writeln!(
+                f,
+                "upload           device and scene in {:.0} ms",
+                self.index_ms
+            )?,
+        }
+        for t in &self.sizes {
+            write!(
+                f,
+                "{}x{:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s",
                 t.width,
                 t.height,
                 t.median_ms,
                 t.worst_ms,
                 1e3 / t.median_ms,
-                t.cull_ms,
-                t.project_ms,
-                t.sort_ms,
-                t.raster_ms,
-                t.examined,
-                t.splats
+            )?;
+            match &t.breakdown {
+                Some(b) => writeln!(
+                    f,
+                    "; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians examined, {:.0} splats",
+                    b.cull_ms, b.project_ms, b.sort_ms, b.raster_ms, b.examined, b.splats
+                )?,
+                None => writeln!(f, ", one camera per call, read-back included")?,
+            }
+        }
+        for b in &self.batches {
+            writeln!(
+                f,
+                "batch {:<4} {:>4}x{:<4} {:.1} ms per batch, {:.0} frames/s",
+                b.cameras, b.width, b.height, b.batch_ms, b.frames_per_s
             )?;
         }
         if let Some(rss) = self.resident_bytes {
-            writeln!(
-                f,
-                "resident         {:.1} bytes/Gaussian: the whole process (scene {:.1} + index {:.1} + frame buffers and the rest)",
-                rss as f64 / n,
-                self.store_bytes as f64 / n,
-                self.index_bytes as f64 / n
-            )?;
+            match self.index_bytes {
+                Some(index) => writeln!(
+                    f,
+                    "resident         {:.1} bytes/Gaussian: the whole process (scene {:.1} + index {:.1} + frame buffers and the rest)",
+                    rss as f64 / n,
+                    self.store_bytes as f64 / n,
+                    index as f64 / n
+                )?,
+                None => writeln!(
+                    f,
+                    "resident         {:.1} bytes/Gaussian: the whole process on the host (scene {:.1} + frame buffers, driver and the rest; GPU memory not counted)",
+                    rss as f64 / n,
+                    self.store_bytes as f64 / n
+                )?,
+            }
         }
         Ok(())
     }
@@ -147,11 +225,17 @@ impl fmt::Display for RenderReport {
 ///
 /// # Errors
 ///
-/// The scene cannot be loaded, generated or written, a size is empty, or `fresh` fails.
+/// The scene cannot be loaded, generated or written, a size or a batch is empty, the device
+/// cannot be opened, or `fresh` fails.
 pub fn run(
     settings: &RenderSettings,
     fresh: &dyn Fn(&RenderSettings) -> Result<RenderReport>,
 ) -> Result<RenderReport> {
+    if settings.batches.contains(&0) {
+        return Err(sage_core::Error::invalid(
+            "batches: a batch needs at least 1 camera",
+        ));
+    }
     if let (Some(dir), false) = (&settings.scene, settings.sh3) {
         return measure(&Scene::load(dir)?.0, settings);
     }
@@ -185,46 +269,52 @@ pub fn run(
     result
 }
 
+/// The cameras of the benchmark: `count` headings spread over a full turn at `eye`.
+fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize) -> Vec<Camera> {
+    (0..count)
+        .map(|f| {
+            Camera::from_yaw_pitch(
+                intrinsics,
+                eye,
+                std::f32::consts::TAU * f as f32 / count as f32,
+                pitch_deg.to_radians(),
+            )
+        })
+        .collect()
+}
+
 /// Renders `frames` headings at every size after one warm-up frame, which sizes the reusable
-/// buffers.
+/// buffers; on the GPU then the batches, each after a warm-up batch.
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
-    let mut renderer = Renderer::new(&scene.gaussians);
+    let mut backend = Backend::open(settings.device, &scene.gaussians)?;
     let index_ms = start.elapsed().as_secs_f64() * 1e3;
+    eprintln!("renderer: {}", backend.describe());
     let eye = sage_splat::camera::default_eye(scene);
     let machine = machine::describe();
     let options = RenderOptions::default();
-    let mut sizes = Vec::with_capacity(settings.sizes.len());
-    for &(w, h) in &settings.sizes {
-        let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
+    let (gaussians, categories) = (&scene.gaussians, &scene.instances.category_ids);
+    let asked = match (&settings.sizes, backend.is_gpu()) {
+        (Some(sizes), _) => sizes.clone(),
+        (None, true) => GPU_SIZES.to_vec(),
+        (None, false) => CPU_SIZES.to_vec(),
+    };
+    let mut sizes = Vec::with_capacity(asked.len());
+    for (w, h) in asked {
         let frames = settings.frames.max(1);
-        let cams: Vec<Camera> = (0..frames)
-            .map(|f| {
-                Camera::from_yaw_pitch(
-                    intrinsics,
-                    eye,
-                    std::f32::consts::TAU * f as f32 / frames as f32,
-                    settings.pitch.to_radians(),
-                )
-            })
-            .collect();
-        renderer.render(
-            &scene.gaussians,
-            &scene.instances.category_ids,
-            &cams[0],
-            &options,
-        )?;
+        let cams = cameras(
+            Intrinsics::from_hfov(w, h, 90.0)?,
+            eye,
+            settings.pitch,
+            frames,
+        );
+        backend.render(gaussians, categories, &cams[0], &options)?;
         let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames);
         for cam in &cams {
             let start = Instant::now();
-            renderer.render(
-                &scene.gaussians,
-                &scene.instances.category_ids,
-                cam,
-                &options,
-            )?;
+            backend.render(gaussians, categories, cam, &options)?;
             let total = start.elapsed().as_secs_f64() * 1e3;
-            let s = renderer.stats();
+            let s = backend.as_cpu().map(Renderer::stats).unwrap_or_default();
             rows.push([
                 total,
                 s.cull_ms,
@@ -241,25 +331,54 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             height: h,
             median_ms: col(0),
             worst_ms: rows.iter().map(|r| r[0]).fold(0.0, f64::max),
-            cull_ms: col(1),
-            project_ms: col(2),
-            sort_ms: col(3),
-            raster_ms: col(4),
-            examined: col(5),
-            splats: col(6),
+            breakdown: (!backend.is_gpu()).then(|| Breakdown {
+                cull_ms: col(1),
+                project_ms: col(2),
+                sort_ms: col(3),
+                raster_ms: col(4),
+                examined: col(5),
+                splats: col(6),
+            }),
         });
+    }
+    let mut batches = Vec::new();
+    if backend.is_gpu() {
+        let (w, h) = settings.batch_size;
+        let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
+        for &count in &settings.batches {
+            let cams = cameras(intrinsics, eye, settings.pitch, count);
+            backend.render_batch(gaussians, categories, &cams, &options)?;
+            // At least as many frames as a resolution row, and three batches for a median.
+            let repeats = settings.frames.div_ceil(count).max(3);
+            let mut times = Vec::with_capacity(repeats);
+            for _ in 0..repeats {
+                let start = Instant::now();
+                backend.render_batch(gaussians, categories, &cams, &options)?;
+                times.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+            let batch_ms = crate::median(&times);
+            batches.push(BatchRate {
+                cameras: count,
+                width: w,
+                height: h,
+                batch_ms,
+                frames_per_s: count as f64 * 1e3 / batch_ms,
+            });
+        }
     }
     let resident_bytes = machine::resident_bytes();
     Ok(RenderReport {
         machine,
+        renderer: backend.describe().to_string(),
         gaussians: scene.gaussians.len(),
         sh_degree: scene.gaussians.sh_degree(),
         eye: eye.to_array(),
         pitch: settings.pitch,
         index_ms,
-        index_bytes: renderer.index().heap_bytes(),
+        index_bytes: backend.as_cpu().map(|r| r.index().heap_bytes()),
         store_bytes: scene.gaussians.heap_bytes(),
         sizes,
+        batches,
         resident_bytes,
     })
 }

@@ -49,7 +49,7 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
     let settings = RenderSettings {
         gaussians: 3000,
         frames: 2,
-        sizes: vec![(16, 12), (24, 16)],
+        sizes: Some(vec![(16, 12), (24, 16)]),
         sh3: true,
         ..RenderSettings::default()
     };
@@ -60,12 +60,38 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
     .unwrap();
     assert_eq!(report.sh_degree, 3);
     let sizes: Vec<_> = report.sizes.iter().map(|t| (t.width, t.height)).collect();
-    assert_eq!(sizes, settings.sizes);
+    assert_eq!(Some(sizes), settings.sizes);
     let text = report.to_string();
     assert!(
         text.contains("\n16x12         median ") && text.contains("\n24x16         median "),
         "{text}"
     );
+    // The CPU renders: its stage breakdown and index are reported, no batches (the CPU renders
+    // a batch one camera after the other), and the JSON keeps the fields it always had.
+    assert!(report.renderer.starts_with("cpu"), "{}", report.renderer);
+    assert!(text.contains(&format!("renderer         {}", report.renderer)));
+    assert!(report.sizes.iter().all(|t| t.breakdown.is_some()));
+    assert!(report.index_bytes.is_some() && report.batches.is_empty());
+    let json = serde_json::to_value(&report).unwrap();
+    let size = &json["sizes"][0];
+    for key in ["median_ms", "worst_ms", "cull_ms", "raster_ms", "splats"] {
+        assert!(size.get(key).is_some(), "{key}: {size}");
+    }
+    assert!(json["index_bytes"].is_u64() && json.get("batches").is_none());
+    let back: render::RenderReport = serde_json::from_value(json).unwrap();
+    assert_eq!(back, report);
+}
+
+#[test]
+fn render_refuses_an_empty_batch_before_any_work() {
+    let settings = RenderSettings {
+        batches: vec![16, 0],
+        ..RenderSettings::default()
+    };
+    let e = render::run(&settings, &|_| unreachable!("nothing is measured"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("at least 1 camera"), "{e}");
 }
 
 #[test]

@@ -402,6 +402,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
                 dtw: Dtw::default(),
                 seed: s.seed,
                 preset: "sage".into(),
+                device: Default::default(),
             },
             out: s.run_folder(agent),
         });

@@ -88,6 +88,7 @@ fn settings(
         dtw: scoring.dtw,
         seed,
         preset: preset.to_string(),
+        device: Default::default(),
     })
 }
 
@@ -97,9 +98,10 @@ fn settings(
 /// `agent_name`. With a built-in agent and no `overrides` or `scenes_only`, this is exactly
 /// `sage3d eval`; otherwise the environment is `preset` with `overrides` (JSON; a Python agent
 /// sees the preset's images) and only the episodes of the scenes in `scenes_only` run.
-/// `scenes=None` runs in the scenes folder the dataset records.
+/// `scenes=None` runs in the scenes folder the dataset records. Images are rendered on
+/// `device` (`cpu`, `gpu` or `auto`, as `sage3d eval --device`), whatever `overrides` say.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false))]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false, device="cpu"))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -116,6 +118,7 @@ pub fn evaluate<'py>(
     scenes_only: Option<Vec<String>>,
     dtw: &str,
     strict: bool,
+    device: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let builtin: Option<AgentKind> = match agent.extract::<String>() {
         Ok(name) => Some(name.parse().py()?),
@@ -126,15 +129,18 @@ pub fn evaluate<'py>(
         (None, Some(n)) => n,
         (None, None) => return Err(PyValueError::new_err("a Python agent needs agent_name")),
     };
-    let settings = settings(
-        dataset,
-        scenes,
-        split,
-        &name,
-        scoring(mode, dtw)?,
-        seed,
-        preset,
-    )?;
+    let settings = EvalSettings {
+        device: device.parse().py()?,
+        ..settings(
+            dataset,
+            scenes,
+            split,
+            &name,
+            scoring(mode, dtw)?,
+            seed,
+            preset,
+        )?
+    };
     eval::claim(&out, false).py()?;
     let factory = agent.clone().unbind();
     let outcome = if builtin.is_some() && overrides.is_none() && scenes_only.is_none() {
@@ -143,12 +149,15 @@ pub fn evaluate<'py>(
         let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
         let config = match (&maker, overrides) {
             // A built-in agent sees what it sees under `sage3d eval`.
-            (Some(maker), None) => eval::env_config(preset, maker).py()?,
-            _ => sage_env::EnvConfig::with_overrides(
-                preset,
-                &from_json(overrides.unwrap_or("{}"), "overrides")?,
-            )
-            .py()?,
+            (Some(maker), None) => eval::env_config(preset, maker, settings.device).py()?,
+            _ => sage_env::EnvConfig {
+                device: settings.device,
+                ..sage_env::EnvConfig::with_overrides(
+                    preset,
+                    &from_json(overrides.unwrap_or("{}"), "overrides")?,
+                )
+                .py()?
+            },
         };
         let make = || -> Result<Box<dyn Agent>> {
             match &maker {
@@ -201,9 +210,10 @@ struct Evaluated {
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
 /// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
 /// `sage3d_run.json`, the same bytes as one `sage3d eval` over the union writes them.
-/// Returns the summary. An episode recorded by two shards is an error.
+/// Returns the summary. An episode recorded by two shards is an error. `device` is the one the
+/// shards rendered on (their run records name it when it is not the CPU).
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage", dtw="exact"))]
+#[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage", dtw="exact", device="cpu"))]
 #[allow(clippy::too_many_arguments)]
 pub fn merge_eval<'py>(
     py: Python<'py>,
@@ -217,16 +227,20 @@ pub fn merge_eval<'py>(
     seed: u64,
     preset: &str,
     dtw: &str,
+    device: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let settings = settings(
-        dataset,
-        scenes,
-        split,
-        &agent_name,
-        scoring(mode, dtw)?,
-        seed,
-        preset,
-    )?;
+    let settings = EvalSettings {
+        device: device.parse().py()?,
+        ..settings(
+            dataset,
+            scenes,
+            split,
+            &agent_name,
+            scoring(mode, dtw)?,
+            seed,
+            preset,
+        )?
+    };
     let summary = py
         .detach(|| eval::merge_shards(&settings, &agent_name, &shards, &out))
         .py()?;

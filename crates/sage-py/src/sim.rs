@@ -182,15 +182,19 @@ fn mode_of(mode: &str) -> PyResult<Mode> {
 pub struct Sim {
     env: PooledEnv,
     episodes: Vec<Episode>,
+    render_device: Option<String>,
 }
 
 #[pymethods]
 impl Sim {
     /// An environment over `episodes` (JSON list of dataset episodes), episode `i` running in
     /// `scenes[scene_of[i]]`, with `preset` plus the JSON `overrides`; episode metrics in `mode`.
+    /// The renderer of the first episode's scene opens here, so a `device` that cannot render
+    /// fails at once.
     #[new]
     #[pyo3(signature = (scenes, episodes, scene_of, preset="sage", overrides="{}", mode="sage"))]
     fn new(
+        py: Python<'_>,
         scenes: Vec<PyRef<'_, crate::scene::PyScene>>,
         episodes: &str,
         scene_of: Vec<usize>,
@@ -200,10 +204,26 @@ impl Sim {
     ) -> PyResult<Sim> {
         let config = EnvConfig::with_overrides(preset, &from_json(overrides, "overrides")?).py()?;
         let (pool, episodes) = pool(scenes, episodes, scene_of)?;
+        let first = pool.episodes[0].scene;
+        let mut env = PooledEnv::new(pool, config, mode_of(mode)?);
+        let render_device = py
+            .detach(|| {
+                env.open(first)
+                    .map(|e| e.render_device().map(str::to_owned))
+            })
+            .py()?;
         Ok(Sim {
-            env: PooledEnv::new(pool, config, mode_of(mode)?),
+            env,
             episodes,
+            render_device,
         })
+    }
+
+    /// Which renderer forms the images, in words (`cpu (8 threads)`, `gpu: …`, or the CPU
+    /// with the reason `auto` took no GPU); `None` when no image is configured.
+    #[getter]
+    fn render_device(&self) -> Option<String> {
+        self.render_device.clone()
     }
 
     /// Number of episodes in the pool.
@@ -252,6 +272,7 @@ impl Sim {
 #[pyclass(module = "sage3d._sage3d")]
 pub struct VecSim {
     envs: VecEnv,
+    render_device: Option<String>,
 }
 
 impl VecSim {
@@ -327,7 +348,9 @@ impl VecSim {
     /// `num_envs` environments over one pool (as [`Sim`]).
     #[new]
     #[pyo3(signature = (num_envs, scenes, episodes, scene_of, preset="sage", overrides="{}", mode="sage"))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
+        py: Python<'_>,
         num_envs: usize,
         scenes: Vec<PyRef<'_, crate::scene::PyScene>>,
         episodes: &str,
@@ -338,9 +361,25 @@ impl VecSim {
     ) -> PyResult<VecSim> {
         let config = EnvConfig::with_overrides(preset, &from_json(overrides, "overrides")?).py()?;
         let (pool, _) = pool(scenes, episodes, scene_of)?;
+        let first = pool.episodes[0].scene;
+        let mut envs = VecEnv::new(num_envs, pool, config, mode_of(mode)?).py()?;
+        let render_device = py
+            .detach(|| {
+                envs.open(first)
+                    .map(|e| e.render_device().map(str::to_owned))
+            })
+            .py()?;
         Ok(VecSim {
-            envs: VecEnv::new(num_envs, pool, config, mode_of(mode)?).py()?,
+            envs,
+            render_device,
         })
+    }
+
+    /// Which renderer forms the images (as [`Sim`]'s); the sub-environments over a scene on
+    /// the GPU render from one upload of it, their cameras in one batch per step.
+    #[getter]
+    fn render_device(&self) -> Option<String> {
+        self.render_device.clone()
     }
 
     /// Number of sub-environments.

@@ -32,7 +32,7 @@ impl SensorList {
 /// The settings of a render as JSON (`sage_traindata::Settings`), from the keyword arguments
 /// of [`render_training_data`] (without `out` and `force`): what the step functions take.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, split="train", preset="navila_small", step=None, turn=None, max_actions=sage_traindata::preset::DEFAULT_MAX_ACTIONS, width=224, height=224, hfov=90.0, sensors=SensorList::Text("rgb".into()), format="navila", shard_size=None, limit=None, seed=0, agent="wheeled", image="jpg", jpeg_quality=90, keep_failed=false, preview=0))]
+#[pyo3(signature = (dataset, scenes, split="train", preset="navila_small", step=None, turn=None, max_actions=sage_traindata::preset::DEFAULT_MAX_ACTIONS, width=224, height=224, hfov=90.0, sensors=SensorList::Text("rgb".into()), format="navila", shard_size=None, limit=None, seed=0, agent="wheeled", image="jpg", jpeg_quality=90, keep_failed=false, preview=0, device="cpu"))]
 #[allow(clippy::too_many_arguments)]
 pub fn training_settings(
     dataset: PathBuf,
@@ -55,6 +55,7 @@ pub fn training_settings(
     jpeg_quality: u8,
     keep_failed: bool,
     preview: usize,
+    device: &str,
 ) -> PyResult<String> {
     let s = Options {
         dataset,
@@ -77,6 +78,7 @@ pub fn training_settings(
         jpeg_quality,
         keep_failed,
         preview,
+        device: device.into(),
     }
     .settings()
     .py()?;
@@ -93,10 +95,11 @@ pub fn training_settings(
 /// samples per NaVILA part (default 10000) or episodes per WebDataset shard (default 100);
 /// `image`: `jpg` or `png`; `max_actions` (default 50): motions per walk at most; `step` and
 /// `turn` override the preset's. A finished render in `out` with the same settings is
-/// returned as it is; `force` replaces another render's output. Returns the manifest
+/// returned as it is; `force` replaces another render's output. `device` (`cpu`, `gpu` or
+/// `auto`, as `--device`) is where the frames are rendered. Returns the manifest
 /// (`manifest.json`).
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, split="train", preset="navila_small", step=None, turn=None, max_actions=sage_traindata::preset::DEFAULT_MAX_ACTIONS, width=224, height=224, hfov=90.0, sensors=SensorList::Text("rgb".into()), format="navila", shard_size=None, limit=None, seed=0, agent="wheeled", image="jpg", jpeg_quality=90, keep_failed=false, preview=0, force=false))]
+#[pyo3(signature = (dataset, scenes, out, split="train", preset="navila_small", step=None, turn=None, max_actions=sage_traindata::preset::DEFAULT_MAX_ACTIONS, width=224, height=224, hfov=90.0, sensors=SensorList::Text("rgb".into()), format="navila", shard_size=None, limit=None, seed=0, agent="wheeled", image="jpg", jpeg_quality=90, keep_failed=false, preview=0, force=false, device="cpu"))]
 #[allow(clippy::too_many_arguments)]
 pub fn render_training_data<'py>(
     py: Python<'py>,
@@ -122,6 +125,7 @@ pub fn render_training_data<'py>(
     keep_failed: bool,
     preview: usize,
     force: bool,
+    device: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let s = Options {
         dataset,
@@ -144,6 +148,7 @@ pub fn render_training_data<'py>(
         jpeg_quality,
         keep_failed,
         preview,
+        device: device.into(),
     }
     .settings()
     .py()?;

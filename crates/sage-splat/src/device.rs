@@ -30,6 +30,47 @@ pub enum Device {
 impl Device {
     /// The names accepted by [`Device::from_str`].
     pub const NAMES: [&'static str; 3] = ["cpu", "gpu", "auto"];
+
+    /// What renders on this device in this process, in the words [`Backend::describe`] will
+    /// use, opening the GPU if it needs one (once per process): a command checks its
+    /// `--device` with it before any work.
+    ///
+    /// # Errors
+    ///
+    /// `gpu` without a usable adapter, or a build without the GPU renderer.
+    pub fn probe(self) -> Result<String> {
+        match self {
+            Device::Cpu => Ok(cpu_description()),
+            Device::Gpu => gpu_description(false),
+            Device::Auto => Ok(gpu_description(true)
+                .unwrap_or_else(|e| format!("{} (auto: {})", cpu_description(), e.message()))),
+        }
+    }
+}
+
+/// The CPU renderer in words.
+fn cpu_description() -> String {
+    format!("cpu ({} threads)", rayon::current_num_threads())
+}
+
+/// The process's GPU in words (`hardware_only`: as `auto` takes it).
+#[cfg(feature = "gpu")]
+fn gpu_description(hardware_only: bool) -> Result<String> {
+    Ok(format!(
+        "gpu: {}",
+        crate::gpu::Gpu::shared(hardware_only)?.describe()
+    ))
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_description(_: bool) -> Result<String> {
+    Err(no_gpu_build())
+}
+
+/// The error of a build without the GPU renderer.
+#[cfg(not(feature = "gpu"))]
+fn no_gpu_build() -> Error {
+    Error::invalid("this build has no GPU renderer (it was built without the cargo feature `gpu`)")
 }
 
 impl fmt::Display for Device {
@@ -77,7 +118,7 @@ impl Backend {
     pub fn cpu(gaussians: &Gaussians) -> Backend {
         Backend {
             executor: Executor::Cpu(Box::new(Renderer::new(gaussians))),
-            description: format!("cpu ({} threads)", rayon::current_num_threads()),
+            description: cpu_description(),
             auto: false,
         }
     }
@@ -140,9 +181,7 @@ impl Backend {
 
     #[cfg(not(feature = "gpu"))]
     fn gpu(_: &Gaussians, _: bool) -> Result<Backend> {
-        Err(Error::invalid(
-            "this build has no GPU renderer (it was built without the cargo feature `gpu`)",
-        ))
+        Err(no_gpu_build())
     }
 
     /// A backend over a GPU renderer that may be shared (one resident copy of a scene for

@@ -54,6 +54,8 @@ pub struct Options {
     pub keep_failed: bool,
     /// Episodes in the preview GIF.
     pub preview: usize,
+    /// Where the frames are rendered: `cpu`, `gpu` or `auto`.
+    pub device: String,
 }
 
 impl Options {
@@ -80,6 +82,7 @@ impl Options {
             jpeg_quality: 90,
             keep_failed: false,
             preview: 0,
+            device: "cpu".into(),
         }
     }
 
@@ -87,8 +90,8 @@ impl Options {
     ///
     /// # Errors
     ///
-    /// An unknown preset, format, sensor or image type, a step, turn or cap out of range, or no
-    /// scenes folder given nor recorded by the dataset.
+    /// An unknown preset, format, sensor, image type or device, a step, turn or cap out of
+    /// range, or no scenes folder given nor recorded by the dataset.
     pub fn settings(&self) -> Result<Settings> {
         let scenes = scenes_folder(&self.dataset, self.scenes.as_deref())?;
         let format: Format = self.format.parse()?;
@@ -127,6 +130,7 @@ impl Options {
             seed: self.seed,
             keep_failed: self.keep_failed,
             preview: self.preview,
+            device: self.device.parse().map_err(|e: Error| e.within("device"))?,
             ..Settings::new(&self.dataset, &scenes)?
         })
     }
@@ -135,6 +139,7 @@ impl Options {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sage_splat::Device;
 
     #[test]
     fn the_default_options_are_the_default_settings() {
@@ -167,5 +172,28 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not a ground agent"), "{e}");
+    }
+
+    #[test]
+    fn the_device_reaches_the_environment_and_a_bad_name_is_refused() {
+        let (d, s) = (PathBuf::from("d"), PathBuf::from("s"));
+        let gpu = Options {
+            device: "gpu".into(),
+            ..Options::new(d.clone(), Some(s.clone()))
+        };
+        let settings = gpu.settings().unwrap();
+        assert_eq!(settings.env_config().unwrap().device, Device::Gpu);
+        assert_eq!(settings.recorded()["device"], "gpu");
+        let cpu = Options::new(d.clone(), Some(s.clone())).settings().unwrap();
+        assert!(
+            cpu.recorded().get("device").is_none(),
+            "CPU records stay as they were"
+        );
+        let bad = Options {
+            device: "tpu".into(),
+            ..Options::new(d, Some(s))
+        };
+        let e = bad.settings().unwrap_err().to_string();
+        assert!(e.contains("device") && e.contains("cpu, gpu, auto"), "{e}");
     }
 }

@@ -12,6 +12,7 @@ use sage_core::{Error, Result, ResultExt, Task};
 use sage_env::{ActionSpace, Env, EnvConfig, SceneContext, SensorConfig};
 use sage_io::files::{read_json, write_json};
 use sage_io::hash::fnv1a64_hex;
+use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -96,6 +97,15 @@ pub struct Settings {
     pub keep_failed: bool,
     /// Episodes shown in `preview.gif` (0: no preview).
     pub preview: usize,
+    /// Where the frames are rendered. Recorded only when not the CPU (so a CPU render's
+    /// record is as it always was), and a render resumes only on the device it started on.
+    #[serde(default, skip_serializing_if = "is_cpu")]
+    pub device: Device,
+}
+
+/// True for the default device (serde leaves it out of the settings).
+fn is_cpu(device: &Device) -> bool {
+    *device == Device::Cpu
 }
 
 impl Settings {
@@ -129,11 +139,12 @@ impl Settings {
             seed: 0,
             keep_failed: false,
             preview: 0,
+            device: Device::Cpu,
         })
     }
 
-    /// The environment the walks run in: the agent profile, the preset's discrete actions and
-    /// the camera.
+    /// The environment the walks run in: the agent profile, the preset's discrete actions,
+    /// the camera and the device it renders on.
     ///
     /// # Errors
     ///
@@ -141,6 +152,7 @@ impl Settings {
     pub fn env_config(&self) -> Result<EnvConfig> {
         let mut config = EnvConfig {
             agent: self.agent.clone(),
+            device: self.device,
             ..EnvConfig::default()
         };
         config.actions = ActionSpace::Discrete {
@@ -176,7 +188,7 @@ impl Settings {
 
     /// The settings as the run record stores them: without the folders (they may be named
     /// from another working directory; the dataset's hash says which data).
-    fn recorded(&self) -> serde_json::Value {
+    pub(crate) fn recorded(&self) -> serde_json::Value {
         let mut v = serde_json::to_value(self).unwrap_or_default();
         if let Some(o) = v.as_object_mut() {
             o.remove("dataset");

@@ -27,6 +27,7 @@ use sage_env::{Env, EnvConfig, SensorConfig, Termination};
 use sage_io::run::RUN_RECORD;
 use sage_lang::{InstructionType, Level};
 use sage_metrics::{self, Dtw, EpisodeMetrics, EpisodeRecord, Mode, Scoring};
+use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -58,6 +59,15 @@ pub struct EvalSettings {
     pub seed: u64,
     /// Environment preset (`sage` or `vlnce`).
     pub preset: String,
+    /// Where the images of agents that read them are rendered; recorded only when not the
+    /// CPU, so the records of CPU runs are as they always were.
+    #[serde(default, skip_serializing_if = "is_cpu")]
+    pub device: Device,
+}
+
+/// True for the default device (serde leaves it out of the run record).
+fn is_cpu(device: &Device) -> bool {
+    *device == Device::Cpu
 }
 
 impl EvalSettings {
@@ -239,13 +249,14 @@ pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episo
     Ok((file, episodes))
 }
 
-/// The environment of an evaluation: the preset with RGB only (at the preset's size) for
-/// agents that read images (remote models), without images for the others, which do not
-/// read them (rendering does not change the motion); and the action space the agent needs
-/// (ground velocities for pose replays), else the preset's.
-pub fn env_config(preset: &str, agent: &AgentMaker) -> Result<EnvConfig> {
+/// The environment of an evaluation: the preset with RGB only (at the preset's size, rendered
+/// on `device`) for agents that read images (remote models), without images for the others,
+/// which do not read them (rendering does not change the motion); and the action space the
+/// agent needs (ground velocities for pose replays), else the preset's.
+pub fn env_config(preset: &str, agent: &AgentMaker, device: Device) -> Result<EnvConfig> {
     let config = EnvConfig::preset(preset)?;
     Ok(EnvConfig {
+        device,
         sensors: SensorConfig {
             rgb: agent.reads_images(),
             depth: false,
@@ -424,7 +435,7 @@ pub fn run(
 ) -> Result<RunOutcome> {
     let maker = settings.agent.maker()?;
     let runner = Runner {
-        config: env_config(&settings.preset, &maker).within("preset")?,
+        config: env_config(&settings.preset, &maker, settings.device).within("preset")?,
         agent_name: settings.agent.to_string(),
         agent: &|| maker.build(settings.seed),
         shard: None,

@@ -25,6 +25,7 @@ import tempfile
 import time
 
 from . import _sage3d
+from .env import check_device
 from .evaluation import agent_factory, agent_name, overrides_json
 
 
@@ -188,7 +189,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
              mode: str = "sage", seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
              num_cpus: float = 1, dtw: str = "exact", max_retries: int = 3,
-             progress: bool = True) -> dict:
+             progress: bool = True, device: str = "cpu") -> dict:
     """:func:`sage3d.evaluate` with one Ray task per scene of the split.
 
     ``scenes=None`` uses the scenes folder the dataset records (resolved once, on the driver).
@@ -202,10 +203,12 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     tasks finish. A task whose worker or node dies is rerun up to ``max_retries`` times (Ray's
     task option; the rerun resumes its shard); a task that still fails is reported with its
     scene, and once the others are done ``RuntimeError`` is raised, nothing merged: a rerun
-    runs only the missing episodes. Returns the summary.
+    runs only the missing episodes. Returns the summary. ``device`` as in
+    :func:`sage3d.evaluate`: every task renders on it.
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
+    check_device(device)
     ray = _ray()
     dataset, out = os.fspath(dataset), os.fspath(out)
     scenes = os.fspath(_sage3d.scenes_folder(dataset, None if scenes is None else os.fspath(scenes)))
@@ -215,7 +218,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     spec = _sage3d.agent_spec(agent) if isinstance(agent, str) else None
     name = spec["name"] if spec else agent_name(agent)
     kwargs = dict(agent_name=None if isinstance(agent, str) else name, split=split, mode=mode,
-                  seed=seed, preset=preset, overrides=overrides, dtw=dtw)
+                  seed=seed, preset=preset, overrides=overrides, dtw=dtw, device=device)
     factory = agent_factory(agent)
     task = ray.remote(num_cpus=num_cpus, max_retries=max_retries)(_evaluate_shard)
     texts = {}
@@ -242,7 +245,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
         tasks.close()
     tasks.raise_failed("distributed evaluation", len(names), os.path.join(out, "shards"))
     return _sage3d.merge_eval(dataset, scenes, out, name, [texts[n] for n in names], split=split,
-                              mode=mode, seed=seed, preset=preset, dtw=dtw)
+                              mode=mode, seed=seed, preset=preset, dtw=dtw, device=device)
 
 
 def _route_done(out, scene, route):

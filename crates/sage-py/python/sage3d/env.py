@@ -26,6 +26,16 @@ DEPTH_FAR = 100.0
 SENSORS = ("rgb", "depth", "semantic", "instance")
 #: Seconds a ground or UAV velocity action may last at most (``actions.max_dt``).
 MAX_DT = 1.0
+#: Where images can be rendered: the CPU renderer; the GPU renderer on any adapter (a software
+#: one included; an error when there is none); a hardware GPU when there is one, else the CPU.
+DEVICES = ("cpu", "gpu", "auto")
+
+
+def check_device(device: str) -> str:
+    """``device`` when it is one of :data:`DEVICES`, else ``ValueError``."""
+    if device not in DEVICES:
+        raise ValueError(f"unknown device {device!r} (expected one of {', '.join(DEVICES)})")
+    return device
 
 
 def cache_dir() -> str:
@@ -53,10 +63,12 @@ def _merge(base: dict, over: dict) -> dict:
 def config_overrides(width: int | None = None, height: int | None = None,
                      sensors: Iterable[str] | None = None, actions: str = "discrete",
                      max_steps: int | None = None, hfov: float | None = None,
-                     config: dict | None = None) -> dict:
+                     config: dict | None = None, device: str | None = None) -> dict:
     """The environment settings over the preset (``EnvConfig`` fields, as JSON) from the
     keyword arguments of :class:`SageEnv`; ``config`` is merged last, key by key."""
     o: dict = {}
+    if device is not None:
+        o["device"] = check_device(device)
     s: dict = {}
     if width is not None:
         s["width"] = int(width)
@@ -160,7 +172,7 @@ class _Prepared:
 
     def _prepare(self, render_mode, scene, dataset, scenes, split, episodes, task, filters,
                  num_episodes, seed, synth, preset, width, height, sensors, actions, max_steps,
-                 hfov, config):
+                 hfov, config, device):
         """Checks ``render_mode``, resolves the configuration into ``self.config`` and gathers
         the episode pool into ``self.scenes``; returns (overrides JSON, scenes, episodes,
         scene of each episode)."""
@@ -169,7 +181,8 @@ class _Prepared:
         self.render_mode = render_mode
         if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
             sensors = [*sensors, "rgb"]
-        overrides = _json(config_overrides(width, height, sensors, actions, max_steps, hfov, config))
+        overrides = _json(config_overrides(width, height, sensors, actions, max_steps, hfov, config,
+                                           device))
         self.config = _sage3d.env_config(preset, overrides)
         pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
                                                   filters, num_episodes, seed, synth)
@@ -186,6 +199,11 @@ class SageEnv(_Prepared, gym.Env):
     rendered buffers. ``info`` holds the episode, pose, contacts, the step record, metrics so far
     and, once the episode has ended, its metrics (mode ``mode``). The environment does not reset
     itself; the vector form does (next-step autoreset).
+
+    ``device`` chooses where images are rendered: ``"cpu"`` (the default), ``"gpu"`` (any GPU
+    adapter, a software one included; ``ValueError`` when there is none) or ``"auto"`` (a
+    hardware GPU when there is one, else the CPU); :attr:`render_device` says which renderer
+    took the work.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
@@ -196,10 +214,11 @@ class SageEnv(_Prepared, gym.Env):
                  synth: dict | None = None, preset: str = "sage", width: int | None = None,
                  height: int | None = None, sensors: Iterable[str] | None = None,
                  actions: str = "discrete", look: bool = False, max_steps: int | None = None,
-                 hfov: float | None = None, config: dict | None = None, mode: str = "sage"):
+                 hfov: float | None = None, config: dict | None = None, mode: str = "sage",
+                 device: str = "cpu"):
         overrides, pool_scenes, eps, scene_of = self._prepare(
             render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
-            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config)
+            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config, device)
         self._sim = _sage3d.Sim(pool_scenes, _json(eps), scene_of, preset, overrides, mode)
         self._ids = {e["episode_id"]: i for i, e in enumerate(eps)}
         self.observation_space = observation_space(self.config, (e["instruction"] for e in eps))
@@ -210,6 +229,13 @@ class SageEnv(_Prepared, gym.Env):
     def episodes(self) -> list[dict]:
         """The episodes this environment draws from (dataset schema)."""
         return self._sim.episodes()
+
+    @property
+    def render_device(self) -> str | None:
+        """Which renderer forms the images, in words: ``cpu (8 threads)``, ``gpu: NVIDIA H100
+        (Vulkan, discrete)``, or the CPU with the reason ``device="auto"`` took no GPU;
+        ``None`` when no image is configured."""
+        return self._sim.render_device
 
     def _index(self, options: dict | None) -> int:
         options = options or {}

@@ -7,7 +7,7 @@ import os
 import warnings
 
 from . import _sage3d
-from .env import _json, config_overrides
+from .env import _json, check_device, config_overrides
 
 
 def agent_name(agent) -> str:
@@ -54,7 +54,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
              mode: str = "sage", seed: int = 0, preset: str = "sage", width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
              scenes_only: list[str] | None = None, dtw: str = "exact",
-             strict: bool = False) -> dict:
+             strict: bool = False, device: str = "cpu") -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
     resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json`` and
     ``sage3d_run.json`` as ``sage3d eval`` writes them. ``scenes=None`` uses the scenes folder
@@ -72,17 +72,20 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     scored, as ``sage3d eval --mode/--dtw``. Faulted episodes (never scored) are recorded and listed in
     ``summary["failed"]`` (per kind in ``summary["failures"]``); with ``strict=True`` any failure
     raises ``ValueError`` after the run folder is written, as ``sage3d eval --strict`` exits
-    non-zero, and a run in which every episode failed warns (``RuntimeWarning``).
+    non-zero, and a run in which every episode failed warns (``RuntimeWarning``). ``device``
+    (``"cpu"``, ``"gpu"`` or ``"auto"``, as ``sage3d eval --device``) is where the images of
+    agents that read them are rendered, whatever ``config`` says.
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
+    check_device(device)
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
         os.fspath(dataset), None if scenes is None else os.fspath(scenes), os.fspath(out),
         agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), split=split,
         mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only, dtw=dtw,
-        strict=strict)
+        strict=strict, device=device)
     summary = result["summary"]
     if summary["episodes"] and len(summary["failed"]) == summary["episodes"]:
         warnings.warn(f"every episode of the run faulted ({summary['episodes']}); see the records' "

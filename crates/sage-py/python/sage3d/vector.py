@@ -23,6 +23,8 @@ class SageVectorEnv(_Prepared, VectorEnv):
     the same episodes, observations and rewards. Autoreset is ``NEXT_STEP``: the step after a
     sub-environment's episode ends resets it (reward 0, not terminated, its action ignored).
     Observations are stacked along a first axis; ``instruction`` is a tuple of strings.
+    With ``device="gpu"`` (or ``"auto"`` on a hardware GPU) the sub-environments over a scene
+    render from one upload of it, their cameras in one batch per step.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4, "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -34,10 +36,10 @@ class SageVectorEnv(_Prepared, VectorEnv):
                  width: int | None = None, height: int | None = None,
                  sensors: Iterable[str] | None = None, actions: str = "discrete",
                  look: bool = False, max_steps: int | None = None, hfov: float | None = None,
-                 config: dict | None = None, mode: str = "sage"):
+                 config: dict | None = None, mode: str = "sage", device: str = "cpu"):
         overrides, pool_scenes, eps, scene_of = self._prepare(
             render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
-            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config)
+            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config, device)
         self._sim = _sage3d.VecSim(num_envs, pool_scenes, _json(eps), scene_of, preset,
                                    overrides, mode)
         self.num_envs = num_envs
@@ -48,6 +50,11 @@ class SageVectorEnv(_Prepared, VectorEnv):
         self._rngs = [seeding.np_random(None)[0] for _ in range(num_envs)]
         self._autoreset = np.zeros(num_envs, dtype=bool)
         self._last = None
+
+    @property
+    def render_device(self) -> str | None:
+        """Which renderer forms the images (as :attr:`sage3d.SageEnv.render_device`)."""
+        return self._sim.render_device
 
     def _draw(self, i: int) -> int:
         return int(self._rngs[i].integers(self._sim.num_episodes()))

@@ -46,15 +46,22 @@ impl Gpu {
         desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12;
         let instance = wgpu::Instance::new(desc);
         let wanted = std::env::var(ADAPTER_VARIABLE).ok();
-        let mut adapters: Vec<wgpu::Adapter> =
-            pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
-                .into_iter()
-                .filter(|a| {
-                    let info = a.get_info();
-                    (!hardware_only || info.device_type != wgpu::DeviceType::Cpu)
-                        && wanted.as_deref().is_none_or(|w| info.name.contains(w))
-                })
-                .collect();
+        let all = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let seen: Vec<String> = all
+            .iter()
+            .map(|a| {
+                let info = a.get_info();
+                format!("{} ({:?})", info.name, info.device_type)
+            })
+            .collect();
+        let mut adapters: Vec<wgpu::Adapter> = all
+            .into_iter()
+            .filter(|a| {
+                let info = a.get_info();
+                (!hardware_only || info.device_type != wgpu::DeviceType::Cpu)
+                    && wanted.as_deref().is_none_or(|w| info.name.contains(w))
+            })
+            .collect();
         adapters.sort_by_key(|a| rank(a.get_info().device_type));
         let Some(adapter) = adapters.into_iter().next() else {
             let what = if hardware_only {
@@ -65,11 +72,15 @@ impl Gpu {
             let filter = wanted
                 .map(|w| format!(" whose name contains {w:?} ({ADAPTER_VARIABLE})"))
                 .unwrap_or_default();
-            return Err(Error::invalid(format!(
-                "{what}{filter}: wgpu found none over Vulkan, Metal or DX12 (on Linux: a \
-                 Vulkan driver and the loader libvulkan1; Mesa's software driver is the \
-                 package mesa-vulkan-drivers)"
-            )));
+            return Err(Error::invalid(if seen.is_empty() {
+                format!(
+                    "{what}{filter}: wgpu found none over Vulkan, Metal or DX12 (on Linux: a \
+                     Vulkan driver and the loader libvulkan1; Mesa's software driver is the \
+                     package mesa-vulkan-drivers)"
+                )
+            } else {
+                format!("{what}{filter}: wgpu found only {}", seen.join(", "))
+            }));
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
