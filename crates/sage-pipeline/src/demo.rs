@@ -312,8 +312,8 @@ impl Step {
 /// The name of demo scene `k` and its layout: kind, rooms and objects. Every three scenes: a
 /// small home and an office with few assets (< 184 objects) and a larger home with a medium
 /// count, so the test split holds both. (Scenes with many assets, > 376, and paths in the
-/// `long` bin, > 29 m, need 28 rooms or more; the instruction generator describes few goals
-/// there yet, see docs/instructions.md.)
+/// `long` bin, > 29 m, need 28 to 40 rooms; there the instruction generator finds
+/// instructions for few trips, see docs/instructions.md, and long paths are rare.)
 fn scene_name(k: usize) -> (String, SynthConfig) {
     let (kind, rooms, objects) = match k % 3 {
         0 => (SceneKind::Home, 5, 60),

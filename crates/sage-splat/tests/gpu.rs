@@ -13,7 +13,7 @@ use sage_scene::ply::read_splats_file;
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
 use sage_splat::{Backend, Camera, Device, Intrinsics, RenderOptions, RenderOutput, Renderer};
 use sage_synth::{SynthConfig, generate};
-use sage_testkit::splats::random_gaussians;
+use sage_testkit::splats::{psnr, random_gaussians};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -44,20 +44,6 @@ fn camera(w: u32, h: u32, position: Vec3, yaw: f32, pitch: f32) -> Camera {
         yaw,
         pitch,
     )
-}
-
-fn psnr(a: &[f32], b: &[f32]) -> f64 {
-    let mse: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| ((x.clamp(0.0, 1.0) - y.clamp(0.0, 1.0)) as f64).powi(2))
-        .sum::<f64>()
-        / a.len() as f64;
-    if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (1.0 / mse).log10()
-    }
 }
 
 /// Checks the GPU image against the CPU image within the bounds; returns the PSNR.

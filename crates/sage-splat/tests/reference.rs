@@ -10,7 +10,7 @@ use sage_scene::gaussians::sh_rest_count;
 use sage_scene::{Gaussian, Gaussians};
 use sage_splat::{Camera, Intrinsics, RenderOptions, RenderOutput, Renderer, sh};
 use sage_synth::{SynthConfig, generate};
-use sage_testkit::splats::random_gaussians;
+use sage_testkit::splats::{psnr, random_gaussians};
 
 /// One projected Gaussian of the reference.
 struct RefSplat {
@@ -252,20 +252,6 @@ fn reference_render(gs: &Gaussians, cam: &Camera, bg: [f32; 3]) -> Reference {
         }
     }
     out
-}
-
-fn psnr(a: &[f32], b: &[f32]) -> f64 {
-    let mse: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| ((x.clamp(0.0, 1.0) - y.clamp(0.0, 1.0)) as f64).powi(2))
-        .sum::<f64>()
-        / a.len() as f64;
-    if mse == 0.0 {
-        f64::INFINITY
-    } else {
-        10.0 * (1.0 / mse).log10()
-    }
 }
 
 /// Compares the renderer with the reference; returns the PSNR.

@@ -1,6 +1,6 @@
-//! Random Gaussians for renderer tests: a cloud in front of a camera at the origin looking
+//! For renderer tests: random Gaussians — a cloud in front of a camera at the origin looking
 //! along +x, with every SH band large enough that a wrong sign or order in any of them costs
-//! far more than a 40 dB bound allows.
+//! far more than a 40 dB bound allows — and the PSNR two images are compared by.
 
 use glam::{Quat, Vec3};
 use rand::{Rng, SeedableRng};
@@ -52,4 +52,19 @@ pub fn random_gaussians(seed: u64, n: usize, degree: u8, spread: f32) -> Gaussia
         g.push(&x);
     }
     g
+}
+
+/// The PSNR (dB) of colour image `b` against `a` (values clamped to 0–1); infinite when equal.
+pub fn psnr(a: &[f32], b: &[f32]) -> f64 {
+    let mse: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| ((x.clamp(0.0, 1.0) - y.clamp(0.0, 1.0)) as f64).powi(2))
+        .sum::<f64>()
+        / a.len() as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (1.0 / mse).log10()
+    }
 }
