@@ -261,3 +261,35 @@ fn auto_takes_a_hardware_gpu_or_says_why_it_renders_on_the_cpu() {
         }
     }
 }
+
+#[test]
+fn renders_from_many_threads_at_once_equal_renders_alone() {
+    let Some(gpu) = gpu() else { return };
+    let g = testdata("random_4k_sh3.ply");
+    let b = g.bounds();
+    let (centre, size) = ((b.min + b.max) * 0.5, (b.max - b.min).max_element());
+    // Two backgrounds: requests with other options are rendered in a submission of their own.
+    let requests: Vec<(Camera, RenderOptions)> = (0..8)
+        .map(|k| {
+            let yaw = k as f32 * 0.8;
+            let eye = centre - Vec3::new(yaw.cos(), yaw.sin(), 0.0) * size;
+            let options = RenderOptions {
+                background: [0.1 * (k % 2) as f32, 0.2, 0.3],
+            };
+            (camera(48 + 8 * k, 40, eye, yaw, 0.0), options)
+        })
+        .collect();
+    let renderer = GpuRenderer::new(&gpu, &g).unwrap();
+    let alone: Vec<RenderOutput> = requests
+        .iter()
+        .map(|(c, o)| renderer.render(&g, &[], c, o).unwrap())
+        .collect();
+    let together: Vec<RenderOutput> = std::thread::scope(|s| {
+        let handles: Vec<_> = requests
+            .iter()
+            .map(|(c, o)| s.spawn(|| renderer.render(&g, &[], c, o).unwrap()))
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(alone, together);
+}

@@ -12,7 +12,7 @@ use crate::tile::{MIN_TRANSMITTANCE, TILE, TileGrid};
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
 use sage_scene::gaussians::{LOG_SCALE_STEP, OPACITY_LOGIT_STEP, sh_rest_count};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, mpsc};
 use wgpu::util::DeviceExt;
 
 /// Bytes of one camera's uniform block (the largest offset alignment adapters ask for).
@@ -278,6 +278,21 @@ pub struct GpuStats {
     pub regrown: u32,
 }
 
+/// A render one caller asked for, queued until whoever holds the GPU takes it: callers on
+/// several threads (the walks of a training-data render, the workers of an evaluation) have
+/// their cameras rendered together, in one submission.
+struct Request {
+    cameras: Vec<Camera>,
+    categories: Vec<u16>,
+    options: RenderOptions,
+    reply: mpsc::Sender<Result<Vec<RenderOutput>>>,
+}
+
+/// The error of a request whose renderer failed before answering it.
+fn lost() -> Error {
+    Error::invalid("GPU renderer: the render was lost (the thread rendering it failed)")
+}
+
 /// What the frames of one renderer share, behind its lock.
 struct State {
     stats: GpuStats,
@@ -295,6 +310,8 @@ pub struct GpuRenderer {
     kernels: Kernels,
     scene: SceneBuffers,
     state: Mutex<State>,
+    /// Requests waiting for the GPU.
+    pending: Mutex<Vec<Request>>,
 }
 
 /// A camera's place in a batch.
@@ -340,6 +357,7 @@ impl GpuRenderer {
                 categories_buffer,
                 workspace: None,
             }),
+            pending: Mutex::new(Vec::new()),
         }))
     }
 
@@ -396,7 +414,9 @@ impl GpuRenderer {
     }
 
     /// Renders every camera of `cameras` (any sizes) in one submission and one read-back;
-    /// `categories[instance]` gives each instance's semantic id (missing → 0).
+    /// `categories[instance]` gives each instance's semantic id (missing → 0). Calls from
+    /// several threads at once take turns on the GPU, and whoever takes it renders what the
+    /// others queued meanwhile in the same submission.
     ///
     /// # Errors
     ///
@@ -421,8 +441,75 @@ impl GpuRenderer {
         if cameras.is_empty() {
             return Ok(Vec::new());
         }
+        let (reply, answer) = mpsc::channel();
+        self.pending
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(Request {
+                cameras: cameras.to_vec(),
+                categories: categories.to_vec(),
+                options: *options,
+                reply,
+            });
+        loop {
+            // Another caller may have rendered this request with its own while this one
+            // waited for the GPU.
+            match answer.try_recv() {
+                Ok(out) => return out,
+                Err(mpsc::TryRecvError::Disconnected) => return Err(lost()),
+                Err(mpsc::TryRecvError::Empty) => {}
+            }
+            let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
+            match answer.try_recv() {
+                Ok(out) => return out,
+                Err(mpsc::TryRecvError::Disconnected) => return Err(lost()),
+                Err(mpsc::TryRecvError::Empty) => {}
+            }
+            // Requests are only taken with the GPU held, so this one is still queued: render
+            // everything queued now, this one included.
+            let requests =
+                std::mem::take(&mut *self.pending.lock().unwrap_or_else(|p| p.into_inner()));
+            self.serve(&mut state, requests);
+        }
+    }
+
+    /// Renders queued requests — those with the same categories and options in one
+    /// submission — and sends each its images.
+    fn serve(&self, state: &mut State, mut requests: Vec<Request>) {
+        while let Some(first) = requests.first() {
+            let (categories, options) = (first.categories.clone(), first.options);
+            let (group, rest): (Vec<Request>, Vec<Request>) = requests
+                .into_iter()
+                .partition(|r| r.categories == categories && r.options == options);
+            requests = rest;
+            let cameras: Vec<Camera> = group.iter().flat_map(|r| r.cameras.clone()).collect();
+            match self.render_held(state, &categories, &cameras, &options) {
+                Ok(images) => {
+                    let mut images = images.into_iter();
+                    for r in group {
+                        let mine = images.by_ref().take(r.cameras.len()).collect();
+                        // A caller that went away no longer wants its images.
+                        let _ = r.reply.send(Ok(mine));
+                    }
+                }
+                Err(e) => {
+                    for r in group {
+                        let _ = r.reply.send(Err(Error::invalid(e.message().to_string())));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Renders `cameras` in one submission with the GPU held.
+    fn render_held(
+        &self,
+        state: &mut State,
+        categories: &[u16],
+        cameras: &[Camera],
+        options: &RenderOptions,
+    ) -> Result<Vec<RenderOutput>> {
         let gpu = &*self.gpu;
-        let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
         if state.categories != categories {
             let words: Vec<u32> = categories.iter().map(|&c| u32::from(c)).collect();
             state.categories_buffer = init_buffer(gpu, "categories", &words);
