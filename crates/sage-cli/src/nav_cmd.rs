@@ -28,7 +28,7 @@ pub struct GridArgs {
     /// Agent height: the top of the obstacle slab, metres.
     #[arg(long, default_value_t = 1.2)]
     agent_height: f32,
-    /// Robot radius (hard inflation and safety distance), metres.
+    /// Robot radius, metres (navigable cells keep a further 0.05 m safety margin).
     #[arg(long, default_value_t = 0.2)]
     radius: f32,
 }

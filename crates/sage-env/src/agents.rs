@@ -439,9 +439,10 @@ impl Agent for OracleAgent {
                 return Ok(self.steer(wrap_angle(heading - obs.pose.yaw), Action::Stop));
             }
             // At the end point: done, unless an object goal is still not well inside the
-            // success distance; then a step straight towards its footprint, unless that step
-            // would leave the navigable area (touch what stands there) where the episode
-            // already succeeds.
+            // success distance; then a step towards its footprint — straight, or the heading
+            // nearest to straight whose step stays on the navigable area and ends inside the
+            // success distance — unless that step would leave the navigable area (touch what
+            // stands there) where the episode already succeeds.
             let target = match &self.region {
                 Some(r) if !blocked && !r.contains(at) => r
                     .nearest_boundary_point(at)
@@ -449,7 +450,7 @@ impl Agent for OracleAgent {
                 _ => None,
             };
             return Ok(match target {
-                Some(q) => match self.head_for(q, at, obs.pose.yaw) {
+                Some(q) => match self.approach(q, at, obs.pose.yaw) {
                     Action::MoveForward
                         if at.distance(q) <= self.success
                             && self.step_leaves_navigable(at, obs.pose.yaw) =>
@@ -515,9 +516,41 @@ impl OracleAgent {
     /// Turns towards `target` until it is within half a turn step, else moves forward.
     fn head_for(&mut self, target: Vec2, at: Vec2, yaw: f32) -> Action {
         let d = target - at;
-        let action = self.steer(wrap_angle(d.y.atan2(d.x) - yaw), Action::MoveForward);
+        self.head_along(d.y.atan2(d.x), at, yaw)
+    }
+
+    /// Turns towards `heading` until it is within half a turn step, else moves forward.
+    fn head_along(&mut self, heading: f32, at: Vec2, yaw: f32) -> Action {
+        let action = self.steer(wrap_angle(heading - yaw), Action::MoveForward);
         self.last = Some((action, at, yaw));
         action
+    }
+
+    /// The last steps onto an object goal's footprint point `q`: the heading the agent can
+    /// take (its yaw plus whole turn steps) nearest to straight at `q`, within a quarter turn
+    /// of it, whose step stays on the navigable area and ends well inside the success
+    /// distance; straight at `q` when there is none. An end point at the edge of the success
+    /// distance in a cluttered corner otherwise has the oracle step into what stands beside
+    /// the object.
+    fn approach(&mut self, q: Vec2, at: Vec2, yaw: f32) -> Action {
+        let d = q - at;
+        let straight = d.y.atan2(d.x);
+        let steps = (std::f32::consts::PI / self.turn).round() as i32;
+        let mut headings: Vec<f32> = (-steps..steps)
+            .map(|k| yaw + k as f32 * self.turn)
+            .filter(|h| wrap_angle(h - straight).abs() <= std::f32::consts::FRAC_PI_2)
+            .collect();
+        headings.sort_by(|a, b| {
+            wrap_angle(a - straight)
+                .abs()
+                .total_cmp(&wrap_angle(b - straight).abs())
+        });
+        let clear = headings.into_iter().find(|&h| {
+            let end = at + Vec2::from_angle(h) * self.forward;
+            !self.step_leaves_navigable(at, h)
+                && self.goal_distance(end) <= self.success - SUCCESS_MARGIN
+        });
+        self.head_along(clear.unwrap_or(straight), at, yaw)
     }
 
     /// A turn towards a heading `error` radians away, or `aligned` once it is within half a

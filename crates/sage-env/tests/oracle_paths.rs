@@ -1,8 +1,8 @@
 //! Reference paths an agent can execute: on 200 trajectories over four generated scenes
 //! (homes and an office, their doors in every state), each planned for the agent profile's
 //! radius as `sage3d data build --agent` plans them, the oracle of every ground profile reaches
-//! every goal and touches something on at most 3% of them (measured: wheeled 5 of 200, go2 6,
-//! g1 5, h1 4). A benchmark whose ground truth collides cannot score collisions.
+//! every goal and touches something on at most 2% of them (measured: wheeled 0 of 200, go2 3,
+//! g1 0, h1 0). A benchmark whose ground truth collides cannot score collisions.
 
 use sage_env::agents::{OracleAgent, run_episode};
 use sage_env::scoring::score;
@@ -113,6 +113,6 @@ fn the_oracle_of_every_ground_profile_reaches_every_goal_and_almost_never_touche
         let (sr, cr) = (success / total as f64, collisions / total as f64);
         eprintln!("{profile}: SR {sr:.3} CR {cr:.3} {touched:?}");
         assert_eq!(sr, 1.0, "{profile}: SR {sr}: {touched:?}");
-        assert!(cr <= 0.03, "{profile}: CR {cr}: {touched:?}");
+        assert!(cr <= 0.02, "{profile}: CR {cr}: {touched:?}");
     }
 }

@@ -51,9 +51,9 @@ pub struct PathFinder {
     pub grid: NavGrid,
     /// Clearance per cell, metres.
     pub clearance: Vec<f32>,
-    /// Navigable cells (free with clearance ≥ robot radius).
+    /// Navigable cells (free with clearance ≥ robot radius + safety margin).
     pub passable: Vec<bool>,
-    /// Cells a shortcut segment may cross (clearance ≥ robot radius + shortcut margin).
+    /// Cells a shortcut segment may cross (see [`CostParams::roomy_clearance`]).
     pub roomy: Vec<bool>,
     /// Cost multiplier per cell.
     pub weights: Vec<f32>,
@@ -86,20 +86,16 @@ impl PathFinder {
     pub fn new(grid: NavGrid, floorplan: &Floorplan, params: CostParams) -> Result<PathFinder> {
         params.validate()?;
         let clearance = cost::clearance(&grid);
-        let passable = cost::navigable(&grid, &clearance, params.robot_radius);
-        let roomy = cost::navigable(
-            &grid,
-            &clearance,
-            params.robot_radius + params.shortcut_margin,
-        );
+        let passable = cost::navigable(&grid, &clearance, params.navigable_clearance());
+        let roomy = cost::navigable(&grid, &clearance, params.roomy_clearance());
         let navigable_cells: Vec<u32> = (0..passable.len() as u32)
             .filter(|&k| passable[k as usize])
             .collect();
         if navigable_cells.is_empty() {
             let (free, _, _) = grid.counts();
             return Err(Error::invalid(format!(
-                "no navigable space: {free} free cells, none with clearance >= the robot radius {} m",
-                params.robot_radius
+                "no navigable space: {free} free cells, none with clearance >= the robot radius {} m + the safety margin {} m",
+                params.robot_radius, params.safety_margin
             )));
         }
         let weights = cost::multipliers(&grid, &clearance, floorplan, &params);

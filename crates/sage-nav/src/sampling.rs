@@ -6,7 +6,10 @@
 //!   centre. Up to eight stand points are kept, one per 45° sector around the object; a pair
 //!   uses the one on the side facing the other endpoint. Only roomy cells (clearance ≥ robot
 //!   radius + shortcut margin) stand when the object has any: an agent stopping at bare radius
-//!   clearance touches what is beside it.
+//!   clearance touches what is beside it. Cells `stand_slack` inside `stand_max` stand first
+//!   (then roomy cells out to `stand_max`, then navigable ones likewise): an agent that stops a
+//!   step short of the end point is still within the success distance, where from the edge of
+//!   that distance it would take one more step, into the clutter around the object.
 //! - An **area** is a functional group around an anchor object (a dining table and the chairs
 //!   around it, a bed and its nightstands, …): the objects of the anchor's room whose footprints
 //!   lie within `area_reach` of the anchor's; its polygon is the hull of their footprints, and it
@@ -74,6 +77,11 @@ pub struct SamplingParams {
     pub stand_min: f32,
     /// Farthest, metres (default 1.0, the success distance).
     pub stand_max: f32,
+    /// How far inside `stand_max` a stand point lies where the object's surroundings allow,
+    /// metres (default 0.3): an agent that stops a step (0.25 m) short of it still stands
+    /// within the success distance, instead of stepping on into the clutter around the object.
+    #[serde(default = "default_stand_slack")]
+    pub stand_slack: f32,
     /// Clearance a room's stand cells prefer, metres (default 0.5).
     pub room_clearance: f32,
     /// How far around its anchor an area gathers objects, metres (default 1.0).
@@ -95,11 +103,16 @@ pub struct SamplingParams {
     pub max_object_base: f32,
 }
 
+fn default_stand_slack() -> f32 {
+    0.3
+}
+
 impl Default for SamplingParams {
     fn default() -> Self {
         SamplingParams {
             stand_min: 0.5,
             stand_max: 1.0,
+            stand_slack: default_stand_slack(),
             room_clearance: 0.5,
             area_reach: 1.0,
             min_distance: 2.0,
@@ -121,6 +134,12 @@ impl SamplingParams {
             return bad(format!(
                 "need 0 <= stand_min < stand_max, got {} and {}",
                 self.stand_min, self.stand_max
+            ));
+        }
+        if !(self.stand_slack >= 0.0 && self.stand_slack < self.stand_max - self.stand_min) {
+            return bad(format!(
+                "stand_slack must be >= 0 and below stand_max - stand_min, got {}",
+                self.stand_slack
             ));
         }
         if !self.kind_weights.iter().all(|w| *w >= 0.0 && w.is_finite())
@@ -406,34 +425,43 @@ fn room_stands(pf: &PathFinder, room: usize, clearance: f32) -> Vec<Stand> {
         .collect()
 }
 
-/// Up to eight stand points around a polygon (see the module docs).
+/// Up to eight stand points around a polygon (see the module docs): from the first of these
+/// that has any — roomy cells within the slack, roomy cells, navigable cells within the slack,
+/// navigable cells.
 fn ring_stands(pf: &PathFinder, polygon: &Polygon2, params: &SamplingParams) -> Vec<Stand> {
-    let roomy = ring_stands_on(pf, polygon, params, true);
-    if roomy.is_empty() {
-        ring_stands_on(pf, polygon, params, false)
-    } else {
-        roomy
-    }
+    let inner = params.stand_max - params.stand_slack;
+    [
+        (true, inner),
+        (true, params.stand_max),
+        (false, inner),
+        (false, params.stand_max),
+    ]
+    .into_iter()
+    .map(|(roomy_only, reach)| ring_stands_on(pf, polygon, params, roomy_only, reach))
+    .find(|stands| !stands.is_empty())
+    .unwrap_or_default()
 }
 
-/// [`ring_stands`] among the roomy cells only (`roomy_only`) or among all navigable ones.
+/// [`ring_stands`] among the roomy cells only (`roomy_only`) or among all navigable ones, at
+/// most `reach` from the polygon.
 fn ring_stands_on(
     pf: &PathFinder,
     polygon: &Polygon2,
     params: &SamplingParams,
     roomy_only: bool,
+    reach: f32,
 ) -> Vec<Stand> {
     if polygon.points.is_empty() {
         return Vec::new();
     }
     let g = &pf.grid;
     let (lo, hi) = polygon.bounds();
-    let r = Vec2::splat(params.stand_max);
+    let r = Vec2::splat(reach);
     let Some((i0, j0, i1, j1)) = g.cell_range(lo - r, hi + r) else {
         return Vec::new();
     };
     let centre = polygon.centroid();
-    let ideal = 0.5 * (params.stand_min + params.stand_max);
+    let ideal = 0.5 * (params.stand_min + reach);
     let mut best: [Option<(f32, usize)>; 8] = [None; 8];
     for j in j0..=j1 {
         for i in i0..=i1 {
@@ -452,7 +480,7 @@ fn ring_stands_on(
                 continue;
             }
             let d = polygon.distance_to_boundary(p);
-            if d < params.stand_min || d > params.stand_max {
+            if d < params.stand_min || d > reach {
                 continue;
             }
             let a = (p - centre).y.atan2((p - centre).x);

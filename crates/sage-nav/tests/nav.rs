@@ -471,7 +471,33 @@ fn endpoints_stand_beside_their_objects_at_a_safe_distance() {
     let counts = prep.endpoints.counts();
     assert!(counts.iter().all(|&c| c > 0), "{counts:?}");
     let sp = &params.sampling;
+    // Every navigable cell keeps the safety margin beyond the radius.
+    let pf = &prep.finder;
+    let least = params.cost.robot_radius + params.cost.safety_margin;
+    assert!(params.cost.safety_margin > 0.0);
+    assert!((0..pf.passable.len()).all(|k| !pf.passable[k] || pf.clearance[k] >= least));
+    let inner = sp.stand_max - sp.stand_slack;
+    let mut inside_slack = 0;
     for e in &prep.endpoints.list {
+        if e.kind != sage_nav::EndpointKind::Room {
+            // Where a roomy cell lies within the slack of the band, every stand is one.
+            let roomy_inside = (0..pf.roomy.len()).any(|k| {
+                let p = pf.grid.center_of(k);
+                let d = e.polygon.distance_to_boundary(p);
+                pf.roomy[k] && !e.polygon.contains(p) && d >= sp.stand_min && d <= inner
+            });
+            if roomy_inside {
+                inside_slack += 1;
+                for s in &e.stands {
+                    let d = e.polygon.distance_to_boundary(s.point);
+                    assert!(
+                        pf.roomy[s.cell] && d <= inner + 1e-4,
+                        "{} at {d}",
+                        e.reference
+                    );
+                }
+            }
+        }
         for s in &e.stands {
             assert!(prep.finder.passable[s.cell]);
             if e.kind != sage_nav::EndpointKind::Room {
@@ -487,6 +513,7 @@ fn endpoints_stand_beside_their_objects_at_a_safe_distance() {
             }
         }
     }
+    assert!(inside_slack > 0);
     // Item ids of object endpoints are those of the semantic map, and nobody is sent to an
     // object hung above the agent (a ceiling lamp) though the scene has some.
     let map = SemanticMap::build(&scene);
