@@ -139,6 +139,10 @@ pub struct BuildArgs {
     /// radius is the planner's inflation, so the paths leave that robot room to pass.
     #[arg(long, default_value = "wheeled")]
     agent: String,
+    /// Shares of short / medium / long reference paths (SPEC §9 bins), e.g. 0.4,0.4,0.2
+    /// (default: free). A scene without room for a bin's share yields fewer trajectories.
+    #[arg(long, value_delimiter = ',')]
+    length_mix: Option<Vec<f32>>,
     /// Base-Action episodes per scene (default: a quarter of --per-scene).
     #[arg(long)]
     base_actions: Option<usize>,
@@ -192,6 +196,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
     if let Some(b) = a.base_actions {
         params.base_actions = b;
     }
+    params.trajectories.sampling.length_mix = a.length_mix.clone();
     params.nogoal = a.nogoal;
     params.high_per_type = a.high_per_type;
     params.llm = a.llm_url.as_ref().map(|url| LlmConfig {

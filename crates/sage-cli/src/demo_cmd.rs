@@ -29,7 +29,7 @@ pub struct DemoArgs {
     /// Trajectories per scene in the dataset.
     #[arg(long, default_value_t = 12)]
     per_scene: usize,
-    /// Gaussians per scene.
+    /// Gaussians per five rooms of a synthetic scene (a scene gets its share by its rooms).
     #[arg(long, default_value_t = 150_000)]
     gaussians: usize,
     /// Agents to evaluate, comma-separated (any `--agent` of `sage3d eval`).

@@ -76,6 +76,58 @@ fn build_names_a_folder_without_scenes() {
     assert!(err.contains("neither a scene folder"), "{err}");
 }
 
+/// `--length-mix` reaches the sampler: all-short gives only short reference paths (each scene
+/// records the mix it was built with), and a mix without a share per bin is refused before any
+/// work.
+#[test]
+fn build_takes_a_length_mix() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    small_scene(&scene, "4", "1000");
+    let out = dir.path().join("o");
+    ok(&[
+        "data",
+        "build",
+        s(&scene),
+        "--out",
+        s(&out),
+        "--per-scene",
+        "4",
+        "--length-mix",
+        "1,0,0",
+    ]);
+    let file: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("scenes/home.json")).unwrap()).unwrap();
+    assert_eq!(
+        file["settings"]["trajectories"]["sampling"]["length_mix"],
+        serde_json::json!([1.0, 0.0, 0.0])
+    );
+    let paths: Vec<&str> = file["episodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["task"] == "vln" && e["instruction_type"] != "Base-Action")
+        .map(|e| e["slices"]["path"].as_str().unwrap())
+        .collect();
+    assert!(
+        !paths.is_empty() && paths.iter().all(|p| *p == "short"),
+        "{paths:?}"
+    );
+    let bad = sage3d(&[
+        "data",
+        "build",
+        s(&scene),
+        "--out",
+        s(&dir.path().join("bad")),
+        "--length-mix",
+        "0.4,0.6",
+    ]);
+    assert!(!bad.status.success());
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("length mix needs 3 shares"), "{err}");
+    assert!(!dir.path().join("bad").exists());
+}
+
 #[test]
 fn build_plans_for_the_agent_profile_asked_for() {
     let dir = tempfile::tempdir().unwrap();

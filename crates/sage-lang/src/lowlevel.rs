@@ -7,7 +7,8 @@ use crate::grammar::expand;
 use crate::instruction::{Instruction, InstructionType, SingleGoalKind, Source};
 use crate::refexp::{self, Style};
 use crate::textmap::TextMap;
-use crate::words::number_word;
+use crate::validate;
+use crate::words::{number_word, tokens};
 use glam::Vec2;
 use rand::Rng;
 use rand::seq::IndexedRandom;
@@ -169,8 +170,10 @@ const FROM_TO: &str = "[Go from {start} to {goal}|Walk from {start} to {goal}|He
 /// Single-Goal templates with the start implicit.
 const TO_ONLY: &str = "[Walk over to {goal} and stop|Go straight to {goal} and stop there|Make your way to {goal}, please|Navigate to {goal} from where you are]";
 
-/// A Single-Goal instruction for a trip (see [`single_goal_kind`]); `None` when an end cannot
-/// be named uniquely.
+/// A Single-Goal instruction for a trip (see [`single_goal_kind`]); `None` when the goal cannot
+/// be named uniquely. The start is where the agent stands, so it is left out where it cannot
+/// be named uniquely or where naming it makes the sentence longer than
+/// [`validate::MAX_WORDS`] (in a large building both ends need a room to tell them apart).
 pub fn single_goal(
     tm: &TextMap,
     start: &EndRef,
@@ -179,18 +182,18 @@ pub fn single_goal(
 ) -> Option<Instruction> {
     let kind = single_goal_kind(start.kind, goal.kind);
     let (s, g) = if kind == SingleGoalKind::ZoneToZone {
-        (zone_phrase(tm, start)?, zone_phrase(tm, goal)?)
+        (zone_phrase(tm, start), zone_phrase(tm, goal)?)
     } else {
-        (end_phrase(tm, start)?, end_phrase(tm, goal)?)
+        (end_phrase(tm, start), end_phrase(tm, goal)?)
     };
-    let slots: BTreeMap<&str, String> = [("start", s), ("goal", g)].into();
-    let template = if rng.random_bool(0.75) {
-        FROM_TO
-    } else {
-        TO_ONLY
-    };
+    let named = rng.random_bool(0.75) && s.is_some();
+    let slots: BTreeMap<&str, String> = [("start", s.unwrap_or_default()), ("goal", g)].into();
+    let mut text = expand(if named { FROM_TO } else { TO_ONLY }, &slots, rng)?;
+    if named && tokens(&text).len() > validate::MAX_WORDS {
+        text = expand(TO_ONLY, &slots, rng)?;
+    }
     Some(Instruction {
-        text: expand(template, &slots, rng)?,
+        text,
         kind: InstructionType::SingleGoal,
         subtype: Some(kind),
         source: Source::Template,

@@ -80,6 +80,11 @@ impl ValidationReport {
     }
 }
 
+/// Fewest words an instruction may have (the paper's range).
+pub const MIN_WORDS: usize = 5;
+/// Most words an instruction may have (the paper's range).
+pub const MAX_WORDS: usize = 20;
+
 /// Checks instructions against one scene's text map.
 #[derive(Debug, Clone)]
 pub struct Validator {
@@ -133,8 +138,8 @@ impl Validator {
         attributes.sort();
         attributes.dedup();
         Validator {
-            min_words: 5,
-            max_words: 20,
+            min_words: MIN_WORDS,
+            max_words: MAX_WORDS,
             ids: tm.ids().map(|s| s.to_lowercase()).collect(),
             grounded,
             attributes,

@@ -163,6 +163,42 @@ fn rooms_of_a_repeated_type_are_told_apart_in_large_scenes() {
     }
 }
 
+/// In a large office the start often cannot be said uniquely, or start and goal together pass
+/// the validator's word limit: a Single-Goal instruction then leaves the start out, so a trip
+/// whose goal can be said gets one, and naming the start never makes it too long.
+#[test]
+fn single_goal_leaves_out_a_start_it_cannot_say_briefly() {
+    let (_, _, set, tm) = scene_of(SceneKind::Office, 6, 28, 420);
+    let validator = Validator::new(&tm);
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let (mut unsaid_start_valid, mut left_out) = (0, 0);
+    for t in &set.trajectories {
+        if lowlevel::end_phrase(&tm, &t.goal).is_none() {
+            continue;
+        }
+        let start = lowlevel::end_phrase(&tm, &t.start);
+        for _ in 0..8 {
+            let i = lowlevel::single_goal(&tm, &t.start, &t.goal, &mut rng).unwrap();
+            let valid = validator
+                .check(&i.text, InstructionType::SingleGoal)
+                .is_ok();
+            match &start {
+                None => unsaid_start_valid += usize::from(valid),
+                Some(s) if i.text.contains(s.as_str()) => assert!(
+                    i.text.split_whitespace().count() <= sage_lang::validate::MAX_WORDS,
+                    "{}",
+                    i.text
+                ),
+                Some(_) => left_out += 1,
+            }
+        }
+    }
+    assert!(
+        unsaid_start_valid > 0 && left_out > 0,
+        "{unsaid_start_valid} {left_out}"
+    );
+}
+
 #[test]
 fn validator_rules() {
     let (_, _, _, tm) = scene(3, 5, 60);

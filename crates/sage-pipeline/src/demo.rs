@@ -33,7 +33,7 @@ pub struct DemoSettings {
     pub seed: u64,
     /// Trajectories per scene in the dataset.
     pub per_scene: usize,
-    /// Gaussians per scene.
+    /// Gaussians per five rooms of a synthetic scene (a scene gets its share by its rooms).
     pub gaussians: usize,
     /// Agents to evaluate (as `--agent` names them).
     pub agents: Vec<String>,
@@ -201,17 +201,24 @@ impl Step {
                 out,
                 params,
                 assemble,
-            } => vec![
-                "data".into(),
-                "build".into(),
-                path_arg(scenes),
-                "--out".into(),
-                path_arg(out),
-                "--per-scene".into(),
-                params.per_scene.to_string(),
-                "--seed".into(),
-                assemble.seed.to_string(),
-            ],
+            } => {
+                let mut args: Vec<String> = vec![
+                    "data".into(),
+                    "build".into(),
+                    path_arg(scenes),
+                    "--out".into(),
+                    path_arg(out),
+                    "--per-scene".into(),
+                    params.per_scene.to_string(),
+                    "--seed".into(),
+                    assemble.seed.to_string(),
+                ];
+                if let Some(mix) = &params.trajectories.sampling.length_mix {
+                    let shares: Vec<String> = mix.iter().map(f32::to_string).collect();
+                    args.extend(["--length-mix".into(), shares.join(",")]);
+                }
+                args
+            }
             Step::TrainData { settings, out } => vec![
                 "data".into(),
                 "render".into(),
@@ -310,15 +317,14 @@ impl Step {
 }
 
 /// The name of demo scene `k` and its layout: kind, rooms and objects. Every three scenes: a
-/// small home and an office with few assets (< 184 objects) and a larger home with a medium
-/// count, so the test split holds both. (Scenes with many assets, > 376, and paths in the
-/// `long` bin, > 29 m, need 28 to 40 rooms; there the instruction generator finds
-/// instructions for few trips, see docs/instructions.md, and long paths are rare.)
+/// small home with few assets (< 184 objects), a larger home with a medium count and a 40-room
+/// office with many (> 376), large enough for paths in the `long` bin (> 29 m), so the test
+/// split holds every slice value (tested).
 fn scene_name(k: usize) -> (String, SynthConfig) {
     let (kind, rooms, objects) = match k % 3 {
         0 => (SceneKind::Home, 5, 60),
         1 => (SceneKind::Home, 9, 260),
-        _ => (SceneKind::Office, 5, 60),
+        _ => (SceneKind::Office, 40, 400),
     };
     let config = SynthConfig {
         kind,
@@ -328,6 +334,21 @@ fn scene_name(k: usize) -> (String, SynthConfig) {
     };
     (format!("{}_{k}", kind.as_str()), config)
 }
+
+/// The dataset settings of the demo: `per_scene` trajectories, with a share of each length bin
+/// wanted ([`LENGTH_MIX`]) so the large scene gives long paths.
+fn scene_params(s: &DemoSettings) -> SceneParams {
+    let mut params = SceneParams::new(s.per_scene, s.seed);
+    params.trajectories.sampling.length_mix = Some(LENGTH_MIX.to_vec());
+    params
+}
+
+/// Rooms that [`DemoSettings::gaussians`] are for.
+const ROOMS_PER_GAUSSIAN_SHARE: usize = 5;
+
+/// The demo's wanted shares of short, medium and long reference paths (SPEC §9 bins): small
+/// scenes have no long paths and give fewer trajectories; the large office gives its share.
+const LENGTH_MIX: [f32; 3] = [0.4, 0.4, 0.2];
 
 /// The steps of the demo, in order (pure: what runs is decided before anything runs).
 ///
@@ -354,12 +375,15 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     };
     for (k, (name, dir)) in dirs.into_iter().enumerate() {
         if s.from.is_none() && !dir.join(sage_io::RUN_RECORD).is_file() {
+            let layout = scene_name(k).1;
             steps.push(Step::Synth {
                 name: name.clone(),
                 config: SynthConfig {
                     seed: s.seed + k as u64,
-                    gaussians: s.gaussians,
-                    ..scene_name(k).1
+                    // As dense in a large scene as in a small one: a first-person view of a
+                    // 40-room office from the Gaussians of a 5-room home is a blur.
+                    gaussians: (s.gaussians * layout.rooms).div_ceil(ROOMS_PER_GAUSSIAN_SHARE),
+                    ..layout
                 },
                 out: dir.clone(),
             });
@@ -373,7 +397,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     steps.push(Step::Dataset {
         scenes: scenes.clone(),
         out: s.dataset(),
-        params: Box::new(SceneParams::new(s.per_scene, s.seed)),
+        params: Box::new(scene_params(s)),
         assemble: AssembleParams {
             seed: s.seed,
             split: SplitParams::default(),
@@ -491,5 +515,42 @@ mod tests {
             ..s
         };
         assert!(plan(&bad).unwrap_err().to_string().contains("genius"));
+    }
+
+    /// The demo's balanced test split holds every value of both slices: few, medium and many
+    /// assets; short, medium and long paths (the layouts do not depend on the Gaussian count,
+    /// so the scenes are made with few).
+    #[test]
+    fn the_demo_test_split_covers_every_slice_value() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = DemoSettings {
+            out: dir.path().join("demo"),
+            gaussians: 1000,
+            ..DemoSettings::default()
+        };
+        for step in plan(&s).unwrap() {
+            if matches!(step, Step::Synth { .. } | Step::Dataset { .. }) {
+                step.run(&|_| {}).unwrap();
+            }
+        }
+        let episodes =
+            std::fs::read_to_string(s.dataset().join("episodes/test_balanced.jsonl")).unwrap();
+        let mut seen = std::collections::BTreeSet::new();
+        for line in episodes.lines() {
+            let e: serde_json::Value = serde_json::from_str(line).unwrap();
+            for slice in ["assets", "path"] {
+                seen.insert(format!("{slice}={}", e["slices"][slice].as_str().unwrap()));
+            }
+        }
+        for want in [
+            "assets=few",
+            "assets=medium",
+            "assets=many",
+            "path=short",
+            "path=medium",
+            "path=long",
+        ] {
+            assert!(seen.contains(want), "{want} missing: {seen:?}");
+        }
     }
 }
