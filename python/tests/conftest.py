@@ -27,6 +27,16 @@ def sage3d():
     return run
 
 
+@pytest.fixture(scope="module")
+def synth_cache(tmp_path_factory):
+    """Synthetic scenes made by the environments go to a fresh cache of this test session,
+    shared by the modules that ask for it (`pytestmark = pytest.mark.usefixtures(...)`)."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SAGE3D_CACHE", str(tmp_path_factory.getbasetemp() / "sage3d-cache"))
+    yield
+    mp.undo()
+
+
 @pytest.fixture(scope="session")
 def small_scene(tmp_path_factory, sage3d):
     """A small synthetic home written by `sage3d scene synth`."""

@@ -13,13 +13,7 @@ SYNTH = {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}
 SMALL = {"synth": SYNTH, "width": 32, "height": 24, "num_episodes": 4, "seed": 1}
 
 
-@pytest.fixture(scope="module", autouse=True)
-def cache(tmp_path_factory):
-    """Synthetic scenes of this test session go to a fresh cache, shared by its modules."""
-    mp = pytest.MonkeyPatch()
-    mp.setenv("SAGE3D_CACHE", str(tmp_path_factory.getbasetemp() / "sage3d-cache"))
-    yield
-    mp.undo()
+pytestmark = pytest.mark.usefixtures("synth_cache")
 
 
 def make(**kw):

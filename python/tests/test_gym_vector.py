@@ -13,12 +13,7 @@ SMALL = {"synth": {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}, "
          "height": 16, "num_episodes": 4, "seed": 1, "max_steps": 4}
 
 
-@pytest.fixture(scope="module", autouse=True)
-def cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("SAGE3D_CACHE", str(tmp_path_factory.getbasetemp() / "sage3d-cache"))
-    yield
-    mp.undo()
+pytestmark = pytest.mark.usefixtures("synth_cache")
 
 
 def test_vector_steps_equal_single_envs_with_next_step_autoreset():

@@ -8,13 +8,9 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_dataset, small_scene};
+use common::{eval_output, ok, s, sage3d, small_dataset, small_scene, stderr};
 use std::path::Path;
 use std::process::Output;
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// True when `out`, a `--device gpu` run, failed because this machine has no GPU adapter at
 /// all; the test then stops with a note, or fails under `SAGE3D_REQUIRE_GPU`.
@@ -269,26 +265,23 @@ fn env_eval_and_data_render_say_where_they_render_and_record_the_device() {
     assert!(renderer_line(&blind).ends_with("(not used: without --render no images are rendered)"));
 
     let run = dir.path().join("run");
-    let base = [
-        "eval",
-        s(&data),
-        "--scenes",
-        s(&scenes),
-        "--split",
-        "train",
-        "--agent",
-        "forward",
-        "--out",
-        s(&run),
-    ];
-    let out = sage3d(&[&base[..], &["--device", "auto"]].concat());
+    let eval = |run: &Path, device: &[&str]| {
+        eval_output(
+            "2",
+            &data,
+            &scenes,
+            run,
+            &[&["--agent", "forward"], device].concat(),
+        )
+    };
+    let out = eval(&run, &["--device", "auto"]);
     assert!(out.status.success(), "{}", stderr(&out));
     renderer_line(&out);
     let record: serde_json::Value =
         serde_json::from_slice(&bytes(&run.join("sage3d_run.json"))).unwrap();
     assert_eq!(record["settings"]["device"], "auto", "{record}");
     // A run resumes only on the device it started on.
-    let other = sage3d(&[&base[..], &["--device", "cpu"]].concat());
+    let other = eval(&run, &["--device", "cpu"]);
     assert!(!other.status.success());
     assert!(
         stderr(&other).contains("other settings"),
@@ -297,9 +290,8 @@ fn env_eval_and_data_render_say_where_they_render_and_record_the_device() {
     );
     // On the CPU the run record is as it always was: no device named.
     let cpu_run = dir.path().join("cpu_run");
-    let mut cpu = base.to_vec();
-    *cpu.last_mut().unwrap() = s(&cpu_run);
-    ok(&cpu);
+    let cpu = eval(&cpu_run, &[]);
+    assert!(cpu.status.success(), "{}", stderr(&cpu));
     let record: serde_json::Value =
         serde_json::from_slice(&bytes(&cpu_run.join("sage3d_run.json"))).unwrap();
     assert!(record["settings"].get("device").is_none(), "{record}");

@@ -5,15 +5,11 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_dataset, small_scene};
+use common::{ok, s, sage3d, small_dataset, small_scene, stderr};
 use std::path::Path;
 use std::process::Output;
 
 const MINE: &[u8] = b"the user's own bytes";
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// Checks the folder rule of a command: `run(out, force)` runs it writing into `out`; `own` is
 /// one of the names it writes at the top of its folder; `command` is what its run record names.

@@ -24,6 +24,11 @@ pub fn ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// A command's standard error as text.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
 /// A temporary path as a command-line argument.
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 temp path")
