@@ -110,7 +110,7 @@ impl State {
 
 /// Follows the polyline `path` (W frame, at least one point) from its first point with heading
 /// `start_yaw`: at each step it turns toward the first path point at least one step ahead (in
-/// whole turns), then moves forward; it stops when within half a step of the last point or
+/// whole turns; never one before the point it pursued last), then moves forward; it stops when within half a step of the last point or
 /// when a step would not bring it closer; then it turns to `final_yaw` (if given) and STOPs.
 /// `None` when it does not arrive within a step budget (a path it cannot follow).
 pub fn follow(
@@ -129,7 +129,8 @@ pub fn follow(
     let mut out = Vec::new();
     let length: f32 = path.windows(2).map(|w| w[0].distance(w[1])).sum();
     let budget = (4.0 * length / space.forward) as usize + 4 * path.len() + 64;
-    let mut k = 0usize;
+    let last = path.len() - 1;
+    let (mut k, mut t) = (0usize, 0usize);
     while s.p.distance(goal) >= 0.5 * space.forward {
         if out.len() > budget {
             return None;
@@ -138,16 +139,18 @@ pub fn follow(
         let window = (k..path.len().min(k + 8))
             .min_by(|&a, &b| s.p.distance(path[a]).total_cmp(&s.p.distance(path[b])));
         k = window.unwrap_or(k);
-        let target = (k..path.len())
-            .map(|j| path[j])
-            .find(|q| s.p.distance(*q) >= space.forward)
-            .unwrap_or(goal);
-        let d = target - s.p;
+        // The point pursued never moves back along the path: where a path folds back on itself
+        // the nearest point can stay put while the agent steps to and fro across the fold.
+        let ahead = (k..path.len())
+            .find(|&j| s.p.distance(path[j]) >= space.forward)
+            .unwrap_or(last);
+        t = t.max(ahead);
+        let d = path[t] - s.p;
         let n = space.turns_for(d.y.atan2(d.x) - s.yaw(space));
         let mut next = s;
         next.turns += n;
         next.apply(Action::Forward, space);
-        if target == goal && next.p.distance(goal) >= s.p.distance(goal) {
+        if t == last && next.p.distance(goal) >= s.p.distance(goal) {
             break;
         }
         s.emit_turns(n, space, &mut out);
@@ -226,6 +229,34 @@ mod tests {
         .unwrap();
         assert_eq!(&a[..6], &[Action::Right; 6]);
         assert_eq!(a.iter().filter(|x| **x == Action::Forward).count(), 8);
+    }
+
+    #[test]
+    fn a_path_that_folds_back_on_itself_is_followed_to_its_end() {
+        // Found by fuzzing: down one side of a hairpin and 2 m back up the other, a few
+        // centimetres apart at the fold, where the nearest path point stayed put while the
+        // agent stepped to and fro across the fold until the step budget ran out.
+        let corners = [
+            Vec2::new(-4.265_227, 19.808_41),
+            Vec2::new(-15.464_497, 7.732_727),
+            Vec2::new(-13.532_638, 9.932_495),
+            Vec2::new(-11.336, -5.758_663),
+            Vec2::new(-11.740_94, 11.985_903),
+        ];
+        let mut path = vec![corners[0]];
+        for w in corners.windows(2) {
+            let n = (w[0].distance(w[1]) / 0.25).ceil() as usize;
+            path.extend((1..=n).map(|i| w[0].lerp(w[1], i as f32 / n as f32)));
+        }
+        path.truncate(151);
+        let (space, yaw) = (ActionSpace::default(), -2.815_910_3);
+        let actions = follow(&path, yaw, None, &space).expect("the hairpin is followed");
+        let poses = replay(Pose::new(path[0].extend(0.0), yaw), &actions, &space);
+        for p in &poses {
+            assert!(distance_to_polyline(&path, p.position.truncate()) < 0.3);
+        }
+        let end = poses.last().unwrap().position.truncate();
+        assert!(end.distance(*path.last().unwrap()) < 0.2);
     }
 
     #[test]
