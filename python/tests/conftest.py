@@ -11,6 +11,19 @@ import pytest
 REPO = pathlib.Path(__file__).resolve().parents[2]
 TESTDATA = REPO / "testdata" / "splats"
 
+SMALL_SYNTH = {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}
+"""The synthetic home the environment tests make (`synth=`): small enough to render fast."""
+
+SMALL_ENV = {"synth": SMALL_SYNTH, "width": 32, "height": 24, "num_episodes": 4, "seed": 1}
+"""Environment settings of the environment tests: the small home, tiny frames, four episodes."""
+
+
+def make_small_env(**kw):
+    """`sage3d.make_env` with `SMALL_ENV`, `kw` overriding it."""
+    import sage3d
+
+    return sage3d.make_env(**{**SMALL_ENV, **kw})
+
 
 @pytest.fixture(scope="session")
 def sage3d():

@@ -10,17 +10,12 @@ import numpy as np
 import pytest
 
 import sage3d
+from conftest import SMALL_ENV, make_small_env as make
 
-SYNTH = {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}
-SMALL = {"synth": SYNTH, "width": 32, "height": 24, "num_episodes": 4, "seed": 1}
 ALL = ["rgb", "depth", "semantic", "instance"]
 
 
 pytestmark = pytest.mark.usefixtures("synth_cache")
-
-
-def make(**kw):
-    return sage3d.make_env(**{**SMALL, **kw})
 
 
 def psnr(a, b):
@@ -61,7 +56,7 @@ def test_the_cpu_is_the_default_and_renders_as_before():
 
 
 def test_an_unknown_device_is_a_value_error_naming_the_choices():
-    for build in (lambda: make(device="bogus"), lambda: sage3d.make_vec_env(2, **SMALL, device="bogus")):
+    for build in (lambda: make(device="bogus"), lambda: sage3d.make_vec_env(2, **SMALL_ENV, device="bogus")):
         with pytest.raises(ValueError, match="'bogus'.*cpu, gpu, auto"):
             build()
     with pytest.raises(ValueError, match="cpu, gpu, auto"):
@@ -86,7 +81,7 @@ def test_gpu_without_an_adapter_is_a_value_error_at_construction():
     code = (
         "import sage3d\n"
         "try:\n"
-        f"    sage3d.make_env(**{SMALL!r}, device='gpu')\n"
+        f"    sage3d.make_env(**{SMALL_ENV!r}, device='gpu')\n"
         "except ValueError as e:\n"
         "    print('refused:', e)\n"
     )
@@ -116,7 +111,7 @@ def test_gpu_observations_match_the_cpu():
 
 def test_gpu_vector_env_matches_single_environments():
     kw = {"sensors": ["rgb", "depth"], "device": "gpu"}
-    vec = sage3d.make_vec_env(3, **SMALL, **kw)
+    vec = sage3d.make_vec_env(3, **SMALL_ENV, **kw)
     assert vec.render_device.startswith("gpu: "), vec.render_device
     obs, _ = vec.reset(options={"episode_index": [2, 0, 3]})
     cpu = make(sensors=["rgb", "depth"])

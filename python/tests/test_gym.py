@@ -8,16 +8,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import sage3d
-
-SYNTH = {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}
-SMALL = {"synth": SYNTH, "width": 32, "height": 24, "num_episodes": 4, "seed": 1}
-
+from conftest import SMALL_ENV, make_small_env as make
 
 pytestmark = pytest.mark.usefixtures("synth_cache")
-
-
-def make(**kw):
-    return sage3d.make_env(**{**SMALL, **kw})
 
 
 def test_gymnasium_env_checker_passes():
@@ -109,14 +102,14 @@ def test_info_has_pose_contacts_metrics_so_far_and_final_metrics():
 
 
 def test_registered_ids_and_tasks():
-    env = gymnasium.make("SageNoGoal-v0", **SMALL)
+    env = gymnasium.make("SageNoGoal-v0", **SMALL_ENV)
     assert {e["task"] for e in env.unwrapped.episodes} == {"nogoal"}
     obs, _ = env.reset(seed=0)
     assert "avoid colliding" in obs["instruction"]
     # NoGoal pays the metres moved (less the slack): forward in free space pays about 0.24.
     _, r, *_ = env.step(1)
     assert -0.02 < r <= 0.25 - 0.01 + 1e-6
-    vln = gymnasium.make("SageVLN-v0", **SMALL)
+    vln = gymnasium.make("SageVLN-v0", **SMALL_ENV)
     assert {e["task"] for e in vln.unwrapped.episodes} == {"vln"}
     assert vln.action_space == gymnasium.spaces.Discrete(4)
     assert make(look=True).action_space == gymnasium.spaces.Discrete(6)

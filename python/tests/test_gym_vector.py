@@ -8,9 +8,9 @@ import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 import sage3d
+from conftest import SMALL_ENV
 
-SMALL = {"synth": {"seed": 2, "rooms": 3, "objects": 25, "gaussians": 20_000}, "width": 24,
-         "height": 16, "num_episodes": 4, "seed": 1, "max_steps": 4}
+SMALL = {**SMALL_ENV, "width": 24, "height": 16, "max_steps": 4}
 
 
 pytestmark = pytest.mark.usefixtures("synth_cache")
