@@ -536,20 +536,16 @@ impl OracleAgent {
         let d = q - at;
         let straight = d.y.atan2(d.x);
         let steps = (std::f32::consts::PI / self.turn).round() as i32;
-        let mut headings: Vec<f32> = (-steps..steps)
+        let off = |h: f32| wrap_angle(h - straight).abs();
+        let clear = (-steps..steps)
             .map(|k| yaw + k as f32 * self.turn)
-            .filter(|h| wrap_angle(h - straight).abs() <= std::f32::consts::FRAC_PI_2)
-            .collect();
-        headings.sort_by(|a, b| {
-            wrap_angle(a - straight)
-                .abs()
-                .total_cmp(&wrap_angle(b - straight).abs())
-        });
-        let clear = headings.into_iter().find(|&h| {
-            let end = at + Vec2::from_angle(h) * self.forward;
-            !self.step_leaves_navigable(at, h)
-                && self.goal_distance(end) <= self.success - SUCCESS_MARGIN
-        });
+            .filter(|&h| off(h) <= std::f32::consts::FRAC_PI_2)
+            .filter(|&h| {
+                let end = at + Vec2::from_angle(h) * self.forward;
+                !self.step_leaves_navigable(at, h)
+                    && self.goal_distance(end) <= self.success - SUCCESS_MARGIN
+            })
+            .min_by(|&a, &b| off(a).total_cmp(&off(b)));
         self.head_along(clear.unwrap_or(straight), at, yaw)
     }
 

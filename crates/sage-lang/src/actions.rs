@@ -110,9 +110,10 @@ impl State {
 
 /// Follows the polyline `path` (W frame, at least one point) from its first point with heading
 /// `start_yaw`: at each step it turns toward the first path point at least one step ahead (in
-/// whole turns; never one before the point it pursued last), then moves forward; it stops when within half a step of the last point or
-/// when a step would not bring it closer; then it turns to `final_yaw` (if given) and STOPs.
-/// `None` when it does not arrive within a step budget (a path it cannot follow).
+/// whole turns; never one before the point it pursued last), then moves forward; it stops when
+/// within half a step of the last point or when a step would not bring it closer; then it
+/// turns to `final_yaw` (if given) and STOPs. `None` when it does not arrive within a step
+/// budget (a path it cannot follow).
 pub fn follow(
     path: &[Vec2],
     start_yaw: f32,

@@ -4,8 +4,9 @@
 //! - An **object** endpoint stands beside its footprint: a navigable cell whose distance to the
 //!   polygon lies between `stand_min` (the safety distance) and `stand_max`, facing the object's
 //!   centre. Up to eight stand points are kept, one per 45° sector around the object; a pair
-//!   uses the one on the side facing the other endpoint. Only roomy cells (clearance ≥ robot
-//!   radius + shortcut margin) stand when the object has any: an agent stopping at bare radius
+//!   uses the one on the side facing the other endpoint. Only roomy cells (clearance ≥
+//!   [`roomy_clearance`](crate::cost::CostParams::roomy_clearance): radius, safety margin and
+//!   shortcut margin) stand when the object has any: an agent stopping at bare navigable
 //!   clearance touches what is beside it. Cells `stand_slack` inside `stand_max` stand first
 //!   (then roomy cells out to `stand_max`, then navigable ones likewise): an agent that stops a
 //!   step short of the end point is still within the success distance, where from the edge of
