@@ -1,8 +1,8 @@
 //! `sage3d data …`: benchmark datasets (instructions, episodes, splits, files).
 
 use clap::{Args, Subcommand};
-use sage_bench::dataset::build::{AssembleParams, SceneParams};
 use sage_core::Result;
+use sage_dataset::build::{AssembleParams, SceneParams};
 use sage_io::runner::{Status, Tally};
 use sage_lang::llm::LlmConfig;
 use sage_pipeline::dataset::DatasetReport;
@@ -226,7 +226,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
 }
 
 fn data_import(a: ImportArgs) -> Result<()> {
-    use sage_bench::dataset::import::{Source, import};
+    use sage_dataset::import::{Source, import};
     let source = match &a.r2r_split {
         Some(split) => Source::R2r {
             dir: a.source.clone(),

@@ -4,8 +4,8 @@
 //! reports what it made as that subcommand would, so the demo doubles as a worked example of
 //! pointing the same commands at real data.
 
-use sage_bench::eval::Summary;
 use sage_core::Result;
+use sage_eval::Summary;
 use sage_pipeline::demo::{self, DemoSettings, Step, StepReport, Tick};
 use std::path::PathBuf;
 use std::time::Instant;

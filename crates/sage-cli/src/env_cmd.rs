@@ -5,7 +5,7 @@
 //! by `sage_env::scoring`, as in the evaluator.
 
 use clap::{Args, Subcommand};
-use sage_bench::agents::AgentKind;
+use sage_agents::AgentKind;
 use sage_core::{Error, Result};
 use sage_env::agents::run_episode;
 use sage_env::{Env, EnvConfig, SceneContext, SensorConfig};
@@ -90,7 +90,7 @@ fn run_one(a: RunArgs) -> Result<()> {
         eprintln!("renderer: {renderer} (not used: without --render no images are rendered)");
     }
     let ctx = Arc::new(SceneContext::load(&a.scene, a.cache)?);
-    let episodes = sage_bench::dataset::formats::jsonl::read(&a.episodes)?;
+    let episodes = sage_dataset::formats::jsonl::read(&a.episodes)?;
     let episode = episodes
         .iter()
         .find(|e| match &a.episode {

@@ -3,10 +3,10 @@
 //! (`docs/evaluation.md`).
 
 use crate::progress::bar;
-use sage_bench::dataset::folder::scenes_folder;
-use sage_bench::eval::{EvalSettings, RunOutcome};
-use sage_bench::report::ReportOutcome;
 use sage_core::{Error, Result};
+use sage_dataset::folder::scenes_folder;
+use sage_eval::report::ReportOutcome;
+use sage_eval::{EvalSettings, RunOutcome};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

@@ -2,8 +2,8 @@
 //! PNGs under a progress bar (`docs/evaluation.md`, "Report"); `sage3d eval` calls the same
 //! writer at the end of a run.
 
-use sage_bench::report::{self, ReportOutcome};
 use sage_core::{Error, Result};
+use sage_eval::report::{self, ReportOutcome};
 use sage_io::run::RUN_RECORD;
 use std::path::{Path, PathBuf};
 

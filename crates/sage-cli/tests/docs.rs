@@ -111,18 +111,18 @@ fn check(kind: &str, body: &str) -> Result<(), String> {
             let line: Value = serde_json::from_str(body).map_err(|e| e.to_string())?;
             let file = dir.path().join("split.jsonl");
             std::fs::write(&file, format!("{line}\n")).unwrap();
-            sage_bench::dataset::formats::jsonl::read(&file)
+            sage_dataset::formats::jsonl::read(&file)
                 .map(|_| ())
                 .map_err(err)
         }
         "replay" => {
             let file = dir.path().join("replay.jsonl");
             std::fs::write(&file, body).unwrap();
-            sage_bench::agents::replay::ReplayFile::read(&file)
+            sage_agents::replay::ReplayFile::read(&file)
                 .map(|_| ())
                 .map_err(err)
         }
-        "eval-record" => serde_json::from_str::<sage_bench::eval::EvalRecord>(body)
+        "eval-record" => serde_json::from_str::<sage_eval::EvalRecord>(body)
             .map(|_| ())
             .map_err(|e| e.to_string()),
         "navila-part" => {

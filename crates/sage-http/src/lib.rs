@@ -1,6 +1,6 @@
 //! `sage-http`: the one HTTP client of sage3d.
 //!
-//! The LLM instruction writer (`sage-lang`) and the evaluator's remote agents (`sage-bench`)
+//! The LLM instruction writer (`sage-lang`) and the evaluator's remote agents (`sage-agents`)
 //! talk to OpenAI-compatible and model-server endpoints through this crate. [`client`] sends a
 //! JSON body with a per-request timeout and hands back the reply (status, headers, body) as
 //! plain data: an HTTP error status is a reply, only a request that got no complete reply is an

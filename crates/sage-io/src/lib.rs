@@ -6,14 +6,16 @@
 //! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made;
 //! - [`scenes`]: finding scene folders, their names, and fingerprints of their input files;
 //! - [`runner`]: the resumable per-scene runner and its typed outcome;
-//! - [`canvas`]: the small RGB canvas that draws maps, plans and charts to PNG, and
-//!   [`palette`]: distinct, stable colours for ids.
+//! - [`canvas`]: the small RGB canvas that draws maps, plans and charts to PNG,
+//!   [`palette`]: distinct, stable colours for ids, and [`marks`]: the paths and markers drawn
+//!   over top-down maps.
 //!
 //! It knows nothing of scenes beyond their folder layout, so every other crate can use it.
 
 pub mod canvas;
 pub mod files;
 pub mod hash;
+pub mod marks;
 pub mod palette;
 pub mod run;
 pub mod runner;

@@ -4,9 +4,9 @@
 //! training pairs.
 
 use crate::machine;
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
 use sage_core::{Error, Result};
+use sage_dataset::build::{self, AssembleParams, SceneParams};
+use sage_dataset::split::SplitParams;
 use sage_synth::{SceneKind, SynthConfig};
 use sage_traindata::{Format, Settings};
 use serde::Serialize;

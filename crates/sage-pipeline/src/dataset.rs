@@ -1,8 +1,8 @@
 //! The dataset build over a folder of scenes: per-scene trajectories, instructions and episodes
 //! (parallel, resumable), then splits, files and summary, and the run record.
 
-use sage_bench::dataset::build::{self, AssembleParams, SceneOutcome, SceneParams, Summary};
 use sage_core::{Error, Result};
+use sage_dataset::build::{self, AssembleParams, SceneOutcome, SceneParams, Summary};
 use std::path::{Path, PathBuf};
 
 /// What [`build`] did.

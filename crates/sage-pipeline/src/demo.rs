@@ -9,12 +9,13 @@
 
 use crate::dataset::DatasetReport;
 use crate::nav::MapReport;
-use sage_bench::agents::AgentKind;
-use sage_bench::dataset::build::{AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
-use sage_bench::eval::{EvalSettings, RunOutcome, SUMMARY_FILE, Summary};
-use sage_bench::report::ReportOutcome;
+use sage_agents::AgentKind;
 use sage_core::{Error, Result};
+use sage_dataset::build::{AssembleParams, SceneParams};
+use sage_dataset::split::SplitParams;
+use sage_eval::folder::SUMMARY_FILE;
+use sage_eval::report::ReportOutcome;
+use sage_eval::{EvalSettings, RunOutcome, Summary};
 use sage_metrics::{Dtw, Mode};
 use sage_nav::GridParams;
 use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, default_cache_dir};
@@ -291,7 +292,7 @@ impl Step {
             )?)),
             Step::TrainData { settings, out } => {
                 let (_, train) =
-                    sage_bench::eval::split_episodes(&settings.dataset, &settings.split)?;
+                    sage_dataset::folder::split_episodes(&settings.dataset, &settings.split)?;
                 StepReport::TrainData(if train.is_empty() {
                     None
                 } else {
@@ -437,7 +438,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
 /// Fails early, with what to do, when the split to evaluate holds no episode (with few
 /// scenes every scene can go to the training split).
 fn check_split(dataset: &Path, split: &str) -> Result<()> {
-    let (_, episodes) = sage_bench::eval::split_episodes(dataset, split)?;
+    let (_, episodes) = sage_dataset::folder::split_episodes(dataset, split)?;
     if episodes.is_empty() {
         return Err(Error::invalid(format!(
             "the {split} split is empty (with few scenes, all of them can land in train); pass --split train or more --scenes"

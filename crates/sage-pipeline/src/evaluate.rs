@@ -1,9 +1,9 @@
 //! An evaluation with its report: run (or resume) an agent over a dataset split, then write the
 //! run's `report.html` and maps.
 
-use sage_bench::eval::{self, EvalRecord, EvalSettings, RunOutcome};
-use sage_bench::report::{self, ReportOutcome};
 use sage_core::Result;
+use sage_eval::report::{self, ReportOutcome};
+use sage_eval::{EvalRecord, EvalSettings, RunOutcome};
 use std::path::Path;
 
 /// [`evaluate_into`] without `force`.
@@ -23,11 +23,11 @@ pub fn evaluate(
 /// Runs or resumes the evaluation of `settings` into `out` (`on_episode(record, to_run)` after
 /// each episode), then writes its report (`on_map(episode_id, maps)` after each map). `out`
 /// must be new, empty or an evaluation's run folder; with `force`, a folder of other files is
-/// written into, provided none of them would be replaced ([`eval::claim`]).
+/// written into, provided none of them would be replaced ([`sage_eval::claim`]).
 ///
 /// # Errors
 ///
-/// As [`eval::claim`], [`eval::run`] and [`report::write_with`].
+/// As [`sage_eval::claim`], [`sage_eval::run`] and [`report::write_with`].
 pub fn evaluate_into(
     settings: &EvalSettings,
     out: &Path,
@@ -35,8 +35,8 @@ pub fn evaluate_into(
     on_episode: &(dyn Fn(&EvalRecord, usize) + Sync),
     on_map: &(dyn Fn(&str, usize) + Sync),
 ) -> Result<(RunOutcome, ReportOutcome)> {
-    eval::claim(out, force)?;
-    let outcome = eval::run(settings, out, on_episode)?;
+    sage_eval::claim(out, force)?;
+    let outcome = sage_eval::run(settings, out, on_episode)?;
     let report = report::write_with(out, &settings.scenes, on_map)?;
     Ok((outcome, report))
 }

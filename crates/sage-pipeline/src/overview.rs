@@ -2,9 +2,9 @@
 //! scene's semantic map with the episode's reference path and the agent's path.
 
 use glam::Vec3;
-use sage_bench::eval::EvalRecord;
-use sage_bench::report;
 use sage_core::{Error, Result};
+use sage_eval::EvalRecord;
+use sage_eval::report;
 use sage_nav::{NavGrid, SemanticMap, TrajectoryParams};
 use sage_scene::Scene;
 use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};

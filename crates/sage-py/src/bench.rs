@@ -6,12 +6,12 @@ use crate::agent::PyAgent;
 use crate::convert::{PyResultExt, from_json, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sage_bench::agents::{AgentKind, AgentMaker};
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::folder;
-use sage_bench::eval::{self, EvalSettings, Runner, Summary};
+use sage_agents::{AgentKind, AgentMaker};
 use sage_core::{Error, Result};
+use sage_dataset::build::{self, AssembleParams, SceneParams};
+use sage_dataset::folder;
 use sage_env::agents::Agent;
+use sage_eval::{EvalSettings, Runner, Summary};
 use sage_metrics::Scoring;
 use std::path::{Path, PathBuf};
 
@@ -22,7 +22,9 @@ pub fn read_split<'py>(
     dataset: PathBuf,
     split: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (_, episodes) = py.detach(|| eval::split_episodes(&dataset, split)).py()?;
+    let (_, episodes) = py
+        .detach(|| sage_dataset::folder::split_episodes(&dataset, split))
+        .py()?;
     to_py(py, &episodes)
 }
 
@@ -42,7 +44,7 @@ pub fn agent_spec<'py>(py: Python<'py>, spec: &str) -> PyResult<Bound<'py, PyAny
 /// before the list, its `episodes/*.jsonl`), sorted.
 #[pyfunction]
 pub fn list_splits(dataset: PathBuf) -> PyResult<Vec<String>> {
-    eval::dataset_splits(&dataset).py()
+    sage_dataset::folder::splits(&dataset).py()
 }
 
 /// The scenes folder of an evaluation or render of `dataset`: `scenes` when given, else the
@@ -141,15 +143,15 @@ pub fn evaluate<'py>(
             preset,
         )?
     };
-    eval::claim(&out, false).py()?;
+    sage_eval::claim(&out, false).py()?;
     let factory = agent.clone().unbind();
     let outcome = if builtin.is_some() && overrides.is_none() && scenes_only.is_none() {
-        py.detach(|| eval::run(&settings, &out, &|_, _| {}))
+        py.detach(|| sage_eval::run(&settings, &out, &|_, _| {}))
     } else {
         let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
         let config = match (&maker, overrides) {
             // A built-in agent sees what it sees under `sage3d eval`.
-            (Some(maker), None) => eval::env_config(preset, maker, settings.device).py()?,
+            (Some(maker), None) => sage_eval::env_config(preset, maker, settings.device).py()?,
             _ => sage_env::EnvConfig {
                 device: settings.device,
                 ..sage_env::EnvConfig::with_overrides(
@@ -169,9 +171,8 @@ pub fn evaluate<'py>(
                 .map_err(|e| Error::invalid(format!("python agent {name}: {e}"))),
             }
         };
-        let keep = |e: &sage_bench::dataset::Episode| {
-            scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene))
-        };
+        let keep =
+            |e: &sage_dataset::Episode| scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene));
         let runner = Runner {
             config,
             agent_name: name.clone(),
@@ -179,7 +180,7 @@ pub fn evaluate<'py>(
             shard: Some(&keep),
             serial: maker.as_ref().is_some_and(AgentMaker::serial),
         };
-        py.detach(|| eval::run_with(&settings, &runner, &out, &|_, _| {}))
+        py.detach(|| sage_eval::run_with(&settings, &runner, &out, &|_, _| {}))
     }
     .py()?;
     if strict {
@@ -242,7 +243,7 @@ pub fn merge_eval<'py>(
         )?
     };
     let summary = py
-        .detach(|| eval::merge_shards(&settings, &agent_name, &shards, &out))
+        .detach(|| sage_eval::merge_shards(&settings, &agent_name, &shards, &out))
         .py()?;
     to_py(py, &summary)
 }

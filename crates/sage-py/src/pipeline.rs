@@ -3,7 +3,7 @@
 
 use crate::convert::{PyResultExt, to_py};
 use pyo3::prelude::*;
-use sage_bench::dataset::build::{AssembleParams, SceneParams};
+use sage_dataset::build::{AssembleParams, SceneParams};
 use sage_pipeline::demo::DemoSettings;
 use std::collections::BTreeMap;
 use std::path::PathBuf;

@@ -5,8 +5,8 @@ use crate::encode::RgbCodec;
 use crate::output::Format;
 use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS};
 use crate::run::Settings;
-use sage_bench::dataset::folder::scenes_folder;
 use sage_core::{Error, Result};
+use sage_dataset::folder::scenes_folder;
 use std::path::PathBuf;
 
 /// The options of `sage3d data render` / `sage3d.render_training_data`; [`Options::new`]
@@ -16,7 +16,7 @@ pub struct Options {
     /// The dataset folder.
     pub dataset: PathBuf,
     /// The scenes folder (`None`: the one the dataset records,
-    /// [`sage_bench::dataset::folder::scenes_folder`]).
+    /// [`sage_dataset::folder::scenes_folder`]).
     pub scenes: Option<PathBuf>,
     /// The split.
     pub split: String,

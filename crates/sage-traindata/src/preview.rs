@@ -5,7 +5,7 @@
 //! map with the reference path, the poses walked so far and the current pose with a heading
 //! tick, and below both the episode, the instruction and the action in words. The episodes
 //! follow one another, with a pause on each one's last frame. The colours are the evaluation
-//! report's ([`sage_bench::report::maps`]), so a preview reads like a report's episode map.
+//! report's ([`sage_io::marks`]), so a preview reads like a report's episode map.
 
 /// The preview's file name in the output folder.
 pub const PREVIEW_FILE: &str = "preview.gif";
@@ -23,11 +23,11 @@ pub const MAX_WIDTH: usize = 900;
 use crate::replay::Route;
 use crate::sample::{EpisodeSample, IMAGES_DIR};
 use glam::Vec2;
-use sage_bench::dataset::Episode;
-use sage_bench::report::maps;
 use sage_core::{Error, Result, ResultExt};
+use sage_dataset::Episode;
 use sage_env::SceneContext;
 use sage_io::Canvas;
+use sage_io::{marks, palette};
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
@@ -315,14 +315,14 @@ fn episode_base(panel: &Canvas, map: &SceneMap, episode: Option<&Episode>) -> Ca
         && poly.len() >= 2
     {
         let closed: Vec<Vec2> = poly.iter().chain(poly.first()).copied().collect();
-        maps::polyline(&mut canvas, &closed, maps::GOAL, 3);
+        marks::polyline(&mut canvas, &closed, palette::GOAL, 3);
     }
     let reference: Vec<Vec2> = e.reference_path.iter().map(|p| xy(p[0], p[1])).collect();
-    maps::polyline(
+    marks::polyline(
         &mut canvas,
         &reference,
-        maps::REFERENCE,
-        maps::REFERENCE_WIDTH,
+        palette::REFERENCE_PATH,
+        marks::REFERENCE_WIDTH,
     );
     canvas
 }
@@ -385,7 +385,7 @@ fn compose(
         left,
         layout.line_y(1 + INSTRUCTION_LINES),
         &clip(&action, cpl),
-        maps::AGENT,
+        palette::AGENT_PATH,
         ts,
     );
     key(&mut image, layout, layout.line_y(2 + INSTRUCTION_LINES));
@@ -398,9 +398,14 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
     let mut canvas = base.clone();
     let steps = &sample.steps[..=k.min(sample.steps.len() - 1)];
     let walked: Vec<Vec2> = steps.iter().map(|s| xy(s.pose[0], s.pose[1])).collect();
-    maps::polyline(&mut canvas, &walked, maps::AGENT, maps::AGENT_WIDTH);
+    marks::polyline(
+        &mut canvas,
+        &walked,
+        palette::AGENT_PATH,
+        marks::AGENT_WIDTH,
+    );
     if let Some(start) = walked.first() {
-        maps::marker(&mut canvas, *start, maps::MARKER_RADIUS, maps::START);
+        marks::marker(&mut canvas, *start, marks::MARKER_RADIUS, palette::START);
     }
     let goal = episode.and_then(|e| {
         e.goal
@@ -409,7 +414,12 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
             .or_else(|| e.reference_path.last().copied())
     });
     if let Some(g) = goal {
-        maps::marker(&mut canvas, xy(g[0], g[1]), maps::MARKER_RADIUS, maps::GOAL);
+        marks::marker(
+            &mut canvas,
+            xy(g[0], g[1]),
+            marks::MARKER_RADIUS,
+            palette::GOAL,
+        );
     }
     // A contact happens during an action: it is shown where the action left the agent, once
     // that action has been taken.
@@ -419,10 +429,10 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
         .map(|s| xy(s.achieved[0], s.achieved[1]))
         .collect();
     for p in &hits {
-        canvas.disc(*p, maps::COLLISION_RADIUS + 1, maps::HALO);
+        canvas.disc(*p, marks::COLLISION_RADIUS + 1, marks::HALO);
     }
     for p in &hits {
-        canvas.disc(*p, maps::COLLISION_RADIUS, maps::COLLISION);
+        canvas.disc(*p, marks::COLLISION_RADIUS, palette::COLLISION);
     }
     let [x, y, yaw] = steps[steps.len() - 1].pose;
     let here = xy(x, y);
@@ -431,9 +441,9 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
         .to_pixel(here + Vec2::X)
         .distance(canvas.to_pixel(here));
     let tip = here + Vec2::from_angle(yaw) * (TICK_LENGTH / pixels_per_metre.max(1e-6));
-    canvas.line(here, tip, maps::HALO, 5);
+    canvas.line(here, tip, marks::HALO, 5);
     canvas.line(here, tip, INK, 3);
-    maps::marker(&mut canvas, here, AGENT_RADIUS, maps::AGENT);
+    marks::marker(&mut canvas, here, AGENT_RADIUS, palette::AGENT_PATH);
     canvas
 }
 
@@ -441,7 +451,7 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
 fn key(image: &mut Canvas, layout: &Layout, y: i64) {
     let ts = layout.text_scale as i64;
     let mut x = PAD as i64;
-    for (colour, label) in maps::legend() {
+    for (colour, label) in marks::LEGEND {
         let end = x + 9 * ts + (label.len() as i64 + 2) * 6 * ts;
         if end > (layout.width - PAD) as i64 {
             break;

@@ -4,8 +4,8 @@
 
 use crate::follow::{Ending, PathFollower};
 use crate::preset::ActionPreset;
-use sage_bench::dataset::Episode;
 use sage_core::{Result, wrap_angle};
+use sage_dataset::Episode;
 use sage_env::agents::Agent;
 use sage_env::{Action, Env, Images};
 use serde::{Deserialize, Serialize};

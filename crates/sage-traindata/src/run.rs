@@ -239,7 +239,7 @@ impl Plan {
     pub fn new(settings: &Settings) -> Result<Plan> {
         let env = settings.env_config()?;
         let (file, episodes) =
-            sage_bench::eval::split_episodes(&settings.dataset, &settings.split)?;
+            sage_dataset::folder::split_episodes(&settings.dataset, &settings.split)?;
         let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
         let mut ignored: BTreeMap<String, usize> = BTreeMap::new();
         let mut goal: Vec<_> = episodes

@@ -107,8 +107,8 @@ fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
         .collect();
     assert_eq!(episodes.len(), m.counts.kept);
     let (_, dataset) = data();
-    let (_, source) = sage_bench::eval::split_episodes(dataset, "train").unwrap();
-    let by_id: BTreeMap<&str, &sage_bench::dataset::Episode> =
+    let (_, source) = sage_dataset::folder::split_episodes(dataset, "train").unwrap();
+    let by_id: BTreeMap<&str, &sage_dataset::Episode> =
         source.iter().map(|e| (e.episode_id.as_str(), e)).collect();
     let step = 0.35f32;
     let turn = 30f32.to_radians();

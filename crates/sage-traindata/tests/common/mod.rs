@@ -1,7 +1,7 @@
 //! What the training-data tests share: a small generated home and its dataset.
 
-use sage_bench::dataset::build::{self, AssembleParams, SceneParams};
-use sage_bench::dataset::split::SplitParams;
+use sage_dataset::build::{self, AssembleParams, SceneParams};
+use sage_dataset::split::SplitParams;
 use std::path::{Path, PathBuf};
 
 /// A 3-room, 30-object home of 3000 Gaussians saved as `dir/scenes/home1`, and its dataset in

@@ -1,0 +1,160 @@
+//! One episode of the benchmark (SPEC §9), W frame.
+
+use crate::slices::Slices;
+use sage_core::{Error, Pose, Result, Vec3};
+use sage_env::{EnvEpisode, EnvGoal};
+use sage_lang::{Action, InstructionType, Level, SingleGoalKind, Source};
+use serde::{Deserialize, Serialize};
+
+pub use sage_core::Task;
+
+/// A start pose: position (W, floor z) and heading (radians, +x counter-clockwise).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StartPose {
+    /// `[x, y, z]`, metres.
+    pub position: [f32; 3],
+    /// Heading, radians.
+    pub yaw: f32,
+}
+
+impl StartPose {
+    /// As a [`Pose`].
+    pub fn pose(&self) -> Pose {
+        Pose::new(self.position.into(), self.yaw)
+    }
+}
+
+/// The goal of a VLN episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Goal {
+    /// What the goal is (`sofa_2`, `room_3`, `dining_area_1`; empty for Base-Action).
+    #[serde(rename = "ref")]
+    pub reference: String,
+    /// `object`, `room`, `area` or `pose` (Base-Action: the pose the motion ends at).
+    pub kind: String,
+    /// Goal point `[x, y, z]` (the reference path's end), metres.
+    pub position: [f32; 3],
+    /// The heading a pose goal ends at (Base-Action), radians: its success in mode `sage` is
+    /// the pose test of docs/metrics.md. Absent in other goals and older datasets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yaw: Option<f32>,
+}
+
+/// One episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Episode {
+    /// Unique id: `{scene}-t{trajectory}-{k}`, `{scene}-b{i}` or `{scene}-n{i}`.
+    pub episode_id: String,
+    /// Scene name.
+    pub scene: String,
+    /// `vln` or `nogoal`.
+    pub task: Task,
+    /// Index of the trajectory in the scene (`None` for Base-Action and no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trajectory_id: Option<usize>,
+    /// Instruction text.
+    pub instruction: String,
+    /// `high` or `low` (`None` for no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<Level>,
+    /// Instruction type.
+    pub instruction_type: InstructionType,
+    /// Single-Goal subtype.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subtype: Option<SingleGoalKind>,
+    /// Who wrote the instruction.
+    pub source: Source,
+    /// Start reference (`chair_3`, `room_2`, …), if the start is one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_ref: Option<String>,
+    /// Start pose.
+    pub start: StartPose,
+    /// Goal (`None` for no-goal).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub goal: Option<Goal>,
+    /// Dense reference path `[x, y, z]`, W frame (every 0.25 m; the replayed motion for
+    /// Base-Action; the start alone for no-goal).
+    pub reference_path: Vec<[f32; 3]>,
+    /// Ground-truth actions (0 STOP, 1 FORWARD, 2 LEFT, 3 RIGHT), ending with STOP.
+    pub actions: Vec<Action>,
+    /// Length of the reference path, metres.
+    pub path_length: f32,
+    /// Geodesic distance start → goal, metres (0 for no-goal).
+    pub geodesic_distance: f32,
+    /// Complexity slices.
+    pub slices: Slices,
+}
+
+/// The largest coordinate magnitude an episode file may hold, metres: far beyond any indoor
+/// scene, small enough that f32 keeps millimetres there and that following a path takes a
+/// bounded number of steps (a number too large for f32 reads as infinity).
+pub const MAX_COORDINATE: f32 = 1.0e4;
+
+/// Checks a point read from a file: finite, each coordinate within [`MAX_COORDINATE`].
+///
+/// # Errors
+///
+/// At `at`, naming the offending value.
+pub fn check_point(p: [f32; 3], at: &str) -> Result<()> {
+    if p.iter().all(|c| c.abs() <= MAX_COORDINATE) {
+        Ok(())
+    } else {
+        Err(Error::format(
+            at,
+            format!("{p:?}: expected finite coordinates within ±{MAX_COORDINATE} m"),
+        ))
+    }
+}
+
+impl Episode {
+    /// Checks the numbers of an episode read from a file: finite points within
+    /// [`MAX_COORDINATE`], finite headings and finite, non-negative lengths.
+    ///
+    /// # Errors
+    ///
+    /// The first bad field, named.
+    pub fn check(&self) -> Result<()> {
+        check_point(self.start.position, "start.position")?;
+        if !self.start.yaw.is_finite() {
+            return Err(Error::format("start.yaw", "expected a finite number"));
+        }
+        if let Some(g) = &self.goal {
+            check_point(g.position, "goal.position")?;
+            if g.yaw.is_some_and(|y| !y.is_finite()) {
+                return Err(Error::format("goal.yaw", "expected a finite number"));
+            }
+        }
+        for (i, p) in self.reference_path.iter().enumerate() {
+            check_point(*p, &format!("reference_path[{i}]"))?;
+        }
+        for (key, v) in [
+            ("path_length", self.path_length),
+            ("geodesic_distance", self.geodesic_distance),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::format(
+                    key,
+                    format!("{v}: expected a finite length >= 0"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The environment's view of this episode: an object goal names its item id, so the
+    /// object's footprint becomes the goal region.
+    pub fn env_episode(&self) -> EnvEpisode {
+        EnvEpisode {
+            id: self.episode_id.clone(),
+            task: self.task,
+            instruction: self.instruction.clone(),
+            start: self.start.pose(),
+            goal: self.goal.as_ref().map(|g| EnvGoal {
+                point: Vec3::from(g.position),
+                object: (g.kind == "object").then(|| g.reference.clone()),
+                heading: g.yaw.filter(|_| g.kind == "pose"),
+            }),
+            reference_path: self.reference_path.iter().map(|&p| Vec3::from(p)).collect(),
+        }
+    }
+}

@@ -1,0 +1,300 @@
+//! What a dataset folder says about itself: the list of its splits (`splits.json`) and the
+//! scenes folder it was built from (its run record, `sage3d_run.json`).
+//!
+//! **Splits.** A split is a name listed under `"splits"` in `splits.json` (which `data build`
+//! writes and `data import` extends), its episodes in `episodes/{split}.jsonl`; any other
+//! `*.jsonl` lying in `episodes/` is not a split. Folders written before the list existed (no
+//! `splits.json`) fall back to the old rule: every `episodes/*.jsonl` is a split.
+//!
+//! **Scenes.** `data build` records the scenes folder it read twice: absolute, and relative to
+//! the dataset folder. A command that needs the scenes and is not given them resolves the
+//! relative path first (it still holds when the dataset and its scenes move together), then the
+//! absolute one (it still holds when the dataset alone moves).
+
+use crate::Episode;
+use sage_core::{Error, Result};
+use sage_io::files::{read_json, write_json};
+use sage_io::run::RUN_RECORD;
+use serde_json::{Map, Value, json};
+use std::path::{Component, Path, PathBuf};
+
+/// The file listing a dataset's splits and their episode ids.
+pub const SPLITS_FILE: &str = "splits.json";
+
+/// Checks that `dataset` is a dataset folder (it has `episodes/`).
+///
+/// # Errors
+///
+/// An `invalid` error naming the folder.
+pub fn check(dataset: &Path) -> Result<()> {
+    if dataset.join("episodes").is_dir() {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "not a dataset folder (no episodes/ in it; make one with `sage3d data build`)",
+    )
+    .in_file(dataset))
+}
+
+/// The splits `splits.json` lists, sorted; `None` for a dataset without the file (written
+/// before the list existed).
+///
+/// # Errors
+///
+/// An unreadable `splits.json`, or one without a `"splits"` object.
+pub fn listed_splits(dataset: &Path) -> Result<Option<Vec<String>>> {
+    let path = dataset.join(SPLITS_FILE);
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let value: Value = read_json(&path)?;
+    let splits = value
+        .get("splits")
+        .and_then(Value::as_object)
+        .ok_or_else(|| {
+            Error::format("splits", "expected an object of split names").in_file(&path)
+        })?;
+    let mut names: Vec<String> = splits.keys().cloned().collect();
+    names.sort();
+    Ok(Some(names))
+}
+
+/// The names of the `episodes/*.jsonl` files of `dataset`, sorted: the splits of a dataset
+/// without a list.
+fn globbed_splits(dataset: &Path) -> Result<Vec<String>> {
+    let dir = dataset.join("episodes");
+    let mut splits: Vec<String> = std::fs::read_dir(&dir)
+        .map_err(|e| Error::io(&dir, e))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            e.file_name()
+                .to_string_lossy()
+                .strip_suffix(".jsonl")
+                .map(str::to_string)
+        })
+        .collect();
+    splits.sort();
+    Ok(splits)
+}
+
+/// The splits of `dataset`, sorted: those `splits.json` lists, or for a dataset without the
+/// file every `episodes/*.jsonl`.
+///
+/// # Errors
+///
+/// Not a dataset folder ([`check`]), an unreadable `splits.json` or `episodes/`.
+pub fn splits(dataset: &Path) -> Result<Vec<String>> {
+    check(dataset)?;
+    match listed_splits(dataset)? {
+        Some(listed) => Ok(listed),
+        None => globbed_splits(dataset),
+    }
+}
+
+/// The splits of `dataset` that hold at least one episode, sorted.
+///
+/// # Errors
+///
+/// As [`splits`].
+pub fn non_empty_splits(dataset: &Path) -> Result<Vec<String>> {
+    Ok(splits(dataset)?
+        .into_iter()
+        .filter(|s| {
+            let file = dataset.join("episodes").join(format!("{s}.jsonl"));
+            std::fs::read_to_string(file).is_ok_and(|t| t.lines().any(|l| !l.trim().is_empty()))
+        })
+        .collect())
+}
+
+/// The episodes file of `split` in `dataset`.
+///
+/// # Errors
+///
+/// An `invalid` error listing the dataset's splits when `split` is not one of them, an
+/// error naming the missing file of a listed split, or the file's read error.
+pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
+    let splits = splits(dataset)?;
+    let file = dataset.join("episodes").join(format!("{split}.jsonl"));
+    if !splits.iter().any(|s| s == split) {
+        return Err(Error::invalid(format!(
+            "unknown split '{split}' (this dataset has: {})",
+            splits.join(", ")
+        ))
+        .in_file(dataset));
+    }
+    if !file.is_file() {
+        return Err(Error::invalid(format!(
+            "split '{split}' is listed in {} but has no episodes file",
+            SPLITS_FILE
+        ))
+        .in_file(&file));
+    }
+    let episodes = crate::formats::jsonl::read(&file)?;
+    Ok((file, episodes))
+}
+
+/// Lists `split` with the ids of `episodes` in `splits.json` (replacing its old ids), making
+/// the file when the dataset has none and no other split file. A dataset without the list but
+/// with other `episodes/*.jsonl` keeps the old rule (every file a split), which already counts
+/// the new split: writing a list of one split there would hide the others.
+///
+/// # Errors
+///
+/// An unreadable `splits.json` (or one whose `"splits"` is not an object), or a write error.
+pub fn add_split(dataset: &Path, split: &str, episodes: &[Episode]) -> Result<()> {
+    let path = dataset.join(SPLITS_FILE);
+    let mut value: Value = if path.is_file() {
+        read_json(&path)?
+    } else if globbed_splits(dataset)?.iter().any(|s| s != split) {
+        return Ok(());
+    } else {
+        json!({"splits": {}})
+    };
+    let ids: Vec<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    value
+        .as_object_mut()
+        .and_then(|o| {
+            o.entry("splits")
+                .or_insert_with(|| Value::Object(Map::new()))
+                .as_object_mut()
+        })
+        .ok_or_else(|| Error::format("splits", "expected an object of split names").in_file(&path))?
+        .insert(split.to_string(), json!(ids));
+    write_json(&path, &value)
+}
+
+/// `path` made absolute: resolved through links when it exists, else joined to the working
+/// directory.
+fn absolute(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path)
+        .or_else(|_| std::path::absolute(path))
+        .unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// The relative path from folder `base` to `target` (both absolute, without `.` or `..`);
+/// `None` when they share no root (another drive).
+fn relative_to(target: &Path, base: &Path) -> Option<PathBuf> {
+    let (t, b): (Vec<Component>, Vec<Component>) =
+        (target.components().collect(), base.components().collect());
+    if t.first() != b.first() {
+        return None;
+    }
+    let common = t.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut rel: PathBuf = b[common..].iter().map(|_| Component::ParentDir).collect();
+    rel.extend(&t[common..]);
+    Some(if rel.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        rel
+    })
+}
+
+/// How a dataset's run record stores the scenes folder `scenes` of dataset `dataset`:
+/// `{"absolute": …, "relative": …}` (`relative` from the dataset folder, absent when there is
+/// no relative path).
+pub fn scenes_record(dataset: &Path, scenes: &Path) -> Value {
+    let abs = absolute(scenes);
+    let mut record = json!({"absolute": abs});
+    if let Some(rel) = relative_to(&abs, &absolute(dataset)) {
+        record["relative"] = json!(rel);
+    }
+    record
+}
+
+/// The scenes folder of an evaluation or render of `dataset`: `given` when there is one, else
+/// the folder the dataset's run record names (relative to the dataset first, then absolute).
+///
+/// # Errors
+///
+/// Without `given`: not a dataset folder, a dataset that records no scenes folder (imported, or
+/// built before the record existed) or one whose recorded folder exists neither way, each
+/// telling to pass `--scenes`.
+pub fn scenes_folder(dataset: &Path, given: Option<&Path>) -> Result<PathBuf> {
+    if let Some(scenes) = given {
+        return Ok(scenes.to_path_buf());
+    }
+    check(dataset)?;
+    let path = dataset.join(RUN_RECORD);
+    let record: Option<Value> = if path.is_file() {
+        Some(read_json(&path)?)
+    } else {
+        None
+    };
+    let Some(scenes) = record.as_ref().and_then(|r| r.get("scenes")) else {
+        return Err(
+            Error::invalid("the dataset does not record its scenes folder; pass --scenes")
+                .in_file(dataset),
+        );
+    };
+    let field = |name: &str| scenes.get(name).and_then(Value::as_str).map(PathBuf::from);
+    if let Some(rel) = field("relative") {
+        let dir = dataset.join(rel);
+        if dir.is_dir() {
+            return Ok(dir);
+        }
+    }
+    match field("absolute") {
+        Some(abs) if abs.is_dir() => Ok(abs),
+        Some(abs) => Err(Error::invalid(format!(
+            "the recorded scenes folder {} does not exist; pass --scenes",
+            abs.display()
+        ))
+        .in_file(&path)),
+        None => Err(
+            Error::format("scenes.absolute", "expected the scenes folder's path").in_file(&path),
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_paths_climb_to_the_common_folder() {
+        let rel = |t: &str, b: &str| relative_to(Path::new(t), Path::new(b)).unwrap();
+        assert_eq!(rel("/w/scenes", "/w/data"), PathBuf::from("../scenes"));
+        assert_eq!(rel("/w/data/scenes", "/w/data"), PathBuf::from("scenes"));
+        assert_eq!(rel("/w", "/w/a/b"), PathBuf::from("../.."));
+        assert_eq!(rel("/w", "/w"), PathBuf::from("."));
+    }
+
+    #[test]
+    fn the_recorded_scenes_resolve_relative_first_then_absolute() {
+        let dir = tempfile::tempdir().unwrap();
+        let (data, scenes) = (dir.path().join("data"), dir.path().join("scenes"));
+        std::fs::create_dir_all(data.join("episodes")).unwrap();
+        std::fs::create_dir_all(&scenes).unwrap();
+        let e = scenes_folder(&data, None).unwrap_err().to_string();
+        assert!(
+            e.contains("does not record its scenes folder; pass --scenes"),
+            "{e}"
+        );
+        let record = json!({"command": "data build", "scenes": scenes_record(&data, &scenes)});
+        write_json(&data.join(RUN_RECORD), &record).unwrap();
+        assert_eq!(record["scenes"]["relative"], "../scenes");
+        assert_eq!(scenes_folder(&data, None).unwrap(), data.join("../scenes"));
+        // Moved together: the relative path holds.
+        let moved = dir.path().join("moved");
+        std::fs::create_dir(&moved).unwrap();
+        std::fs::rename(&data, moved.join("data")).unwrap();
+        std::fs::rename(&scenes, moved.join("scenes")).unwrap();
+        let data = moved.join("data");
+        assert_eq!(scenes_folder(&data, None).unwrap(), data.join("../scenes"));
+        // The scenes back where they were: the absolute path holds, until they are gone.
+        std::fs::create_dir_all(&scenes).unwrap();
+        std::fs::remove_dir(moved.join("scenes")).unwrap();
+        assert_eq!(scenes_folder(&data, None).unwrap(), absolute(&scenes));
+        std::fs::remove_dir(&scenes).unwrap();
+        let e = scenes_folder(&data, None).unwrap_err().to_string();
+        assert!(
+            e.contains("the recorded scenes folder") && e.contains("does not exist; pass --scenes"),
+            "{e}"
+        );
+        // Given scenes override the record.
+        assert_eq!(
+            scenes_folder(&data, Some(Path::new("elsewhere"))).unwrap(),
+            PathBuf::from("elsewhere")
+        );
+    }
+}

@@ -1,0 +1,410 @@
+//! The SAGE-Bench "GVLN" trajectory JSON (research notes §2.1), read and written.
+//!
+//! `{dataset_metadata: {name: "GVLN", frame, frame_offset}, scenes: [{scene_id, scene_name,
+//! samples: [{trajectory_id, instructions: [{instruction_type, start, end,
+//! generated_instruction, scene_id}], points: [{point, position, rotation, …}]}]}]}`.
+//!
+//! - **Frame**: written in W (`frame: "W"`) or in the SAGE S frame (`frame: "S"`, with
+//!   `frame_offset: [δx, δy]`: x_S = −x_W + δx, y_S = −y_W + δy). A file without `frame` (the
+//!   published ones) is read as S with the offset the caller gives.
+//! - **rotation**: `[−sin(φ/2), 0, 0, cos(φ/2)]` with φ = ψ + π, ψ the heading in the file's frame
+//!   toward the next point; the last point holds the final heading (the published files force
+//!   `[0, 0, 0, 1]` there, which the reader ignores).
+//! - **position** z: the floor (0), not the published 0.5.
+//! - Each instruction carries extra keys of ours (`episode_id`, `level`, `subtype`, `source`,
+//!   `task`) that other readers ignore. A sample is a trajectory with all its instructions;
+//!   Base-Action and no-goal episodes are samples of their own.
+//! - Reading: one episode per (sample, instruction); ground-truth actions are recomputed from
+//!   the points; the type `Default` (the published generator's failure text) reads as
+//!   Single-Goal.
+
+use crate::episode::{Episode, Goal, StartPose, Task, check_point};
+use crate::slices::{Slices, path_slice};
+use glam::{Vec2, Vec3};
+use sage_core::frame::SageFrame;
+use sage_core::{Error, Result, ResultExt, wrap_angle};
+use sage_lang::actions::{ActionSpace, follow};
+use sage_lang::{InstructionType, Level, Source};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The frame of a GVLN file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GvlnFrame {
+    /// Our world frame W.
+    World,
+    /// The SAGE S frame with its per-scene offset.
+    Sage(SageFrame),
+}
+
+impl GvlnFrame {
+    fn point(&self, p: [f32; 3]) -> [f32; 3] {
+        match self {
+            GvlnFrame::World => p,
+            GvlnFrame::Sage(s) => s.world_to_sage(Vec3::from(p)).into(),
+        }
+    }
+    fn point_back(&self, p: [f32; 3]) -> [f32; 3] {
+        match self {
+            GvlnFrame::World => p,
+            GvlnFrame::Sage(s) => s.sage_to_world(Vec3::from(p)).into(),
+        }
+    }
+    fn heading(&self, yaw: f32) -> f32 {
+        match self {
+            GvlnFrame::World => wrap_angle(yaw),
+            GvlnFrame::Sage(s) => s.heading_to_sage(yaw),
+        }
+    }
+    fn heading_back(&self, yaw: f32) -> f32 {
+        match self {
+            GvlnFrame::World => wrap_angle(yaw),
+            GvlnFrame::Sage(s) => s.heading_to_world(yaw),
+        }
+    }
+}
+
+/// The `rotation` of a heading ψ (see the module docs).
+pub fn encode_rotation(psi: f32) -> [f32; 4] {
+    let phi = wrap_angle(psi + std::f32::consts::PI);
+    [-(phi / 2.0).sin(), 0.0, 0.0, (phi / 2.0).cos()]
+}
+
+/// The heading ψ of a `rotation`: 2·atan2(−q0, q3) − π.
+pub fn decode_rotation(q: [f32; 4]) -> f32 {
+    wrap_angle(2.0 * (-q[0]).atan2(q[3]) - std::f32::consts::PI)
+}
+
+/// Headings along a path: toward the next point; the last is `last`.
+fn headings(path: &[[f32; 3]], last: f32) -> Vec<f32> {
+    (0..path.len())
+        .map(|i| match path.get(i + 1) {
+            Some(n) if Vec2::new(n[0] - path[i][0], n[1] - path[i][1]).length() > 1e-6 => {
+                (n[1] - path[i][1]).atan2(n[0] - path[i][0])
+            }
+            _ => last,
+        })
+        .collect()
+}
+
+/// Writes episodes as one GVLN file in `frame` (atomically).
+pub fn write(
+    path: &Path,
+    episodes: &[Episode],
+    frame: GvlnFrame,
+    space: &ActionSpace,
+) -> Result<()> {
+    let mut scenes: BTreeMap<&str, BTreeMap<String, Vec<&Episode>>> = BTreeMap::new();
+    for e in episodes {
+        let key = match e.trajectory_id {
+            Some(t) => format!("{t}"),
+            None => e
+                .episode_id
+                .rsplit('-')
+                .next()
+                .unwrap_or_default()
+                .to_string(),
+        };
+        scenes
+            .entry(&e.scene)
+            .or_default()
+            .entry(key)
+            .or_default()
+            .push(e);
+    }
+    let scenes: Vec<Value> = scenes
+        .into_iter()
+        .map(|(scene, samples)| {
+            let samples: Vec<Value> = samples
+                .into_iter()
+                .map(|(key, eps)| {
+                    let first = eps[0];
+                    let final_yaw = sage_lang::actions::replay(first.start.pose(), &first.actions, space)
+                        .last()
+                        .map_or(first.start.yaw, |p| p.yaw);
+                    let mut hs = headings(&first.reference_path, final_yaw);
+                    if let Some(h) = hs.first_mut() {
+                        *h = first.start.yaw;
+                    }
+                    let points: Vec<Value> = first
+                        .reference_path
+                        .iter()
+                        .zip(hs)
+                        .enumerate()
+                        .map(|(i, (p, h))| {
+                            json!({
+                                "point": i.to_string(), "position": frame.point(*p),
+                                "rotation": encode_rotation(frame.heading(h)),
+                                "action": [], "camera_images": [], "focal_length": 7.0,
+                                "horizontal_aperture": 20.955, "vertical_aperture": 20.955,
+                                "focus_distance": 0.0, "clipping_range": [1.0, 1.0e6],
+                            })
+                        })
+                        .collect();
+                    let instructions: Vec<Value> = eps
+                        .iter()
+                        .map(|e| {
+                            json!({
+                                "instruction_type": e.instruction_type.as_str(),
+                                "start": e.start_ref.clone().unwrap_or_default(),
+                                "end": e.goal.as_ref().map(|g| g.reference.clone()).unwrap_or_default(),
+                                "generated_instruction": e.instruction, "scene_id": scene,
+                                "episode_id": e.episode_id, "level": e.level, "subtype": e.subtype,
+                                "source": e.source, "task": e.task,
+                            })
+                        })
+                        .collect();
+                    json!({"trajectory_id": key, "instructions": instructions, "points": points})
+                })
+                .collect();
+            json!({"scene_id": scene, "scene_name": scene, "samples": samples})
+        })
+        .collect();
+    let mut meta =
+        json!({"name": "GVLN", "generator": format!("sage3d {}", env!("CARGO_PKG_VERSION"))});
+    match frame {
+        GvlnFrame::World => meta["frame"] = json!("W"),
+        GvlnFrame::Sage(s) => {
+            meta["frame"] = json!("S");
+            meta["frame_offset"] = json!([s.offset.x, s.offset.y]);
+        }
+    }
+    sage_io::files::write_json(path, &json!({"dataset_metadata": meta, "scenes": scenes}))
+}
+
+/// The kind of a goal reference: `room_3` a room, `dining_area_1` an area, empty a pose.
+pub fn goal_kind(reference: &str) -> &'static str {
+    let numbered = |prefix: &str| {
+        reference
+            .strip_prefix(prefix)
+            .is_some_and(|n| n.parse::<usize>().is_ok())
+    };
+    if reference.is_empty() {
+        "pose"
+    } else if numbered("room_") {
+        "room"
+    } else if reference
+        .rsplit_once('_')
+        .is_some_and(|(head, n)| head.ends_with("_area") && n.parse::<usize>().is_ok())
+    {
+        "area"
+    } else {
+        "object"
+    }
+}
+
+fn field<'a>(v: &'a Value, key: &str) -> Result<&'a Value> {
+    v.get(key).ok_or_else(|| Error::format(key, "missing"))
+}
+
+fn floats<const N: usize>(v: &Value, key: &str) -> Result<[f32; N]> {
+    let a = field(v, key)?
+        .as_array()
+        .ok_or_else(|| Error::format(key, "expected an array"))?;
+    if a.len() != N {
+        return Err(Error::format(
+            key,
+            format!("expected {N} numbers, found {}", a.len()),
+        ));
+    }
+    let mut out = [0.0; N];
+    for (o, x) in out.iter_mut().zip(a) {
+        // Finite in single precision: 1e300 is a finite f64 but an infinite f32.
+        *o = x
+            .as_f64()
+            .map(|f| f as f32)
+            .filter(|f| f.is_finite())
+            .ok_or_else(|| Error::format(key, "expected finite numbers"))?;
+    }
+    Ok(out)
+}
+
+fn text(v: &Value, key: &str) -> String {
+    match v.get(key) {
+        Some(Value::String(s)) => s.clone(),
+        Some(Value::Number(n)) => n.to_string(),
+        _ => String::new(),
+    }
+}
+
+/// Reads a GVLN file; `sage_offset` is the S-frame offset for files that do not state their frame.
+/// Asset slices are unknown in the file and read as `medium` unless the caller re-tags them.
+pub fn read(path: &Path, sage_offset: Vec2, space: &ActionSpace) -> Result<Vec<Episode>> {
+    let text_in = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let root: Value = sage_io::files::parse_json(&text_in, path)?;
+    let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);
+    let frame = match meta.get("frame").and_then(Value::as_str) {
+        Some("W") => GvlnFrame::World,
+        Some("S") => {
+            let o: [f32; 2] = floats(&meta, "frame_offset")
+                .within("dataset_metadata")
+                .in_file(path)?;
+            GvlnFrame::Sage(SageFrame {
+                offset: Vec2::from(o),
+            })
+        }
+        None => GvlnFrame::Sage(SageFrame {
+            offset: sage_offset,
+        }),
+        Some(other) => {
+            return Err(Error::format(
+                "dataset_metadata.frame",
+                format!("expected W or S, got {other}"),
+            )
+            .in_file(path));
+        }
+    };
+    let scenes = field(&root, "scenes")
+        .and_then(|s| {
+            s.as_array()
+                .ok_or_else(|| Error::format("scenes", "expected an array"))
+        })
+        .in_file(path)?;
+    let mut out = Vec::new();
+    for (si, scene) in scenes.iter().enumerate() {
+        let ctx = format!("scenes[{si}]");
+        let name = match text(scene, "scene_name") {
+            n if n.is_empty() => text(scene, "scene_id"),
+            n => n,
+        };
+        let samples = field(scene, "samples")
+            .ok()
+            .and_then(Value::as_array)
+            .ok_or_else(|| Error::format("samples", "expected an array"))
+            .within(&ctx)
+            .in_file(path)?;
+        for (ti, sample) in samples.iter().enumerate() {
+            let ctx = format!("{ctx}.samples[{ti}]");
+            let read_sample = || -> Result<Vec<Episode>> {
+                let pts = field(sample, "points")?
+                    .as_array()
+                    .ok_or_else(|| Error::format("points", "expected an array"))?;
+                if pts.is_empty() {
+                    return Err(Error::format("points", "no points"));
+                }
+                let mut positions = Vec::with_capacity(pts.len());
+                let mut yaws = Vec::with_capacity(pts.len());
+                for (pi, p) in pts.iter().enumerate() {
+                    let pos: [f32; 3] = floats(p, "position").within(format!("points[{pi}]"))?;
+                    let rot: [f32; 4] = floats(p, "rotation").within(format!("points[{pi}]"))?;
+                    let pos = frame.point_back(pos);
+                    check_point(pos, "position").within(format!("points[{pi}]"))?;
+                    positions.push(pos);
+                    yaws.push(
+                        (rot != [0.0, 0.0, 0.0, 1.0])
+                            .then(|| frame.heading_back(decode_rotation(rot))),
+                    );
+                }
+                let start_yaw = yaws[0].unwrap_or(0.0);
+                let final_yaw = yaws.last().copied().flatten();
+                let flat: Vec<Vec2> = positions.iter().map(|p| Vec2::new(p[0], p[1])).collect();
+                let length: f32 = flat.windows(2).map(|w| w[0].distance(w[1])).sum();
+                let tid = text(sample, "trajectory_id");
+                let instructions = field(sample, "instructions")?
+                    .as_array()
+                    .ok_or_else(|| Error::format("instructions", "expected an array"))?;
+                let mut eps = Vec::new();
+                for (ii, ins) in instructions.iter().enumerate() {
+                    let kind_name = text(ins, "instruction_type");
+                    let kind = if kind_name == "Default" {
+                        InstructionType::SingleGoal
+                    } else {
+                        InstructionType::parse(&kind_name).ok_or_else(|| {
+                            Error::format(
+                                format!("instructions[{ii}].instruction_type"),
+                                format!("unknown type '{kind_name}'"),
+                            )
+                        })?
+                    };
+                    let task = if kind == InstructionType::GoalLess {
+                        Task::Nogoal
+                    } else {
+                        Task::Vln
+                    };
+                    let actions = match task {
+                        Task::Nogoal => Vec::new(),
+                        Task::Vln => {
+                            follow(&flat, start_yaw, final_yaw, space).ok_or_else(|| {
+                                Error::format(
+                                    "points",
+                                    "the path cannot be followed with discrete actions",
+                                )
+                            })?
+                        }
+                    };
+                    let id = text(ins, "episode_id");
+                    let start_ref = text(ins, "start");
+                    let end = text(ins, "end");
+                    eps.push(Episode {
+                        episode_id: if id.is_empty() {
+                            format!("{name}-t{tid}-{ii}")
+                        } else {
+                            id
+                        },
+                        scene: name.clone(),
+                        task,
+                        trajectory_id: tid
+                            .parse()
+                            .ok()
+                            .filter(|_| kind != InstructionType::BaseAction && task == Task::Vln),
+                        instruction: text(ins, "generated_instruction"),
+                        level: ins
+                            .get("level")
+                            .and_then(|l| serde_json::from_value::<Level>(l.clone()).ok())
+                            .or(kind.level()),
+                        instruction_type: kind,
+                        subtype: ins
+                            .get("subtype")
+                            .and_then(|s| serde_json::from_value(s.clone()).ok()),
+                        source: ins
+                            .get("source")
+                            .and_then(|s| serde_json::from_value(s.clone()).ok())
+                            .unwrap_or(Source::Imported),
+                        start_ref: (!start_ref.is_empty()).then_some(start_ref),
+                        start: StartPose {
+                            position: positions[0],
+                            yaw: start_yaw,
+                        },
+                        goal: (task == Task::Vln).then(|| Goal {
+                            kind: goal_kind(&end).into(),
+                            reference: end,
+                            position: *positions.last().unwrap_or(&positions[0]),
+                            yaw: None,
+                        }),
+                        reference_path: positions.clone(),
+                        actions,
+                        path_length: length,
+                        geodesic_distance: length,
+                        slices: Slices {
+                            assets: "medium".into(),
+                            path: if task == Task::Nogoal {
+                                "none".into()
+                            } else {
+                                path_slice(length).into()
+                            },
+                        },
+                    });
+                }
+                Ok(eps)
+            };
+            out.extend(read_sample().within(&ctx).in_file(path)?);
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn rotation_round_trip(psi in -3.1f32..3.1) {
+            prop_assert!(wrap_angle(decode_rotation(encode_rotation(psi)) - psi).abs() < 1e-4);
+            let q = encode_rotation(psi);
+            prop_assert!((q[0] * q[0] + q[3] * q[3] - 1.0).abs() < 1e-5);
+        }
+    }
+}

@@ -1,0 +1,34 @@
+//! Our episode file: one JSON episode per line, W frame (Z up, metres, headings in radians).
+
+use crate::episode::Episode;
+use sage_core::{Error, Result, ResultExt};
+use std::io::Write;
+use std::path::Path;
+
+/// Writes `episodes`, one per line (atomically).
+pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
+    sage_io::files::write_atomic(path, |w| {
+        for e in episodes {
+            serde_json::to_writer(&mut *w, e).map_err(std::io::Error::other)?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })
+}
+
+/// Reads episodes; an error names the file and line.
+pub fn read(path: &Path) -> Result<Vec<Episode>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            let at = format!("line {}", i + 1);
+            let episode: Episode = serde_json::from_str(l)
+                .map_err(|e| Error::format(&at, format!("not an episode: {e}")))
+                .in_file(path)?;
+            episode.check().within(at).in_file(path)?;
+            Ok(episode)
+        })
+        .collect()
+}

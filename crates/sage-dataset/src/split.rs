@@ -1,0 +1,134 @@
+//! Train / val / test splits with the three unseen test sets of SAGE-Bench (SPEC §9):
+//!
+//! 1. scenes are shuffled (seeded); the first `scene_unseen` share (at least one when there are
+//!    three scenes or more) is **test_scene_unseen**, the next `val` share (at least one from
+//!    four scenes) is **val**, the rest train scenes;
+//! 2. of the train scenes (in the same shuffled order) the first `donor_share` donate
+//!    trajectories: a third of their trajectories (at least one), with every instruction, go to
+//!    **test_trajectory_unseen** — the scene is seen in training, the path is not;
+//! 3. the next `donor_share` donate instructions: of every trajectory with two or more
+//!    instructions a third (at least one, never all) go to **test_instruction_unseen** — the path
+//!    is seen in training with other words;
+//! 4. everything else of a train scene (Base-Action and no-goal episodes included) is **train**.
+
+use crate::episode::Episode;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// The split names, in file order.
+pub const SPLITS: [&str; 5] = [
+    "train",
+    "val",
+    "test_scene_unseen",
+    "test_trajectory_unseen",
+    "test_instruction_unseen",
+];
+
+/// Shares of the split rule.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SplitParams {
+    /// Share of scenes held out whole for test (default 0.15).
+    pub scene_unseen: f32,
+    /// Share of scenes for validation (default 0.1).
+    pub val: f32,
+    /// Share of train scenes donating trajectories, and again instructions (default 0.3).
+    pub donor_share: f32,
+}
+
+impl Default for SplitParams {
+    fn default() -> Self {
+        SplitParams {
+            scene_unseen: 0.15,
+            val: 0.1,
+            donor_share: 0.3,
+        }
+    }
+}
+
+fn share(n: usize, s: f32, at_least_one: bool) -> usize {
+    let k = (n as f32 * s).round() as usize;
+    if at_least_one { k.max(1) } else { k }.min(n)
+}
+
+/// The split of every episode (by id).
+pub fn assign(
+    episodes: &[Episode],
+    params: &SplitParams,
+    seed: u64,
+) -> BTreeMap<String, &'static str> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(0x5b1d);
+    let mut scenes: Vec<&str> = episodes
+        .iter()
+        .map(|e| e.scene.as_str())
+        .collect::<BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    scenes.shuffle(&mut rng);
+    let n = scenes.len();
+    let n_test = share(n, params.scene_unseen, n >= 3);
+    let n_val = share(n - n_test, params.val, n >= 4);
+    let train: Vec<&str> = scenes[n_test + n_val..].to_vec();
+    let n_donor = share(train.len(), params.donor_share, train.len() >= 2);
+    let traj_donors: BTreeSet<&str> = train.iter().take(n_donor).copied().collect();
+    let instr_donors: BTreeSet<&str> = train.iter().skip(n_donor).take(n_donor).copied().collect();
+    let scene_split: BTreeMap<&str, &'static str> = scenes
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            (
+                *s,
+                if i < n_test {
+                    SPLITS[2]
+                } else if i < n_test + n_val {
+                    SPLITS[1]
+                } else {
+                    SPLITS[0]
+                },
+            )
+        })
+        .collect();
+    let mut out: BTreeMap<String, &'static str> = episodes
+        .iter()
+        .map(|e| (e.episode_id.clone(), scene_split[e.scene.as_str()]))
+        .collect();
+    // Trajectories (and their episodes) per scene, in id order.
+    let mut by_traj: BTreeMap<(&str, usize), Vec<&str>> = BTreeMap::new();
+    for e in episodes {
+        if let Some(t) = e.trajectory_id {
+            by_traj
+                .entry((e.scene.as_str(), t))
+                .or_default()
+                .push(e.episode_id.as_str());
+        }
+    }
+    for scene in traj_donors.iter() {
+        let mut trajs: Vec<usize> = by_traj
+            .keys()
+            .filter(|(s, _)| s == scene)
+            .map(|(_, t)| *t)
+            .collect();
+        trajs.shuffle(&mut rng);
+        let k = trajs.len().div_ceil(3);
+        for t in &trajs[..k] {
+            for id in &by_traj[&(*scene, *t)] {
+                out.insert(id.to_string(), SPLITS[3]);
+            }
+        }
+    }
+    for ((scene, _), ids) in by_traj.iter() {
+        if !instr_donors.contains(scene) || ids.len() < 2 {
+            continue;
+        }
+        let mut ids = ids.clone();
+        ids.shuffle(&mut rng);
+        let k = (ids.len() / 3).max(1);
+        for id in &ids[..k] {
+            out.insert(id.to_string(), SPLITS[4]);
+        }
+    }
+    out
+}

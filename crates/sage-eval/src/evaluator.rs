@@ -1,0 +1,367 @@
+//! The evaluator (SPEC §10, `docs/evaluation.md`): runs an agent over a dataset split and
+//! scores every episode.
+//!
+//! Episodes are grouped by scene so each scene's [`SceneContext`](sage_env::SceneContext)
+//! loads once and is shared; scenes and the episodes within them run in parallel. Each finished
+//! episode is appended to `RUN/episodes.jsonl` as one flushed line, so a crashed run resumes by
+//! skipping the ids already recorded ([`records`](crate::records)); the summary is computed from the records
+//! sorted by episode id, so it does not depend on the thread count or finishing order
+//! ([`summary`](crate::summary)); at the end the records file itself is rewritten in episode-id order, so it
+//! is the same bytes however the run went (threads, resumes, shards merged). Agents whose server holds one episode's state (NaVid) run their episodes one
+//! at a time.
+
+use crate::folder::{RECORDS_FILE, RUN_OUTPUTS, SUMMARY_FILE};
+use crate::records::{self, EvalRecord, Failure};
+use crate::settings::EvalSettings;
+use crate::summary::Summary;
+use rayon::prelude::*;
+use sage_agents::AgentMaker;
+use sage_core::{Error, Result, ResultExt};
+use sage_dataset::Episode;
+use sage_dataset::folder::{non_empty_splits, split_episodes};
+use sage_env::SceneContext;
+use sage_env::agents::{Agent, run_episode};
+use sage_env::{Env, EnvConfig, SensorConfig};
+use sage_io::run::RUN_RECORD;
+use sage_metrics::{Dtw, Scoring};
+use sage_splat::Device;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+/// What [`run`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOutcome {
+    /// Episodes in the split.
+    pub total: usize,
+    /// Episodes already recorded when the run started.
+    pub resumed: usize,
+    /// Episodes run now.
+    pub ran: usize,
+    /// The aggregate written to `RUN/summary.json`.
+    pub summary: Summary,
+}
+
+impl RunOutcome {
+    /// Whether the run did what was asked: `Err` with the reason when every episode of the run
+    /// faulted (none was scored) or, if `strict`, when any did.
+    ///
+    /// # Errors
+    ///
+    /// The verdict, naming the faulted count and the summary's failure kinds.
+    pub fn verdict(&self, strict: bool) -> Result<()> {
+        let failed = self.summary.failed.len();
+        let episodes = self.summary.episodes;
+        if failed == 0 || (!strict && failed < episodes) {
+            return Ok(());
+        }
+        let what = if failed == episodes {
+            format!("every episode of the run faulted ({failed})")
+        } else {
+            format!("{failed} of {episodes} episodes faulted (--strict)")
+        };
+        Err(Error::invalid(format!(
+            "{what}: {}; see the records' \"error\" fields",
+            self.summary.failure_counts()
+        )))
+    }
+}
+
+/// The environment of an evaluation: the preset with RGB only (at the preset's size, rendered
+/// on `device`) for agents that read images (remote models), without images for the others,
+/// which do not read them (rendering does not change the motion); and the action space the
+/// agent needs (ground velocities for pose replays), else the preset's.
+pub fn env_config(preset: &str, agent: &AgentMaker, device: Device) -> Result<EnvConfig> {
+    let config = EnvConfig::preset(preset)?;
+    Ok(EnvConfig {
+        device,
+        sensors: SensorConfig {
+            rgb: agent.reads_images(),
+            depth: false,
+            semantic: false,
+            instance: false,
+            ..config.sensors
+        },
+        actions: agent.action_space().unwrap_or(config.actions),
+        ..config
+    })
+}
+
+/// What [`run_with`] takes from its caller instead of deriving it from the settings: the
+/// environment, the agents and the episodes of the split to run. [`run`] fills it from the
+/// settings; other front ends (the Python package) bring their own agents or run one shard.
+pub struct Runner<'a> {
+    /// The environment every episode runs in.
+    pub config: EnvConfig,
+    /// The agent's name in the records, the summary and the run record.
+    pub agent_name: String,
+    /// A fresh agent for each episode.
+    pub agent: &'a (dyn Fn() -> Result<Box<dyn Agent>> + Sync),
+    /// Which episodes of the split this run covers (`None`: all); the records, resume and
+    /// summary then concern those alone.
+    pub shard: Option<&'a (dyn Fn(&Episode) -> bool + Sync)>,
+    /// Run the episodes one at a time (the agent's server holds one episode's state).
+    pub serial: bool,
+}
+
+/// The record of episode `e` before it runs: its tags, no outcome yet.
+fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
+    EvalRecord {
+        episode_id: e.episode_id.clone(),
+        scene: e.scene.clone(),
+        task: e.task,
+        level: e.level,
+        instruction_type: e.instruction_type,
+        slices: e.slices.clone(),
+        agent: runner.agent_name.clone(),
+        termination: None,
+        metrics: None,
+        error: None,
+        failure: None,
+        faults: Vec::new(),
+        notes: Vec::new(),
+        record: None,
+    }
+}
+
+/// Runs one episode to its record; a failure is recorded, not returned.
+fn run_one(
+    ctx: &Arc<sage_env::SceneContext>,
+    runner: &Runner,
+    scoring: Scoring,
+    e: &Episode,
+) -> EvalRecord {
+    let mut rec = blank_record(runner, e);
+    let mut agent = None;
+    let result = (|| {
+        let mut env = Env::new(ctx.clone(), runner.config.clone())?;
+        let agent = agent.insert((runner.agent)()?);
+        let trace = run_episode(&mut env, agent.as_mut(), &e.env_episode())?;
+        let record = sage_env::scoring::metric_record(ctx, &trace);
+        let m = sage_metrics::evaluate(&record, scoring)?;
+        Ok::<_, Error>((trace.termination, m, record))
+    })();
+    match result {
+        Ok((termination, m, record)) => {
+            rec.termination = termination;
+            rec.metrics = Some(m);
+            rec.record = Some(record);
+        }
+        Err(err) => rec.error = Some(err.to_string()),
+    }
+    if let Some(mut agent) = agent {
+        rec.faults = agent.take_faults();
+        rec.notes = agent.take_notes();
+    }
+    if rec.error.is_some() {
+        // A remote agent fails an episode only on a request whose every attempt faulted.
+        let gave_up = rec.faults.last().is_some_and(|f| !f.recovered);
+        rec.failure = Some(if gave_up {
+            Failure::ModelServer
+        } else {
+            Failure::EpisodeError
+        });
+    }
+    rec
+}
+
+/// Checks that `out` may be an evaluation's run folder: new, empty or an evaluation's (a rerun,
+/// which resumes when its settings are the same); with `force`, a folder of other files is
+/// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]).
+///
+/// # Errors
+///
+/// A folder holding files an evaluation did not write, naming it and one of them.
+pub fn claim(out: &Path, force: bool) -> Result<()> {
+    sage_io::run::claim_folder(out, &["eval"], &RUN_OUTPUTS, force)
+}
+
+/// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
+/// run) and writes the run record.
+fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str) -> Result<()> {
+    let path = out.join(RUN_RECORD);
+    if path.is_file() {
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let old: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| Error::format("sage3d_run.json", e.to_string()).in_file(&path))?;
+        // The folders may be named from another working directory; the hash says which data.
+        let run_of = |v: Option<&serde_json::Value>| {
+            let mut v = v.cloned().unwrap_or_default();
+            if let Some(o) = v.as_object_mut() {
+                o.remove("dataset");
+                o.remove("scenes");
+                // Runs recorded before the DTW choice existed used exact DTW.
+                o.entry("dtw").or_insert_with(|| Dtw::Exact.as_str().into());
+            }
+            v
+        };
+        let same = run_of(old.get("settings")) == run_of(Some(settings))
+            && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(dataset_hash);
+        if !same {
+            return Err(Error::invalid(
+                "this run folder holds a run with other settings or another dataset; use a new --out",
+            )
+            .in_file(&path));
+        }
+    }
+    write_run_record(out, settings, dataset_hash)
+}
+
+/// The settings as the run record stores them: `settings` with the agent's recorded name.
+pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<serde_json::Value> {
+    let mut recorded =
+        serde_json::to_value(settings).map_err(|e| Error::invalid(format!("settings: {e}")))?;
+    recorded["agent"] = agent.into();
+    Ok(recorded)
+}
+
+/// Writes an evaluation's run record: its recorded settings and the split file's hash.
+pub(crate) fn write_run_record(
+    out: &Path,
+    recorded: &serde_json::Value,
+    dataset_hash: &str,
+) -> Result<()> {
+    sage_io::run::write_run_record(
+        out,
+        "eval",
+        recorded.get("seed").and_then(serde_json::Value::as_u64),
+        serde_json::json!({
+            "settings": recorded,
+            "dataset_hash": dataset_hash,
+        }),
+    )
+}
+
+/// Runs (or resumes) an evaluation into `out`, calling `on_done(record, to_run)` after each
+/// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`.
+/// Callers [`claim`] `out` first.
+///
+/// # Errors
+///
+/// Bad settings (unknown split or preset, scene missing), a run folder of another run, a
+/// corrupt records file or a write error. An episode's own failure (a scene that cannot be
+/// loaded, an agent or a metric error) is recorded on it instead.
+pub fn run(
+    settings: &EvalSettings,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+) -> Result<RunOutcome> {
+    let maker = settings.agent.maker()?;
+    let runner = Runner {
+        config: env_config(&settings.preset, &maker, settings.device).within("preset")?,
+        agent_name: settings.agent.to_string(),
+        agent: &|| maker.build(settings.seed),
+        shard: None,
+        serial: maker.serial(),
+    };
+    run_with(settings, &runner, out, on_done)
+}
+
+/// [`run`] with the environment, agents and shard given by `runner` (the settings still name
+/// the dataset, scenes, split, mode, seed and preset).
+///
+/// # Errors
+///
+/// As [`run`].
+pub fn run_with(
+    settings: &EvalSettings,
+    runner: &Runner,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+) -> Result<RunOutcome> {
+    let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    if episodes.is_empty() {
+        let with_episodes = non_empty_splits(&settings.dataset)?;
+        return Err(Error::invalid(format!(
+            "split '{}' has no episodes (splits with episodes: {})",
+            settings.split,
+            if with_episodes.is_empty() {
+                "none".to_string()
+            } else {
+                with_episodes.join(", ")
+            }
+        ))
+        .in_file(&file));
+    }
+    if let Some(keep) = runner.shard {
+        episodes.retain(|e| keep(e));
+    }
+    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+    let dataset_hash = sage_io::hash::fnv1a64_hex(&bytes);
+    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
+    if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
+        return Err(Error::invalid(format!(
+            "scene '{}' of episode {} is not among the scenes",
+            e.scene, e.episode_id
+        ))
+        .in_file(&settings.scenes));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let recorded = recorded_settings(settings, &runner.agent_name)?;
+    claim_run_folder(out, &recorded, &dataset_hash)?;
+    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    let records_path = out.join(RECORDS_FILE);
+    let done = records::resume(&records_path, &ids)?;
+    let mut groups: BTreeMap<&str, Vec<&Episode>> = BTreeMap::new();
+    for e in episodes
+        .iter()
+        .filter(|e| !done.contains(e.episode_id.as_str()))
+    {
+        groups.entry(e.scene.as_str()).or_default().push(e);
+    }
+    let ran: usize = groups.values().map(Vec::len).sum();
+    let writer = Mutex::new(records::Appender::open(&records_path)?);
+    let run_scene = |scene: &str, eps: &[&Episode]| {
+        // A scene that cannot be loaded fails its episodes, with the reason; the run goes on.
+        let ctx = SceneContext::load(&dirs[scene], None)
+            .within(format!("scene {scene}"))
+            .map(Arc::new);
+        let record_episode = |e: &&Episode| {
+            let rec = match &ctx {
+                Ok(ctx) => run_one(ctx, runner, settings.scoring(), e),
+                Err(err) => EvalRecord {
+                    error: Some(err.to_string()),
+                    failure: Some(Failure::SceneLoad),
+                    ..blank_record(runner, e)
+                },
+            };
+            writer
+                .lock()
+                .map_err(|_| Error::invalid("records writer poisoned"))?
+                .append(&rec)?;
+            on_done(&rec, ran);
+            Ok::<_, Error>(())
+        };
+        if runner.serial {
+            eps.iter().try_for_each(record_episode)
+        } else {
+            eps.par_iter().try_for_each(record_episode)
+        }
+    };
+    if runner.serial {
+        // Plain loops: a rayon worker waiting on a shared server must never pick up another
+        // episode of the same server while it holds one.
+        groups
+            .iter()
+            .try_for_each(|(scene, eps)| run_scene(scene, eps))?;
+    } else {
+        groups
+            .par_iter()
+            .try_for_each(|(scene, eps)| run_scene(scene, eps))?;
+    }
+    drop(writer);
+    // Finishing order depends on the threads; sorted by id, the file is the same bytes for
+    // any thread count, resume or shard merge (`merge_shards` writes this order).
+    let all = records::sort(&records_path, &ids)?;
+    let summary = Summary {
+        agent: runner.agent_name.clone(),
+        ..Summary::of(settings, &all)
+    };
+    sage_io::files::write_json(&out.join(SUMMARY_FILE), &summary)?;
+    Ok(RunOutcome {
+        total: episodes.len(),
+        resumed: done.len(),
+        ran,
+        summary,
+    })
+}

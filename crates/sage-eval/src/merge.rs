@@ -1,0 +1,78 @@
+//! Merging the records of an evaluation run in shards (one per node or scene group) into the
+//! run folder one evaluation over the union would have written.
+
+use crate::evaluator::{recorded_settings, write_run_record};
+use crate::folder::{RECORDS_FILE, SUMMARY_FILE};
+use crate::records::EvalRecord;
+use crate::settings::EvalSettings;
+use crate::summary::Summary;
+use sage_core::{Error, Result};
+use sage_dataset::folder::split_episodes;
+use sage_io::files::{write_atomic, write_json};
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write;
+use std::path::Path;
+
+/// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
+/// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
+/// `sage3d_run.json`, the same bytes as one evaluation over the union writes them (which also
+/// ends with its records in episode-id order). Returns the summary.
+///
+/// # Errors
+///
+/// A line that is not a record, an episode not in the split or recorded by two shards (naming
+/// shard and line), or a write error.
+pub fn merge_shards(
+    settings: &EvalSettings,
+    agent: &str,
+    shards: &[String],
+    out: &Path,
+) -> Result<Summary> {
+    let (file, episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    // Lines are kept as the shards wrote them: parsing and printing again would move some
+    // floats by an ulp (serde_json's parser is not exactly rounding), and the summary is
+    // computed from the parsed records as `sage3d eval` computes it from its file.
+    let mut all: BTreeMap<String, (&str, EvalRecord)> = BTreeMap::new();
+    for (i, text) in shards.iter().enumerate() {
+        for (line, l) in text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty())
+        {
+            let at = || format!("shard {i}, line {}", line + 1);
+            let rec: EvalRecord =
+                serde_json::from_str(l).map_err(|e| Error::format(at(), e.to_string()))?;
+            if !ids.contains(rec.episode_id.as_str()) {
+                return Err(Error::format(
+                    at(),
+                    format!(
+                        "episode {} is not in split {}",
+                        rec.episode_id, settings.split
+                    ),
+                ));
+            }
+            if all.insert(rec.episode_id.clone(), (l, rec)).is_some() {
+                return Err(Error::format(at(), "episode recorded by two shards"));
+            }
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    write_atomic(&out.join(RECORDS_FILE), |w| {
+        for (line, _) in all.values() {
+            w.write_all(line.trim_end().as_bytes())?;
+            w.write_all(b"\n")?;
+        }
+        Ok(())
+    })?;
+    let records: Vec<EvalRecord> = all.into_values().map(|(_, r)| r).collect();
+    let summary = Summary {
+        agent: agent.to_string(),
+        ..Summary::of(settings, &records)
+    };
+    write_json(&out.join(SUMMARY_FILE), &summary)?;
+    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+    let recorded = recorded_settings(settings, agent)?;
+    write_run_record(out, &recorded, &sage_io::hash::fnv1a64_hex(&bytes))?;
+    Ok(summary)
+}
