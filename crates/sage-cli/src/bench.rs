@@ -64,8 +64,8 @@ pub struct TrainDataBenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "224x224,384x384,640x480")]
     sizes: Vec<String>,
     /// Action preset.
-    #[arg(long, default_value = "navila_small")]
-    preset: String,
+    #[arg(long, default_value_t = TrainDataSettings::default().preset)]
+    preset: sage_traindata::PresetName,
 }
 
 impl TrainDataBenchArgs {
@@ -76,7 +76,7 @@ impl TrainDataBenchArgs {
             seed: self.seed,
             trajectories: self.trajectories,
             sizes: sizes(&self.sizes)?,
-            preset: self.preset.clone(),
+            preset: self.preset,
         })
     }
 }

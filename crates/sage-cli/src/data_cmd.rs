@@ -6,6 +6,7 @@ use sage_dataset::build::{AssembleParams, SceneParams};
 use sage_io::runner::{Status, Tally};
 use sage_lang::llm::LlmConfig;
 use sage_pipeline::dataset::DatasetReport;
+use sage_traindata::Progress;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -48,78 +49,15 @@ pub struct ImportArgs {
 
 #[derive(Args)]
 pub struct RenderArgs {
-    /// The dataset folder (made by `sage3d data build`: episodes/{split}.jsonl).
-    dataset: PathBuf,
-    /// A scene folder, or a folder of scene folders, holding the dataset's scenes (default: the
-    /// scenes folder the dataset was built from, as its sage3d_run.json records it).
-    #[arg(long)]
-    scenes: Option<PathBuf>,
+    #[command(flatten)]
+    options: sage_traindata::Options,
     /// Output folder (new or empty; rerun with the same settings to resume).
     #[arg(long)]
     out: PathBuf,
-    /// The split to render (one of those DATASET/splits.json lists).
-    #[arg(long, default_value = "train")]
-    split: String,
-    /// Action preset: vlnce (0.25 m, 15°), navila_small (0.35 m, 30°), navila_large
-    /// (0.75 m, 15°), custom_small (0.50 m, 30°).
-    #[arg(long, default_value = "navila_small")]
-    preset: String,
-    /// MOVE_FORWARD distance in metres (overrides the preset's).
-    #[arg(long)]
-    step: Option<f32>,
-    /// Turn angle in degrees (overrides the preset's).
-    #[arg(long)]
-    turn: Option<f32>,
-    /// Motions per trajectory at most; past it the walk calls STOP where it stands.
-    #[arg(long, default_value_t = sage_traindata::preset::DEFAULT_MAX_ACTIONS)]
-    max_actions: usize,
-    /// Image width in pixels (the published pipeline rendered 1024×768).
-    #[arg(long, default_value_t = 224)]
-    width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = 224)]
-    height: u32,
-    /// Horizontal field of view in degrees.
-    #[arg(long, default_value_t = 90.0)]
-    hfov: f32,
-    /// Images per frame: rgb[,depth,semantic,instance] (depth: 16-bit PNG millimetres).
-    #[arg(long, default_value = "rgb")]
-    sensors: String,
-    /// Output layout: navila, webdataset or frames.
-    #[arg(long, default_value = "navila")]
-    format: String,
-    /// Samples per NaVILA part (default 10000), episodes per WebDataset shard (default 100).
-    #[arg(long)]
-    shard_size: Option<usize>,
-    /// Render only the first N goal-directed episodes of the split.
-    #[arg(long)]
-    limit: Option<usize>,
-    /// Seed of the NaVILA sample shuffle.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Agent profile (camera height, body radius): wheeled, go2, g1 or h1.
-    #[arg(long, default_value = "wheeled")]
-    agent: String,
-    /// RGB file type: jpg or png.
-    #[arg(long, default_value = "jpg")]
-    image: String,
-    /// JPEG quality (1–100).
-    #[arg(long, default_value_t = 90)]
-    jpeg_quality: u8,
-    /// Keep episodes whose walk collided or ended farther than 1 m from the goal (dropped by
-    /// default; counted either way).
-    #[arg(long)]
-    keep_failed: bool,
-    /// Write preview.gif of the first N kept episodes (frames with instruction and action,
-    /// beside the top-down map with the pose).
-    #[arg(long, default_value_t = 0)]
-    preview: usize,
     /// Replace another render's output in --out (files a render did not write are never
     /// touched).
     #[arg(long)]
     force: bool,
-    #[command(flatten)]
-    device: crate::flags::DeviceFlag,
 }
 
 #[derive(Args)]
@@ -257,69 +195,36 @@ fn data_import(a: ImportArgs) -> Result<()> {
     Ok(())
 }
 
-fn render_settings(a: &RenderArgs) -> Result<sage_traindata::Settings> {
-    sage_traindata::Options {
-        split: a.split.clone(),
-        preset: a.preset.clone(),
-        step: a.step,
-        turn: a.turn,
-        max_actions: a.max_actions,
-        width: a.width,
-        height: a.height,
-        hfov: a.hfov,
-        sensors: a.sensors.clone(),
-        format: a.format.clone(),
-        shard_size: a.shard_size,
-        limit: a.limit,
-        seed: a.seed,
-        agent: a.agent.clone(),
-        image: a.image.clone(),
-        jpeg_quality: a.jpeg_quality,
-        keep_failed: a.keep_failed,
-        preview: a.preview,
-        device: a.device.device.to_string(),
-        ..sage_traindata::Options::new(a.dataset.clone(), a.scenes.clone())
-    }
-    .settings()
-}
-
 fn data_render(a: RenderArgs) -> Result<()> {
-    let settings = render_settings(&a)?;
-    eprintln!("renderer: {}", a.device.probe()?);
+    eprintln!("renderer: {}", crate::flags::probe(a.options.device)?);
     let bar = crate::progress::bar("{bar:30} {pos}/{len} walks {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
     let frames = std::sync::atomic::AtomicUsize::new(0);
-    let plan = sage_traindata::Plan::new(&settings)?;
-    bar.set_length(plan.route_count() as u64);
-    let manifest = match sage_traindata::claim(&plan, &a.out, a.force)? {
-        Some(done) => {
-            println!("already complete: {}", a.out.display());
-            done
-        }
-        None => {
-            let on_route = |r: &sage_traindata::RouteDone| {
-                let n = frames.fetch_add(r.frames, std::sync::atomic::Ordering::Relaxed) + r.frames;
-                if let Some(e) = &r.error {
-                    bar.suspend(|| eprintln!("skipped walk {}: {e}", r.route));
-                }
-                bar.set_message(format!(
-                    "{n} frames, {:.1} frames/s",
-                    n as f64 / start.elapsed().as_secs_f64().max(1e-9)
-                ));
-                bar.inc(1);
-            };
-            for scene in plan.scenes() {
-                bar.set_message(format!("loading {scene}"));
-                sage_traindata::render_scene(&plan, &scene, &a.out, &on_route)?;
+    let report = sage_pipeline::traindata::render(&a.options, &a.out, a.force, &|p| match p {
+        Progress::Planned { routes } => bar.set_length(routes as u64),
+        Progress::AlreadyComplete => {}
+        Progress::Scene(scene) => bar.set_message(format!("loading {scene}")),
+        Progress::Route(r) => {
+            let n = frames.fetch_add(r.frames, std::sync::atomic::Ordering::Relaxed) + r.frames;
+            if let Some(e) = &r.error {
+                bar.suspend(|| eprintln!("skipped walk {}: {e}", r.route));
             }
-            bar.finish_and_clear();
-            sage_traindata::finish(&plan, &a.out)?
+            bar.set_message(format!(
+                "{n} frames, {:.1} frames/s",
+                n as f64 / start.elapsed().as_secs_f64().max(1e-9)
+            ));
+            bar.inc(1);
         }
-    };
-    let rendered = frames.into_inner();
+    });
+    bar.finish_and_clear();
+    let report = report?;
+    if report.already_complete {
+        println!("already complete: {}", a.out.display());
+    }
     let secs = start.elapsed().as_secs_f64();
-    print_render(&manifest, &a.out, rendered, secs);
-    if a.preview > 0 {
+    let manifest = &report.manifest;
+    print_render(manifest, &a.out, report.rendered_frames, secs);
+    if a.options.preview > 0 {
         println!(
             "preview: {}",
             a.out.join(sage_traindata::preview::PREVIEW_FILE).display()

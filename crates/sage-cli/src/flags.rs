@@ -34,6 +34,16 @@ impl DeviceFlag {
     ///
     /// `gpu` without a usable adapter, or a build without the GPU renderer.
     pub fn probe(&self) -> Result<String> {
-        self.device.probe().map_err(|e| e.within("--device"))
+        probe(self.device)
     }
+}
+
+/// Opens `device` before any work and returns the renderer in words, naming `--device` on
+/// failure ([`DeviceFlag::probe`]).
+///
+/// # Errors
+///
+/// As [`Device::probe`].
+pub fn probe(device: Device) -> Result<String> {
+    device.probe().map_err(|e| e.within("--device"))
 }

@@ -8,7 +8,7 @@ use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, SceneParams};
 use sage_dataset::split::SplitParams;
 use sage_synth::{SceneKind, SynthConfig};
-use sage_traindata::{Format, Settings};
+use sage_traindata::{Format, PresetName, Progress, Settings};
 use serde::Serialize;
 use std::fmt;
 use std::path::PathBuf;
@@ -32,7 +32,7 @@ pub struct TrainDataSettings {
     /// Resolutions, (width, height).
     pub sizes: Vec<(u32, u32)>,
     /// The action preset.
-    pub preset: String,
+    pub preset: PresetName,
 }
 
 impl Default for TrainDataSettings {
@@ -43,7 +43,7 @@ impl Default for TrainDataSettings {
             seed: 1,
             trajectories: 40,
             sizes: vec![(224, 224), (384, 384), (640, 480)],
-            preset: "navila_small".into(),
+            preset: PresetName::default(),
         }
     }
 }
@@ -83,7 +83,7 @@ pub struct TrainDataReport {
     /// Gaussians in the home.
     pub gaussians: usize,
     /// The preset.
-    pub preset: String,
+    pub preset: PresetName,
     /// Episodes rendered (goal-directed episodes of the generated dataset).
     pub episodes: usize,
     /// Mean frames per walk.
@@ -182,7 +182,7 @@ fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<Tra
         let s = Settings {
             width,
             height,
-            preset: sage_traindata::ActionPreset::named(&settings.preset)?,
+            preset: settings.preset.preset(),
             format: Format::Navila,
             keep_failed: true,
             ..Settings::new(&dataset, &scratch.join("scenes"))?
@@ -190,9 +190,11 @@ fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<Tra
         eprintln!("rendering at {width}x{height} …");
         let start = Instant::now();
         let (frames, walks) = (AtomicUsize::new(0), AtomicUsize::new(0));
-        let manifest = sage_traindata::render(&s, &out, false, &|r| {
-            frames.fetch_add(r.frames, Ordering::Relaxed);
-            walks.fetch_add(1, Ordering::Relaxed);
+        let manifest = sage_traindata::render(&s, &out, false, &|p| {
+            if let Progress::Route(r) = p {
+                frames.fetch_add(r.frames, Ordering::Relaxed);
+                walks.fetch_add(1, Ordering::Relaxed);
+            }
         })?;
         let seconds = start.elapsed().as_secs_f64();
         let (frames, walks) = (frames.into_inner(), walks.into_inner());
@@ -224,7 +226,7 @@ fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<Tra
         machine: machine::describe(),
         threads,
         gaussians: settings.gaussians,
-        preset: settings.preset.clone(),
+        preset: settings.preset,
         episodes,
         frames_per_walk,
         sizes,

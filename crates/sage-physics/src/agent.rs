@@ -114,6 +114,47 @@ impl FromStr for AgentProfile {
     }
 }
 
+impl Default for AgentProfile {
+    /// The wheeled robot, the profile every setting starts from.
+    fn default() -> Self {
+        let [wheeled, ..] = AgentProfile::all();
+        wheeled
+    }
+}
+
+impl fmt::Display for AgentProfile {
+    /// The profile's name, which [`FromStr`] reads back.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name)
+    }
+}
+
+/// A profile in settings files by its name (`"go2"`), not its numbers: for
+/// `#[serde(with = "sage_physics::agent::profile_name")]`.
+pub mod profile_name {
+    use super::AgentProfile;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// Writes the profile's name.
+    ///
+    /// # Errors
+    ///
+    /// The serializer's.
+    pub fn serialize<S: Serializer>(profile: &AgentProfile, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(profile.name)
+    }
+
+    /// Reads a profile by name.
+    ///
+    /// # Errors
+    ///
+    /// An unknown name, listing the known ones.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<AgentProfile, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 /// One command to an agent.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case")]

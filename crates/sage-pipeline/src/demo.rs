@@ -300,7 +300,11 @@ impl Step {
                         settings,
                         out,
                         false,
-                        &|r| tick(r.of, "walks"),
+                        &|p| {
+                            if let sage_traindata::Progress::Route(r) = p {
+                                tick(r.of, "walks");
+                            }
+                        },
                     )?))
                 })
             }

@@ -4,8 +4,9 @@
 //! - [`demo`]: the whole job end to end on synthetic (or real) scenes, as a plan of steps, and
 //!   [`demo_folder`]: the claim of its output folder;
 //! - its steps: [`scene`] (synthesise a scene folder), [`nav`] (semantic map and occupancy),
-//!   [`physics`] (collision bodies), [`dataset`] (the dataset build), [`evaluate`] (an agent's
-//!   evaluation with its report), [`overview`] (the demo's picture);
+//!   [`physics`] (collision bodies), [`dataset`] (the dataset build), [`traindata`] (training
+//!   data rendered from a split), [`evaluate`] (an agent's evaluation with its report),
+//!   [`overview`] (the demo's picture);
 //! - [`recon`]: mesh scene → planned cameras → ground-truth views → nerfstudio export → a fitted
 //!   Gaussian scene.
 //!
@@ -22,3 +23,4 @@ pub mod overview;
 pub mod physics;
 pub mod recon;
 pub mod scene;
+pub mod traindata;

@@ -59,6 +59,27 @@ pub fn drop_none(obj: &Bound<'_, PyAny>) -> PyResult<()> {
     Ok(())
 }
 
+/// Keyword arguments as the settings struct `T` (serde, its defaults for every absent or
+/// `None` value), so a Python signature restates no default and an unknown or misspelt keyword
+/// is a `ValueError` naming it.
+pub fn from_kwargs<T: DeserializeOwned>(
+    py: Python<'_>,
+    kwargs: Option<&Bound<'_, PyDict>>,
+    what: &str,
+) -> PyResult<T> {
+    let given = PyDict::new(py);
+    for (k, v) in kwargs.into_iter().flat_map(|d| d.iter()) {
+        if !v.is_none() {
+            given.set_item(k, v)?;
+        }
+    }
+    let text: String = py
+        .import("json")?
+        .call_method1("dumps", (given,))?
+        .extract()?;
+    from_json(&text, what)
+}
+
 /// Parses `text` (JSON written by the Python side) as `T`, naming `what` on failure.
 pub fn from_json<T: DeserializeOwned>(text: &str, what: &str) -> PyResult<T> {
     serde_json::from_str(text).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))

@@ -42,7 +42,7 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(training::render_training_data, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_settings, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_plan_scenes, m)?)?;
-    m.add_function(wrap_pyfunction!(training::training_plan_routes, m)?)?;
+    m.add_function(wrap_pyfunction!(training::training_progress, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_render_scene, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_claim, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_finish, m)?)?;

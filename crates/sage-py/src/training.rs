@@ -4,158 +4,74 @@
 //! [`training_settings`] from the same keyword arguments [`render_training_data`] takes;
 //! both, like the command line, turn them into settings with `sage_traindata::Options`.
 
-use crate::convert::{PyResultExt, from_json, to_py};
+use crate::convert::{PyResultExt, from_json, from_kwargs, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sage_traindata::{Options, Plan, RouteDone, Settings};
+use pyo3::types::PyDict;
+use sage_traindata::{Options, Plan, RouteDone, SceneProgress, Settings};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-/// Images per frame as Python passes them: `"rgb,depth"` or `["rgb", "depth"]`.
-#[derive(FromPyObject)]
-pub enum SensorList {
-    /// Comma-separated names.
-    Text(String),
-    /// One name per item.
-    Names(Vec<String>),
-}
-
-impl SensorList {
-    fn joined(&self) -> String {
-        match self {
-            SensorList::Text(s) => s.clone(),
-            SensorList::Names(v) => v.join(","),
-        }
-    }
+/// The options of a render from its dataset, scenes folder and keyword arguments (those of
+/// `sage_traindata::Options`, by name; absent ones take its defaults).
+fn options(
+    py: Python<'_>,
+    dataset: PathBuf,
+    scenes: Option<PathBuf>,
+    kwargs: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Options> {
+    let given: Options = from_kwargs(py, kwargs, "training-data options")?;
+    Ok(Options {
+        dataset,
+        scenes,
+        ..given
+    })
 }
 
 /// The settings of a render as JSON (`sage_traindata::Settings`), from the keyword arguments
 /// of [`render_training_data`] (without `out` and `force`): what the step functions take.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, split="train", preset="navila_small", step=None, turn=None, max_actions=sage_traindata::preset::DEFAULT_MAX_ACTIONS, width=224, height=224, hfov=90.0, sensors=SensorList::Text("rgb".into()), format="navila", shard_size=None, limit=None, seed=0, agent="wheeled", image="jpg", jpeg_quality=90, keep_failed=false, preview=0, device="cpu"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (dataset, scenes, **options))]
 pub fn training_settings(
+    py: Python<'_>,
     dataset: PathBuf,
     scenes: Option<PathBuf>,
-    split: &str,
-    preset: &str,
-    step: Option<f32>,
-    turn: Option<f32>,
-    max_actions: usize,
-    width: u32,
-    height: u32,
-    hfov: f32,
-    sensors: SensorList,
-    format: &str,
-    shard_size: Option<usize>,
-    limit: Option<usize>,
-    seed: u64,
-    agent: &str,
-    image: &str,
-    jpeg_quality: u8,
-    keep_failed: bool,
-    preview: usize,
-    device: &str,
+    options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<String> {
-    let s = Options {
-        dataset,
-        scenes,
-        split: split.into(),
-        preset: preset.into(),
-        step,
-        turn,
-        max_actions,
-        width,
-        height,
-        hfov,
-        sensors: sensors.joined(),
-        format: format.into(),
-        shard_size,
-        limit,
-        seed,
-        agent: agent.into(),
-        image: image.into(),
-        jpeg_quality,
-        keep_failed,
-        preview,
-        device: device.into(),
-    }
-    .settings()
-    .py()?;
+    let s = self::options(py, dataset, scenes, options)?
+        .settings()
+        .py()?;
     serde_json::to_string(&s).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
 /// Renders (or resumes) a training set into `out`, as `sage3d data render DATASET --scenes
-/// SCENES --out OUT ...` does (the same library function, the same files byte for byte;
-/// `scenes=None`: the scenes folder the dataset records, as without `--scenes`):
-/// the split's goal-directed episodes walked with the preset's discrete actions, a frame
-/// rendered before every action, written as NaVILA annotation parts (`format="navila"`),
-/// WebDataset shards (`"webdataset"`) or a folder tree (`"frames"`). `sensors`: `"rgb"`,
-/// `"rgb,depth"` or a list of names (`rgb`, `depth`, `semantic`, `instance`); `shard_size`:
-/// samples per NaVILA part (default 10000) or episodes per WebDataset shard (default 100);
-/// `image`: `jpg` or `png`; `max_actions` (default 50): motions per walk at most; `step` and
-/// `turn` override the preset's. A finished render in `out` with the same settings is
-/// returned as it is; `force` replaces another render's output. `device` (`cpu`, `gpu` or
-/// `auto`, as `--device`) is where the frames are rendered. Returns the manifest
-/// (`manifest.json`).
+/// SCENES --out OUT ...` does (the same pipeline function, the same files byte for byte;
+/// `scenes=None`: the scenes folder the dataset records, as without `--scenes`). The keyword
+/// arguments are the command's flags by name, with the same defaults: `split` (`"train"`),
+/// `preset` (`"navila_small"`; `vlnce`, `navila_large`, `custom_small`), `step` and `turn`
+/// (override the preset's), `max_actions` (50), `width`/`height` (224), `hfov` (90),
+/// `sensors` (`"rgb"`, `"rgb,depth"` or a list of `rgb`, `depth`, `semantic`, `instance`),
+/// `format` (`"navila"`, `"webdataset"` or `"frames"`), `shard_size` (samples per NaVILA part,
+/// 10000, or episodes per WebDataset shard, 100), `limit`, `seed` (0), `agent` (`"wheeled"`),
+/// `image` (`"jpg"` or `"png"`), `jpeg_quality` (90), `keep_failed`, `preview` (0) and
+/// `device` (`"cpu"`, `"gpu"` or `"auto"`). A finished render in `out` with the same
+/// settings is returned as it is; `force` replaces another render's output. Returns the
+/// manifest (`manifest.json`).
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, split="train", preset="navila_small", step=None, turn=None, max_actions=sage_traindata::preset::DEFAULT_MAX_ACTIONS, width=224, height=224, hfov=90.0, sensors=SensorList::Text("rgb".into()), format="navila", shard_size=None, limit=None, seed=0, agent="wheeled", image="jpg", jpeg_quality=90, keep_failed=false, preview=0, force=false, device="cpu"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (dataset, scenes, out, force=false, **options))]
 pub fn render_training_data<'py>(
     py: Python<'py>,
     dataset: PathBuf,
     scenes: Option<PathBuf>,
     out: PathBuf,
-    split: &str,
-    preset: &str,
-    step: Option<f32>,
-    turn: Option<f32>,
-    max_actions: usize,
-    width: u32,
-    height: u32,
-    hfov: f32,
-    sensors: SensorList,
-    format: &str,
-    shard_size: Option<usize>,
-    limit: Option<usize>,
-    seed: u64,
-    agent: &str,
-    image: &str,
-    jpeg_quality: u8,
-    keep_failed: bool,
-    preview: usize,
     force: bool,
-    device: &str,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let s = Options {
-        dataset,
-        scenes,
-        split: split.into(),
-        preset: preset.into(),
-        step,
-        turn,
-        max_actions,
-        width,
-        height,
-        hfov,
-        sensors: sensors.joined(),
-        format: format.into(),
-        shard_size,
-        limit,
-        seed,
-        agent: agent.into(),
-        image: image.into(),
-        jpeg_quality,
-        keep_failed,
-        preview,
-        device: device.into(),
-    }
-    .settings()
-    .py()?;
-    let manifest = py
-        .detach(|| sage_traindata::render(&s, &out, force, &|_: &RouteDone| {}))
+    let options = self::options(py, dataset, scenes, options)?;
+    let report = py
+        .detach(|| sage_pipeline::traindata::render(&options, &out, force, &|_| {}))
         .py()?;
-    to_py(py, &manifest)
+    to_py(py, &report.manifest)
 }
 
 /// The plan of the render with `settings_json` (reads the split and the scenes folder).
@@ -170,18 +86,18 @@ pub fn training_plan_scenes(py: Python<'_>, settings_json: &str) -> PyResult<Vec
     Ok(plan(py, settings_json)?.scenes())
 }
 
-/// The route folders of every scene, `{scene: [route, ...]}` (scenes sorted, routes in
-/// dataset order): a route is done when `out/images/{scene}/{route}/route.json` holds a walk.
+/// Per scene, its route count and the records of the routes already done under `out`
+/// (`{scene: {"routes": n, "done": ["images/{scene}/{route}/route.json", ...]}}`), as the
+/// render itself tells a finished route.
 #[pyfunction]
-pub fn training_plan_routes(
-    py: Python<'_>,
+pub fn training_progress<'py>(
+    py: Python<'py>,
     settings_json: &str,
-) -> PyResult<BTreeMap<String, Vec<String>>> {
-    Ok(plan(py, settings_json)?
-        .routes
-        .into_iter()
-        .map(|(scene, routes)| (scene, routes.into_iter().map(|r| r.name).collect()))
-        .collect())
+    out: PathBuf,
+) -> PyResult<Bound<'py, PyAny>> {
+    let plan = plan(py, settings_json)?;
+    let progress: BTreeMap<String, SceneProgress> = py.detach(|| plan.scene_progress(&out));
+    to_py(py, &progress)
 }
 
 /// Renders the routes of `scene` not done under `out` (frames and `route.json` per route

@@ -18,6 +18,53 @@ pub enum RgbCodec {
     Png,
 }
 
+/// The file type of RGB frames, as the front ends name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum ImageType {
+    /// Baseline JPEG (`jpg`, also read as `jpeg`).
+    #[default]
+    Jpg,
+    /// Lossless PNG.
+    Png,
+}
+
+impl ImageType {
+    /// The codec of this type at JPEG quality `jpeg_quality` (PNG has none).
+    pub fn codec(self, jpeg_quality: u8) -> RgbCodec {
+        match self {
+            ImageType::Jpg => RgbCodec::Jpeg {
+                quality: jpeg_quality,
+            },
+            ImageType::Png => RgbCodec::Png,
+        }
+    }
+}
+
+impl std::fmt::Display for ImageType {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ImageType::Jpg => "jpg",
+            ImageType::Png => "png",
+        })
+    }
+}
+
+impl std::str::FromStr for ImageType {
+    type Err = Error;
+
+    /// `jpg` (or `jpeg`) or `png`.
+    fn from_str(s: &str) -> Result<ImageType> {
+        match s {
+            "jpg" | "jpeg" => Ok(ImageType::Jpg),
+            "png" => Ok(ImageType::Png),
+            other => Err(Error::invalid(format!(
+                "unknown image type '{other}' (jpg or png)"
+            ))),
+        }
+    }
+}
+
 impl RgbCodec {
     /// The file extension (`jpg` or `png`).
     pub fn extension(self) -> &'static str {
@@ -171,5 +218,20 @@ mod tests {
         assert_eq!(names, ["jpg", "depth.png", "semantic.png", "instance.png"]);
         assert_eq!(&files[0].1[..2], &[0xFF, 0xD8]);
         assert_eq!(&files[1].1[1..4], b"PNG");
+    }
+}
+
+impl TryFrom<String> for ImageType {
+    type Error = Error;
+
+    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
+    fn try_from(name: String) -> Result<ImageType> {
+        name.parse()
+    }
+}
+
+impl From<ImageType> for String {
+    fn from(value: ImageType) -> String {
+        value.to_string()
     }
 }

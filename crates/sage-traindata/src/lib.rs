@@ -22,7 +22,11 @@ pub mod replay;
 pub mod run;
 pub mod sample;
 
+pub use encode::ImageType;
 pub use options::Options;
 pub use output::Format;
-pub use preset::ActionPreset;
-pub use run::{Manifest, Plan, RouteDone, Sensors, Settings, claim, finish, render, render_scene};
+pub use preset::{ActionPreset, PresetName};
+pub use run::{
+    Manifest, Plan, Progress, RouteDone, SceneProgress, Sensors, Settings, claim, finish, render,
+    render_scene,
+};

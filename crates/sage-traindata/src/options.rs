@@ -1,128 +1,178 @@
-//! A render's options as the front ends take them (names and numbers, the command line's
-//! flags and Python's keyword arguments), turned into [`Settings`] in one place.
+//! A render's options: the one typed form of the settings of `sage3d data render`,
+//! `sage3d.render_training_data` and a `[data.render]` table, with their defaults in one
+//! place ([`Default`]). The command line takes them as flags (`clap::Args`, cargo feature
+//! `clap`), Python and settings files as named values (serde); [`Options::settings`] resolves
+//! them into the [`Settings`] a render runs with.
 
-use crate::encode::RgbCodec;
+use crate::encode::ImageType;
 use crate::output::Format;
-use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS};
-use crate::run::Settings;
-use sage_core::{Error, Result};
+use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS, PresetName};
+use crate::run::{Sensors, Settings};
+use sage_core::Result;
 use sage_dataset::folder::scenes_folder;
-use std::path::PathBuf;
+use sage_physics::AgentProfile;
+use sage_splat::Device;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 
-/// The options of `sage3d data render` / `sage3d.render_training_data`; [`Options::new`]
-/// gives their defaults.
-#[derive(Debug, Clone, PartialEq)]
+/// The options of a training-data render; [`Options::default`] gives every default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[serde(default, deny_unknown_fields)]
 pub struct Options {
-    /// The dataset folder.
+    /// The dataset folder (made by `sage3d data build`: episodes/{split}.jsonl).
+    #[cfg_attr(feature = "clap", arg(value_name = "DATASET"))]
     pub dataset: PathBuf,
-    /// The scenes folder (`None`: the one the dataset records,
-    /// [`sage_dataset::folder::scenes_folder`]).
+    /// A scene folder, or a folder of scene folders, holding the dataset's scenes (default: the
+    /// scenes folder the dataset was built from, as its sage3d_run.json records it).
+    #[cfg_attr(feature = "clap", arg(long))]
     pub scenes: Option<PathBuf>,
-    /// The split.
+    /// The split to render (one of those DATASET/splits.json lists).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().split))]
     pub split: String,
-    /// The action preset's name.
-    pub preset: String,
-    /// MOVE_FORWARD distance overriding the preset's, metres.
+    /// Action preset: vlnce (0.25 m, 15°), navila_small (0.35 m, 30°), navila_large
+    /// (0.75 m, 15°), custom_small (0.50 m, 30°).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().preset))]
+    pub preset: PresetName,
+    /// MOVE_FORWARD distance in metres (overrides the preset's).
+    #[cfg_attr(feature = "clap", arg(long))]
     pub step: Option<f32>,
-    /// Turn overriding the preset's, degrees.
+    /// Turn angle in degrees (overrides the preset's).
+    #[cfg_attr(feature = "clap", arg(long))]
     pub turn: Option<f32>,
-    /// Motions per walk at most.
+    /// Motions per trajectory at most; past it the walk calls STOP where it stands.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().max_actions))]
     pub max_actions: usize,
-    /// Image width, pixels.
+    /// Image width in pixels (the published pipeline rendered 1024×768).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().width))]
     pub width: u32,
-    /// Image height, pixels.
+    /// Image height in pixels.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().height))]
     pub height: u32,
-    /// Horizontal field of view, degrees.
+    /// Horizontal field of view in degrees.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().hfov))]
     pub hfov: f32,
-    /// `rgb[,depth,semantic,instance]`.
-    pub sensors: String,
-    /// `navila`, `webdataset` or `frames`.
-    pub format: String,
-    /// Samples per NaVILA part (default 10,000) or episodes per WebDataset shard (default 100).
+    /// Images per frame: rgb[,depth,semantic,instance] (depth: 16-bit PNG millimetres).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().sensors))]
+    #[serde(with = "sensor_names")]
+    pub sensors: Sensors,
+    /// Output layout: navila, webdataset or frames.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().format))]
+    pub format: Format,
+    /// Samples per NaVILA part (default 10000), episodes per WebDataset shard (default 100).
+    #[cfg_attr(feature = "clap", arg(long))]
     pub shard_size: Option<usize>,
-    /// The first N goal-directed episodes only.
+    /// Render only the first N goal-directed episodes of the split.
+    #[cfg_attr(feature = "clap", arg(long))]
     pub limit: Option<usize>,
     /// Seed of the NaVILA sample shuffle.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().seed))]
     pub seed: u64,
-    /// Agent profile.
-    pub agent: String,
-    /// `jpg` or `png`.
-    pub image: String,
-    /// JPEG quality, 1–100.
+    /// Agent profile (camera height, body radius): wheeled, go2, g1 or h1.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().agent))]
+    #[serde(with = "sage_physics::agent::profile_name")]
+    pub agent: AgentProfile,
+    /// RGB file type: jpg or png.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().image))]
+    pub image: ImageType,
+    /// JPEG quality (1–100).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().jpeg_quality))]
     pub jpeg_quality: u8,
-    /// Keep failed walks.
+    /// Keep episodes whose walk collided or ended farther than 1 m from the goal (dropped by
+    /// default; counted either way).
+    #[cfg_attr(feature = "clap", arg(long))]
     pub keep_failed: bool,
-    /// Episodes in the preview GIF.
+    /// Write preview.gif of the first N kept episodes (frames with instruction and action,
+    /// beside the top-down map with the pose).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().preview))]
     pub preview: usize,
-    /// Where the frames are rendered: `cpu`, `gpu` or `auto`.
-    pub device: String,
+    /// Where the frames are rendered: cpu; gpu (any GPU adapter, a software one such as Mesa's
+    /// lavapipe included; an error when there is none); or auto (a hardware GPU when there is
+    /// one, else the CPU).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "cpu|gpu|auto", default_value_t = Options::default().device)
+    )]
+    pub device: Device,
 }
 
-impl Options {
-    /// The defaults for `dataset` and `scenes` (those of [`Settings::new`]).
-    pub fn new(dataset: PathBuf, scenes: Option<PathBuf>) -> Options {
+impl Default for Options {
+    /// The published defaults: split `train`, `navila_small`, the wheeled robot (camera
+    /// 1.2 m), 224×224 RGB at 90° HFOV as JPEG quality 90, the NaVILA layout, seed 0, failed
+    /// walks dropped, on the CPU. No dataset is named.
+    fn default() -> Self {
         Options {
-            dataset,
-            scenes,
+            dataset: PathBuf::new(),
+            scenes: None,
             split: "train".into(),
-            preset: "navila_small".into(),
+            preset: PresetName::default(),
             step: None,
             turn: None,
             max_actions: DEFAULT_MAX_ACTIONS,
             width: 224,
             height: 224,
             hfov: 90.0,
-            sensors: "rgb".into(),
-            format: "navila".into(),
+            sensors: Sensors::default(),
+            format: Format::default(),
             shard_size: None,
             limit: None,
             seed: 0,
-            agent: "wheeled".into(),
-            image: "jpg".into(),
+            agent: AgentProfile::default(),
+            image: ImageType::default(),
             jpeg_quality: 90,
             keep_failed: false,
             preview: 0,
-            device: "cpu".into(),
+            device: Device::default(),
+        }
+    }
+}
+
+impl Options {
+    /// The defaults for `dataset` and `scenes`.
+    pub fn new(dataset: PathBuf, scenes: Option<PathBuf>) -> Options {
+        Options {
+            dataset,
+            scenes,
+            ..Options::default()
         }
     }
 
-    /// The settings these options name.
+    /// The settings these options name, with the scenes folder given or the one the dataset
+    /// records.
     ///
     /// # Errors
     ///
-    /// An unknown preset, format, sensor, image type or device, a step, turn or cap out of
-    /// range, or no scenes folder given nor recorded by the dataset.
+    /// No scenes folder given nor recorded by the dataset, or as [`Options::settings_with`].
     pub fn settings(&self) -> Result<Settings> {
         let scenes = scenes_folder(&self.dataset, self.scenes.as_deref())?;
-        let format: Format = self.format.parse()?;
+        self.settings_with(&scenes)
+    }
+
+    /// The settings these options name over the scenes folder `scenes` (no file is read).
+    ///
+    /// # Errors
+    ///
+    /// A step, turn or cap out of range.
+    pub fn settings_with(&self, scenes: &Path) -> Result<Settings> {
         let preset = ActionPreset::with(
-            ActionPreset::named(&self.preset)?,
+            self.preset.preset(),
             self.step,
             self.turn,
             Some(self.max_actions),
         )?;
-        let rgb_codec = match self.image.as_str() {
-            "jpg" | "jpeg" => RgbCodec::Jpeg {
-                quality: self.jpeg_quality,
-            },
-            "png" => RgbCodec::Png,
-            other => {
-                return Err(Error::invalid(format!(
-                    "image: unknown type '{other}' (jpg or png)"
-                )));
-            }
-        };
         Ok(Settings {
+            dataset: self.dataset.clone(),
+            scenes: scenes.to_path_buf(),
             split: self.split.clone(),
             preset,
-            agent: self.agent.clone(),
+            agent: self.agent.name.to_string(),
             width: self.width,
             height: self.height,
             hfov_deg: self.hfov,
-            sensors: self.sensors.parse()?,
-            rgb_codec,
-            format,
-            shard_size: self.shard_size.unwrap_or(match format {
+            sensors: self.sensors,
+            rgb_codec: self.image.codec(self.jpeg_quality),
+            format: self.format,
+            shard_size: self.shard_size.unwrap_or(match self.format {
                 Format::Webdataset => 100,
                 _ => 10_000,
             }),
@@ -130,16 +180,41 @@ impl Options {
             seed: self.seed,
             keep_failed: self.keep_failed,
             preview: self.preview,
-            device: self.device.parse().map_err(|e: Error| e.within("device"))?,
-            ..Settings::new(&self.dataset, &scenes)?
+            device: self.device,
         })
+    }
+}
+
+/// Sensors in settings files and Python as names: `"rgb,depth"` or `["rgb", "depth"]`.
+mod sensor_names {
+    use crate::run::Sensors;
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    /// Either form of the names.
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Names {
+        Text(String),
+        List(Vec<String>),
+    }
+
+    pub fn serialize<S: Serializer>(sensors: &Sensors, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(sensors)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Sensors, D::Error> {
+        let text = match Names::deserialize(d)? {
+            Names::Text(t) => t,
+            Names::List(v) => v.join(","),
+        };
+        text.parse().map_err(serde::de::Error::custom)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sage_splat::Device;
+    use crate::encode::RgbCodec;
 
     #[test]
     fn the_default_options_are_the_default_settings() {
@@ -149,20 +224,15 @@ mod tests {
             Settings::new(&d, &s).unwrap()
         );
         let wds = Options {
-            format: "webdataset".into(),
-            image: "png".into(),
+            format: Format::Webdataset,
+            image: ImageType::Png,
             ..Options::new(d.clone(), Some(s.clone()))
         }
         .settings()
         .unwrap();
         assert_eq!((wds.shard_size, wds.rgb_codec), (100, RgbCodec::Png));
-        let bad = Options {
-            image: "gif".into(),
-            ..Options::new(d.clone(), Some(s.clone()))
-        };
-        assert!(bad.settings().unwrap_err().to_string().contains("gif"));
         let uav = Options {
-            agent: "uav".into(),
+            agent: "uav".parse().unwrap(),
             ..Options::new(d, Some(s))
         };
         let e = uav
@@ -175,25 +245,41 @@ mod tests {
     }
 
     #[test]
-    fn the_device_reaches_the_environment_and_a_bad_name_is_refused() {
-        let (d, s) = (PathBuf::from("d"), PathBuf::from("s"));
-        let gpu = Options {
-            device: "gpu".into(),
-            ..Options::new(d.clone(), Some(s.clone()))
-        };
-        let settings = gpu.settings().unwrap();
+    fn named_values_read_with_defaults_and_bad_ones_are_refused_by_name() {
+        let o: Options = serde_json::from_str(
+            r#"{"preset": "vlnce", "sensors": ["rgb", "depth"], "image": "jpeg", "agent": "go2", "device": "gpu"}"#,
+        )
+        .unwrap();
+        assert_eq!(o.preset, PresetName::Vlnce);
+        assert!(o.sensors.depth && !o.sensors.semantic);
+        assert_eq!(
+            (o.image, o.agent.name, o.device),
+            (ImageType::Jpg, "go2", Device::Gpu)
+        );
+        assert_eq!(o.width, Options::default().width);
+        let settings = o.settings_with(Path::new("s")).unwrap();
         assert_eq!(settings.env_config().unwrap().device, Device::Gpu);
         assert_eq!(settings.recorded()["device"], "gpu");
-        let cpu = Options::new(d.clone(), Some(s.clone())).settings().unwrap();
+        // Written back, the options read as the same options.
+        let text = serde_json::to_string(&o).unwrap();
+        assert_eq!(serde_json::from_str::<Options>(&text).unwrap(), o);
+        for (bad, named) in [
+            (r#"{"image": "gif"}"#, "gif"),
+            (r#"{"device": "tpu"}"#, "tpu"),
+            (r#"{"agent": "tank"}"#, "tank"),
+            (r#"{"sensors": "rgb,heat"}"#, "heat"),
+            (r#"{"preset": "habitat"}"#, "habitat"),
+            (r#"{"widht": 3}"#, "widht"),
+        ] {
+            let e = serde_json::from_str::<Options>(bad)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(named), "{bad}: {e}");
+        }
+        let cpu = Options::default().settings_with(Path::new("s")).unwrap();
         assert!(
             cpu.recorded().get("device").is_none(),
             "CPU records stay as they were"
         );
-        let bad = Options {
-            device: "tpu".into(),
-            ..Options::new(d, Some(s))
-        };
-        let e = bad.settings().unwrap_err().to_string();
-        assert!(e.contains("device") && e.contains("cpu, gpu, auto"), "{e}");
     }
 }

@@ -12,11 +12,12 @@ use std::io::Write;
 use std::path::Path;
 
 /// The layout of a training set.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
 pub enum Format {
     /// NaVILA's training format: `annotations_part_NNN.json` (one sample per step with the
     /// frame history), `dataset_info.json`, frames under `images/`.
+    #[default]
     Navila,
     /// WebDataset tar shards `shards/{split}-NNNNNN.tar`, one sample per episode.
     Webdataset,
@@ -35,6 +36,12 @@ impl Format {
             Format::Webdataset => "webdataset",
             Format::Frames => "frames",
         }
+    }
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
     }
 }
 
@@ -224,4 +231,19 @@ pub fn write_frames_index(out: &Path, episodes: &[EpisodeSample]) -> Result<Vec<
         Ok(())
     })?;
     Ok(vec![EPISODES_FILE.to_string()])
+}
+
+impl TryFrom<String> for Format {
+    type Error = Error;
+
+    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
+    fn try_from(name: String) -> Result<Format> {
+        name.parse()
+    }
+}
+
+impl From<Format> for String {
+    fn from(value: Format) -> String {
+        value.to_string()
+    }
 }

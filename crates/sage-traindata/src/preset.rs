@@ -24,18 +24,84 @@ pub struct ActionPreset {
     pub max_actions: usize,
 }
 
-/// The published presets: name, step (m), turn (°).
-const PUBLISHED: [(&str, f32, f32); 4] = [
-    ("vlnce", 0.25, 15.0),
-    ("navila_small", 0.35, 30.0),
-    ("navila_large", 0.75, 15.0),
-    ("custom_small", 0.50, 30.0),
-];
+/// A published action preset, by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum PresetName {
+    /// VLN-CE's: 0.25 m, 15°.
+    Vlnce,
+    /// NaVILA's small steps: 0.35 m, 30° (the default of every front end).
+    #[default]
+    NavilaSmall,
+    /// NaVILA's large steps: 0.75 m, 15°.
+    NavilaLarge,
+    /// The published custom preset: 0.50 m, 30°.
+    CustomSmall,
+}
+
+impl PresetName {
+    /// Every published preset.
+    pub const ALL: [PresetName; 4] = [
+        PresetName::Vlnce,
+        PresetName::NavilaSmall,
+        PresetName::NavilaLarge,
+        PresetName::CustomSmall,
+    ];
+
+    /// The preset's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PresetName::Vlnce => "vlnce",
+            PresetName::NavilaSmall => "navila_small",
+            PresetName::NavilaLarge => "navila_large",
+            PresetName::CustomSmall => "custom_small",
+        }
+    }
+
+    /// The preset, with the published cap of 50 motions.
+    pub fn preset(self) -> ActionPreset {
+        let (step_m, turn_deg) = match self {
+            PresetName::Vlnce => (0.25, 15.0),
+            PresetName::NavilaSmall => (0.35, 30.0),
+            PresetName::NavilaLarge => (0.75, 15.0),
+            PresetName::CustomSmall => (0.50, 30.0),
+        };
+        ActionPreset {
+            name: self.as_str().to_string(),
+            step_m,
+            turn_deg,
+            max_actions: DEFAULT_MAX_ACTIONS,
+        }
+    }
+}
+
+impl std::fmt::Display for PresetName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for PresetName {
+    type Err = Error;
+
+    /// A preset by its name.
+    fn from_str(name: &str) -> Result<PresetName> {
+        PresetName::ALL
+            .into_iter()
+            .find(|p| p.as_str() == name)
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "unknown action preset '{name}' (known: {})",
+                    ActionPreset::names().join(", ")
+                ))
+            })
+    }
+}
 
 impl ActionPreset {
     /// The names [`ActionPreset::named`] knows.
     pub fn names() -> Vec<&'static str> {
-        PUBLISHED.iter().map(|p| p.0).collect()
+        PresetName::ALL.iter().map(|p| p.as_str()).collect()
     }
 
     /// A published preset by name, with the published cap of 50 motions.
@@ -44,23 +110,7 @@ impl ActionPreset {
     ///
     /// An unknown name, listing the known ones.
     pub fn named(name: &str) -> Result<ActionPreset> {
-        let (name, step_m, turn_deg) =
-            PUBLISHED
-                .iter()
-                .find(|p| p.0 == name)
-                .copied()
-                .ok_or_else(|| {
-                    Error::invalid(format!(
-                        "unknown action preset '{name}' (known: {})",
-                        Self::names().join(", ")
-                    ))
-                })?;
-        Ok(ActionPreset {
-            name: name.to_string(),
-            step_m,
-            turn_deg,
-            max_actions: DEFAULT_MAX_ACTIONS,
-        })
+        Ok(name.parse::<PresetName>()?.preset())
     }
 
     /// `base` with its step, turn or cap replaced; a preset with a changed step or turn is
@@ -178,5 +228,20 @@ mod tests {
         assert!(ActionPreset::with(base.clone(), Some(0.0), None, None).is_err());
         assert!(ActionPreset::with(base.clone(), None, Some(200.0), None).is_err());
         assert!(ActionPreset::with(base, None, None, Some(0)).is_err());
+    }
+}
+
+impl TryFrom<String> for PresetName {
+    type Error = Error;
+
+    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
+    fn try_from(name: String) -> Result<PresetName> {
+        name.parse()
+    }
+}
+
+impl From<PresetName> for String {
+    fn from(value: PresetName) -> String {
+        value.to_string()
     }
 }

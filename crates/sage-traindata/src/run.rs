@@ -34,17 +34,41 @@ pub struct Sensors {
     pub instance: bool,
 }
 
+impl Default for Sensors {
+    /// RGB only.
+    fn default() -> Self {
+        Sensors {
+            rgb: true,
+            depth: false,
+            semantic: false,
+            instance: false,
+        }
+    }
+}
+
+impl std::fmt::Display for Sensors {
+    /// `rgb[,depth][,semantic][,instance]`, as [`FromStr`](std::str::FromStr) reads it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("rgb")?;
+        for (on, name) in [
+            (self.depth, "depth"),
+            (self.semantic, "semantic"),
+            (self.instance, "instance"),
+        ] {
+            if on {
+                write!(f, ",{name}")?;
+            }
+        }
+        Ok(())
+    }
+}
+
 impl std::str::FromStr for Sensors {
     type Err = Error;
 
     /// `rgb[,depth,semantic,instance]`: RGB is always produced (every format needs it).
     fn from_str(s: &str) -> Result<Sensors> {
-        let mut out = Sensors {
-            rgb: true,
-            depth: false,
-            semantic: false,
-            instance: false,
-        };
+        let mut out = Sensors::default();
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
             match name {
                 "rgb" => {}
@@ -109,38 +133,14 @@ fn is_cpu(device: &Device) -> bool {
 }
 
 impl Settings {
-    /// Settings with the published defaults for `dataset` and `scenes`: split `train`,
-    /// `navila_small`, wheeled robot (camera 1.2 m), 224×224 RGB at 90° HFOV as JPEG quality
-    /// 90, the NaVILA layout in parts of 10 000 samples, seed 0, failed walks dropped.
+    /// Settings with the published defaults ([`Options::default`](crate::Options)) for
+    /// `dataset` and `scenes`.
     ///
     /// # Errors
     ///
-    /// None in practice (the preset is known).
+    /// None in practice (the defaults are in range).
     pub fn new(dataset: &Path, scenes: &Path) -> Result<Settings> {
-        Ok(Settings {
-            dataset: dataset.to_path_buf(),
-            scenes: scenes.to_path_buf(),
-            split: "train".into(),
-            preset: ActionPreset::named("navila_small")?,
-            agent: "wheeled".into(),
-            width: 224,
-            height: 224,
-            hfov_deg: 90.0,
-            sensors: Sensors {
-                rgb: true,
-                depth: false,
-                semantic: false,
-                instance: false,
-            },
-            rgb_codec: RgbCodec::Jpeg { quality: 90 },
-            format: Format::Navila,
-            shard_size: 10_000,
-            limit: None,
-            seed: 0,
-            keep_failed: false,
-            preview: 0,
-            device: Device::Cpu,
-        })
+        crate::Options::new(dataset.to_path_buf(), None).settings_with(scenes)
     }
 
     /// The environment the walks run in: the agent profile, the preset's discrete actions,
@@ -311,6 +311,36 @@ impl Plan {
     pub fn route_count(&self) -> usize {
         self.routes.values().map(Vec::len).sum()
     }
+
+    /// Per scene, its routes and those already done under `out`: what a render split over
+    /// machines needs to know of a folder to hand out only the work left.
+    pub fn scene_progress(&self, out: &Path) -> BTreeMap<String, SceneProgress> {
+        self.routes
+            .iter()
+            .map(|(scene, routes)| {
+                let done = routes
+                    .iter()
+                    .filter(|r| is_done(out, r))
+                    .map(|r| format!("{IMAGES_DIR}/{}/{}/{ROUTE_FILE}", r.scene, r.name))
+                    .collect();
+                let progress = SceneProgress {
+                    routes: routes.len(),
+                    done,
+                };
+                (scene.clone(), progress)
+            })
+            .collect()
+    }
+}
+
+/// A scene's routes and those of them done in an output folder ([`Plan::scene_progress`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneProgress {
+    /// Routes of the scene.
+    pub routes: usize,
+    /// The records (`images/{scene}/{route}/route.json`, relative to the output folder, `/`
+    /// between names) of the routes done: a record with a walk.
+    pub done: Vec<String>,
 }
 
 /// A route finished by [`render_scene`] (for progress displays).
@@ -735,6 +765,22 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
     Ok(None)
 }
 
+/// What a whole [`render`] tells its caller as it goes.
+#[derive(Debug, Clone, Copy)]
+pub enum Progress<'a> {
+    /// The plan is made: this many routes in all (done ones included).
+    Planned {
+        /// Routes of every scene.
+        routes: usize,
+    },
+    /// The same render already finished in the output folder: nothing is rendered.
+    AlreadyComplete,
+    /// A scene starts (its scene is being loaded).
+    Scene(&'a str),
+    /// A route is done (walked, or given up with its reason).
+    Route(&'a RouteDone),
+}
+
 /// A whole render: claim `out`, render every scene (resuming routes already done), finish.
 /// A render that already finished returns its manifest.
 ///
@@ -745,14 +791,19 @@ pub fn render(
     settings: &Settings,
     out: &Path,
     force: bool,
-    on_route: &(dyn Fn(&RouteDone) + Sync),
+    on_progress: &(dyn Fn(Progress<'_>) + Sync),
 ) -> Result<Manifest> {
     let plan = Plan::new(settings)?;
+    on_progress(Progress::Planned {
+        routes: plan.route_count(),
+    });
     if let Some(done) = claim(&plan, out, force)? {
+        on_progress(Progress::AlreadyComplete);
         return Ok(done);
     }
     for scene in plan.scenes() {
-        render_scene(&plan, &scene, out, on_route)?;
+        on_progress(Progress::Scene(&scene));
+        render_scene(&plan, &scene, out, &|r| on_progress(Progress::Route(r)))?;
     }
     finish(&plan, out)
 }

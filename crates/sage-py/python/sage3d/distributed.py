@@ -248,17 +248,6 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
                               mode=mode, seed=seed, preset=preset, dtw=dtw, device=device)
 
 
-def _route_done(out, scene, route):
-    """True when ``out`` holds the route's record with a walk (as the render tells a finished
-    route: a record without one names an error and is retried)."""
-    path = os.path.join(out, "images", scene, route, "route.json")
-    try:
-        with open(path) as f:
-            return "walk" in json.load(f)
-    except (OSError, ValueError):
-        return False
-
-
 def _render_training_scene(settings_json, scene, done):
     """One scene of a training-data render, in a temporary folder of this node: the records of
     the routes already done (``done``: relative path -> bytes) are put there first, so only
@@ -361,16 +350,13 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     finished = _sage3d.training_claim(settings, out, force)
     if finished is not None:
         return finished
-    routes = _sage3d.training_plan_routes(settings)
     pending = {}
-    for scene, names in routes.items():
-        done = {}
-        for name in names:
-            if _route_done(out, scene, name):
-                rel = f"images/{scene}/{name}/route.json"
+    for scene, progress in _sage3d.training_progress(settings, out).items():
+        if len(progress["done"]) < progress["routes"]:
+            done = {}
+            for rel in progress["done"]:
                 with open(os.path.join(out, rel), "rb") as f:
                     done[rel] = f.read()
-        if len(done) < len(names):
             pending[scene] = done
     task = ray.remote(num_cpus=num_cpus)(_render_training_scene)
     refs = {task.remote(settings, scene, done): scene for scene, done in pending.items()}
