@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_io::files::write_json;
 use sage_io::runner::{Status, resume_or_run};
-use sage_lang::actions::{self, ActionSpace};
+use sage_lang::actions::{self, StepSizes};
 use sage_lang::instruction::Instruction;
 use sage_lang::llm::{self, LlmClient, LlmConfig};
 use sage_lang::validate::ValidationReport;
@@ -73,7 +73,7 @@ pub struct SceneParams {
     /// High-level instructions kept per type and trajectory (LLM answers hold 2–4).
     pub high_per_type: usize,
     /// The discrete action space of the ground truth.
-    pub space: ActionSpace,
+    pub space: StepSizes,
     /// Trajectory settings (count and seed are set from the above).
     pub trajectories: TrajectoryParams,
     /// The LLM endpoint for high-level instructions (`None`: the offline grammar).
@@ -90,7 +90,7 @@ impl SceneParams {
             base_actions: per_scene.div_ceil(4),
             nogoal: 1,
             high_per_type: 1,
-            space: ActionSpace::default(),
+            space: StepSizes::default(),
             trajectories: TrajectoryParams {
                 count: per_scene,
                 seed,
@@ -173,7 +173,7 @@ struct Motion {
     start: StartPose,
     goal: Option<Goal>,
     path: Vec<[f32; 3]>,
-    actions: Vec<actions::Action>,
+    actions: Vec<actions::DiscreteAction>,
     length: f32,
     geodesic: f32,
 }
@@ -673,7 +673,7 @@ pub fn assemble(
     out: &Path,
     scenes: &[String],
     params: &AssembleParams,
-    space: &ActionSpace,
+    space: &StepSizes,
 ) -> Result<Summary> {
     let files = load_scene_files(out, scenes)?;
     let episodes: Vec<Episode> = files
