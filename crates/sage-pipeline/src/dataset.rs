@@ -1,7 +1,7 @@
 //! The dataset build over a folder of scenes: per-scene trajectories, instructions and episodes
 //! (parallel, resumable), then splits, files and summary, and the run record.
 
-use sage_bench::dataset::build::{self, AssembleParams, SceneOutcome, SceneParams, Summary};
+use sage_bench::dataset::build::{self, AssembleParams, DatasetSummary, SceneOutcome, SceneParams};
 use sage_core::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -13,7 +13,7 @@ pub struct DatasetReport {
     /// Per scene: made, resumed or skipped.
     pub outcomes: Vec<SceneOutcome>,
     /// The dataset's summary.
-    pub summary: Summary,
+    pub summary: DatasetSummary,
 }
 
 /// Builds (or resumes) the dataset of the scenes under `scenes` into `out`; `on_scene(outcome,

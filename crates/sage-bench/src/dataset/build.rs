@@ -553,9 +553,10 @@ impl AssembleParams {
     }
 }
 
-/// Counts of the whole dataset: the file `summary.json`.
+/// Counts of the whole dataset: the dataset's `summary.json`. Named apart from
+/// [`crate::eval::Summary`], the `summary.json` of an evaluation run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct Summary {
+pub struct DatasetSummary {
     /// Scenes with episodes.
     pub scenes: usize,
     /// Episodes.
@@ -590,7 +591,7 @@ pub struct Summary {
     pub r2r_episodes: usize,
 }
 
-impl Summary {
+impl DatasetSummary {
     /// A short text table.
     pub fn table(&self) -> String {
         let mut s = String::new();
@@ -674,7 +675,7 @@ pub fn assemble(
     scenes: &[String],
     params: &AssembleParams,
     space: &StepSizes,
-) -> Result<Summary> {
+) -> Result<DatasetSummary> {
     let files = load_scene_files(out, scenes)?;
     let episodes: Vec<Episode> = files
         .iter()
@@ -702,11 +703,11 @@ pub fn assemble(
         .filter(|e| balanced_set.contains(e.episode_id.as_str()))
         .cloned()
         .collect();
-    let mut summary = Summary {
+    let mut summary = DatasetSummary {
         scenes: files.len(),
         episodes: episodes.len(),
         balanced_test: balanced.len(),
-        ..Summary::default()
+        ..DatasetSummary::default()
     };
     for d in ["episodes", "gvln", "r2r"] {
         let p = out.join(d);
@@ -796,7 +797,7 @@ pub fn build(
     params: &SceneParams,
     assemble_params: &AssembleParams,
     on_scene: &(dyn Fn(&SceneOutcome) + Sync),
-) -> Result<(Vec<SceneOutcome>, Summary)> {
+) -> Result<(Vec<SceneOutcome>, DatasetSummary)> {
     params.validate()?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let client = params.llm.clone().map(LlmClient::new).transpose()?;
