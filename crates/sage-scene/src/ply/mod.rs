@@ -14,6 +14,7 @@ pub mod mesh;
 pub mod standard;
 
 use crate::gaussians::Gaussians;
+use crate::mapped::with_mapped_file;
 use crate::splats::SplatSource;
 use sage_core::{Error, Result};
 use std::path::Path;
@@ -93,7 +94,7 @@ pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
 
 /// Reads a Gaussian file (memory-mapped); errors name the file.
 pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
-    crate::splats::format::with_mapped_file(path, read_splats)
+    with_mapped_file(path, read_splats)
 }
 
 /// Writes Gaussians in `layout`, atomically (temporary file, then rename).
