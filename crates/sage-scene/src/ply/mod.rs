@@ -1,4 +1,5 @@
-//! 3DGS PLY files in both layouts, and PLY meshes.
+//! 3DGS PLY files in both layouts. The [`header`] parser serves any PLY file: PLY meshes are read
+//! on top of it by [`crate::mesh::read_ply`], next to the mesh type they fill.
 //!
 //! - [`standard`]: the Inria layout (`x y z … f_dc_* f_rest_* opacity scale_* rot_*`), matched by
 //!   property name in any order and any scalar type, ASCII or binary; SH degree inferred from the
@@ -10,7 +11,6 @@
 
 pub mod compressed;
 pub mod header;
-pub mod mesh;
 pub mod standard;
 
 use crate::gaussians::Gaussians;
