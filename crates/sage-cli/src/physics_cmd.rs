@@ -6,8 +6,8 @@ use sage_core::{Error, Pose, Result, Vec3};
 use sage_io::files::write_json;
 use sage_physics::usd::{SplatAsset, write_usda};
 use sage_physics::{
-    Agent, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, WorkList, World,
-    WorldOptions, default_cache_dir,
+    AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, WorkList,
+    World, WorldOptions, default_cache_dir,
 };
 use sage_scene::Scene;
 use sage_scene::scene::files;
@@ -275,7 +275,7 @@ fn drive(a: DriveArgs) -> Result<()> {
         ..WorldOptions::default()
     };
     let mut world = World::new(&scene, bodies, &options);
-    let mut agent = Agent::new(profile, Pose::new(position, a.yaw.to_radians()));
+    let mut agent = AgentBody::new(profile, Pose::new(position, a.yaw.to_radians()));
     for (i, c) in commands.iter().enumerate() {
         let report = agent.step(&mut world, c)?;
         let mut line = serde_json::to_value(&report).map_err(|e| Error::invalid(e.to_string()))?;

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_io::files::write_json;
 use sage_io::runner::{Status, resume_or_run};
-use sage_lang::actions::{self, ActionSpace};
+use sage_lang::actions::{self, StepSizes};
 use sage_lang::instruction::Instruction;
 use sage_lang::llm::{self, LlmClient, LlmConfig};
 use sage_lang::validate::ValidationReport;
@@ -73,7 +73,7 @@ pub struct SceneParams {
     /// High-level instructions kept per type and trajectory (LLM answers hold 2–4).
     pub high_per_type: usize,
     /// The discrete action space of the ground truth.
-    pub space: ActionSpace,
+    pub space: StepSizes,
     /// Trajectory settings (count and seed are set from the above).
     pub trajectories: TrajectoryParams,
     /// The LLM endpoint for high-level instructions (`None`: the offline grammar).
@@ -90,7 +90,7 @@ impl SceneParams {
             base_actions: per_scene.div_ceil(4),
             nogoal: 1,
             high_per_type: 1,
-            space: ActionSpace::default(),
+            space: StepSizes::default(),
             trajectories: TrajectoryParams {
                 count: per_scene,
                 seed,
@@ -173,7 +173,7 @@ struct Motion {
     start: StartPose,
     goal: Option<Goal>,
     path: Vec<[f32; 3]>,
-    actions: Vec<actions::Action>,
+    actions: Vec<actions::DiscreteAction>,
     length: f32,
     geodesic: f32,
 }
@@ -553,9 +553,10 @@ impl AssembleParams {
     }
 }
 
-/// Counts of the whole dataset: the file `summary.json`.
+/// Counts of the whole dataset: the dataset's `summary.json`. Named apart from
+/// [`crate::eval::Summary`], the `summary.json` of an evaluation run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
-pub struct Summary {
+pub struct DatasetSummary {
     /// Scenes with episodes.
     pub scenes: usize,
     /// Episodes.
@@ -590,7 +591,7 @@ pub struct Summary {
     pub r2r_episodes: usize,
 }
 
-impl Summary {
+impl DatasetSummary {
     /// A short text table.
     pub fn table(&self) -> String {
         let mut s = String::new();
@@ -673,8 +674,8 @@ pub fn assemble(
     out: &Path,
     scenes: &[String],
     params: &AssembleParams,
-    space: &ActionSpace,
-) -> Result<Summary> {
+    space: &StepSizes,
+) -> Result<DatasetSummary> {
     let files = load_scene_files(out, scenes)?;
     let episodes: Vec<Episode> = files
         .iter()
@@ -702,11 +703,11 @@ pub fn assemble(
         .filter(|e| balanced_set.contains(e.episode_id.as_str()))
         .cloned()
         .collect();
-    let mut summary = Summary {
+    let mut summary = DatasetSummary {
         scenes: files.len(),
         episodes: episodes.len(),
         balanced_test: balanced.len(),
-        ..Summary::default()
+        ..DatasetSummary::default()
     };
     for d in ["episodes", "gvln", "r2r"] {
         let p = out.join(d);
@@ -796,7 +797,7 @@ pub fn build(
     params: &SceneParams,
     assemble_params: &AssembleParams,
     on_scene: &(dyn Fn(&SceneOutcome) + Sync),
-) -> Result<(Vec<SceneOutcome>, Summary)> {
+) -> Result<(Vec<SceneOutcome>, DatasetSummary)> {
     params.validate()?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let client = params.llm.clone().map(LlmClient::new).transpose()?;

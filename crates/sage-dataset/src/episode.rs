@@ -3,7 +3,7 @@
 use crate::slices::Slices;
 use sage_core::{Error, Pose, Result, Vec3};
 use sage_env::{EnvEpisode, EnvGoal};
-use sage_lang::{Action, InstructionType, Level, SingleGoalKind, Source};
+use sage_lang::{DiscreteAction, InstructionType, Level, SingleGoalKind, Source};
 use serde::{Deserialize, Serialize};
 
 pub use sage_core::Task;
@@ -76,7 +76,7 @@ pub struct Episode {
     /// Base-Action; the start alone for no-goal).
     pub reference_path: Vec<[f32; 3]>,
     /// Ground-truth actions (0 STOP, 1 FORWARD, 2 LEFT, 3 RIGHT), ending with STOP.
-    pub actions: Vec<Action>,
+    pub actions: Vec<DiscreteAction>,
     /// Length of the reference path, metres.
     pub path_length: f32,
     /// Geodesic distance start → goal, metres (0 for no-goal).

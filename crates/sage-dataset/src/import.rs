@@ -5,7 +5,7 @@ use crate::formats::{gvln, jsonl, r2r};
 use crate::{Episode, folder};
 use glam::Vec2;
 use sage_core::{Error, Result};
-use sage_lang::ActionSpace;
+use sage_lang::StepSizes;
 use std::path::{Path, PathBuf};
 
 /// Where the episodes come from.
@@ -44,7 +44,7 @@ pub const COMMAND: &str = "data import";
 pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
     let names = ["episodes", folder::SPLITS_FILE, sage_io::RUN_RECORD];
     sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
-    let space = ActionSpace::default();
+    let space = StepSizes::default();
     let episodes = match source {
         Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
         Source::R2r { dir, split } => r2r::read(dir, split, &space)?,

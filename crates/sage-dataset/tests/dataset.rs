@@ -13,7 +13,7 @@ use sage_dataset::{Episode, Task};
 use sage_io::files::read_tree;
 use sage_io::runner::Status;
 use sage_lang::InstructionType;
-use sage_lang::actions::{ActionSpace, replay};
+use sage_lang::actions::{StepSizes, replay};
 use sage_synth::{SynthConfig, generate};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -103,7 +103,7 @@ fn episodes_are_complete_and_their_actions_reach_the_goal() {
     let out = tempfile::tempdir().unwrap();
     build_with(2, out.path());
     let eps = all_episodes(out.path());
-    let space = ActionSpace::default();
+    let space = StepSizes::default();
     let kinds: BTreeSet<InstructionType> = eps.iter().map(|e| e.instruction_type).collect();
     for k in InstructionType::HIGH.into_iter().chain([
         InstructionType::BaseAction,
@@ -227,7 +227,7 @@ fn formats_round_trip() {
     let out = tempfile::tempdir().unwrap();
     build_with(2, out.path());
     let eps = all_episodes(out.path());
-    let space = ActionSpace::default();
+    let space = StepSizes::default();
     let dir = tempfile::tempdir().unwrap();
     // JSONL: exact.
     jsonl::write(&dir.path().join("e.jsonl"), &eps).unwrap();
@@ -286,7 +286,7 @@ fn bad_files_name_file_and_place() {
     assert!(e.contains("bad.jsonl") && e.contains("line 1"), "{e}");
     let g = dir.path().join("bad.json");
     std::fs::write(&g, r#"{"scenes":[{"scene_name":"x","samples":[{"trajectory_id":"0","instructions":[],"points":[{"position":[0,0],"rotation":[0,0,0,1]}]}]}]}"#).unwrap();
-    let e = gvln::read(&g, Vec2::ZERO, &ActionSpace::default())
+    let e = gvln::read(&g, Vec2::ZERO, &StepSizes::default())
         .unwrap_err()
         .to_string();
     assert!(
@@ -296,7 +296,7 @@ fn bad_files_name_file_and_place() {
     std::fs::create_dir_all(dir.path().join("x")).unwrap();
     std::fs::write(dir.path().join("x/x.json.gz"), b"not gzip").unwrap();
     assert!(
-        r2r::read(dir.path(), "x", &ActionSpace::default())
+        r2r::read(dir.path(), "x", &StepSizes::default())
             .unwrap_err()
             .to_string()
             .contains("x.json.gz")

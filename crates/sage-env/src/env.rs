@@ -9,7 +9,7 @@ use sage_core::Task;
 use sage_core::{Error, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
-use sage_physics::{Agent as Body, AgentKind, AgentProfile, Command, Touch, World};
+use sage_physics::{AgentBody, AgentKind, AgentProfile, Command, Touch, World};
 use sage_splat::{Backend, Camera, Intrinsics, RenderOptions, RenderOutput};
 use std::sync::Arc;
 
@@ -56,7 +56,7 @@ pub struct Observation {
 
 /// A running episode's state.
 struct Running {
-    body: Body,
+    body: AgentBody,
     world: World,
     pitch: f32,
     time: f32,
@@ -197,7 +197,7 @@ impl Env {
             },
             (Task::Nogoal, None) => None,
         };
-        let body = Body::new(self.profile.clone(), episode.start);
+        let body = AgentBody::new(self.profile.clone(), episode.start);
         let trace = EpisodeTrace {
             episode: episode.clone(),
             goal_footprint: region

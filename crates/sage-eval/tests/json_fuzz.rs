@@ -15,7 +15,7 @@ use sage_dataset::slices::Slices;
 use sage_dataset::{Episode, Goal, StartPose, Task};
 use sage_eval::EvalRecord;
 use sage_eval::records::{self, Appender};
-use sage_lang::actions::{ActionSpace, follow};
+use sage_lang::actions::{StepSizes, follow};
 use sage_lang::{InstructionType, Level, Source};
 use sage_testkit::{Edit, edit, mutate, mutate_bytes};
 use serde_json::Value;
@@ -54,7 +54,7 @@ fn episode(trajectory: usize, corners: &[[f32; 2]], yaw: f32, instruction: &str)
             position: *points.last().unwrap(),
             yaw: None,
         }),
-        actions: follow(&flat, yaw, None, &ActionSpace::default()).unwrap(),
+        actions: follow(&flat, yaw, None, &StepSizes::default()).unwrap(),
         reference_path: points,
         path_length: length,
         geodesic_distance: length,
@@ -208,7 +208,7 @@ proptest! {
         } else {
             GvlnFrame::Sage(sage_core::frame::SageFrame { offset: Vec2::new(3.5, -1.25) })
         };
-        let space = ActionSpace::default();
+        let space = StepSizes::default();
         gvln::write(&p, &fixture_episodes(), frame, &space).unwrap();
         let bytes = mutate(&std::fs::read(&p).unwrap(), &edits);
         std::fs::write(&p, bytes).unwrap();
@@ -225,7 +225,7 @@ proptest! {
     #[test]
     fn mutated_r2r_files_never_panic(gt in any::<bool>(), edits in prop::collection::vec(edit(), 1..4)) {
         let dir = tempfile::tempdir().unwrap();
-        let space = ActionSpace::default();
+        let space = StepSizes::default();
         r2r::write(dir.path(), "train", &fixture_episodes(), &space).unwrap();
         let (main, gt_path) = r2r::paths(dir.path(), "train");
         // The episodes file or the ground-truth file, gzip-compressed again after the edit.
@@ -349,7 +349,7 @@ fn the_replay_fixtures_read() {
 #[test]
 fn huge_and_infinite_numbers_are_errors_naming_the_field() {
     let dir = tempfile::tempdir().unwrap();
-    let space = ActionSpace::default();
+    let space = StepSizes::default();
     // A coordinate far beyond any scene: reading it must fail, not walk toward it for ever.
     let p = dir.path().join("e.jsonl");
     std::fs::write(

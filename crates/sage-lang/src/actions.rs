@@ -9,10 +9,11 @@ use glam::{Vec2, Vec3};
 use sage_core::{Pose, wrap_angle};
 use serde::{Deserialize, Serialize};
 
-/// One discrete action.
+/// One ground-truth discrete action, by VLN-CE id (0-3). Named apart from `sage_env::Action`,
+/// the environment's action (velocities and camera tilt too), which these are replayed into.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(into = "u8", try_from = "u8")]
-pub enum Action {
+pub enum DiscreteAction {
     /// End the episode (id 0).
     Stop = 0,
     /// Move forward one step (id 1).
@@ -23,20 +24,20 @@ pub enum Action {
     Right = 3,
 }
 
-impl From<Action> for u8 {
-    fn from(a: Action) -> u8 {
+impl From<DiscreteAction> for u8 {
+    fn from(a: DiscreteAction) -> u8 {
         a as u8
     }
 }
 
-impl TryFrom<u8> for Action {
+impl TryFrom<u8> for DiscreteAction {
     type Error = String;
-    fn try_from(v: u8) -> Result<Action, String> {
+    fn try_from(v: u8) -> Result<DiscreteAction, String> {
         match v {
-            0 => Ok(Action::Stop),
-            1 => Ok(Action::Forward),
-            2 => Ok(Action::Left),
-            3 => Ok(Action::Right),
+            0 => Ok(DiscreteAction::Stop),
+            1 => Ok(DiscreteAction::Forward),
+            2 => Ok(DiscreteAction::Left),
+            3 => Ok(DiscreteAction::Right),
             _ => Err(format!(
                 "action id must be 0-3 (STOP, FORWARD, LEFT, RIGHT), got {v}"
             )),
@@ -44,26 +45,27 @@ impl TryFrom<u8> for Action {
     }
 }
 
-/// Step sizes of the discrete action space.
+/// Step sizes of the discrete action space: what a forward step and a turn amount to. Named
+/// apart from `sage_env::ActionSpace`, which says which actions an environment accepts.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ActionSpace {
+pub struct StepSizes {
     /// Forward step, metres (VLN-CE: 0.25).
     pub forward: f32,
     /// Turn angle, degrees (VLN-CE: 15).
     pub turn_deg: f32,
 }
 
-impl Default for ActionSpace {
+impl Default for StepSizes {
     /// The `vlnce` preset (SPEC §13): 0.25 m, 15°.
     fn default() -> Self {
-        ActionSpace {
+        StepSizes {
             forward: 0.25,
             turn_deg: 15.0,
         }
     }
 }
 
-impl ActionSpace {
+impl StepSizes {
     fn turn(&self) -> f32 {
         self.turn_deg.to_radians()
     }
@@ -83,24 +85,28 @@ struct State {
 }
 
 impl State {
-    fn yaw(&self, space: &ActionSpace) -> f32 {
+    fn yaw(&self, space: &StepSizes) -> f32 {
         wrap_angle(self.start_yaw + self.turns as f32 * space.turn())
     }
 
-    fn apply(&mut self, a: Action, space: &ActionSpace) {
+    fn apply(&mut self, a: DiscreteAction, space: &StepSizes) {
         match a {
-            Action::Forward => {
+            DiscreteAction::Forward => {
                 let y = self.yaw(space);
                 self.p += space.forward * Vec2::new(y.cos(), y.sin());
             }
-            Action::Left => self.turns += 1,
-            Action::Right => self.turns -= 1,
-            Action::Stop => {}
+            DiscreteAction::Left => self.turns += 1,
+            DiscreteAction::Right => self.turns -= 1,
+            DiscreteAction::Stop => {}
         }
     }
 
-    fn emit_turns(&mut self, n: i32, space: &ActionSpace, out: &mut Vec<Action>) {
-        let a = if n > 0 { Action::Left } else { Action::Right };
+    fn emit_turns(&mut self, n: i32, space: &StepSizes, out: &mut Vec<DiscreteAction>) {
+        let a = if n > 0 {
+            DiscreteAction::Left
+        } else {
+            DiscreteAction::Right
+        };
         for _ in 0..n.unsigned_abs() {
             self.apply(a, space);
             out.push(a);
@@ -118,8 +124,8 @@ pub fn follow(
     path: &[Vec2],
     start_yaw: f32,
     final_yaw: Option<f32>,
-    space: &ActionSpace,
-) -> Option<Vec<Action>> {
+    space: &StepSizes,
+) -> Option<Vec<DiscreteAction>> {
     let first = *path.first()?;
     let goal = *path.last()?;
     let mut s = State {
@@ -150,24 +156,24 @@ pub fn follow(
         let n = space.turns_for(d.y.atan2(d.x) - s.yaw(space));
         let mut next = s;
         next.turns += n;
-        next.apply(Action::Forward, space);
+        next.apply(DiscreteAction::Forward, space);
         if t == last && next.p.distance(goal) >= s.p.distance(goal) {
             break;
         }
         s.emit_turns(n, space, &mut out);
-        s.apply(Action::Forward, space);
-        out.push(Action::Forward);
+        s.apply(DiscreteAction::Forward, space);
+        out.push(DiscreteAction::Forward);
     }
     if let Some(f) = final_yaw {
         let n = space.turns_for(f - s.yaw(space));
         s.emit_turns(n, space, &mut out);
     }
-    out.push(Action::Stop);
+    out.push(DiscreteAction::Stop);
     Some(out)
 }
 
 /// The poses after each action, starting with `start` (so `actions.len() + 1` poses); z is kept.
-pub fn replay(start: Pose, actions: &[Action], space: &ActionSpace) -> Vec<Pose> {
+pub fn replay(start: Pose, actions: &[DiscreteAction], space: &StepSizes) -> Vec<Pose> {
     let mut s = State {
         p: start.position.truncate(),
         start_yaw: start.yaw,
@@ -219,17 +225,23 @@ mod tests {
     #[test]
     fn straight_path_is_forward_steps_then_stop() {
         let path = poly(&[(0.0, 0.0), (2.0, 0.0)], 0.25);
-        let a = follow(&path, 0.0, None, &ActionSpace::default()).unwrap();
-        assert_eq!(a, [vec![Action::Forward; 8], vec![Action::Stop]].concat());
+        let a = follow(&path, 0.0, None, &StepSizes::default()).unwrap();
+        assert_eq!(
+            a,
+            [vec![DiscreteAction::Forward; 8], vec![DiscreteAction::Stop]].concat()
+        );
         let a = follow(
             &path,
             std::f32::consts::FRAC_PI_2,
             None,
-            &ActionSpace::default(),
+            &StepSizes::default(),
         )
         .unwrap();
-        assert_eq!(&a[..6], &[Action::Right; 6]);
-        assert_eq!(a.iter().filter(|x| **x == Action::Forward).count(), 8);
+        assert_eq!(&a[..6], &[DiscreteAction::Right; 6]);
+        assert_eq!(
+            a.iter().filter(|x| **x == DiscreteAction::Forward).count(),
+            8
+        );
     }
 
     #[test]
@@ -250,7 +262,7 @@ mod tests {
             path.extend((1..=n).map(|i| w[0].lerp(w[1], i as f32 / n as f32)));
         }
         path.truncate(151);
-        let (space, yaw) = (ActionSpace::default(), -2.815_910_3);
+        let (space, yaw) = (StepSizes::default(), -2.815_910_3);
         let actions = follow(&path, yaw, None, &space).expect("the hairpin is followed");
         let poses = replay(Pose::new(path[0].extend(0.0), yaw), &actions, &space);
         for p in &poses {
@@ -263,11 +275,16 @@ mod tests {
     #[test]
     fn ids_are_vlnce() {
         assert_eq!(
-            serde_json::to_string(&[Action::Stop, Action::Forward, Action::Left, Action::Right])
-                .unwrap(),
+            serde_json::to_string(&[
+                DiscreteAction::Stop,
+                DiscreteAction::Forward,
+                DiscreteAction::Left,
+                DiscreteAction::Right
+            ])
+            .unwrap(),
             "[0,1,2,3]"
         );
-        assert!(serde_json::from_str::<Action>("4").is_err());
+        assert!(serde_json::from_str::<DiscreteAction>("4").is_err());
     }
 
     proptest! {
@@ -277,11 +294,11 @@ mod tests {
             yaw in -3.1f32..3.1,
             final_yaw in -3.1f32..3.1,
         ) {
-            let space = ActionSpace::default();
+            let space = StepSizes::default();
             let path = poly(&pts, 0.25);
             let actions = follow(&path, yaw, Some(final_yaw), &space).unwrap();
-            prop_assert_eq!(*actions.last().unwrap(), Action::Stop);
-            prop_assert_eq!(actions.iter().filter(|a| **a == Action::Stop).count(), 1);
+            prop_assert_eq!(*actions.last().unwrap(), DiscreteAction::Stop);
+            prop_assert_eq!(actions.iter().filter(|a| **a == DiscreteAction::Stop).count(), 1);
             let poses = replay(Pose::new(path[0].extend(0.0), yaw), &actions, &space);
             let end = poses.last().unwrap();
             prop_assert!(end.position.truncate().distance(*path.last().unwrap()) < 0.2);

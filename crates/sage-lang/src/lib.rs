@@ -20,7 +20,7 @@ pub mod textmap;
 pub mod validate;
 pub mod words;
 
-pub use actions::{Action, ActionSpace};
+pub use actions::{DiscreteAction, StepSizes};
 pub use instruction::{Instruction, InstructionType, Level, SingleGoalKind, Source};
 pub use textmap::TextMap;
 pub use validate::{RejectReason, Validator};

@@ -2,7 +2,7 @@
 //! actions, and Single-Goal point-to-point instructions from templates over a trajectory's start
 //! and goal.
 
-use crate::actions::{Action, ActionSpace};
+use crate::actions::{DiscreteAction, StepSizes};
 use crate::grammar::expand;
 use crate::instruction::{Instruction, InstructionType, SingleGoalKind, Source};
 use crate::refexp::{self, Style};
@@ -26,7 +26,7 @@ pub struct BaseActionPlan {
     /// Start pose (W frame, navigable).
     pub start: Pose,
     /// Ground truth: what the words say, step for step.
-    pub actions: Vec<Action>,
+    pub actions: Vec<DiscreteAction>,
 }
 
 /// Turn counts a Base-Action may ask for (×15°: 30°–180°).
@@ -39,38 +39,48 @@ const TURN_COUNTS: [usize; 6] = [2, 3, 4, 6, 8, 12];
 /// motion passes is navigable; `None` when none is found.
 pub fn base_action(
     pf: &PathFinder,
-    space: &ActionSpace,
+    space: &StepSizes,
     rng: &mut impl Rng,
 ) -> Option<BaseActionPlan> {
     let kind = rng.random_range(0..4u8);
     let half_turn = (180.0 / space.turn_deg).round() as usize;
-    let (text_template, actions, travel): (&str, Vec<Action>, f32) = match kind {
+    let (text_template, actions, travel): (&str, Vec<DiscreteAction>, f32) = match kind {
         0 => {
             let n = rng.random_range(1..=8usize);
             let t = "[Move|Walk|Go] forward {n} {steps}[ and stop|, then stop| in a straight line and stop| and wait there].";
-            (t, vec![Action::Forward; n], n as f32 * space.forward)
+            (
+                t,
+                vec![DiscreteAction::Forward; n],
+                n as f32 * space.forward,
+            )
         }
         1 => {
             let n = rng.random_range(1..=4usize);
             let t = "[Move|Step|Go] backward {n} {steps}[ and stop|, then stop| and wait there].";
-            let mut a = vec![Action::Left; half_turn];
-            a.extend(vec![Action::Forward; n]);
-            a.extend(vec![Action::Left; half_turn]);
+            let mut a = vec![DiscreteAction::Left; half_turn];
+            a.extend(vec![DiscreteAction::Forward; n]);
+            a.extend(vec![DiscreteAction::Left; half_turn]);
             (t, a, -(n as f32) * space.forward)
         }
         _ => {
             let k = *TURN_COUNTS.choose(rng)?;
             let t = "[Turn {deg} degrees to the {dir} in place|Rotate {deg} degrees to the {dir} without moving|Stay where you are and turn {deg} degrees {dir}].";
             let a = if kind == 2 {
-                Action::Left
+                DiscreteAction::Left
             } else {
-                Action::Right
+                DiscreteAction::Right
             };
             (t, vec![a; k], 0.0)
         }
     };
-    let n = actions.iter().filter(|a| **a == Action::Forward).count();
-    let k = actions.iter().filter(|a| **a != Action::Forward).count();
+    let n = actions
+        .iter()
+        .filter(|a| **a == DiscreteAction::Forward)
+        .count();
+    let k = actions
+        .iter()
+        .filter(|a| **a != DiscreteAction::Forward)
+        .count();
     let slots: BTreeMap<&str, String> = [
         ("n", number_word(n)),
         (
@@ -108,7 +118,7 @@ pub fn base_action(
         });
         if clear {
             let mut all = actions.clone();
-            all.push(Action::Stop);
+            all.push(DiscreteAction::Stop);
             return Some(BaseActionPlan {
                 instruction: Instruction {
                     text,

@@ -4,7 +4,7 @@
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sage_core::wrap_angle;
-use sage_lang::actions::{self, Action, ActionSpace};
+use sage_lang::actions::{self, DiscreteAction, StepSizes};
 use sage_lang::refexp::{self, Style};
 use sage_lang::textmap::RelKind;
 use sage_lang::{InstructionType, RejectReason, TextMap, Validator, highlevel, lowlevel};
@@ -308,7 +308,7 @@ fn grammar_and_templates_give_valid_varied_instructions_of_every_type() {
 fn base_actions_are_exact() {
     let (_, prep, _, tm) = scene(2, 5, 40);
     let v = Validator::new(&tm);
-    let space = ActionSpace::default();
+    let space = StepSizes::default();
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let mut kinds = std::collections::BTreeSet::new();
     for _ in 0..60 {
@@ -319,7 +319,7 @@ fn base_actions_are_exact() {
             "{}",
             plan.instruction.text
         );
-        assert_eq!(plan.actions.last(), Some(&Action::Stop));
+        assert_eq!(plan.actions.last(), Some(&DiscreteAction::Stop));
         let poses = actions::replay(plan.start, &plan.actions, &space);
         let (a, b) = (poses[0], *poses.last().unwrap());
         let moved = (b.position - a.position).truncate();

@@ -5,7 +5,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Pose, Result};
 use sage_physics::{
-    Agent, AgentKind, AgentProfile, Command, Decomposer, HullCache, SceneBodies, World,
+    AgentBody, AgentKind, AgentProfile, Command, Decomposer, HullCache, SceneBodies, World,
     WorldOptions, default_cache_dir,
 };
 use sage_scene::Scene;
@@ -214,7 +214,7 @@ pub fn run(settings: &PhysicsSettings) -> Result<PhysicsReport> {
     let mut rates = Vec::new();
     let (mut touching, mut stuck, mut recovered) = (0usize, 0usize, 0usize);
     for run in 0..settings.repeat.max(1) {
-        let mut agent = Agent::new(profile.clone(), start);
+        let mut agent = AgentBody::new(profile.clone(), start);
         agent.step(&mut world, &Command::Stop)?;
         // Every run replays the same seeded walk.
         let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);

@@ -302,9 +302,10 @@ pub fn collision_intensity(commanded: Vec3, achieved: Vec3, touched: bool) -> f3
     (1.0 - achieved.dot(commanded) / d2).clamp(0.0, 1.0)
 }
 
-/// An agent in a world.
+/// An agent's body in a world: its shape, pose and contact state. Named apart from
+/// `sage_env::agents::Agent`, the policy that decides where the body goes.
 #[derive(Debug, Clone)]
-pub struct Agent {
+pub struct AgentBody {
     /// Its body and limits.
     pub profile: AgentProfile,
     /// Position (ground robots: on the floor; UAV: its centre) and heading.
@@ -316,9 +317,9 @@ pub struct Agent {
     was_touching: bool,
 }
 
-impl Agent {
+impl AgentBody {
     /// An agent of `profile` at `pose` (a UAV's altitude is clamped to its limits).
-    pub fn new(profile: AgentProfile, pose: Pose) -> Agent {
+    pub fn new(profile: AgentProfile, pose: Pose) -> AgentBody {
         let (shape, lift) = match profile.kind {
             AgentKind::Ground => {
                 let half = ((profile.height - profile.clearance) * 0.5 - profile.radius).max(0.0);
@@ -336,7 +337,7 @@ impl Agent {
                 .z
                 .clamp(profile.altitude[0], profile.altitude[1]);
         }
-        Agent {
+        AgentBody {
             profile,
             pose,
             shape,

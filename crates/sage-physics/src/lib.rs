@@ -16,7 +16,9 @@ pub mod usd;
 pub mod worklist;
 pub mod world;
 
-pub use agent::{Agent, AgentKind, AgentProfile, Command, StepReport, Touch, collision_intensity};
+pub use agent::{
+    AgentBody, AgentKind, AgentProfile, Command, StepReport, Touch, collision_intensity,
+};
 pub use bodies::{Body, BodyKind, BuildReport, PartSource, SceneBodies};
 pub use decompose::{Decomposer, HullCache, cache_key, default_cache_dir};
 pub use hull::ConvexPart;

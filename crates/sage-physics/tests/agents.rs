@@ -5,7 +5,7 @@ use glam::{Vec2, Vec3};
 use sage_core::{InstanceId, Obb, Polygon2, Pose};
 use sage_physics::agent::{PENETRATION_EPSILON, SKIN, STUCK_STEPS};
 use sage_physics::{
-    Agent, AgentProfile, Command, Decomposer, HullCache, SceneBodies, World, WorldOptions,
+    AgentBody, AgentProfile, Command, Decomposer, HullCache, SceneBodies, World, WorldOptions,
 };
 use sage_scene::{
     Attributes, DoorState, Floorplan, Gaussians, Hole, HoleKind, InstanceKind, Object, PhysicsRole,
@@ -137,9 +137,9 @@ fn wall_id(scene: &Scene, i: usize) -> InstanceId {
     InstanceId(k.unwrap() as u32)
 }
 
-fn agent(name: &str, x: f32, y: f32, z: f32, yaw_deg: f32) -> Agent {
+fn agent(name: &str, x: f32, y: f32, z: f32, yaw_deg: f32) -> AgentBody {
     let profile: AgentProfile = name.parse().unwrap();
-    Agent::new(profile, Pose::new(Vec3::new(x, y, z), yaw_deg.to_radians()))
+    AgentBody::new(profile, Pose::new(Vec3::new(x, y, z), yaw_deg.to_radians()))
 }
 
 #[test]

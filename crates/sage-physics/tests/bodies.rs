@@ -4,7 +4,8 @@
 use glam::Vec3;
 use sage_core::Pose;
 use sage_physics::{
-    Agent, BodyKind, Command, Decomposer, HullCache, PartSource, SceneBodies, World, WorldOptions,
+    AgentBody, BodyKind, Command, Decomposer, HullCache, PartSource, SceneBodies, World,
+    WorldOptions,
 };
 use sage_scene::{DoorState, HoleKind, Scene};
 use sage_synth::{SceneKind, SynthConfig, generate};
@@ -182,7 +183,7 @@ fn synthetic_doors_block_by_state() {
         let crossed = [1.0f32, -1.0].map(|s| {
             let start = centre - normal * s * 1.0;
             let yaw = (normal * s).y.atan2((normal * s).x);
-            let mut a = Agent::new(
+            let mut a = AgentBody::new(
                 "wheeled".parse().unwrap(),
                 Pose::new(start.extend(0.0), yaw),
             );

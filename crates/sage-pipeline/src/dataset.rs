@@ -2,7 +2,7 @@
 //! (parallel, resumable), then splits, files and summary, and the run record.
 
 use sage_core::{Error, Result};
-use sage_dataset::build::{self, AssembleParams, SceneOutcome, SceneParams, Summary};
+use sage_dataset::build::{self, AssembleParams, DatasetSummary, SceneOutcome, SceneParams};
 use std::path::{Path, PathBuf};
 
 /// What [`build`] did.
@@ -13,7 +13,7 @@ pub struct DatasetReport {
     /// Per scene: made, resumed or skipped.
     pub outcomes: Vec<SceneOutcome>,
     /// The dataset's summary.
-    pub summary: Summary,
+    pub summary: DatasetSummary,
 }
 
 /// Builds (or resumes) the dataset of the scenes under `scenes` into `out`; `on_scene(outcome,

@@ -38,9 +38,10 @@ pub use volume::VolumeParams;
 
 use glam::Vec3;
 
-/// One sampled camera pose before the safety filter: where it stands and where it looks.
+/// One sampled camera pose before the safety filter: where it stands and where it looks. Named
+/// apart from `sage_core::Pose`, a ground pose (position and heading only).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pose {
+pub struct ViewPose {
     /// Camera centre in W, metres.
     pub position: Vec3,
     /// Heading about +Z from +X, radians.

@@ -7,7 +7,7 @@ use crate::safety::{Checked, SafetyFilter};
 use crate::surfaces::SceneSurfaces;
 use crate::sweep::{SweepParams, perimeter, sweep};
 use crate::volume::{VolumeParams, volume};
-use crate::{Pose, PoseTag};
+use crate::{PoseTag, ViewPose};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result, ResultExt};
 use sage_io::canvas::{Canvas, legend_height, legend_width};
@@ -198,7 +198,7 @@ pub fn make_plan(
     if !(settings.safety_threshold.is_finite() && settings.safety_threshold >= 0.0) {
         return Err(Error::invalid("safety threshold must be >= 0"));
     }
-    let (poses, rings): (Vec<Pose>, Vec<PlannedRing>) = match settings.policy {
+    let (poses, rings): (Vec<ViewPose>, Vec<PlannedRing>) = match settings.policy {
         Policy::Sweep => {
             let s = sweep(
                 &scene.floorplan,

@@ -1,7 +1,7 @@
 //! The safety filter of the paper's appendix B: a pose closer than a threshold to the nearest
 //! mesh surface (structure, object meshes, object boxes where there is no mesh) is dropped.
 
-use crate::Pose;
+use crate::ViewPose;
 use crate::bvh::Bvh;
 use rayon::prelude::*;
 
@@ -13,7 +13,7 @@ pub const DEFAULT_THRESHOLD: f32 = 0.12;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Checked {
     /// The pose.
-    pub pose: Pose,
+    pub pose: ViewPose,
     /// Distance from its centre to the nearest triangle, metres (infinite in an empty scene).
     pub clearance: f32,
 }
@@ -47,7 +47,7 @@ impl<'a> SafetyFilter<'a> {
     }
 
     /// Splits `poses` into kept and dropped (in parallel; the order is the input's).
-    pub fn split(&self, poses: &[Pose]) -> Filtered {
+    pub fn split(&self, poses: &[ViewPose]) -> Filtered {
         let checked: Vec<Checked> = poses
             .par_iter()
             .map(|&pose| Checked {

@@ -13,7 +13,7 @@
 //! | mid | half the ceiling height, pitch 0° | the same |
 //! | high | 500 mm below the ceiling, pitch −30° | height lerp(high, mid, j/m), pitch −15° |
 
-use crate::{Pose, PoseTag, apportion};
+use crate::{PoseTag, ViewPose, apportion};
 use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -170,7 +170,7 @@ pub struct Sweep {
     /// Every ring that exists (rings that collapse in narrow rooms are left out).
     pub rings: Vec<Ring>,
     /// The poses, ring by ring, placement by placement, tier by tier, baseline by baseline.
-    pub poses: Vec<Pose>,
+    pub poses: Vec<ViewPose>,
 }
 
 /// `poly` offset inwards by `d` (counter-clockwise result), or `None` when the room is too
@@ -290,7 +290,7 @@ pub fn sweep(
                 let (z, pitch) = params.tier_pose(tier, r.ring, height);
                 for baseline in Baseline::ALL {
                     let q = p + right * (baseline.sign() * params.baseline);
-                    poses.push(Pose {
+                    poses.push(ViewPose {
                         position: Vec3::new(q.x, q.y, z),
                         yaw,
                         pitch,

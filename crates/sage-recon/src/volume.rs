@@ -9,7 +9,7 @@
 //! every object's box (a camera inside a closed cabinet would see only its inside). Each
 //! position gets the six views of [`TEMPLATE`], all turned by one shared random perturbation.
 
-use crate::{Pose, PoseTag, apportion};
+use crate::{PoseTag, ViewPose, apportion};
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -67,7 +67,7 @@ pub struct VolumeSamples {
     /// Positions placed in each room (fewer only when its free volume is empty).
     pub placed: Vec<usize>,
     /// The poses, position by position, template view by template view.
-    pub poses: Vec<Pose>,
+    pub poses: Vec<ViewPose>,
 }
 
 /// Samples `budget` cameras (rounded down to whole positions of six) over the rooms of `scene`.
@@ -119,7 +119,7 @@ pub fn volume(
             let dyaw = (rng.random::<f32>() * 2.0 - 1.0) * params.yaw_jitter_deg;
             let dpitch = (rng.random::<f32>() * 2.0 - 1.0) * params.pitch_jitter_deg;
             for (view, (yaw, pitch)) in TEMPLATE.iter().enumerate() {
-                poses.push(Pose {
+                poses.push(ViewPose {
                     position: p,
                     yaw: sage_core::wrap_angle((yaw + dyaw).to_radians()),
                     pitch: (pitch + dpitch).to_radians(),

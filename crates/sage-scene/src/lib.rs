@@ -14,6 +14,7 @@ pub mod floorplan;
 pub mod formats;
 pub mod gaussians;
 pub mod instances;
+mod mapped;
 pub mod mesh;
 pub mod object;
 pub mod occupancy;

@@ -3,7 +3,7 @@
 //! Run longer with `PROPTEST_CASES=100000 cargo test --release -p sage-scene --test ply_fuzz`.
 
 use proptest::prelude::*;
-use sage_scene::ply;
+use sage_scene::{mesh, ply};
 use std::path::PathBuf;
 
 fn testdata(name: &str) -> Vec<u8> {
@@ -108,7 +108,7 @@ proptest! {
             Ok((g, _)) => prop_assert!(g.validate().is_ok()),
             Err(e) => prop_assert!(!e.to_string().is_empty()),
         }
-        let _ = ply::mesh::read_mesh(&bytes);
+        let _ = mesh::read_ply(&bytes);
     }
 
     #[test]
@@ -117,7 +117,7 @@ proptest! {
         let mut bytes = format!("ply\nformat {format} 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\nproperty float opacity\nelement face {n}\nproperty list uchar int vertex_indices\nend_header\n").into_bytes();
         bytes.extend_from_slice(&body);
         let _ = ply::read_splats(&bytes);
-        let _ = ply::mesh::read_mesh(&bytes);
+        let _ = mesh::read_ply(&bytes);
     }
 }
 

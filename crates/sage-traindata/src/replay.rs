@@ -109,8 +109,8 @@ pub fn net_turns(episode: &Episode) -> i32 {
         .actions
         .iter()
         .map(|a| match a {
-            sage_lang::Action::Left => 1,
-            sage_lang::Action::Right => -1,
+            sage_lang::DiscreteAction::Left => 1,
+            sage_lang::DiscreteAction::Right => -1,
             _ => 0,
         })
         .sum()

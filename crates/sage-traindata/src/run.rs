@@ -289,7 +289,7 @@ impl Plan {
             read_json::<serde_json::Value>(&settings.dataset.join(sage_io::run::RUN_RECORD))
                 .ok()
                 .and_then(|r| r.pointer("/config/scene/space/turn_deg")?.as_f64())
-                .map_or(sage_lang::ActionSpace::default().turn_deg, |t| t as f32);
+                .map_or(sage_lang::StepSizes::default().turn_deg, |t| t as f32);
         Ok(Plan {
             settings: settings.clone(),
             dataset_turn_deg,

@@ -126,8 +126,8 @@ fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
                 .actions
                 .iter()
                 .map(|a| match a {
-                    sage_lang::Action::Left => 1,
-                    sage_lang::Action::Right => -1,
+                    sage_lang::DiscreteAction::Left => 1,
+                    sage_lang::DiscreteAction::Right => -1,
                     _ => 0,
                 })
                 .sum();

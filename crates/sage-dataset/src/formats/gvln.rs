@@ -23,7 +23,7 @@ use crate::slices::{Slices, path_slice};
 use glam::{Vec2, Vec3};
 use sage_core::frame::SageFrame;
 use sage_core::{Error, Result, ResultExt, wrap_angle};
-use sage_lang::actions::{ActionSpace, follow};
+use sage_lang::actions::{StepSizes, follow};
 use sage_lang::{InstructionType, Level, Source};
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -89,12 +89,7 @@ fn headings(path: &[[f32; 3]], last: f32) -> Vec<f32> {
 }
 
 /// Writes episodes as one GVLN file in `frame` (atomically).
-pub fn write(
-    path: &Path,
-    episodes: &[Episode],
-    frame: GvlnFrame,
-    space: &ActionSpace,
-) -> Result<()> {
+pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSizes) -> Result<()> {
     let mut scenes: BTreeMap<&str, BTreeMap<String, Vec<&Episode>>> = BTreeMap::new();
     for e in episodes {
         let key = match e.trajectory_id {
@@ -230,7 +225,7 @@ fn text(v: &Value, key: &str) -> String {
 
 /// Reads a GVLN file; `sage_offset` is the S-frame offset for files that do not state their frame.
 /// Asset slices are unknown in the file and read as `medium` unless the caller re-tags them.
-pub fn read(path: &Path, sage_offset: Vec2, space: &ActionSpace) -> Result<Vec<Episode>> {
+pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Episode>> {
     let text_in = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let root: Value = sage_io::files::parse_json(&text_in, path)?;
     let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);

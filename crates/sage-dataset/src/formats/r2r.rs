@@ -21,7 +21,7 @@ use sage_core::frame::{
     habitat_quat_to_heading, habitat_to_world, heading_to_habitat_quat, world_to_habitat,
 };
 use sage_core::{Error, Result, ResultExt};
-use sage_lang::actions::{Action, ActionSpace, follow, replay};
+use sage_lang::actions::{DiscreteAction, StepSizes, follow, replay};
 use sage_lang::{InstructionType, Source};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -160,7 +160,7 @@ pub fn paths(dir: &Path, split: &str) -> (PathBuf, PathBuf) {
 
 /// Writes the VLN episodes of `episodes` as split `split` under `dir`; returns how many were
 /// written (no-goal episodes are left out).
-pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &ActionSpace) -> Result<usize> {
+pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &StepSizes) -> Result<usize> {
     let vln: Vec<(&Episode, &Goal)> = episodes
         .iter()
         .filter(|e| e.task == Task::Vln)
@@ -234,7 +234,11 @@ pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &ActionSpace)
             GtEntry {
                 locations: poses.iter().map(|p| habitat(p.position.into())).collect(),
                 actions: e.actions.iter().map(|a| *a as u8).collect(),
-                forward_steps: e.actions.iter().filter(|a| **a == Action::Forward).count(),
+                forward_steps: e
+                    .actions
+                    .iter()
+                    .filter(|a| **a == DiscreteAction::Forward)
+                    .count(),
             },
         );
     }
@@ -262,7 +266,7 @@ pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &ActionSpace)
 /// Reads split `split` under `dir` back into episodes (W frame). Actions come from the
 /// ground-truth file when it is there, else from following the reference path. Episodes without
 /// our `sage3d` object (other R2R files) read as imported Single-Goal episodes.
-pub fn read(dir: &Path, split: &str, space: &ActionSpace) -> Result<Vec<Episode>> {
+pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> {
     let (main, gt_path) = paths(dir, split);
     let file: R2rFile = read_gz(&main)?;
     let gt: BTreeMap<String, GtEntry> = if gt_path.is_file() {
@@ -310,7 +314,7 @@ pub fn read(dir: &Path, split: &str, space: &ActionSpace) -> Result<Vec<Episode>
                     .actions
                     .iter()
                     .map(|a| {
-                        Action::try_from(*a).map_err(|m| {
+                        DiscreteAction::try_from(*a).map_err(|m| {
                             Error::format(format!("{}.actions", r.episode_id), m).in_file(&gt_path)
                         })
                     })

@@ -1,4 +1,5 @@
-//! 3DGS PLY files in both layouts, and PLY meshes.
+//! 3DGS PLY files in both layouts. The [`header`] parser serves any PLY file: PLY meshes are read
+//! on top of it by [`crate::mesh::read_ply`], next to the mesh type they fill.
 //!
 //! - [`standard`]: the Inria layout (`x y z … f_dc_* f_rest_* opacity scale_* rot_*`), matched by
 //!   property name in any order and any scalar type, ASCII or binary; SH degree inferred from the
@@ -10,10 +11,10 @@
 
 pub mod compressed;
 pub mod header;
-pub mod mesh;
 pub mod standard;
 
 use crate::gaussians::Gaussians;
+use crate::mapped::with_mapped_file;
 use crate::splats::SplatSource;
 use sage_core::{Error, Result};
 use std::path::Path;
@@ -93,7 +94,7 @@ pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
 
 /// Reads a Gaussian file (memory-mapped); errors name the file.
 pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
-    crate::splats::format::with_mapped_file(path, read_splats)
+    with_mapped_file(path, read_splats)
 }
 
 /// Writes Gaussians in `layout`, atomically (temporary file, then rename).

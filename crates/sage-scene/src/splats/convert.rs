@@ -2,9 +2,9 @@
 //! with a statement of what the target format cannot hold. Standard PLY output is streamed
 //! block by block from the decoder; the other writers take the whole table.
 
-use super::format::with_mapped_file;
 use super::{BLOCK, BlockDecoder, Format, SplatTable, open, write_file};
 use crate::gaussians::{Gaussian, sh_rest_count};
+use crate::mapped::with_mapped_file;
 use crate::ply::{SplatLayout, standard};
 use rayon::prelude::*;
 use sage_core::{Error, Result};

@@ -3,8 +3,9 @@
 
 use super::{BlockDecoder, SplatSource, SplatTable, antimatter, gltf, sog, spz};
 use crate::gaussians::Gaussians;
+use crate::mapped::with_mapped_file;
 use crate::ply::{self, SplatLayout};
-use sage_core::{Error, Result, ResultExt};
+use sage_core::{Error, Result};
 use std::fmt;
 use std::path::Path;
 
@@ -158,16 +159,6 @@ pub fn open(bytes: &[u8]) -> Result<(Box<dyn BlockDecoder + '_>, Format)> {
         Format::Splat => Box::new(antimatter::SplatDecoder::open(bytes)?),
     };
     Ok((decoder, format))
-}
-
-/// Runs `f` on the bytes of `path`, memory-mapped; errors name the file (unless they name
-/// another already).
-pub(crate) fn with_mapped_file<T>(path: &Path, f: impl FnOnce(&[u8]) -> Result<T>) -> Result<T> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    // SAFETY: the map is read-only and dropped before returning; a file truncated by another
-    // process while mapped is outside what a reader can defend against.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
-    f(&map).in_file(path)
 }
 
 /// Reads a 3DGS file of any format into the compact scene store.

@@ -159,17 +159,5 @@ pub mod spz;
 
 pub use format::{Format, open, read_gaussians_file, read_table_file, write_file};
 
-/// The files of `testdata/splats` for the readers' tests.
 #[cfg(test)]
-pub(crate) mod test_files {
-    use super::{BlockDecoder, SplatTable};
-    use crate::ply::{header::parse_header, standard::StandardDecoder};
-
-    /// A standard PLY (the reference tool's decodings are) at full precision.
-    pub fn standard_table(bytes: &[u8]) -> SplatTable {
-        let header = parse_header(bytes).expect("a PLY header");
-        StandardDecoder::open(&header, bytes)
-            .and_then(|d| d.to_table())
-            .expect("a standard 3DGS PLY")
-    }
-}
+pub(crate) mod test_files;
