@@ -7,6 +7,7 @@ use sage_core::{Error, Result};
 use sage_dataset::folder::scenes_folder;
 use sage_eval::report::ReportOutcome;
 use sage_eval::{EvalSettings, RunOutcome};
+use sage_pipeline::evaluate::Callbacks;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -78,20 +79,22 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let episodes = bar("{bar:30} {pos}/{len} episodes {elapsed} (eta {eta}) {msg}");
     let maps = bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
-    let result = sage_pipeline::evaluate::evaluate_into(
+    let result = sage_pipeline::evaluate::evaluate(
         &settings,
         &a.out,
         a.force,
-        &|rec, to_run| {
-            episodes.set_length(to_run as u64);
-            episodes.set_message(rec.episode_id.clone());
-            episodes.inc(1);
-        },
-        &|id, total| {
-            episodes.finish_and_clear();
-            maps.set_length(total as u64);
-            maps.set_message(id.to_string());
-            maps.inc(1);
+        Callbacks {
+            on_episode: &|rec, to_run| {
+                episodes.set_length(to_run as u64);
+                episodes.set_message(rec.episode_id.clone());
+                episodes.inc(1);
+            },
+            on_map: &|id, total| {
+                episodes.finish_and_clear();
+                maps.set_length(total as u64);
+                maps.set_message(id.to_string());
+                maps.inc(1);
+            },
         },
     );
     episodes.finish_and_clear();

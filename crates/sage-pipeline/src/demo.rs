@@ -313,8 +313,11 @@ impl Step {
                 StepReport::Eval(Box::new(crate::evaluate::evaluate(
                     settings,
                     out,
-                    &|_, n| tick(n, "episodes"),
-                    &|_, _| {},
+                    false,
+                    crate::evaluate::Callbacks {
+                        on_episode: &|_, n| tick(n, "episodes"),
+                        on_map: &|_, _| {},
+                    },
                 )?))
             }
         })

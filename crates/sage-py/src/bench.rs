@@ -13,6 +13,7 @@ use sage_dataset::folder;
 use sage_env::agents::Agent;
 use sage_eval::{EvalSettings, Runner, Summary};
 use sage_metrics::Scoring;
+use sage_pipeline::evaluate::Callbacks;
 use std::path::{Path, PathBuf};
 
 /// The episodes of `split` in a dataset folder, as dicts (the JSONL schema).
@@ -94,16 +95,18 @@ fn settings(
     })
 }
 
-/// Runs (or resumes) an evaluation into `out` and returns `{total, resumed, ran, summary,
-/// table}`. `agent` is a built-in name (`random`, `forward`, `oracle`) or a Python factory
-/// called once per episode for a fresh agent object (see [`PyAgent`]) reported as
+/// Runs (or resumes) an evaluation into `out`, writes its report (`report.html`, unless
+/// `report` is false: a shard of a distributed run) and returns `{total, resumed, ran,
+/// summary, table}`. `agent` is a built-in name (`random`, `forward`, `oracle`, …) or a Python
+/// factory called once per episode for a fresh agent object (see [`PyAgent`]) reported as
 /// `agent_name`. With a built-in agent and no `overrides` or `scenes_only`, this is exactly
-/// `sage3d eval`; otherwise the environment is `preset` with `overrides` (JSON; a Python agent
-/// sees the preset's images) and only the episodes of the scenes in `scenes_only` run.
-/// `scenes=None` runs in the scenes folder the dataset records. Images are rendered on
-/// `device` (`cpu`, `gpu` or `auto`, as `sage3d eval --device`), whatever `overrides` say.
+/// `sage3d eval` (the same pipeline function, the same files); otherwise the environment is
+/// `preset` with `overrides` (JSON; a Python agent sees the preset's images) and only the
+/// episodes of the scenes in `scenes_only` run. `scenes=None` runs in the scenes folder the
+/// dataset records. Images are rendered on `device` (`cpu`, `gpu` or `auto`, as `sage3d eval
+/// --device`), whatever `overrides` say.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false, device="cpu"))]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false, device="cpu", report=true))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -121,6 +124,7 @@ pub fn evaluate<'py>(
     dtw: &str,
     strict: bool,
     device: &str,
+    report: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let builtin: Option<AgentKind> = match agent.extract::<String>() {
         Ok(name) => Some(name.parse().py()?),
@@ -143,46 +147,54 @@ pub fn evaluate<'py>(
             preset,
         )?
     };
-    sage_eval::claim(&out, false).py()?;
     let factory = agent.clone().unbind();
-    let outcome = if builtin.is_some() && overrides.is_none() && scenes_only.is_none() {
-        py.detach(|| sage_eval::run(&settings, &out, &|_, _| {}))
-    } else {
-        let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
-        let config = match (&maker, overrides) {
-            // A built-in agent sees what it sees under `sage3d eval`.
-            (Some(maker), None) => sage_eval::env_config(preset, maker, settings.device).py()?,
-            _ => sage_env::EnvConfig {
-                device: settings.device,
-                ..sage_env::EnvConfig::with_overrides(
-                    preset,
-                    &from_json(overrides.unwrap_or("{}"), "overrides")?,
-                )
-                .py()?
-            },
-        };
-        let make = || -> Result<Box<dyn Agent>> {
-            match &maker {
-                Some(maker) => maker.build(seed),
-                None => Python::attach(|py| {
-                    let obj = factory.bind(py).call0()?.unbind();
-                    Ok::<_, PyErr>(Box::new(PyAgent::new(obj, name.clone())) as Box<dyn Agent>)
-                })
-                .map_err(|e| Error::invalid(format!("python agent {name}: {e}"))),
-            }
-        };
-        let keep =
-            |e: &sage_dataset::Episode| scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene));
-        let runner = Runner {
-            config,
-            agent_name: name.clone(),
-            agent: &make,
-            shard: Some(&keep),
-            serial: maker.as_ref().is_some_and(AgentMaker::serial),
-        };
-        py.detach(|| sage_eval::run_with(&settings, &runner, &out, &|_, _| {}))
-    }
-    .py()?;
+    let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
+    let config = match (&maker, overrides) {
+        // A built-in agent sees what it sees under `sage3d eval`.
+        (Some(maker), None) => sage_eval::env_config(preset, maker, settings.device)
+            .map_err(|e| e.within("preset"))
+            .py()?,
+        _ => sage_env::EnvConfig {
+            device: settings.device,
+            ..sage_env::EnvConfig::with_overrides(
+                preset,
+                &from_json(overrides.unwrap_or("{}"), "overrides")?,
+            )
+            .py()?
+        },
+    };
+    let make = || -> Result<Box<dyn Agent>> {
+        match &maker {
+            Some(maker) => maker.build(seed),
+            None => Python::attach(|py| {
+                let obj = factory.bind(py).call0()?.unbind();
+                Ok::<_, PyErr>(Box::new(PyAgent::new(obj, name.clone())) as Box<dyn Agent>)
+            })
+            .map_err(|e| Error::invalid(format!("python agent {name}: {e}"))),
+        }
+    };
+    let keep =
+        |e: &sage_dataset::Episode| scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene));
+    let runner = Runner {
+        config,
+        agent_name: name.clone(),
+        agent: &make,
+        shard: scenes_only
+            .is_some()
+            .then_some(&keep as &(dyn Fn(&_) -> bool + Sync)),
+        serial: maker.as_ref().is_some_and(AgentMaker::serial),
+    };
+    let (outcome, _) = py
+        .detach(|| {
+            sage_pipeline::evaluate::evaluate_with(
+                &settings,
+                &runner,
+                &out,
+                report,
+                Callbacks::silent(),
+            )
+        })
+        .py()?;
     if strict {
         outcome.verdict(true).py()?;
     }
@@ -210,7 +222,8 @@ struct Evaluated {
 
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
 /// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
-/// `sage3d_run.json`, the same bytes as one `sage3d eval` over the union writes them.
+/// `sage3d_run.json`, the same bytes as one `sage3d eval` over the union writes them, then
+/// its report.
 /// Returns the summary. An episode recorded by two shards is an error. `device` is the one the
 /// shards rendered on (their run records name it when it is not the CPU).
 #[pyfunction]
@@ -242,8 +255,10 @@ pub fn merge_eval<'py>(
             preset,
         )?
     };
-    let summary = py
-        .detach(|| sage_eval::merge_shards(&settings, &agent_name, &shards, &out))
+    let (summary, _) = py
+        .detach(|| {
+            sage_pipeline::evaluate::merge(&settings, &agent_name, &shards, &out, &|_, _| {})
+        })
         .py()?;
     to_py(py, &summary)
 }

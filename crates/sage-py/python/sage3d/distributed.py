@@ -180,7 +180,8 @@ def generate(scenes, out, per_scene: int = 20, seed: int = 0, base_actions: int 
 
 
 def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
-    _sage3d.evaluate(dataset, scenes, shard_out, agent, scenes_only=[scene], **kwargs)
+    _sage3d.evaluate(dataset, scenes, shard_out, agent, scenes_only=[scene], report=False,
+                     **kwargs)
     with open(os.path.join(shard_out, "episodes.jsonl")) as f:
         return f.read()
 
@@ -196,7 +197,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     Task ``scene`` runs (or resumes) the run folder ``out/shards/{scene}``; the driver merges
     the shards' records into ``out/episodes.jsonl`` sorted by episode id, with
     ``episodes.jsonl``, ``summary.json`` and ``sage3d_run.json`` the same bytes as one ``sage3d
-    eval`` over the whole split. ``agent`` as in :func:`sage3d.evaluate` (a Python agent must
+    eval`` over the whole split, then writes the run's report (``report.html``). ``agent`` as in :func:`sage3d.evaluate` (a Python agent must
     be picklable). An agent whose server holds one episode's state
     (``socket:HOST:PORT?server=navid``) gets its tasks one after another, as ``sage3d eval``
     runs its episodes one at a time. ``progress`` prints the episodes done (of the split) as

@@ -56,8 +56,9 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
              scenes_only: list[str] | None = None, dtw: str = "exact",
              strict: bool = False, device: str = "cpu") -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
-    resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json`` and
-    ``sage3d_run.json`` as ``sage3d eval`` writes them. ``scenes=None`` uses the scenes folder
+    resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json``,
+    ``sage3d_run.json`` and the report (``report.html`` with its ``report/`` maps) as ``sage3d
+    eval`` writes them. ``scenes=None`` uses the scenes folder
     the dataset records (as ``sage3d eval`` without ``--scenes``); ``agent`` and ``out`` are
     required.
 
