@@ -197,8 +197,8 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     Task ``scene`` runs (or resumes) the run folder ``out/shards/{scene}``; the driver merges
     the shards' records into ``out/episodes.jsonl`` sorted by episode id, with
     ``episodes.jsonl``, ``summary.json`` and ``sage3d_run.json`` the same bytes as one ``sage3d
-    eval`` over the whole split, then writes the run's report (``report.html``). ``agent`` as in :func:`sage3d.evaluate` (a Python agent must
-    be picklable). An agent whose server holds one episode's state
+    eval`` over the whole split, then writes the run's report (``report.html``). ``agent`` as in
+    :func:`sage3d.evaluate` (a Python agent must be picklable). An agent whose server holds one episode's state
     (``socket:HOST:PORT?server=navid``) gets its tasks one after another, as ``sage3d eval``
     runs its episodes one at a time. ``progress`` prints the episodes done (of the split) as
     tasks finish. A task whose worker or node dies is rerun up to ``max_retries`` times (Ray's
