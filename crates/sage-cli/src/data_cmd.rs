@@ -2,10 +2,8 @@
 
 use clap::{Args, Subcommand};
 use sage_core::Result;
-use sage_dataset::build::{AssembleParams, SceneParams};
 use sage_io::runner::{Status, Tally};
-use sage_lang::llm::LlmConfig;
-use sage_pipeline::dataset::DatasetReport;
+use sage_pipeline::dataset::{BuildSettings, DatasetReport};
 use sage_traindata::Progress;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -50,7 +48,7 @@ pub struct ImportArgs {
 #[derive(Args)]
 pub struct RenderArgs {
     #[command(flatten)]
-    options: sage_traindata::Options,
+    pub(crate) options: sage_traindata::Options,
     /// Output folder (new or empty; rerun with the same settings to resume).
     #[arg(long)]
     out: PathBuf,
@@ -67,53 +65,8 @@ pub struct BuildArgs {
     /// Output dataset folder.
     #[arg(long)]
     out: PathBuf,
-    /// Trajectories per scene (each gives a Single-Goal and up to five high-level episodes).
-    #[arg(long, default_value_t = 20)]
-    per_scene: usize,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Ground agent profile the reference paths are planned for (wheeled, go2, g1, h1): its
-    /// radius is the planner's inflation, so the paths leave that robot room to pass.
-    #[arg(long, default_value = "wheeled")]
-    agent: String,
-    /// Shares of short / medium / long reference paths (SPEC §9 bins), e.g. 0.4,0.4,0.2
-    /// (default: free). A scene without room for a bin's share yields fewer trajectories.
-    #[arg(long, value_delimiter = ',')]
-    length_mix: Option<Vec<f32>>,
-    /// Base-Action episodes per scene (default: a quarter of --per-scene).
-    #[arg(long)]
-    base_actions: Option<usize>,
-    /// No-goal episodes per scene.
-    #[arg(long, default_value_t = 1)]
-    nogoal: usize,
-    /// High-level instructions kept per type and trajectory.
-    #[arg(long, default_value_t = 1)]
-    high_per_type: usize,
-    /// Size of the balanced test selection (0: none).
-    #[arg(long, default_value_t = 1000)]
-    balanced: usize,
-    /// Share of scenes held out for the scene-unseen test set.
-    #[arg(long, default_value_t = 0.15)]
-    scene_unseen: f32,
-    /// Share of scenes for validation.
-    #[arg(long, default_value_t = 0.1)]
-    val: f32,
-    /// OpenAI-compatible base URL for high-level instructions (default: the offline grammar).
-    #[arg(long)]
-    llm_url: Option<String>,
-    /// LLM model name.
-    #[arg(long, default_value = "gpt-4o-mini")]
-    llm_model: String,
-    /// Environment variable holding the LLM API key.
-    #[arg(long, default_value = "OPENAI_API_KEY")]
-    llm_key_env: String,
-    /// LLM requests in flight at most.
-    #[arg(long, default_value_t = 4)]
-    llm_concurrency: usize,
-    /// LLM answer cache (default: OUT/llm_cache).
-    #[arg(long)]
-    llm_cache: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) settings: BuildSettings,
     /// Write into an output folder that holds other files (never replacing one of them).
     #[arg(long)]
     force: bool,
@@ -128,36 +81,13 @@ pub fn run(cmd: DataCommand) -> Result<()> {
 }
 
 fn data_build(a: BuildArgs) -> Result<()> {
-    let mut params = SceneParams::new(a.per_scene, a.seed)
-        .for_agent(&a.agent)
-        .map_err(|e| e.within("--agent"))?;
-    if let Some(b) = a.base_actions {
-        params.base_actions = b;
-    }
-    params.trajectories.sampling.length_mix = a.length_mix.clone();
-    params.nogoal = a.nogoal;
-    params.high_per_type = a.high_per_type;
-    params.llm = a.llm_url.as_ref().map(|url| LlmConfig {
-        base_url: url.clone(),
-        model: a.llm_model.clone(),
-        api_key_env: a.llm_key_env.clone(),
-        concurrency: a.llm_concurrency,
-        cache_dir: Some(
-            a.llm_cache
-                .clone()
-                .unwrap_or_else(|| a.out.join("llm_cache")),
-        ),
-        ..LlmConfig::default()
-    });
-    let assemble = AssembleParams::new(a.seed, a.balanced, a.scene_unseen, a.val);
     let bar = crate::progress::bar("{bar:30} {pos}/{len} scenes {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();
-    let report =
-        sage_pipeline::dataset::build(&a.scenes, &a.out, &params, &assemble, a.force, &|o, n| {
-            bar.set_length(n as u64);
-            bar.set_message(o.scene.clone());
-            bar.inc(1);
-        });
+    let report = sage_pipeline::dataset::build(&a.scenes, &a.out, &a.settings, a.force, &|o, n| {
+        bar.set_length(n as u64);
+        bar.set_message(o.scene.clone());
+        bar.inc(1);
+    });
     bar.finish_and_clear();
     print_dataset(&report?, &a.out, start.elapsed().as_secs_f64());
     Ok(())

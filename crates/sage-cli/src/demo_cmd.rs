@@ -7,56 +7,72 @@
 use sage_core::Result;
 use sage_eval::Summary;
 use sage_pipeline::demo::{self, DemoSettings, Step, StepReport, Tick};
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::Instant;
 
 /// Flags of `sage3d demo`.
 #[derive(clap::Args)]
 pub struct DemoArgs {
-    /// Output folder: scenes/, dataset/, train_data/, runs/{agent}/ (each with report.html),
-    /// overview.png; new, empty, or a demo's (rerunning resumes).
-    #[arg(long, default_value = "demo")]
-    out: PathBuf,
+    #[command(flatten)]
+    settings: DemoSettings,
     /// Write into a folder holding other files (never replacing one of them).
     #[arg(long)]
     force: bool,
-    /// Number of synthetic scenes (homes, every third an office).
-    #[arg(long, default_value_t = 3)]
-    scenes: usize,
-    /// Seed of every random choice (scene k uses seed + k).
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Trajectories per scene in the dataset.
-    #[arg(long, default_value_t = 12)]
-    per_scene: usize,
-    /// Gaussians per five rooms of a synthetic scene (a scene gets its share by its rooms).
-    #[arg(long, default_value_t = 150_000)]
-    gaussians: usize,
-    /// Agents to evaluate, comma-separated (any `--agent` of `sage3d eval`).
-    #[arg(long, value_delimiter = ',', default_value = "oracle,random,forward")]
-    agents: Vec<String>,
-    /// Dataset split the agents are evaluated on.
-    #[arg(long, default_value = "test_balanced")]
-    split: String,
-    /// Run the pipeline on these scenes instead of synthetic ones: a folder of scene folders
-    /// (InteriorGS or ours). Maps go to SCENE/nav, collision hulls to SCENE/.sage3d.
-    #[arg(long)]
-    from: Option<PathBuf>,
 }
 
-impl From<DemoArgs> for DemoSettings {
-    fn from(a: DemoArgs) -> DemoSettings {
-        DemoSettings {
-            out: a.out,
-            scenes: a.scenes,
-            seed: a.seed,
-            per_scene: a.per_scene,
-            gaussians: a.gaussians,
-            agents: a.agents,
-            split: a.split,
-            from: a.from,
+fn path_arg(p: &Path) -> String {
+    p.to_string_lossy().into_owned()
+}
+
+/// The `sage3d` command line (without `sage3d`) that runs the same step as `step`.
+pub fn command_line(step: &Step) -> Vec<String> {
+    let mut args: Vec<String> = Vec::new();
+    let mut flag = |name: &str, value: String| args.extend([format!("--{name}"), value]);
+    let words: Vec<String> = match step {
+        Step::Synth { config, out, .. } => {
+            flag("kind", config.kind.as_str().into());
+            flag("rooms", config.rooms.to_string());
+            flag("objects", config.objects.to_string());
+            flag("seed", config.seed.to_string());
+            flag("gaussians", config.gaussians.to_string());
+            flag("out", path_arg(out));
+            vec!["scene".into(), "synth".into()]
         }
-    }
+        Step::NavMap { scene, .. } => vec!["nav".into(), "map".into(), path_arg(scene)],
+        Step::Physics { scene, .. } => vec!["physics".into(), "build".into(), path_arg(scene)],
+        Step::Dataset {
+            scenes,
+            out,
+            settings,
+        } => {
+            flag("out", path_arg(out));
+            flag("per-scene", settings.per_scene.to_string());
+            flag("seed", settings.seed.to_string());
+            if let Some(mix) = &settings.length_mix {
+                let shares: Vec<String> = mix.iter().map(f32::to_string).collect();
+                flag("length-mix", shares.join(","));
+            }
+            vec!["data".into(), "build".into(), path_arg(scenes)]
+        }
+        Step::TrainData { options, out } => {
+            if let Some(scenes) = &options.scenes {
+                flag("scenes", path_arg(scenes));
+            }
+            flag("limit", options.limit.unwrap_or(0).to_string());
+            flag("preview", options.preview.to_string());
+            flag("out", path_arg(out));
+            vec!["data".into(), "render".into(), path_arg(&options.dataset)]
+        }
+        Step::Eval { settings, out } => {
+            flag("scenes", path_arg(&settings.scenes));
+            flag("agent", settings.agent.to_string());
+            flag("split", settings.split.clone());
+            flag("seed", settings.seed.to_string());
+            flag("out", path_arg(out));
+            vec!["eval".into(), path_arg(&settings.dataset)]
+        }
+    };
+    words.into_iter().chain(args).collect()
 }
 
 /// One row per agent: the headline metrics of its run's summary.
@@ -112,8 +128,7 @@ fn print_step(step: &Step, report: &StepReport, secs: f64) {
 
 /// Runs the demo and prints where everything is.
 pub fn run(a: DemoArgs) -> Result<()> {
-    let force = a.force;
-    let s = DemoSettings::from(a);
+    let (force, s) = (a.force, a.settings);
     sage_pipeline::demo_folder::claim(&s, force)?;
     let start = Instant::now();
     let step_start = std::cell::Cell::new(Instant::now());
@@ -126,7 +141,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
                 k + 1,
                 n,
                 step.title(),
-                step.command_line().join(" ")
+                command_line(step).join(" ")
             );
             step_start.set(Instant::now());
         },
@@ -161,6 +176,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::data_cmd::DataCommand;
+    use crate::{Cli, Command};
     use clap::Parser;
 
     #[derive(Parser)]
@@ -169,17 +186,34 @@ mod tests {
         demo: DemoArgs,
     }
 
+    /// Every step prints as a command line that parses, and the commands that take the same
+    /// settings structs parse into the step's own settings.
     #[test]
-    fn every_planned_step_is_a_valid_command_line() {
+    fn every_planned_step_is_the_command_line_of_the_same_settings() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("demo");
         let a = Wrapper::parse_from(["demo", "--out", out.to_str().unwrap(), "--scenes", "3"]).demo;
-        let steps = demo::plan(&DemoSettings::from(a)).unwrap();
+        let steps = demo::plan(&a.settings).unwrap();
         assert_eq!(steps.len(), 3 * 3 + 2 + 3);
         for s in &steps {
-            let argv = std::iter::once("sage3d".to_string()).chain(s.command_line());
-            crate::Cli::try_parse_from(argv)
-                .unwrap_or_else(|e| panic!("{:?}: {e}", s.command_line()));
+            let argv = std::iter::once("sage3d".to_string()).chain(command_line(s));
+            let cli =
+                Cli::try_parse_from(argv).unwrap_or_else(|e| panic!("{:?}: {e}", command_line(s)));
+            match (s, cli.command) {
+                (Step::Dataset { settings, .. }, Command::Data(DataCommand::Build(b))) => {
+                    assert_eq!(**settings, b.settings);
+                }
+                (Step::TrainData { options, .. }, Command::Data(DataCommand::Render(r))) => {
+                    assert_eq!(**options, r.options);
+                }
+                _ => {}
+            }
         }
+    }
+
+    #[test]
+    fn the_flags_default_to_the_demo_settings_defaults() {
+        let a = Wrapper::parse_from(["demo"]).demo;
+        assert_eq!(a.settings, DemoSettings::default());
     }
 }

@@ -1,9 +1,149 @@
 //! The dataset build over a folder of scenes: per-scene trajectories, instructions and episodes
-//! (parallel, resumable), then splits, files and summary, and the run record.
+//! (parallel, resumable), then splits, files and summary, and the run record. Its settings are
+//! [`BuildSettings`], the one typed form of `sage3d data build`'s flags, Python's keyword
+//! arguments and a `[data.build]` table.
 
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, DatasetSummary, SceneOutcome, SceneParams};
+use sage_lang::llm::LlmConfig;
+use sage_physics::AgentProfile;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+
+/// The settings of a dataset build; [`BuildSettings::default`] gives every default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[serde(default, deny_unknown_fields)]
+pub struct BuildSettings {
+    /// Trajectories per scene (each gives a Single-Goal and up to five high-level episodes).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().per_scene))]
+    pub per_scene: usize,
+    /// Seed of every random choice.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().seed))]
+    pub seed: u64,
+    /// Ground agent profile the reference paths are planned for (wheeled, go2, g1, h1): its
+    /// radius is the planner's inflation, so the paths leave that robot room to pass.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().agent))]
+    #[serde(with = "sage_physics::agent::profile_name")]
+    pub agent: AgentProfile,
+    /// Shares of short / medium / long reference paths (SPEC §9 bins), e.g. 0.4,0.4,0.2
+    /// (default: free). A scene without room for a bin's share yields fewer trajectories.
+    #[cfg_attr(feature = "clap", arg(long, value_delimiter = ','))]
+    pub length_mix: Option<Vec<f32>>,
+    /// Base-Action episodes per scene (default: a quarter of the trajectories per scene).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub base_actions: Option<usize>,
+    /// No-goal episodes per scene.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().nogoal))]
+    pub nogoal: usize,
+    /// High-level instructions kept per type and trajectory.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = BuildSettings::default().high_per_type)
+    )]
+    pub high_per_type: usize,
+    /// Size of the balanced test selection (0: none).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().balanced))]
+    pub balanced: usize,
+    /// Share of scenes held out for the scene-unseen test set.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = BuildSettings::default().scene_unseen)
+    )]
+    pub scene_unseen: f32,
+    /// Share of scenes for validation.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().val))]
+    pub val: f32,
+    /// OpenAI-compatible base URL for high-level instructions (default: the offline grammar).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub llm_url: Option<String>,
+    /// LLM model name.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = BuildSettings::default().llm_model))]
+    pub llm_model: String,
+    /// Environment variable holding the LLM API key.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = BuildSettings::default().llm_key_env)
+    )]
+    pub llm_key_env: String,
+    /// LLM requests in flight at most.
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = BuildSettings::default().llm_concurrency)
+    )]
+    pub llm_concurrency: usize,
+    /// LLM answer cache (default: the output folder's llm_cache).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub llm_cache: Option<PathBuf>,
+}
+
+impl Default for BuildSettings {
+    /// 20 trajectories per scene for the wheeled robot, seed 0, paths of any length, one
+    /// no-goal episode and one high-level instruction per type, a balanced test selection of
+    /// 1000, 15 % of the scenes held out and 10 % for validation, the offline grammar.
+    fn default() -> Self {
+        let llm = LlmConfig::default();
+        BuildSettings {
+            per_scene: 20,
+            seed: 0,
+            agent: AgentProfile::default(),
+            length_mix: None,
+            base_actions: None,
+            nogoal: 1,
+            high_per_type: 1,
+            balanced: 1000,
+            scene_unseen: 0.15,
+            val: 0.1,
+            llm_url: None,
+            llm_model: llm.model,
+            llm_key_env: llm.api_key_env,
+            llm_concurrency: llm.concurrency,
+            llm_cache: None,
+        }
+    }
+}
+
+impl BuildSettings {
+    /// The per-scene settings (an LLM answer cache under `out` unless one is named) and the
+    /// assembly settings these settings name.
+    ///
+    /// # Errors
+    ///
+    /// An agent profile that is not a ground robot, shares outside 0..1, or per-scene
+    /// settings out of range ([`SceneParams::validate`]).
+    pub fn params(&self, out: &Path) -> Result<(SceneParams, AssembleParams)> {
+        let shares = [("scene_unseen", self.scene_unseen), ("val", self.val)];
+        if let Some((name, share)) = shares.iter().find(|(_, s)| !(0.0..=1.0).contains(s)) {
+            return Err(Error::invalid(format!(
+                "{name}: {share} is not a share between 0 and 1"
+            )));
+        }
+        let mut params = SceneParams::new(self.per_scene, self.seed)
+            .for_agent(self.agent.name)
+            .map_err(|e| e.within("agent"))?;
+        if let Some(b) = self.base_actions {
+            params.base_actions = b;
+        }
+        params.trajectories.sampling.length_mix = self.length_mix.clone();
+        params.nogoal = self.nogoal;
+        params.high_per_type = self.high_per_type;
+        params.llm = self.llm_url.as_ref().map(|url| LlmConfig {
+            base_url: url.clone(),
+            model: self.llm_model.clone(),
+            api_key_env: self.llm_key_env.clone(),
+            concurrency: self.llm_concurrency,
+            cache_dir: Some(
+                self.llm_cache
+                    .clone()
+                    .unwrap_or_else(|| out.join("llm_cache")),
+            ),
+            ..LlmConfig::default()
+        });
+        params.validate()?;
+        let assemble = AssembleParams::new(self.seed, self.balanced, self.scene_unseen, self.val);
+        Ok((params, assemble))
+    }
+}
 
 /// What [`build`] did.
 #[derive(Debug, Clone)]
@@ -23,10 +163,26 @@ pub struct DatasetReport {
 ///
 /// # Errors
 ///
-/// Bad settings (shares outside 0..1, naming the flags), no scenes, an output folder holding
-/// files the build did not write, or a write error. A scene that fails is skipped with its
-/// reason (in the outcomes) and the build goes on.
+/// Bad settings (naming the field), no scenes, an output folder holding files the build did
+/// not write, or a write error. A scene that fails is skipped with its reason (in the
+/// outcomes) and the build goes on.
 pub fn build(
+    scenes: &Path,
+    out: &Path,
+    settings: &BuildSettings,
+    force: bool,
+    on_scene: &(dyn Fn(&SceneOutcome, usize) + Sync),
+) -> Result<DatasetReport> {
+    let (params, assemble) = settings.params(out)?;
+    build_with(scenes, out, &params, &assemble, force, on_scene)
+}
+
+/// [`build`] with per-scene and assembly settings made by the caller (the demo's).
+///
+/// # Errors
+///
+/// As [`build`].
+pub fn build_with(
     scenes: &Path,
     out: &Path,
     params: &SceneParams,
@@ -35,12 +191,6 @@ pub fn build(
     on_scene: &(dyn Fn(&SceneOutcome, usize) + Sync),
 ) -> Result<DatasetReport> {
     params.validate()?;
-    let shares = [assemble.split.scene_unseen, assemble.split.val];
-    if !shares.iter().all(|s| (0.0..=1.0).contains(s)) {
-        return Err(Error::invalid(
-            "--scene-unseen and --val must be shares between 0 and 1",
-        ));
-    }
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
     sage_io::run::claim_folder(out, &["data build"], &build::OUTPUTS, force)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;

@@ -1,18 +1,16 @@
 //! The demo: the whole pipeline on synthetic scenes (or a folder of real ones), end to end.
 //!
 //! [`plan`] decides every step before anything runs; each [`Step`] is one pipeline step of this
-//! crate with the settings of the `sage3d` subcommand that does the same
-//! ([`Step::command_line`]), so the demo doubles as a worked example of pointing the same
-//! commands at real data. Each step resumes: scenes already synthesised are kept, collision
+//! crate with its typed settings, the same settings the `sage3d` subcommand that does the same
+//! takes (the front end prints each step as that command), so the demo doubles as a worked
+//! example of pointing the same commands at real data. Each step resumes: scenes already synthesised are kept, collision
 //! hulls come from their cache, the dataset build and the evaluations skip what their folders
 //! already hold.
 
-use crate::dataset::DatasetReport;
+use crate::dataset::{BuildSettings, DatasetReport};
 use crate::nav::MapReport;
 use sage_agents::AgentKind;
 use sage_core::{Error, Result};
-use sage_dataset::build::{AssembleParams, SceneParams};
-use sage_dataset::split::SplitParams;
 use sage_eval::folder::SUMMARY_FILE;
 use sage_eval::report::ReportOutcome;
 use sage_eval::{EvalSettings, RunOutcome, Summary};
@@ -21,26 +19,44 @@ use sage_nav::GridParams;
 use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, default_cache_dir};
 use sage_scene::{Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Settings of the demo (`sage3d demo`'s flags).
-#[derive(Debug, Clone, PartialEq)]
+/// Settings of the demo (`sage3d demo`'s flags, `sage3d.demo`'s keyword arguments);
+/// [`DemoSettings::default`] gives every default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[serde(default, deny_unknown_fields)]
 pub struct DemoSettings {
-    /// Output folder: scenes/, dataset/, train_data/, runs/{agent}/, overview.png.
+    /// Output folder: scenes/, dataset/, train_data/, runs/{agent}/ (each with report.html),
+    /// overview.png; new, empty, or a demo's (rerunning resumes).
+    #[cfg_attr(feature = "clap", arg(long, default_value_os_t = DemoSettings::default().out))]
     pub out: PathBuf,
     /// Number of synthetic scenes (homes, every third an office).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = DemoSettings::default().scenes))]
     pub scenes: usize,
     /// Seed of every random choice (scene k uses seed + k).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = DemoSettings::default().seed))]
     pub seed: u64,
     /// Trajectories per scene in the dataset.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = DemoSettings::default().per_scene))]
     pub per_scene: usize,
     /// Gaussians per five rooms of a synthetic scene (a scene gets its share by its rooms).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = DemoSettings::default().gaussians))]
     pub gaussians: usize,
-    /// Agents to evaluate (as `--agent` names them).
+    /// Agents to evaluate, comma-separated (any agent of `sage3d eval`).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_delimiter = ',', default_values_t = DemoSettings::default().agents)
+    )]
     pub agents: Vec<String>,
     /// Dataset split the agents are evaluated on.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = DemoSettings::default().split))]
     pub split: String,
-    /// A folder of real scene folders to run on instead of synthetic ones.
+    /// Run the pipeline on these scenes instead of synthetic ones: a folder of scene folders
+    /// (InteriorGS or ours). Maps go to SCENE/nav, collision hulls to SCENE/.sage3d.
+    #[cfg_attr(feature = "clap", arg(long))]
+    #[serde(rename = "from_dir")]
     pub from: Option<PathBuf>,
 }
 
@@ -108,15 +124,13 @@ pub enum Step {
         scenes: PathBuf,
         /// Dataset folder.
         out: PathBuf,
-        /// Per-scene settings.
-        params: Box<SceneParams>,
-        /// Assembly settings.
-        assemble: AssembleParams,
+        /// The build's settings.
+        settings: Box<BuildSettings>,
     },
     /// A small training set rendered from the dataset's train split, with a preview GIF.
     TrainData {
         /// The render.
-        settings: Box<sage_traindata::Settings>,
+        options: Box<sage_traindata::Options>,
         /// Output folder.
         out: PathBuf,
     },
@@ -157,10 +171,6 @@ pub struct Tick<'a> {
     pub what: &'a str,
 }
 
-fn path_arg(p: &Path) -> String {
-    p.to_string_lossy().into_owned()
-}
-
 impl Step {
     /// What the step does, in words.
     pub fn title(&self) -> String {
@@ -171,82 +181,6 @@ impl Step {
             Step::Dataset { .. } => "trajectories, instructions, episodes and splits".into(),
             Step::TrainData { .. } => "a small training set (NaVILA layout) with a preview".into(),
             Step::Eval { settings, .. } => format!("evaluate the {} agent", settings.agent),
-        }
-    }
-
-    /// The `sage3d` command line (without `sage3d`) that runs the same step.
-    pub fn command_line(&self) -> Vec<String> {
-        match self {
-            Step::Synth { config, out, .. } => vec![
-                "scene".into(),
-                "synth".into(),
-                "--kind".into(),
-                config.kind.as_str().into(),
-                "--rooms".into(),
-                config.rooms.to_string(),
-                "--objects".into(),
-                config.objects.to_string(),
-                "--seed".into(),
-                config.seed.to_string(),
-                "--gaussians".into(),
-                config.gaussians.to_string(),
-                "--out".into(),
-                path_arg(out),
-            ],
-            Step::NavMap { scene, .. } => vec!["nav".into(), "map".into(), path_arg(scene)],
-            Step::Physics { scene, .. } => {
-                vec!["physics".into(), "build".into(), path_arg(scene)]
-            }
-            Step::Dataset {
-                scenes,
-                out,
-                params,
-                assemble,
-            } => {
-                let mut args: Vec<String> = vec![
-                    "data".into(),
-                    "build".into(),
-                    path_arg(scenes),
-                    "--out".into(),
-                    path_arg(out),
-                    "--per-scene".into(),
-                    params.per_scene.to_string(),
-                    "--seed".into(),
-                    assemble.seed.to_string(),
-                ];
-                if let Some(mix) = &params.trajectories.sampling.length_mix {
-                    let shares: Vec<String> = mix.iter().map(f32::to_string).collect();
-                    args.extend(["--length-mix".into(), shares.join(",")]);
-                }
-                args
-            }
-            Step::TrainData { settings, out } => vec![
-                "data".into(),
-                "render".into(),
-                path_arg(&settings.dataset),
-                "--scenes".into(),
-                path_arg(&settings.scenes),
-                "--limit".into(),
-                settings.limit.unwrap_or(0).to_string(),
-                "--preview".into(),
-                settings.preview.to_string(),
-                "--out".into(),
-                path_arg(out),
-            ],
-            Step::Eval { settings, out } => vec![
-                "eval".into(),
-                path_arg(&settings.dataset),
-                "--scenes".into(),
-                path_arg(&settings.scenes),
-                "--agent".into(),
-                settings.agent.to_string(),
-                "--split".into(),
-                settings.split.clone(),
-                "--seed".into(),
-                settings.seed.to_string(),
-                "--out".into(),
-                path_arg(out),
-            ],
         }
     }
 
@@ -280,32 +214,26 @@ impl Step {
             Step::Dataset {
                 scenes,
                 out,
-                params,
-                assemble,
+                settings,
             } => StepReport::Dataset(Box::new(crate::dataset::build(
                 scenes,
                 out,
-                params,
-                assemble,
+                settings,
                 false,
                 &|_, n| tick(n, "scenes"),
             )?)),
-            Step::TrainData { settings, out } => {
+            Step::TrainData { options, out } => {
                 let (_, train) =
-                    sage_dataset::folder::split_episodes(&settings.dataset, &settings.split)?;
+                    sage_dataset::folder::split_episodes(&options.dataset, &options.split)?;
                 StepReport::TrainData(if train.is_empty() {
                     None
                 } else {
-                    Some(Box::new(sage_traindata::render(
-                        settings,
-                        out,
-                        false,
-                        &|p| {
-                            if let sage_traindata::Progress::Route(r) = p {
-                                tick(r.of, "walks");
-                            }
-                        },
-                    )?))
+                    let report = crate::traindata::render(options, out, false, &|p| {
+                        if let sage_traindata::Progress::Route(r) = p {
+                            tick(r.of, "walks");
+                        }
+                    })?;
+                    Some(Box::new(report.manifest))
                 })
             }
             Step::Eval { settings, out } => {
@@ -345,10 +273,13 @@ fn scene_name(k: usize) -> (String, SynthConfig) {
 
 /// The dataset settings of the demo: `per_scene` trajectories, with a share of each length bin
 /// wanted ([`LENGTH_MIX`]) so the large scene gives long paths.
-fn scene_params(s: &DemoSettings) -> SceneParams {
-    let mut params = SceneParams::new(s.per_scene, s.seed);
-    params.trajectories.sampling.length_mix = Some(LENGTH_MIX.to_vec());
-    params
+fn build_settings(s: &DemoSettings) -> BuildSettings {
+    BuildSettings {
+        per_scene: s.per_scene,
+        seed: s.seed,
+        length_mix: Some(LENGTH_MIX.to_vec()),
+        ..BuildSettings::default()
+    }
 }
 
 /// Rooms that [`DemoSettings::gaussians`] are for.
@@ -366,10 +297,10 @@ const LENGTH_MIX: [f32; 3] = [0.4, 0.4, 0.2];
 /// without scenes.
 pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     if s.scenes == 0 {
-        return Err(Error::invalid("--scenes must be at least 1"));
+        return Err(Error::invalid("scenes: must be at least 1"));
     }
     if s.agents.is_empty() {
-        return Err(Error::invalid("--agents names no agent"));
+        return Err(Error::invalid("agents: names no agent"));
     }
     let scenes = s.scenes_folder();
     let mut steps = Vec::new();
@@ -405,25 +336,20 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     steps.push(Step::Dataset {
         scenes: scenes.clone(),
         out: s.dataset(),
-        params: Box::new(scene_params(s)),
-        assemble: AssembleParams {
-            seed: s.seed,
-            split: SplitParams::default(),
-            balanced: 1000,
-        },
+        settings: Box::new(build_settings(s)),
     });
     steps.push(Step::TrainData {
-        settings: Box::new(sage_traindata::Settings {
+        options: Box::new(sage_traindata::Options {
             limit: Some(8),
             preview: 2,
-            ..sage_traindata::Settings::new(&s.dataset(), &scenes)?
+            ..sage_traindata::Options::new(s.dataset(), Some(scenes.clone()))
         }),
         out: s.out.join("train_data"),
     });
     for agent in &s.agents {
         let kind: AgentKind = agent
             .parse()
-            .map_err(|e: Error| e.within(format!("--agents '{agent}'")))?;
+            .map_err(|e: Error| e.within(format!("agents: '{agent}'")))?;
         steps.push(Step::Eval {
             settings: EvalSettings {
                 dataset: s.dataset(),
@@ -448,7 +374,7 @@ fn check_split(dataset: &Path, split: &str) -> Result<()> {
     let (_, episodes) = sage_dataset::folder::split_episodes(dataset, split)?;
     if episodes.is_empty() {
         return Err(Error::invalid(format!(
-            "the {split} split is empty (with few scenes, all of them can land in train); pass --split train or more --scenes"
+            "the {split} split is empty (with few scenes, all of them can land in train); evaluate the train split or use more scenes"
         ))
         .in_file(dataset));
     }
@@ -503,11 +429,9 @@ mod tests {
         };
         let steps = plan(&s).unwrap();
         assert_eq!(steps.len(), 3 * 3 + 2 + 3);
-        assert!(
-            steps
-                .iter()
-                .any(|st| st.command_line().contains(&"office".to_string()))
-        );
+        assert!(steps.iter().any(
+            |st| matches!(st, Step::Synth { config, .. } if config.kind == SceneKind::Office)
+        ));
         // A scene already synthesised is kept.
         let first = s.scenes_folder().join(scene_name(0).0);
         std::fs::create_dir_all(&first).unwrap();
@@ -517,7 +441,7 @@ mod tests {
             scenes: 0,
             ..s.clone()
         };
-        assert!(plan(&none).unwrap_err().to_string().contains("--scenes"));
+        assert!(plan(&none).unwrap_err().to_string().contains("scenes"));
         let bad = DemoSettings {
             agents: vec!["genius".into()],
             ..s

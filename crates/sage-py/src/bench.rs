@@ -3,9 +3,10 @@
 //! Ray tasks. Files are the CLI's: `sage3d eval` and `sage3d data build` write the same.
 
 use crate::agent::PyAgent;
-use crate::convert::{PyResultExt, from_json, to_py};
+use crate::convert::{PyResultExt, from_json, from_kwargs, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use sage_agents::{AgentKind, AgentMaker};
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, SceneParams};
@@ -13,6 +14,7 @@ use sage_dataset::folder;
 use sage_env::agents::Agent;
 use sage_eval::{EvalSettings, Runner, Summary};
 use sage_metrics::Scoring;
+use sage_pipeline::dataset::BuildSettings;
 use sage_pipeline::evaluate::Callbacks;
 use std::path::{Path, PathBuf};
 
@@ -263,41 +265,30 @@ pub fn merge_eval<'py>(
     to_py(py, &summary)
 }
 
-/// The per-scene settings of a dataset build (`sage3d data build`'s flags).
-fn scene_params(
-    per_scene: usize,
-    seed: u64,
-    base_actions: Option<usize>,
-    nogoal: usize,
-    high_per_type: usize,
-) -> Result<SceneParams> {
-    let mut params = SceneParams::new(per_scene, seed);
-    if let Some(b) = base_actions {
-        params.base_actions = b;
-    }
-    params.nogoal = nogoal;
-    params.high_per_type = high_per_type;
-    params.validate()?;
-    Ok(params)
+/// The settings of a dataset build from keyword arguments (`sage3d data build`'s flags by
+/// name), resolved for the output folder `out`.
+fn build_params(
+    py: Python<'_>,
+    out: &Path,
+    settings: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(SceneParams, AssembleParams)> {
+    let settings: BuildSettings = from_kwargs(py, settings, "dataset build settings")?;
+    settings.params(out).py()
 }
 
 /// Builds (or resumes) one scene's episode file `out/scenes/{scene}.json` as `sage3d data
-/// build` does (the offline grammar); returns `{scene, status, episodes, reason?}` and the
-/// file's text (for a driver without a shared file system).
+/// build` does with the same settings (keyword arguments as [`build_dataset`](crate::pipeline::build_dataset)
+/// takes them); returns `{scene, status, episodes, reason?}` and the file's text (for a driver
+/// without a shared file system).
 #[pyfunction]
-#[pyo3(signature = (scene_dir, out, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scene_dir, out, **settings))]
 pub fn build_scene<'py>(
     py: Python<'py>,
     scene_dir: PathBuf,
     out: PathBuf,
-    per_scene: usize,
-    seed: u64,
-    base_actions: Option<usize>,
-    nogoal: usize,
-    high_per_type: usize,
+    settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<(Bound<'py, PyAny>, Option<String>)> {
-    let params = scene_params(per_scene, seed, base_actions, nogoal, high_per_type).py()?;
+    let (params, _) = build_params(py, &out, settings)?;
     let (outcome, text) = py.detach(|| {
         let o = build::run_scene(&scene_dir, &out, &params, None);
         let text = std::fs::read_to_string(build::scene_file(&out, &o.scene)).ok();
@@ -311,29 +302,15 @@ pub fn build_scene<'py>(
 /// record (naming `root`, the folder the scene folders were found in), as `sage3d data build`
 /// ends. Returns the summary.
 #[pyfunction]
-#[pyo3(signature = (out, scenes, root, per_scene=20, seed=0, base_actions=None, nogoal=1, high_per_type=1, balanced=1000, scene_unseen=0.15, val=0.1))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (out, scenes, root, **settings))]
 pub fn assemble_dataset<'py>(
     py: Python<'py>,
     out: PathBuf,
     scenes: Vec<PathBuf>,
     root: PathBuf,
-    per_scene: usize,
-    seed: u64,
-    base_actions: Option<usize>,
-    nogoal: usize,
-    high_per_type: usize,
-    balanced: usize,
-    scene_unseen: f32,
-    val: f32,
+    settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if !(0.0..=1.0).contains(&scene_unseen) || !(0.0..=1.0).contains(&val) {
-        return Err(PyValueError::new_err(
-            "scene_unseen and val must be shares between 0 and 1",
-        ));
-    }
-    let params = scene_params(per_scene, seed, base_actions, nogoal, high_per_type).py()?;
-    let assemble = AssembleParams::new(seed, balanced, scene_unseen, val);
+    let (params, assemble) = build_params(py, &out, settings)?;
     let name = |d: &Path| {
         d.file_name()
             .map_or_else(String::new, |n| n.to_string_lossy().into_owned())

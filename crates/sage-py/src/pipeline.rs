@@ -1,40 +1,30 @@
 //! The pipelines from Python: the demo end to end and the dataset build, the same library
 //! functions `sage3d demo` and `sage3d data build` call (`sage-pipeline`).
 
-use crate::convert::{PyResultExt, to_py};
+use crate::convert::{PyResultExt, from_kwargs, to_py};
 use pyo3::prelude::*;
-use sage_dataset::build::{AssembleParams, SceneParams};
+use pyo3::types::PyDict;
+use sage_pipeline::dataset::BuildSettings;
 use sage_pipeline::demo::DemoSettings;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Runs the demo into `out` (synthetic scenes, or the scene folders of `from_dir`): scenes,
 /// maps, collision bodies, the dataset, an evaluation with its report per agent and
-/// `overview.png`. `out` must be new, empty or a demo's (rerunning resumes). Returns each
-/// agent's summary, by agent.
+/// `overview.png`. `out` must be new, empty or a demo's (rerunning resumes). The keyword
+/// arguments are `sage3d demo`'s flags by name, with the same defaults (`scenes=3`, `seed=0`,
+/// `per_scene=12`, `gaussians=150000`, `agents=["oracle", "random", "forward"]`,
+/// `split="test_balanced"`, `from_dir=None`). Returns each agent's summary, by agent.
 #[pyfunction]
-#[pyo3(signature = (out, scenes=3, seed=0, per_scene=12, gaussians=150_000, agents=None, split="test_balanced", from_dir=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (out, **settings))]
 pub fn demo<'py>(
     py: Python<'py>,
     out: PathBuf,
-    scenes: usize,
-    seed: u64,
-    per_scene: usize,
-    gaussians: usize,
-    agents: Option<Vec<String>>,
-    split: &str,
-    from_dir: Option<PathBuf>,
+    settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings = DemoSettings {
         out,
-        scenes,
-        seed,
-        per_scene,
-        gaussians,
-        agents: agents.unwrap_or_else(|| DemoSettings::default().agents),
-        split: split.to_string(),
-        from: from_dir,
+        ..from_kwargs(py, settings, "demo settings")?
     };
     let runs = py
         .detach(|| {
@@ -46,27 +36,23 @@ pub fn demo<'py>(
     to_py(py, &by_agent)
 }
 
-/// Builds (or resumes) a dataset over the scene folders under `scenes` into `out` with the
-/// offline grammar, as `sage3d data build` does. Returns the dataset's summary.
+/// Builds (or resumes) a dataset over the scene folders under `scenes` into `out`, as `sage3d
+/// data build` does. The keyword arguments are its flags by name, with the same defaults
+/// (`per_scene=20`, `seed=0`, `agent="wheeled"`, `length_mix=None`, `base_actions=None`,
+/// `nogoal=1`, `high_per_type=1`, `balanced=1000`, `scene_unseen=0.15`, `val=0.1`, and
+/// `llm_url`, `llm_model`, `llm_key_env`, `llm_concurrency`, `llm_cache` for an LLM's
+/// high-level instructions). Returns the dataset's summary.
 #[pyfunction]
-#[pyo3(signature = (scenes, out, per_scene=20, seed=0, balanced=1000, scene_unseen=0.15, val=0.1))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (scenes, out, **settings))]
 pub fn build_dataset<'py>(
     py: Python<'py>,
     scenes: PathBuf,
     out: PathBuf,
-    per_scene: usize,
-    seed: u64,
-    balanced: usize,
-    scene_unseen: f32,
-    val: f32,
+    settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let params = SceneParams::new(per_scene, seed);
-    let assemble = AssembleParams::new(seed, balanced, scene_unseen, val);
+    let settings: BuildSettings = from_kwargs(py, settings, "dataset build settings")?;
     let report = py
-        .detach(|| {
-            sage_pipeline::dataset::build(&scenes, &out, &params, &assemble, false, &|_, _| {})
-        })
+        .detach(|| sage_pipeline::dataset::build(&scenes, &out, &settings, false, &|_, _| {}))
         .py()?;
     to_py(py, &report.summary)
 }

@@ -131,29 +131,27 @@ class _Tasks:
             "what is missing") from err
 
 
-def _build_scene(scene_dir, out, params):
-    return _sage3d.build_scene(scene_dir, out, **params)
+def _build_scene(scene_dir, out, settings):
+    return _sage3d.build_scene(scene_dir, out, **settings)
 
 
-def generate(scenes, out, per_scene: int = 20, seed: int = 0, base_actions: int | None = None,
-             nogoal: int = 1, high_per_type: int = 1, balanced: int = 1000,
-             scene_unseen: float = 0.15, val: float = 0.1, num_cpus: float = 1,
-             progress: bool = True) -> dict:
+def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings) -> dict:
     """``sage3d data build SCENES --out OUT ...`` with one Ray task per scene.
 
-    Each task writes (or resumes) ``out/scenes/{scene}.json``; the driver writes any scene file
-    it does not see (no shared output folder), then assembles splits, files and summary in scene
-    name order, so the dataset is byte-identical to the CLI's, and its run record names the
-    scenes folder as the CLI's does. ``progress`` prints a line per finished scene. Returns
-    ``{"scenes": [outcome per scene], "summary": ...}``.
+    ``settings`` are those of :func:`sage3d.build_dataset` (``data build``'s flags by name:
+    ``per_scene``, ``seed``, ``agent``, ``length_mix``, ``base_actions``, ``nogoal``,
+    ``high_per_type``, ``balanced``, ``scene_unseen``, ``val``, …). Each task writes (or
+    resumes) ``out/scenes/{scene}.json``; the driver writes any scene file it does not see (no
+    shared output folder), then assembles splits, files and summary in scene name order, so the
+    dataset is byte-identical to the CLI's, and its run record names the scenes folder as the
+    CLI's does. ``progress`` prints a line per finished scene. Returns ``{"scenes": [outcome
+    per scene], "summary": ...}``.
     """
     ray = _ray()
     out = os.fspath(out)
     dirs = [os.fspath(d) for d in _sage3d.scene_dirs(os.fspath(scenes))]
-    params = dict(per_scene=per_scene, seed=seed, base_actions=base_actions, nogoal=nogoal,
-                  high_per_type=high_per_type)
     task = ray.remote(num_cpus=num_cpus)(_build_scene)
-    refs = {task.remote(d, out, params): os.path.basename(d) for d in dirs}
+    refs = {task.remote(d, out, settings): os.path.basename(d) for d in dirs}
     outcomes = {}
 
     def written(scene, result):
@@ -174,8 +172,7 @@ def generate(scenes, out, per_scene: int = 20, seed: int = 0, base_actions: int 
     finally:
         tasks.close()
     tasks.raise_failed("dataset generation", len(refs), out)
-    summary = _sage3d.assemble_dataset(out, dirs, os.fspath(scenes), balanced=balanced,
-                                       scene_unseen=scene_unseen, val=val, **params)
+    summary = _sage3d.assemble_dataset(out, dirs, os.fspath(scenes), **settings)
     return {"scenes": [outcomes[os.path.basename(d)] for d in dirs], "summary": summary}
 
 
