@@ -3,6 +3,35 @@
 use sage_core::{Error, Result};
 use sage_splat::Device;
 
+/// The settings that library errors name in backticks (`` `force` ``) and that this command
+/// line takes as flags of the same name.
+const NAMED_SETTINGS: [&str; 10] = [
+    "force",
+    "scenes",
+    "split",
+    "out",
+    "strict",
+    "points",
+    "sh_degree",
+    "input",
+    "agents",
+    "agent",
+];
+
+/// A library error's text as the command line says it: each setting the text names in
+/// backticks becomes its flag (`` `sh_degree` `` → `--sh-degree`), since libraries speak of
+/// settings and the user typed flags.
+pub fn in_flags(message: &str) -> String {
+    NAMED_SETTINGS
+        .iter()
+        .fold(message.to_string(), |text, name| {
+            text.replace(
+                &format!("`{name}`"),
+                &format!("--{}", name.replace('_', "-")),
+            )
+        })
+}
+
 /// A `WxH` image size (`--size`, `--sizes`) as (width, height).
 pub fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (w, h) = s
@@ -46,4 +75,17 @@ impl DeviceFlag {
 /// As [`Device::probe`].
 pub fn probe(device: Device) -> Result<String> {
     device.probe().map_err(|e| e.within("--device"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn named_settings_become_flags_and_other_text_stays() {
+        assert_eq!(
+            in_flags("choose another `split`, or set `force`; `sh_degree` 3; `sage3d eval`"),
+            "choose another --split, or set --force; --sh-degree 3; `sage3d eval`"
+        );
+    }
 }

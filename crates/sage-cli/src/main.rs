@@ -118,7 +118,7 @@ fn main() -> ExitCode {
     match dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            eprintln!("error: {}", flags::in_flags(&e.to_string()));
             ExitCode::FAILURE
         }
     }

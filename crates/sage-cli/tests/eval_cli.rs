@@ -314,7 +314,8 @@ fn eval_runs_in_the_scenes_the_dataset_records_unless_told_otherwise() {
     std::fs::rename(&scenes, &moved).unwrap();
     let e = stderr(&eval_in(None, "train", &dir.path().join("m")));
     assert!(
-        e.contains("the recorded scenes folder") && e.contains("does not exist; pass --scenes"),
+        e.contains("the recorded scenes folder")
+            && e.contains("does not exist; name the scenes folder (--scenes)"),
         "{e}"
     );
 
@@ -324,7 +325,7 @@ fn eval_runs_in_the_scenes_the_dataset_records_unless_told_otherwise() {
     std::fs::remove_file(data.join("sage3d_run.json")).unwrap();
     let e = stderr(&eval_in(None, "train", &dir.path().join("l")));
     assert!(
-        e.contains("the dataset does not record its scenes folder; pass --scenes"),
+        e.contains("the dataset does not record its scenes folder; name it (--scenes)"),
         "{e}"
     );
     let legacy = dir.path().join("legacy");

@@ -235,7 +235,7 @@ fn gvln_and_r2r_files_import_as_a_split_that_renders() {
     let err = String::from_utf8_lossy(&unplaced.stderr);
     assert!(
         !unplaced.status.success()
-            && err.contains("the dataset does not record its scenes folder; pass --scenes"),
+            && err.contains("the dataset does not record its scenes folder; name it (--scenes)"),
         "{err}"
     );
     let out = dir.path().join("out");

@@ -221,10 +221,10 @@ pub fn scenes_folder(dataset: &Path, given: Option<&Path>) -> Result<PathBuf> {
         None
     };
     let Some(scenes) = record.as_ref().and_then(|r| r.get("scenes")) else {
-        return Err(
-            Error::invalid("the dataset does not record its scenes folder; pass --scenes")
-                .in_file(dataset),
-        );
+        return Err(Error::invalid(
+            "the dataset does not record its scenes folder; name it (`scenes`)",
+        )
+        .in_file(dataset));
     };
     let field = |name: &str| scenes.get(name).and_then(Value::as_str).map(PathBuf::from);
     if let Some(rel) = field("relative") {
@@ -236,7 +236,7 @@ pub fn scenes_folder(dataset: &Path, given: Option<&Path>) -> Result<PathBuf> {
     match field("absolute") {
         Some(abs) if abs.is_dir() => Ok(abs),
         Some(abs) => Err(Error::invalid(format!(
-            "the recorded scenes folder {} does not exist; pass --scenes",
+            "the recorded scenes folder {} does not exist; name the scenes folder (`scenes`)",
             abs.display()
         ))
         .in_file(&path)),
@@ -267,7 +267,7 @@ mod tests {
         std::fs::create_dir_all(&scenes).unwrap();
         let e = scenes_folder(&data, None).unwrap_err().to_string();
         assert!(
-            e.contains("does not record its scenes folder; pass --scenes"),
+            e.contains("does not record its scenes folder; name it (`scenes`)"),
             "{e}"
         );
         let record = json!({"command": "data build", "scenes": scenes_record(&data, &scenes)});
@@ -288,7 +288,8 @@ mod tests {
         std::fs::remove_dir(&scenes).unwrap();
         let e = scenes_folder(&data, None).unwrap_err().to_string();
         assert!(
-            e.contains("the recorded scenes folder") && e.contains("does not exist; pass --scenes"),
+            e.contains("the recorded scenes folder")
+                && e.contains("does not exist; name the scenes folder (`scenes`)"),
             "{e}"
         );
         // Given scenes override the record.

@@ -53,7 +53,7 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     let file = dir.join(format!("{split}.jsonl"));
     if file.exists() && !force {
         return Err(Error::invalid(
-            "this split exists already; choose another --split or pass --force to replace it",
+            "this split exists already; choose another `split`, or set `force` to replace it",
         )
         .in_file(&file));
     }

@@ -58,7 +58,7 @@ impl RunOutcome {
         let what = if failed == episodes {
             format!("every episode of the run faulted ({failed})")
         } else {
-            format!("{failed} of {episodes} episodes faulted (--strict)")
+            format!("{failed} of {episodes} episodes faulted (`strict`)")
         };
         Err(Error::invalid(format!(
             "{what}: {}; see the records' \"error\" fields",
@@ -199,7 +199,7 @@ fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str
             && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(dataset_hash);
         if !same {
             return Err(Error::invalid(
-                "this run folder holds a run with other settings or another dataset; use a new --out",
+                "this run folder holds a run with other settings or another dataset; use a new run folder (`out`)",
             )
             .in_file(&path));
         }

@@ -83,7 +83,7 @@ pub fn claim_folder(dir: &Path, commands: &[&str], names: &[&str], force: bool) 
     }
     if !force {
         return Err(Error::invalid(format!(
-            "the output folder holds files `sage3d {command}` did not write ('{}'); choose an empty or new folder, or pass --force to write beside them",
+            "the output folder holds files `sage3d {command}` did not write ('{}'); choose an empty or new folder, or set `force` to write beside them",
             held[0]
         ))
         .in_file(dir));
@@ -105,7 +105,7 @@ pub fn claim_file(path: &Path, force: bool) -> Result<()> {
     }
     if path.exists() && !force {
         return Err(Error::invalid(
-            "the output file exists; choose another name, or pass --force to replace it",
+            "the output file exists; choose another name, or set `force` to replace it",
         )
         .in_file(path));
     }
@@ -125,7 +125,7 @@ mod tests {
         claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
         std::fs::write(out.join("notes.txt"), "mine").unwrap();
         let e = claim_folder(&out, &["data build"], &["episodes"], false).unwrap_err();
-        assert!(e.to_string().contains("notes.txt") && e.to_string().contains("--force"));
+        assert!(e.to_string().contains("notes.txt") && e.to_string().contains("`force`"));
         claim_folder(&out, &["data build"], &["episodes"], true).unwrap();
         std::fs::create_dir(out.join("episodes")).unwrap();
         let e = claim_folder(&out, &["data build"], &["episodes"], true).unwrap_err();
@@ -146,7 +146,7 @@ mod tests {
         claim_file(&file, false).unwrap();
         std::fs::write(&file, "mine").unwrap();
         let e = claim_file(&file, false).unwrap_err().to_string();
-        assert!(e.contains("out.json") && e.contains("--force"), "{e}");
+        assert!(e.contains("out.json") && e.contains("`force`"), "{e}");
         claim_file(&file, true).unwrap();
         assert!(claim_file(dir.path(), true).is_err());
     }

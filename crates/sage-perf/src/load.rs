@@ -125,7 +125,7 @@ pub fn run(
     }
     if !settings.format.writable() {
         return Err(Error::invalid(format!(
-            "bench load generates ply, compressed-ply or spz files; give a {} file with --input \
+            "bench load generates ply, compressed-ply or spz files; give a {} file as `input` \
              (splat-transform writes one: `splat-transform IN.ply OUT.{}`)",
             settings.format,
             match settings.format {

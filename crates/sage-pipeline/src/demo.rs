@@ -297,10 +297,10 @@ const LENGTH_MIX: [f32; 3] = [0.4, 0.4, 0.2];
 /// without scenes.
 pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     if s.scenes == 0 {
-        return Err(Error::invalid("scenes: must be at least 1"));
+        return Err(Error::invalid("`scenes` must be at least 1"));
     }
     if s.agents.is_empty() {
-        return Err(Error::invalid("agents: names no agent"));
+        return Err(Error::invalid("`agents` names no agent"));
     }
     let scenes = s.scenes_folder();
     let mut steps = Vec::new();
@@ -349,7 +349,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     for agent in &s.agents {
         let kind: AgentKind = agent
             .parse()
-            .map_err(|e: Error| e.within(format!("agents: '{agent}'")))?;
+            .map_err(|e: Error| e.within(format!("`agents` '{agent}'")))?;
         steps.push(Step::Eval {
             settings: EvalSettings {
                 dataset: s.dataset(),
@@ -374,7 +374,7 @@ fn check_split(dataset: &Path, split: &str) -> Result<()> {
     let (_, episodes) = sage_dataset::folder::split_episodes(dataset, split)?;
     if episodes.is_empty() {
         return Err(Error::invalid(format!(
-            "the {split} split is empty (with few scenes, all of them can land in train); evaluate the train split or use more scenes"
+            "the {split} split is empty (with few scenes, all of them can land in train); evaluate `split` train, or use more `scenes`"
         ))
         .in_file(dataset));
     }

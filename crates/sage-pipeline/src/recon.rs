@@ -304,7 +304,7 @@ pub fn fit(
     let manifest = views::read_manifest(dir)?
         .ok_or_else(|| Error::invalid("no views/render.json: run `sage3d recon render` first"))?;
     if settings.points == 0 {
-        return Err(Error::invalid("--points must be at least 1"));
+        return Err(Error::invalid("`points` must be at least 1"));
     }
     let seed = settings.seed.unwrap_or(plan.seed);
     let (scene, surfaces) = load_mesh_scene(&scene_of(&plan, scene))?;

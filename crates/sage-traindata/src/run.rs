@@ -737,7 +737,7 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
         if !same && !names.is_empty() {
             if !force {
                 return Err(Error::invalid(
-                    "the output folder holds a render with other settings or another dataset; use a new --out, or --force to replace it",
+                    "the output folder holds a render with other settings or another dataset; use a new output folder (`out`), or set `force` to replace it",
                 )
                 .in_file(out));
             }

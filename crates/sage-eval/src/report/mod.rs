@@ -107,7 +107,7 @@ pub fn read_run(run_dir: &Path) -> Result<RunFiles> {
     }
     if records.len() != summary.episodes {
         return Err(Error::invalid(format!(
-            "summary.json counts {} episodes but {} holds {}: the run is unfinished (rerun `sage3d eval` with the same --out)",
+            "summary.json counts {} episodes but {} holds {}: the run is unfinished (rerun the evaluation into the same run folder, `out`)",
             summary.episodes,
             RECORDS_FILE,
             records.len()

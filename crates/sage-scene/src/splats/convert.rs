@@ -78,7 +78,7 @@ fn convert_bytes(
     let sh_degree_out = match sh_degree {
         Some(d) if d > sh_degree_in => {
             return Err(Error::invalid(format!(
-                "--sh-degree {d}: the input has SH degree {sh_degree_in}; bands can be dropped, not added"
+                "`sh_degree` {d}: the input has SH degree {sh_degree_in}; bands can be dropped, not added"
             )));
         }
         Some(d) => d,
