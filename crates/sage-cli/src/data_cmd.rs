@@ -94,7 +94,7 @@ fn data_build(a: BuildArgs) -> Result<()> {
 }
 
 fn data_import(a: ImportArgs) -> Result<()> {
-    use sage_dataset::import::{Source, import};
+    use sage_dataset::import::Source;
     let source = match &a.r2r_split {
         Some(split) => Source::R2r {
             dir: a.source.clone(),
@@ -110,17 +110,12 @@ fn data_import(a: ImportArgs) -> Result<()> {
             }
         }
     };
-    let episodes = import(&source, &a.out, &a.split, a.force)?;
-    let scenes: std::collections::BTreeSet<&str> =
-        episodes.iter().map(|e| e.scene.as_str()).collect();
+    let r = sage_pipeline::dataset::import(&source, &a.out, &a.split, a.force)?;
     println!(
         "{} episodes of {} scenes -> {}",
-        episodes.len(),
-        scenes.len(),
-        a.out
-            .join("episodes")
-            .join(format!("{}.jsonl", a.split))
-            .display()
+        r.episodes,
+        r.scenes,
+        r.file.display()
     );
     Ok(())
 }

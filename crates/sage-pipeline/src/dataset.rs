@@ -5,9 +5,11 @@
 
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, DatasetSummary, SceneOutcome, SceneParams};
+use sage_dataset::import::Source;
 use sage_lang::llm::LlmConfig;
 use sage_physics::AgentProfile;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// The settings of a dataset build; [`BuildSettings::default`] gives every default.
@@ -204,5 +206,32 @@ pub fn build_with(
         dirs,
         outcomes,
         summary,
+    })
+}
+
+/// What [`import`] did.
+#[derive(Debug, Clone)]
+pub struct ImportReport {
+    /// Episodes written.
+    pub episodes: usize,
+    /// Scenes they are in.
+    pub scenes: usize,
+    /// The split's episodes file.
+    pub file: PathBuf,
+}
+
+/// Imports the episodes of `source` (a SAGE-Bench GVLN file or an R2R-VLNCE split) as split
+/// `split` of the dataset folder `out` ([`sage_dataset::import::import`]).
+///
+/// # Errors
+///
+/// As [`sage_dataset::import::import`].
+pub fn import(source: &Source, out: &Path, split: &str, force: bool) -> Result<ImportReport> {
+    let episodes = sage_dataset::import::import(source, out, split, force)?;
+    let scenes: BTreeSet<&str> = episodes.iter().map(|e| e.scene.as_str()).collect();
+    Ok(ImportReport {
+        episodes: episodes.len(),
+        scenes: scenes.len(),
+        file: out.join("episodes").join(format!("{split}.jsonl")),
     })
 }
