@@ -109,7 +109,7 @@ impl SceneParams {
     /// An unknown profile, or one that does not walk (the UAV).
     pub fn for_agent(mut self, agent: &str) -> Result<SceneParams> {
         let profile: sage_physics::AgentProfile = agent.parse()?;
-        if profile.kind != sage_physics::AgentKind::Ground {
+        if profile.kind != sage_physics::Locomotion::Ground {
             return Err(Error::invalid(format!(
                 "agent '{agent}': datasets are planned for ground agents (wheeled, go2, g1, h1)"
             )));

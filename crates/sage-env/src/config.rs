@@ -254,7 +254,7 @@ impl EnvConfig {
         if !(t.nogoal_time_limit.is_finite() && t.nogoal_time_limit > 0.0) {
             return bad("task.nogoal_time_limit", "expected a finite time > 0 s");
         }
-        let uav = profile.kind == sage_physics::AgentKind::Uav;
+        let uav = profile.kind == sage_physics::Locomotion::Uav;
         match self.actions {
             ActionSpace::Discrete {
                 forward,

@@ -9,7 +9,7 @@ use sage_core::Task;
 use sage_core::{Error, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
-use sage_physics::{AgentBody, AgentKind, AgentProfile, Command, Touch, World};
+use sage_physics::{AgentBody, AgentProfile, Command, Locomotion, Touch, World};
 use sage_splat::{Backend, Camera, Intrinsics, RenderOptions, RenderOutput};
 use std::sync::Arc;
 
@@ -397,7 +397,7 @@ impl Env {
         let mut cameras = Vec::new();
         if self.renderer.is_some() {
             let height = sensors.camera_height.unwrap_or(self.profile.camera_height);
-            let eye = if self.profile.kind == AgentKind::Uav {
+            let eye = if self.profile.kind == Locomotion::Uav {
                 s.body.pose.position
             } else {
                 s.body.pose.position + Vec3::Z * height

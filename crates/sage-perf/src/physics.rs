@@ -5,7 +5,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Pose, Result};
 use sage_physics::{
-    AgentBody, AgentKind, AgentProfile, Command, Decomposer, HullCache, SceneBodies, World,
+    AgentBody, AgentProfile, Command, Decomposer, HullCache, Locomotion, SceneBodies, World,
     WorldOptions, default_cache_dir,
 };
 use sage_scene::Scene;
@@ -207,7 +207,7 @@ pub fn run(settings: &PhysicsSettings) -> Result<PhysicsReport> {
         .iter()
         .max_by(|x, y| x.profile.area().total_cmp(&y.profile.area()))
         .ok_or_else(|| Error::invalid("the scene has no rooms to start the agent in"))?;
-    let uav = profile.kind == AgentKind::Uav;
+    let uav = profile.kind == Locomotion::Uav;
     let z = if uav { 1.2 } else { 0.0 };
     let start = Pose::new(room.profile.centroid().extend(z), 0.0);
     let steps = settings.steps.max(1);

@@ -26,10 +26,11 @@ const NO_PROGRESS: f32 = 0.05;
 /// Slide iterations per step (each handles one more contact plane).
 const SLIDE_ITERATIONS: usize = 4;
 
-/// Ground robot or UAV.
+/// How an agent moves: a ground robot or a UAV (named apart from `sage_agents::AgentKind`,
+/// the agent an evaluation runs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum AgentKind {
+pub enum Locomotion {
     /// A vertical capsule on the floor plane.
     Ground,
     /// A sphere with 6-DoF velocity commands.
@@ -42,7 +43,7 @@ pub struct AgentProfile {
     /// Name (`wheeled`, `go2`, `g1`, `h1`, `uav`).
     pub name: &'static str,
     /// Ground robot or UAV.
-    pub kind: AgentKind,
+    pub kind: Locomotion,
     /// Capsule or sphere radius (m).
     pub radius: f32,
     /// Top of the body above its pose (m); for the UAV, the sphere's diameter.
@@ -67,7 +68,7 @@ impl AgentProfile {
         let ground =
             |name, radius, height, clearance, camera_height, max_speed, yaw: f32| AgentProfile {
                 name,
-                kind: AgentKind::Ground,
+                kind: Locomotion::Ground,
                 radius,
                 height,
                 clearance,
@@ -84,7 +85,7 @@ impl AgentProfile {
             ground("h1", 0.30, 1.80, 0.10, 1.65, 2.0, 90.0),
             AgentProfile {
                 name: "uav",
-                kind: AgentKind::Uav,
+                kind: Locomotion::Uav,
                 radius: 0.25,
                 height: 0.5,
                 clearance: 0.0,
@@ -321,17 +322,17 @@ impl AgentBody {
     /// An agent of `profile` at `pose` (a UAV's altitude is clamped to its limits).
     pub fn new(profile: AgentProfile, pose: Pose) -> AgentBody {
         let (shape, lift) = match profile.kind {
-            AgentKind::Ground => {
+            Locomotion::Ground => {
                 let half = ((profile.height - profile.clearance) * 0.5 - profile.radius).max(0.0);
                 (
                     SharedShape::capsule_z(half, profile.radius),
                     profile.clearance + profile.radius + half,
                 )
             }
-            AgentKind::Uav => (SharedShape::ball(profile.radius), 0.0),
+            Locomotion::Uav => (SharedShape::ball(profile.radius), 0.0),
         };
         let mut pose = pose;
-        if profile.kind == AgentKind::Uav {
+        if profile.kind == Locomotion::Uav {
             pose.position.z = pose
                 .position
                 .z
@@ -376,10 +377,10 @@ impl AgentBody {
             (Command::Forward { distance }, _) => ((fwd * distance).extend(0.0), 0.0, 0.0),
             (Command::Turn { angle }, _) => (Vec3::ZERO, angle, 0.0),
             (Command::Stop, _) => (Vec3::ZERO, 0.0, 0.0),
-            (Command::Ground { vx, vy, wz, dt }, AgentKind::Ground) => {
+            (Command::Ground { vx, vy, wz, dt }, Locomotion::Ground) => {
                 (planar(vx, vy, dt).extend(0.0), yaw(wz, dt), dt)
             }
-            (Command::Uav { vx, vy, vz, wz, dt }, AgentKind::Uav) => {
+            (Command::Uav { vx, vy, vz, wz, dt }, Locomotion::Uav) => {
                 let z = self.pose.position.z;
                 let target = (z + vz.clamp(-p.max_climb, p.max_climb) * dt)
                     .clamp(p.altitude[0], p.altitude[1]);
@@ -404,7 +405,7 @@ impl AgentBody {
     pub fn step(&mut self, world: &mut World, cmd: &Command) -> Result<StepReport> {
         let (commanded, turn, dt) = self.resolve(cmd)?;
         world.advance(dt);
-        let planar = self.profile.kind == AgentKind::Ground;
+        let planar = self.profile.kind == Locomotion::Ground;
         let qp = world.physics.query_pipeline();
         let mut hits: Vec<ColliderHandle> = Vec::new();
         let start = self.centre();

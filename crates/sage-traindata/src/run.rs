@@ -177,7 +177,7 @@ impl Settings {
             return Err(Error::invalid("shard size: must be at least 1"));
         }
         config.validate()?;
-        if config.profile()?.kind != sage_physics::AgentKind::Ground {
+        if config.profile()?.kind != sage_physics::Locomotion::Ground {
             return Err(Error::invalid(format!(
                 "agent: '{}' is not a ground agent; a training-data walk needs one (wheeled, go2, g1, h1)",
                 self.agent
