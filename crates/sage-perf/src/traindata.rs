@@ -8,7 +8,7 @@ use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, SceneParams};
 use sage_dataset::split::SplitParams;
 use sage_synth::{SceneKind, SynthConfig};
-use sage_traindata::{Format, PresetName, Progress, Settings};
+use sage_traindata::{Layout, PresetName, Progress, Settings};
 use serde::Serialize;
 use std::fmt;
 use std::path::PathBuf;
@@ -183,7 +183,7 @@ fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<Tra
             width,
             height,
             preset: settings.preset.preset(),
-            format: Format::Navila,
+            format: Layout::Navila,
             keep_failed: true,
             ..Settings::new(&dataset, &scratch.join("scenes"))?
         };

@@ -24,7 +24,7 @@ pub mod sample;
 
 pub use encode::ImageType;
 pub use options::Options;
-pub use output::Format;
+pub use output::Layout;
 pub use preset::{ActionPreset, PresetName};
 pub use run::{
     Manifest, Plan, Progress, RouteDone, SceneProgress, Sensors, Settings, claim, finish, render,

@@ -5,7 +5,7 @@
 //! them into the [`Settings`] a render runs with.
 
 use crate::encode::ImageType;
-use crate::output::Format;
+use crate::output::Layout;
 use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS, PresetName};
 use crate::run::{Sensors, Settings};
 use sage_core::Result;
@@ -58,7 +58,7 @@ pub struct Options {
     pub sensors: Sensors,
     /// Output layout: navila, webdataset or frames.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().format))]
-    pub format: Format,
+    pub format: Layout,
     /// Samples per NaVILA part (default 10000), episodes per WebDataset shard (default 100).
     #[cfg_attr(feature = "clap", arg(long))]
     pub shard_size: Option<usize>,
@@ -113,7 +113,7 @@ impl Default for Options {
             height: 224,
             hfov: 90.0,
             sensors: Sensors::default(),
-            format: Format::default(),
+            format: Layout::default(),
             shard_size: None,
             limit: None,
             seed: 0,
@@ -173,7 +173,7 @@ impl Options {
             rgb_codec: self.image.codec(self.jpeg_quality),
             format: self.format,
             shard_size: self.shard_size.unwrap_or(match self.format {
-                Format::Webdataset => 100,
+                Layout::Webdataset => 100,
                 _ => 10_000,
             }),
             limit: self.limit,
@@ -224,7 +224,7 @@ mod tests {
             Settings::new(&d, &s).unwrap()
         );
         let wds = Options {
-            format: Format::Webdataset,
+            format: Layout::Webdataset,
             image: ImageType::Png,
             ..Options::new(d.clone(), Some(s.clone()))
         }

@@ -11,10 +11,11 @@ use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 
-/// The layout of a training set.
+/// The layout of a training set (`format` in the settings; named apart from
+/// `sage_scene::splats::Format`, a 3DGS file format).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(try_from = "String", into = "String")]
-pub enum Format {
+pub enum Layout {
     /// NaVILA's training format: `annotations_part_NNN.json` (one sample per step with the
     /// frame history), `dataset_info.json`, frames under `images/`.
     #[default]
@@ -25,37 +26,37 @@ pub enum Format {
     Frames,
 }
 
-impl Format {
+impl Layout {
     /// Every format's name.
     pub const NAMES: [&'static str; 3] = ["navila", "webdataset", "frames"];
 
     /// The format's name.
     pub fn as_str(self) -> &'static str {
         match self {
-            Format::Navila => "navila",
-            Format::Webdataset => "webdataset",
-            Format::Frames => "frames",
+            Layout::Navila => "navila",
+            Layout::Webdataset => "webdataset",
+            Layout::Frames => "frames",
         }
     }
 }
 
-impl std::fmt::Display for Format {
+impl std::fmt::Display for Layout {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
     }
 }
 
-impl std::str::FromStr for Format {
+impl std::str::FromStr for Layout {
     type Err = Error;
 
-    fn from_str(s: &str) -> Result<Format> {
+    fn from_str(s: &str) -> Result<Layout> {
         match s.trim().to_ascii_lowercase().as_str() {
-            "navila" => Ok(Format::Navila),
-            "webdataset" | "wds" => Ok(Format::Webdataset),
-            "frames" => Ok(Format::Frames),
+            "navila" => Ok(Layout::Navila),
+            "webdataset" | "wds" => Ok(Layout::Webdataset),
+            "frames" => Ok(Layout::Frames),
             other => Err(Error::invalid(format!(
                 "unknown format '{other}' (known: {})",
-                Format::NAMES.join(", ")
+                Layout::NAMES.join(", ")
             ))),
         }
     }
@@ -233,17 +234,17 @@ pub fn write_frames_index(out: &Path, episodes: &[EpisodeSample]) -> Result<Vec<
     Ok(vec![EPISODES_FILE.to_string()])
 }
 
-impl TryFrom<String> for Format {
+impl TryFrom<String> for Layout {
     type Error = Error;
 
     /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
-    fn try_from(name: String) -> Result<Format> {
+    fn try_from(name: String) -> Result<Layout> {
         name.parse()
     }
 }
 
-impl From<Format> for String {
-    fn from(value: Format) -> String {
+impl From<Layout> for String {
+    fn from(value: Layout) -> String {
         value.to_string()
     }
 }

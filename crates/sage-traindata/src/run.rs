@@ -3,7 +3,7 @@
 //! files and the manifest last.
 
 use crate::encode::{self, RgbCodec};
-use crate::output::{self, Format};
+use crate::output::{self, Layout};
 use crate::preset::ActionPreset;
 use crate::replay::{self, Route, Verdict};
 use crate::sample::{self, EpisodeSample, IMAGES_DIR, ROUTE_FILE, RouteRecord};
@@ -110,7 +110,7 @@ pub struct Settings {
     /// How RGB frames are stored.
     pub rgb_codec: RgbCodec,
     /// The output layout.
-    pub format: Format,
+    pub format: Layout,
     /// Samples per NaVILA part, episodes per WebDataset shard.
     pub shard_size: usize,
     /// Render the first N goal-directed episodes of the split only.
@@ -610,7 +610,7 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
     counts.skipped = skipped.len();
     counts.samples = samples.iter().map(|e| e.actions.len()).sum();
     let written = match s.format {
-        Format::Navila => output::write_navila(
+        Layout::Navila => output::write_navila(
             out,
             &samples,
             &s.preset,
@@ -618,8 +618,8 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
             s.seed,
             &format!("sage3d_{}_{}", s.split, s.preset.name),
         )?,
-        Format::Webdataset => output::write_webdataset(out, &samples, s.shard_size, &s.split)?,
-        Format::Frames => output::write_frames_index(out, &samples)?,
+        Layout::Webdataset => output::write_webdataset(out, &samples, s.shard_size, &s.split)?,
+        Layout::Frames => output::write_frames_index(out, &samples)?,
     };
     let files = written
         .iter()
@@ -632,7 +632,7 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
             })
         })
         .collect::<Result<Vec<_>>>()?;
-    let images = (s.format != Format::Webdataset)
+    let images = (s.format != Layout::Webdataset)
         .then(|| images_entry(out, &samples))
         .transpose()?;
     let manifest = Manifest {
@@ -655,7 +655,7 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
     }
     write_json(&out.join(MANIFEST), &manifest)?;
     let frames = out.join(IMAGES_DIR);
-    if s.format == Format::Webdataset && frames.exists() {
+    if s.format == Layout::Webdataset && frames.exists() {
         std::fs::remove_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
     }
     Ok(manifest)

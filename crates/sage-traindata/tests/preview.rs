@@ -6,7 +6,7 @@ mod common;
 
 use sage_traindata::preview::{END_DELAY, MAX_WIDTH, PREVIEW_FILE, STEP_DELAY};
 use sage_traindata::sample::EpisodeSample;
-use sage_traindata::{Format, Settings};
+use sage_traindata::{Layout, Settings};
 use std::path::{Path, PathBuf};
 
 /// A 3-room home and its dataset, every episode in `train`: (dir, scenes, dataset).
@@ -51,7 +51,7 @@ fn the_preview_shows_every_step_of_the_first_episodes_with_their_frames() {
     let settings = Settings {
         width: 64,
         height: 48,
-        format: Format::Frames,
+        format: Layout::Frames,
         keep_failed: true,
         limit: Some(6),
         preview: 2,
@@ -115,7 +115,7 @@ fn the_preview_shows_every_step_of_the_first_episodes_with_their_frames() {
     // The WebDataset render makes the same preview before it removes the frames.
     let web = tempfile::tempdir().unwrap();
     let s = Settings {
-        format: Format::Webdataset,
+        format: Layout::Webdataset,
         ..settings
     };
     sage_traindata::render(&s, web.path(), false, &|_| {}).unwrap();

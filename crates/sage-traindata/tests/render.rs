@@ -4,7 +4,7 @@
 mod common;
 
 use sage_traindata::encode::RgbCodec;
-use sage_traindata::{Format, Settings};
+use sage_traindata::{Layout, Settings};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -20,7 +20,7 @@ fn data() -> (&'static Path, &'static Path) {
     (&d.1, &d.2)
 }
 
-fn settings(format: Format) -> Settings {
+fn settings(format: Layout) -> Settings {
     let (scenes, dataset) = data();
     Settings {
         width: 48,
@@ -51,7 +51,7 @@ fn render_with_threads(s: &Settings, out: &Path, threads: usize) -> sage_trainda
 
 #[test]
 fn navila_samples_match_the_walks_and_the_bytes_do_not_depend_on_threads() {
-    let s = settings(Format::Navila);
+    let s = settings(Layout::Navila);
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     let m = render_with_threads(&s, a.path(), 1);
     render_with_threads(&s, b.path(), 2);
@@ -97,7 +97,7 @@ fn navila_samples_match_the_walks_and_the_bytes_do_not_depend_on_threads() {
 
 #[test]
 fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
-    let s = settings(Format::Frames);
+    let s = settings(Layout::Frames);
     let out = tempfile::tempdir().unwrap();
     let m = render_with_threads(&s, out.path(), 2);
     let text = std::fs::read_to_string(out.path().join("episodes.jsonl")).unwrap();
@@ -179,7 +179,7 @@ fn walks_record_commanded_and_achieved_poses_from_the_episode_start() {
 
 #[test]
 fn webdataset_shards_hold_every_frame_and_the_sample_json() {
-    let mut s = settings(Format::Webdataset);
+    let mut s = settings(Layout::Webdataset);
     s.sensors = "rgb,depth,semantic".parse().unwrap();
     s.shard_size = 4;
     let out = tempfile::tempdir().unwrap();
@@ -238,7 +238,7 @@ fn webdataset_shards_hold_every_frame_and_the_sample_json() {
 
 #[test]
 fn a_broken_render_resumes_to_the_same_bytes_and_a_finished_one_is_left_alone() {
-    let s = settings(Format::Navila);
+    let s = settings(Layout::Navila);
     let (whole, broken) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     render_with_threads(&s, whole.path(), 2);
     render_with_threads(&s, broken.path(), 2);
@@ -285,7 +285,7 @@ fn a_broken_render_resumes_to_the_same_bytes_and_a_finished_one_is_left_alone() 
 
 #[test]
 fn other_settings_or_foreign_files_in_the_output_are_refused() {
-    let s = settings(Format::Frames);
+    let s = settings(Layout::Frames);
     let out = tempfile::tempdir().unwrap();
     render_with_threads(&s, out.path(), 2);
     let other = Settings {
@@ -347,7 +347,7 @@ fn episodes_of_a_missing_scene_are_skipped_with_the_reason_and_the_rest_rendered
     let s = Settings {
         width: 32,
         height: 24,
-        format: Format::Frames,
+        format: Layout::Frames,
         rgb_codec: RgbCodec::Png,
         ..Settings::new(&copy, scenes).unwrap()
     };
