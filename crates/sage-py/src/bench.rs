@@ -212,6 +212,16 @@ pub fn evaluate<'py>(
     )
 }
 
+/// The text of the per-episode records file of the run folder `run` (`episodes.jsonl`), as a
+/// shard of a distributed evaluation hands it to the merge.
+#[pyfunction]
+pub fn run_records(run: PathBuf) -> PyResult<String> {
+    let path = run.join(sage_eval::folder::RECORDS_FILE);
+    std::fs::read_to_string(&path)
+        .map_err(|e| sage_core::Error::io(&path, e))
+        .py()
+}
+
 /// What [`evaluate`] returns to Python.
 #[derive(serde::Serialize)]
 struct Evaluated {
@@ -277,9 +287,10 @@ fn build_params(
 }
 
 /// Builds (or resumes) one scene's episode file `out/scenes/{scene}.json` as `sage3d data
-/// build` does with the same settings (keyword arguments as [`build_dataset`](crate::pipeline::build_dataset)
-/// takes them); returns `{scene, status, episodes, reason?}` and the file's text (for a driver
-/// without a shared file system).
+/// build` does with the same settings (keyword arguments as
+/// [`build_dataset`](crate::pipeline::build_dataset) takes them); returns `{scene, status,
+/// episodes, reason?}`, the file's path relative to `out` and its text (for a driver without a
+/// shared file system).
 #[pyfunction]
 #[pyo3(signature = (scene_dir, out, **settings))]
 pub fn build_scene<'py>(
@@ -287,14 +298,15 @@ pub fn build_scene<'py>(
     scene_dir: PathBuf,
     out: PathBuf,
     settings: Option<&Bound<'py, PyDict>>,
-) -> PyResult<(Bound<'py, PyAny>, Option<String>)> {
+) -> PyResult<(Bound<'py, PyAny>, PathBuf, Option<String>)> {
     let (params, _) = build_params(py, &out, settings)?;
-    let (outcome, text) = py.detach(|| {
+    let (outcome, file, text) = py.detach(|| {
         let o = build::run_scene(&scene_dir, &out, &params, None);
-        let text = std::fs::read_to_string(build::scene_file(&out, &o.scene)).ok();
-        (o, text)
+        let file = build::scene_file(Path::new(""), &o.scene);
+        let text = std::fs::read_to_string(out.join(&file)).ok();
+        (o, file, text)
     });
-    Ok((to_py(py, &outcome)?, text))
+    Ok((to_py(py, &outcome)?, file, text))
 }
 
 /// Assembles a dataset from its scene files (`out/scenes/*.json`, one per folder in `scenes`):

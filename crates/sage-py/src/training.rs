@@ -101,15 +101,17 @@ pub fn training_progress<'py>(
 }
 
 /// Renders the routes of `scene` not done under `out` (frames and `route.json` per route
-/// under `out/images/{scene}/`), as one step of the command line's render. Returns the
-/// routes rendered (0 when all were done).
+/// under `out/images/{scene}/`), as one step of the command line's render. Returns `{"routes":
+/// rendered, "frames": written, "errors": routes that could not be walked, "files": [...]}`,
+/// `files` being what the routes rendered now wrote, relative to `out`, in the order to copy
+/// them elsewhere (each route's record last).
 #[pyfunction]
-pub fn training_render_scene(
-    py: Python<'_>,
+pub fn training_render_scene<'py>(
+    py: Python<'py>,
     settings_json: &str,
     scene: &str,
     out: PathBuf,
-) -> PyResult<usize> {
+) -> PyResult<Bound<'py, PyAny>> {
     let plan = plan(py, settings_json)?;
     if !plan.routes.contains_key(scene) {
         return Err(PyValueError::new_err(format!(
@@ -117,8 +119,29 @@ pub fn training_render_scene(
             plan.scenes().join(", ")
         )));
     }
-    py.detach(|| sage_traindata::render_scene(&plan, scene, &out, &|_: &RouteDone| {}))
-        .py()
+    let done = std::sync::Mutex::new(Vec::new());
+    let rendered = py
+        .detach(|| {
+            sage_traindata::render_scene(&plan, scene, &out, &|r: &RouteDone| {
+                done.lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push(r.clone());
+            })?;
+            let mut done = done.into_inner().unwrap_or_else(|e| e.into_inner());
+            done.sort_by(|a, b| a.route.cmp(&b.route));
+            let mut files = Vec::new();
+            for r in &done {
+                files.extend(r.files(&out)?);
+            }
+            Ok::<_, sage_core::Error>(serde_json::json!({
+                "routes": done.len(),
+                "frames": done.iter().map(|r| r.frames).sum::<usize>(),
+                "errors": done.iter().filter(|r| r.error.is_some()).count(),
+                "files": files,
+            }))
+        })
+        .py()?;
+    to_py(py, &rendered)
 }
 
 /// Claims `out` for the render: a new or empty folder, or the folder of the same render

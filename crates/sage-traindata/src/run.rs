@@ -358,6 +358,30 @@ pub struct RouteDone {
     pub error: Option<String>,
 }
 
+impl RouteDone {
+    /// The files of this route under `out`, relative to `out` with `/` between names, its
+    /// record (`route.json`) last: the order to copy a finished route in elsewhere, so that a
+    /// copy cut short is never taken for a finished route.
+    ///
+    /// # Errors
+    ///
+    /// The route's folder cannot be listed.
+    pub fn files(&self, out: &Path) -> Result<Vec<String>> {
+        let dir = out.join(IMAGES_DIR).join(&self.scene).join(&self.route);
+        let mut names: Vec<String> = std::fs::read_dir(&dir)
+            .map_err(|e| Error::io(&dir, e))?
+            .filter_map(|e| e.ok())
+            .filter(|e| e.path().is_file())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort_by_key(|n| (n == ROUTE_FILE, n.clone()));
+        Ok(names
+            .into_iter()
+            .map(|n| format!("{IMAGES_DIR}/{}/{}/{n}", self.scene, self.route))
+            .collect())
+    }
+}
+
 /// The folder of a route's frames under `out`.
 pub fn route_dir(out: &Path, route: &Route) -> PathBuf {
     out.join(IMAGES_DIR).join(&route.scene).join(&route.name)

@@ -17,7 +17,6 @@ the other tasks are done the call raises ``RuntimeError``: a rerun redoes only w
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import sys
@@ -155,8 +154,8 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     outcomes = {}
 
     def written(scene, result):
-        outcome, text = result
-        path = os.path.join(out, "scenes", f"{outcome['scene']}.json")
+        outcome, file, text = result
+        path = os.path.join(out, file)
         if text is not None and not os.path.exists(path):
             os.makedirs(os.path.dirname(path), exist_ok=True)
             tmp = f"{path}.tmp-{os.getpid()}"
@@ -179,8 +178,7 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
 def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
     _sage3d.evaluate(dataset, scenes, shard_out, agent, scenes_only=[scene], report=False,
                      **kwargs)
-    with open(os.path.join(shard_out, "episodes.jsonl")) as f:
-        return f.read()
+    return _sage3d.run_records(shard_out)
 
 
 def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_balanced",
@@ -249,25 +247,20 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
 def _render_training_scene(settings_json, scene, done):
     """One scene of a training-data render, in a temporary folder of this node: the records of
     the routes already done (``done``: relative path -> bytes) are put there first, so only
-    the others are rendered. Returns (routes rendered, {relative path: bytes} of the files
-    written under ``images/{scene}/``)."""
+    the others are rendered. Returns (what the render says it did, {relative path: bytes} of
+    the files it wrote, in the order to write them)."""
     with tempfile.TemporaryDirectory(prefix=f"sage3d-train-{scene}-") as tmp:
         for rel, data in done.items():
             path = os.path.join(tmp, rel)
             os.makedirs(os.path.dirname(path), exist_ok=True)
             with open(path, "wb") as f:
                 f.write(data)
-        n = _sage3d.training_render_scene(settings_json, scene, tmp)
+        result = _sage3d.training_render_scene(settings_json, scene, tmp)
         files = {}
-        root = os.path.join(tmp, "images", scene)
-        for dirpath, _, names in os.walk(root):
-            for name in names:
-                path = os.path.join(dirpath, name)
-                rel = os.path.relpath(path, tmp).replace(os.sep, "/")
-                if rel not in done:
-                    with open(path, "rb") as f:
-                        files[rel] = f.read()
-        return n, files
+        for rel in result["files"]:
+            with open(os.path.join(tmp, rel), "rb") as f:
+                files[rel] = f.read()
+        return result, files
 
 
 def _write_atomic(path, data):
@@ -279,14 +272,14 @@ def _write_atomic(path, data):
 
 
 def _write_routes(out, files):
-    """Writes a scene's returned files into ``out`` route by route: the route's old folder
-    removed, its frames, then its ``route.json`` last (the record marks the route done)."""
+    """Writes a scene's returned files into ``out`` route by route, in the order the render
+    listed them (each route's record last: the record marks the route done), each route's old
+    folder removed first."""
     routes = {}
     for rel, data in files.items():
         routes.setdefault(rel.rsplit("/", 1)[0], []).append((rel, data))
     for route_dir, entries in sorted(routes.items()):
         shutil.rmtree(os.path.join(out, route_dir), ignore_errors=True)
-        entries.sort(key=lambda e: (e[0].endswith("/route.json"), e[0]))
         for rel, data in entries:
             _write_atomic(os.path.join(out, rel), data)
 
@@ -360,12 +353,10 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     refs = {task.remote(settings, scene, done): scene for scene, done in pending.items()}
 
     def written(scene, result):
-        n, files = result
+        did, files = result
         _write_routes(out, files)
-        frames = sum(1 for rel in files if _frame_rgb(rel))
-        errors = sum(1 for rel, data in files.items()
-                     if rel.endswith("/route.json") and "error" in json.loads(data))
-        return 1, (f"{n} walks, {frames} frames"
+        errors = did["errors"]
+        return 1, (f"{did['routes']} walks, {did['frames']} frames"
                    + (f", {errors} could not be walked" if errors else ""))
 
     tasks = _Tasks(ray, len(refs), "scenes", "training data", progress)
@@ -375,13 +366,6 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
         tasks.close()
     tasks.raise_failed("training-data render", len(refs), out)
     return _sage3d.training_finish(settings, out)
-
-
-def _frame_rgb(rel):
-    """True for a frame's RGB file (``0003.jpg`` / ``0003.png``, not ``0003.depth.png`` or
-    ``route.json``)."""
-    name = rel.rsplit("/", 1)[-1]
-    return name.count(".") == 1 and name != "route.json"
 
 
 def _cause(err):
