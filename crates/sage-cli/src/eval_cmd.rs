@@ -4,10 +4,9 @@
 
 use crate::progress::bar;
 use sage_core::{Error, Result};
-use sage_dataset::folder::scenes_folder;
+use sage_eval::RunOutcome;
 use sage_eval::report::ReportOutcome;
-use sage_eval::{EvalSettings, RunOutcome};
-use sage_pipeline::evaluate::Callbacks;
+use sage_pipeline::evaluate::{Callbacks, EvalOptions};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -16,10 +15,6 @@ use std::time::Instant;
 pub struct EvalArgs {
     /// Dataset folder (as `sage3d data build` writes it).
     dataset: PathBuf,
-    /// One scene folder or a folder of scene folders, named as the episodes' scenes (default:
-    /// the scenes folder the dataset was built from, as its sage3d_run.json records it).
-    #[arg(long)]
-    scenes: Option<PathBuf>,
     /// Agent: random, forward, oracle; replay:FILE (JSONL of recorded actions or poses per
     /// episode); socket:HOST:PORT (SAGE socket protocol), http:URL (POST /vln_step) or
     /// chat:MODEL@BASE_URL (OpenAI-compatible; key from OPENAI_API_KEY), with options
@@ -28,21 +23,8 @@ pub struct EvalArgs {
     /// See docs/evaluation.md.
     #[arg(long)]
     agent: String,
-    /// Dataset split, one of those DATASET/splits.json lists (`DATASET/episodes/{split}.jsonl`).
-    #[arg(long, default_value = "test_balanced")]
-    split: String,
-    /// Metric mode: sage, vlnce or sage-official.
-    #[arg(long, default_value = "sage")]
-    mode: String,
-    /// nDTW alignment: exact (default) or fast (FastDTW, radius 1, as VLN-CE computes it).
-    #[arg(long, default_value = "exact")]
-    dtw: String,
-    /// Seed of the agent (each episode mixes in its id).
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Environment preset: sage or vlnce.
-    #[arg(long, default_value = "sage")]
-    preset: String,
+    #[command(flatten)]
+    options: EvalOptions,
     /// Run folder: episodes.jsonl, summary.json, sage3d_run.json, report.html; new, empty, or
     /// an evaluation's. Rerunning into it resumes.
     #[arg(long)]
@@ -53,29 +35,18 @@ pub struct EvalArgs {
     /// Exit non-zero when any episode failed (without it: only when every episode failed).
     #[arg(long)]
     strict: bool,
-    #[command(flatten)]
-    device: crate::flags::DeviceFlag,
 }
 
 /// Runs or resumes the evaluation and prints its tables.
 pub fn run(a: EvalArgs) -> Result<()> {
-    let settings = EvalSettings {
-        scenes: scenes_folder(&a.dataset, a.scenes.as_deref())?,
-        dataset: a.dataset,
-        split: a.split,
-        agent: a
-            .agent
-            .parse()
-            .map_err(|e: Error| e.within(format!("--agent '{}'", a.agent)))?,
-        mode: a.mode.parse().map_err(|e: Error| e.within("--mode"))?,
-        dtw: a.dtw.parse().map_err(|e: Error| e.within("--dtw"))?,
-        seed: a.seed,
-        preset: a.preset,
-        device: a.device.device,
-    };
+    let agent = a
+        .agent
+        .parse()
+        .map_err(|e: Error| e.within(format!("--agent '{}'", a.agent)))?;
+    let settings = a.options.settings(&a.dataset, agent)?;
     // Agents that read no images run blind, yet a GPU that cannot be had is refused for them
     // too: a command line that works with one agent works with any.
-    eprintln!("renderer: {}", a.device.probe()?);
+    eprintln!("renderer: {}", crate::flags::probe(settings.device)?);
     let episodes = bar("{bar:30} {pos}/{len} episodes {elapsed} (eta {eta}) {msg}");
     let maps = bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let start = Instant::now();

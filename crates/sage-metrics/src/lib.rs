@@ -29,7 +29,7 @@ use std::str::FromStr;
 
 /// Which definitions produce the numbers (SPEC §10.1).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[serde(try_from = "String", into = "String")]
 pub enum Mode {
     /// SPEC §10: goal regions, geodesic NE and L*, c(t) from physics.
     #[default]
@@ -57,6 +57,21 @@ impl fmt::Display for Mode {
     }
 }
 
+impl TryFrom<String> for Mode {
+    type Error = Error;
+
+    /// As [`FromStr`]: files, settings and Python name it as the flag does.
+    fn try_from(name: String) -> Result<Mode> {
+        name.parse()
+    }
+}
+
+impl From<Mode> for String {
+    fn from(value: Mode) -> String {
+        value.to_string()
+    }
+}
+
 impl FromStr for Mode {
     type Err = Error;
 
@@ -74,7 +89,7 @@ impl FromStr for Mode {
 
 /// How nDTW aligns the two paths.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
+#[serde(try_from = "String", into = "String")]
 pub enum Dtw {
     /// Exact dynamic time warping.
     #[default]
@@ -97,6 +112,21 @@ impl Dtw {
 impl fmt::Display for Dtw {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())
+    }
+}
+
+impl TryFrom<String> for Dtw {
+    type Error = Error;
+
+    /// As [`FromStr`]: files, settings and Python name it as the flag does.
+    fn try_from(name: String) -> Result<Dtw> {
+        name.parse()
+    }
+}
+
+impl From<Dtw> for String {
+    fn from(value: Dtw) -> String {
+        value.to_string()
     }
 }
 

@@ -1,10 +1,88 @@
 //! An evaluation with its report: run (or resume) an agent over a dataset split, then write the
 //! run's `report.html` and maps — for the command line, Python and the demo alike.
 
+use sage_agents::AgentKind;
 use sage_core::Result;
+use sage_dataset::folder::scenes_folder;
 use sage_eval::report::{self, ReportOutcome};
 use sage_eval::{EvalRecord, EvalSettings, RunOutcome, Runner, Summary};
-use std::path::Path;
+use sage_metrics::{Dtw, Mode};
+use sage_splat::Device;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The settings of an evaluation besides its dataset and agent, as `sage3d eval`'s flags and
+/// the keyword arguments of `sage3d.evaluate` name them; [`EvalOptions::default`] gives every
+/// default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[serde(default, deny_unknown_fields)]
+pub struct EvalOptions {
+    /// One scene folder or a folder of scene folders, named as the episodes' scenes (default:
+    /// the scenes folder the dataset was built from, as its sage3d_run.json records it).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub scenes: Option<PathBuf>,
+    /// Dataset split, one of those DATASET/splits.json lists (`DATASET/episodes/{split}.jsonl`).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().split))]
+    pub split: String,
+    /// Metric mode: sage, vlnce or sage-official.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().mode))]
+    pub mode: Mode,
+    /// nDTW alignment: exact or fast (FastDTW, radius 1, as VLN-CE computes it).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().dtw))]
+    pub dtw: Dtw,
+    /// Seed of the agent (each episode mixes in its id).
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().seed))]
+    pub seed: u64,
+    /// Environment preset: sage or vlnce.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().preset))]
+    pub preset: String,
+    /// Where images are rendered for agents that read them: cpu; gpu (any GPU adapter, a
+    /// software one such as Mesa's lavapipe included; an error when there is none); or auto (a
+    /// hardware GPU when there is one, else the CPU).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "cpu|gpu|auto", default_value_t = EvalOptions::default().device)
+    )]
+    pub device: Device,
+}
+
+impl Default for EvalOptions {
+    /// The balanced test split, the `sage` metrics with exact nDTW, seed 0, the `sage`
+    /// environment, on the CPU, in the scenes folder the dataset records.
+    fn default() -> Self {
+        EvalOptions {
+            scenes: None,
+            split: "test_balanced".into(),
+            mode: Mode::default(),
+            dtw: Dtw::default(),
+            seed: 0,
+            preset: "sage".into(),
+            device: Device::default(),
+        }
+    }
+}
+
+impl EvalOptions {
+    /// The settings of an evaluation of `agent` over `dataset` with these options.
+    ///
+    /// # Errors
+    ///
+    /// No scenes folder given nor recorded by the dataset.
+    pub fn settings(&self, dataset: &Path, agent: AgentKind) -> Result<EvalSettings> {
+        Ok(EvalSettings {
+            dataset: dataset.to_path_buf(),
+            scenes: scenes_folder(dataset, self.scenes.as_deref())?,
+            split: self.split.clone(),
+            agent,
+            mode: self.mode,
+            dtw: self.dtw,
+            seed: self.seed,
+            preset: self.preset.clone(),
+            device: self.device,
+        })
+    }
+}
 
 /// What an evaluation reports as it goes.
 #[derive(Clone, Copy)]

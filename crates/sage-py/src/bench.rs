@@ -12,10 +12,9 @@ use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, SceneParams};
 use sage_dataset::folder;
 use sage_env::agents::Agent;
-use sage_eval::{EvalSettings, Runner, Summary};
-use sage_metrics::Scoring;
+use sage_eval::{Runner, Summary};
 use sage_pipeline::dataset::BuildSettings;
-use sage_pipeline::evaluate::Callbacks;
+use sage_pipeline::evaluate::{Callbacks, EvalOptions};
 use std::path::{Path, PathBuf};
 
 /// The episodes of `split` in a dataset folder, as dicts (the JSONL schema).
@@ -64,37 +63,26 @@ pub fn scene_dirs(root: PathBuf) -> PyResult<Vec<PathBuf>> {
     sage_io::scenes::scene_dirs(&root).py()
 }
 
-/// How an evaluation scores its records, from the names Python passes.
-fn scoring(mode: &str, dtw: &str) -> PyResult<Scoring> {
-    Ok(Scoring {
-        mode: mode.parse().py()?,
-        dtw: dtw.parse().py()?,
-    })
+/// The options of an evaluation from keyword arguments (`sage3d eval`'s flags by name) and the
+/// scenes folder given beside them.
+fn eval_options(
+    py: Python<'_>,
+    scenes: Option<PathBuf>,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<EvalOptions> {
+    let given: EvalOptions = from_kwargs(py, options, "evaluation options")?;
+    Ok(EvalOptions { scenes, ..given })
 }
 
-/// The settings of an evaluation. `agent` is the recorded name; a Python agent has no
-/// built-in kind, and its kind here only fills the field that [`Runner::agent_name`]
-/// overrides in every file.
-fn settings(
-    dataset: PathBuf,
-    scenes: Option<PathBuf>,
-    split: &str,
-    agent: &str,
-    scoring: Scoring,
-    seed: u64,
-    preset: &str,
-) -> PyResult<EvalSettings> {
-    Ok(EvalSettings {
-        scenes: folder::scenes_folder(&dataset, scenes.as_deref()).py()?,
-        dataset,
-        split: split.to_string(),
-        agent: agent.parse().unwrap_or(AgentKind::Forward),
-        mode: scoring.mode,
-        dtw: scoring.dtw,
-        seed,
-        preset: preset.to_string(),
-        device: Default::default(),
-    })
+/// The options of an evaluation (`sage3d eval`'s flags by name) with every default filled in,
+/// as a dict: what a driver that splits the evaluation needs to know of them (its split).
+#[pyfunction]
+#[pyo3(signature = (**options))]
+pub fn evaluation_options<'py>(
+    py: Python<'py>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    to_py(py, &eval_options(py, None, options)?)
 }
 
 /// Runs (or resumes) an evaluation into `out`, writes its report (`report.html`, unless
@@ -105,10 +93,11 @@ fn settings(
 /// `sage3d eval` (the same pipeline function, the same files); otherwise the environment is
 /// `preset` with `overrides` (JSON; a Python agent sees the preset's images) and only the
 /// episodes of the scenes in `scenes_only` run. `scenes=None` runs in the scenes folder the
-/// dataset records. Images are rendered on `device` (`cpu`, `gpu` or `auto`, as `sage3d eval
-/// --device`), whatever `overrides` say.
+/// dataset records. The other keyword arguments are `sage3d eval`'s flags by name with their
+/// defaults (`split`, `mode`, `dtw`, `seed`, `preset`, `device`); images are rendered on
+/// `device` whatever `overrides` say.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, split="test_balanced", mode="sage", seed=0, preset="sage", overrides=None, scenes_only=None, dtw="exact", strict=false, device="cpu", report=true))]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, overrides=None, scenes_only=None, strict=false, report=true, **options))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -117,17 +106,13 @@ pub fn evaluate<'py>(
     out: PathBuf,
     agent: &Bound<'py, PyAny>,
     agent_name: Option<String>,
-    split: &str,
-    mode: &str,
-    seed: u64,
-    preset: &str,
     overrides: Option<&str>,
     scenes_only: Option<Vec<String>>,
-    dtw: &str,
     strict: bool,
-    device: &str,
     report: bool,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let options = eval_options(py, scenes, options)?;
     let builtin: Option<AgentKind> = match agent.extract::<String>() {
         Ok(name) => Some(name.parse().py()?),
         Err(_) => None,
@@ -137,18 +122,11 @@ pub fn evaluate<'py>(
         (None, Some(n)) => n,
         (None, None) => return Err(PyValueError::new_err("a Python agent needs agent_name")),
     };
-    let settings = EvalSettings {
-        device: device.parse().py()?,
-        ..settings(
-            dataset,
-            scenes,
-            split,
-            &name,
-            scoring(mode, dtw)?,
-            seed,
-            preset,
-        )?
-    };
+    // A Python agent has no built-in kind: its kind here only fills the field that
+    // `Runner::agent_name` overrides in every file.
+    let kind = builtin.clone().unwrap_or(AgentKind::Forward);
+    let settings = options.settings(&dataset, kind).py()?;
+    let (preset, seed) = (settings.preset.as_str(), settings.seed);
     let factory = agent.clone().unbind();
     let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
     let config = match (&maker, overrides) {
@@ -239,8 +217,7 @@ struct Evaluated {
 /// Returns the summary. An episode recorded by two shards is an error. `device` is the one the
 /// shards rendered on (their run records name it when it is not the CPU).
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent_name, shards, split="test_balanced", mode="sage", seed=0, preset="sage", dtw="exact", device="cpu"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (dataset, scenes, out, agent_name, shards, **options))]
 pub fn merge_eval<'py>(
     py: Python<'py>,
     dataset: PathBuf,
@@ -248,25 +225,12 @@ pub fn merge_eval<'py>(
     out: PathBuf,
     agent_name: String,
     shards: Vec<String>,
-    split: &str,
-    mode: &str,
-    seed: u64,
-    preset: &str,
-    dtw: &str,
-    device: &str,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let settings = EvalSettings {
-        device: device.parse().py()?,
-        ..settings(
-            dataset,
-            scenes,
-            split,
-            &agent_name,
-            scoring(mode, dtw)?,
-            seed,
-            preset,
-        )?
-    };
+    let kind = agent_name.parse().unwrap_or(AgentKind::Forward);
+    let settings = eval_options(py, scenes, options)?
+        .settings(&dataset, kind)
+        .py()?;
     let (summary, _) = py
         .detach(|| {
             sage_pipeline::evaluate::merge(&settings, &agent_name, &shards, &out, &|_, _| {})

@@ -15,7 +15,7 @@ use std::sync::Arc;
 /// Where images are rendered: `cpu`, `gpu`, or `auto` (a hardware GPU when there is one,
 /// else the CPU).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(try_from = "String", into = "String")]
 pub enum Device {
     /// The CPU tile renderer: works everywhere, results independent of the thread count.
     #[default]
@@ -80,6 +80,21 @@ impl fmt::Display for Device {
             Device::Gpu => "gpu",
             Device::Auto => "auto",
         })
+    }
+}
+
+impl TryFrom<String> for Device {
+    type Error = Error;
+
+    /// As [`FromStr`]: settings files and Python name the device as the flag does.
+    fn try_from(name: String) -> Result<Device> {
+        name.parse()
+    }
+}
+
+impl From<Device> for String {
+    fn from(device: Device) -> String {
+        device.to_string()
     }
 }
 

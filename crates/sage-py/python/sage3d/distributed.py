@@ -24,7 +24,6 @@ import tempfile
 import time
 
 from . import _sage3d
-from .env import check_device
 from .evaluation import agent_factory, agent_name, overrides_json
 
 
@@ -181,30 +180,29 @@ def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
     return _sage3d.run_records(shard_out)
 
 
-def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_balanced",
-             mode: str = "sage", seed: int = 0, preset: str = "sage", width: int | None = None,
+def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             num_cpus: float = 1, dtw: str = "exact", max_retries: int = 3,
-             progress: bool = True, device: str = "cpu") -> dict:
+             num_cpus: float = 1, max_retries: int = 3, progress: bool = True,
+             **options) -> dict:
     """:func:`sage3d.evaluate` with one Ray task per scene of the split.
 
     ``scenes=None`` uses the scenes folder the dataset records (resolved once, on the driver).
     Task ``scene`` runs (or resumes) the run folder ``out/shards/{scene}``; the driver merges
     the shards' records into ``out/episodes.jsonl`` sorted by episode id, with
     ``episodes.jsonl``, ``summary.json`` and ``sage3d_run.json`` the same bytes as one ``sage3d
-    eval`` over the whole split, then writes the run's report (``report.html``). ``agent`` as in
-    :func:`sage3d.evaluate` (a Python agent must be picklable). An agent whose server holds one episode's state
-    (``socket:HOST:PORT?server=navid``) gets its tasks one after another, as ``sage3d eval``
-    runs its episodes one at a time. ``progress`` prints the episodes done (of the split) as
+    eval`` over the whole split, then writes the run's report (``report.html``). ``agent`` and
+    ``options`` (``split``, ``mode``, ``dtw``, ``seed``, ``preset``, ``device``: every task
+    renders on it) as in :func:`sage3d.evaluate` (a Python agent must be picklable). An agent
+    whose server holds one episode's state (``socket:HOST:PORT?server=navid``) gets its tasks
+    one after another, as ``sage3d eval`` runs its episodes one at a time. ``progress`` prints the episodes done (of the split) as
     tasks finish. A task whose worker or node dies is rerun up to ``max_retries`` times (Ray's
     task option; the rerun resumes its shard); a task that still fails is reported with its
     scene, and once the others are done ``RuntimeError`` is raised, nothing merged: a rerun
-    runs only the missing episodes. Returns the summary. ``device`` as in
-    :func:`sage3d.evaluate`: every task renders on it.
+    runs only the missing episodes. Returns the summary.
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
-    check_device(device)
+    split = _sage3d.evaluation_options(**options)["split"]
     ray = _ray()
     dataset, out = os.fspath(dataset), os.fspath(out)
     scenes = os.fspath(_sage3d.scenes_folder(dataset, None if scenes is None else os.fspath(scenes)))
@@ -213,8 +211,8 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     overrides = overrides_json(width, height, sensors, config)
     spec = _sage3d.agent_spec(agent) if isinstance(agent, str) else None
     name = spec["name"] if spec else agent_name(agent)
-    kwargs = dict(agent_name=None if isinstance(agent, str) else name, split=split, mode=mode,
-                  seed=seed, preset=preset, overrides=overrides, dtw=dtw, device=device)
+    kwargs = dict(options, agent_name=None if isinstance(agent, str) else name,
+                  overrides=overrides)
     factory = agent_factory(agent)
     task = ray.remote(num_cpus=num_cpus, max_retries=max_retries)(_evaluate_shard)
     texts = {}
@@ -240,8 +238,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     finally:
         tasks.close()
     tasks.raise_failed("distributed evaluation", len(names), os.path.join(out, "shards"))
-    return _sage3d.merge_eval(dataset, scenes, out, name, [texts[n] for n in names], split=split,
-                              mode=mode, seed=seed, preset=preset, dtw=dtw, device=device)
+    return _sage3d.merge_eval(dataset, scenes, out, name, [texts[n] for n in names], **options)
 
 
 def _render_training_scene(settings_json, scene, done):

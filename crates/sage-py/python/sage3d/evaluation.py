@@ -7,7 +7,7 @@ import os
 import warnings
 
 from . import _sage3d
-from .env import _json, check_device, config_overrides
+from .env import _json, config_overrides
 
 
 def agent_name(agent) -> str:
@@ -50,11 +50,9 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
     return _json(config_overrides(width, height, sensors, config=config))
 
 
-def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_balanced",
-             mode: str = "sage", seed: int = 0, preset: str = "sage", width: int | None = None,
+def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             scenes_only: list[str] | None = None, dtw: str = "exact",
-             strict: bool = False, device: str = "cpu") -> dict:
+             scenes_only: list[str] | None = None, strict: bool = False, **options) -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
     resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json``,
     ``sage3d_run.json`` and the report (``report.html`` with its ``report/`` maps) as ``sage3d
@@ -69,8 +67,10 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     Each episode gets a fresh agent (the class called, or a deep copy of the object). Episodes
     run in parallel; Python agents decide one at a time under the GIL while rendering and
     physics run in parallel. ``scenes_only`` runs only the episodes of those scenes (a shard).
-    ``mode`` and ``dtw`` (``"exact"`` or ``"fast"``, VLN-CE's FastDTW) choose how episodes are
-    scored, as ``sage3d eval --mode/--dtw``. Faulted episodes (never scored) are recorded and listed in
+    ``options`` are ``sage3d eval``'s flags by name, with the same defaults: ``split``
+    (``"test_balanced"``), ``mode`` (``"sage"``, ``"vlnce"`` or ``"sage-official"``) and ``dtw``
+    (``"exact"`` or ``"fast"``, VLN-CE's FastDTW) choose how episodes are scored, ``seed`` (0),
+    ``preset`` (``"sage"``) and ``device``. Faulted episodes (never scored) are recorded and listed in
     ``summary["failed"]`` (per kind in ``summary["failures"]``); with ``strict=True`` any failure
     raises ``ValueError`` after the run folder is written, as ``sage3d eval --strict`` exits
     non-zero, and a run in which every episode failed warns (``RuntimeWarning``). ``device``
@@ -79,14 +79,12 @@ def evaluate(dataset, scenes=None, agent=None, out=None, split: str = "test_bala
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
-    check_device(device)
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
         os.fspath(dataset), None if scenes is None else os.fspath(scenes), os.fspath(out),
         agent_factory(agent),
-        agent_name=None if isinstance(agent, str) else agent_name(agent), split=split,
-        mode=mode, seed=seed, preset=preset, overrides=overrides, scenes_only=scenes_only, dtw=dtw,
-        strict=strict, device=device)
+        agent_name=None if isinstance(agent, str) else agent_name(agent), overrides=overrides,
+        scenes_only=scenes_only, strict=strict, **options)
     summary = result["summary"]
     if summary["episodes"] and len(summary["failed"]) == summary["episodes"]:
         warnings.warn(f"every episode of the run faulted ({summary['episodes']}); see the records' "
