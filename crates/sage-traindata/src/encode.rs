@@ -183,6 +183,21 @@ fn png_bytes(
     Ok(out)
 }
 
+impl TryFrom<String> for ImageType {
+    type Error = Error;
+
+    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
+    fn try_from(name: String) -> Result<ImageType> {
+        name.parse()
+    }
+}
+
+impl From<ImageType> for String {
+    fn from(value: ImageType) -> String {
+        value.to_string()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -218,20 +233,5 @@ mod tests {
         assert_eq!(names, ["jpg", "depth.png", "semantic.png", "instance.png"]);
         assert_eq!(&files[0].1[..2], &[0xFF, 0xD8]);
         assert_eq!(&files[1].1[1..4], b"PNG");
-    }
-}
-
-impl TryFrom<String> for ImageType {
-    type Error = Error;
-
-    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
-    fn try_from(name: String) -> Result<ImageType> {
-        name.parse()
-    }
-}
-
-impl From<ImageType> for String {
-    fn from(value: ImageType) -> String {
-        value.to_string()
     }
 }

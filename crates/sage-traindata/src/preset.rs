@@ -188,6 +188,21 @@ pub fn action_from_name(name: &str) -> Action {
     }
 }
 
+impl TryFrom<String> for PresetName {
+    type Error = Error;
+
+    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
+    fn try_from(name: String) -> Result<PresetName> {
+        name.parse()
+    }
+}
+
+impl From<PresetName> for String {
+    fn from(value: PresetName) -> String {
+        value.to_string()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -228,20 +243,5 @@ mod tests {
         assert!(ActionPreset::with(base.clone(), Some(0.0), None, None).is_err());
         assert!(ActionPreset::with(base.clone(), None, Some(200.0), None).is_err());
         assert!(ActionPreset::with(base, None, None, Some(0)).is_err());
-    }
-}
-
-impl TryFrom<String> for PresetName {
-    type Error = Error;
-
-    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
-    fn try_from(name: String) -> Result<PresetName> {
-        name.parse()
-    }
-}
-
-impl From<PresetName> for String {
-    fn from(value: PresetName) -> String {
-        value.to_string()
     }
 }

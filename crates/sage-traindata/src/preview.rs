@@ -461,7 +461,7 @@ fn key(image: &mut Canvas, layout: &Layout, y: i64) {
                 image.put(x + dx, y + dy, colour);
             }
         }
-        image.text(x + 9 * ts, y, &label, INK, ts);
+        image.text(x + 9 * ts, y, label, INK, ts);
         x = end;
     }
 }
