@@ -554,7 +554,7 @@ impl AssembleParams {
 }
 
 /// Counts of the whole dataset: the dataset's `summary.json`. Named apart from
-/// [`crate::eval::Summary`], the `summary.json` of an evaluation run.
+/// the evaluator's `sage_eval::Summary`, the `summary.json` of an evaluation run.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct DatasetSummary {
     /// Scenes with episodes.

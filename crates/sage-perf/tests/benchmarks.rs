@@ -44,7 +44,7 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
     let e = load::run(&sog, &|_| unreachable!())
         .unwrap_err()
         .to_string();
-    assert!(e.contains("--input"), "{e}");
+    assert!(e.contains("`input`"), "{e}");
 
     let settings = RenderSettings {
         gaussians: 3000,

@@ -222,7 +222,7 @@ fn convert_never_replaces_a_file_unasked_and_writes_only_what_it_can() {
     let e = convert(&input, &out, ConvertOptions::default())
         .unwrap_err()
         .to_string();
-    assert!(e.contains("--force"), "{e}");
+    assert!(e.contains("`force`"), "{e}");
     assert_eq!(std::fs::read(&out).unwrap(), b"precious");
     convert(
         &input,

@@ -296,7 +296,7 @@ fn other_settings_or_foreign_files_in_the_output_are_refused() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("other settings") && err.contains("--force"),
+        err.contains("other settings") && err.contains("`force`"),
         "{err}"
     );
     // With force the old render's files are replaced.
