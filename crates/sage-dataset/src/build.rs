@@ -715,7 +715,7 @@ pub fn assemble(
     }
     let mut outputs: Vec<(&str, &Vec<Episode>)> = by_split.iter().map(|(k, v)| (*k, v)).collect();
     if params.balanced > 0 {
-        outputs.push(("test_balanced", &balanced_eps));
+        outputs.push((split::TEST_BALANCED, &balanced_eps));
     }
     for (name, eps) in outputs {
         jsonl::write(&out.join("episodes").join(format!("{name}.jsonl")), eps)?;
@@ -726,7 +726,7 @@ pub fn assemble(
             space,
         )?;
         let n = r2r::write(&out.join("r2r"), name, eps, space)?;
-        if name != "test_balanced" {
+        if name != split::TEST_BALANCED {
             summary.r2r_episodes += n;
         }
     }
@@ -773,7 +773,7 @@ pub fn assemble(
         .map(|(k, v)| (*k, v.iter().map(|e| e.episode_id.as_str()).collect()))
         .chain((params.balanced > 0).then(|| {
             (
-                "test_balanced",
+                split::TEST_BALANCED,
                 balanced.iter().map(String::as_str).collect(),
             )
         }))

@@ -27,6 +27,9 @@ pub const SPLITS: [&str; 5] = [
     "test_instruction_unseen",
 ];
 
+/// The balanced test selection's split (SPEC §9): what evaluations run by default.
+pub const TEST_BALANCED: &str = "test_balanced";
+
 /// Shares of the split rule.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SplitParams {

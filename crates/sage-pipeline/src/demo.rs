@@ -69,7 +69,7 @@ impl Default for DemoSettings {
             per_scene: 12,
             gaussians: 150_000,
             agents: ["oracle", "random", "forward"].map(String::from).to_vec(),
-            split: "test_balanced".into(),
+            split: sage_dataset::split::TEST_BALANCED.into(),
             from: None,
         }
     }

@@ -53,7 +53,7 @@ impl Default for EvalOptions {
     fn default() -> Self {
         EvalOptions {
             scenes: None,
-            split: "test_balanced".into(),
+            split: sage_dataset::split::TEST_BALANCED.into(),
             mode: Mode::default(),
             dtw: Dtw::default(),
             seed: 0,
