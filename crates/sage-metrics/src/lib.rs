@@ -57,20 +57,7 @@ impl fmt::Display for Mode {
     }
 }
 
-impl TryFrom<String> for Mode {
-    type Error = Error;
-
-    /// As [`FromStr`]: files, settings and Python name it as the flag does.
-    fn try_from(name: String) -> Result<Mode> {
-        name.parse()
-    }
-}
-
-impl From<Mode> for String {
-    fn from(value: Mode) -> String {
-        value.to_string()
-    }
-}
+sage_core::named_by_string!(Mode);
 
 impl FromStr for Mode {
     type Err = Error;
@@ -115,20 +102,7 @@ impl fmt::Display for Dtw {
     }
 }
 
-impl TryFrom<String> for Dtw {
-    type Error = Error;
-
-    /// As [`FromStr`]: files, settings and Python name it as the flag does.
-    fn try_from(name: String) -> Result<Dtw> {
-        name.parse()
-    }
-}
-
-impl From<Dtw> for String {
-    fn from(value: Dtw) -> String {
-        value.to_string()
-    }
-}
+sage_core::named_by_string!(Dtw);
 
 impl FromStr for Dtw {
     type Err = Error;

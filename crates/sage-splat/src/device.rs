@@ -83,20 +83,7 @@ impl fmt::Display for Device {
     }
 }
 
-impl TryFrom<String> for Device {
-    type Error = Error;
-
-    /// As [`FromStr`]: settings files and Python name the device as the flag does.
-    fn try_from(name: String) -> Result<Device> {
-        name.parse()
-    }
-}
-
-impl From<Device> for String {
-    fn from(device: Device) -> String {
-        device.to_string()
-    }
-}
+sage_core::named_by_string!(Device);
 
 impl FromStr for Device {
     type Err = Error;

@@ -183,20 +183,7 @@ fn png_bytes(
     Ok(out)
 }
 
-impl TryFrom<String> for ImageType {
-    type Error = Error;
-
-    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
-    fn try_from(name: String) -> Result<ImageType> {
-        name.parse()
-    }
-}
-
-impl From<ImageType> for String {
-    fn from(value: ImageType) -> String {
-        value.to_string()
-    }
-}
+sage_core::named_by_string!(ImageType);
 
 #[cfg(test)]
 mod tests {

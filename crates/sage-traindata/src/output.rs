@@ -234,17 +234,4 @@ pub fn write_frames_index(out: &Path, episodes: &[EpisodeSample]) -> Result<Vec<
     Ok(vec![EPISODES_FILE.to_string()])
 }
 
-impl TryFrom<String> for Layout {
-    type Error = Error;
-
-    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
-    fn try_from(name: String) -> Result<Layout> {
-        name.parse()
-    }
-}
-
-impl From<Layout> for String {
-    fn from(value: Layout) -> String {
-        value.to_string()
-    }
-}
+sage_core::named_by_string!(Layout);

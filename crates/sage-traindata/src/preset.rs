@@ -188,20 +188,7 @@ pub fn action_from_name(name: &str) -> Action {
     }
 }
 
-impl TryFrom<String> for PresetName {
-    type Error = Error;
-
-    /// As [`FromStr`](std::str::FromStr): settings files and Python name it as the flag does.
-    fn try_from(name: String) -> Result<PresetName> {
-        name.parse()
-    }
-}
-
-impl From<PresetName> for String {
-    fn from(value: PresetName) -> String {
-        value.to_string()
-    }
-}
+sage_core::named_by_string!(PresetName);
 
 #[cfg(test)]
 mod tests {
