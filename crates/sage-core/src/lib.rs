@@ -2,8 +2,8 @@
 //!
 //! Math types (re-exported from `glam`), the three coordinate frames of SPEC §3 (the internal
 //! world frame W, Habitat's Y-up frame and the SAGE "S" frame), poses and angles, plain geometry
-//! (oriented boxes, polygons), instance ids, the task of an episode, the one error type whose messages name the
-//! file and field at fault, and the conversions of settings named by a word
+//! (oriented boxes, polygons), instance ids, the task of an episode, the one error type whose
+//! messages name the file and field at fault, and the conversions of settings named by a word
 //! ([`named_by_string!`]). Nothing here touches files or threads.
 
 pub mod error;
