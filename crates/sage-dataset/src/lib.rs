@@ -1,10 +1,13 @@
-//! Datasets: from scenes to episodes, splits and files.
+//! `sage-dataset`: sage3d's VLN datasets (SPEC §9, `docs/dataset.md`) — from scenes to
+//! episodes, splits and files, and back.
 //!
-//! [`episode`] is the record of one episode (SPEC §9), [`slices`] its complexity tags,
-//! [`split`] the train / val / test assignment with the three unseen test sets, [`selector`] the
-//! balanced test selection, [`formats`] the files (JSONL, GVLN, R2R-VLNCE), [`build`] the
-//! whole pipeline over a folder of scenes, [`import`] a split from other files and [`folder`]
-//! what a dataset folder records about itself (its splits, its scenes folder).
+//! [`episode`] is the record of one episode, [`slices`] its complexity tags, [`split`] the
+//! train / val / test assignment with the three unseen test sets, [`selector`] the balanced test
+//! selection, [`formats`] the files (JSONL, SAGE-Bench GVLN, R2R-VLNCE), [`build`] the steps of
+//! the build over a folder of scenes (the pipeline itself is `sage_pipeline::dataset`),
+//! [`import`] a split from other files, and [`folder`] what a dataset folder records about
+//! itself and how a split is read from it ([`folder::split_episodes`]) — what the evaluator,
+//! the training-data render and Python all read datasets through.
 
 pub mod build;
 pub mod episode;
