@@ -6,6 +6,7 @@
 //! - its steps: [`scene`] (synthesise a scene folder), [`nav`] (semantic map and occupancy),
 //!   [`physics`] (collision bodies), [`dataset`] (the dataset build), [`evaluate`] (an agent's
 //!   evaluation with its report), [`overview`] (the demo's picture);
+//! - [`render`]: a scene's images from one camera (every channel, a legend, a turntable);
 //! - [`recon`]: mesh scene → planned cameras → ground-truth views → nerfstudio export → a fitted
 //!   Gaussian scene.
 //!
@@ -21,4 +22,5 @@ pub mod nav;
 pub mod overview;
 pub mod physics;
 pub mod recon;
+pub mod render;
 pub mod scene;
