@@ -4,8 +4,9 @@
 //! - [`demo`]: the whole job end to end on synthetic (or real) scenes, as a plan of steps, and
 //!   [`demo_folder`]: the claim of its output folder;
 //! - its steps: [`scene`] (synthesise a scene folder), [`nav`] (semantic map and occupancy),
-//!   [`physics`] (collision bodies), [`dataset`] (the dataset build), [`evaluate`] (an agent's
-//!   evaluation with its report), [`overview`] (the demo's picture);
+//!   [`physics`] (collision bodies, the hull cache's work list, the USDA export), [`dataset`]
+//!   (the dataset build), [`evaluate`] (an agent's evaluation with its report), [`overview`]
+//!   (the demo's picture);
 //! - [`render`]: a scene's images from one camera (every channel, a legend, a turntable);
 //! - [`recon`]: mesh scene → planned cameras → ground-truth views → nerfstudio export → a fitted
 //!   Gaussian scene.
