@@ -3,15 +3,12 @@
 
 use clap::{Args, Subcommand};
 use sage_core::{Error, Pose, Result, Vec3};
-use sage_io::files::write_json;
-use sage_physics::usd::{SplatAsset, write_usda};
 use sage_physics::{
-    AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, WorkList,
-    World, WorldOptions, default_cache_dir,
+    AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, World,
+    WorldOptions, default_cache_dir,
 };
 use sage_scene::Scene;
-use sage_scene::scene::files;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
 pub enum PhysicsCommand {
@@ -87,20 +84,24 @@ impl DecompArgs {
 
     /// Loads the scene and builds its bodies under a progress bar.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
-        // Hidden when standard error is not a terminal.
-        let bar = crate::progress::bar("collision bodies {bar:40} {pos}/{len} objects {elapsed}");
-        let built = sage_pipeline::physics::bodies(
-            scene_dir,
-            &self.decomposer()?,
-            &self.cache(scene_dir),
-            &|n| {
-                bar.set_length(n as u64);
-                bar.inc(1);
-            },
-        );
-        bar.finish_and_clear();
-        built
+        let (decomposer, cache) = (self.decomposer()?, self.cache(scene_dir));
+        with_bar(|on_object| {
+            sage_pipeline::physics::bodies(scene_dir, &decomposer, &cache, on_object)
+        })
     }
+}
+
+/// Runs `work` under a bar of the objects whose bodies are built, which `work` hands to the
+/// pipeline as its `on_object`.
+fn with_bar<T>(work: impl FnOnce(&(dyn Fn(usize) + Sync)) -> Result<T>) -> Result<T> {
+    // Hidden when standard error is not a terminal.
+    let bar = crate::progress::bar("collision bodies {bar:40} {pos}/{len} objects {elapsed}");
+    let done = work(&|n| {
+        bar.set_length(n as u64);
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    done
 }
 
 #[derive(Args)]
@@ -245,10 +246,13 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
 }
 
 fn pending(a: PendingArgs) -> Result<()> {
-    sage_io::run::claim_file(&a.out, a.force)?;
-    let (scene, _) = Scene::load(&a.scene)?;
-    let list = WorkList::of(&scene, &a.decomp.decomposer()?, &a.decomp.cache(&a.scene));
-    write_json(&a.out, &list)?;
+    let list = sage_pipeline::physics::work_list(
+        &a.scene,
+        &a.out,
+        &a.decomp.decomposer()?,
+        &a.decomp.cache(&a.scene),
+        a.force,
+    )?;
     println!(
         "{} meshes without cached hulls -> {}",
         list.meshes.len(),
@@ -286,59 +290,26 @@ fn drive(a: DriveArgs) -> Result<()> {
     Ok(())
 }
 
-/// `target` relative to the folder `base` (both made absolute), or `target` as given when no
-/// relative path exists (another drive).
-fn relative_path(target: &Path, base: &Path) -> String {
-    let (Ok(t), Ok(b)) = (target.canonicalize(), base.canonicalize()) else {
-        return target.display().to_string();
-    };
-    let tc: Vec<Component> = t.components().collect();
-    let bc: Vec<Component> = b.components().collect();
-    let common = tc.iter().zip(&bc).take_while(|(x, y)| x == y).count();
-    if common == 0 {
-        return t.display().to_string();
-    }
-    let mut rel = PathBuf::new();
-    for _ in common..bc.len() {
-        rel.push("..");
-    }
-    for c in &tc[common..] {
-        rel.push(c);
-    }
-    let s = rel.display().to_string();
-    if s.starts_with("..") {
-        s
-    } else {
-        format!("./{s}")
-    }
-}
-
 fn export_usd(a: UsdArgs) -> Result<()> {
-    sage_io::run::claim_file(&a.out, a.force)?;
-    let (scene, bodies, report) = a.decomp.bodies(&a.scene)?;
-    let out_dir = match a.out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
-    let splats = [files::COMPRESSED_PLY, files::STANDARD_PLY]
-        .iter()
-        .map(|f| a.scene.join(f))
-        .find(|p| p.is_file())
-        .map(|p| SplatAsset {
-            path: relative_path(&p, &out_dir),
-            count: scene.gaussians.len(),
-            sh_degree: scene.gaussians.sh_degree(),
-        });
-    write_usda(&a.out, &scene.name, &bodies, splats.as_ref())?;
+    let (decomposer, cache) = (a.decomp.decomposer()?, a.decomp.cache(&a.scene));
+    let report = with_bar(|on_object| {
+        sage_pipeline::physics::export_usd(
+            &a.scene,
+            &a.out,
+            &decomposer,
+            &cache,
+            a.force,
+            on_object,
+        )
+    })?;
     println!(
         "{} -> {} ({} bodies, {} collision parts; {} decomposed, {} from cache)",
         a.scene.display(),
         a.out.display(),
-        bodies.bodies.len(),
-        report.parts,
-        report.decomposed,
-        report.cached
+        report.bodies,
+        report.build.parts,
+        report.build.decomposed,
+        report.build.cached
     );
     Ok(())
 }

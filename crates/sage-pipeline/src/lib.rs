@@ -4,15 +4,19 @@
 //! - [`demo`]: the whole job end to end on synthetic (or real) scenes, as a plan of steps, and
 //!   [`demo_folder`]: the claim of its output folder;
 //! - its steps: [`scene`] (synthesise a scene folder), [`nav`] (semantic map and occupancy),
-//!   [`physics`] (collision bodies), [`dataset`] (the dataset build), [`traindata`] (training
-//!   data rendered from a split), [`evaluate`] (an agent's evaluation with its report),
-//!   [`overview`] (the demo's picture);
+//!   [`physics`] (collision bodies, the hull cache's work list, the USDA export), [`dataset`]
+//!   (the dataset build and imports, with [`dataset::BuildSettings`]), [`traindata`]
+//!   (training data rendered from a split), [`evaluate`] (an agent's evaluation with its
+//!   report, with [`evaluate::EvalOptions`]), [`overview`] (the demo's picture);
+//! - [`render`]: a scene's images from one camera (every channel, a legend, a turntable);
 //! - [`recon`]: mesh scene → planned cameras → ground-truth views → nerfstudio export → a fitted
 //!   Gaussian scene.
 //!
-//! Every function takes plain settings, reports progress through a callback, writes its
-//! outputs atomically with a run record, and returns a plain report; printing is the front
-//! end's.
+//! Every pipeline is one function that takes one typed settings struct (its defaults in one
+//! `Default`; with the feature `clap`, the command line's flags; with serde, Python's keyword
+//! arguments), reports progress through a callback, writes its outputs atomically with a run
+//! record, and returns a plain report; printing is the front end's. Errors name settings, not
+//! flags.
 
 pub mod dataset;
 pub mod demo;
@@ -22,5 +26,6 @@ pub mod nav;
 pub mod overview;
 pub mod physics;
 pub mod recon;
+pub mod render;
 pub mod scene;
 pub mod traindata;

@@ -1,10 +1,13 @@
 //! A scene's collision bodies step: decompose the object meshes not yet in the hull cache and
-//! assemble the bodies.
+//! assemble the bodies; the hull cache's work list; the hybrid USDA scene built on them.
 
-use sage_core::Result;
-use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies};
+use sage_core::{Error, Result};
+use sage_io::files::write_json;
+use sage_physics::usd::{SplatAsset, write_usda};
+use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, WorkList};
 use sage_scene::Scene;
-use std::path::Path;
+use sage_scene::scene::files;
+use std::path::{Component, Path, PathBuf};
 
 /// Loads the scene in `scene_dir` and builds its collision bodies with `decomposer`, hulls from
 /// and into `cache`; `on_object(objects)` is called as each of the scene's `objects` is done.
@@ -23,4 +26,176 @@ pub fn bodies(
     let (bodies, report) =
         SceneBodies::build_with_progress(&scene, decomposer, cache, &|| on_object(objects))?;
     Ok((scene, bodies, report))
+}
+
+/// Writes to `out` the work list of the scene in `scene_dir`: its object meshes that
+/// `decomposer` has not yet decomposed into `cache` (what an offline decomposer such as
+/// `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
+///
+/// # Errors
+///
+/// An existing `out` without `force`, a scene that cannot be loaded, or a write error.
+pub fn work_list(
+    scene_dir: &Path,
+    out: &Path,
+    decomposer: &Decomposer,
+    cache: &HullCache,
+    force: bool,
+) -> Result<WorkList> {
+    sage_io::run::claim_file(out, force)?;
+    let (scene, _) = Scene::load(scene_dir)?;
+    let list = WorkList::of(&scene, decomposer, cache);
+    write_json(out, &list)?;
+    Ok(list)
+}
+
+/// What [`export_usd`] wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UsdReport {
+    /// The scene's name.
+    pub scene: String,
+    /// Rigid bodies written (objects, wall pieces and slabs).
+    pub bodies: usize,
+    /// How the bodies were built: collision parts, meshes decomposed and taken from the cache.
+    pub build: BuildReport,
+    /// The Gaussians as the USDA references them, when the scene folder holds a PLY of them.
+    pub splats: Option<SplatAsset>,
+}
+
+/// Writes the hybrid scene of `scene_dir` as USDA to `out`: its collision bodies (built as
+/// [`bodies`] does) with UsdPhysics schemas, and its Gaussians referenced as a PLY asset by a
+/// path relative to `out`'s folder, so that the two can move together. An existing `out` is
+/// replaced only with `force`, and that is checked before the bodies are built.
+///
+/// # Errors
+///
+/// An existing `out` without `force`, a scene that cannot be loaded, a decomposition that
+/// fails, or a write error.
+pub fn export_usd(
+    scene_dir: &Path,
+    out: &Path,
+    decomposer: &Decomposer,
+    cache: &HullCache,
+    force: bool,
+    on_object: &(dyn Fn(usize) + Sync),
+) -> Result<UsdReport> {
+    sage_io::run::claim_file(out, force)?;
+    let (scene, bodies, build) = bodies(scene_dir, decomposer, cache, on_object)?;
+    let out_dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+    let splats = [files::COMPRESSED_PLY, files::STANDARD_PLY]
+        .iter()
+        .map(|f| scene_dir.join(f))
+        .find(|p| p.is_file())
+        .map(|p| SplatAsset {
+            path: relative_path(&p, &out_dir),
+            count: scene.gaussians.len(),
+            sh_degree: scene.gaussians.sh_degree(),
+        });
+    write_usda(out, &scene.name, &bodies, splats.as_ref())?;
+    Ok(UsdReport {
+        scene: scene.name,
+        bodies: bodies.bodies.len(),
+        build,
+        splats,
+    })
+}
+
+/// `target` relative to the folder `base` (both made absolute), or `target` as given when no
+/// relative path exists (another drive).
+fn relative_path(target: &Path, base: &Path) -> String {
+    let (Ok(t), Ok(b)) = (target.canonicalize(), base.canonicalize()) else {
+        return target.display().to_string();
+    };
+    let tc: Vec<Component> = t.components().collect();
+    let bc: Vec<Component> = b.components().collect();
+    let common = tc.iter().zip(&bc).take_while(|(x, y)| x == y).count();
+    if common == 0 {
+        return t.display().to_string();
+    }
+    let mut rel = PathBuf::new();
+    for _ in common..bc.len() {
+        rel.push("..");
+    }
+    for c in &tc[common..] {
+        rel.push(c);
+    }
+    let s = rel.display().to_string();
+    if s.starts_with("..") {
+        s
+    } else {
+        format!("./{s}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_usda_references_the_scene_gaussians_and_is_replaced_only_with_force() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("scene");
+        let config = sage_synth::SynthConfig {
+            seed: 2,
+            rooms: 2,
+            objects: 4,
+            gaussians: 1000,
+            ..sage_synth::SynthConfig::default()
+        };
+        crate::scene::synthesize(
+            &config,
+            &scene,
+            sage_scene::SplatLayout::Compressed,
+            &|_| {},
+        )
+        .unwrap();
+        let decomposer = Decomposer::Vhacd {
+            resolution: 16,
+            concavity: 0.05,
+            max_hulls: 4,
+        };
+        let cache = HullCache::new(dir.path().join("cache"));
+        let out = dir.path().join("usd/scene.usda");
+        let report = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {}).unwrap();
+        let splats = report.splats.expect("the scene has a PLY");
+        assert_eq!(
+            Path::new(&splats.path),
+            Path::new("../scene/3dgs_compressed.ply")
+        );
+        assert_eq!(splats.count, 1000);
+        assert!(report.bodies > 0 && report.build.parts > 0);
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(text.contains(&splats.path));
+        let refused = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {});
+        assert!(refused.unwrap_err().to_string().contains("--force"));
+        let again = export_usd(&scene, &out, &decomposer, &cache, true, &|_| {}).unwrap();
+        assert_eq!(again.build.decomposed, 0, "the hulls come from the cache");
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
+    }
+
+    #[test]
+    fn asset_paths_are_relative_to_the_usda_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("scene");
+        let usd = dir.path().join("out/usd");
+        std::fs::create_dir_all(&scene).unwrap();
+        std::fs::create_dir_all(&usd).unwrap();
+        let ply = scene.join("3dgs_compressed.ply");
+        std::fs::write(&ply, b"ply").unwrap();
+        assert_eq!(
+            relative_path(&ply, &usd),
+            format!(
+                "..{0}..{0}scene{0}3dgs_compressed.ply",
+                std::path::MAIN_SEPARATOR
+            )
+        );
+        assert_eq!(relative_path(&ply, &scene), "./3dgs_compressed.ply");
+        // A file that does not exist cannot be made absolute: it is kept as given.
+        let missing = scene.join("missing.ply");
+        assert_eq!(relative_path(&missing, &usd), missing.display().to_string());
+    }
 }
