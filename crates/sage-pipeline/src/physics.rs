@@ -171,7 +171,7 @@ mod tests {
         let text = std::fs::read_to_string(&out).unwrap();
         assert!(text.contains(&splats.path));
         let refused = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {});
-        assert!(refused.unwrap_err().to_string().contains("--force"));
+        assert!(refused.unwrap_err().to_string().contains("`force`"));
         let again = export_usd(&scene, &out, &decomposer, &cache, true, &|_| {}).unwrap();
         assert_eq!(again.build.decomposed, 0, "the hulls come from the cache");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
