@@ -84,6 +84,9 @@ def test_evaluate_equals_cli_eval(local_ray, scenes, cli_data, sage3d, tmp_path,
     assert [by_id(line) for line in ray_lines] == sorted(map(by_id, ray_lines))
     shards = sorted(p.name for p in (tmp_path / "ray" / "shards").iterdir())
     assert shards == sorted({json.loads(line)["scene"] for line in ray_lines})
+    # The merged run has its report, as `sage3d eval` writes one; the shards have none.
+    assert (tmp_path / "ray" / "report.html").is_file()
+    assert not any((tmp_path / "ray" / "shards" / n / "report.html").exists() for n in shards)
     # Progress on stderr (a line per task, or a tqdm bar), in episodes of the split.
     err = capfd.readouterr().err
     assert f"{len(ray_lines)}/{len(ray_lines)}" in err, err

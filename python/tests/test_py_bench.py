@@ -90,6 +90,10 @@ def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):
     assert (tmp_path / "py" / "summary.json").read_bytes() == (tmp_path / "cli" / "summary.json").read_bytes()
     assert result["summary"] == json.loads((tmp_path / "cli" / "summary.json").read_text())
     assert result["ran"] == result["total"] == len(expected) and "agent oracle" in result["table"]
+    # The report too, with a map per episode as `sage3d eval` draws them.
+    assert (tmp_path / "py" / "report.html").is_file()
+    maps = lambda run: sorted(p.name for p in (run / "report" / "maps").iterdir())  # noqa: E731
+    assert maps(tmp_path / "py") == maps(tmp_path / "cli")
     again = sg.evaluate(dataset, scenes, "oracle", tmp_path / "py", split="train")
     assert again["resumed"] == len(expected) and again["ran"] == 0
 
