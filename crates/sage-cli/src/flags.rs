@@ -5,7 +5,7 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 10] = [
+const NAMED_SETTINGS: [&str; 12] = [
     "force",
     "scenes",
     "split",
@@ -16,6 +16,8 @@ const NAMED_SETTINGS: [&str; 10] = [
     "input",
     "agents",
     "agent",
+    "scene_unseen",
+    "val",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

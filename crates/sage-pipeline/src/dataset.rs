@@ -114,7 +114,7 @@ impl BuildSettings {
     /// An agent profile that is not a ground robot, shares outside 0..1, or per-scene
     /// settings out of range ([`SceneParams::validate`]).
     pub fn params(&self, out: &Path) -> Result<(SceneParams, AssembleParams)> {
-        let shares = [("scene_unseen", self.scene_unseen), ("val", self.val)];
+        let shares = [("`scene_unseen`", self.scene_unseen), ("`val`", self.val)];
         if let Some((name, share)) = shares.iter().find(|(_, s)| !(0.0..=1.0).contains(s)) {
             return Err(Error::invalid(format!(
                 "{name}: {share} is not a share between 0 and 1"
@@ -122,7 +122,7 @@ impl BuildSettings {
         }
         let mut params = SceneParams::new(self.per_scene, self.seed)
             .for_agent(self.agent.name)
-            .map_err(|e| e.within("agent"))?;
+            .map_err(|e| e.within("`agent`"))?;
         if let Some(b) = self.base_actions {
             params.base_actions = b;
         }
