@@ -9,7 +9,7 @@ use sage_agents::AgentKind;
 use sage_core::{Error, Result};
 use sage_env::agents::run_episode;
 use sage_env::{Env, EnvConfig, SceneContext, SensorConfig};
-use sage_metrics::Scoring;
+use sage_metrics::{Dtw, Mode, Scoring};
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -40,11 +40,11 @@ pub struct RunArgs {
     #[arg(long, default_value = "sage")]
     preset: String,
     /// Metric mode: sage, vlnce or sage-official.
-    #[arg(long, default_value = "sage")]
-    mode: String,
-    /// nDTW alignment: exact (default) or fast (FastDTW, radius 1, as VLN-CE computes it).
-    #[arg(long, default_value = "exact")]
-    dtw: String,
+    #[arg(long, default_value_t = Mode::default())]
+    mode: Mode,
+    /// nDTW alignment: exact or fast (FastDTW, radius 1, as VLN-CE computes it).
+    #[arg(long, default_value_t = Dtw::default())]
+    dtw: Dtw,
     /// Render the preset's images at every step, as an agent receiving them would (they are
     /// not written; without this flag the run is blind, which the baselines do not need).
     #[arg(long)]
@@ -64,8 +64,8 @@ pub fn run(cmd: EnvCommand) -> Result<()> {
 
 fn run_one(a: RunArgs) -> Result<()> {
     let scoring = Scoring {
-        mode: a.mode.parse().map_err(|e: Error| e.within("--mode"))?,
-        dtw: a.dtw.parse().map_err(|e: Error| e.within("--dtw"))?,
+        mode: a.mode,
+        dtw: a.dtw,
     };
     let mut config = EnvConfig::preset(&a.preset).map_err(|e| e.within("--preset"))?;
     config.device = a.device.device;

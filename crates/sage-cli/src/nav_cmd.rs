@@ -23,13 +23,13 @@ pub enum NavCommand {
 #[derive(Args, Clone)]
 pub struct GridArgs {
     /// Cell size, metres.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = GridParams::default().cell)]
     cell: f32,
     /// Agent height: the top of the obstacle slab, metres.
-    #[arg(long, default_value_t = 1.2)]
+    #[arg(long, default_value_t = GridParams::default().agent_height)]
     agent_height: f32,
     /// Robot radius, metres (navigable cells keep a further 0.05 m safety margin).
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = TrajectoryParams::default().cost.robot_radius)]
     radius: f32,
 }
 
@@ -63,10 +63,10 @@ pub struct TrajectoriesArgs {
     /// A scene folder, or a folder of scene folders.
     scenes: PathBuf,
     /// Trajectories per scene.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = TrajectoryParams::default().count)]
     count: usize,
     /// Seed (each scene mixes in a hash of its name).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = TrajectoryParams::default().seed)]
     seed: u64,
     /// Output folder: one sub-folder per scene, and sage3d_run.json (default: SCENES/nav for a
     /// scene, SCENES/../nav_trajectories for a folder of scenes); new, empty, or a nav folder
@@ -77,19 +77,23 @@ pub struct TrajectoriesArgs {
     #[arg(long)]
     force: bool,
     /// Resampling step, metres.
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = TrajectoryParams::default().step)]
     step: f32,
     /// Narrow-passage penalty weight (0: off).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = TrajectoryParams::default().cost.narrow_weight)]
     narrow_weight: f32,
     /// Least straight-line start–goal distance, metres.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = TrajectoryParams::default().sampling.min_distance)]
     min_distance: f32,
     /// Shares of short / medium / long paths (SPEC §9 bins), e.g. 0.4,0.4,0.2 (default: free).
     #[arg(long, value_delimiter = ',')]
     length_mix: Option<Vec<f32>>,
     /// Weights of room, object and area endpoints, e.g. 1,2,1.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,1")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_values_t = TrajectoryParams::default().sampling.kind_weights
+    )]
     kinds: Vec<f32>,
     #[command(flatten)]
     grid: GridArgs,

@@ -35,13 +35,13 @@ pub struct PlanArgs {
     /// Scene folder (its meshes: meshes/structure.obj and per-object meshes or boxes).
     scene: PathBuf,
     /// Camera placement policy: sweep or volume.
-    #[arg(long, default_value = "sweep")]
+    #[arg(long, default_value_t = PlanSettings::default().policy)]
     policy: Policy,
     /// Cameras to sample before the safety filter.
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = PlanSettings::default().budget)]
     budget: usize,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = PlanSettings::default().seed)]
     seed: u64,
     /// Output folder: new, empty, or a reconstruction folder (rerunning replaces its plan).
     #[arg(long)]
@@ -50,16 +50,16 @@ pub struct PlanArgs {
     #[arg(long)]
     force: bool,
     /// Horizontal field of view of the views, degrees.
-    #[arg(long, default_value_t = 90.0)]
+    #[arg(long, default_value_t = PlanSettings::default().hfov_deg)]
     hfov: f32,
     /// Least distance from a camera to the nearest mesh surface, metres.
-    #[arg(long, default_value_t = sage_recon::safety::DEFAULT_THRESHOLD)]
+    #[arg(long, default_value_t = PlanSettings::default().safety_threshold)]
     safety: f32,
     /// Sweep: inward offsets of the rings, metres, outermost first.
-    #[arg(long, value_delimiter = ',', default_value = "0.4,0.9,1.4")]
+    #[arg(long, value_delimiter = ',', default_values_t = SweepParams::default().offsets)]
     offsets: Vec<f32>,
     /// Sweep: tangential shift of the left and right baselines, metres.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = SweepParams::default().baseline)]
     baseline: f32,
 }
 

@@ -38,7 +38,7 @@ impl From<LayoutArg> for SplatLayout {
 #[derive(Args)]
 pub struct SynthArgs {
     /// Random seed: every byte of the output follows from it and the options.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = SynthConfig::default().seed)]
     seed: u64,
     /// Output folder: new, empty, or a scene this command wrote (rerunning replaces its files).
     #[arg(long)]
@@ -47,7 +47,7 @@ pub struct SynthArgs {
     #[arg(long)]
     force: bool,
     /// Kind of space.
-    #[arg(long, default_value = "home")]
+    #[arg(long, default_value_t = SynthConfig::default().kind)]
     kind: SceneKind,
     /// Target number of rooms.
     #[arg(long)]

@@ -33,6 +33,16 @@ pub enum Policy {
     Volume,
 }
 
+impl std::fmt::Display for Policy {
+    /// The policy's name, as [`FromStr`](std::str::FromStr) reads it.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Policy::Sweep => "sweep",
+            Policy::Volume => "volume",
+        })
+    }
+}
+
 impl std::str::FromStr for Policy {
     type Err = Error;
     fn from_str(s: &str) -> Result<Policy> {
