@@ -1,6 +1,7 @@
 //! `sage3d nav …`: semantic maps, occupancy grids and trajectories.
 
 use clap::{Args, Subcommand};
+use sage_core::named::comma_list;
 use sage_core::{Error, Result};
 use sage_io::runner::{Status, Tally};
 use sage_nav::GridParams;
@@ -92,7 +93,7 @@ pub struct TrajectoriesArgs {
     #[arg(
         long,
         value_delimiter = ',',
-        default_values_t = TrajectoryParams::default().sampling.kind_weights
+        default_value = comma_list(&TrajectoryParams::default().sampling.kind_weights)
     )]
     kinds: Vec<f32>,
     #[command(flatten)]

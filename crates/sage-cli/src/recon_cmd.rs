@@ -3,6 +3,7 @@
 //! The steps are `sage_pipeline::recon`'s; this module translates flags and prints.
 
 use clap::{Args, Subcommand};
+use sage_core::named::comma_list;
 use sage_core::{Error, Result};
 use sage_pipeline::recon::{self, FitSettings};
 use sage_recon::plan::{PLAN_FILE, PLAN_PNG, PlanSettings, Policy};
@@ -56,7 +57,7 @@ pub struct PlanArgs {
     #[arg(long, default_value_t = PlanSettings::default().safety_threshold)]
     safety: f32,
     /// Sweep: inward offsets of the rings, metres, outermost first.
-    #[arg(long, value_delimiter = ',', default_values_t = SweepParams::default().offsets)]
+    #[arg(long, value_delimiter = ',', default_value = comma_list(&SweepParams::default().offsets))]
     offsets: Vec<f32>,
     /// Sweep: tangential shift of the left and right baselines, metres.
     #[arg(long, default_value_t = SweepParams::default().baseline)]

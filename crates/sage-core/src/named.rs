@@ -23,3 +23,28 @@ macro_rules! named_by_string {
         }
     };
 }
+
+/// A list setting as its flag takes it: the values joined by commas (`1,2,1`), which is also
+/// how a command's help shows the list's default.
+pub fn comma_list<T: std::fmt::Display>(values: &[T]) -> String {
+    values
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::comma_list;
+
+    #[test]
+    fn a_list_reads_back_as_the_flag_splits_it() {
+        let weights = [1.0f32, 2.5, 1.0];
+        let text = comma_list(&weights);
+        assert_eq!(text, "1,2.5,1");
+        let back: Vec<f32> = text.split(',').map(|v| v.parse().unwrap()).collect();
+        assert_eq!(back, weights);
+        assert_eq!(comma_list::<u8>(&[]), "");
+    }
+}

@@ -47,7 +47,7 @@ pub struct DemoSettings {
     /// Agents to evaluate, comma-separated (any agent of `sage3d eval`).
     #[cfg_attr(
         feature = "clap",
-        arg(long, value_delimiter = ',', default_values_t = DemoSettings::default().agents)
+        arg(long, value_delimiter = ',', default_value = sage_core::named::comma_list(&DemoSettings::default().agents))
     )]
     pub agents: Vec<String>,
     /// Dataset split the agents are evaluated on.
