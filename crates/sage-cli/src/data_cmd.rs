@@ -89,7 +89,15 @@ fn data_build(a: BuildArgs) -> Result<()> {
         bar.inc(1);
     });
     bar.finish_and_clear();
-    print_dataset(&report?, &a.out, start.elapsed().as_secs_f64());
+    let report = report?;
+    print_dataset(&report, &a.out, start.elapsed().as_secs_f64());
+    let skipped = report.skipped();
+    if skipped > 0 {
+        return Err(sage_core::Error::invalid(format!(
+            "{skipped} of {} scenes were skipped (listed above); the dataset lacks their episodes, and a rerun retries them",
+            report.outcomes.len()
+        )));
+    }
     Ok(())
 }
 

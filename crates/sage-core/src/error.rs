@@ -20,6 +20,8 @@ pub enum ErrorKind {
 pub struct Error {
     kind: ErrorKind,
     file: Option<PathBuf>,
+    /// Where the file was read (`scene s1`): places named after the file was, outermost first.
+    context: Vec<String>,
     location: Vec<String>,
     message: String,
     source: Option<std::io::Error>,
@@ -34,6 +36,7 @@ impl Error {
         Error {
             kind: ErrorKind::Io,
             file: Some(path.as_ref().to_path_buf()),
+            context: Vec::new(),
             location: Vec::new(),
             message: source.to_string(),
             source: Some(source),
@@ -45,6 +48,7 @@ impl Error {
         Error {
             kind: ErrorKind::Format,
             file: None,
+            context: Vec::new(),
             location: vec![location.into()],
             message: message.into(),
             source: None,
@@ -56,6 +60,7 @@ impl Error {
         Error {
             kind: ErrorKind::InvalidInput,
             file: None,
+            context: Vec::new(),
             location: Vec::new(),
             message: message.into(),
             source: None,
@@ -71,8 +76,15 @@ impl Error {
     }
 
     /// Adds an outer location, e.g. `"labels[3]"` around `"bounding_box"`.
+    /// Once the error names its file, an outer place says where that file was read (`scene
+    /// s1` around a labels file's `line 1 column 9`) and is shown before the file, so two
+    /// places never run together.
     pub fn within(mut self, outer: impl Into<String>) -> Self {
-        self.location.insert(0, outer.into());
+        if self.file.is_some() {
+            self.context.insert(0, outer.into());
+        } else {
+            self.location.insert(0, outer.into());
+        }
         self
     }
 
@@ -99,6 +111,9 @@ impl Error {
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for place in &self.context {
+            write!(f, "{place}: ")?;
+        }
         if let Some(file) = &self.file {
             write!(f, "{}: ", file.display())?;
         }
@@ -146,6 +161,18 @@ mod tests {
             "scene/labels.json: labels[3].bounding_box: expected 8 corners, found 7"
         );
         assert_eq!(e.kind(), ErrorKind::Format);
+    }
+
+    #[test]
+    fn a_place_around_a_named_file_comes_before_it() {
+        let e = Error::format("line 1 column 9", "expected value")
+            .in_file("s1/labels.json")
+            .within("scene s1");
+        assert_eq!(
+            e.to_string(),
+            "scene s1: s1/labels.json: line 1 column 9: expected value"
+        );
+        assert_eq!(e.location(), "line 1 column 9");
     }
 
     #[test]

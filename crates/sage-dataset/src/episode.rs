@@ -1,7 +1,7 @@
 //! One episode of the benchmark (SPEC §9), W frame.
 
 use crate::slices::Slices;
-use sage_core::{Error, Pose, Result, Vec3};
+use sage_core::{Error, Pose, Result, ResultExt, Vec3};
 use sage_env::{EnvEpisode, EnvGoal};
 use sage_lang::{DiscreteAction, InstructionType, Level, SingleGoalKind, Source};
 use serde::{Deserialize, Serialize};
@@ -106,14 +106,43 @@ pub fn check_point(p: [f32; 3], at: &str) -> Result<()> {
     }
 }
 
+/// Checks that no episode id of a file is given twice (two episodes with one id would share
+/// their records, frames and maps); `at(k)` names where episode `k` is in the file.
+///
+/// # Errors
+///
+/// At the second episode, naming the first.
+pub fn check_unique_ids(episodes: &[Episode], at: impl Fn(usize) -> String) -> Result<()> {
+    let mut first: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for (k, e) in episodes.iter().enumerate() {
+        if let Some(&j) = first.get(e.episode_id.as_str()) {
+            return Err(Error::format(
+                at(k),
+                format!(
+                    "episode id '{}' is given twice (first at {})",
+                    e.episode_id.escape_debug(),
+                    at(j)
+                ),
+            ));
+        }
+        first.insert(&e.episode_id, k);
+    }
+    Ok(())
+}
+
 impl Episode {
-    /// Checks the numbers of an episode read from a file: finite points within
-    /// [`MAX_COORDINATE`], finite headings and finite, non-negative lengths.
+    /// Checks an episode read from a file: an id, a scene that is a plain name (it names a
+    /// folder: [`sage_io::names::check_plain`]), finite points within [`MAX_COORDINATE`],
+    /// finite headings and finite, non-negative lengths.
     ///
     /// # Errors
     ///
     /// The first bad field, named.
     pub fn check(&self) -> Result<()> {
+        if self.episode_id.is_empty() {
+            return Err(Error::format("episode_id", "expected a non-empty id"));
+        }
+        sage_io::names::check_plain("scene", &self.scene).within("scene")?;
         check_point(self.start.position, "start.position")?;
         if !self.start.yaw.is_finite() {
             return Err(Error::format("start.yaw", "expected a finite number"));

@@ -41,7 +41,8 @@ pub fn check(dataset: &Path) -> Result<()> {
 ///
 /// # Errors
 ///
-/// An unreadable `splits.json`, or one without a `"splits"` object.
+/// An unreadable `splits.json`, one without a `"splits"` object, or one naming a split that
+/// is not a plain name ([`sage_io::names::check_plain`]: it would name a file elsewhere).
 pub fn listed_splits(dataset: &Path) -> Result<Option<Vec<String>>> {
     let path = dataset.join(SPLITS_FILE);
     if !path.is_file() {
@@ -54,6 +55,9 @@ pub fn listed_splits(dataset: &Path) -> Result<Option<Vec<String>>> {
         .ok_or_else(|| {
             Error::format("splits", "expected an object of split names").in_file(&path)
         })?;
+    for name in splits.keys() {
+        sage_io::names::check_plain("split", name).map_err(|e| e.in_file(&path))?;
+    }
     let mut names: Vec<String> = splits.keys().cloned().collect();
     names.sort();
     Ok(Some(names))
@@ -110,9 +114,11 @@ pub fn non_empty_splits(dataset: &Path) -> Result<Vec<String>> {
 ///
 /// # Errors
 ///
-/// An `invalid` error listing the dataset's splits when `split` is not one of them, an
+/// A split that is not a plain name, an `invalid` error listing the dataset's splits when
+/// `split` is not one of them, an
 /// error naming the missing file of a listed split, or the file's read error.
 pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
+    sage_io::names::check_plain("split", split)?;
     let splits = splits(dataset)?;
     let file = dataset.join("episodes").join(format!("{split}.jsonl"));
     if !splits.iter().any(|s| s == split) {

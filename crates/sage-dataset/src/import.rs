@@ -4,7 +4,7 @@
 use crate::formats::{gvln, jsonl, r2r};
 use crate::{Episode, folder};
 use glam::Vec2;
-use sage_core::{Error, Result};
+use sage_core::{Error, Result, ResultExt};
 use sage_lang::StepSizes;
 use std::path::{Path, PathBuf};
 
@@ -39,9 +39,11 @@ pub const COMMAND: &str = "data import";
 ///
 /// # Errors
 ///
-/// An output folder holding files a dataset command did not write, a bad source file (naming
+/// A split name that would name a file outside the dataset, an output folder holding files a
+/// dataset command did not write, a bad source file (naming
 /// the file and field), an existing split without `force`, a write error.
 pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
+    sage_io::names::check_plain("split", split).within("`split`")?;
     let names = ["episodes", folder::SPLITS_FILE, sage_io::RUN_RECORD];
     sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
     let space = StepSizes::default();

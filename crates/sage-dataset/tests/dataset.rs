@@ -302,3 +302,53 @@ fn bad_files_name_file_and_place() {
             .contains("x.json.gz")
     );
 }
+
+#[test]
+fn every_reader_refuses_ids_twice_and_names_that_leave_a_folder() {
+    let out = tempfile::tempdir().unwrap();
+    build_with(1, out.path());
+    let mut eps: Vec<Episode> = all_episodes(out.path())
+        .into_iter()
+        .filter(|e| e.task == Task::Vln)
+        .take(3)
+        .collect();
+    eps[2].episode_id = eps[0].episode_id.clone();
+    let space = StepSizes::default();
+    let dir = tempfile::tempdir().unwrap();
+    let j = dir.path().join("e.jsonl");
+    jsonl::write(&j, &eps).unwrap();
+    let e = jsonl::read(&j).unwrap_err().to_string();
+    assert!(
+        e.contains("e.jsonl: line 3") && e.contains("given twice (first at line 1)"),
+        "{e}"
+    );
+    let g = dir.path().join("g.json");
+    gvln::write(&g, &eps, GvlnFrame::World, &space).unwrap();
+    let e = gvln::read(&g, Vec2::ZERO, &space).unwrap_err().to_string();
+    assert!(e.contains("g.json") && e.contains("given twice"), "{e}");
+    r2r::write(dir.path(), "twice", &eps, &space).unwrap();
+    let e = r2r::read(dir.path(), "twice", &space)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("episodes[2]") && e.contains("given twice (first at episodes[0])"),
+        "{e}"
+    );
+    assert!(r2r::read(dir.path(), "../twice", &space).is_err());
+
+    // a GVLN trajectory index that is not a number, and a scene name that climbs out
+    let text = std::fs::read_to_string(&g).unwrap();
+    let mut root: serde_json::Value = serde_json::from_str(&text).unwrap();
+    root["scenes"][0]["samples"][0]["trajectory_id"] = "seven".into();
+    std::fs::write(&g, root.to_string()).unwrap();
+    let e = gvln::read(&g, Vec2::ZERO, &space).unwrap_err().to_string();
+    assert!(e.contains("trajectory_id") && e.contains("'seven'"), "{e}");
+    let mut root: serde_json::Value = serde_json::from_str(&text).unwrap();
+    root["scenes"][0]["scene_name"] = "../../etc".into();
+    std::fs::write(&g, root.to_string()).unwrap();
+    let e = gvln::read(&g, Vec2::ZERO, &space).unwrap_err().to_string();
+    assert!(
+        e.contains("scenes[0].scene_name") && e.contains("scene name '../../etc'"),
+        "{e}"
+    );
+}

@@ -197,6 +197,21 @@ impl Env {
             },
             (Task::Nogoal, None) => None,
         };
+        // A start off the scene's map (a damaged or foreign dataset) has no distances to score
+        // by: the episode fails with the reason instead of being scored as a miss.
+        if self
+            .ctx
+            .pathfinder
+            .grid
+            .cell_at(episode.start.position.truncate())
+            .is_none()
+        {
+            let p = episode.start.position;
+            return Err(Error::invalid(format!(
+                "episode {}: the start ({:.2}, {:.2}) lies outside the scene's map",
+                episode.id, p.x, p.y
+            )));
+        }
         let body = AgentBody::new(self.profile.clone(), episode.start);
         let trace = EpisodeTrace {
             episode: episode.clone(),

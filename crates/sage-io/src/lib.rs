@@ -2,6 +2,8 @@
 //!
 //! - [`files`]: atomic writes (a file is whole or absent, never half-written), JSON, PNG and
 //!   NumPy `.npy`, readers whose errors name the file, line and column;
+//! - [`names`]: the one rule by which names from data (splits, scenes, episode ids) become
+//!   file names, inside their folder and distinct;
 //! - [`hash`]: the one stable hash (FNV-1a) for fingerprints, cache keys and derived seeds;
 //! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made;
 //! - [`scenes`]: finding scene folders, their names, and fingerprints of their input files;
@@ -16,6 +18,7 @@ pub mod canvas;
 pub mod files;
 pub mod hash;
 pub mod marks;
+pub mod names;
 pub mod palette;
 pub mod run;
 pub mod runner;

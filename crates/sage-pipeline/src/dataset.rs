@@ -158,6 +158,17 @@ pub struct DatasetReport {
     pub summary: DatasetSummary,
 }
 
+impl DatasetReport {
+    /// How many scenes were skipped (their reasons are in the outcomes): the dataset lacks
+    /// their episodes until a rerun makes them.
+    pub fn skipped(&self) -> usize {
+        self.outcomes
+            .iter()
+            .filter(|o| o.status == sage_io::runner::Status::Skipped)
+            .count()
+    }
+}
+
 /// Builds (or resumes) the dataset of the scenes under `scenes` into `out`; `on_scene(outcome,
 /// scenes)` is called as each of the `scenes` folders is done. `out` must be new, empty or a
 /// dataset build's folder; with `force`, a folder of other files is written into, provided

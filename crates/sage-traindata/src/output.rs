@@ -162,7 +162,7 @@ pub fn shard_name(split: &str, k: usize) -> String {
 
 /// Writes the WebDataset shards (`shard_size` episodes each, in order): per episode
 /// `{key}.json` (the sample with its `files` named as in the tar) and `{key}.{k:04}.{suffix}`
-/// per frame file, `key` the route-safe episode id. Returns the files written (relative).
+/// per frame file, `key` the episode id's file-name stem ([`sage_io::names::stem`]). Returns the files written (relative).
 ///
 /// # Errors
 ///
@@ -183,7 +183,7 @@ pub fn write_webdataset(
         // Read every frame first, so a missing one is named rather than half a tar written.
         let mut entries: Vec<(String, Vec<u8>)> = Vec::new();
         for e in chunk {
-            let key = crate::replay::folder_name(&e.episode_id);
+            let key = sage_io::names::stem(&e.episode_id);
             let mut sample = e.clone();
             for frame in &mut sample.files {
                 for f in frame.iter_mut() {

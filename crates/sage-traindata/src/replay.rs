@@ -16,8 +16,8 @@ use serde::{Deserialize, Serialize};
 pub struct Route {
     /// The scene.
     pub scene: String,
-    /// The route's folder name: its first episode's id, with characters other than letters,
-    /// digits, `-` and `_` replaced by `_`.
+    /// The route's folder name: its first episode's id as a file-name stem
+    /// ([`sage_io::names::stem`]: distinct ids, distinct folders).
     pub name: String,
     /// The episodes, in dataset order.
     pub episodes: Vec<Episode>,
@@ -35,27 +35,13 @@ pub fn routes(episodes: &[Episode]) -> Vec<Route> {
                 index.insert(key, out.len());
                 out.push(Route {
                     scene: e.scene.clone(),
-                    name: folder_name(&e.episode_id),
+                    name: sage_io::names::stem(&e.episode_id),
                     episodes: vec![e.clone()],
                 });
             }
         }
     }
     out
-}
-
-/// `id` with every character other than ASCII letters, digits, `-` and `_` replaced by `_`
-/// (a file name, and a WebDataset key, which must not hold a dot).
-pub fn folder_name(id: &str) -> String {
-    id.chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect()
 }
 
 /// One action of a walk.

@@ -266,6 +266,10 @@ impl Plan {
             ))
             .in_file(&file));
         }
+        // Episode ids name route folders and WebDataset keys: two that would share one are
+        // refused before any work, never mixed.
+        sage_io::names::distinct_stems("episode", goal.iter().map(|e| e.episode_id.as_str()))
+            .in_file(&file)?;
         let scene_dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
         let (present, missing): (Vec<_>, Vec<_>) = goal
             .into_iter()

@@ -18,7 +18,7 @@
 //!   the points; the type `Default` (the published generator's failure text) reads as
 //!   Single-Goal.
 
-use crate::episode::{Episode, Goal, StartPose, Task, check_point};
+use crate::episode::{Episode, Goal, StartPose, Task, check_point, check_unique_ids};
 use crate::slices::{Slices, path_slice};
 use glam::{Vec2, Vec3};
 use sage_core::frame::SageFrame;
@@ -257,12 +257,16 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
         })
         .in_file(path)?;
     let mut out = Vec::new();
+    let mut places = Vec::new();
     for (si, scene) in scenes.iter().enumerate() {
         let ctx = format!("scenes[{si}]");
         let name = match text(scene, "scene_name") {
             n if n.is_empty() => text(scene, "scene_id"),
             n => n,
         };
+        sage_io::names::check_plain("scene", &name)
+            .within(format!("{ctx}.scene_name"))
+            .in_file(path)?;
         let samples = field(scene, "samples")
             .ok()
             .and_then(Value::as_array)
@@ -296,6 +300,21 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                 let flat: Vec<Vec2> = positions.iter().map(|p| Vec2::new(p[0], p[1])).collect();
                 let length: f32 = flat.windows(2).map(|w| w[0].distance(w[1])).sum();
                 let tid = text(sample, "trajectory_id");
+                // A goal-directed trajectory's id is its index, which the published files
+                // spell as a string ("0"): anything else there is a damaged file, not a
+                // trajectory without an index. Base-Action and no-goal samples have no index
+                // (this writer names them by their ids' ends, "b0").
+                let index = |kind: InstructionType, task: Task| -> Result<Option<usize>> {
+                    if kind == InstructionType::BaseAction || task != Task::Vln || tid.is_empty() {
+                        return Ok(None);
+                    }
+                    tid.parse().map(Some).map_err(|_| {
+                        Error::format(
+                            "trajectory_id",
+                            format!("'{tid}' is not a trajectory index"),
+                        )
+                    })
+                };
                 let instructions = field(sample, "instructions")?
                     .as_array()
                     .ok_or_else(|| Error::format("instructions", "expected an array"))?;
@@ -339,10 +358,7 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                         },
                         scene: name.clone(),
                         task,
-                        trajectory_id: tid
-                            .parse()
-                            .ok()
-                            .filter(|_| kind != InstructionType::BaseAction && task == Task::Vln),
+                        trajectory_id: index(kind, task)?,
                         instruction: text(ins, "generated_instruction"),
                         level: ins
                             .get("level")
@@ -383,9 +399,12 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                 }
                 Ok(eps)
             };
-            out.extend(read_sample().within(&ctx).in_file(path)?);
+            let read = read_sample().within(&ctx).in_file(path)?;
+            places.extend((0..read.len()).map(|k| format!("{ctx}.instructions[{k}]")));
+            out.extend(read);
         }
     }
+    check_unique_ids(&out, |k| places[k].clone()).in_file(path)?;
     Ok(out)
 }
 

@@ -1,6 +1,6 @@
 //! Our episode file: one JSON episode per line, W frame (Z up, metres, headings in radians).
 
-use crate::episode::Episode;
+use crate::episode::{Episode, check_unique_ids};
 use sage_core::{Error, Result, ResultExt};
 use std::io::Write;
 use std::path::Path;
@@ -16,19 +16,24 @@ pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
     })
 }
 
-/// Reads episodes; an error names the file and line.
+/// Reads episodes, each checked ([`Episode::check`]) and no id given twice; an error names
+/// the file and line.
 pub fn read(path: &Path) -> Result<Vec<Episode>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            let at = format!("line {}", i + 1);
-            let episode: Episode = serde_json::from_str(l)
-                .map_err(|e| Error::format(&at, format!("not an episode: {e}")))
-                .in_file(path)?;
-            episode.check().within(at).in_file(path)?;
-            Ok(episode)
-        })
-        .collect()
+    let mut lines = Vec::new();
+    let mut episodes = Vec::new();
+    for (i, l) in text.lines().enumerate() {
+        if l.trim().is_empty() {
+            continue;
+        }
+        let at = format!("line {}", i + 1);
+        let episode: Episode = serde_json::from_str(l)
+            .map_err(|e| Error::format(&at, format!("not an episode: {e}")))
+            .in_file(path)?;
+        episode.check().within(at).in_file(path)?;
+        lines.push(i + 1);
+        episodes.push(episode);
+    }
+    check_unique_ids(&episodes, |k| format!("line {}", lines[k])).in_file(path)?;
+    Ok(episodes)
 }

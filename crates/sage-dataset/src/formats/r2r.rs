@@ -12,7 +12,7 @@
 //! No-goal episodes have no goal and are not written. gzip with a fixed header (no time stamp),
 //! so the bytes depend only on the episodes.
 
-use crate::episode::{Episode, Goal, StartPose, Task, check_point};
+use crate::episode::{Episode, Goal, StartPose, Task, check_point, check_unique_ids};
 use crate::slices::Slices;
 use flate2::Compression;
 use flate2::read::GzDecoder;
@@ -161,6 +161,7 @@ pub fn paths(dir: &Path, split: &str) -> (PathBuf, PathBuf) {
 /// Writes the VLN episodes of `episodes` as split `split` under `dir`; returns how many were
 /// written (no-goal episodes are left out).
 pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &StepSizes) -> Result<usize> {
+    sage_io::names::check_plain("split", split)?;
     let vln: Vec<(&Episode, &Goal)> = episodes
         .iter()
         .filter(|e| e.task == Task::Vln)
@@ -267,6 +268,7 @@ pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &StepSizes) -
 /// ground-truth file when it is there, else from following the reference path. Episodes without
 /// our `sage3d` object (other R2R files) read as imported Single-Goal episodes.
 pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> {
+    sage_io::names::check_plain("split", split)?;
     let (main, gt_path) = paths(dir, split);
     let file: R2rFile = read_gz(&main)?;
     let gt: BTreeMap<String, GtEntry> = if gt_path.is_file() {
@@ -274,7 +276,8 @@ pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> 
     } else {
         BTreeMap::new()
     };
-    file.episodes
+    let episodes = file
+        .episodes
         .into_iter()
         .enumerate()
         .map(|(i, r)| {
@@ -381,5 +384,7 @@ pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> 
             episode.check().within(&ctx).in_file(&main)?;
             Ok(episode)
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()?;
+    check_unique_ids(&episodes, |k| format!("episodes[{k}]")).in_file(&main)?;
+    Ok(episodes)
 }

@@ -137,26 +137,10 @@ pub fn succeeded(rec: &EvalRecord) -> bool {
     }
 }
 
-/// A file name for an episode id: safe characters kept, others (and a leading dot) replaced,
-/// and a hash of the id added when anything was replaced so that two ids never share a file.
+/// The file name of an episode's map: the episode id's file-name stem
+/// ([`sage_io::names::stem`]: inside the maps folder, bounded in length, distinct per id).
 pub fn map_file_name(episode_id: &str) -> String {
-    let safe: String = episode_id
-        .chars()
-        .enumerate()
-        .map(|(k, c)| {
-            if c.is_ascii_alphanumeric() || matches!(c, '-' | '_') || (c == '.' && k > 0) {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if safe == episode_id {
-        format!("{safe}.png")
-    } else {
-        let hash = sage_io::hash::fnv1a64(episode_id.as_bytes());
-        format!("{safe}-{hash:016x}.png")
-    }
+    format!("{}.png", sage_io::names::stem(episode_id))
 }
 
 /// The order of the gallery: unsuccessful episodes first, then by id.
@@ -259,6 +243,7 @@ pub fn write_with(
         ))
         .in_file(scenes_dir));
     }
+    sage_io::names::distinct_stems("episode", drawn.iter().map(|r| r.episode_id.as_str()))?;
     let report_dir = run_dir.join(REPORT_DIR);
     let maps_dir = report_dir.join(maps::MAPS_DIR);
     std::fs::create_dir_all(&maps_dir).map_err(|e| Error::io(&maps_dir, e))?;
@@ -383,11 +368,15 @@ mod tests {
     #[test]
     fn map_file_names_are_safe_and_distinct() {
         assert_eq!(map_file_name("home1-t3-2"), "home1-t3-2.png");
-        let odd = ["a/b", "a?b", "a_b", ".hidden", "../x"];
+        let long = "e".repeat(300);
+        let odd = ["a/b", "a?b", "a_b", ".hidden", "../x", "r.1", "r_1", &long];
         let names: BTreeSet<String> = odd.iter().map(|id| map_file_name(id)).collect();
         assert_eq!(names.len(), odd.len());
         for n in &names {
-            assert!(!n.starts_with('.') && !n.contains('/'), "{n}");
+            assert!(
+                !n.starts_with('.') && !n.contains('/') && n.len() < 160,
+                "{n}"
+            );
         }
     }
 }

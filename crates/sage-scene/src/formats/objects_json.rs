@@ -90,7 +90,10 @@ fn parse_entry(v: &Value) -> Result<Entry> {
         room_type: optional(v, "room_type")?,
         attributes: optional(v, "attributes")?.unwrap_or_default(),
         physics,
-        mesh: optional(v, "mesh")?,
+        mesh: optional::<String>(v, "mesh")?
+            .map(|m| sage_io::names::check_relative("mesh", &m).map(|()| m))
+            .transpose()
+            .within("mesh")?,
     })
 }
 
@@ -194,4 +197,23 @@ pub fn to_json(objects: &[Object], floorplan: &Floorplan) -> Value {
         "frame": "W: right-handed, Z up, metres",
         "objects": entries,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mesh_path_that_leaves_the_scene_folder_is_refused() {
+        for mesh in ["/etc/passwd", "../../secret.obj", "meshes/../../x.obj"] {
+            let text = serde_json::json!({"objects": [{"ins_id": "7", "mesh": mesh}]}).to_string();
+            let e = apply(&text, &mut []).unwrap_err().to_string();
+            assert!(
+                e.contains("objects[0].mesh") && e.contains("not a path inside"),
+                "{mesh}: {e}"
+            );
+        }
+        let text = serde_json::json!({"objects": [{"ins_id": "7", "mesh": "meshes/7.obj"}]});
+        assert!(apply(&text.to_string(), &mut []).is_ok());
+    }
 }
