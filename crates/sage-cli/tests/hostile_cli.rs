@@ -84,7 +84,13 @@ fn a_split_name_never_leaves_the_dataset_or_the_output() {
     let mut splits: Value = serde_json::from_slice(&std::fs::read(&listed).unwrap()).unwrap();
     splits["splits"]["../x"] = serde_json::json!([]);
     std::fs::write(&listed, splits.to_string()).unwrap();
-    let out = eval_output("1", &data, &scenes, &dir.path().join("run"), &[]);
+    let out = eval_output(
+        "1",
+        &data,
+        &scenes,
+        &dir.path().join("run"),
+        &["--agent", "forward"],
+    );
     assert!(!out.status.success());
     assert!(
         stderr(&out).contains("split name '../x'"),
@@ -164,7 +170,7 @@ fn a_damaged_dataset_is_refused_before_any_work() {
     let mut twice = pristine.clone();
     twice[1]["episode_id"] = twice[0]["episode_id"].clone();
     write_train(&data, &twice);
-    let out = eval_output("1", &data, &scenes, &run, &[]);
+    let out = eval_output("1", &data, &scenes, &run, &["--agent", "forward"]);
     assert!(!out.status.success());
     let err = stderr(&out);
     assert!(
@@ -176,19 +182,21 @@ fn a_damaged_dataset_is_refused_before_any_work() {
     let mut escaping = pristine.clone();
     escaping[0]["scene"] = "../home1".into();
     write_train(&data, &escaping);
-    let out = eval_output("1", &data, &scenes, &run, &[]);
+    let out = eval_output("1", &data, &scenes, &run, &["--agent", "forward"]);
     assert!(!out.status.success());
     assert!(
-        stderr(&out).contains("line 1: scene: scene name '../home1'"),
+        stderr(&out).contains("line 1.scene: scene name '../home1'"),
         "{}",
         stderr(&out)
     );
 
     // a start far off the map fails its episode with the reason instead of being scored
+    // (and, as every failed episode, fails a --strict run)
     let mut far = pristine.clone();
     far[0]["start"]["position"] = serde_json::json!([5000.0, 5000.0, 0.0]);
     write_train(&data, &far);
-    let out = eval_output("1", &data, &scenes, &run, &["--agent", "oracle"]);
+    let args = ["--agent", "oracle", "--strict"];
+    let out = eval_output("1", &data, &scenes, &run, &args);
     assert!(!out.status.success());
     let records = std::fs::read_to_string(run.join("episodes.jsonl")).unwrap();
     let first: Value = records
