@@ -16,9 +16,10 @@ pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
     })
 }
 
-/// Reads episodes; an error names the file and line.
+/// Reads episodes (at most [`JSON_MB`](sage_io::limits::JSON_MB); a leading byte-order mark is
+/// accepted); an error names the file and line.
 pub fn read(path: &Path) -> Result<Vec<Episode>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = sage_io::files::read_text(path, &sage_io::limits::JSON_MB)?;
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
