@@ -1,8 +1,10 @@
 //! Files that are never half-written: atomic writes of any file, JSON, PNG and NumPy `.npy`,
-//! and the readers that name the file, line and column of a parse error.
+//! and the readers that name the file, line and column of a parse error, refuse a file over its
+//! [`Limit`] before reading it, and accept a leading byte-order mark.
 
-use sage_core::{Error, Result};
-use std::io::{BufWriter, Write};
+use crate::limits::{JSON_MB, Limit};
+use sage_core::{Error, Result, ResultExt};
+use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 /// A temporary sibling of `path`, unique to this process and this call, so that threads (and
@@ -46,15 +48,72 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
     })
 }
 
-/// Reads a JSON file into `T`; a parse error names the file, line and column.
+/// The UTF-8 byte-order mark, which some (mostly Windows) editors put at the start
+/// of a file. It means nothing in UTF-8, and JSON parsers reject it.
+const BOM: char = '\u{feff}';
+
+/// `text` without a leading byte-order mark.
+pub fn strip_bom(text: &str) -> &str {
+    text.strip_prefix(BOM).unwrap_or(text)
+}
+
+/// Reads the UTF-8 text file `path`, refusing one over `limit` bytes before reading it; a leading
+/// byte-order mark is dropped.
+pub fn read_text(path: &Path, limit: &Limit) -> Result<String> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    limit.check(size, "file size").in_file(path)?;
+    read_text_from(file, path, limit)
+}
+
+/// Reads UTF-8 text from `reader` (a decompressor, a file that may still grow), stopping with an
+/// error past `limit` bytes; `path` names the source in errors. A leading byte-order mark is
+/// dropped.
+pub fn read_text_from(reader: impl Read, path: &Path, limit: &Limit) -> Result<String> {
+    let max = limit.get()?;
+    let mut bytes = Vec::new();
+    reader
+        .take(max.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > max {
+        let found = format!("more than {}", limit.amount(max));
+        return Err(limit.exceeded("text size", &found, max).in_file(path));
+    }
+    if bytes.starts_with(&[0xff, 0xfe]) || bytes.starts_with(&[0xfe, 0xff]) {
+        return Err(Error::format(
+            "encoding",
+            "the file is UTF-16 (it begins with a UTF-16 byte-order mark); save it as UTF-8",
+        )
+        .in_file(path));
+    }
+    let mut text = String::from_utf8(bytes).map_err(|e| {
+        Error::format(
+            "encoding",
+            format!(
+                "not UTF-8 text (invalid byte at offset {})",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+        .in_file(path)
+    })?;
+    if text.starts_with(BOM) {
+        text.drain(..BOM.len_utf8());
+    }
+    Ok(text)
+}
+
+/// Reads a JSON file into `T` (at most [`JSON_MB`]; a leading byte-order mark is accepted); a
+/// parse error names the file, line and column.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = read_text(path, &JSON_MB)?;
     parse_json(&text, path)
 }
 
-/// Parses the JSON `text` of file `path` into `T`; an error names the file, line and column.
+/// Parses the JSON `text` of file `path` into `T` (a leading byte-order mark is accepted); an
+/// error names the file, line and column.
 pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
-    serde_json::from_str(text).map_err(|e| {
+    serde_json::from_str(strip_bom(text)).map_err(|e| {
         Error::format(
             format!("line {} column {}", e.line(), e.column()),
             e.to_string(),
@@ -148,6 +207,69 @@ pub fn read_tree(root: &Path) -> Result<std::collections::BTreeMap<String, Vec<u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_leading_byte_order_mark_is_accepted() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bom.json");
+        std::fs::write(&path, b"\xef\xbb\xbf{\"a\": [1, 2]}\n").unwrap();
+        let v: serde_json::Value = read_json(&path).unwrap();
+        assert_eq!(v, serde_json::json!({"a": [1, 2]}));
+        let v: serde_json::Value = parse_json("\u{feff}[3]", &path).unwrap();
+        assert_eq!(v, serde_json::json!([3]));
+        assert_eq!(read_text(&path, &JSON_MB).unwrap(), "{\"a\": [1, 2]}\n");
+    }
+
+    #[test]
+    fn utf16_and_invalid_utf8_say_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("wide.json");
+        std::fs::write(&path, b"\xff\xfe{\0}\0").unwrap();
+        let e = read_json::<serde_json::Value>(&path).unwrap_err();
+        assert!(
+            e.to_string().contains("encoding: the file is UTF-16"),
+            "{e}"
+        );
+        std::fs::write(&path, b"{\"a\": \"\xc3\"}").unwrap();
+        let e = read_json::<serde_json::Value>(&path).unwrap_err();
+        assert!(
+            e.to_string()
+                .ends_with("encoding: not UTF-8 text (invalid byte at offset 7)")
+        );
+    }
+
+    #[test]
+    fn a_file_over_its_limit_is_refused_before_it_is_read() {
+        let limit = Limit {
+            variable: "SAGE3D_MAX_TEST_FILES_MB",
+            default: 1,
+            unit: "MB",
+            scale: 1 << 20,
+            what: "a test file",
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.json");
+        std::fs::write(&path, vec![b' '; (1 << 20) + 1]).unwrap();
+        let e = read_text(&path, &limit).unwrap_err();
+        assert_eq!(e.file(), Some(path.as_path()));
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: file size: 1.1 MB, over the limit of 1 MB on a test file; set the \
+                 environment variable SAGE3D_MAX_TEST_FILES_MB to raise it",
+                path.display()
+            )
+        );
+        // A stream (a decompressor) is cut off just past the limit, whatever its length.
+        let e = read_text_from(std::io::repeat(b' '), &path, &limit).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("text size: more than 1 MB, over the limit of 1 MB"),
+            "{e}"
+        );
+        std::fs::write(&path, vec![b' '; 1 << 20]).unwrap();
+        assert_eq!(read_text(&path, &limit).unwrap().len(), 1 << 20);
+    }
 
     #[test]
     fn threads_writing_the_same_file_at_once_all_succeed_and_leave_one_whole_file() {

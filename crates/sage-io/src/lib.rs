@@ -4,6 +4,8 @@
 //!   NumPy `.npy`, readers whose errors name the file, line and column;
 //! - [`names`]: the one rule by which names from data (splits, scenes, episode ids) become
 //!   file names, inside their folder and distinct;
+//! - [`limits`]: the caps on what an input file may hold or declare (file sizes, label counts,
+//!   image pixels, decoded meshes), each raised by an environment variable `SAGE3D_MAX_…`;
 //! - [`hash`]: the one stable hash (FNV-1a) for fingerprints, cache keys and derived seeds;
 //! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made;
 //! - [`scenes`]: finding scene folders, their names, and fingerprints of their input files;
@@ -17,6 +19,7 @@
 pub mod canvas;
 pub mod files;
 pub mod hash;
+pub mod limits;
 pub mod marks;
 pub mod names;
 pub mod palette;

@@ -3,6 +3,7 @@
 use crate::ply::header::{element_rows, parse_header};
 use glam::{Mat4, Vec3};
 use sage_core::{Aabb, Error, Result, ResultExt};
+use sage_io::limits::{Limit, MESH_MB};
 use std::io::Write;
 use std::path::Path;
 
@@ -267,63 +268,161 @@ fn load_gltf(path: &Path) -> Result<TriMesh> {
         }
         buffers.push(data);
     }
+    let buffer_bytes = buffers.iter().map(|b| b.len() as u64).sum();
+    let Some(scene) = gltf.default_scene().or_else(|| gltf.scenes().next()) else {
+        return Ok(TriMesh::default());
+    };
+    let nodes = placed_nodes(&scene, gltf.nodes().len())?;
+    check_sizes(&nodes, buffer_bytes, &MESH_MB)?;
     let mut mesh = TriMesh::default();
-    let scenes: Vec<_> = gltf
-        .default_scene()
-        .into_iter()
-        .chain(gltf.scenes())
-        .take(1)
-        .collect();
-    for scene in scenes {
-        for node in scene.nodes() {
-            collect_node(&node, Mat4::IDENTITY, &buffers, &mut mesh)?;
+    for (node, world) in &nodes {
+        if let Some(m) = node.mesh() {
+            for (pi, prim) in m.primitives().enumerate() {
+                let at = || format!("meshes[{}].primitives[{pi}]", m.index());
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    return Err(Error::format(
+                        at(),
+                        "only triangle primitives are supported",
+                    ));
+                }
+                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+                let positions: Vec<Vec3> = reader
+                    .read_positions()
+                    .ok_or_else(|| Error::format(at(), "primitive has no POSITION attribute"))?
+                    .map(|p| world.transform_point3(Vec3::from_array(p)))
+                    .collect();
+                let indices: Vec<u32> = match reader.read_indices() {
+                    Some(ix) => ix.into_u32().collect(),
+                    None => (0..positions.len() as u32).collect(),
+                };
+                if !indices.len().is_multiple_of(3) {
+                    return Err(Error::format(at(), "index count is not a multiple of 3"));
+                }
+                let part = TriMesh {
+                    positions,
+                    triangles: indices
+                        .chunks_exact(3)
+                        .map(|t| [t[0], t[1], t[2]])
+                        .collect(),
+                };
+                part.validate().within(at())?;
+                mesh.append(&part);
+            }
         }
     }
     Ok(mesh)
 }
 
-fn collect_node(
-    node: &gltf::Node,
-    parent: Mat4,
-    buffers: &[Vec<u8>],
-    out: &mut TriMesh,
-) -> Result<()> {
-    let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-    if let Some(m) = node.mesh() {
+/// The nodes of `scene` in depth-first order (parents before children, as the file lists
+/// them), each with its world transform.
+///
+/// glTF nodes form trees; a node reached twice (listed under two parents, or its own
+/// ancestor) is an error, since following such a file would repeat its meshes without end.
+fn placed_nodes<'a>(
+    scene: &gltf::Scene<'a>,
+    node_count: usize,
+) -> Result<Vec<(gltf::Node<'a>, Mat4)>> {
+    let mut reached = vec![false; node_count];
+    let mut out = Vec::new();
+    // A stack popped from the end: each list of siblings is pushed in reverse.
+    let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    stack.reverse();
+    while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut reached[node.index()], true) {
+            return Err(Error::format(
+                format!("nodes[{}]", node.index()),
+                "reached twice from the scene (glTF nodes form trees: one parent each, never \
+                 their own ancestor)",
+            ));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let siblings = stack.len();
+        stack.extend(node.children().map(|c| (c, world)));
+        stack[siblings..].reverse();
+        out.push((node, world));
+    }
+    Ok(out)
+}
+
+/// Checks, before anything is decoded, that each accessor a mesh is read from declares at least
+/// one and no more elements than the file's buffers can hold (a sparse accessor needs no
+/// buffer for its zeros, so its count is otherwise unbounded), and that the decoded mesh, every
+/// instance counted, stays within `limit`.
+fn check_sizes(nodes: &[(gltf::Node, Mat4)], buffer_bytes: u64, limit: &Limit) -> Result<()> {
+    // Decoded bytes: a vertex is 12 (3 × f32), a triangle 12 (3 × u32).
+    let mut decoded = 0u64;
+    for m in nodes.iter().filter_map(|(node, _)| node.mesh()) {
         for (pi, prim) in m.primitives().enumerate() {
-            let at = || format!("meshes[{}].primitives[{pi}]", m.index());
-            if prim.mode() != gltf::mesh::Mode::Triangles {
-                return Err(Error::format(
-                    at(),
-                    "only triangle primitives are supported",
-                ));
-            }
-            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-            let positions: Vec<Vec3> = reader
-                .read_positions()
-                .ok_or_else(|| Error::format(at(), "primitive has no POSITION attribute"))?
-                .map(|p| world.transform_point3(Vec3::from_array(p)))
-                .collect();
-            let indices: Vec<u32> = match reader.read_indices() {
-                Some(ix) => ix.into_u32().collect(),
-                None => (0..positions.len() as u32).collect(),
+            let at = format!("meshes[{}].primitives[{pi}]", m.index());
+            let count = |a: Option<gltf::Accessor>, name: &str| -> Result<u64> {
+                let Some(a) = a else { return Ok(0) };
+                let (count, size) = (a.count() as u64, a.size() as u64);
+                if count == 0 || count.saturating_mul(size) > buffer_bytes {
+                    return Err(Error::format(
+                        format!("{at}.{name}"),
+                        format!(
+                            "accessor {} declares {count} elements of {size} bytes; the file's \
+                             buffers hold {buffer_bytes} bytes",
+                            a.index()
+                        ),
+                    ));
+                }
+                Ok(count)
             };
-            if !indices.len().is_multiple_of(3) {
-                return Err(Error::format(at(), "index count is not a multiple of 3"));
-            }
-            let part = TriMesh {
-                positions,
-                triangles: indices
-                    .chunks_exact(3)
-                    .map(|t| [t[0], t[1], t[2]])
-                    .collect(),
+            let vertices = count(prim.get(&gltf::Semantic::Positions), "attributes.POSITION")?;
+            let indices = match count(prim.indices(), "indices")? {
+                0 => vertices,
+                n => n,
             };
-            part.validate().within(at())?;
-            out.append(&part);
+            decoded = decoded.saturating_add(12 * vertices + 4 * indices);
         }
     }
-    for child in node.children() {
-        collect_node(&child, world, buffers, out)?;
+    limit.check(decoded, "decoded size (every instance counted)")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A glTF document of `instances` root nodes, each instancing one mesh of `vertices`
+    /// vertices without indices (the buffer itself is not needed to check sizes).
+    fn instanced(instances: usize, vertices: usize) -> gltf::Gltf {
+        let json = serde_json::json!({
+            "asset": {"version": "2.0"},
+            "scenes": [{"nodes": (0..instances).collect::<Vec<_>>()}],
+            "nodes": vec![serde_json::json!({"mesh": 0}); instances],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "buffers": [{"byteLength": 12 * vertices, "uri": "mesh.bin"}],
+            "bufferViews": [{"buffer": 0, "byteLength": 12 * vertices}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": vertices,
+                           "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]}]
+        });
+        gltf::Gltf::from_slice(&serde_json::to_vec(&json).unwrap()).unwrap()
     }
-    Ok(())
+
+    #[test]
+    fn every_instance_counts_towards_the_decoded_size() {
+        let limit = Limit {
+            variable: "SAGE3D_MAX_TEST_MESH_MB",
+            default: 1,
+            unit: "MB",
+            scale: 1 << 20,
+            what: "a decoded mesh",
+        };
+        // 16 bytes a vertex decoded (its position, and a third of a triangle): 16 instances of
+        // 4096 vertices are exactly 1 MB, one more is over.
+        let sizes = |instances| {
+            let doc = instanced(instances, 4096);
+            let scene = doc.scenes().next().unwrap();
+            let nodes = placed_nodes(&scene, doc.nodes().len()).unwrap();
+            check_sizes(&nodes, 12 * 4096, &limit)
+        };
+        sizes(16).unwrap();
+        let e = sizes(17).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "decoded size (every instance counted): 1.1 MB, over the limit of 1 MB on a decoded \
+             mesh; set the environment variable SAGE3D_MAX_TEST_MESH_MB to raise it"
+        );
+    }
 }

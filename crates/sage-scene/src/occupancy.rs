@@ -8,6 +8,7 @@
 
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result, ResultExt};
+use sage_io::limits::{IMAGE_MEGAPIXELS, SCENE_JSON_MB};
 use serde_json::{Value, json};
 use std::path::Path;
 
@@ -94,12 +95,24 @@ impl OccupancyMap {
     }
 
     /// Reads `occupancy.png` and `occupancy.json` from a scene folder.
+    ///
+    /// The image's size is checked against what the box of `occupancy.json` needs (with a
+    /// generous margin) and against [`IMAGE_MEGAPIXELS`] before the image is decoded, so a
+    /// small PNG whose header claims a huge image is refused without allocating it.
     pub fn load(dir: &Path) -> Result<Self> {
         let json_path = dir.join("occupancy.json");
         let png_path = dir.join("occupancy.png");
-        let text = std::fs::read_to_string(&json_path).map_err(|e| Error::io(&json_path, e))?;
+        let text = sage_io::files::read_text(&json_path, &SCENE_JSON_MB)?;
         let (scale, lower, upper) = parse_placement(&text).in_file(&json_path)?;
-        let (width, height, cells) = read_gray_png(&png_path)?;
+        let [box_w, box_h] = cells_for(lower, upper, scale);
+        IMAGE_MEGAPIXELS
+            .check(
+                // Both are finite (the bounds and scale are finite f32); `as` saturates.
+                (box_w * box_h) as u64,
+                &format!("the box at scale {scale} needs {box_w}×{box_h} cells"),
+            )
+            .in_file(&json_path)?;
+        let (width, height, cells) = read_gray_png(&png_path, [box_w, box_h])?;
         Ok(OccupancyMap {
             scale: scale as f32,
             lower: Vec3::from_array(lower.map(|v| v as f32)),
@@ -156,7 +169,7 @@ fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<[f64; 3]> {
 /// Reads `scale` and the bounds (accepting `min`/`lower` and `max`/`upper`), at the file's
 /// precision.
 pub fn parse_placement(text: &str) -> Result<(f64, [f64; 3], [f64; 3])> {
-    let v: Value = serde_json::from_str(text)
+    let v: Value = serde_json::from_str(sage_io::files::strip_bom(text))
         .map_err(|e| Error::format(format!("line {}", e.line()), e.to_string()))?;
     let scale = v
         .get("scale")
@@ -170,10 +183,44 @@ pub fn parse_placement(text: &str) -> Result<(f64, [f64; 3], [f64; 3])> {
     ))
 }
 
-fn read_gray_png(path: &Path) -> Result<(usize, usize, Vec<u8>)> {
+/// The cells (columns, rows) that the box `lower`…`upper` needs at `scale` metres per cell.
+fn cells_for(lower: [f64; 3], upper: [f64; 3], scale: f64) -> [f64; 2] {
+    [0, 1].map(|k| ((upper[k] - lower[k]).abs() / scale).ceil())
+}
+
+/// How much larger than its box an occupancy image may be, per side: twice the box plus this
+/// many cells. The images sage3d writes match their box to the cell; the margin keeps other
+/// tools' rounding or padding from being refused while still bounding the image by its box.
+const BOX_MARGIN_CELLS: f64 = 16.0;
+
+/// Reads an 8-bit grey image whose box needs `box_cells` (columns, rows); its header is checked
+/// against them, and against the pixel limit, before anything the size of the image is
+/// allocated.
+fn read_gray_png(path: &Path, box_cells: [f64; 2]) -> Result<(usize, usize, Vec<u8>)> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
     decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let header = decoder
+        .read_header_info()
+        .map_err(|e| Error::format("png", e.to_string()).in_file(path))?;
+    let (w, h) = (header.width, header.height);
+    let [box_w, box_h] = box_cells;
+    let most = |cells: f64| 2.0 * cells + BOX_MARGIN_CELLS;
+    if f64::from(w) > most(box_w) || f64::from(h) > most(box_h) {
+        return Err(Error::format(
+            "png",
+            format!(
+                "the {w}×{h} image is far larger than the box of occupancy.json needs \
+                 ({box_w}×{box_h} cells; at most {}×{} accepted)",
+                most(box_w),
+                most(box_h)
+            ),
+        )
+        .in_file(path));
+    }
+    IMAGE_MEGAPIXELS
+        .check(u64::from(w) * u64::from(h), &format!("the {w}×{h} image"))
+        .in_file(path)?;
     let mut reader = decoder
         .read_info()
         .map_err(|e| Error::format("png", e.to_string()).in_file(path))?;
@@ -214,6 +261,114 @@ mod tests {
             assert_eq!(m.cell_at(m.cell_center(c, r)), Some((c, r)));
         }
         assert_eq!(m.cell_at(Vec2::new(-0.1, 0.5)), None);
+    }
+
+    /// A scene folder whose `occupancy.json` covers 1 m × 0.5 m at 0.1 m (10 × 5 cells).
+    fn small_box() -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        let json = r#"{"scale": 0.1, "min": [0, 0, 0], "max": [1, 0.5, 2]}"#;
+        std::fs::write(dir.path().join("occupancy.json"), json).unwrap();
+        dir
+    }
+
+    fn write_gray(path: &Path, width: usize, height: usize) {
+        let cells = vec![FREE; width * height];
+        let (color, depth) = (png::ColorType::Grayscale, png::BitDepth::Eight);
+        sage_io::files::write_png(path, width, height, color, depth, &cells).unwrap();
+    }
+
+    #[test]
+    fn a_png_header_claiming_a_huge_image_is_refused_before_decoding() {
+        let dir = small_box();
+        let path = dir.path().join("occupancy.png");
+        std::fs::write(&path, header_only_png(20_000, 20_000)).unwrap();
+        let e = OccupancyMap::load(dir.path()).unwrap_err();
+        assert_eq!(e.file(), Some(path.as_path()));
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: png: the 20000×20000 image is far larger than the box of occupancy.json \
+                 needs (10×5 cells; at most 36×26 accepted)",
+                path.display()
+            )
+        );
+    }
+
+    /// A PNG of signature, a header declaring `width × height` grey pixels and the end: no
+    /// image data at all, so only a check of the header can refuse it before decoding.
+    fn header_only_png(width: u32, height: u32) -> Vec<u8> {
+        let mut file = Vec::new();
+        let mut png = png::Encoder::new(&mut file, width, height);
+        png.set_color(png::ColorType::Grayscale);
+        drop(png.write_header().unwrap());
+        assert!(file.len() < 100);
+        file
+    }
+
+    #[test]
+    fn an_image_within_its_box_but_over_the_pixel_limit_is_refused_before_decoding() {
+        let dir = tempfile::tempdir().unwrap();
+        // 62.5 m at 2^-7 m per cell: 8000 × 8000 cells, exactly the default 64 megapixels.
+        let json = r#"{"scale": 0.0078125, "min": [0, 0, 0], "max": [62.5, 62.5, 3]}"#;
+        std::fs::write(dir.path().join("occupancy.json"), json).unwrap();
+        let path = dir.path().join("occupancy.png");
+        std::fs::write(&path, header_only_png(9000, 9000)).unwrap();
+        let e = OccupancyMap::load(dir.path()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: the 9000×9000 image: 81 megapixels, over the limit of 64 megapixels on an \
+                 image; set the environment variable SAGE3D_MAX_IMAGE_MEGAPIXELS to raise it",
+                path.display()
+            )
+        );
+    }
+
+    #[test]
+    fn an_image_much_larger_than_its_box_is_refused_and_one_within_the_margin_read() {
+        let dir = small_box();
+        let path = dir.path().join("occupancy.png");
+        write_gray(&path, 37, 5);
+        let e = OccupancyMap::load(dir.path()).unwrap_err();
+        assert!(
+            e.to_string().contains("the 37×5 image is far larger"),
+            "{e}"
+        );
+        write_gray(&path, 36, 26);
+        let m = OccupancyMap::load(dir.path()).unwrap();
+        assert_eq!((m.width, m.height, m.cells.len()), (36, 26, 36 * 26));
+    }
+
+    #[test]
+    fn a_box_needing_too_many_cells_is_refused_before_the_image_is_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let json_path = dir.path().join("occupancy.json");
+        // 2^17 m at 2^-7 m per cell: 2^24 cells a side, 2^48 in all (exact in binary).
+        let json = r#"{"scale": 0.0078125, "min": [0, 0, 0], "max": [131072, 131072, 3]}"#;
+        std::fs::write(&json_path, json).unwrap();
+        write_gray(&dir.path().join("occupancy.png"), 4, 4);
+        let e = OccupancyMap::load(dir.path()).unwrap_err();
+        assert_eq!(e.file(), Some(json_path.as_path()));
+        assert_eq!(
+            e.location(),
+            "the box at scale 0.0078125 needs 16777216×16777216 cells"
+        );
+        assert_eq!(
+            e.message(),
+            "281474976.8 megapixels, over the limit of 64 megapixels on an image; set the \
+             environment variable SAGE3D_MAX_IMAGE_MEGAPIXELS to raise it"
+        );
+    }
+
+    #[test]
+    fn placement_with_a_byte_order_mark_is_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = OccupancyMap::new(Vec3::ZERO, Vec3::new(1.0, 0.5, 2.0), 0.1).unwrap();
+        m.save(dir.path()).unwrap();
+        let json_path = dir.path().join("occupancy.json");
+        let text = std::fs::read_to_string(&json_path).unwrap();
+        std::fs::write(&json_path, format!("\u{feff}{text}")).unwrap();
+        assert_eq!(OccupancyMap::load(dir.path()).unwrap(), m);
     }
 
     #[test]

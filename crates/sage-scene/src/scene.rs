@@ -11,6 +11,7 @@ use crate::ply::{self, SplatLayout};
 use crate::splats::{self, Format};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result, ResultExt};
+use sage_io::limits::SCENE_JSON_MB;
 use std::path::Path;
 
 /// Everything sage3d knows about one indoor scene, in the world frame W.
@@ -333,6 +334,7 @@ impl Scene {
     }
 }
 
+/// A scene JSON file's text, refused before reading when it is over [`SCENE_JSON_MB`].
 fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
+    sage_io::files::read_text(path, &SCENE_JSON_MB)
 }

@@ -2,9 +2,10 @@
 
 mod common;
 
-use common::{glb, same_triangles, tetrahedron};
+use common::{glb, glb_container, glb_parts, same_triangles, tetrahedron};
 use glam::Vec3;
 use sage_scene::TriMesh;
+use serde_json::json;
 use std::path::Path;
 
 #[test]
@@ -75,5 +76,106 @@ fn bad_meshes_name_file_and_face() {
             .unwrap_err()
             .to_string()
             .contains("unknown mesh format")
+    );
+}
+
+/// Loads a GLB made of `json` and `bin` and returns its error.
+fn glb_error(json: &serde_json::Value, bin: &[u8]) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("hostile.glb");
+    std::fs::write(&p, glb_container(&serde_json::to_vec(json).unwrap(), bin)).unwrap();
+    let e = TriMesh::load(&p).unwrap_err();
+    assert_eq!(e.file(), Some(p.as_path()));
+    e.to_string()
+}
+
+#[test]
+fn glb_accessors_declaring_more_than_the_file_holds_are_refused() {
+    // A sparse accessor without a buffer view stands for `count` zeros (and its few sparse
+    // values): a million vertices here, from a file of a few hundred bytes.
+    let (mut json, bin) = glb_parts(&tetrahedron(), Vec3::ZERO);
+    json["accessors"][0] = json!({
+        "componentType": 5126, "count": 1_000_000, "type": "VEC3",
+        "min": [0, 0, 0], "max": [1, 1, 1],
+        "sparse": {"count": 1, "indices": {"bufferView": 1, "componentType": 5125},
+                   "values": {"bufferView": 0}}
+    });
+    let primitive = json["meshes"][0]["primitives"][0].as_object_mut().unwrap();
+    primitive.remove("indices");
+    let e = glb_error(&json, &bin);
+    assert!(
+        e.ends_with(&format!(
+            "meshes[0].primitives[0].attributes.POSITION: accessor 0 declares 1000000 elements \
+             of 12 bytes; the file's buffers hold {} bytes",
+            bin.len()
+        )),
+        "{e}"
+    );
+}
+
+#[test]
+fn glb_nodes_reached_twice_are_refused() {
+    let (mut json, bin) = glb_parts(&tetrahedron(), Vec3::ZERO);
+    // A node listed twice under its parent: each level of such nodes would double the mesh.
+    json["nodes"] = json!([{"children": [1, 1]}, {"mesh": 0}]);
+    let e = glb_error(&json, &bin);
+    assert!(
+        e.ends_with(
+            "nodes[1]: reached twice from the scene (glTF nodes form trees: one parent \
+             each, never their own ancestor)"
+        ),
+        "{e}"
+    );
+    // A node that is its own child: following it would never end.
+    json["nodes"] = json!([{"mesh": 0, "children": [0]}]);
+    assert!(glb_error(&json, &bin).contains("nodes[0]: reached twice"));
+}
+
+#[test]
+fn ply_headers_declaring_more_than_the_file_holds_are_refused_before_allocating() {
+    let header = |format: &str, vertices: u64, faces: u64| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex {vertices}\nproperty float x\n\
+             property float y\nproperty float z\nelement face {faces}\n\
+             property list uchar int vertex_indices\nend_header\n"
+        )
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("hostile.ply");
+    let load = |bytes: Vec<u8>| {
+        std::fs::write(&p, bytes).unwrap();
+        TriMesh::load(&p).unwrap_err().to_string()
+    };
+    // 10^9 vertices (12 GB of rows) declared over one vertex's bytes.
+    let mut bin = header("binary_little_endian", 1_000_000_000, 0).into_bytes();
+    bin.extend_from_slice(&[0; 12]);
+    let e = load(bin);
+    assert!(
+        e.ends_with(
+            "element 'vertex': file is truncated: 1000000000 rows need 12000000000 more bytes, \
+             12 remain"
+        ),
+        "{e}"
+    );
+    // A count no file could hold is refused by the header alone.
+    let e = load(header("binary_little_endian", u64::MAX / 4, 0).into_bytes());
+    assert!(e.contains("element 'vertex' has a bad count"), "{e}");
+    // 10^9 faces (rows of a list, read one by one) over one face's bytes.
+    let mut bin = header("binary_little_endian", 3, 1_000_000_000).into_bytes();
+    bin.extend_from_slice(&[0; 36]);
+    bin.push(3);
+    [0u32, 1, 2]
+        .iter()
+        .for_each(|i| bin.extend_from_slice(&i.to_le_bytes()));
+    let e = load(bin);
+    assert!(
+        e.ends_with("element 'face' row 1: file is truncated"),
+        "{e}"
+    );
+    // The same in ASCII.
+    let e = load(format!("{}0 0 0\n", header("ascii", 1_000_000_000, 0)).into_bytes());
+    assert!(
+        e.ends_with("element 'vertex': file ends after 1 of 1000000000 rows"),
+        "{e}"
     );
 }

@@ -111,6 +111,46 @@ fn a_folder_with_only_labels_loads_and_reports_the_rest_missing() {
 }
 
 #[test]
+fn scene_json_files_may_begin_with_a_byte_order_mark_and_are_refused_over_their_limit() {
+    let scene = generate(&small()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+    let (plain, _) = Scene::load(dir.path()).unwrap();
+    for f in [
+        "labels.json",
+        "structure.json",
+        "objects.json",
+        "occupancy.json",
+    ] {
+        let p = dir.path().join(f);
+        let text = std::fs::read_to_string(&p).unwrap();
+        std::fs::write(&p, format!("\u{feff}{text}")).unwrap();
+    }
+    let (with_marks, report) = Scene::load(dir.path()).unwrap();
+    assert!(
+        with_marks == plain,
+        "the byte-order marks changed the scene"
+    );
+    assert!(report.missing.is_empty(), "{report:?}");
+    // 64 MB and a byte of structure.json (a sparse file: nothing is written), refused from its
+    // size alone.
+    let p = dir.path().join("structure.json");
+    std::fs::File::create(&p)
+        .unwrap()
+        .set_len((64 << 20) + 1)
+        .unwrap();
+    let e = Scene::load(dir.path()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: file size: 64.1 MB, over the limit of 64 MB on a scene JSON file; set the \
+             environment variable SAGE3D_MAX_SCENE_JSON_MB to raise it",
+            p.display()
+        )
+    );
+}
+
+#[test]
 fn not_a_folder_is_an_error() {
     let e = Scene::load(std::path::Path::new("no/such/scene"))
         .unwrap_err()

@@ -226,7 +226,7 @@ fn text(v: &Value, key: &str) -> String {
 /// Reads a GVLN file; `sage_offset` is the S-frame offset for files that do not state their frame.
 /// Asset slices are unknown in the file and read as `medium` unless the caller re-tags them.
 pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Episode>> {
-    let text_in = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text_in = sage_io::files::read_text(path, &sage_io::limits::JSON_MB)?;
     let root: Value = sage_io::files::parse_json(&text_in, path)?;
     let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);
     let frame = match meta.get("frame").and_then(Value::as_str) {

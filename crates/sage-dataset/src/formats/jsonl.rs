@@ -16,10 +16,11 @@ pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
     })
 }
 
-/// Reads episodes, each checked ([`Episode::check`]) and no id given twice; an error names
-/// the file and line.
+/// Reads episodes (at most [`JSON_MB`](sage_io::limits::JSON_MB); a leading byte-order mark is
+/// accepted), each checked ([`Episode::check`]) and no id given twice; an error names the file
+/// and line.
 pub fn read(path: &Path) -> Result<Vec<Episode>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = sage_io::files::read_text(path, &sage_io::limits::JSON_MB)?;
     let mut lines = Vec::new();
     let mut episodes = Vec::new();
     for (i, l) in text.lines().enumerate() {

@@ -25,7 +25,7 @@ use sage_lang::actions::{DiscreteAction, StepSizes, follow, replay};
 use sage_lang::{InstructionType, Source};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Token ids: padding and unknown words.
@@ -140,12 +140,12 @@ fn write_gz(path: &Path, value: &impl Serialize) -> Result<()> {
     })
 }
 
+/// Reads a gzipped JSON file; the decompressed text is capped at
+/// [`JSON_MB`](sage_io::limits::JSON_MB), since a few kilobytes of gzip can inflate to gigabytes.
 fn read_gz<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut text = String::new();
-    GzDecoder::new(file)
-        .read_to_string(&mut text)
-        .map_err(|e| Error::io(path, e))?;
+    let text =
+        sage_io::files::read_text_from(GzDecoder::new(file), path, &sage_io::limits::JSON_MB)?;
     sage_io::files::parse_json(&text, path)
 }
 

@@ -4,9 +4,10 @@ use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
 use serde_json::Value;
 
-/// Parses JSON text; a syntax error names its line and column.
+/// Parses JSON text (a leading byte-order mark is accepted); a syntax error names its line and
+/// column.
 pub fn parse_text(text: &str) -> Result<Value> {
-    serde_json::from_str(text).map_err(|e| {
+    serde_json::from_str(sage_io::files::strip_bom(text)).map_err(|e| {
         Error::format(
             format!("line {} column {}", e.line(), e.column()),
             e.to_string(),

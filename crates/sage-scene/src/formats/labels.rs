@@ -6,14 +6,25 @@
 use super::json::{array, field, parse_text, point3, string};
 use crate::object::{Attributes, Object, PhysicsRole, RigidBody, normalize_category};
 use sage_core::{Error, InstanceId, Obb, Result, ResultExt};
+use sage_io::files::strip_bom;
+use sage_io::limits::LABELS;
+use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::{Value, json};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 /// Corner tolerance (metres) when reading boxes: rounding in files stays within it.
 const BOX_TOLERANCE: f32 = 0.01;
 
 /// Parses `labels.json` into objects (ids unset) and the count of skipped entries.
+///
+/// The entries are counted first, without building them, and checked against [`LABELS`]: a
+/// parsed entry takes about twenty times its text, so a file of a million small entries would
+/// otherwise take gigabytes before any of them is looked at.
 pub fn parse(text: &str) -> Result<(Vec<Object>, usize)> {
+    if let Some(n) = count_entries(text) {
+        LABELS.check(n, "(top level)")?;
+    }
     let root = parse_text(text)?;
     let entries = match &root {
         Value::Object(o) if o.contains_key("labels") => array(&root["labels"], "labels")?,
@@ -40,6 +51,58 @@ pub fn parse(text: &str) -> Result<(Vec<Object>, usize)> {
         objects.push(object);
     }
     Ok((objects, skipped))
+}
+
+/// The number of entries of a `labels.json` text in either form (an array, or an object with
+/// the array under `labels`), read without building them; `None` when the text is not one of
+/// those forms, which the full parse then reports.
+fn count_entries(text: &str) -> Option<u64> {
+    let mut de = serde_json::Deserializer::from_str(strip_bom(text));
+    Entries { nested: false }.deserialize(&mut de).ok()
+}
+
+/// Counts the elements of an array with [`IgnoredAny`] (which keeps nothing); at the top level
+/// (`nested: false`) it also looks inside an object's `labels` key.
+struct Entries {
+    nested: bool,
+}
+
+impl<'de> DeserializeSeed<'de> for Entries {
+    type Value = u64;
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> std::result::Result<u64, D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> Visitor<'de> for Entries {
+    type Value = u64;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("an array of labels")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<u64, A::Error> {
+        let mut n = 0;
+        while seq.next_element::<IgnoredAny>()?.is_some() {
+            n += 1;
+        }
+        Ok(n)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> std::result::Result<u64, A::Error> {
+        if self.nested {
+            return Err(serde::de::Error::custom("expected an array"));
+        }
+        let mut n = 0;
+        while let Some(key) = map.next_key::<Cow<str>>()? {
+            if key == "labels" {
+                n = map.next_value_seed(Entries { nested: true })?;
+            } else {
+                map.next_value::<IgnoredAny>()?;
+            }
+        }
+        Ok(n)
+    }
 }
 
 fn parse_entry(e: &Value) -> Result<Option<Object>> {
@@ -167,6 +230,39 @@ mod tests {
         let (o, skipped) = parse(r#"{"labels":[{"ins_id":3,"label":"wall"}]}"#).unwrap();
         assert!(o.is_empty());
         assert_eq!(skipped, 1);
+    }
+
+    #[test]
+    fn more_entries_than_the_limit_are_refused_before_they_are_built() {
+        // Entries that are not even objects: the count is checked before any entry is parsed.
+        let n = LABELS.default as usize + 1;
+        let many = format!("[{}0]", "0,".repeat(n - 1));
+        let e = parse(&many).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "(top level): {n} entries, over the limit of {} entries on labels.json; set the \
+                 environment variable SAGE3D_MAX_LABELS to raise it",
+                LABELS.default
+            )
+        );
+        let e = parse(&format!("{{\"version\": 2, \"labels\": {many}}}")).unwrap_err();
+        assert!(e.to_string().contains("SAGE3D_MAX_LABELS"), "{e}");
+        // At the limit, the entries are parsed (and the first bad one reported).
+        let e = parse(&format!("[{}0]", "0,".repeat(n - 2))).unwrap_err();
+        assert_eq!(e.to_string(), "[0].(entry): expected an object");
+    }
+
+    #[test]
+    fn counting_keeps_the_errors_of_the_full_parse() {
+        assert_eq!(count_entries("\u{feff}[1, 2]"), Some(2));
+        assert_eq!(
+            count_entries(r#"{"labels": [1], "other": [1, 2, 3]}"#),
+            Some(1)
+        );
+        assert_eq!(count_entries(r#"{"labels": {"labels": [1]}}"#), None);
+        let e = parse(r#"{"labels": 3}"#).unwrap_err();
+        assert_eq!(e.to_string(), "labels: expected an array, found 3");
     }
 
     #[test]
