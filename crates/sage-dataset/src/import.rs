@@ -43,7 +43,7 @@ pub const COMMAND: &str = "data import";
 /// the file and field), an existing split without `force`, a write error.
 pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
     let names = ["episodes", folder::SPLITS_FILE, sage_io::RUN_RECORD];
-    sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
+    let _lock = sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
     let space = StepSizes::default();
     let episodes = match source {
         Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
