@@ -1,9 +1,9 @@
 //! `sage3d report RUN [--scenes SCENES]`: (re)writes an evaluation run's `report.html` and its
-//! PNGs under a progress bar (`docs/evaluation.md`, "Report"); `sage3d eval` calls the same
-//! writer at the end of a run.
+//! PNGs under a progress bar (`docs/evaluation.md`, "Report"), holding the run folder's lock
+//! (`sage_pipeline::evaluate::report`); `sage3d eval` calls the same writer at the end of a run.
 
 use sage_core::{Error, Result};
-use sage_eval::report::{self, ReportOutcome};
+use sage_eval::report::ReportOutcome;
 use sage_io::run::RUN_RECORD;
 use std::path::{Path, PathBuf};
 
@@ -21,7 +21,7 @@ pub struct ReportArgs {
 /// episodes' maps.
 fn write_with_bar(run: &Path, scenes: &Path) -> Result<ReportOutcome> {
     let bar = crate::progress::bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
-    let outcome = report::write_with(run, scenes, &|id, total| {
+    let outcome = sage_pipeline::evaluate::report(run, scenes, &|id, total| {
         bar.set_length(total as u64);
         bar.set_message(id.to_string());
         bar.inc(1);

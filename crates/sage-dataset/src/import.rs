@@ -45,7 +45,7 @@ pub const COMMAND: &str = "data import";
 pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
     sage_io::names::check_plain("split", split).within("`split`")?;
     let names = ["episodes", folder::SPLITS_FILE, sage_io::RUN_RECORD];
-    sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
+    let _lock = sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
     let space = StepSizes::default();
     let episodes = match source {
         Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,

@@ -10,7 +10,7 @@
 //! is the same bytes however the run went (threads, resumes, shards merged). Agents whose server holds one episode's state (NaVid) run their episodes one
 //! at a time.
 
-use crate::folder::{RECORDS_FILE, RUN_OUTPUTS, SUMMARY_FILE};
+use crate::folder::{COMMAND, RECORDS_FILE, RUN_OUTPUTS, SUMMARY_FILE};
 use crate::records::{self, EvalRecord, Failure};
 use crate::settings::EvalSettings;
 use crate::summary::Summary;
@@ -22,6 +22,7 @@ use sage_dataset::folder::{non_empty_splits, split_episodes};
 use sage_env::SceneContext;
 use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, SensorConfig};
+use sage_io::lock::FolderLock;
 use sage_io::run::RUN_RECORD;
 use sage_metrics::{Dtw, Scoring};
 use sage_splat::Device;
@@ -165,15 +166,17 @@ fn run_one(
     rec
 }
 
-/// Checks that `out` may be an evaluation's run folder: new, empty or an evaluation's (a rerun,
-/// which resumes when its settings are the same); with `force`, a folder of other files is
-/// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]).
+/// Claims `out` for an evaluation and returns its lock, to hold while the run and its report
+/// are written: `out` must be new, empty or an evaluation's (a rerun, which resumes when its
+/// settings are the same); with `force`, a folder of other files is written into, provided
+/// none of them would be replaced ([`sage_io::run::claim_folder`]).
 ///
 /// # Errors
 ///
-/// A folder holding files an evaluation did not write, naming it and one of them.
-pub fn claim(out: &Path, force: bool) -> Result<()> {
-    sage_io::run::claim_folder(out, &["eval"], &RUN_OUTPUTS, force)
+/// A folder that another command is writing, or one holding files an evaluation did not
+/// write, naming it and one of them.
+pub fn claim(out: &Path, force: bool) -> Result<FolderLock> {
+    sage_io::run::claim_folder(out, &[COMMAND], &RUN_OUTPUTS, force)
 }
 
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
@@ -223,7 +226,7 @@ pub(crate) fn write_run_record(
 ) -> Result<()> {
     sage_io::run::write_run_record(
         out,
-        "eval",
+        COMMAND,
         recorded.get("seed").and_then(serde_json::Value::as_u64),
         serde_json::json!({
             "settings": recorded,
@@ -234,7 +237,7 @@ pub(crate) fn write_run_record(
 
 /// Runs (or resumes) an evaluation into `out`, calling `on_done(record, to_run)` after each
 /// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`.
-/// Callers [`claim`] `out` first.
+/// Callers [`claim`] `out` first and hold its lock until the run and its report are written.
 ///
 /// # Errors
 ///

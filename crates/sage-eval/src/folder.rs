@@ -2,6 +2,9 @@
 
 use sage_io::run::RUN_RECORD;
 
+/// The command, as the run record of a run folder names it.
+pub const COMMAND: &str = "eval";
+
 /// The per-episode records file of a run folder.
 pub const RECORDS_FILE: &str = "episodes.jsonl";
 /// The aggregate file of a run folder.

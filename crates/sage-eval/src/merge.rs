@@ -16,7 +16,8 @@ use std::path::Path;
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
 /// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
 /// `sage3d_run.json`, the same bytes as one evaluation over the union writes them (which also
-/// ends with its records in episode-id order). Returns the summary.
+/// ends with its records in episode-id order). Returns the summary. Callers hold the lock on
+/// `out` ([`sage_io::lock::FolderLock`]) while it and the report are written.
 ///
 /// # Errors
 ///

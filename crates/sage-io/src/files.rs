@@ -7,8 +7,11 @@ use sage_core::{Error, Result, ResultExt};
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
+/// What sets a temporary file's name apart: `.{name}.tmp-{process}-{count}`.
+const TEMP_MARK: &str = ".tmp-";
+
 /// A temporary sibling of `path`, unique to this process and this call, so that threads (and
-/// processes) writing the same file at once never share one.
+/// processes) writing the same file at once never share one ([`is_temporary`] recognises it).
 fn temp_path(path: &Path) -> PathBuf {
     static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let name = path
@@ -16,7 +19,22 @@ fn temp_path(path: &Path) -> PathBuf {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    path.with_file_name(format!(".{name}.tmp-{}-{k}", std::process::id()))
+    path.with_file_name(format!(".{name}{TEMP_MARK}{}-{k}", std::process::id()))
+}
+
+/// Whether the file name `name` is that of a temporary file of [`write_atomic`]
+/// (`.{name}.tmp-{process}-{count}`): one that a write interrupted by a crash or a signal
+/// leaves behind, and that nothing reads.
+pub fn is_temporary(name: &str) -> bool {
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    name.strip_prefix('.')
+        .and_then(|n| n.rsplit_once(TEMP_MARK))
+        .is_some_and(|(base, tag)| {
+            !base.is_empty()
+                && tag
+                    .split_once('-')
+                    .is_some_and(|(p, k)| digits(p) && digits(k))
+        })
 }
 
 /// Writes `path` through `body` into a temporary sibling, then renames it into place.
@@ -293,5 +311,32 @@ mod tests {
             1,
             "temp files left"
         );
+    }
+
+    #[test]
+    fn temporary_names_are_recognised_and_nothing_else() {
+        let tmp = temp_path(Path::new("run/annotations_part_000.json"));
+        let name = tmp.file_name().unwrap().to_string_lossy();
+        assert!(is_temporary(&name), "{name}");
+        for name in [
+            ".summary.json.tmp-123-4",
+            "..tmp-1-2.tmp-7-0",
+            ".a.b.tmp-0-0",
+        ] {
+            assert!(is_temporary(name), "{name}");
+        }
+        for name in [
+            "summary.json.tmp-123-4",
+            ".summary.json.tmp-123",
+            ".summary.json.tmp-12a-4",
+            ".summary.json.tmp-123-",
+            "..tmp-1-2",
+            ".summary.json.tmp-1-2-3",
+            ".summary.json",
+            "annotations_part_000.json",
+            ".sage3d.lock",
+        ] {
+            assert!(!is_temporary(name), "{name}");
+        }
     }
 }

@@ -1,13 +1,17 @@
 //! `sage-io`: the plumbing of files and runs that every sage3d pipeline shares.
 //!
-//! - [`files`]: atomic writes (a file is whole or absent, never half-written), JSON, PNG and
+//! - [`files`]: atomic writes (a file is whole or absent, never half-written; an interrupted
+//!   one leaves a temporary file that [`files::is_temporary`] recognises), JSON, PNG and
 //!   NumPy `.npy`, readers whose errors name the file, line and column;
 //! - [`names`]: the one rule by which names from data (splits, scenes, episode ids) become
 //!   file names, inside their folder and distinct;
 //! - [`limits`]: the caps on what an input file may hold or declare (file sizes, label counts,
 //!   image pixels, decoded meshes), each raised by an environment variable `SAGE3D_MAX_…`;
 //! - [`hash`]: the one stable hash (FNV-1a) for fingerprints, cache keys and derived seeds;
-//! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made;
+//! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made, and the
+//!   claim of an output folder;
+//! - [`lock`]: one writer per output folder (an OS advisory lock held while a command writes
+//!   it), and the removal of the temporary files an interrupted run left there;
 //! - [`scenes`]: finding scene folders, their names, and fingerprints of their input files;
 //! - [`runner`]: the resumable per-scene runner and its typed outcome;
 //! - [`canvas`]: the small RGB canvas that draws maps, plans and charts to PNG,
@@ -20,6 +24,7 @@ pub mod canvas;
 pub mod files;
 pub mod hash;
 pub mod limits;
+pub mod lock;
 pub mod marks;
 pub mod names;
 pub mod palette;

@@ -1,6 +1,7 @@
 //! The run record: how an output folder was made (SPEC §13).
 
-use crate::files::write_json;
+use crate::files::{is_temporary, write_json};
+use crate::lock::{FolderLock, LOCK_FILE};
 use sage_core::{Error, Result};
 use std::path::Path;
 
@@ -34,7 +35,9 @@ pub fn recorded_command(dir: &Path) -> Option<String> {
     record.get("command")?.as_str().map(String::from)
 }
 
-/// The names of the entries of folder `dir`, sorted.
+/// The names of the entries of folder `dir`, sorted, without its lock file
+/// ([`LOCK_FILE`]) and temporary files ([`is_temporary`]): what the folder holds, as a claim
+/// of it sees it.
 ///
 /// # Errors
 ///
@@ -44,51 +47,59 @@ pub fn entries(dir: &Path) -> Result<Vec<String>> {
         .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok())
         .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|name| name != LOCK_FILE && !is_temporary(name))
         .collect();
     names.sort();
     Ok(names)
 }
 
-/// Checks that `commands[0]` may write its outputs (`names`: the files and folders it writes at
-/// the top of `dir`) into `dir`: a folder that does not exist, an empty one, or one whose run
-/// record names one of `commands` (a rerun, which resumes; the commands after the first are
-/// those whose folders it shares, such as `nav map` and `nav trajectories` in `SCENE/nav`).
-/// Any other folder holds files it did not write: it is refused unless `force`, and even then
-/// when it holds one of `names`, which would be replaced.
+/// Claims `dir` for `commands[0]`, which writes its outputs (`names`: the files and folders it
+/// writes at the top of `dir`) there, and returns the lock that `commands[0]` holds on it for
+/// as long as it writes ([`FolderLock`]; the folder is made if missing). The folder must be new,
+/// empty, or one whose run record names one of `commands` (a rerun, which resumes; the commands
+/// after the first are those whose folders it shares, such as `nav map` and
+/// `nav trajectories` in `SCENE/nav`). Any other folder holds files it did not write: it is
+/// refused unless `force`, and even then when it holds one of `names`, which would be
+/// replaced. Once the folder is claimed, the temporary files of interrupted earlier runs are
+/// removed from it ([`FolderLock::remove_temporary`]); a refused folder is left as it was.
 ///
 /// # Errors
 ///
-/// An `invalid` error naming the folder and what it holds, or an unreadable folder.
-pub fn claim_folder(dir: &Path, commands: &[&str], names: &[&str], force: bool) -> Result<()> {
+/// An `invalid` error naming the folder when another command holds it or when it holds files
+/// `commands[0]` did not write (naming one); an unreadable folder or one that cannot be made.
+pub fn claim_folder(
+    dir: &Path,
+    commands: &[&str],
+    names: &[&str],
+    force: bool,
+) -> Result<FolderLock> {
     let command = commands.first().copied().unwrap_or("");
-    if !dir.exists() {
-        return Ok(());
-    }
-    if !dir.is_dir() {
+    if dir.exists() && !dir.is_dir() {
         return Err(Error::invalid(format!(
             "the output folder is a file; `sage3d {command}` writes a folder there, choose a new or empty one"
         ))
         .in_file(dir));
     }
+    let lock = FolderLock::acquire(dir, command)?;
     let held = entries(dir)?;
     let recorded = recorded_command(dir);
-    if held.is_empty() || recorded.is_some_and(|r| commands.contains(&r.as_str())) {
-        return Ok(());
+    if !held.is_empty() && !recorded.is_some_and(|r| commands.contains(&r.as_str())) {
+        if let Some(clash) = held.iter().find(|h| names.contains(&h.as_str())) {
+            return Err(Error::invalid(format!(
+                "the output folder holds '{clash}', which `sage3d {command}` did not write and would replace; choose an empty or new folder"
+            ))
+            .in_file(dir));
+        }
+        if !force {
+            return Err(Error::invalid(format!(
+                "the output folder holds files `sage3d {command}` did not write ('{}'); choose an empty or new folder, or set `force` to write beside them",
+                held[0]
+            ))
+            .in_file(dir));
+        }
     }
-    if let Some(clash) = held.iter().find(|h| names.contains(&h.as_str())) {
-        return Err(Error::invalid(format!(
-            "the output folder holds '{clash}', which `sage3d {command}` did not write and would replace; choose an empty or new folder"
-        ))
-        .in_file(dir));
-    }
-    if !force {
-        return Err(Error::invalid(format!(
-            "the output folder holds files `sage3d {command}` did not write ('{}'); choose an empty or new folder, or set `force` to write beside them",
-            held[0]
-        ))
-        .in_file(dir));
-    }
-    Ok(())
+    lock.remove_temporary();
+    Ok(lock)
 }
 
 /// Checks that an output file may be written at `path`: one that does not exist yet, or any
@@ -120,23 +131,59 @@ mod tests {
     fn a_folder_is_claimed_only_when_new_empty_or_the_same_commands() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out");
-        claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
+        let claim = |commands: &[&str], force| claim_folder(&out, commands, &["episodes"], force);
+        drop(claim(&["data build"], false).unwrap());
+        assert!(
+            !out.exists(),
+            "a claimed folder left empty goes with the lock"
+        );
         std::fs::create_dir(&out).unwrap();
-        claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
+        drop(claim(&["data build"], false).unwrap());
         std::fs::write(out.join("notes.txt"), "mine").unwrap();
-        let e = claim_folder(&out, &["data build"], &["episodes"], false).unwrap_err();
+        let e = claim(&["data build"], false).unwrap_err();
         assert!(e.to_string().contains("notes.txt") && e.to_string().contains("`force`"));
-        claim_folder(&out, &["data build"], &["episodes"], true).unwrap();
+        drop(claim(&["data build"], true).unwrap());
         std::fs::create_dir(out.join("episodes")).unwrap();
-        let e = claim_folder(&out, &["data build"], &["episodes"], true).unwrap_err();
+        let e = claim(&["data build"], true).unwrap_err();
         assert!(e.to_string().contains("'episodes'"), "{e}");
         write_run_record(&out, "data build", None, serde_json::json!({})).unwrap();
-        claim_folder(&out, &["data build"], &["episodes"], false).unwrap();
-        let e = claim_folder(&out, &["nav trajectories"], &["episodes"], true).unwrap_err();
+        drop(claim(&["data build"], false).unwrap());
+        let e = claim(&["nav trajectories"], true).unwrap_err();
         assert!(e.to_string().contains("episodes"), "{e}");
-        claim_folder(&out, &["data import", "data build"], &["episodes"], false).unwrap();
+        drop(claim(&["data import", "data build"], false).unwrap());
         std::fs::write(dir.path().join("file"), "x").unwrap();
         assert!(claim_folder(&dir.path().join("file"), &["render"], &[], true).is_err());
+    }
+
+    #[test]
+    fn a_claimed_folder_is_locked_until_the_claim_is_dropped() {
+        let dir = tempfile::tempdir().unwrap();
+        let held = claim_folder(dir.path(), &["eval"], &[], false).unwrap();
+        let e = claim_folder(dir.path(), &["eval"], &[], false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("being written by `sage3d eval`"), "{e}");
+        drop(held);
+        drop(claim_folder(dir.path(), &["eval"], &[], false).unwrap());
+    }
+
+    #[test]
+    fn temporary_and_lock_files_are_not_foreign_and_go_once_the_folder_is_claimed() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        let stale = out.join(".summary.json.tmp-4242-3");
+        std::fs::write(&stale, "half").unwrap();
+        std::fs::write(out.join(LOCK_FILE), "").unwrap();
+        assert!(entries(out).unwrap().is_empty());
+        drop(claim_folder(out, &["eval"], &["summary.json"], false).unwrap());
+        assert!(!stale.exists() && !out.join(LOCK_FILE).exists());
+        // A refused folder keeps everything, temporary files included.
+        std::fs::write(&stale, "half").unwrap();
+        std::fs::write(out.join("notes.txt"), "mine").unwrap();
+        assert!(claim_folder(out, &["eval"], &["summary.json"], false).is_err());
+        assert!(stale.is_file());
+        drop(claim_folder(out, &["eval"], &["summary.json"], true).unwrap());
+        assert!(!stale.exists() && out.join("notes.txt").is_file());
     }
 
     #[test]

@@ -205,8 +205,7 @@ pub fn build_with(
 ) -> Result<DatasetReport> {
     params.validate()?;
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
-    sage_io::run::claim_folder(out, &["data build"], &build::OUTPUTS, force)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let _lock = sage_io::run::claim_folder(out, &["data build"], &build::OUTPUTS, force)?;
     // Recorded before the work too, so a build that crashes halfway is this command's folder
     // and its rerun resumes instead of being refused.
     build::write_run_record(out, scenes, &dirs, params, assemble)?;

@@ -3,7 +3,8 @@
 //! the demo's when it is rerun to resume, and a folder of someone else's files is refused.
 
 use crate::demo::DemoSettings;
-use sage_core::{Error, Result};
+use sage_core::Result;
+use sage_io::lock::FolderLock;
 use std::path::Path;
 
 /// The command, as the demo folder's run record names it.
@@ -21,16 +22,17 @@ const OUTPUTS: [&str; 6] = [
 
 /// Claims `s.out` for the demo and writes its run record: the folder must be new, empty or a
 /// demo's (a rerun, which resumes); with `force`, a folder of other files is written into,
-/// provided none of them would be replaced ([`sage_io::run::claim_folder`]). Each step claims
-/// its own sub-folder in turn.
+/// provided none of them would be replaced ([`sage_io::run::claim_folder`]). Returns the
+/// folder's lock, to hold while [`crate::demo::run`] writes there. Each step claims its own
+/// sub-folder in turn.
 ///
 /// # Errors
 ///
-/// A folder holding files the demo did not write, or a write error.
-pub fn claim(s: &DemoSettings, force: bool) -> Result<()> {
+/// A folder that another command is writing, one holding files the demo did not write, or a
+/// write error.
+pub fn claim(s: &DemoSettings, force: bool) -> Result<FolderLock> {
     let out: &Path = &s.out;
-    sage_io::run::claim_folder(out, &[COMMAND], &OUTPUTS, force)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let lock = sage_io::run::claim_folder(out, &[COMMAND], &OUTPUTS, force)?;
     sage_io::run::write_run_record(
         out,
         COMMAND,
@@ -43,5 +45,6 @@ pub fn claim(s: &DemoSettings, force: bool) -> Result<()> {
             "split": s.split,
             "from": s.from.as_ref().map(|p| p.to_string_lossy()),
         }),
-    )
+    )?;
+    Ok(lock)
 }

@@ -4,8 +4,10 @@
 use sage_agents::AgentKind;
 use sage_core::Result;
 use sage_dataset::folder::scenes_folder;
+use sage_eval::folder::COMMAND;
 use sage_eval::report::{self, ReportOutcome};
 use sage_eval::{EvalRecord, EvalSettings, RunOutcome, Runner, Summary};
+use sage_io::lock::FolderLock;
 use sage_metrics::{Dtw, Mode};
 use sage_splat::Device;
 use serde::{Deserialize, Serialize};
@@ -117,7 +119,7 @@ pub fn evaluate(
     force: bool,
     callbacks: Callbacks<'_>,
 ) -> Result<(RunOutcome, ReportOutcome)> {
-    sage_eval::claim(out, force)?;
+    let _lock = sage_eval::claim(out, force)?;
     let outcome = sage_eval::run(settings, out, callbacks.on_episode)?;
     let report = report::write_with(out, &settings.scenes, callbacks.on_map)?;
     Ok((outcome, report))
@@ -137,7 +139,7 @@ pub fn evaluate_with(
     report: bool,
     callbacks: Callbacks<'_>,
 ) -> Result<(RunOutcome, Option<ReportOutcome>)> {
-    sage_eval::claim(out, false)?;
+    let _lock = sage_eval::claim(out, false)?;
     let outcome = sage_eval::run_with(settings, runner, out, callbacks.on_episode)?;
     let report = report
         .then(|| report::write_with(out, &settings.scenes, callbacks.on_map))
@@ -146,11 +148,14 @@ pub fn evaluate_with(
 }
 
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into
-/// the run folder `out`, as one evaluation over their union writes it, then writes its report.
+/// the run folder `out`, as one evaluation over their union writes it, then writes its report,
+/// holding the lock on `out` ([`FolderLock`]) meanwhile; temporary files that an interrupted
+/// earlier merge left there are removed first.
 ///
 /// # Errors
 ///
-/// As [`sage_eval::merge_shards`] and [`report::write_with`].
+/// A folder that another command is writing, or as [`sage_eval::merge_shards`] and
+/// [`report::write_with`].
 pub fn merge(
     settings: &EvalSettings,
     agent_name: &str,
@@ -158,7 +163,29 @@ pub fn merge(
     out: &Path,
     on_map: &(dyn Fn(&str, usize) + Sync),
 ) -> Result<(Summary, ReportOutcome)> {
+    let lock = FolderLock::acquire(out, COMMAND)?;
+    lock.remove_temporary();
     let summary = sage_eval::merge_shards(settings, agent_name, shards, out)?;
     let report = report::write_with(out, &settings.scenes, on_map)?;
     Ok((summary, report))
+}
+
+/// Writes (again) the report of the evaluation run in `run` with the scenes of `scenes`
+/// ([`report::write_with`], `on_map` called after each map), holding the lock on `run`
+/// ([`FolderLock`]) meanwhile; in a run folder (its run record names `eval`), temporary files
+/// that an interrupted earlier report or run left are removed first.
+///
+/// # Errors
+///
+/// A folder that another command is writing, or as [`report::write_with`].
+pub fn report(
+    run: &Path,
+    scenes: &Path,
+    on_map: &(dyn Fn(&str, usize) + Sync),
+) -> Result<ReportOutcome> {
+    let lock = FolderLock::acquire(run, "report")?;
+    if sage_io::run::recorded_command(run).as_deref() == Some(COMMAND) {
+        lock.remove_temporary();
+    }
+    report::write_with(run, scenes, on_map)
 }

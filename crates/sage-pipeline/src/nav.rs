@@ -4,7 +4,7 @@
 //! trajectories of a scene or a folder of scenes.
 
 use rayon::prelude::*;
-use sage_core::{Error, Result};
+use sage_core::Result;
 use sage_nav::trajectory::{self, SceneOutcome, TrajectoryParams};
 use sage_nav::{GridParams, NavGrid, PublishedMap, SemanticMap, published_map};
 use sage_scene::Scene;
@@ -92,10 +92,9 @@ pub fn map_into(
         published_name.as_str(),
         sage_io::RUN_RECORD,
     ];
-    sage_io::run::claim_folder(&out, &NAV_COMMANDS, &names, force)?;
+    let _lock = sage_io::run::claim_folder(&out, &NAV_COMMANDS, &names, force)?;
     let (grid, source) = NavGrid::from_scene(&scene, grid_params)?;
     let map = SemanticMap::build(&scene);
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     map.save_json(&out.join("semantic_map.json"))?;
     map.draw(&grid, &[])
         .0
@@ -197,8 +196,8 @@ pub fn trajectories(
     };
     names.push(sage_io::RUN_RECORD.into());
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
-    sage_io::run::claim_folder(&out, &[TRAJECTORIES_COMMAND, MAP_COMMAND], &names, force)?;
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let _lock =
+        sage_io::run::claim_folder(&out, &[TRAJECTORIES_COMMAND, MAP_COMMAND], &names, force)?;
     let record = |outcomes: &[SceneOutcome]| {
         sage_io::run::write_run_record(
             &out,

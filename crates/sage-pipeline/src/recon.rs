@@ -91,10 +91,9 @@ pub fn plan(
     out: &Path,
     force: bool,
 ) -> Result<PlanReport> {
-    sage_io::run::claim_folder(out, &[PLAN_COMMAND], &RECON_OUTPUTS, force)?;
+    let _lock = sage_io::run::claim_folder(out, &[PLAN_COMMAND], &RECON_OUTPUTS, force)?;
     let (scene, surfaces) = load_mesh_scene(scene_dir)?;
     let plan = make_plan(&scene, &scene_dir.to_string_lossy(), &surfaces, settings)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     plan.save(&out.join(PLAN_FILE))?;
     draw_plan(&scene, &plan).save_png(&out.join(PLAN_PNG))?;
     let sampled = plan.views.len() + plan.dropped.len();
@@ -298,7 +297,7 @@ pub fn fit(
 ) -> Result<FitReport> {
     let mut names = sage_scene::scene::files::WRITTEN.to_vec();
     names.extend([FIT_REPORT, sage_io::RUN_RECORD]);
-    sage_io::run::claim_folder(out, &[FIT_COMMAND], &names, force)?;
+    let _lock = sage_io::run::claim_folder(out, &[FIT_COMMAND], &names, force)?;
     let plan = Plan::load(&dir.join(PLAN_FILE))?;
     let exported = views::export_views(dir, &plan)?;
     let manifest = views::read_manifest(dir)?

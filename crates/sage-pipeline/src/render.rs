@@ -243,7 +243,7 @@ pub fn render_to_folder(
     let options = RenderOptions {
         background: settings.background,
     };
-    sage_io::run::claim_folder(out, &[RENDER_COMMAND], &OUTPUTS, force)?;
+    let _lock = sage_io::run::claim_folder(out, &[RENDER_COMMAND], &OUTPUTS, force)?;
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
     let renderer = backend.describe().to_string();
     on_progress(RenderProgress::Opened(&renderer));
@@ -257,8 +257,6 @@ pub fn render_to_folder(
     // The CPU renderer times its stages; the GPU's frame is timed whole, read-back included.
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let stats = backend.as_cpu().map(Renderer::stats);
-    // Made only now, so a render that failed leaves no empty folder behind.
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     write_images(out, &image)?;
     write_legend(&out.join("legend.json"), &scene, &image)?;
     let mut files: Vec<PathBuf> = IMAGES.iter().map(PathBuf::from).collect();

@@ -49,7 +49,7 @@ pub fn synthesize_into(
 ) -> Result<Scene> {
     let mut names = sage_scene::scene::files::WRITTEN.to_vec();
     names.push(sage_io::RUN_RECORD);
-    sage_io::run::claim_folder(out, &[SYNTH_COMMAND], &names, force)?;
+    let _lock = sage_io::run::claim_folder(out, &[SYNTH_COMMAND], &names, force)?;
     on_stage(Stage::Generating);
     let scene = sage_synth::generate(config)?;
     on_stage(Stage::Writing);

@@ -146,7 +146,8 @@ pub fn training_render_scene<'py>(
 
 /// Claims `out` for the render: a new or empty folder, or the folder of the same render
 /// (resumed); `force` replaces another render's output. Writes the run record. Returns the
-/// manifest when the same render already finished there, else `None`.
+/// manifest when the same render already finished there, else `None`. The folder's lock is
+/// held during the claim only (no other command may be writing it then).
 #[pyfunction]
 #[pyo3(signature = (settings_json, out, force=false))]
 pub fn training_claim<'py>(
@@ -157,13 +158,14 @@ pub fn training_claim<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let plan = plan(py, settings_json)?;
     let done = py
-        .detach(|| sage_traindata::claim(&plan, &out, force))
+        .detach(|| sage_traindata::claim(&plan, &out, force).map(|(_lock, done)| done))
         .py()?;
     to_py(py, &done)
 }
 
 /// Finishes the render in `out` once every scene's routes are there: the format's files, the
-/// preview when asked for, then `manifest.json`. Returns the manifest.
+/// preview when asked for, then `manifest.json`, holding the folder's lock meanwhile. Returns
+/// the manifest.
 #[pyfunction]
 pub fn training_finish<'py>(
     py: Python<'py>,
@@ -171,6 +173,11 @@ pub fn training_finish<'py>(
     out: PathBuf,
 ) -> PyResult<Bound<'py, PyAny>> {
     let plan = plan(py, settings_json)?;
-    let manifest = py.detach(|| sage_traindata::finish(&plan, &out)).py()?;
+    let manifest = py
+        .detach(|| {
+            let _lock = sage_traindata::lock(&out)?;
+            sage_traindata::finish(&plan, &out)
+        })
+        .py()?;
     to_py(py, &manifest)
 }

@@ -27,6 +27,6 @@ pub use options::Options;
 pub use output::Layout;
 pub use preset::{ActionPreset, PresetName};
 pub use run::{
-    Manifest, Plan, Progress, RouteDone, SceneProgress, Sensors, Settings, claim, finish, render,
-    render_scene,
+    Manifest, Plan, Progress, RouteDone, SceneProgress, Sensors, Settings, claim, finish, lock,
+    render, render_scene,
 };

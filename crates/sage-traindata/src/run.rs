@@ -12,6 +12,7 @@ use sage_core::{Error, Result, ResultExt, Task};
 use sage_env::{ActionSpace, Env, EnvConfig, SceneContext, SensorConfig};
 use sage_io::files::{read_json, write_json};
 use sage_io::hash::fnv1a64_hex;
+use sage_io::lock::FolderLock;
 use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -591,6 +592,8 @@ impl Manifest {
 /// # Errors
 ///
 /// A route not rendered yet, an unreadable route record or frame, a write error.
+///
+/// Callers hold the lock on `out` ([`claim`], [`lock`]).
 pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
     let s = &plan.settings;
     let mut counts = Counts {
@@ -731,66 +734,77 @@ fn is_own(name: &str) -> bool {
     OWN.contains(&name) || (name.starts_with("annotations_part_") && name.ends_with(".json"))
 }
 
-/// Claims `out` for a render with `plan`'s settings: a new or empty folder, or the folder of
-/// the same render (which resumes). With `force`, a folder of another render has that
-/// render's files removed first. Returns the manifest when the same render already finished.
+/// Locks `out` for a render ([`FolderLock`]): no other command writes it while the guard is
+/// held. [`claim`] takes this lock; a caller that writes into a claimed folder again later
+/// (the finish of a distributed render) takes it around that write.
 ///
 /// # Errors
 ///
-/// A folder holding files a render did not write, or another render's output without
-/// `force`; a write error.
-pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<Option<Manifest>> {
+/// A folder that another command is writing, naming it; a folder that cannot be made.
+pub fn lock(out: &Path) -> Result<FolderLock> {
+    FolderLock::acquire(out, COMMAND)
+}
+
+/// Claims `out` for a render with `plan`'s settings: a new or empty folder, or the folder of
+/// the same render (which resumes). With `force`, a folder of another render has that
+/// render's files removed first. Returns the folder's [`lock`], to hold while the render
+/// writes there, and the manifest when the same render already finished. Temporary files that
+/// an interrupted earlier render left are removed from a claimed folder.
+///
+/// # Errors
+///
+/// A folder that another command is writing, a folder holding files a render did not write,
+/// or another render's output without `force`; a write error.
+pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<(FolderLock, Option<Manifest>)> {
     let record_path = out.join(sage_io::run::RUN_RECORD);
     let settings = plan.settings.recorded();
-    if out.is_dir() {
-        let names = sage_io::run::entries(out)?;
-        if let Some(foreign) = names.iter().find(|n| !is_own(n)) {
-            return Err(Error::invalid(format!(
-                "the output folder holds '{foreign}', which a training-data render did not write; choose an empty or new folder"
-            ))
-            .in_file(out));
-        }
-        let rendered = sage_io::run::recorded_command(out).as_deref() == Some(COMMAND);
-        if !names.is_empty() && !rendered {
+    let lock = lock(out)?;
+    let names = sage_io::run::entries(out)?;
+    if let Some(foreign) = names.iter().find(|n| !is_own(n)) {
+        return Err(Error::invalid(format!(
+            "the output folder holds '{foreign}', which a training-data render did not write; choose an empty or new folder"
+        ))
+        .in_file(out));
+    }
+    let rendered = sage_io::run::recorded_command(out).as_deref() == Some(COMMAND);
+    if !names.is_empty() && !rendered {
+        return Err(Error::invalid(
+            "the output folder is not a training-data render's (its run record is missing or names another command); choose an empty or new folder",
+        )
+        .in_file(out));
+    }
+    let same = read_json::<serde_json::Value>(&record_path).is_ok_and(|old| {
+        old.get("settings") == Some(&settings)
+            && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(plan.dataset_hash.as_str())
+    });
+    if !same && !names.is_empty() {
+        if !force {
             return Err(Error::invalid(
-                "the output folder is not a training-data render's (its run record is missing or names another command); choose an empty or new folder",
+                "the output folder holds a render with other settings or another dataset; use a new output folder (`out`), or set `force` to replace it",
             )
             .in_file(out));
         }
-        let same = read_json::<serde_json::Value>(&record_path).is_ok_and(|old| {
-            old.get("settings") == Some(&settings)
-                && old.get("dataset_hash").and_then(|h| h.as_str())
-                    == Some(plan.dataset_hash.as_str())
-        });
-        if !same && !names.is_empty() {
-            if !force {
-                return Err(Error::invalid(
-                    "the output folder holds a render with other settings or another dataset; use a new output folder (`out`), or set `force` to replace it",
-                )
-                .in_file(out));
-            }
-            for name in names.iter().filter(|n| is_own(n)) {
-                let p = out.join(name);
-                let removed = if p.is_dir() {
-                    std::fs::remove_dir_all(&p)
-                } else {
-                    std::fs::remove_file(&p)
-                };
-                removed.map_err(|e| Error::io(&p, e))?;
-            }
-        }
-        if same && let Ok(m) = read_json::<Manifest>(&out.join(MANIFEST)) {
-            return Ok(Some(m));
+        for name in names.iter().filter(|n| is_own(n)) {
+            let p = out.join(name);
+            let removed = if p.is_dir() {
+                std::fs::remove_dir_all(&p)
+            } else {
+                std::fs::remove_file(&p)
+            };
+            removed.map_err(|e| Error::io(&p, e))?;
         }
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    lock.remove_temporary();
+    if same && let Ok(m) = read_json::<Manifest>(&out.join(MANIFEST)) {
+        return Ok((lock, Some(m)));
+    }
     sage_io::run::write_run_record(
         out,
         COMMAND,
         Some(plan.settings.seed),
         serde_json::json!({ "settings": settings, "dataset_hash": plan.dataset_hash }),
     )?;
-    Ok(None)
+    Ok((lock, None))
 }
 
 /// What a whole [`render`] tells its caller as it goes.
@@ -825,7 +839,8 @@ pub fn render(
     on_progress(Progress::Planned {
         routes: plan.route_count(),
     });
-    if let Some(done) = claim(&plan, out, force)? {
+    let (_lock, done) = claim(&plan, out, force)?;
+    if let Some(done) = done {
         on_progress(Progress::AlreadyComplete);
         return Ok(done);
     }

@@ -157,7 +157,7 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
         path = os.path.join(out, file)
         if text is not None and not os.path.exists(path):
             os.makedirs(os.path.dirname(path), exist_ok=True)
-            tmp = f"{path}.tmp-{os.getpid()}"
+            tmp = _temp_path(path)
             with open(tmp, "w") as f:
                 f.write(text)
             os.replace(tmp, path)
@@ -260,9 +260,17 @@ def _render_training_scene(settings_json, scene, done):
         return result, files
 
 
+def _temp_path(path):
+    """A temporary sibling of ``path`` named as the library names its own
+    (``.{name}.tmp-{pid}-{n}``), so that a rerun recognises one an interrupted write left and
+    removes it."""
+    head, name = os.path.split(path)
+    return os.path.join(head, f".{name}.tmp-{os.getpid()}-0")
+
+
 def _write_atomic(path, data):
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    tmp = f"{path}.tmp-{os.getpid()}"
+    tmp = _temp_path(path)
     with open(tmp, "wb") as f:
         f.write(data)
     os.replace(tmp, path)
