@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{eval, eval_output, ok, s, sage3d, small_dataset, stderr};
+use common::{eval, eval_output, ok, s, sage3d, small_build_args, small_dataset, stderr};
 use serde_json::Value;
 use std::path::Path;
 
@@ -222,17 +222,7 @@ fn a_build_that_cannot_write_a_scene_exits_non_zero_and_resumes() {
     let file = data.join("scenes").join("home1.json");
     std::fs::remove_file(&file).unwrap();
     std::fs::create_dir_all(file.join("in-the-way")).unwrap();
-    let args = [
-        "data",
-        "build",
-        s(&scenes),
-        "--out",
-        s(&data),
-        "--per-scene",
-        "3",
-        "--seed",
-        "2",
-    ];
+    let args = small_build_args(&scenes, &data);
     let out = sage3d(&args);
     assert!(!out.status.success());
     let err = stderr(&out);

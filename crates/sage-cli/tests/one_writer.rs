@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{eval, eval_output, ok, s, sage3d, small_dataset, stderr};
+use common::{eval, eval_output, ok, s, sage3d, small_build_args, small_dataset, stderr};
 use sage_io::lock::{FolderLock, LOCK_FILE};
 use std::path::Path;
 use std::process::Output;
@@ -75,17 +75,7 @@ fn eval_report_and_build_refuse_a_held_folder_and_reruns_remove_leftover_tempora
     assert!(!run.join(LOCK_FILE).exists());
 
     let held = FolderLock::acquire(&data, "data build").unwrap();
-    let out = sage3d(&[
-        "data",
-        "build",
-        s(&scenes),
-        "--out",
-        s(&data),
-        "--per-scene",
-        "3",
-        "--seed",
-        "2",
-    ]);
+    let out = sage3d(&small_build_args(&scenes, &data));
     refused_by_holder(&out, "data build");
     drop(held);
 }

@@ -58,18 +58,24 @@ pub fn small_dataset(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
     let scenes = dir.join("scenes");
     small_scene(&scenes.join("home1"), "1", "1000");
     let data = dir.join("data");
-    ok(&[
+    ok(&small_build_args(&scenes, &data));
+    (scenes, data)
+}
+
+/// The `sage3d data build` command of [`small_dataset`] (3 trajectories, seed 2): rerunning it
+/// resumes that dataset.
+pub fn small_build_args<'a>(scenes: &'a Path, data: &'a Path) -> [&'a str; 9] {
+    [
         "data",
         "build",
-        s(&scenes),
+        s(scenes),
         "--out",
-        s(&data),
+        s(data),
         "--per-scene",
         "3",
         "--seed",
         "2",
-    ]);
-    (scenes, data)
+    ]
 }
 
 /// `sage3d --threads N eval DATA --scenes SCENES --split train --out RUN` and `extra`: asserts
