@@ -77,7 +77,8 @@ pub fn check_relative(what: &str, path: &str) -> Result<()> {
 
 /// The file-name stem for the id `id` (an episode, a route): `id` itself when it is 1 to
 /// [`MAX_NAME`] characters of lowercase ASCII letters, digits, `_` and `-` and does not end
-/// like a hashed stem; otherwise its first characters with every other character as `_`,
+/// like a hashed stem; otherwise its first characters in lower case, every other character
+/// as `_`,
 /// then `-` and 16 hex digits of the id's hash, [`MAX_NAME`] characters at most. A stem holds no `.`, `/` or
 /// upper case, so it stays in its folder, is a valid WebDataset key, and two ids that differ
 /// only in case do not share a file on case-insensitive file systems.
@@ -89,7 +90,10 @@ pub fn stem(id: &str) -> String {
     let readable: String = id
         .chars()
         .take(MAX_NAME - HASH_DIGITS - 1)
-        .map(|c| if plain(c) { c } else { '_' })
+        .map(|c| match c.to_ascii_lowercase() {
+            c if plain(c) => c,
+            _ => '_',
+        })
         .collect();
     let hash = crate::hash::fnv1a64(id.as_bytes());
     format!("{readable}-{hash:0width$x}", width = HASH_DIGITS)
@@ -160,6 +164,11 @@ mod tests {
         );
         assert_ne!(stem("r.1"), stem("r_1"));
         assert_ne!(stem("A"), stem("a"));
+        assert!(
+            stem("Route.1").starts_with("route_1-"),
+            "{}",
+            stem("Route.1")
+        );
         assert_eq!(stem("a").to_lowercase(), "a");
         let long = "x".repeat(300);
         assert_eq!(stem(&long).len(), MAX_NAME);
