@@ -8,7 +8,8 @@
 //! `structure.json`, minus the door and window holes that open the whole slab (a window's sill
 //! still blocks; a closed door's hole does not open). Cells inside a room polygon are free, the
 //! rest unknown. Objects without a mesh block with their oriented box; an open door leaf without a
-//! mesh is no body (SPEC §6).
+//! mesh is no body (SPEC §6). Objects with given convex parts (a published collision file, or
+//! parts recovered from their Gaussians) block with those parts, as physics does.
 //!
 //! Internally column `i` covers world x in `[origin.x + i·cell, origin.x + (i+1)·cell)` and row
 //! `j` likewise in y. The InteriorGS `occupancy.png` mirrors x; [`NavGrid::to_occupancy`] and
@@ -407,9 +408,14 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
         block_mesh_surface(&mut grid, m, slab);
     }
     for o in &scene.objects {
-        match &o.mesh {
-            Some(m) => block_solid(&mut grid, m, slab),
-            None => {
+        match (&o.body, &o.mesh) {
+            (Some(given), _) if !given.parts.is_empty() => {
+                for part in &given.parts {
+                    block_solid(&mut grid, part, slab);
+                }
+            }
+            (_, Some(m)) => block_solid(&mut grid, m, slab),
+            _ => {
                 let open_door =
                     o.category.contains("door") && o.door_state() == Some(DoorState::Open);
                 if !open_door && o.obb.min_z() < slab.1 && o.obb.max_z() > slab.0 {

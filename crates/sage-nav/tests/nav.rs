@@ -56,6 +56,7 @@ fn object(category: &str, mesh: Option<TriMesh>, obb: Obb) -> Object {
         role: Default::default(),
         rigid_body: Default::default(),
         mesh,
+        body: None,
     }
 }
 

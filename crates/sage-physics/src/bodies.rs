@@ -7,7 +7,9 @@ use crate::hull::ConvexPart;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use sage_core::{Error, InstanceId, Obb, Result};
-use sage_scene::{DoorState, HoleKind, InstanceKind, PhysicsRole, RigidBody, Scene, Wall};
+use sage_scene::{
+    BodySource, DoorState, HoleKind, InstanceKind, Object, PhysicsRole, RigidBody, Scene, Wall,
+};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -43,6 +45,25 @@ pub enum PartSource {
     Box,
     /// Boxes extruded from the floorplan.
     Structure,
+    /// The object's given parts ([`sage_scene::BodyParts`]): read from a published collision
+    /// file or recovered from its Gaussians (the object's [`BodySource`] says which).
+    Given,
+}
+
+/// Where one object's body came from (the provenance `physics build`, `scene info` and run
+/// records report, so that numbers made with different physics are not compared unknowingly).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ObjectSource {
+    /// Dense instance id.
+    pub instance: u32,
+    /// The source id (`ins_id`).
+    pub ins_id: String,
+    /// Category.
+    pub category: String,
+    /// Where its body came from.
+    pub source: BodySource,
+    /// Number of convex parts.
+    pub parts: usize,
 }
 
 /// One collision body: convex parts in world coordinates and what they belong to.
@@ -104,8 +125,10 @@ pub struct BuildReport {
     pub openings_cut: usize,
     /// Total convex parts of all bodies.
     pub parts: usize,
-    /// Per-object quality, in object order.
+    /// Per-object quality of mesh decompositions, in object order.
     pub objects: Vec<ObjectQuality>,
+    /// Where every object's body came from, in object order.
+    pub sources: Vec<ObjectSource>,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -174,7 +197,7 @@ impl SceneBodies {
             .objects
             .par_iter()
             .map(|o| {
-                let parts = object_parts(o.mesh.as_ref(), &o.obb, decomposer, cache);
+                let parts = object_parts(o, decomposer, cache);
                 object_done();
                 parts
             })
@@ -190,10 +213,22 @@ impl SceneBodies {
             match source {
                 PartSource::Decomposed => report.decomposed += 1,
                 PartSource::Cached => report.cached += 1,
-                _ => report.boxes += 1,
+                PartSource::Given => {}
+                PartSource::Box | PartSource::Structure => report.boxes += 1,
             }
+            report.sources.push(ObjectSource {
+                instance: o.id.0,
+                ins_id: o.ins_id.clone(),
+                category: o.category.clone(),
+                source: if source == PartSource::Box {
+                    BodySource::Box
+                } else {
+                    o.body_source()
+                },
+                parts: parts.len(),
+            });
             if let Some(mesh) = &o.mesh
-                && source != PartSource::Box
+                && matches!(source, PartSource::Decomposed | PartSource::Cached)
             {
                 report.objects.push(ObjectQuality {
                     instance: o.id.0,
@@ -206,7 +241,7 @@ impl SceneBodies {
             }
             // An open door leaf known only by its box is no body (SPEC §6), as the navigation
             // grid leaves it free: a body there would stop agents on paths planned through it.
-            if o.mesh.is_none()
+            if source == PartSource::Box
                 && o.category.contains("door")
                 && o.door_state() == Some(DoorState::Open)
             {
@@ -288,19 +323,31 @@ impl SceneBodies {
     }
 }
 
-/// The parts of one object: cached or decomposed hulls of its mesh, else its box.
+/// The parts of one object: its given parts, else cached or decomposed hulls of its mesh, else
+/// its box.
 fn object_parts(
-    mesh: Option<&sage_scene::TriMesh>,
-    obb: &Obb,
+    object: &Object,
     decomposer: &Decomposer,
     cache: &HullCache,
 ) -> Result<(Vec<ConvexPart>, PartSource)> {
+    if let Some(given) = &object.body {
+        // Hulls of the given parts: a published part is convex already (its hull is itself);
+        // a part too flat to span a volume is dropped, and a body left with none is its box.
+        let parts: Vec<ConvexPart> = given
+            .parts
+            .iter()
+            .filter_map(|m| ConvexPart::hull_of(&m.positions))
+            .collect();
+        if !parts.is_empty() {
+            return Ok((parts, PartSource::Given));
+        }
+    }
     let boxed = || {
-        ConvexPart::from_obb(obb)
+        ConvexPart::from_obb(&object.obb)
             .map(|p| (vec![p], PartSource::Box))
             .ok_or_else(|| Error::invalid("the oriented box has no volume and no mesh is given"))
     };
-    let Some(mesh) = mesh.filter(|m| !m.triangles.is_empty()) else {
+    let Some(mesh) = object.mesh.as_ref().filter(|m| !m.triangles.is_empty()) else {
         return boxed();
     };
     let key = cache_key(mesh, decomposer);

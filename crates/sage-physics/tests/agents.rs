@@ -39,6 +39,7 @@ fn object(label: &str, center: Vec3, half: Vec3, yaw: f32, role: PhysicsRole) ->
         role,
         rigid_body: RigidBody::default(),
         mesh: None,
+        body: None,
     }
 }
 

@@ -320,6 +320,7 @@ fn box_scene(color: &str) -> Scene {
             role: Default::default(),
             rigid_body: Default::default(),
             mesh: None,
+            body: None,
         }],
         floorplan: Floorplan {
             rooms: vec![Room {

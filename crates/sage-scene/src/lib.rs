@@ -29,7 +29,7 @@ pub use floorplan::{Floorplan, Hole, HoleKind, Room, StructureItem, Wall};
 pub use gaussians::{Gaussian, Gaussians};
 pub use instances::{InstanceKind, InstanceTable};
 pub use mesh::TriMesh;
-pub use object::{Attributes, DoorState, Object, PhysicsRole, RigidBody};
+pub use object::{Attributes, BodyParts, BodySource, DoorState, Object, PhysicsRole, RigidBody};
 pub use occupancy::OccupancyMap;
 pub use ply::SplatLayout;
 pub use scene::{LoadReport, Scene};

@@ -100,6 +100,45 @@ impl Default for RigidBody {
     }
 }
 
+/// Where an object's collision body comes from, in the order a scene prefers them
+/// (docs/physics.md, "Body sources").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BodySource {
+    /// Convex parts read from a published collision file (SAGE-Bench's
+    /// `{scene}_collision.usd`): the bodies the paper's agents collided with.
+    Published,
+    /// Convex decomposition of the object's own mesh.
+    Mesh,
+    /// Recovered from the object's own Gaussians (no mesh and no published body).
+    Gaussians,
+    /// The object's oriented box (nothing better was available).
+    Box,
+}
+
+impl BodySource {
+    /// The word used in reports and files (`published`, `mesh`, `gaussians`, `box`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BodySource::Published => "published",
+            BodySource::Mesh => "mesh",
+            BodySource::Gaussians => "gaussians",
+            BodySource::Box => "box",
+        }
+    }
+}
+
+/// An object's collision body given as ready convex parts (each a closed, convex triangle
+/// mesh in W), instead of decomposed from its mesh: read from a published collision file or
+/// recovered from the Gaussians.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyParts {
+    /// Where the parts came from ([`BodySource::Published`] or [`BodySource::Gaussians`]).
+    pub source: BodySource,
+    /// The convex parts, world frame.
+    pub parts: Vec<TriMesh>,
+}
+
 /// One annotated object of a scene, in the world frame W.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Object {
@@ -123,9 +162,22 @@ pub struct Object {
     pub rigid_body: RigidBody,
     /// Triangle mesh in world coordinates, when the scene has one for this object.
     pub mesh: Option<TriMesh>,
+    /// Ready convex parts of its collision body, when given (they win over the mesh's
+    /// decomposition: see [`Object::body_source`]).
+    pub body: Option<BodyParts>,
 }
 
 impl Object {
+    /// Where this object's collision body comes from: its given parts, else its mesh, else its
+    /// box.
+    pub fn body_source(&self) -> BodySource {
+        match (&self.body, &self.mesh) {
+            (Some(b), _) => b.source,
+            (None, Some(m)) if !m.triangles.is_empty() => BodySource::Mesh,
+            _ => BodySource::Box,
+        }
+    }
+
     /// The door state, for doors whose `state` attribute names one.
     pub fn door_state(&self) -> Option<DoorState> {
         self.attributes.state.as_deref().and_then(DoorState::parse)

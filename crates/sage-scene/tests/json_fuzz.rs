@@ -98,6 +98,7 @@ fn object(ins_id: String, label: String, obb: Obb) -> Object {
         role: PhysicsRole::Static,
         rigid_body: RigidBody::default(),
         mesh: None,
+        body: None,
     }
 }
 

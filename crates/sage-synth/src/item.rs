@@ -82,6 +82,7 @@ impl Item {
             role: self.role,
             rigid_body: self.rigid_body,
             mesh: Some(first_use_order(&mesh)),
+            body: None,
         }
     }
 

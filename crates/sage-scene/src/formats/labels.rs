@@ -135,6 +135,7 @@ fn parse_entry(e: &Value) -> Result<Option<Object>> {
         role: PhysicsRole::Static,
         rigid_body: RigidBody::default(),
         mesh: None,
+        body: None,
     }))
 }
 
