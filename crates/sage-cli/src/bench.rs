@@ -4,6 +4,7 @@
 use crate::flags::parse_size;
 use clap::{Args, Subcommand};
 use sage_core::{Error, Result};
+use sage_perf::bodies::BodiesSettings;
 use sage_perf::env::EnvSettings;
 use sage_perf::fit::FitSettings;
 use sage_perf::load::LoadSettings;
@@ -34,6 +35,10 @@ pub enum BenchCommand {
     /// Step one agent through a 200-object synthetic home, physics only (no rendering), and
     /// report steps per second.
     Physics(PhysicsBenchArgs),
+    /// Compare bodies recovered from the Gaussians alone with bodies decomposed from the meshes
+    /// in generated homes: per-object volume IoU, and the CR and ICP of the same oracle walks in
+    /// a world of each; --picture draws a section through a table and a chair.
+    Bodies(BodiesBenchArgs),
     /// Step the environment with a seeded random agent in a 200-object, 1M-Gaussian synthetic
     /// home: steps per second without rendering and with RGB + depth at 224×224 and 640×480.
     Env(EnvBenchArgs),
@@ -203,6 +208,52 @@ pub struct PhysicsBenchArgs {
 }
 
 #[derive(Args)]
+pub struct BodiesBenchArgs {
+    /// Seeds of the generated homes, comma-separated (one home each).
+    #[arg(long, value_delimiter = ',', default_values_t = BodiesSettings::default().seeds)]
+    seeds: Vec<u64>,
+    /// Rooms per home.
+    #[arg(long, default_value_t = BodiesSettings::default().rooms)]
+    rooms: usize,
+    /// Objects per home (doors and windows included).
+    #[arg(long, default_value_t = BodiesSettings::default().objects)]
+    objects: usize,
+    /// Gaussians per home.
+    #[arg(long, default_value_t = BodiesSettings::default().gaussians)]
+    gaussians: usize,
+    /// Oracle walks per home.
+    #[arg(long, default_value_t = BodiesSettings::default().walks)]
+    walks: usize,
+    /// IoU sampling cell, metres.
+    #[arg(long, default_value_t = BodiesSettings::default().cell)]
+    cell: f32,
+    /// Hull cache (default: a folder in the system temp dir, so repeated runs reuse it).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Write a PNG section through a table and a chair: mesh hulls vs recovered parts.
+    #[arg(long)]
+    picture: Option<PathBuf>,
+    /// Print the report as one line of JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+impl BodiesBenchArgs {
+    fn settings(&self) -> BodiesSettings {
+        BodiesSettings {
+            seeds: self.seeds.clone(),
+            rooms: self.rooms,
+            objects: self.objects,
+            gaussians: self.gaussians,
+            walks: self.walks,
+            cell: self.cell,
+            cache: self.cache.clone(),
+            picture: self.picture.clone(),
+        }
+    }
+}
+
+#[derive(Args)]
 pub struct EnvBenchArgs {
     /// Objects in the generated home.
     #[arg(long, default_value_t = 200)]
@@ -359,6 +410,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         }
         BenchCommand::Nav(a) => print_report(&sage_perf::nav::run(&a.settings())?, false),
         BenchCommand::Physics(a) => print_report(&sage_perf::physics::run(&a.settings())?, false),
+        BenchCommand::Bodies(a) => print_report(&sage_perf::bodies::run(&a.settings())?, a.json),
         BenchCommand::Env(a) => print_report(&sage_perf::env::run(&a.settings()?)?, false),
         BenchCommand::Fit(a) => print_report(&sage_perf::fit::run(&a.settings()?)?, false),
         BenchCommand::TrainData(a) => {

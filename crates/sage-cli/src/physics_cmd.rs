@@ -4,10 +4,10 @@
 use clap::{Args, Subcommand};
 use sage_core::{Error, Pose, Result, Vec3};
 use sage_physics::{
-    AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, World,
-    WorldOptions, default_cache_dir,
+    AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, SplatBodies,
+    World, WorldOptions, default_cache_dir,
 };
-use sage_scene::Scene;
+use sage_scene::{BodySource, Scene};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -50,6 +50,13 @@ pub struct DecompArgs {
     /// Most convex parts per object (CoACD: 0 for no cap).
     #[arg(long, default_value_t = 32)]
     max_hulls: u32,
+    /// Which objects get bodies recovered from their own Gaussians: auto (those with neither a
+    /// published body nor a mesh, instead of their box), always (every object), never.
+    #[arg(long, default_value_t = SplatBodies::default())]
+    splat_bodies: SplatBodies,
+    /// Recover every object's body from its Gaussians (the same as --splat-bodies always).
+    #[arg(long, conflicts_with = "splat_bodies")]
+    from_splats: bool,
 }
 
 impl DecompArgs {
@@ -82,11 +89,26 @@ impl DecompArgs {
         )
     }
 
+    /// Which objects get bodies recovered from their Gaussians.
+    fn splat_bodies(&self) -> SplatBodies {
+        if self.from_splats {
+            SplatBodies::Always
+        } else {
+            self.splat_bodies
+        }
+    }
+
     /// Loads the scene and builds its bodies under a progress bar.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
         let (decomposer, cache) = (self.decomposer()?, self.cache(scene_dir));
         with_bar(|on_object| {
-            sage_pipeline::physics::bodies(scene_dir, &decomposer, &cache, on_object)
+            sage_pipeline::physics::bodies(
+                scene_dir,
+                &decomposer,
+                &cache,
+                self.splat_bodies(),
+                on_object,
+            )
         })
     }
 }
@@ -207,8 +229,16 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
     println!("decomposer       {}", report.decomposer);
     println!("cache            {}", report.cache_dir);
     println!(
-        "objects          {} decomposed, {} from cache, {} as boxes (no mesh)",
+        "objects          {} decomposed, {} from cache, {} as boxes",
         report.decomposed, report.cached, report.boxes
+    );
+    let count = |s: BodySource| report.sources.iter().filter(|o| o.source == s).count();
+    println!(
+        "body sources     {} published, {} mesh, {} gaussians, {} box",
+        count(BodySource::Published),
+        count(BodySource::Mesh),
+        count(BodySource::Gaussians),
+        count(BodySource::Box)
     );
     println!(
         "hulls            {} in all; {:.1} per meshed object",
@@ -299,6 +329,7 @@ fn export_usd(a: UsdArgs) -> Result<()> {
             &decomposer,
             &cache,
             a.force,
+            a.decomp.splat_bodies(),
             on_object,
         )
     })?;

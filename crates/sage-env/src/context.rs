@@ -3,7 +3,10 @@
 use sage_core::{Error, Polygon2, Result};
 use sage_metrics::distance::LabelledBox;
 use sage_nav::{CostParams, GridParams, PathFinder, PublishedMap, SemanticMap, TrajectoryParams};
-use sage_physics::{Decomposer, HullCache, SceneBodies, World, WorldOptions, default_cache_dir};
+use sage_physics::{
+    Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams, World, WorldOptions,
+    default_cache_dir, splat_bodies,
+};
 use sage_scene::Scene;
 use sage_splat::{Backend, Device};
 use std::collections::BTreeMap;
@@ -26,6 +29,10 @@ pub struct SceneContext {
     /// `sage-official` picks its goal box; `None` when the scene has no occupancy image to cut
     /// the map from.
     pub published_boxes: Option<Vec<LabelledBox>>,
+    /// How many objects' bodies came from each source (`published`, `mesh`, `gaussians`,
+    /// `box`): the provenance run records keep, so that numbers made with different physics
+    /// are not compared unknowingly.
+    pub body_sources: BTreeMap<String, usize>,
     /// The physics world at rest, built once; every episode starts from a copy.
     world: World,
     /// The navigable grid for geodesic distances (every agent profile is scored on it).
@@ -65,8 +72,14 @@ impl SceneContext {
                 })
                 .collect()
         });
+        let body_sources = bodies
+            .object_sources(&scene)
+            .into_iter()
+            .map(|(k, n)| (k.as_str().to_string(), n))
+            .collect();
         let world = World::new(&scene, bodies, &WorldOptions::default());
         Ok(SceneContext {
+            body_sources,
             scene,
             semantic,
             published_boxes,
@@ -144,8 +157,26 @@ impl SceneContext {
     /// # Errors
     ///
     /// The scene, its bodies or its navigation grid cannot be built.
+    ///
+    /// Objects with neither a published body nor a mesh get bodies recovered from their
+    /// Gaussians ([`SplatBodies::Auto`]); [`SceneContext::load_with`] chooses otherwise.
     pub fn load(dir: &Path, cache: Option<PathBuf>) -> Result<SceneContext> {
-        let (scene, _) = Scene::load(dir)?;
+        SceneContext::load_with(dir, cache, SplatBodies::Auto)
+    }
+
+    /// [`SceneContext::load`], with `splat_bodies` choosing which objects get bodies recovered
+    /// from their Gaussians.
+    ///
+    /// # Errors
+    ///
+    /// The scene, its bodies or its navigation grid cannot be built.
+    pub fn load_with(
+        dir: &Path,
+        cache: Option<PathBuf>,
+        splat_bodies: SplatBodies,
+    ) -> Result<SceneContext> {
+        let (mut scene, _) = Scene::load(dir)?;
+        splat_bodies::attach(&mut scene, splat_bodies, &SplatBodyParams::default())?;
         let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
         let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
         let params = TrajectoryParams::default();

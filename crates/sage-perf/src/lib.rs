@@ -1,7 +1,7 @@
 //! `sage-perf`: the performance benchmarks behind `sage3d bench` (the figures of SPEC §12).
 //!
-//! One module per benchmark: [`load`], [`render`], [`nav`], [`physics`], [`env`], [`fit`] and
-//! [`traindata`].
+//! One module per benchmark: [`load`], [`render`], [`nav`], [`physics`], [`bodies`], [`env`],
+//! [`fit`] and [`traindata`].
 //! Each has a settings struct whose `Default` is the command's defaults and a `run` function
 //! that sets up the benchmark's scene (synthesising one when none is given), times the work and
 //! returns a report: `Display` gives the lines `sage3d bench` prints, serde the same figures as
@@ -11,6 +11,7 @@
 //! [`load::run`]), so that memory freed while making it does not hide, or inflate, the resident
 //! figures; only a front end knows how to start itself again, so it passes that step in.
 
+pub mod bodies;
 pub mod env;
 pub mod fit;
 pub mod load;

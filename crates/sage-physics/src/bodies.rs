@@ -323,6 +323,34 @@ impl SceneBodies {
     }
 }
 
+impl SceneBodies {
+    /// How many of `scene`'s objects (the one these bodies were built from) have a body from
+    /// each source; an object without a body (an open door known only by its box) counts as a
+    /// box.
+    pub fn object_sources(&self, scene: &Scene) -> std::collections::BTreeMap<BodySource, usize> {
+        let mut counts = std::collections::BTreeMap::new();
+        let mut seen = vec![false; scene.objects.len()];
+        for b in &self.bodies {
+            if let BodyKind::Object(i) = b.kind
+                && let Some(o) = scene.objects.get(i)
+            {
+                seen[i] = true;
+                let source = if b.source == PartSource::Box {
+                    BodySource::Box
+                } else {
+                    o.body_source()
+                };
+                *counts.entry(source).or_insert(0) += 1;
+            }
+        }
+        let unseen = seen.iter().filter(|s| !**s).count();
+        if unseen > 0 {
+            *counts.entry(BodySource::Box).or_insert(0) += unseen;
+        }
+        counts
+    }
+}
+
 /// The parts of one object: its given parts, else cached or decomposed hulls of its mesh, else
 /// its box.
 fn object_parts(

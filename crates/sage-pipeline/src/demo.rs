@@ -16,7 +16,9 @@ use sage_eval::report::ReportOutcome;
 use sage_eval::{EvalSettings, RunOutcome, Summary};
 use sage_metrics::{Dtw, Mode};
 use sage_nav::GridParams;
-use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, default_cache_dir};
+use sage_physics::{
+    BuildReport, Decomposer, HullCache, SceneBodies, SplatBodies, default_cache_dir,
+};
 use sage_scene::{Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
@@ -208,6 +210,7 @@ impl Step {
                     scene,
                     &Decomposer::default(),
                     &cache,
+                    SplatBodies::default(),
                     &|n| tick(n, "objects"),
                 )?))
             }

@@ -4,13 +4,17 @@
 use sage_core::{Error, Result};
 use sage_io::files::write_json;
 use sage_physics::usd::{SplatAsset, write_usda};
-use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, WorkList};
+use sage_physics::{
+    BuildReport, Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams, WorkList,
+    splat_bodies,
+};
 use sage_scene::Scene;
 use sage_scene::scene::files;
 use std::path::{Component, Path, PathBuf};
 
 /// Loads the scene in `scene_dir` and builds its collision bodies with `decomposer`, hulls from
-/// and into `cache`; `on_object(objects)` is called as each of the scene's `objects` is done.
+/// and into `cache`, the objects `splat_bodies` selects recovered from their Gaussians;
+/// `on_object(objects)` is called as each of the scene's `objects` is done.
 ///
 /// # Errors
 ///
@@ -19,9 +23,11 @@ pub fn bodies(
     scene_dir: &Path,
     decomposer: &Decomposer,
     cache: &HullCache,
+    splat_bodies: SplatBodies,
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<(Scene, SceneBodies, BuildReport)> {
-    let (scene, _) = Scene::load(scene_dir)?;
+    let (mut scene, _) = Scene::load(scene_dir)?;
+    splat_bodies::attach(&mut scene, splat_bodies, &SplatBodyParams::default())?;
     let objects = scene.objects.len();
     let (bodies, report) =
         SceneBodies::build_with_progress(&scene, decomposer, cache, &|| on_object(objects))?;
@@ -77,10 +83,11 @@ pub fn export_usd(
     decomposer: &Decomposer,
     cache: &HullCache,
     force: bool,
+    splat_bodies: SplatBodies,
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<UsdReport> {
     sage_io::run::claim_file(out, force)?;
-    let (scene, bodies, build) = bodies(scene_dir, decomposer, cache, on_object)?;
+    let (scene, bodies, build) = bodies(scene_dir, decomposer, cache, splat_bodies, on_object)?;
     let out_dir = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -160,7 +167,16 @@ mod tests {
         };
         let cache = HullCache::new(dir.path().join("cache"));
         let out = dir.path().join("usd/scene.usda");
-        let report = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {}).unwrap();
+        let report = export_usd(
+            &scene,
+            &out,
+            &decomposer,
+            &cache,
+            false,
+            SplatBodies::Auto,
+            &|_| {},
+        )
+        .unwrap();
         let splats = report.splats.expect("the scene has a PLY");
         assert_eq!(
             Path::new(&splats.path),
@@ -170,9 +186,26 @@ mod tests {
         assert!(report.bodies > 0 && report.build.parts > 0);
         let text = std::fs::read_to_string(&out).unwrap();
         assert!(text.contains(&splats.path));
-        let refused = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {});
+        let refused = export_usd(
+            &scene,
+            &out,
+            &decomposer,
+            &cache,
+            false,
+            SplatBodies::Auto,
+            &|_| {},
+        );
         assert!(refused.unwrap_err().to_string().contains("`force`"));
-        let again = export_usd(&scene, &out, &decomposer, &cache, true, &|_| {}).unwrap();
+        let again = export_usd(
+            &scene,
+            &out,
+            &decomposer,
+            &cache,
+            true,
+            SplatBodies::Auto,
+            &|_| {},
+        )
+        .unwrap();
         assert_eq!(again.build.decomposed, 0, "the hulls come from the cache");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
     }

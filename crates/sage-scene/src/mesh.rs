@@ -17,6 +17,28 @@ pub struct TriMesh {
 }
 
 impl TriMesh {
+    /// The closed surface of an oriented box: its 8 corners (in [`sage_core::Obb::corners`] order) and 12
+    /// triangles wound outwards.
+    pub fn from_obb(obb: &sage_core::Obb) -> TriMesh {
+        TriMesh {
+            positions: obb.corners().to_vec(),
+            triangles: vec![
+                [0, 2, 1],
+                [0, 3, 2],
+                [4, 5, 6],
+                [4, 6, 7],
+                [0, 1, 5],
+                [0, 5, 4],
+                [1, 2, 6],
+                [1, 6, 5],
+                [2, 3, 7],
+                [2, 7, 6],
+                [3, 0, 4],
+                [3, 4, 7],
+            ],
+        }
+    }
+
     /// Appends another mesh (its indices shifted).
     pub fn append(&mut self, other: &TriMesh) {
         let base = self.positions.len() as u32;

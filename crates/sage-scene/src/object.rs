@@ -102,7 +102,7 @@ impl Default for RigidBody {
 
 /// Where an object's collision body comes from, in the order a scene prefers them
 /// (docs/physics.md, "Body sources").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BodySource {
     /// Convex parts read from a published collision file (SAGE-Bench's

@@ -1,0 +1,145 @@
+//! Bodies recovered from the Gaussians of a synthetic scene, against the bodies decomposed from
+//! the same scene's meshes: volume IoU, the space under tables kept free, the choice of objects,
+//! determinism. `sage3d bench bodies` measures the same on larger homes.
+
+use glam::Vec3;
+use sage_physics::{
+    BodyKind, ConvexPart, Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams,
+    splat_bodies, volume_iou,
+};
+use sage_scene::{BodySource, Scene};
+use sage_synth::{SceneKind, SynthConfig, generate};
+
+const COARSE: Decomposer = Decomposer::Vhacd {
+    resolution: 32,
+    concavity: 0.01,
+    max_hulls: 16,
+};
+
+fn scene() -> Scene {
+    generate(&SynthConfig {
+        seed: 11,
+        kind: SceneKind::Home,
+        rooms: 2,
+        objects: 14,
+        gaussians: 120_000,
+        ..SynthConfig::default()
+    })
+    .unwrap()
+}
+
+fn object_parts(bodies: &SceneBodies, i: usize) -> Vec<ConvexPart> {
+    bodies
+        .bodies
+        .iter()
+        .filter(|b| b.kind == BodyKind::Object(i))
+        .flat_map(|b| b.parts.iter().cloned())
+        .collect()
+}
+
+#[test]
+fn recovered_bodies_match_the_mesh_hulls_and_keep_the_space_under_tables() {
+    let truth_scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let cache = HullCache::new(dir.path());
+    let (truth, _) = SceneBodies::build(&truth_scene, &COARSE, &cache).unwrap();
+
+    // Every object here has a mesh: `auto` leaves them all alone.
+    let mut auto = truth_scene.clone();
+    let r =
+        splat_bodies::attach(&mut auto, SplatBodies::Auto, &SplatBodyParams::default()).unwrap();
+    assert_eq!(r.recovered, 0);
+    assert_eq!(auto, truth_scene);
+
+    let mut recovered = truth_scene.clone();
+    let r = splat_bodies::attach(
+        &mut recovered,
+        SplatBodies::Always,
+        &SplatBodyParams::default(),
+    )
+    .unwrap();
+    assert_eq!(r.recovered + r.too_few_gaussians, truth_scene.objects.len());
+    assert!(r.recovered >= truth_scene.objects.len() - 1, "{r:?}");
+    let (derived, report) = SceneBodies::build(&recovered, &COARSE, &cache).unwrap();
+    let gaussians = report
+        .sources
+        .iter()
+        .filter(|o| o.source == BodySource::Gaussians)
+        .count();
+    assert_eq!(
+        gaussians, r.recovered,
+        "physics reports where each body came from"
+    );
+
+    let mut ious: Vec<f32> = (0..truth_scene.objects.len())
+        .map(|i| volume_iou(&object_parts(&truth, i), &object_parts(&derived, i), 0.02))
+        .collect();
+    ious.sort_by(f32::total_cmp);
+    let median = ious[ious.len() / 2];
+    assert!(median >= 0.6, "median IoU {median}: {ious:?}");
+
+    // Under a table or desk top, the box is solid but the recovered body is not.
+    let mut tables = 0;
+    for (i, o) in truth_scene.objects.iter().enumerate() {
+        if !(o.category.ends_with("table") || o.category == "desk") {
+            continue;
+        }
+        tables += 1;
+        let below_top = o.obb.center - Vec3::Z * (o.obb.half_extents.z * 0.4);
+        assert!(o.obb.contains(below_top, 0.0));
+        let parts = object_parts(&derived, i);
+        assert!(
+            !parts.iter().any(|p| p.contains(below_top)),
+            "{} is solid under its top",
+            o.category
+        );
+        let top = o.obb.center + Vec3::Z * (o.obb.half_extents.z - 0.015);
+        assert!(
+            parts.iter().any(|p| p.contains(top)),
+            "{} lost its top",
+            o.category
+        );
+    }
+    assert!(tables > 0, "the test scene should hold a table or a desk");
+}
+
+#[test]
+fn recovered_bodies_do_not_depend_on_the_thread_count() {
+    let s = scene();
+    let run = |threads: usize| {
+        let mut x = s.clone();
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                splat_bodies::attach(&mut x, SplatBodies::Always, &SplatBodyParams::default())
+            })
+            .unwrap();
+        x
+    };
+    assert_eq!(run(1), run(3));
+}
+
+#[test]
+fn bad_parameters_and_choices_are_refused() {
+    let mut s = scene();
+    for bad in [
+        SplatBodyParams {
+            voxel: 0.0,
+            ..SplatBodyParams::default()
+        },
+        SplatBodyParams {
+            reach: f32::NAN,
+            ..SplatBodyParams::default()
+        },
+        SplatBodyParams {
+            max_parts: 0,
+            ..SplatBodyParams::default()
+        },
+    ] {
+        assert!(splat_bodies::attach(&mut s, SplatBodies::Always, &bad).is_err());
+    }
+    let err = "sometimes".parse::<SplatBodies>().unwrap_err();
+    assert!(err.contains("auto, always, never"), "{err}");
+}
