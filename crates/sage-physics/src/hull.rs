@@ -163,7 +163,10 @@ mod tests {
         // Overlap 0.5 of each unit cube: IoU = 0.5 / 1.5.
         let iou = volume_iou(std::slice::from_ref(&pa), &[pb], 0.02);
         assert!((iou - 1.0 / 3.0).abs() < 0.02, "{iou}");
-        assert!((volume_iou(std::slice::from_ref(&pa), &[pa], 0.05) - 1.0).abs() < 1e-6);
+        assert!(
+            (volume_iou(std::slice::from_ref(&pa), std::slice::from_ref(&pa), 0.05) - 1.0).abs()
+                < 1e-6
+        );
     }
 
     #[test]
