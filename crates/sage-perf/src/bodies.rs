@@ -3,15 +3,16 @@
 //!
 //! Per scene: the mesh bodies (the default V-HACD) and the bodies recovered from the Gaussians
 //! alone ([`sage_physics::splat_bodies`], every object); the volume IoU of each object's two
-//! bodies; then the same oracle walks (trajectories of the scene, the privileged oracle agent,
-//! no rendering) in a world of each, scored in mode `sage`: the mean CR and ICP of each and
-//! their differences. A picture shows a vertical section through a table and a chair: mesh
+//! bodies; then the same walks in a world of each (no rendering), scored in mode `sage`: the
+//! oracle on the scene's trajectories, and — since the oracle keeps clear of everything — a
+//! seeded random agent on the same episodes, whose bumps show where the bodies differ. The mean
+//! CR and ICP of each world and their differences are reported. A picture shows a vertical section through a table and a chair: mesh
 //! hulls, recovered parts and their overlap.
 
 use crate::{machine, median};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
-use sage_env::agents::{Agent, OracleAgent};
+use sage_env::agents::{Agent, OracleAgent, RandomAgent};
 use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig, scoring};
 use sage_io::canvas::Canvas;
 use sage_metrics::Mode;
@@ -95,6 +96,14 @@ pub struct BodiesReport {
     pub icp_mesh: f64,
     /// Mean ICP with recovered bodies.
     pub icp_splats: f64,
+    /// The random agent's mean CR with mesh bodies.
+    pub random_cr_mesh: f64,
+    /// The random agent's mean CR with recovered bodies.
+    pub random_cr_splats: f64,
+    /// The random agent's mean ICP with mesh bodies.
+    pub random_icp_mesh: f64,
+    /// The random agent's mean ICP with recovered bodies.
+    pub random_icp_splats: f64,
     /// The picture written, if any.
     pub picture: Option<String>,
 }
@@ -117,6 +126,7 @@ pub fn run(settings: &BodiesSettings) -> Result<BodiesReport> {
     );
     let mut objects = Vec::new();
     let (mut mesh_walks, mut splat_walks) = (Vec::new(), Vec::new());
+    let (mut mesh_random, mut splat_random) = (Vec::new(), Vec::new());
     let mut section: Option<Section> = None;
     for &seed in &settings.seeds {
         eprintln!("home {seed}: generating, decomposing and recovering bodies …");
@@ -160,10 +170,14 @@ pub fn run(settings: &BodiesSettings) -> Result<BodiesReport> {
                 .get_or_insert_with(Section::default)
                 .add(&scene, &mesh, &splats);
         }
-        eprintln!("home {seed}: oracle walks in both worlds …");
+        eprintln!("home {seed}: oracle and random walks in both worlds …");
         let episodes = walks(&scene, settings.walks, seed)?;
-        mesh_walks.extend(walk(scene.clone(), mesh, &episodes)?);
-        splat_walks.extend(walk(recovered, splats, &episodes)?);
+        let (m, r) = walk(scene.clone(), mesh, &episodes, seed)?;
+        mesh_walks.extend(m);
+        mesh_random.extend(r);
+        let (m, r) = walk(recovered, splats, &episodes, seed)?;
+        splat_walks.extend(m);
+        splat_random.extend(r);
     }
     let picture = match (&settings.picture, &section) {
         (Some(path), Some(s)) => {
@@ -184,6 +198,10 @@ pub fn run(settings: &BodiesSettings) -> Result<BodiesReport> {
         cr_splats: mean(&splat_walks, |w| w.0),
         icp_mesh: mean(&mesh_walks, |w| w.1),
         icp_splats: mean(&splat_walks, |w| w.1),
+        random_cr_mesh: mean(&mesh_random, |w| w.0),
+        random_cr_splats: mean(&splat_random, |w| w.0),
+        random_icp_mesh: mean(&mesh_random, |w| w.1),
+        random_icp_splats: mean(&splat_random, |w| w.1),
         objects,
         picture,
     })
@@ -205,8 +223,12 @@ fn walks(scene: &Scene, count: usize, seed: u64) -> Result<Vec<EnvEpisode>> {
         .collect())
 }
 
-/// (CR, ICP) of the oracle on each episode in a world of `bodies`.
-fn walk(scene: Scene, bodies: SceneBodies, episodes: &[EnvEpisode]) -> Result<Vec<(f64, f64)>> {
+/// (CR, ICP) per episode: of the oracle, and of the random agent.
+type Walked = (Vec<(f64, f64)>, Vec<(f64, f64)>);
+
+/// Walks every episode in a world of `bodies` with the oracle, then with a random agent seeded
+/// with `seed`.
+fn walk(scene: Scene, bodies: SceneBodies, episodes: &[EnvEpisode], seed: u64) -> Result<Walked> {
     let ctx = Arc::new(SceneContext::new(
         scene,
         bodies,
@@ -222,9 +244,7 @@ fn walk(scene: Scene, bodies: SceneBodies, episodes: &[EnvEpisode]) -> Result<Ve
         ..EnvConfig::default()
     };
     let mut env = Env::new(ctx.clone(), config)?;
-    let mut out = Vec::with_capacity(episodes.len());
-    for e in episodes {
-        let mut agent = OracleAgent::default();
+    let mut run = |agent: &mut dyn Agent, e: &EnvEpisode| -> Result<(f64, f64)> {
         let mut obs = env.reset(e)?;
         agent.reset(&env, e)?;
         while !env.done() {
@@ -235,9 +255,14 @@ fn walk(scene: Scene, bodies: SceneBodies, episodes: &[EnvEpisode]) -> Result<Ve
             .trace()
             .ok_or_else(|| Error::invalid("an episode ended without a trace"))?;
         let m = scoring::score(&ctx, trace, Mode::Sage)?;
-        out.push((m.cr.unwrap_or(0.0), m.icp.unwrap_or(0.0)));
+        Ok((m.cr.unwrap_or(0.0), m.icp.unwrap_or(0.0)))
+    };
+    let (mut oracle, mut random) = (Vec::new(), Vec::new());
+    for e in episodes {
+        oracle.push(run(&mut OracleAgent::default(), e)?);
+        random.push(run(&mut RandomAgent::new(seed, 0.01)?, e)?);
     }
-    Ok(out)
+    Ok((oracle, random))
 }
 
 /// Vertical sections through the first table and the first chair found: each object's mesh
@@ -418,6 +443,17 @@ impl fmt::Display for BodiesReport {
             self.icp_mesh,
             self.icp_splats,
             self.icp_splats - self.icp_mesh
+        )?;
+        writeln!(
+            f,
+            "random walks: {}  CR mesh {:.3} / Gaussians {:.3} (diff {:+.3})  ICP mesh {:.4} / Gaussians {:.4} (diff {:+.4})",
+            self.walks,
+            self.random_cr_mesh,
+            self.random_cr_splats,
+            self.random_cr_splats - self.random_cr_mesh,
+            self.random_icp_mesh,
+            self.random_icp_splats,
+            self.random_icp_splats - self.random_icp_mesh
         )?;
         if let Some(p) = &self.picture {
             writeln!(f, "section picture: {p}")?;
