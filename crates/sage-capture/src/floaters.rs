@@ -41,13 +41,13 @@ impl FloaterSettings {
     pub fn validate(&self) -> Result<()> {
         if !(self.max_opacity.is_finite() && (0.0..=1.0).contains(&self.max_opacity)) {
             return Err(Error::invalid(format!(
-                "floater_opacity must be within 0-1, got {}",
+                "`floater_opacity` must be within 0-1, got {}",
                 self.max_opacity
             )));
         }
         if !(self.radius.is_finite() && self.radius > 0.0) {
             return Err(Error::invalid(format!(
-                "floater_radius must be > 0, got {}",
+                "`floater_radius` must be > 0, got {}",
                 self.radius
             )));
         }

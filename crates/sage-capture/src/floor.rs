@@ -103,11 +103,14 @@ impl FromStr for Up {
     fn from_str(s: &str) -> Result<Up> {
         let t = s.trim().to_ascii_lowercase();
         let t = t.strip_prefix('+').unwrap_or(&t);
-        Up::ALL.into_iter().find(|u| u.as_str() == t).ok_or_else(|| {
-            Error::invalid(format!(
-                "unknown up axis '{s}' (expected auto, x, -x, y, -y, z or -z)"
-            ))
-        })
+        Up::ALL
+            .into_iter()
+            .find(|u| u.as_str() == t)
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "unknown up axis '{s}' (expected auto, x, -x, y, -y, z or -z)"
+                ))
+            })
     }
 }
 
@@ -254,7 +257,10 @@ pub fn find_floor(
     let (axis, axes) = match settings.up.axis() {
         Some(h) => {
             let a = mean_shift(&samples, h);
-            (a, vec![(a, outer_planes_weight(&samples, a, settings.tolerance))])
+            (
+                a,
+                vec![(a, outer_planes_weight(&samples, a, settings.tolerance))],
+            )
         }
         None => {
             let mut axes = vec![directions[0].0];
@@ -306,8 +312,8 @@ pub fn find_floor(
             settings.min_area
         )));
     }
-    let ceiling = outer_planes(&samples, up, settings.tolerance)
-        .map_or(0.0, |(_, h)| (h - offset).max(0.0));
+    let ceiling =
+        outer_planes(&samples, up, settings.tolerance).map_or(0.0, |(_, h)| (h - offset).max(0.0));
     let tilt_deg = [Vec3::X, Vec3::Y, Vec3::Z]
         .iter()
         .map(|a| up.dot(*a).abs())
@@ -403,7 +409,10 @@ fn dominant_directions(samples: &[Sample]) -> Vec<(Vec3, f32)> {
     let mut found: Vec<(Vec3, f32)> = Vec::new();
     for &b in order.iter().take(12) {
         let d = mean_shift(samples, bins[b].1.normalize());
-        if found.iter().any(|f| f.0.dot(d).abs() > 5f32.to_radians().cos()) {
+        if found
+            .iter()
+            .any(|f| f.0.dot(d).abs() > 5f32.to_radians().cos())
+        {
             continue;
         }
         let w: f32 = samples
@@ -525,7 +534,12 @@ fn lower_share(centres: &[Vec3], axis: Vec3, lo: f32, hi: f32) -> f32 {
 
 /// Refines the plane near height `start` along `up` by principal components of the centres of
 /// its Gaussians, three times; returns (normal, height, inliers, rms).
-fn fit_plane(samples: &[Sample], up: Vec3, start: f32, tol: f32) -> Result<(Vec3, f32, usize, f32)> {
+fn fit_plane(
+    samples: &[Sample],
+    up: Vec3,
+    start: f32,
+    tol: f32,
+) -> Result<(Vec3, f32, usize, f32)> {
     let cos15 = 15f32.to_radians().cos();
     let (mut n, mut d) = (up, start);
     let mut result = None;

@@ -68,23 +68,23 @@ impl Scale {
                     Ok(value)
                 } else {
                     Err(Error::invalid(format!(
-                        "scale must be a finite number > 0, got {value}"
+                        "`scale` must be a finite number > 0, got {value}"
                     )))
                 }
             }
             Scale::Points { a, b, distance } => {
                 if !(distance.is_finite() && distance > 0.0) {
                     return Err(Error::invalid(format!(
-                        "scale_distance must be a finite number > 0, got {distance}"
+                        "`scale_distance` must be a finite number > 0, got {distance}"
                     )));
                 }
                 if !(a.is_finite() && b.is_finite()) {
-                    return Err(Error::invalid("scale_points must be finite numbers"));
+                    return Err(Error::invalid("`scale_points` must be finite numbers"));
                 }
                 let d = a.distance(b);
                 if !(d > 1e-6 * a.abs().max(b.abs()).max_element().max(1.0)) {
                     return Err(Error::invalid(format!(
-                        "scale_points are the same point ({}, {}, {}): two distinct points are needed to scale by their distance",
+                        "`scale_points` are the same point ({}, {}, {}): two distinct points are needed to scale by their distance",
                         a.x, a.y, a.z
                     )));
                 }
@@ -93,7 +93,7 @@ impl Scale {
                     Ok(f)
                 } else {
                     Err(Error::invalid(format!(
-                        "scale_points give a scale of {f}, which is not usable"
+                        "`scale_points` give a scale of {f}, which is not usable"
                     )))
                 }
             }

@@ -53,10 +53,7 @@ impl ShRotation {
                 break;
             }
             let m = &self.bands[b];
-            let old: Vec<[f64; 3]> = rest[o..o + n]
-                .iter()
-                .map(|c| c.map(f64::from))
-                .collect();
+            let old: Vec<[f64; 3]> = rest[o..o + n].iter().map(|c| c.map(f64::from)).collect();
             for (k, out) in rest[o..o + n].iter_mut().enumerate() {
                 let mut acc = [0.0f64; 3];
                 for (j, c) in old.iter().enumerate() {
@@ -152,9 +149,7 @@ mod tests {
 
     #[test]
     fn the_identity_leaves_coefficients_alone_and_a_turn_keeps_their_energy() {
-        let rest: Vec<[f32; 3]> = (0..15)
-            .map(|i| [i as f32 * 0.1 - 0.7, 0.3, -0.2])
-            .collect();
+        let rest: Vec<[f32; 3]> = (0..15).map(|i| [i as f32 * 0.1 - 0.7, 0.3, -0.2]).collect();
         let mut same = rest.clone();
         ShRotation::new(Mat3::IDENTITY).apply(&mut same);
         for (a, b) in rest.iter().zip(&same) {
@@ -164,8 +159,10 @@ mod tests {
         }
         // The basis is orthonormal, so each band's matrix is orthogonal: energy per band stays.
         let mut turned = rest.clone();
-        ShRotation::new(Mat3::from_quat(Quat::from_rotation_x(0.7) * Quat::from_rotation_z(1.1)))
-            .apply(&mut turned);
+        ShRotation::new(Mat3::from_quat(
+            Quat::from_rotation_x(0.7) * Quat::from_rotation_z(1.1),
+        ))
+        .apply(&mut turned);
         for &(o, n) in &BANDS {
             let e = |v: &[[f32; 3]]| v[o..o + n].iter().map(|c| c[0] * c[0]).sum::<f32>();
             assert!((e(&rest) - e(&turned)).abs() < 1e-4);

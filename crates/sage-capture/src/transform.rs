@@ -60,7 +60,11 @@ impl Similarity {
 
     /// The 4 × 4 matrix acting on `[x, y, z, 1]` columns.
     pub fn matrix(&self) -> Mat4 {
-        Mat4::from_scale_rotation_translation(Vec3::splat(self.scale), self.rotation, self.translation)
+        Mat4::from_scale_rotation_translation(
+            Vec3::splat(self.scale),
+            self.rotation,
+            self.translation,
+        )
     }
 
     /// The matrix as four rows, for files (`p_out = M · [p, 1]`).
@@ -164,7 +168,12 @@ mod tests {
         assert!((out.position - Vec3::new(2.0, -6.0, 5.0)).length() < 1e-5);
         let want = t.rotation * Quat::from_rotation_y(0.4);
         assert!(out.rotation.dot(want).abs() > 1.0 - 1e-4);
-        assert!((out.log_scale - Vec3::new(-3.0, -2.0, -4.0) - Vec3::splat(2f32.ln())).abs().max_element() < 1e-3);
+        assert!(
+            (out.log_scale - Vec3::new(-3.0, -2.0, -4.0) - Vec3::splat(2f32.ln()))
+                .abs()
+                .max_element()
+                < 1e-3
+        );
         assert!((out.opacity_logit - 1.5).abs() < 1e-3);
         assert_eq!(out.instance, 7);
         // Degree 1 is a vector: (−y, z, −x) coefficients turn as the vector does.

@@ -7,9 +7,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_capture::transform::{self, Similarity};
 use sage_capture::{CaptureSettings, Scale, Up, align};
+use sage_nav::GridParams;
 use sage_nav::grid::NavGrid;
 use sage_nav::splat_grid::{SplatGridParams, gaussian_grid};
-use sage_nav::GridParams;
 use sage_scene::Gaussians;
 use sage_scene::gaussians::{Gaussian, opacity_to_logit};
 use sage_scene::occupancy::FREE;
@@ -54,7 +54,9 @@ fn make_capture(seed: u64, to_capture: &Similarity, floaters: usize) -> Capture 
     let near = |p: Vec3| {
         let k = (p / 0.15).floor().as_ivec3();
         (-1..=1).any(|dz| {
-            (-1..=1).any(|dy| (-1..=1).any(|dx| occupied.contains(&(k + glam::IVec3::new(dx, dy, dz)).to_array())))
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| occupied.contains(&(k + glam::IVec3::new(dx, dy, dz)).to_array()))
+            })
         })
     };
     let mut added = 0;
@@ -166,7 +168,9 @@ fn captures_align_back_onto_their_floor_with_their_free_space_and_without_floate
             .filter(|&i| !out.kept.contains(&(i as u32)))
             .count();
         let kept: HashSet<u32> = out.kept.iter().copied().collect();
-        let lost_real = (0..cap.real).filter(|&i| !kept.contains(&(i as u32))).count();
+        let lost_real = (0..cap.real)
+            .filter(|&i| !kept.contains(&(i as u32)))
+            .count();
         let grid = gaussian_grid(
             &out.gaussians,
             0.05,
@@ -191,10 +195,23 @@ fn captures_align_back_onto_their_floor_with_their_free_space_and_without_floate
             out.floor.yaw.to_degrees(),
         );
         assert!(tilt_err <= 1.0, "seed {seed}: up off by {tilt_err} deg");
-        assert!(height_err <= 0.02, "seed {seed}: floor off by {height_err} m");
-        assert!((back.scale - 1.0).abs() < 1e-3, "seed {seed}: scale {}", back.scale);
-        assert!(removed_floaters * 100 >= floaters * 95, "seed {seed}: {removed_floaters}");
-        assert!(lost_real * 100 < cap.real, "seed {seed}: {lost_real} real Gaussians lost");
+        assert!(
+            height_err <= 0.02,
+            "seed {seed}: floor off by {height_err} m"
+        );
+        assert!(
+            (back.scale - 1.0).abs() < 1e-3,
+            "seed {seed}: scale {}",
+            back.scale
+        );
+        assert!(
+            removed_floaters * 100 >= floaters * 95,
+            "seed {seed}: {removed_floaters}"
+        );
+        assert!(
+            lost_real * 100 < cap.real,
+            "seed {seed}: {lost_real} real Gaussians lost"
+        );
         assert!(iou >= 0.85, "seed {seed}: free-space IoU {iou}");
         assert_eq!(out.floaters, removed_floaters + lost_real);
     }

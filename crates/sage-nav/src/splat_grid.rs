@@ -222,7 +222,10 @@ pub(crate) fn gaussian_grid_with(
     }
     let seen = close(
         &grid,
-        &floor.iter().map(|&v| v >= params.floor_mass).collect::<Vec<_>>(),
+        &floor
+            .iter()
+            .map(|&v| v >= params.floor_mass)
+            .collect::<Vec<_>>(),
     );
     let blocked = close(
         &grid,
@@ -372,7 +375,11 @@ mod tests {
         assert_eq!(at(3.0, 1.0), FREE);
         assert_eq!(at(2.0, 1.0), OCCUPIED);
         assert_eq!(at(2.0, 2.5), FREE, "the gap beside the wall");
-        assert_eq!(at(1.96, 1.0), OCCUPIED, "the cells on either side of the wall");
+        assert_eq!(
+            at(1.96, 1.0),
+            OCCUPIED,
+            "the cells on either side of the wall"
+        );
         assert_eq!(at(2.04, 1.0), OCCUPIED);
         assert_eq!(at(1.88, 1.0), FREE, "and no more than those");
         assert_eq!(at(2.12, 1.0), FREE);
@@ -400,6 +407,10 @@ mod tests {
             }
         }
         let grid = gaussian_grid(&g, 0.05, (0.03, 1.2), 0.5, &SplatGridParams::default()).unwrap();
-        assert_eq!(grid.counts().0, 0, "a 0.3 m patch of floor is no navigable space");
+        assert_eq!(
+            grid.counts().0,
+            0,
+            "a 0.3 m patch of floor is no navigable space"
+        );
     }
 }

@@ -64,20 +64,25 @@ fn gaussians_alone_give_the_free_space_of_the_geometry() {
         assert!(iou_mixed >= 0.85, "seed {seed}: {iou_mixed}");
 
         // The planner works on it: two far-apart navigable points of the largest island.
-        let (finder, _) =
-            PathFinder::from_scene(&bare, &params, CostParams::default()).unwrap();
+        let (finder, _) = PathFinder::from_scene(&bare, &params, CostParams::default()).unwrap();
         let areas = finder.island_areas();
         let biggest = (0..areas.len())
             .max_by(|&x, &y| areas[x].total_cmp(&areas[y]))
             .unwrap() as u32;
-        println!("seed {seed}: largest island {:.1} m2", areas[biggest as usize]);
+        println!(
+            "seed {seed}: largest island {:.1} m2",
+            areas[biggest as usize]
+        );
         let cells: Vec<usize> = finder
             .navigable_cells()
             .iter()
             .map(|&k| k as usize)
             .filter(|&k| finder.island_of_cell(k) == biggest)
             .collect();
-        let (a, b) = (alone.center_of(cells[0]), alone.center_of(cells[cells.len() - 1]));
+        let (a, b) = (
+            alone.center_of(cells[0]),
+            alone.center_of(cells[cells.len() - 1]),
+        );
         let path = finder.find_path(a, b).unwrap();
         assert!(path.waypoints.len() >= 2);
     }
