@@ -347,6 +347,8 @@ pub fn import(
     let input_name = input
         .file_name()
         .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let rotation = transform.rotation;
+    let rotation_wxyz = [rotation.w, rotation.x, rotation.y, rotation.z].map(r6);
     let record = serde_json::json!({
         "frame": "W",
         "note": "p_W = transform.matrix · [p_capture, 1]: scale, then rotation, then translation",
@@ -359,7 +361,7 @@ pub fn import(
         },
         "transform": {
             "scale": r6(transform.scale),
-            "rotation_wxyz": [transform.rotation.w, transform.rotation.x, transform.rotation.y, transform.rotation.z].map(r6),
+            "rotation_wxyz": rotation_wxyz,
             "translation": transform.translation.to_array().map(r6),
             "matrix": transform.rows().map(|row| row.map(r6)),
         },
