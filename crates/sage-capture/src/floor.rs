@@ -625,6 +625,8 @@ fn manhattan_yaw(samples: &[Sample], up: Vec3, level: Quat) -> (f32, f32) {
 }
 
 /// Eigenvalues (ascending) and unit eigenvectors of a symmetric 3 × 3 matrix (Jacobi).
+// Matrix code reads best with the indices of its formulas.
+#[allow(clippy::needless_range_loop)]
 fn symmetric_eigen(m: DMat3) -> ([f64; 3], [DVec3; 3]) {
     let mut a = m.to_cols_array_2d();
     let mut v = DMat3::IDENTITY.to_cols_array_2d();

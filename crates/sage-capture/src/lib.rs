@@ -82,7 +82,8 @@ impl Scale {
                     return Err(Error::invalid("`scale_points` must be finite numbers"));
                 }
                 let d = a.distance(b);
-                if !(d > 1e-6 * a.abs().max(b.abs()).max_element().max(1.0)) {
+                let least = 1e-6 * a.abs().max(b.abs()).max_element().max(1.0);
+                if d.is_nan() || d <= least {
                     return Err(Error::invalid(format!(
                         "`scale_points` are the same point ({}, {}, {}): two distinct points are needed to scale by their distance",
                         a.x, a.y, a.z

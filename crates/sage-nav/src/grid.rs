@@ -10,6 +10,10 @@
 //! rest unknown. Objects without a mesh block with their oriented box; an open door leaf without a
 //! mesh is no body (SPEC §6).
 //!
+//! That is source 2 of [`NavGrid::from_scene`], which prefers a scene's own occupancy map where
+//! it has no meshes or no rooms, and builds the grid from the Gaussians ([`crate::splat_grid`])
+//! where it has neither rooms nor a map (see [`GridSource`]).
+//!
 //! Internally column `i` covers world x in `[origin.x + i·cell, origin.x + (i+1)·cell)` and row
 //! `j` likewise in y. The InteriorGS `occupancy.png` mirrors x; [`NavGrid::to_occupancy`] and
 //! [`NavGrid::from_occupancy`] convert.

@@ -147,7 +147,7 @@ fn splat(grid: &NavGrid, e: &Evidence, mass: &mut [f32]) {
     let lim = (a * c).sqrt() * 0.99;
     b = b.clamp(-lim, lim);
     let det = a * c - b * b;
-    if !(det > 0.0) {
+    if det.is_nan() || det <= 0.0 {
         return;
     }
     let (ia, ib, ic) = (c / det, -b / det, a / det);
