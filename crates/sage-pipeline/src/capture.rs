@@ -120,14 +120,23 @@ impl FromStr for OutputLayout {
 #[serde(default, deny_unknown_fields)]
 pub struct ImportSettings {
     /// Metres per capture unit (default: the capture is taken to be in metres).
-    #[cfg_attr(feature = "clap", arg(long, conflicts_with = "scale_points"))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, conflicts_with = "scale_points", allow_hyphen_values = true)
+    )]
     pub scale: Option<f32>,
     /// Two points in the capture's own coordinates, x1,y1,z1:x2,y2,z2, whose true distance
     /// is `scale_distance` metres.
-    #[cfg_attr(feature = "clap", arg(long, requires = "scale_distance"))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, requires = "scale_distance", allow_hyphen_values = true)
+    )]
     pub scale_points: Option<ScalePoints>,
     /// The true distance between the scale points, metres.
-    #[cfg_attr(feature = "clap", arg(long, requires = "scale_points"))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, requires = "scale_points", allow_hyphen_values = true)
+    )]
     pub scale_distance: Option<f32>,
     /// Which way is up in the capture: auto (found from floor, ceiling and walls), x, -x, y,
     /// -y, z or -z.
