@@ -5,7 +5,7 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 12] = [
+const NAMED_SETTINGS: [&str; 17] = [
     "force",
     "scenes",
     "split",
@@ -18,6 +18,11 @@ const NAMED_SETTINGS: [&str; 12] = [
     "agent",
     "scene_unseen",
     "val",
+    "scale_points",
+    "scale_distance",
+    "scale",
+    "floater_opacity",
+    "floater_radius",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

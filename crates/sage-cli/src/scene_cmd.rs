@@ -1,4 +1,4 @@
-//! `sage3d scene …`: synthesise and describe scene folders.
+//! `sage3d scene …`: synthesise, import and describe scene folders.
 
 use clap::{Args, Subcommand, ValueEnum};
 use sage_core::{Error, Result};
@@ -15,6 +15,10 @@ pub enum SceneCommand {
     Info(InfoArgs),
     /// Draw a top-down plan view of a scene's Gaussians (ceiling cut away) as a PNG.
     Preview(PreviewArgs),
+    /// Import your own capture (any 3DGS file sage3d reads) as a scene folder: floor and
+    /// gravity found, put in W (Z up, floor at z = 0), scaled, floaters removed, occupancy
+    /// map derived.
+    Import(ImportArgs),
 }
 
 /// The Gaussian file layout to write.
@@ -87,6 +91,17 @@ pub struct PreviewArgs {
     resolution: f32,
 }
 
+#[derive(Args)]
+pub struct ImportArgs {
+    /// The capture: a 3DGS file (PLY, compressed PLY, SPZ, SOG, glTF/GLB, .splat).
+    capture: PathBuf,
+    /// Output scene folder: new or empty.
+    #[arg(long)]
+    out: PathBuf,
+    #[command(flatten)]
+    settings: sage_pipeline::capture::ImportSettings,
+}
+
 pub fn run(cmd: SceneCommand) -> Result<()> {
     match cmd {
         SceneCommand::Synth(a) => {
@@ -109,6 +124,7 @@ pub fn run(cmd: SceneCommand) -> Result<()> {
             Ok(())
         }
         SceneCommand::Info(a) => info(&a.dir, a.json),
+        SceneCommand::Import(a) => import(&a),
         SceneCommand::Preview(a) => {
             let (scene, _) = Scene::load(&a.dir)?;
             let out = a.out.unwrap_or_else(|| a.dir.join("preview.png"));
@@ -159,6 +175,66 @@ fn synthesize(config: &SynthConfig, out: &Path, layout: SplatLayout, force: bool
         start.elapsed().as_secs_f64()
     );
     Ok(scene)
+}
+
+/// Imports a capture under a spinner and prints what was done to it.
+fn import(a: &ImportArgs) -> Result<()> {
+    use sage_pipeline::capture::Stage;
+    let start = Instant::now();
+    let bar = crate::progress::spinner(&format!("reading {}", a.capture.display()));
+    let report = sage_pipeline::capture::import(&a.capture, &a.out, &a.settings, &|stage| {
+        bar.set_message(match stage {
+            Stage::Reading => format!("reading {}", a.capture.display()),
+            Stage::Aligning => "finding floor, gravity and floaters".to_string(),
+            Stage::Mapping => "deriving the occupancy map".to_string(),
+            Stage::Writing => format!("writing {}", a.out.display()),
+        });
+    });
+    bar.finish_and_clear();
+    let r = report?;
+    let scale = match r.scale_source.as_str() {
+        "none" => "1 (none given: capture units taken as metres)".to_string(),
+        source => format!("{} m per unit ({source})", r.scale),
+    };
+    println!(
+        "capture     {} ({}, {} Gaussians)",
+        r.input.display(),
+        r.format,
+        r.gaussians_in
+    );
+    println!("scale       {scale}");
+    println!(
+        "up          ({:.4}, {:.4}, {:.4}) in the capture's axes, tilted {:.2} deg from the nearest axis",
+        r.up[0], r.up[1], r.up[2], r.tilt_deg
+    );
+    println!(
+        "floor       {:.1} m2 fitted, rms {:.1} mm; ceiling {}",
+        r.floor_area,
+        r.floor_rms * 1000.0,
+        if r.ceiling > 0.0 {
+            format!("{:.2} m above it", r.ceiling)
+        } else {
+            "not found".to_string()
+        }
+    );
+    println!(
+        "walls       turned {:.1} deg about up onto x and y",
+        r.yaw_deg
+    );
+    println!(
+        "floaters    {} removed; {} Gaussians written",
+        r.floaters, r.gaussians_out
+    );
+    println!(
+        "occupancy   {:.1} m2 free, {:.1} m2 occupied (from the Gaussians)",
+        r.free_m2, r.occupied_m2
+    );
+    eprintln!(
+        "wrote {} in {:.1} s",
+        r.out.display(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn info(dir: &Path, json: bool) -> Result<()> {

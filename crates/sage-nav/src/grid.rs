@@ -11,10 +11,15 @@
 //! mesh is no body (SPEC §6). Objects with given convex parts (a published collision file, or
 //! parts recovered from their Gaussians) block with those parts, as physics does.
 //!
+//! That is source 2 of [`NavGrid::from_scene`], which prefers a scene's own occupancy map where
+//! it has no meshes or no rooms, and builds the grid from the Gaussians ([`crate::splat_grid`])
+//! where it has neither rooms nor a map (see [`GridSource`]).
+//!
 //! Internally column `i` covers world x in `[origin.x + i·cell, origin.x + (i+1)·cell)` and row
 //! `j` likewise in y. The InteriorGS `occupancy.png` mirrors x; [`NavGrid::to_occupancy`] and
 //! [`NavGrid::from_occupancy`] convert.
 
+use crate::splat_grid::{self, SplatGridParams};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
 use sage_scene::occupancy::{FREE, OCCUPIED, OccupancyMap, UNKNOWN};
@@ -71,21 +76,29 @@ impl GridParams {
     }
 }
 
-/// Where a grid's cells came from.
+/// Where a grid's cells came from, in the order [`NavGrid::from_scene`] prefers them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GridSource {
-    /// Rasterised from meshes, boxes and walls.
-    Geometry,
-    /// The scene's own `occupancy.png` (it has no meshes).
+    /// The scene's own `occupancy.png` (it has no meshes, or no rooms to tell free space by).
     SceneOccupancy,
+    /// Rasterised from meshes, boxes and walls; free space is the rooms of `structure.json`.
+    Geometry,
+    /// Obstacles from meshes, boxes and walls and from the Gaussians; free space where the
+    /// Gaussians show floor (the scene has objects but no rooms).
+    GeometryGaussians,
+    /// The Gaussians alone ([`crate::splat_grid`]): the scene has no rooms, no objects and no
+    /// occupancy map.
+    Gaussians,
 }
 
 impl GridSource {
-    /// `geometry` or `scene-occupancy`.
+    /// `scene-occupancy`, `geometry`, `geometry+gaussians` or `gaussians`.
     pub fn as_str(self) -> &'static str {
         match self {
-            GridSource::Geometry => "geometry",
             GridSource::SceneOccupancy => "scene-occupancy",
+            GridSource::Geometry => "geometry",
+            GridSource::GeometryGaussians => "geometry+gaussians",
+            GridSource::Gaussians => "gaussians",
         }
     }
 }
@@ -132,18 +145,74 @@ impl NavGrid {
         })
     }
 
-    /// Builds the grid of a scene: from its geometry, or from its own occupancy map when it has
-    /// no meshes at all.
+    /// Builds the grid of a scene from the best source it has, in this order:
+    ///
+    /// 1. its own occupancy map, when it has no meshes (its map was made with the geometry it
+    ///    does not ship) or no rooms (nothing else tells free space as well);
+    /// 2. its geometry, free space being the rooms of `structure.json`;
+    /// 3. with objects but no rooms: obstacles from the geometry and the Gaussians, free space
+    ///    where the Gaussians show floor ([`crate::splat_grid`]);
+    /// 4. with neither: the Gaussians alone.
+    ///
+    /// # Errors
+    ///
+    /// Bad parameters, or a scene with no rooms, no occupancy map and no Gaussians showing a
+    /// floor at z = 0.
     pub fn from_scene(scene: &Scene, params: &GridParams) -> Result<(NavGrid, GridSource)> {
+        NavGrid::from_scene_with(scene, params, &SplatGridParams::default())
+    }
+
+    /// [`NavGrid::from_scene`] with the Gaussian evidence rules `splat` (used by sources 3 and
+    /// 4 only).
+    ///
+    /// # Errors
+    ///
+    /// As [`NavGrid::from_scene`].
+    pub fn from_scene_with(
+        scene: &Scene,
+        params: &GridParams,
+        splat: &SplatGridParams,
+    ) -> Result<(NavGrid, GridSource)> {
         params.validate()?;
         let has_meshes =
             scene.structure_mesh.is_some() || scene.objects.iter().any(|o| o.mesh.is_some());
-        if !has_meshes && let Some(occ) = &scene.occupancy {
+        let has_rooms = !scene.floorplan.rooms.is_empty();
+        if (!has_meshes || !has_rooms)
+            && let Some(occ) = &scene.occupancy
+        {
             let mut grid = NavGrid::from_occupancy(occ)?;
             grid.mark_rooms(scene);
             return Ok((grid, GridSource::SceneOccupancy));
         }
-        Ok((rasterize(scene, params)?, GridSource::Geometry))
+        if has_rooms {
+            return Ok((rasterize(scene, params)?, GridSource::Geometry));
+        }
+        if scene.gaussians.is_empty() {
+            return Err(Error::invalid(format!(
+                "scene {}: no rooms in structure.json, no occupancy map and no Gaussians, so free space is undefined",
+                scene.name
+            )));
+        }
+        let slab = (params.slab_bottom, params.agent_height);
+        let has_geometry = !scene.objects.is_empty()
+            || !scene.floorplan.walls.is_empty()
+            || scene.structure_mesh.is_some();
+        let extra = has_geometry.then(|| geometry_bounds(scene));
+        let mut grid = splat_grid::gaussian_grid_with(
+            &scene.gaussians,
+            params.cell,
+            slab,
+            params.margin,
+            splat,
+            extra,
+        )
+        .map_err(|e| Error::invalid(format!("scene {}: {e}", scene.name)))?;
+        if !has_geometry {
+            return Ok((grid, GridSource::Gaussians));
+        }
+        block_geometry(&mut grid, scene, slab);
+        splat_grid::drop_small_free(&mut grid, splat.min_free_area);
+        Ok((grid, GridSource::GeometryGaussians))
     }
 
     /// The flat index of cell (column, row).
@@ -398,23 +467,44 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
             grid.cells[k] = FREE;
         }
     }
-    let slab = (params.slab_bottom, params.agent_height);
-    for w in &fp.walls {
+    block_geometry(&mut grid, scene, (params.slab_bottom, params.agent_height));
+    Ok(grid)
+}
+
+/// The floor-plane bounds (lower, upper corner) of the walls and objects of `scene`.
+fn geometry_bounds(scene: &Scene) -> (Vec2, Vec2) {
+    let mut b = sage_core::Aabb::EMPTY;
+    for w in &scene.floorplan.walls {
+        b = b.union(w.obb().aabb());
+    }
+    for o in &scene.objects {
+        b = b.union(o.obb.aabb());
+    }
+    if let Some(m) = &scene.structure_mesh {
+        b = b.union(sage_core::Aabb::from_points(m.positions.iter().copied()));
+    }
+    (b.min.truncate(), b.max.truncate())
+}
+
+/// Blocks the cells of every wall, the structure mesh and every object body that reach into
+/// the slab (see the module docs).
+fn block_geometry(grid: &mut NavGrid, scene: &Scene, slab: (f32, f32)) {
+    for w in &scene.floorplan.walls {
         for rect in wall_blocks(w, scene, slab) {
             grid.block_convex(&rect);
         }
     }
     if let Some(m) = &scene.structure_mesh {
-        block_mesh_surface(&mut grid, m, slab);
+        block_mesh_surface(grid, m, slab);
     }
     for o in &scene.objects {
         match (&o.body, &o.mesh) {
             (Some(given), _) if !given.parts.is_empty() => {
                 for part in &given.parts {
-                    block_solid(&mut grid, part, slab);
+                    block_solid(grid, part, slab);
                 }
             }
-            (_, Some(m)) => block_solid(&mut grid, m, slab),
+            (_, Some(m)) => block_solid(grid, m, slab),
             _ => {
                 let open_door =
                     o.category.contains("door") && o.door_state() == Some(DoorState::Open);
@@ -424,7 +514,6 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
             }
         }
     }
-    Ok(grid)
 }
 
 /// The floor rectangles of the stretches of wall `w` that reach into the slab: the whole wall

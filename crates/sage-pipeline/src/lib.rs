@@ -8,6 +8,8 @@
 //!   (the dataset build and imports, with [`dataset::BuildSettings`]), [`traindata`]
 //!   (training data rendered from a split), [`evaluate`] (an agent's evaluation with its
 //!   report, with [`evaluate::EvalOptions`]), [`overview`] (the demo's picture);
+//! - [`capture`]: a capture of one's own (any 3DGS file) as a scene folder in W, with its
+//!   occupancy map and provenance;
 //! - [`render`]: a scene's images from one camera (every channel, a legend, a turntable);
 //! - [`recon`]: mesh scene → planned cameras → ground-truth views → nerfstudio export → a fitted
 //!   Gaussian scene.
@@ -18,6 +20,7 @@
 //! record, and returns a plain report; printing is the front end's. Errors name settings, not
 //! flags.
 
+pub mod capture;
 pub mod dataset;
 pub mod demo;
 pub mod demo_folder;

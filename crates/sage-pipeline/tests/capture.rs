@@ -1,0 +1,231 @@
+//! `scene import` end to end: a synthetic scene made into a tilted, Y-up, scaled capture file
+//! (SPZ and standard PLY), imported into a scene folder that loads, maps and plans; and every
+//! bad input refused with its reason and nothing written.
+
+use glam::{Quat, Vec2, Vec3};
+use sage_capture::transform::{self, Similarity};
+use sage_nav::{CostParams, GridParams, GridSource, NavGrid, PathFinder};
+use sage_pipeline::capture::{CAPTURE_FILE, ImportSettings, ScalePoints, import};
+use sage_scene::splats::Format;
+use sage_scene::{Gaussians, Scene, SplatLayout};
+use sage_synth::{SceneKind, SynthConfig, generate};
+use std::path::{Path, PathBuf};
+
+/// W → capture: Y up, tilted 5°, half-metre units, moved.
+fn to_capture() -> Similarity {
+    Similarity {
+        scale: 2.0,
+        rotation: (Quat::from_rotation_z(0.2)
+            * Quat::from_axis_angle(Vec3::new(1.0, 0.0, 1.0).normalize(), 5f32.to_radians())
+            * Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2))
+        .normalize(),
+        translation: Vec3::new(-4.0, 1.0, 2.5),
+    }
+}
+
+/// The capture of a small synthetic scene, written to `dir/name` in `format`.
+fn write_capture(dir: &Path, name: &str, format: Format) -> PathBuf {
+    let scene = generate(&SynthConfig {
+        seed: 11,
+        kind: SceneKind::Home,
+        rooms: 3,
+        objects: 20,
+        gaussians: 40_000,
+        ..SynthConfig::default()
+    })
+    .unwrap();
+    let g = &scene.gaussians;
+    let moved = transform::transform(g, &transform::all(g), &to_capture()).unwrap();
+    let path = dir.join(name);
+    sage_scene::splats::write_file(&path, &moved, format).unwrap();
+    path
+}
+
+fn noop(_: sage_pipeline::capture::Stage) {}
+
+#[test]
+fn a_capture_becomes_a_scene_that_loads_maps_and_plans() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, format) in [
+        ("cap.spz", Format::Spz),
+        ("cap.ply", Format::Ply(SplatLayout::Standard)),
+    ] {
+        let input = write_capture(dir.path(), name, format);
+        let out = dir.path().join(format!("scene_{name}"));
+        // Two points 3 m apart on the floor, in the capture's coordinates.
+        let c = to_capture();
+        let (a, b) = (
+            c.apply(Vec3::new(1.0, 1.0, 0.0)),
+            c.apply(Vec3::new(1.0, 4.0, 0.0)),
+        );
+        let settings = ImportSettings {
+            scale_points: Some(ScalePoints([a.to_array(), b.to_array()])),
+            scale_distance: Some(3.0),
+            ..ImportSettings::default()
+        };
+        let report = import(&input, &out, &settings, &noop).unwrap();
+        assert!((report.scale - 0.5).abs() < 1e-3, "{}", report.scale);
+        assert_eq!(report.floaters, 0);
+        assert!(report.free_m2 > 5.0);
+        for f in [
+            "3dgs_compressed.ply",
+            "occupancy.png",
+            "occupancy.json",
+            CAPTURE_FILE,
+            sage_io::RUN_RECORD,
+        ] {
+            assert!(out.join(f).is_file(), "{name}: {f}");
+        }
+        assert!(!out.join("labels.json").exists());
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join(CAPTURE_FILE)).unwrap())
+                .unwrap();
+        assert_eq!(record["frame"], "W");
+        assert_eq!(record["scale"]["source"], "points");
+        assert_eq!(record["floaters"]["removed"], 0);
+        assert_eq!(record["transform"]["matrix"].as_array().unwrap().len(), 4);
+
+        // The floor is at z = 0: the capture's map composed with the import's is level.
+        let num = |v: &serde_json::Value| v.as_f64().unwrap() as f32;
+        let q = &record["transform"]["rotation_wxyz"];
+        let t = &record["transform"]["translation"];
+        let imported = Similarity {
+            scale: num(&record["transform"]["scale"]),
+            rotation: Quat::from_xyzw(num(&q[1]), num(&q[2]), num(&q[3]), num(&q[0])),
+            translation: Vec3::new(num(&t[0]), num(&t[1]), num(&t[2])),
+        };
+        let back = to_capture().then(&imported);
+        for p in [Vec2::ZERO, Vec2::new(8.0, 0.0), Vec2::new(0.0, 8.0)] {
+            let z = back.apply(p.extend(0.0)).z;
+            assert!(z.abs() < 0.02, "{name}: floor point at z = {z}");
+        }
+
+        // The folder is a scene: it loads, its grid is its own map, and the planner works.
+        let (scene, _) = Scene::load(&out).unwrap();
+        assert!(scene.objects.is_empty());
+        let (grid, source) = NavGrid::from_scene(&scene, &GridParams::default()).unwrap();
+        assert_eq!(source, GridSource::SceneOccupancy);
+        assert!(grid.counts().0 > 1000);
+        let (finder, _) =
+            PathFinder::from_scene(&scene, &GridParams::default(), CostParams::default()).unwrap();
+        let cells = finder.navigable_cells();
+        let (a, b) = (
+            finder.grid.center_of(cells[0] as usize),
+            finder.grid.center_of(cells[cells.len() / 2] as usize),
+        );
+        if finder.island(a) == finder.island(b) {
+            finder.find_path(a, b).unwrap();
+        }
+
+        // An existing, non-empty folder is refused: a rerun too.
+        let e = import(&input, &out, &settings, &noop)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not empty"), "{e}");
+    }
+}
+
+#[test]
+fn bad_input_is_refused_with_its_reason_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_capture(dir.path(), "cap.spz", Format::Spz);
+    let out = dir.path().join("out");
+    let refused = |settings: ImportSettings, input: &Path, want: &str| {
+        let e = import(input, &out, &settings, &noop)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(want), "wanted '{want}' in: {e}");
+        assert!(!out.exists(), "{want}: the output folder was made");
+    };
+    for bad in [0.0, -2.0, f32::NAN] {
+        refused(
+            ImportSettings {
+                scale: Some(bad),
+                ..ImportSettings::default()
+            },
+            &input,
+            "`scale` must be a finite number > 0",
+        );
+    }
+    let same = ScalePoints([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0]]);
+    refused(
+        ImportSettings {
+            scale_points: Some(same),
+            scale_distance: Some(2.5),
+            ..ImportSettings::default()
+        },
+        &input,
+        "same point",
+    );
+    let apart = ScalePoints([[0.0; 3], [1.0, 0.0, 0.0]]);
+    refused(
+        ImportSettings {
+            scale_points: Some(apart),
+            scale_distance: Some(0.0),
+            ..ImportSettings::default()
+        },
+        &input,
+        "`scale_distance` must be",
+    );
+    refused(
+        ImportSettings {
+            scale_points: Some(apart),
+            ..ImportSettings::default()
+        },
+        &input,
+        "need `scale_distance`",
+    );
+    refused(
+        ImportSettings {
+            scale: Some(2.0),
+            scale_points: Some(apart),
+            scale_distance: Some(1.0),
+            ..ImportSettings::default()
+        },
+        &input,
+        "not both",
+    );
+    assert!("1,2:3,4,5".parse::<ScalePoints>().is_err());
+    assert_eq!(
+        "1,2,3:4,5,6".parse::<ScalePoints>().unwrap(),
+        ScalePoints([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]])
+    );
+
+    let empty = dir.path().join("empty.ply");
+    std::fs::write(&empty, b"").unwrap();
+    refused(ImportSettings::default(), &empty, "empty");
+    refused(
+        ImportSettings::default(),
+        &dir.path().join("missing.ply"),
+        "missing.ply",
+    );
+
+    // A ball of round Gaussians: no surface, no floor; the message says so and names the file.
+    let mut ball = Gaussians::new(0).unwrap();
+    for i in 0..3000u32 {
+        let f =
+            |k: u32| ((i.wrapping_mul(2_654_435_761).rotate_left(k) % 1000) as f32) / 250.0 - 2.0;
+        ball.push(&sage_scene::gaussians::Gaussian {
+            position: Vec3::new(f(0), f(11), f(22)),
+            log_scale: Vec3::splat(-3.0),
+            opacity_logit: 3.0,
+            ..Default::default()
+        });
+    }
+    let ball_path = dir.path().join("ball.ply");
+    sage_scene::ply::write_splats_file(&ball_path, &ball, SplatLayout::Standard).unwrap();
+    refused(ImportSettings::default(), &ball_path, "no floor found");
+    let e = import(&ball_path, &out, &ImportSettings::default(), &noop)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("ball.ply"), "{e}");
+
+    // A folder holding anything is refused and left as it was.
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    let e = import(&input, &out, &ImportSettings::default(), &noop)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not empty") && e.contains("notes.txt"), "{e}");
+    assert_eq!(sage_io::run::entries(&out).unwrap(), vec!["notes.txt"]);
+}
