@@ -122,6 +122,7 @@ fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
         faults: Vec::new(),
         notes: Vec::new(),
         record: None,
+        bodies: Default::default(),
     }
 }
 
@@ -133,6 +134,7 @@ fn run_one(
     e: &Episode,
 ) -> EvalRecord {
     let mut rec = blank_record(runner, e);
+    rec.bodies = ctx.body_sources.clone();
     let mut agent = None;
     let result = (|| {
         let mut env = Env::new(ctx.clone(), runner.config.clone())?;

@@ -14,7 +14,7 @@ use sage_env::agents::Fault;
 use sage_lang::{InstructionType, Level};
 use sage_metrics::{EpisodeMetrics, EpisodeRecord};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -59,6 +59,11 @@ pub struct EvalRecord {
     /// Everything the metrics need, so any mode can be recomputed and paths drawn later.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub record: Option<EpisodeRecord>,
+    /// Where the scene's object bodies came from: how many objects had each source
+    /// (`published`, `mesh`, `gaussians`, `box`), so that results made with different physics
+    /// are not compared unknowingly.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub bodies: BTreeMap<String, usize>,
 }
 
 impl EvalRecord {
@@ -260,6 +265,7 @@ mod tests {
             faults: Vec::new(),
             notes: Vec::new(),
             record: None,
+            bodies: Default::default(),
         }
     }
 

@@ -141,6 +141,7 @@ fn record(id: &str, agent: &str) -> EvalRecord {
         faults: Vec::new(),
         notes: Vec::new(),
         record: None,
+        bodies: Default::default(),
     }
 }
 

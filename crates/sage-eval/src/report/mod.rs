@@ -338,6 +338,7 @@ mod tests {
             faults: Vec::new(),
             notes: Vec::new(),
             record: None,
+            bodies: Default::default(),
         }
     }
 
