@@ -7,7 +7,7 @@ use sage_physics::{
     AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, World,
     WorldOptions, default_cache_dir,
 };
-use sage_scene::Scene;
+use sage_scene::{BodySource, LoadOptions, Scene};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -29,9 +29,15 @@ pub enum ExportCommand {
     Usd(UsdArgs),
 }
 
-/// How bodies are decomposed and where the hulls are cached.
+/// How bodies are made: a published collision file, how meshes are decomposed and where the
+/// hulls are cached.
 #[derive(Args, Clone)]
 pub struct DecompArgs {
+    /// Published collision file (SAGE-Bench `{scene}_collision.usd`, USDC or USDA) to use as the
+    /// physics layer; by default one in the scene folder by that name (or the folder's numeric
+    /// id: 0001_839920 -> 839920_collision.usd) is used when present.
+    #[arg(long, value_name = "FILE")]
+    collision: Option<PathBuf>,
     /// Hull cache folder (default: SCENE/.sage3d/collision).
     #[arg(long)]
     cache: Option<PathBuf>,
@@ -82,11 +88,19 @@ impl DecompArgs {
         )
     }
 
+    /// How the scene is loaded: with the collision file given, if any.
+    fn load_options(&self) -> LoadOptions {
+        LoadOptions {
+            collision: self.collision.clone(),
+        }
+    }
+
     /// Loads the scene and builds its bodies under a progress bar.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
         let (decomposer, cache) = (self.decomposer()?, self.cache(scene_dir));
+        let options = self.load_options();
         with_bar(|on_object| {
-            sage_pipeline::physics::bodies(scene_dir, &decomposer, &cache, on_object)
+            sage_pipeline::physics::bodies_with(scene_dir, &options, &decomposer, &cache, on_object)
         })
     }
 }
@@ -204,11 +218,19 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
         scene.name,
         scene.objects.len()
     );
+    if let Some(c) = &report.collision {
+        println!("published        {c}");
+    }
     println!("decomposer       {}", report.decomposer);
     println!("cache            {}", report.cache_dir);
+    let given = |src: BodySource| report.sources.iter().filter(|o| o.source == src).count();
     println!(
-        "objects          {} decomposed, {} from cache, {} as boxes (no mesh)",
-        report.decomposed, report.cached, report.boxes
+        "objects          {} published, {} from Gaussians, {} decomposed, {} from cache, {} as boxes (no mesh)",
+        given(BodySource::Published),
+        given(BodySource::Gaussians),
+        report.decomposed,
+        report.cached,
+        report.boxes
     );
     println!(
         "hulls            {} in all; {:.1} per meshed object",
@@ -239,8 +261,8 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
         );
     }
     println!(
-        "structure        {} wall pieces, {} openings cut, floor and ceiling slabs (ceiling at {:.2} m)",
-        report.wall_pieces, report.openings_cut, bodies.ceiling_height
+        "structure        {} wall pieces, {} openings cut, {} published parts, floor and ceiling slabs (ceiling at {:.2} m)",
+        report.wall_pieces, report.openings_cut, report.structure_parts, bodies.ceiling_height
     );
     println!("time             {:.2} s", report.seconds);
 }
@@ -248,6 +270,7 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
 fn pending(a: PendingArgs) -> Result<()> {
     let list = sage_pipeline::physics::work_list(
         &a.scene,
+        &a.decomp.load_options(),
         &a.out,
         &a.decomp.decomposer()?,
         &a.decomp.cache(&a.scene),
@@ -295,6 +318,7 @@ fn export_usd(a: UsdArgs) -> Result<()> {
     let report = with_bar(|on_object| {
         sage_pipeline::physics::export_usd(
             &a.scene,
+            &a.decomp.load_options(),
             &a.out,
             &decomposer,
             &cache,

@@ -4,7 +4,7 @@ use sage_core::{Error, Polygon2, Result};
 use sage_metrics::distance::LabelledBox;
 use sage_nav::{CostParams, GridParams, PathFinder, PublishedMap, SemanticMap, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies, World, WorldOptions, default_cache_dir};
-use sage_scene::Scene;
+use sage_scene::{LoadOptions, Scene};
 use sage_splat::{Backend, Device};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -145,7 +145,21 @@ impl SceneContext {
     ///
     /// The scene, its bodies or its navigation grid cannot be built.
     pub fn load(dir: &Path, cache: Option<PathBuf>) -> Result<SceneContext> {
-        let (scene, _) = Scene::load(dir)?;
+        Self::load_with(dir, cache, &LoadOptions::default())
+    }
+
+    /// [`SceneContext::load`] with the scene loaded with `options` (a published collision file
+    /// given by path: [`LoadOptions::collision`]).
+    ///
+    /// # Errors
+    ///
+    /// The scene, its collision file, its bodies or its navigation grid cannot be built.
+    pub fn load_with(
+        dir: &Path,
+        cache: Option<PathBuf>,
+        options: &LoadOptions,
+    ) -> Result<SceneContext> {
+        let (scene, _) = Scene::load_with(dir, options)?;
         let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
         let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
         let params = TrajectoryParams::default();

@@ -5,8 +5,8 @@ use sage_core::{Error, Result};
 use sage_io::files::write_json;
 use sage_physics::usd::{SplatAsset, write_usda};
 use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, WorkList};
-use sage_scene::Scene;
 use sage_scene::scene::files;
+use sage_scene::{LoadOptions, Scene};
 use std::path::{Component, Path, PathBuf};
 
 /// Loads the scene in `scene_dir` and builds its collision bodies with `decomposer`, hulls from
@@ -21,14 +21,37 @@ pub fn bodies(
     cache: &HullCache,
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<(Scene, SceneBodies, BuildReport)> {
-    let (scene, _) = Scene::load(scene_dir)?;
+    bodies_with(
+        scene_dir,
+        &LoadOptions::default(),
+        decomposer,
+        cache,
+        on_object,
+    )
+}
+
+/// [`bodies`] with the scene loaded with `options` (a published collision file given by path:
+/// [`LoadOptions::collision`]).
+///
+/// # Errors
+///
+/// The scene or its collision file cannot be loaded, or a decomposition or cache write fails.
+pub fn bodies_with(
+    scene_dir: &Path,
+    options: &LoadOptions,
+    decomposer: &Decomposer,
+    cache: &HullCache,
+    on_object: &(dyn Fn(usize) + Sync),
+) -> Result<(Scene, SceneBodies, BuildReport)> {
+    let (scene, loaded) = Scene::load_with(scene_dir, options)?;
     let objects = scene.objects.len();
-    let (bodies, report) =
+    let (bodies, mut report) =
         SceneBodies::build_with_progress(&scene, decomposer, cache, &|| on_object(objects))?;
+    report.collision = loaded.collision;
     Ok((scene, bodies, report))
 }
 
-/// Writes to `out` the work list of the scene in `scene_dir`: its object meshes that
+/// Writes to `out` the work list of the scene in `scene_dir` (loaded with `options`): its object meshes that
 /// `decomposer` has not yet decomposed into `cache` (what an offline decomposer such as
 /// `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
 ///
@@ -37,13 +60,14 @@ pub fn bodies(
 /// An existing `out` without `force`, a scene that cannot be loaded, or a write error.
 pub fn work_list(
     scene_dir: &Path,
+    options: &LoadOptions,
     out: &Path,
     decomposer: &Decomposer,
     cache: &HullCache,
     force: bool,
 ) -> Result<WorkList> {
     sage_io::run::claim_file(out, force)?;
-    let (scene, _) = Scene::load(scene_dir)?;
+    let (scene, _) = Scene::load_with(scene_dir, options)?;
     let list = WorkList::of(&scene, decomposer, cache);
     write_json(out, &list)?;
     Ok(list)
@@ -62,7 +86,7 @@ pub struct UsdReport {
     pub splats: Option<SplatAsset>,
 }
 
-/// Writes the hybrid scene of `scene_dir` as USDA to `out`: its collision bodies (built as
+/// Writes the hybrid scene of `scene_dir` (loaded with `options`) as USDA to `out`: its collision bodies (built as
 /// [`bodies`] does) with UsdPhysics schemas, and its Gaussians referenced as a PLY asset by a
 /// path relative to `out`'s folder, so that the two can move together. An existing `out` is
 /// replaced only with `force`, and that is checked before the bodies are built.
@@ -73,6 +97,7 @@ pub struct UsdReport {
 /// fails, or a write error.
 pub fn export_usd(
     scene_dir: &Path,
+    options: &LoadOptions,
     out: &Path,
     decomposer: &Decomposer,
     cache: &HullCache,
@@ -80,7 +105,7 @@ pub fn export_usd(
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<UsdReport> {
     sage_io::run::claim_file(out, force)?;
-    let (scene, bodies, build) = bodies(scene_dir, decomposer, cache, on_object)?;
+    let (scene, bodies, build) = bodies_with(scene_dir, options, decomposer, cache, on_object)?;
     let out_dir = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
