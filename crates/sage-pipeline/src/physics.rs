@@ -51,9 +51,9 @@ pub fn bodies_with(
     Ok((scene, bodies, report))
 }
 
-/// Writes to `out` the work list of the scene in `scene_dir` (loaded with `options`): its object meshes that
-/// `decomposer` has not yet decomposed into `cache` (what an offline decomposer such as
-/// `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
+/// Writes to `out` the work list of the scene in `scene_dir` (loaded with `options`): its
+/// object meshes that `decomposer` has not yet decomposed into `cache` (what an offline
+/// decomposer such as `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
 ///
 /// # Errors
 ///
@@ -86,9 +86,9 @@ pub struct UsdReport {
     pub splats: Option<SplatAsset>,
 }
 
-/// Writes the hybrid scene of `scene_dir` (loaded with `options`) as USDA to `out`: its collision bodies (built as
-/// [`bodies`] does) with UsdPhysics schemas, and its Gaussians referenced as a PLY asset by a
-/// path relative to `out`'s folder, so that the two can move together. An existing `out` is
+/// Writes the hybrid scene of `scene_dir` (loaded with `options`) as USDA to `out`: its
+/// collision bodies (built as [`bodies_with`] does) with UsdPhysics schemas, and its Gaussians
+/// referenced as a PLY asset by a path relative to `out`'s folder, so that the two can move together. An existing `out` is
 /// replaced only with `force`, and that is checked before the bodies are built.
 ///
 /// # Errors
