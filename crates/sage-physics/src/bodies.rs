@@ -159,7 +159,12 @@ impl BuildReport {
 
     /// Mean convex parts per object with a mesh.
     pub fn mean_hulls(&self) -> f32 {
-        let n = self.objects.len().max(1) as f32;
+        // With no meshed object (every body published or boxed) the mean is 0, not the -0.0
+        // an empty float sum gives.
+        if self.objects.is_empty() {
+            return 0.0;
+        }
+        let n = self.objects.len() as f32;
         self.objects.iter().map(|o| o.hulls as f32).sum::<f32>() / n
     }
 }

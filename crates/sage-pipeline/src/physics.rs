@@ -185,7 +185,16 @@ mod tests {
         };
         let cache = HullCache::new(dir.path().join("cache"));
         let out = dir.path().join("usd/scene.usda");
-        let report = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {}).unwrap();
+        let report = export_usd(
+            &scene,
+            &LoadOptions::default(),
+            &out,
+            &decomposer,
+            &cache,
+            false,
+            &|_| {},
+        )
+        .unwrap();
         let splats = report.splats.expect("the scene has a PLY");
         assert_eq!(
             Path::new(&splats.path),
@@ -195,9 +204,26 @@ mod tests {
         assert!(report.bodies > 0 && report.build.parts > 0);
         let text = std::fs::read_to_string(&out).unwrap();
         assert!(text.contains(&splats.path));
-        let refused = export_usd(&scene, &out, &decomposer, &cache, false, &|_| {});
+        let refused = export_usd(
+            &scene,
+            &LoadOptions::default(),
+            &out,
+            &decomposer,
+            &cache,
+            false,
+            &|_| {},
+        );
         assert!(refused.unwrap_err().to_string().contains("`force`"));
-        let again = export_usd(&scene, &out, &decomposer, &cache, true, &|_| {}).unwrap();
+        let again = export_usd(
+            &scene,
+            &LoadOptions::default(),
+            &out,
+            &decomposer,
+            &cache,
+            true,
+            &|_| {},
+        )
+        .unwrap();
         assert_eq!(again.build.decomposed, 0, "the hulls come from the cache");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
     }
