@@ -485,6 +485,7 @@ mod tests {
             "render",
             "nav",
             "physics",
+            "bodies",
             "env",
             "fit",
             "train-data",
@@ -498,6 +499,7 @@ mod tests {
                 BenchCommand::Physics(a) => {
                     assert_eq!(a.settings(), PhysicsSettings::default());
                 }
+                BenchCommand::Bodies(a) => assert_eq!(a.settings(), BodiesSettings::default()),
                 BenchCommand::Env(a) => assert_eq!(a.settings().unwrap(), EnvSettings::default()),
                 BenchCommand::Fit(a) => assert_eq!(a.settings().unwrap(), FitSettings::default()),
                 BenchCommand::TrainData(a) => {

@@ -7,7 +7,8 @@ use sage_physics::{
     AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, SplatBodies,
     World, WorldOptions, default_cache_dir,
 };
-use sage_scene::{BodySource, Scene};
+use sage_pipeline::physics::BodyOptions;
+use sage_scene::{BodySource, LoadOptions, Scene};
 use std::path::{Path, PathBuf};
 
 #[derive(Subcommand)]
@@ -29,9 +30,15 @@ pub enum ExportCommand {
     Usd(UsdArgs),
 }
 
-/// How bodies are decomposed and where the hulls are cached.
+/// How bodies are made: a published collision file, how meshes are decomposed and where the
+/// hulls are cached.
 #[derive(Args, Clone)]
 pub struct DecompArgs {
+    /// Published collision file (SAGE-Bench `{scene}_collision.usd`, USDC or USDA) to use as the
+    /// physics layer; by default one in the scene folder by that name (or the folder's numeric
+    /// id: 0001_839920 -> 839920_collision.usd) is used when present.
+    #[arg(long, value_name = "FILE")]
+    collision: Option<PathBuf>,
     /// Hull cache folder (default: SCENE/.sage3d/collision).
     #[arg(long)]
     cache: Option<PathBuf>,
@@ -89,26 +96,27 @@ impl DecompArgs {
         )
     }
 
-    /// Which objects get bodies recovered from their Gaussians.
-    fn splat_bodies(&self) -> SplatBodies {
-        if self.from_splats {
-            SplatBodies::Always
-        } else {
-            self.splat_bodies
+    /// How the scene is loaded for its bodies: with the collision file given, if any, and the
+    /// objects whose bodies are recovered from their Gaussians.
+    fn body_options(&self) -> BodyOptions {
+        BodyOptions {
+            load: LoadOptions {
+                collision: self.collision.clone(),
+            },
+            splat_bodies: if self.from_splats {
+                SplatBodies::Always
+            } else {
+                self.splat_bodies
+            },
         }
     }
 
     /// Loads the scene and builds its bodies under a progress bar.
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
         let (decomposer, cache) = (self.decomposer()?, self.cache(scene_dir));
+        let options = self.body_options();
         with_bar(|on_object| {
-            sage_pipeline::physics::bodies(
-                scene_dir,
-                &decomposer,
-                &cache,
-                self.splat_bodies(),
-                on_object,
-            )
+            sage_pipeline::physics::bodies(scene_dir, &options, &decomposer, &cache, on_object)
         })
     }
 }
@@ -226,19 +234,19 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
         scene.name,
         scene.objects.len()
     );
+    if let Some(c) = &report.collision {
+        println!("published        {c}");
+    }
     println!("decomposer       {}", report.decomposer);
     println!("cache            {}", report.cache_dir);
+    let given = |src: BodySource| report.sources.iter().filter(|o| o.source == src).count();
     println!(
-        "objects          {} decomposed, {} from cache, {} as boxes",
-        report.decomposed, report.cached, report.boxes
-    );
-    let count = |s: BodySource| report.sources.iter().filter(|o| o.source == s).count();
-    println!(
-        "body sources     {} published, {} mesh, {} gaussians, {} box",
-        count(BodySource::Published),
-        count(BodySource::Mesh),
-        count(BodySource::Gaussians),
-        count(BodySource::Box)
+        "objects          {} published, {} from Gaussians, {} decomposed, {} from cache, {} as boxes (no mesh)",
+        given(BodySource::Published),
+        given(BodySource::Gaussians),
+        report.decomposed,
+        report.cached,
+        report.boxes
     );
     println!(
         "hulls            {} in all; {:.1} per meshed object",
@@ -268,8 +276,11 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
             o.hull_volume / o.mesh_volume
         );
     }
+    let loose = scene.structure_body.as_ref().map_or(String::new(), |b| {
+        format!("{} {} parts, ", report.structure_parts, b.source.as_str())
+    });
     println!(
-        "structure        {} wall pieces, {} openings cut, floor and ceiling slabs (ceiling at {:.2} m)",
+        "structure        {} wall pieces, {} openings cut, {loose}floor and ceiling slabs (ceiling at {:.2} m)",
         report.wall_pieces, report.openings_cut, bodies.ceiling_height
     );
     println!("time             {:.2} s", report.seconds);
@@ -278,6 +289,7 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
 fn pending(a: PendingArgs) -> Result<()> {
     let list = sage_pipeline::physics::work_list(
         &a.scene,
+        &a.decomp.body_options(),
         &a.out,
         &a.decomp.decomposer()?,
         &a.decomp.cache(&a.scene),
@@ -325,11 +337,11 @@ fn export_usd(a: UsdArgs) -> Result<()> {
     let report = with_bar(|on_object| {
         sage_pipeline::physics::export_usd(
             &a.scene,
+            &a.decomp.body_options(),
             &a.out,
             &decomposer,
             &cache,
             a.force,
-            a.decomp.splat_bodies(),
             on_object,
         )
     })?;

@@ -2,7 +2,7 @@
 
 use clap::{Args, Subcommand, ValueEnum};
 use sage_core::{Error, Result};
-use sage_scene::{Scene, SplatLayout};
+use sage_scene::{LoadOptions, Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -71,6 +71,11 @@ pub struct SynthArgs {
 pub struct InfoArgs {
     /// Scene folder.
     dir: PathBuf,
+    /// Published collision file (SAGE-Bench `{scene}_collision.usd`, USDC or USDA) to read as
+    /// the physics layer; by default one in the folder by that name (or the folder's numeric
+    /// id: 0001_839920 -> 839920_collision.usd) is read when present.
+    #[arg(long, value_name = "FILE")]
+    collision: Option<PathBuf>,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -123,7 +128,13 @@ pub fn run(cmd: SceneCommand) -> Result<()> {
             println!("{}", scene.summary());
             Ok(())
         }
-        SceneCommand::Info(a) => info(&a.dir, a.json),
+        SceneCommand::Info(a) => info(
+            &a.dir,
+            &LoadOptions {
+                collision: a.collision,
+            },
+            a.json,
+        ),
         SceneCommand::Import(a) => import(&a),
         SceneCommand::Preview(a) => {
             let (scene, _) = Scene::load(&a.dir)?;
@@ -237,9 +248,9 @@ fn import(a: &ImportArgs) -> Result<()> {
     Ok(())
 }
 
-fn info(dir: &Path, json: bool) -> Result<()> {
+fn info(dir: &Path, options: &LoadOptions, json: bool) -> Result<()> {
     let start = Instant::now();
-    let (scene, report) = Scene::load(dir)?;
+    let (scene, report) = Scene::load_with(dir, options)?;
     let elapsed = start.elapsed().as_secs_f64();
     let summary = scene.summary();
     if json {
@@ -250,6 +261,7 @@ fn info(dir: &Path, json: bool) -> Result<()> {
             "format": report.splat_format.map(|f| f.as_str()),
             "morton_reordered": report.morton_reordered,
             "warnings": report.warnings,
+            "collision": report.collision,
             "load_seconds": elapsed,
         });
         println!(
@@ -270,6 +282,9 @@ fn info(dir: &Path, json: bool) -> Result<()> {
             ""
         };
         println!("format      {f}{note}");
+    }
+    if let Some(c) = &report.collision {
+        println!("collision   {c}");
     }
     for w in &report.warnings {
         println!("warning     {w}");

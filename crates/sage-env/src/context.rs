@@ -7,7 +7,7 @@ use sage_physics::{
     Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams, World, WorldOptions,
     default_cache_dir, splat_bodies,
 };
-use sage_scene::Scene;
+use sage_scene::{LoadOptions, Scene};
 use sage_splat::{Backend, Device};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -159,24 +159,24 @@ impl SceneContext {
     /// The scene, its bodies or its navigation grid cannot be built.
     ///
     /// Objects with neither a published body nor a mesh get bodies recovered from their
-    /// Gaussians ([`SplatBodies::Auto`]); [`SceneContext::load_with`] chooses otherwise.
+    /// Gaussians ([`SplatBodies::Auto`]).
     pub fn load(dir: &Path, cache: Option<PathBuf>) -> Result<SceneContext> {
-        SceneContext::load_with(dir, cache, SplatBodies::Auto)
+        Self::load_with(dir, cache, &LoadOptions::default())
     }
 
-    /// [`SceneContext::load`], with `splat_bodies` choosing which objects get bodies recovered
-    /// from their Gaussians.
+    /// [`SceneContext::load`] with the scene loaded with `options` (a published collision file
+    /// given by path: [`LoadOptions::collision`]).
     ///
     /// # Errors
     ///
-    /// The scene, its bodies or its navigation grid cannot be built.
+    /// The scene, its collision file, its bodies or its navigation grid cannot be built.
     pub fn load_with(
         dir: &Path,
         cache: Option<PathBuf>,
-        splat_bodies: SplatBodies,
+        options: &LoadOptions,
     ) -> Result<SceneContext> {
-        let (mut scene, _) = Scene::load(dir)?;
-        splat_bodies::attach(&mut scene, splat_bodies, &SplatBodyParams::default())?;
+        let (mut scene, _) = Scene::load_with(dir, options)?;
+        splat_bodies::attach(&mut scene, SplatBodies::Auto, &SplatBodyParams::default())?;
         let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
         let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
         let params = TrajectoryParams::default();

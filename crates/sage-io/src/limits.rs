@@ -73,8 +73,25 @@ pub const MESH_MB: Limit = Limit {
     what: "a decoded mesh",
 };
 
+/// The size of a published collision file (`{scene}_collision.usd`, USDC or USDA) before it is
+/// opened: SAGE-Bench's run to a few megabytes per scene.
+pub const COLLISION_MB: Limit = Limit {
+    variable: "SAGE3D_MAX_COLLISION_MB",
+    default: 512,
+    unit: "MB",
+    scale: 1 << 20,
+    what: "a collision file",
+};
+
 /// Every limit (what docs/scene-format.md lists).
-pub const ALL: [Limit; 5] = [SCENE_JSON_MB, JSON_MB, LABELS, IMAGE_MEGAPIXELS, MESH_MB];
+pub const ALL: [Limit; 6] = [
+    SCENE_JSON_MB,
+    JSON_MB,
+    LABELS,
+    IMAGE_MEGAPIXELS,
+    MESH_MB,
+    COLLISION_MB,
+];
 
 impl Limit {
     /// The limit in counted things (bytes, entries, pixels): the environment variable's value

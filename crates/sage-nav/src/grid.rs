@@ -497,6 +497,11 @@ fn block_geometry(grid: &mut NavGrid, scene: &Scene, slab: (f32, f32)) {
     if let Some(m) = &scene.structure_mesh {
         block_mesh_surface(grid, m, slab);
     }
+    if let Some(s) = &scene.structure_body {
+        for part in &s.parts {
+            block_solid(grid, part, slab);
+        }
+    }
     for o in &scene.objects {
         match (&o.body, &o.mesh) {
             (Some(given), _) if !given.parts.is_empty() => {

@@ -93,6 +93,7 @@ fn room_scene(objects: Vec<Object>, inner_walls: Vec<Wall>) -> Scene {
         },
         occupancy: None,
         structure_mesh: None,
+        structure_body: None,
         instances: Default::default(),
     };
     scene.finish();

@@ -31,6 +31,10 @@ pub enum BodyKind {
     Floor,
     /// The ceiling slab over the whole plan (bottom at the ceiling height).
     Ceiling,
+    /// The structure parts that belong to no object ([`Scene::structure_body`]: the walls,
+    /// floors and ceilings of a published collision file, or a capture's loose Gaussians), one
+    /// static body.
+    Structure,
 }
 
 /// Where a body's parts came from.
@@ -87,6 +91,9 @@ pub struct Body {
     pub parts: Vec<ConvexPart>,
     /// Where the parts came from.
     pub source: PartSource,
+    /// For given parts ([`PartSource::Given`]): whose they are (`published`, `gaussians`), as
+    /// the USDA export records them.
+    pub given: Option<BodySource>,
 }
 
 /// Decomposition quality of one object with a mesh.
@@ -121,6 +128,10 @@ pub struct BuildReport {
     pub boxes: usize,
     /// Wall pieces after cutting openings.
     pub wall_pieces: usize,
+    /// Convex parts of the structure body ([`BodyKind::Structure`]: the parts of a published
+    /// collision file that belong to no object, or those recovered from a capture's loose
+    /// Gaussians; 0 without one).
+    pub structure_parts: usize,
     /// Openings cut.
     pub openings_cut: usize,
     /// Total convex parts of all bodies.
@@ -129,6 +140,12 @@ pub struct BuildReport {
     pub objects: Vec<ObjectQuality>,
     /// Where every object's body came from, in object order.
     pub sources: Vec<ObjectSource>,
+    /// How the scene's published collision file was used (frame, agreement with the label
+    /// boxes, parts by name, by box and of the structure), when it has one: the loader's
+    /// report ([`sage_scene::LoadReport::collision`]), which whoever loaded the scene copies
+    /// here.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub collision: Option<sage_scene::collision::CollisionReport>,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -144,7 +161,12 @@ impl BuildReport {
 
     /// Mean convex parts per object with a mesh.
     pub fn mean_hulls(&self) -> f32 {
-        let n = self.objects.len().max(1) as f32;
+        // With no meshed object (every body published or boxed) the mean is 0, not the -0.0
+        // an empty float sum gives.
+        if self.objects.is_empty() {
+            return 0.0;
+        }
+        let n = self.objects.len() as f32;
         self.objects.iter().map(|o| o.hulls as f32).sum::<f32>() / n
     }
 }
@@ -152,7 +174,7 @@ impl BuildReport {
 /// All collision bodies of a scene.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneBodies {
-    /// Bodies: objects in order, then walls, floor, ceiling.
+    /// Bodies: objects in order, then walls, the structure body, floor, ceiling.
     pub bodies: Vec<Body>,
     /// The floor instance id of each room (for contacts with the floor slab).
     pub floor_ids: Vec<InstanceId>,
@@ -257,6 +279,7 @@ impl SceneBodies {
                 obb: o.obb,
                 parts,
                 source,
+                given: (source == PartSource::Given).then(|| o.body_source()),
             });
         }
         let ids = &scene.instances.kinds;
@@ -279,7 +302,39 @@ impl SceneBodies {
                 obb: wall.obb(),
                 parts,
                 source: PartSource::Structure,
+                given: None,
             });
+        }
+        if let Some(given) = &scene.structure_body {
+            // Hulls of the parts, as for an object's given parts; flat ones are dropped.
+            let parts: Vec<ConvexPart> = given
+                .parts
+                .iter()
+                .filter_map(|m| ConvexPart::hull_of(&m.positions))
+                .collect();
+            if !parts.is_empty() {
+                let aabb = given
+                    .parts
+                    .iter()
+                    .fold(sage_core::Aabb::EMPTY, |b, m| b.union(m.aabb()));
+                report.structure_parts = parts.len();
+                bodies.push(Body {
+                    kind: BodyKind::Structure,
+                    instance: InstanceId::NONE,
+                    name: "structure".into(),
+                    category: "structure".into(),
+                    role: PhysicsRole::Static,
+                    rigid_body: RigidBody::default(),
+                    obb: Obb {
+                        center: (aabb.min + aabb.max) * 0.5,
+                        half_extents: (aabb.max - aabb.min) * 0.5,
+                        yaw: 0.0,
+                    },
+                    parts,
+                    source: PartSource::Given,
+                    given: Some(given.source),
+                });
+            }
         }
         let bounds = scene.bounds();
         let ceiling_height = scene.floorplan.ceiling_height();
@@ -301,6 +356,7 @@ impl SceneBodies {
                     obb,
                     parts: ConvexPart::from_obb(&obb).into_iter().collect(),
                     source: PartSource::Structure,
+                    given: None,
                 }
             };
             bodies.push(slab(-SLAB, BodyKind::Floor, "floor"));

@@ -16,6 +16,10 @@
 //! the table and the wall behind a painting to the painting, and they would close the space
 //! beneath the one and thicken the other.
 //!
+//! In a scene with no structure at all (a capture), the Gaussians that belong to no object make
+//! the scene's structure body the same way, closed but not filled (a room's walls, floor and
+//! ceiling enclose its air).
+//!
 //! Same Gaussians, same parts: nothing here depends on the thread count.
 
 use crate::bodies::wall_pieces;
@@ -126,6 +130,9 @@ pub struct SplatBodyReport {
     pub recovered: usize,
     /// Objects the choice applied to that had too few Gaussians (they keep what they had).
     pub too_few_gaussians: usize,
+    /// Parts of the body recovered from the Gaussians of no object, in a scene with no
+    /// structure (a capture): 0 when there was none.
+    pub structure_parts: usize,
 }
 
 /// Gives the objects `choice` selects a body recovered from their Gaussians
@@ -170,7 +177,53 @@ pub fn attach(
             None => {}
         }
     }
+    let bare = scene.floorplan.rooms.is_empty()
+        && scene.floorplan.walls.is_empty()
+        && scene.structure_mesh.is_none()
+        && scene.structure_body.is_none();
+    if bare && let Some(parts) = loose_body(scene, &structure, params) {
+        report.structure_parts = parts.len();
+        scene.structure_body = Some(BodyParts {
+            source: BodySource::Gaussians,
+            parts,
+        });
+    }
     Ok(report)
+}
+
+/// Most convex parts of the body of a scene's loose Gaussians.
+const MAX_LOOSE_PARTS: usize = 4096;
+
+/// The body of the Gaussians that belong to no object, for a scene with no structure at all (a
+/// capture): their skin, closed but not filled — a room's walls, floor and ceiling enclose its
+/// air, which must stay free.
+fn loose_body(
+    scene: &Scene,
+    structure: &Structure,
+    params: &SplatBodyParams,
+) -> Option<Vec<TriMesh>> {
+    let g = &scene.gaussians;
+    let loose: Vec<u32> = (0..g.len() as u32)
+        .filter(|&i| g.instances[i as usize] == 0)
+        .collect();
+    let bounds = Aabb::from_points(
+        loose
+            .iter()
+            .map(|&i| Vec3::from_array(g.positions[i as usize])),
+    );
+    if bounds.is_empty() {
+        return None;
+    }
+    let obb = Obb {
+        center: (bounds.min + bounds.max) * 0.5,
+        half_extents: ((bounds.max - bounds.min) * 0.5).max(Vec3::splat(params.voxel)),
+        yaw: 0.0,
+    };
+    let params = SplatBodyParams {
+        max_parts: MAX_LOOSE_PARTS,
+        ..*params
+    };
+    recover_solid(g, &loose, &obb, structure, &params, false)
 }
 
 fn validate(p: &SplatBodyParams) -> Result<()> {
@@ -278,6 +331,18 @@ pub fn recover(
     structure: &Structure,
     params: &SplatBodyParams,
 ) -> Option<Vec<TriMesh>> {
+    recover_solid(g, members, obb, structure, params, true)
+}
+
+/// [`recover`], filling what the skin encloses only with `fill`.
+fn recover_solid(
+    g: &Gaussians,
+    members: &[u32],
+    obb: &Obb,
+    structure: &Structure,
+    params: &SplatBodyParams,
+    fill: bool,
+) -> Option<Vec<TriMesh>> {
     let structure = &structure.near(obb, 2.0 * SURFACE_BAND);
     let kept: Vec<Kernel> = members
         .iter()
@@ -291,7 +356,7 @@ pub fn recover(
         .voxel
         .max(extent.max_element() / (MAX_VOXELS - 2 * MARGIN) as f32);
     for attempt in 0..=COARSEN_TRIES {
-        let grid = solid_of(&kept, obb, structure, voxel);
+        let grid = solid_of(&kept, obb, structure, voxel, fill);
         let boxes = grid.boxes();
         if boxes.is_empty() {
             return None;
@@ -472,8 +537,14 @@ impl VoxelGrid {
 }
 
 /// The closed solid of `kernels` inside `obb` at `voxel`, closed by `structure` where it meets
-/// it.
-fn solid_of(kernels: &[Kernel], obb: &Obb, structure: &Structure, voxel: f32) -> VoxelGrid {
+/// it; what the skin encloses is filled only with `fill`.
+fn solid_of(
+    kernels: &[Kernel],
+    obb: &Obb,
+    structure: &Structure,
+    voxel: f32,
+    fill: bool,
+) -> VoxelGrid {
     let half = obb.half_extents + Vec3::splat(MARGIN as f32 * voxel);
     let dims = (half * 2.0 / voxel)
         .ceil()
@@ -522,8 +593,15 @@ fn solid_of(kernels: &[Kernel], obb: &Obb, structure: &Structure, voxel: f32) ->
             }
         }
     }
-    let outside = flood_outside(&grown, dims);
-    let filled: Vec<bool> = outside.iter().map(|&o| !o).collect();
+    let filled: Vec<bool> = if fill {
+        flood_outside(&grown, dims).iter().map(|&o| !o).collect()
+    } else {
+        grown
+            .iter()
+            .zip(&structural)
+            .map(|(&g, &s)| g && !s)
+            .collect()
+    };
     let closed = erode(&filled, dims);
     let mut solid = vec![false; skin.len()];
     for z in 0..dims[2] {

@@ -12,7 +12,7 @@
 //!   /Objects/{category}_{id}  Xform + SemanticsLabelsAPI:class (+ rigid body, mass)
 //!     /hull_K                 Mesh + PhysicsCollisionAPI + PhysicsMeshCollisionAPI (convexHull)
 //!     /hinge                  PhysicsRevoluteJoint (articulated doors)
-//!   /Structure/{wall_i,floor,ceiling}
+//!   /Structure/{wall_i,structure,floor,ceiling}   (structure: a published file's parts of no object)
 //! ```
 
 use crate::bodies::{Body, SceneBodies};
@@ -137,6 +137,15 @@ fn write_body(out: &mut String, body: &Body, materials: &mut Vec<(f32, f32)>) {
             PhysicsRole::Articulated => "articulated",
         }
     );
+    if let Some(src) = body.given {
+        // Given parts (a published collision file's, or recovered from Gaussians) are not
+        // ours to re-derive: say whose they are.
+        let _ = writeln!(
+            out,
+            "            custom token sage3d:bodySource = \"{}\"",
+            src.as_str()
+        );
+    }
     let m = material_of(
         materials,
         body.rigid_body.friction,

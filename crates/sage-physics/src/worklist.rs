@@ -39,11 +39,13 @@ pub struct WorkList {
 }
 
 impl WorkList {
-    /// The meshes of `scene` that `decomposer` has not yet decomposed into `cache`.
+    /// The meshes of `scene` that `decomposer` has not yet decomposed into `cache` (objects
+    /// with given parts, e.g. from a published collision file, need none).
     pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> WorkList {
         let meshes = scene
             .objects
             .iter()
+            .filter(|o| o.body.as_ref().is_none_or(|b| b.parts.is_empty()))
             .filter_map(|o| {
                 let mesh = o.mesh.as_ref().filter(|m| !m.triangles.is_empty())?;
                 let key = cache_key(mesh, decomposer);

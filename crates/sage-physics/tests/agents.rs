@@ -116,6 +116,7 @@ fn hall(door: Option<DoorState>) -> Scene {
         },
         occupancy: None,
         structure_mesh: None,
+        structure_body: None,
         instances: Default::default(),
     };
     scene.finish();

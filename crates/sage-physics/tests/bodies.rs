@@ -213,3 +213,80 @@ fn synthetic_doors_block_by_state() {
         "{seen:?}"
     );
 }
+
+/// The eight corners and twelve triangles of an axis-aligned box.
+fn box_mesh(lo: Vec3, hi: Vec3) -> sage_scene::TriMesh {
+    let positions = (0..8)
+        .map(|i| {
+            Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+        .collect();
+    let triangles = vec![
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    sage_scene::TriMesh {
+        positions,
+        triangles,
+    }
+}
+
+#[test]
+fn published_parts_make_object_bodies_and_a_static_structure_body() {
+    use sage_scene::{BodyParts, BodySource};
+    let mut scene = scene();
+    let o = &scene.objects[0];
+    let (lo, hi) = (o.obb.aabb().min, o.obb.aabb().max);
+    let mid = (lo + hi) * 0.5;
+    scene.objects[0].body = Some(BodyParts {
+        source: BodySource::Published,
+        parts: vec![box_mesh(lo, mid), box_mesh(mid, hi)],
+    });
+    scene.structure_body = Some(BodyParts {
+        source: BodySource::Published,
+        parts: vec![
+            box_mesh(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(-0.9, 5.0, 2.5)),
+            // Too flat to span a volume: dropped.
+            box_mesh(Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0)),
+        ],
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let (bodies, report) =
+        SceneBodies::build(&scene, &COARSE, &HullCache::new(dir.path())).unwrap();
+    assert_eq!(report.sources[0].source, BodySource::Published);
+    assert_eq!(report.sources[0].parts, 2);
+    assert_eq!(report.structure_parts, 1);
+    let s = bodies
+        .bodies
+        .iter()
+        .find(|b| b.kind == BodyKind::Structure)
+        .unwrap();
+    assert_eq!((s.parts.len(), s.source), (1, PartSource::Given));
+    assert_eq!(s.given, Some(BodySource::Published));
+    assert_eq!(bodies.bodies[0].given, Some(BodySource::Published));
+    let usda = sage_physics::usd::to_usda("t", &bodies, None);
+    assert!(usda.contains("def Xform \"structure\""), "{usda}");
+    assert_eq!(usda.matches("sage3d:bodySource = \"published\"").count(), 2);
+    // The world holds the structure: a point inside the published wall hits it.
+    let world = World::new(&scene, bodies, &WorldOptions::default());
+    let qp = world.physics.query_pipeline();
+    let hits = qp
+        .intersect_point(Vec3::new(-0.95, 2.0, 1.0))
+        .filter(|(h, _)| world.body_of(*h).map(|b| b.kind) == Some(BodyKind::Structure))
+        .count();
+    assert_eq!(hits, 1);
+}

@@ -143,3 +143,50 @@ fn bad_parameters_and_choices_are_refused() {
     let err = "sometimes".parse::<SplatBodies>().unwrap_err();
     assert!(err.contains("auto, always, never"), "{err}");
 }
+
+#[test]
+fn a_bare_capture_gets_a_structure_body_with_its_air_left_free() {
+    let full = scene();
+    let mut capture = Scene {
+        objects: Vec::new(),
+        floorplan: Default::default(),
+        occupancy: None,
+        structure_mesh: None,
+        structure_body: None,
+        ..full.clone()
+    };
+    capture.gaussians.instances.fill(0);
+    let r =
+        splat_bodies::attach(&mut capture, SplatBodies::Auto, &SplatBodyParams::default()).unwrap();
+    let body = capture
+        .structure_body
+        .as_ref()
+        .expect("a body from the loose Gaussians");
+    assert_eq!(body.source, BodySource::Gaussians);
+    assert_eq!(r.structure_parts, body.parts.len());
+    assert!(body.parts.len() > 10);
+    // Walls, floor and ceiling enclose the rooms' air; it must not be filled.
+    let parts: Vec<ConvexPart> = body
+        .parts
+        .iter()
+        .filter_map(|m| ConvexPart::hull_of(&m.positions))
+        .collect();
+    let solid: f32 = parts.iter().map(ConvexPart::volume).sum();
+    let b = full.gaussians.bounds();
+    let total = (b.max - b.min).x * (b.max - b.min).y * (b.max - b.min).z;
+    assert!(solid < 0.3 * total, "{solid} m³ of {total} m³ solid");
+    let (bodies, _) = SceneBodies::build(
+        &capture,
+        &COARSE,
+        &HullCache::new(tempfile::tempdir().unwrap().path()),
+    )
+    .unwrap();
+    assert!(bodies.bodies.iter().any(|b| b.kind == BodyKind::Structure));
+    // Never: nothing recovered.
+    let mut never = Scene {
+        structure_body: None,
+        ..capture.clone()
+    };
+    splat_bodies::attach(&mut never, SplatBodies::Never, &SplatBodyParams::default()).unwrap();
+    assert!(never.structure_body.is_none());
+}

@@ -9,6 +9,7 @@
 
 use crate::dataset::{BuildSettings, DatasetReport};
 use crate::nav::MapReport;
+use crate::physics::BodyOptions;
 use sage_agents::AgentKind;
 use sage_core::{Error, Result};
 use sage_eval::folder::SUMMARY_FILE;
@@ -16,9 +17,7 @@ use sage_eval::report::ReportOutcome;
 use sage_eval::{EvalSettings, RunOutcome, Summary};
 use sage_metrics::{Dtw, Mode};
 use sage_nav::GridParams;
-use sage_physics::{
-    BuildReport, Decomposer, HullCache, SceneBodies, SplatBodies, default_cache_dir,
-};
+use sage_physics::{BuildReport, Decomposer, HullCache, SceneBodies, default_cache_dir};
 use sage_scene::{Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
@@ -208,9 +207,9 @@ impl Step {
                 let cache = HullCache::new(default_cache_dir(scene));
                 StepReport::Physics(Box::new(crate::physics::bodies(
                     scene,
+                    &BodyOptions::default(),
                     &Decomposer::default(),
                     &cache,
-                    SplatBodies::default(),
                     &|n| tick(n, "objects"),
                 )?))
             }

@@ -8,48 +8,73 @@ use sage_physics::{
     BuildReport, Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams, WorkList,
     splat_bodies,
 };
-use sage_scene::Scene;
 use sage_scene::scene::files;
+use sage_scene::{LoadOptions, LoadReport, Scene};
 use std::path::{Component, Path, PathBuf};
 
-/// Loads the scene in `scene_dir` and builds its collision bodies with `decomposer`, hulls from
-/// and into `cache`, the objects `splat_bodies` selects recovered from their Gaussians;
-/// `on_object(objects)` is called as each of the scene's `objects` is done.
+/// How a scene is loaded for its bodies: the published collision file given, if any, and which
+/// objects get bodies recovered from their Gaussians.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BodyOptions {
+    /// How the scene folder is loaded ([`LoadOptions::collision`]).
+    pub load: LoadOptions,
+    /// Which objects get bodies recovered from their Gaussians.
+    pub splat_bodies: SplatBodies,
+}
+
+impl BodyOptions {
+    /// Loads the scene in `scene_dir` with these options and gives the objects they select
+    /// bodies recovered from their Gaussians.
+    ///
+    /// # Errors
+    ///
+    /// The scene or its collision file cannot be loaded.
+    pub fn load(&self, scene_dir: &Path) -> Result<(Scene, LoadReport)> {
+        let (mut scene, loaded) = Scene::load_with(scene_dir, &self.load)?;
+        splat_bodies::attach(&mut scene, self.splat_bodies, &SplatBodyParams::default())?;
+        Ok((scene, loaded))
+    }
+}
+
+/// Loads the scene in `scene_dir` with `options` and builds its collision bodies with
+/// `decomposer`, hulls from and into `cache`; `on_object(objects)` is called as each of the
+/// scene's `objects` is done.
 ///
 /// # Errors
 ///
-/// The scene cannot be loaded, or a decomposition or cache write fails.
+/// The scene or its collision file cannot be loaded, or a decomposition or cache write fails.
 pub fn bodies(
     scene_dir: &Path,
+    options: &BodyOptions,
     decomposer: &Decomposer,
     cache: &HullCache,
-    splat_bodies: SplatBodies,
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<(Scene, SceneBodies, BuildReport)> {
-    let (mut scene, _) = Scene::load(scene_dir)?;
-    splat_bodies::attach(&mut scene, splat_bodies, &SplatBodyParams::default())?;
+    let (scene, loaded) = options.load(scene_dir)?;
     let objects = scene.objects.len();
-    let (bodies, report) =
+    let (bodies, mut report) =
         SceneBodies::build_with_progress(&scene, decomposer, cache, &|| on_object(objects))?;
+    report.collision = loaded.collision;
     Ok((scene, bodies, report))
 }
 
-/// Writes to `out` the work list of the scene in `scene_dir`: its object meshes that
-/// `decomposer` has not yet decomposed into `cache` (what an offline decomposer such as
-/// `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
+/// Writes to `out` the work list of the scene in `scene_dir` (loaded with `options`): its
+/// object meshes that `decomposer` has not yet decomposed into `cache` (what an offline
+/// decomposer such as `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
 ///
 /// # Errors
 ///
 /// An existing `out` without `force`, a scene that cannot be loaded, or a write error.
 pub fn work_list(
     scene_dir: &Path,
+    options: &BodyOptions,
     out: &Path,
     decomposer: &Decomposer,
     cache: &HullCache,
     force: bool,
 ) -> Result<WorkList> {
     sage_io::run::claim_file(out, force)?;
-    let (scene, _) = Scene::load(scene_dir)?;
+    let (scene, _) = options.load(scene_dir)?;
     let list = WorkList::of(&scene, decomposer, cache);
     write_json(out, &list)?;
     Ok(list)
@@ -68,9 +93,9 @@ pub struct UsdReport {
     pub splats: Option<SplatAsset>,
 }
 
-/// Writes the hybrid scene of `scene_dir` as USDA to `out`: its collision bodies (built as
-/// [`bodies`] does) with UsdPhysics schemas, and its Gaussians referenced as a PLY asset by a
-/// path relative to `out`'s folder, so that the two can move together. An existing `out` is
+/// Writes the hybrid scene of `scene_dir` (loaded with `options`) as USDA to `out`: its
+/// collision bodies (built as [`bodies`] does) with UsdPhysics schemas, and its Gaussians
+/// referenced as a PLY asset by a path relative to `out`'s folder, so that the two can move together. An existing `out` is
 /// replaced only with `force`, and that is checked before the bodies are built.
 ///
 /// # Errors
@@ -79,15 +104,15 @@ pub struct UsdReport {
 /// fails, or a write error.
 pub fn export_usd(
     scene_dir: &Path,
+    options: &BodyOptions,
     out: &Path,
     decomposer: &Decomposer,
     cache: &HullCache,
     force: bool,
-    splat_bodies: SplatBodies,
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<UsdReport> {
     sage_io::run::claim_file(out, force)?;
-    let (scene, bodies, build) = bodies(scene_dir, decomposer, cache, splat_bodies, on_object)?;
+    let (scene, bodies, build) = bodies(scene_dir, options, decomposer, cache, on_object)?;
     let out_dir = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -169,11 +194,11 @@ mod tests {
         let out = dir.path().join("usd/scene.usda");
         let report = export_usd(
             &scene,
+            &BodyOptions::default(),
             &out,
             &decomposer,
             &cache,
             false,
-            SplatBodies::Auto,
             &|_| {},
         )
         .unwrap();
@@ -188,21 +213,21 @@ mod tests {
         assert!(text.contains(&splats.path));
         let refused = export_usd(
             &scene,
+            &BodyOptions::default(),
             &out,
             &decomposer,
             &cache,
             false,
-            SplatBodies::Auto,
             &|_| {},
         );
         assert!(refused.unwrap_err().to_string().contains("`force`"));
         let again = export_usd(
             &scene,
+            &BodyOptions::default(),
             &out,
             &decomposer,
             &cache,
             true,
-            SplatBodies::Auto,
             &|_| {},
         )
         .unwrap();

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Result};
 use sage_dataset::build::{SceneParams, scene_episodes};
 use sage_env::SceneContext;
-use sage_scene::SplatLayout;
+use sage_scene::{LoadOptions, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -62,11 +62,21 @@ fn synth_folder(config: &SynthConfig, cache: &Path) -> Result<PathBuf> {
 #[pymethods]
 impl PyScene {
     /// Loads a scene folder (InteriorGS layout) with its collision bodies (hulls cached in
-    /// `cache`, by default beside the scene) and path finder.
+    /// `cache`, by default beside the scene) and path finder. `collision` names a published
+    /// collision file (SAGE-Bench `{scene}_collision.usd`) to use as the physics layer; by
+    /// default one in the folder by that name is used when present.
     #[staticmethod]
-    #[pyo3(signature = (path, cache=None))]
-    fn load(py: Python<'_>, path: PathBuf, cache: Option<PathBuf>) -> PyResult<PyScene> {
-        let ctx = py.detach(|| SceneContext::load(&path, cache)).py()?;
+    #[pyo3(signature = (path, cache=None, collision=None))]
+    fn load(
+        py: Python<'_>,
+        path: PathBuf,
+        cache: Option<PathBuf>,
+        collision: Option<PathBuf>,
+    ) -> PyResult<PyScene> {
+        let options = LoadOptions { collision };
+        let ctx = py
+            .detach(|| SceneContext::load_with(&path, cache, &options))
+            .py()?;
         Ok(PyScene {
             ctx: Arc::new(ctx),
             dir: path,

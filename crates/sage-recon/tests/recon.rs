@@ -336,6 +336,7 @@ fn box_scene(color: &str) -> Scene {
         },
         occupancy: None,
         structure_mesh: None,
+        structure_body: None,
         instances: Default::default(),
     };
     scene.finish();

@@ -10,6 +10,7 @@
 //!
 //! Load a folder with [`Scene::load`]; write one with [`Scene::save`].
 
+pub mod collision;
 pub mod floorplan;
 pub mod formats;
 pub mod gaussians;
@@ -32,5 +33,5 @@ pub use mesh::TriMesh;
 pub use object::{Attributes, BodyParts, BodySource, DoorState, Object, PhysicsRole, RigidBody};
 pub use occupancy::OccupancyMap;
 pub use ply::SplatLayout;
-pub use scene::{LoadReport, Scene};
+pub use scene::{LoadOptions, LoadReport, Scene};
 pub use summary::SceneSummary;

@@ -1,18 +1,19 @@
 //! A whole scene: Gaussians, objects, floorplan, occupancy; loading and saving a scene folder.
 
+use crate::collision::{self, CollisionReport};
 use crate::floorplan::Floorplan;
 use crate::formats::{labels, objects_json, structure};
 use crate::gaussians::Gaussians;
 use crate::instances::{InstanceTable, assign_instances};
 use crate::mesh::TriMesh;
-use crate::object::Object;
+use crate::object::{BodyParts, Object};
 use crate::occupancy::OccupancyMap;
 use crate::ply::{self, SplatLayout};
 use crate::splats::{self, Format};
 use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result, ResultExt};
 use sage_io::limits::SCENE_JSON_MB;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Everything sage3d knows about one indoor scene, in the world frame W.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,6 +30,10 @@ pub struct Scene {
     pub occupancy: Option<OccupancyMap>,
     /// The mesh of the structure (walls, floors, ceilings), when the scene has one.
     pub structure_mesh: Option<TriMesh>,
+    /// Convex parts of the structure that belong to no object (walls, floors, ceilings), in W:
+    /// the parts of a published collision file that no object took
+    /// ([`collision::attach`]). Physics makes them static bodies.
+    pub structure_body: Option<BodyParts>,
     /// Instance ids and categories.
     pub instances: InstanceTable,
 }
@@ -56,6 +61,17 @@ pub struct LoadReport {
     pub meshes: usize,
     /// Non-fatal oddities (entries skipped and why).
     pub warnings: Vec<String>,
+    /// How a published collision file was used (frame, agreement, assignment), when one was
+    /// read.
+    pub collision: Option<CollisionReport>,
+}
+
+/// Choices of [`Scene::load_with`] beyond the folder.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LoadOptions {
+    /// A published collision file to use as the scene's physics layer instead of the one found
+    /// in the folder by name ([`collision::find_in_folder`]).
+    pub collision: Option<PathBuf>,
 }
 
 /// File names of the scene layout.
@@ -137,6 +153,27 @@ impl Scene {
     /// is sorted into it ([`Gaussians::sort_morton`], reported in
     /// [`LoadReport::morton_reordered`]) so that the renderer's chunks are compact.
     pub fn load(dir: &Path) -> Result<(Scene, LoadReport)> {
+        Self::load_with(dir, &LoadOptions::default())
+    }
+
+    /// [`Scene::load`], then the published collision file (`options.collision`, else the one
+    /// in the folder named `{scene}_collision.usd`: [`collision::find_in_folder`]) as the
+    /// physics layer: its parts go to the objects they belong to and the rest to
+    /// [`Scene::structure_body`]; [`LoadReport::collision`] says how.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`Scene::load`], a named collision file that does not exist, and those of
+    /// [`collision::read`].
+    pub fn load_with(dir: &Path, options: &LoadOptions) -> Result<(Scene, LoadReport)> {
+        if let Some(c) = &options.collision
+            && !c.is_file()
+        {
+            return Err(Error::invalid(format!(
+                "the collision file {} does not exist",
+                c.display()
+            )));
+        }
         if !dir.exists() {
             return Err(Error::invalid(format!("{} does not exist", dir.display())));
         }
@@ -279,6 +316,24 @@ impl Scene {
             .ok()
             .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
             .unwrap_or_else(|| "scene".to_string());
+        let collision_path = options
+            .collision
+            .clone()
+            .or_else(|| collision::find_in_folder(dir, &name));
+        let structure_body = match collision_path {
+            Some(p) => {
+                // Files are named relative to the folder; one given from elsewhere by its path.
+                match p.strip_prefix(dir) {
+                    Ok(rel) => note(&rel.to_string_lossy(), true),
+                    Err(_) => note(&p.display().to_string(), true),
+                }
+                let file = collision::read(&p)?;
+                let attached = collision::attach(&file, &mut objects);
+                report.collision = Some(attached.report);
+                attached.structure
+            }
+            None => None,
+        };
         let mut scene = Scene {
             name,
             gaussians,
@@ -286,6 +341,7 @@ impl Scene {
             floorplan,
             occupancy,
             structure_mesh,
+            structure_body,
             instances: InstanceTable::default(),
         };
         scene.finish();

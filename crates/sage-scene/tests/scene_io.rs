@@ -227,3 +227,82 @@ fn a_shuffled_standard_ply_is_loaded_in_morton_order() {
     scene.save(dir.path(), SplatLayout::Standard).unwrap();
     assert!(!Scene::load(dir.path()).unwrap().1.morton_reordered);
 }
+
+/// A USDA collision file with one tetrahedron per object (named `ins_{id}`, at its box centre)
+/// and one wall far from every box.
+fn collision_usda(scene: &Scene) -> String {
+    let mut text = String::from("#usda 1.0\n(\n    upAxis = \"Z\"\n    metersPerUnit = 1\n)\n\n");
+    let tet = |name: &str, c: glam::Vec3, r: f32| {
+        format!(
+            "def Mesh \"{name}\"\n{{\n    point3f[] points = [({}, {}, {}), ({}, {}, {}), ({}, {}, {}), ({}, {}, {})]\n    int[] faceVertexCounts = [3, 3, 3, 3]\n    int[] faceVertexIndices = [0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3]\n}}\n",
+            c.x - r,
+            c.y - r,
+            c.z - r,
+            c.x + r,
+            c.y - r,
+            c.z - r,
+            c.x - r,
+            c.y + r,
+            c.z - r,
+            c.x - r,
+            c.y - r,
+            c.z + r
+        )
+    };
+    for o in &scene.objects {
+        let r = o.obb.half_extents.min_element() * 0.5;
+        text.push_str(&tet(&format!("ins_{}", o.ins_id), o.obb.center, r));
+    }
+    let far = scene.bounds().max + glam::Vec3::new(5.0, 5.0, 0.0);
+    text.push_str(&tet("wall", far.truncate().extend(1.0), 0.5));
+    text
+}
+
+#[test]
+fn a_published_collision_file_in_the_folder_gives_the_objects_their_parts() {
+    let scene = generate(&SynthConfig {
+        objects: 8,
+        gaussians: 1000,
+        ..small()
+    })
+    .unwrap();
+    let root = tempfile::tempdir().unwrap();
+    let dir = root.path().join("0001_42");
+    scene.save(&dir, SplatLayout::Compressed).unwrap();
+    // The published name drops the 4-digit prefix.
+    std::fs::write(dir.join("42_collision.usda"), collision_usda(&scene)).unwrap();
+    let (back, report) = Scene::load(&dir).unwrap();
+    let c = report
+        .collision
+        .expect("the file is found by the folder's id");
+    assert!(report.files.contains(&"42_collision.usda".to_string()));
+    assert_eq!(c.frame, sage_scene::collision::CollisionFrame::W);
+    assert!(c.frame_measured);
+    assert_eq!(
+        (c.by_name, c.by_box, c.structure, c.objects),
+        (scene.objects.len(), 0, 1, scene.objects.len())
+    );
+    for o in &back.objects {
+        let b = o.body.as_ref().unwrap();
+        assert_eq!(b.source, sage_scene::BodySource::Published);
+        assert!(o.obb.contains(b.parts[0].aabb().min, 1e-4));
+    }
+    assert_eq!(back.structure_body.as_ref().unwrap().parts.len(), 1);
+    // Given by path from elsewhere, the same; a missing one is an error naming it.
+    let elsewhere = root.path().join("c.usda");
+    std::fs::rename(dir.join("42_collision.usda"), &elsewhere).unwrap();
+    assert!(Scene::load(&dir).unwrap().1.collision.is_none());
+    let options = sage_scene::LoadOptions {
+        collision: Some(elsewhere.clone()),
+    };
+    let (_, report) = Scene::load_with(&dir, &options).unwrap();
+    assert_eq!(report.collision.unwrap().by_name, scene.objects.len());
+    let options = sage_scene::LoadOptions {
+        collision: Some(root.path().join("nope.usd")),
+    };
+    let e = Scene::load_with(&dir, &options).unwrap_err().to_string();
+    assert!(
+        e.contains("nope.usd") && e.contains("does not exist"),
+        "{e}"
+    );
+}

@@ -207,6 +207,7 @@ pub fn generate(config: &SynthConfig) -> Result<Scene> {
         floorplan: layout.floorplan(),
         occupancy: Some(occupancy),
         structure_mesh: Some(structure::mesh(&layout)),
+        structure_body: None,
         instances: InstanceTable::default(),
     };
     scene.finish();
