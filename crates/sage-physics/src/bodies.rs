@@ -8,7 +8,8 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use sage_core::{Error, InstanceId, Obb, Result};
 use sage_scene::{
-    BodySource, DoorState, HoleKind, InstanceKind, Object, PhysicsRole, RigidBody, Scene, Wall,
+    BodyParts, BodySource, DoorState, HoleKind, InstanceKind, Object, PhysicsRole, RigidBody,
+    Scene, Wall,
 };
 use serde::Serialize;
 use std::time::Instant;
@@ -306,12 +307,7 @@ impl SceneBodies {
             });
         }
         if let Some(given) = &scene.structure_body {
-            // Hulls of the parts, as for an object's given parts; flat ones are dropped.
-            let parts: Vec<ConvexPart> = given
-                .parts
-                .iter()
-                .filter_map(|m| ConvexPart::hull_of(&m.positions))
-                .collect();
+            let parts = given_hulls(given);
             if !parts.is_empty() {
                 let aabb = given
                     .parts
@@ -407,6 +403,16 @@ impl SceneBodies {
     }
 }
 
+/// The convex hulls of given parts: a published part is convex already (its hull is itself); a
+/// part too flat to span a volume is dropped.
+fn given_hulls(given: &BodyParts) -> Vec<ConvexPart> {
+    given
+        .parts
+        .iter()
+        .filter_map(|m| ConvexPart::hull_of(&m.positions))
+        .collect()
+}
+
 /// The parts of one object: its given parts, else cached or decomposed hulls of its mesh, else
 /// its box.
 fn object_parts(
@@ -415,13 +421,8 @@ fn object_parts(
     cache: &HullCache,
 ) -> Result<(Vec<ConvexPart>, PartSource)> {
     if let Some(given) = &object.body {
-        // Hulls of the given parts: a published part is convex already (its hull is itself);
-        // a part too flat to span a volume is dropped, and a body left with none is its box.
-        let parts: Vec<ConvexPart> = given
-            .parts
-            .iter()
-            .filter_map(|m| ConvexPart::hull_of(&m.positions))
-            .collect();
+        // A body left with no part that spans a volume is its box.
+        let parts = given_hulls(given);
         if !parts.is_empty() {
             return Ok((parts, PartSource::Given));
         }
