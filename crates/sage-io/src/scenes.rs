@@ -5,9 +5,12 @@ use sage_core::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// True when `dir` is a scene folder: it holds `structure.json` or `labels.json`.
+/// True when `dir` is a scene folder: it holds `structure.json` or `labels.json`, or it is an
+/// imported capture (`capture.json`: Gaussians, a map and no annotations).
 pub fn is_scene_dir(dir: &Path) -> bool {
-    dir.join("structure.json").is_file() || dir.join("labels.json").is_file()
+    ["structure.json", "labels.json", "capture.json"]
+        .iter()
+        .any(|f| dir.join(f).is_file())
 }
 
 /// The scene folders of `root`: itself when it is a scene ([`is_scene_dir`]), else its
@@ -28,7 +31,7 @@ pub fn scene_dirs(root: &Path) -> Result<Vec<PathBuf>> {
     dirs.sort();
     if dirs.is_empty() {
         return Err(Error::invalid(format!(
-            "{} is neither a scene folder nor a folder of scenes (no structure.json or labels.json)",
+            "{} is neither a scene folder nor a folder of scenes (no structure.json, labels.json or capture.json)",
             root.display()
         )));
     }

@@ -18,6 +18,10 @@
 //! - A **room** endpoint is any navigable cell of the room with clearance ≥ `room_clearance`
 //!   (all its navigable cells when none has that much), drawn uniformly.
 //!
+//! - A scene with neither rooms nor objects (an imported capture) has **regions** instead: its
+//!   navigable cells cut into [`REGION`]-metre squares, each with at least 1 m² of them a room
+//!   endpoint `region_{i}` (label `region`), standing like a room.
+//!
 //! Doors and windows are never endpoints, nor are objects whose base is above
 //! `max_object_base` (ceiling lamps, pictures hung high): nobody is sent to stand beside those.
 
@@ -233,6 +237,9 @@ impl Endpoints {
                 });
             }
         }
+        if map.rooms.is_empty() && map.items.is_empty() {
+            list.extend(region_endpoints(pf, params));
+        }
         let objects = map
             .items
             .iter()
@@ -399,6 +406,60 @@ fn polygon_gap(a: &Polygon2, b: &Polygon2) -> f32 {
             .fold(f32::INFINITY, f32::min)
     };
     one_way(a, b).min(one_way(b, a))
+}
+
+/// Side of the squares that stand in for rooms in a scene with neither rooms nor objects, m.
+pub const REGION: f32 = 3.0;
+
+/// The room endpoints of a scene with neither rooms nor objects: its navigable cells cut into
+/// [`REGION`]-metre squares, each square holding at least 1 m² of them a region.
+fn region_endpoints(pf: &PathFinder, params: &SamplingParams) -> Vec<Endpoint> {
+    let g = &pf.grid;
+    let mut squares: BTreeMap<(i64, i64), Vec<usize>> = BTreeMap::new();
+    for &k in pf.navigable_cells() {
+        let p = g.center_of(k as usize) / REGION;
+        squares
+            .entry((p.x.floor() as i64, p.y.floor() as i64))
+            .or_default()
+            .push(k as usize);
+    }
+    let enough = ((1.0 / (g.cell * g.cell)).ceil() as usize).max(1);
+    squares
+        .into_iter()
+        .filter(|(_, cells)| cells.len() >= enough)
+        .enumerate()
+        .map(|(i, ((sx, sy), cells))| {
+            let roomy: Vec<usize> = cells
+                .iter()
+                .copied()
+                .filter(|&k| pf.clearance[k] >= params.room_clearance)
+                .collect();
+            let chosen = if roomy.is_empty() { cells } else { roomy };
+            let lo = Vec2::new(sx as f32, sy as f32) * REGION;
+            let polygon = Polygon2::new(vec![
+                lo,
+                lo + Vec2::X * REGION,
+                lo + Vec2::splat(REGION),
+                lo + Vec2::Y * REGION,
+            ]);
+            Endpoint {
+                kind: EndpointKind::Room,
+                reference: format!("region_{i}"),
+                label: "region".to_string(),
+                centre: polygon.centroid(),
+                polygon,
+                stands: chosen
+                    .into_iter()
+                    .map(|k| Stand {
+                        cell: k,
+                        point: g.center_of(k),
+                        facing: None,
+                    })
+                    .collect(),
+                members: Vec::new(),
+            }
+        })
+        .collect()
 }
 
 /// Stand cells of a room.

@@ -101,3 +101,29 @@ fn a_scene_without_rooms_gaussians_or_map_is_refused() {
         .to_string();
     assert!(e.contains("free space is undefined"), "{e}");
 }
+
+#[test]
+fn a_bare_capture_gets_regions_to_walk_between_and_trajectories() {
+    let mut bare = synth(3);
+    bare.floorplan = Floorplan::default();
+    bare.occupancy = None;
+    bare.structure_mesh = None;
+    bare.objects.clear();
+    let params = sage_nav::TrajectoryParams {
+        count: 6,
+        seed: 4,
+        ..sage_nav::TrajectoryParams::default()
+    };
+    let (pf, _) = PathFinder::from_scene(&bare, &params.grid, params.cost.clone()).unwrap();
+    let map = sage_nav::SemanticMap::build(&bare);
+    let ends = sage_nav::sampling::Endpoints::collect(&map, &pf, &params.sampling);
+    assert!(ends.list.len() >= 2, "{} regions", ends.list.len());
+    for e in &ends.list {
+        assert_eq!(e.kind, sage_nav::EndpointKind::Room);
+        assert!(e.reference.starts_with("region_") && e.label == "region");
+        assert!(e.stands.iter().all(|s| e.polygon.contains(s.point)));
+    }
+    let prep = sage_nav::trajectory::prepare(&bare, &params).unwrap();
+    let (set, _) = sage_nav::trajectory::generate(&bare.name, &prep, &params).unwrap();
+    assert!(!set.trajectories.is_empty());
+}
