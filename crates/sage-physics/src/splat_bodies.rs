@@ -521,19 +521,23 @@ impl VoxelGrid {
                 hi[axis] -= pull;
             }
         }
-        let local = (lo + hi) * 0.5;
-        let (c, s) = (obb.yaw.cos(), obb.yaw.sin());
-        let offset = Vec3::new(
-            c * local.x - s * local.y,
-            s * local.x + c * local.y,
-            local.z,
-        );
         Obb {
-            center: obb.center + offset,
+            center: to_world(obb, (lo + hi) * 0.5),
             half_extents: (hi - lo) * 0.5,
             yaw: obb.yaw,
         }
     }
+}
+
+/// The world point of `local`, a point in the frame of `obb` (the inverse of [`Obb::to_local`]).
+fn to_world(obb: &Obb, local: Vec3) -> Vec3 {
+    let (c, s) = (obb.yaw.cos(), obb.yaw.sin());
+    obb.center
+        + Vec3::new(
+            c * local.x - s * local.y,
+            s * local.x + c * local.y,
+            local.z,
+        )
 }
 
 /// The closed solid of `kernels` inside `obb` at `voxel`, closed by `structure` where it meets
@@ -582,13 +586,11 @@ fn solid_of(
     }
     let mut grown = dilate(&skin, dims);
     let mut structural = vec![false; skin.len()];
-    let (c, s) = (obb.yaw.cos(), obb.yaw.sin());
-    let world = |l: Vec3| obb.center + Vec3::new(c * l.x - s * l.y, s * l.x + c * l.y, l.z);
     for z in 0..dims[2] {
         for y in 0..dims[1] {
             for x in 0..dims[0] {
                 let k = (z * dims[1] + y) * dims[0] + x;
-                structural[k] = structure.solid_at(world(centre(x, y, z)));
+                structural[k] = structure.solid_at(to_world(obb, centre(x, y, z)));
                 grown[k] |= structural[k] || barrier[k];
             }
         }
