@@ -36,10 +36,10 @@ pub struct RunArgs {
     /// Seed of the random agent.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Environment preset: sage or vlnce.
+    /// Environment preset: sage, vlnce or gnbench.
     #[arg(long, default_value = "sage")]
     preset: String,
-    /// Metric mode: sage, vlnce or sage-official.
+    /// Metric mode: sage, vlnce, sage-official or gnbench.
     #[arg(long, default_value_t = Mode::default())]
     mode: Mode,
     /// nDTW alignment: exact or fast (FastDTW, radius 1, as VLN-CE computes it).
@@ -115,7 +115,10 @@ fn run_one(a: RunArgs) -> Result<()> {
     for s in &trace.steps {
         println!("{}", json(s)?);
     }
-    let m = sage_metrics::evaluate(&sage_env::scoring::metric_record(&ctx, &trace), scoring)?;
+    let m = sage_metrics::evaluate(
+        &sage_env::scoring::metric_record(&ctx, &trace, scoring.mode),
+        scoring,
+    )?;
     println!(
         "{}",
         json(&serde_json::json!({

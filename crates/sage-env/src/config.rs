@@ -114,6 +114,21 @@ impl Default for TaskConfig {
     }
 }
 
+/// GN-Bench's image size `[width, height]` (research notes gn_bench.md §A2).
+pub const GNBENCH_SIZE: [u32; 2] = [480, 360];
+/// GN-Bench's `HFOV: 70`, which its simulator uses as the *vertical* field of view, degrees.
+pub const GNBENCH_VFOV_DEG: f64 = 70.0;
+/// GN-Bench's eye height, metres.
+pub const GNBENCH_EYE_HEIGHT: f32 = 1.3;
+
+/// The horizontal field of view of GN-Bench's camera, degrees: its 70° is vertical, so with
+/// square pixels hfov = 2·atan(tan(35°) · 480/360) ≈ 86.07°.
+pub fn gnbench_hfov_deg() -> f32 {
+    let [w, h] = GNBENCH_SIZE.map(f64::from);
+    let half = (GNBENCH_VFOV_DEG.to_radians() / 2.0).tan() * w / h;
+    (2.0 * half.atan()).to_degrees() as f32
+}
+
 /// Everything an [`crate::Env`] is set up with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EnvConfig {
@@ -187,8 +202,10 @@ impl EnvConfig {
         Ok(config)
     }
 
-    /// A named preset: `sage` (the default) or `vlnce` (224×224 RGB, 256×256 depth, HFOV 90,
-    /// 0.25 m / 15°, 500 steps, camera at 1.25 m as in VLN-CE's agent).
+    /// A named preset: `sage` (the default), `vlnce` (224×224 RGB, 256×256 depth, HFOV 90,
+    /// 0.25 m / 15°, 500 steps, camera at 1.25 m as in VLN-CE's agent) or `gnbench` (GN-Bench's
+    /// camera: 480×360 RGB only, vertical field of view 70° (see [`gnbench_hfov_deg`]), eye at
+    /// 1.3 m; 0.25 m / 15°, 500 steps).
     ///
     /// # Errors
     ///
@@ -204,8 +221,19 @@ impl EnvConfig {
                 },
                 ..EnvConfig::default()
             }),
+            "gnbench" => Ok(EnvConfig {
+                sensors: SensorConfig {
+                    width: GNBENCH_SIZE[0],
+                    height: GNBENCH_SIZE[1],
+                    hfov_deg: gnbench_hfov_deg(),
+                    camera_height: Some(GNBENCH_EYE_HEIGHT),
+                    depth: false,
+                    ..SensorConfig::default()
+                },
+                ..EnvConfig::default()
+            }),
             _ => Err(Error::invalid(format!(
-                "unknown environment preset '{name}' (expected sage or vlnce)"
+                "unknown environment preset '{name}' (expected sage, vlnce or gnbench)"
             ))),
         }
     }
@@ -305,6 +333,19 @@ mod tests {
         assert_eq!(v.sensors.depth_size, Some([256, 256]));
         v.validate().unwrap();
         assert!(EnvConfig::preset("habitat").is_err());
+        let g = EnvConfig::preset("gnbench").unwrap();
+        g.validate().unwrap();
+        assert_eq!((g.sensors.width, g.sensors.height), (480, 360));
+        assert_eq!(g.sensors.camera_height, Some(1.3));
+        assert!(g.sensors.rgb && !g.sensors.depth);
+        assert_eq!(g.task.max_steps, 500);
+        assert_eq!(g.actions, ActionSpace::default());
+        // 70° vertical at 4:3 is 86.07° horizontal; back through the intrinsics the vertical
+        // field of view is 70° again.
+        assert!((g.sensors.hfov_deg - 86.0702).abs() < 1e-3, "{}", g.sensors.hfov_deg);
+        let fy = 240.0 / (f64::from(g.sensors.hfov_deg).to_radians() / 2.0).tan();
+        let vfov = 2.0 * (180.0 / fy).atan().to_degrees();
+        assert!((vfov - 70.0).abs() < 1e-4, "{vfov}");
         let mut c = EnvConfig::default();
         c.sensors.hfov_deg = 180.0;
         assert!(c.validate().unwrap_err().message().contains("hfov_deg"));

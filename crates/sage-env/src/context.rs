@@ -2,6 +2,7 @@
 
 use sage_core::{Error, Polygon2, Result};
 use sage_metrics::distance::LabelledBox;
+use sage_nav::gnbench::GnBenchGrid;
 use sage_nav::{CostParams, GridParams, PathFinder, PublishedMap, SemanticMap, TrajectoryParams};
 use sage_physics::{
     Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams, World, WorldOptions,
@@ -11,7 +12,7 @@ use sage_scene::{LoadOptions, Scene};
 use sage_splat::{Backend, Device};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// A loaded scene with its semantic map, collision bodies and path finder.
 ///
@@ -40,6 +41,9 @@ pub struct SceneContext {
     /// Path finders over the same grid for agents wider than its planning radius, built on
     /// first use, by radius in millimetres.
     planners: Mutex<BTreeMap<u32, Arc<PathFinder>>>,
+    /// GN-Bench's inflated occupancy grids (metric mode `gnbench`), built on first use;
+    /// `None` inside when the scene has no occupancy image.
+    gnbench: OnceLock<Option<GnBenchGrid>>,
     /// The scene's Gaussians resident on a GPU, uploaded by the first environment that renders
     /// there, by the device it was asked for (`gpu` and `auto` may choose different adapters).
     gpu: Mutex<Vec<(Device, Backend)>>,
@@ -86,8 +90,17 @@ impl SceneContext {
             world,
             pathfinder: Arc::new(pathfinder),
             planners: Mutex::new(BTreeMap::new()),
+            gnbench: OnceLock::new(),
             gpu: Mutex::new(Vec::new()),
         })
+    }
+
+    /// GN-Bench's grids of the scene's occupancy image (its distance to goal, metric mode
+    /// `gnbench`), built on the first call and kept; `None` without an occupancy image.
+    pub fn gnbench_grid(&self) -> Option<&GnBenchGrid> {
+        self.gnbench
+            .get_or_init(|| self.scene.occupancy.as_ref().map(GnBenchGrid::from_occupancy))
+            .as_ref()
     }
 
     /// A renderer of the scene's Gaussians on `device`. On a GPU every call hands out a handle

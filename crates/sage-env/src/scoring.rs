@@ -7,11 +7,30 @@ use crate::episode::EpisodeTrace;
 use glam::Vec2;
 use sage_core::Result;
 use sage_metrics::distance::{GoalRegion, OfficialGoal, official_goal_box};
+use sage_metrics::gnbench::GnBenchDistances;
 use sage_metrics::{EpisodeMetrics, EpisodeRecord, Geodesics, Mode, StepRecord};
 
-/// The metrics' record of a finished trace; the published code's goal box is chosen among the
-/// entries of the scene's published map (no map: its distance rule).
-pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
+/// GN-Bench's distances to the goal point from the start and after every step of a VLN
+/// trace, on the scene's occupancy image (`None` without a goal or an occupancy image).
+pub fn gnbench_distances(ctx: &SceneContext, t: &EpisodeTrace) -> Option<GnBenchDistances> {
+    let xy = |p: glam::Vec3| [f64::from(p.x), f64::from(p.y)];
+    let goal = xy(t.episode.goal.as_ref()?.point);
+    let grid = ctx.gnbench_grid()?;
+    let positions: Vec<[f64; 2]> = std::iter::once(xy(t.episode.start.position))
+        .chain(t.steps.iter().map(|s| xy(s.pose.position)))
+        .collect();
+    let mut d = grid.trace_distances(&positions, goal).into_iter();
+    Some(GnBenchDistances {
+        start: d.next().flatten(),
+        steps: d.collect(),
+    })
+}
+
+/// The metrics' record of a finished trace, for scoring in `mode`; the published code's goal
+/// box is chosen among the entries of the scene's published map (no map: its distance rule).
+/// GN-Bench's distances, an A* per position the agent reached, are only computed for mode
+/// `gnbench`.
+pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace, mode: Mode) -> EpisodeRecord {
     let f = |v: Vec2| [f64::from(v.x), f64::from(v.y)];
     let e = &t.episode;
     let goal = e.goal.as_ref().map(|g| GoalRegion {
@@ -62,6 +81,11 @@ pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
             start_to_point: t.geodesics.start_to_point,
         },
         official_goal,
+        gnbench: if mode == Mode::GnBench {
+            gnbench_distances(ctx, t)
+        } else {
+            None
+        },
     }
 }
 
@@ -71,5 +95,5 @@ pub fn metric_record(ctx: &SceneContext, t: &EpisodeTrace) -> EpisodeRecord {
 ///
 /// The metrics' own checks of the record (see [`sage_metrics::evaluate`]).
 pub fn score(ctx: &SceneContext, trace: &EpisodeTrace, mode: Mode) -> Result<EpisodeMetrics> {
-    sage_metrics::evaluate(&metric_record(ctx, trace), mode)
+    sage_metrics::evaluate(&metric_record(ctx, trace, mode), mode)
 }

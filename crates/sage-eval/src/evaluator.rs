@@ -140,7 +140,7 @@ fn run_one(
         let mut env = Env::new(ctx.clone(), runner.config.clone())?;
         let agent = agent.insert((runner.agent)()?);
         let trace = run_episode(&mut env, agent.as_mut(), &e.env_episode())?;
-        let record = sage_env::scoring::metric_record(ctx, &trace);
+        let record = sage_env::scoring::metric_record(ctx, &trace, scoring.mode);
         let m = sage_metrics::evaluate(&record, scoring)?;
         Ok::<_, Error>((trace.termination, m, record))
     })();

@@ -11,16 +11,19 @@
 //! - [`dtw`]: exact DTW, nDTW, SDTW;
 //! - [`collision`]: CR, ICP and the published collision window;
 //! - [`smoothness`]: PS and the published variant;
-//! - [`nogoal`]: Episode Time and Explored Area.
+//! - [`nogoal`]: Episode Time and Explored Area;
+//! - [`gnbench`]: GN-Bench's success, SPL, forced STOP and means (mode `gnbench`).
 
 pub mod collision;
 pub mod distance;
 pub mod dtw;
 pub mod fastdtw;
+pub mod gnbench;
 pub mod nogoal;
 pub mod smoothness;
 
 use distance::{GoalRegion, OfficialGoal, OfficialTest};
+use gnbench::GnBenchDistances;
 use sage_core::{Error, Result, Task, Vec2};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -38,6 +41,9 @@ pub enum Mode {
     Vlnce,
     /// The published SAGE-3D code's behaviour, for comparison with numbers it produced.
     SageOfficial,
+    /// GN-Bench's measures: its grid distance to goal on the occupancy image, success within
+    /// 3.0 m at STOP, its forced STOP and its means.
+    GnBench,
 }
 
 impl Mode {
@@ -47,6 +53,7 @@ impl Mode {
             Mode::Sage => "sage",
             Mode::Vlnce => "vlnce",
             Mode::SageOfficial => "sage-official",
+            Mode::GnBench => "gnbench",
         }
     }
 }
@@ -67,8 +74,9 @@ impl FromStr for Mode {
             "sage" => Ok(Mode::Sage),
             "vlnce" => Ok(Mode::Vlnce),
             "sage-official" => Ok(Mode::SageOfficial),
+            "gnbench" => Ok(Mode::GnBench),
             _ => Err(Error::invalid(format!(
-                "unknown metric mode '{s}' (expected sage, vlnce or sage-official)"
+                "unknown metric mode '{s}' (expected sage, vlnce, sage-official or gnbench)"
             ))),
         }
     }
@@ -199,6 +207,10 @@ pub struct EpisodeRecord {
     pub geodesics: Geodesics,
     /// The published code's goal test (mode `sage-official`).
     pub official_goal: OfficialGoal,
+    /// GN-Bench's distances to goal (mode `gnbench`; filled in when a run is scored in that
+    /// mode, since they cost an A* per position).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnbench: Option<GnBenchDistances>,
 }
 
 /// The metrics of one episode; `None` where the metric is not defined for the task or mode.
@@ -285,15 +297,17 @@ pub fn evaluate(rec: &EpisodeRecord, scoring: impl Into<Scoring>) -> Result<Epis
         )));
     }
     let cut;
-    let rec = match official_auto_stop(rec, mode) {
-        Some(steps) => {
-            cut = EpisodeRecord {
-                steps: rec.steps[..steps].to_vec(),
-                ..rec.clone()
-            };
-            &cut
-        }
-        None => rec,
+    let rec = if let Some(steps) = official_auto_stop(rec, mode) {
+        cut = EpisodeRecord {
+            steps: rec.steps[..steps].to_vec(),
+            ..rec.clone()
+        };
+        &cut
+    } else if let Some(steps) = gnbench_forced_stop(rec, mode)? {
+        cut = gnbench_cut(rec, steps);
+        &cut
+    } else {
+        rec
     };
     let start = xy(&rec.start);
     let trace: Vec<[f64; 2]> = std::iter::once(start)
@@ -340,6 +354,8 @@ pub fn evaluate(rec: &EpisodeRecord, scoring: impl Into<Scoring>) -> Result<Epis
             m.icp = Some(collision::official_icp(&moves));
             m.ps = Some(smoothness::official_path_smoothness(&official_samples));
         }
+        // GN-Bench measures no collisions and no smoothness.
+        Mode::GnBench => {}
     }
     match rec.task {
         Task::Vln => vln_metrics(rec, mode, dtw, &trace, &official_samples, &mut m)?,
@@ -382,6 +398,98 @@ pub fn official_auto_stop(rec: &EpisodeRecord, mode: Mode) -> Option<usize> {
         .position(|s| dtw::euclidean(&xy(&s.position), &g) < distance::OFFICIAL_GOAL_RADIUS)
         .map(|k| k + 1)
         .filter(|&n| n < rec.steps.len())
+}
+
+/// The GN-Bench distances of a VLN record, one per position (the start first), checked
+/// against its steps.
+fn gnbench_distances(rec: &EpisodeRecord) -> Result<Vec<Option<f64>>> {
+    let d = rec.gnbench.as_ref().ok_or_else(|| {
+        Error::invalid(format!(
+            "episode {}: the record holds no GN-Bench distances (mode gnbench needs them: \
+             they are computed on the scene's occupancy image when an episode is scored in \
+             that mode)",
+            rec.episode_id
+        ))
+    })?;
+    if d.steps.len() != rec.steps.len() {
+        return Err(Error::invalid(format!(
+            "episode {}: gnbench.steps holds {} distances for {} steps",
+            rec.episode_id,
+            d.steps.len(),
+            rec.steps.len()
+        )));
+    }
+    Ok(std::iter::once(d.start)
+        .chain(d.steps.iter().copied())
+        .collect())
+}
+
+/// GN-Bench's distances of a VLN record as its measure reports them: recomputed only after a
+/// move beyond `np.allclose(…, atol=1e-4)`, else the last value repeats.
+fn gnbench_readings(rec: &EpisodeRecord) -> Result<Vec<Option<f64>>> {
+    Ok(distance::habitat_cached_distances(
+        &positions3(rec),
+        &gnbench_distances(rec)?,
+    ))
+}
+
+/// In mode `gnbench`, the number of steps the agent chose before GN-Bench's runner would have
+/// forced STOP ([`gnbench::forced_stop`]: its distance to goal unchanged for more than 25
+/// iterations in a row). `None` when the record needs no cut: no forced STOP before its end, or
+/// the agent's own STOP came at that very step; or another mode or task.
+///
+/// # Errors
+///
+/// A VLN record without GN-Bench distances, or with one per step missing.
+pub fn gnbench_forced_stop(rec: &EpisodeRecord, mode: Mode) -> Result<Option<usize>> {
+    if mode != Mode::GnBench || rec.task != Task::Vln {
+        return Ok(None);
+    }
+    let readings = gnbench_readings(rec)?;
+    // Reading k is taken before step k + 1; the last one (after the last step) forces nothing.
+    let t = rec.steps.len();
+    Ok(gnbench::forced_stop(&readings[..t])
+        .filter(|&k| !(rec.stop_called && k + 1 == t)))
+}
+
+/// `rec` as GN-Bench's runner would have ended it: its first `steps` steps, then a STOP where
+/// the agent stood (the distance read there repeats).
+fn gnbench_cut(rec: &EpisodeRecord, steps: usize) -> EpisodeRecord {
+    let mut kept = rec.steps[..steps].to_vec();
+    let stop = match kept.last() {
+        Some(s) => StepRecord {
+            commanded: 0.0,
+            achieved: 0.0,
+            contact: false,
+            intensity: 0.0,
+            ..s.clone()
+        },
+        None => StepRecord {
+            position: rec.start,
+            yaw: rec.start_yaw,
+            time: 0.0,
+            commanded: 0.0,
+            achieved: 0.0,
+            contact: false,
+            intensity: 0.0,
+            geodesic_to_goal_point: rec.geodesics.start_to_point,
+        },
+    };
+    kept.push(stop);
+    let gnbench = rec.gnbench.as_ref().map(|d| {
+        let mut steps_d = d.steps[..steps].to_vec();
+        steps_d.push(steps_d.last().copied().unwrap_or(d.start));
+        GnBenchDistances {
+            start: d.start,
+            steps: steps_d,
+        }
+    });
+    EpisodeRecord {
+        steps: kept,
+        stop_called: true,
+        gnbench,
+        ..rec.clone()
+    }
 }
 
 /// The start and every step's position in 3-D, f64.
@@ -499,6 +607,21 @@ fn vln_metrics(
             m.sr = Some(flag(success));
             return Ok(());
         }
+        Mode::GnBench => {
+            let d: Vec<f64> = gnbench_readings(rec)?
+                .into_iter()
+                .map(gnbench::value)
+                .collect();
+            let d_final = *d.last().unwrap_or(&d[0]);
+            let success = gnbench::success(rec.stop_called, d_final);
+            m.ne = Some(d_final);
+            m.sr = Some(flag(success));
+            m.osr = Some(flag(
+                d.iter().any(|&v| v < gnbench::SUCCESS_DISTANCE),
+            ));
+            m.spl = Some(gnbench::spl(success, d[0], tl));
+            return Ok(());
+        }
     };
     m.sr = Some(flag(success));
     m.ndtw = Some(ndtw);
@@ -517,7 +640,14 @@ pub struct Aggregate {
     pub means: BTreeMap<String, f64>,
 }
 
-/// The mean of each metric over `episodes`.
+/// The metrics mode `gnbench` averages as GN-Bench's results script does: over every scored
+/// VLN episode, a missing or non-finite value (an unreachable goal's ∞ NE, its NaN SPL)
+/// counting as 0.
+const GNBENCH_ZERO_FILLED: [&str; 4] = ["ne", "sr", "osr", "spl"];
+
+/// The mean of each metric over `episodes`: in modes `sage`, `vlnce` and `sage-official` over
+/// the episodes that define it; in mode `gnbench` NE, SR, OSR and SPL over every VLN episode,
+/// with missing or non-finite values as 0 (GN-Bench's means).
 pub fn aggregate<'a>(
     mode: Mode,
     episodes: impl IntoIterator<Item = &'a EpisodeMetrics>,
@@ -527,6 +657,13 @@ pub fn aggregate<'a>(
     for e in episodes {
         n += 1;
         for (name, v) in e.named() {
+            let zero_filled =
+                mode == Mode::GnBench && e.sr.is_some() && GNBENCH_ZERO_FILLED.contains(&name);
+            let v = match v {
+                Some(v) if zero_filled && !v.is_finite() => Some(0.0),
+                None if zero_filled => Some(0.0),
+                v => v,
+            };
             if let Some(v) = v {
                 let s = sums.entry(name).or_default();
                 s.0 += v;

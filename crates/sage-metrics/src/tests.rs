@@ -48,6 +48,7 @@ fn vln_record(official_goal: OfficialGoal) -> EpisodeRecord {
             start_to_point: Some(2.0),
         },
         official_goal,
+        gnbench: None,
     }
 }
 
@@ -324,6 +325,7 @@ fn nogoal_by_hand() {
         goal: None,
         geodesics: Geodesics::default(),
         official_goal: OfficialGoal::NoMap,
+        gnbench: None,
     };
     let m = evaluate(&r, Mode::Sage).unwrap();
     close(m.episode_time, 4.0);
@@ -353,7 +355,7 @@ fn vln_without_goal_is_an_error() {
 
 #[test]
 fn modes_parse_and_aggregate() {
-    for m in [Mode::Sage, Mode::Vlnce, Mode::SageOfficial] {
+    for m in [Mode::Sage, Mode::Vlnce, Mode::SageOfficial, Mode::GnBench] {
         assert_eq!(m.as_str().parse::<Mode>().unwrap(), m);
     }
     assert!("habitat".parse::<Mode>().is_err());
@@ -430,6 +432,7 @@ mod properties {
                         start_to_point: Some(2.0),
                     },
                     official_goal: OfficialGoal::NoMap,
+                    gnbench: None,
                 }
             })
     }
@@ -499,4 +502,157 @@ fn pose_goal_needs_the_pose_in_sage_mode() {
         0.15,
     )];
     close(evaluate(&r, Mode::Sage).unwrap().sr, 0.0);
+}
+
+/// A VLN record for mode `gnbench`: the agent walks along x in 0.25 m steps (turns where `x`
+/// repeats), with GN-Bench's raw distance at the start and after each step.
+fn gn_record(xs: &[f32], start: Option<f64>, dists: &[Option<f64>], stop: bool) -> EpisodeRecord {
+    let mut r = vln_record(OfficialGoal::NoMap);
+    let mut prev = 0.0f32;
+    r.steps = xs
+        .iter()
+        .enumerate()
+        .map(|(k, &x)| {
+            let d = x - prev;
+            prev = x;
+            let mut s = step(x, 0.0, 0.0, (d, d), (false, 0.0), 1.0);
+            s.time = k as f32 + 1.0;
+            s
+        })
+        .collect();
+    r.stop_called = stop;
+    r.gnbench = Some(GnBenchDistances {
+        start,
+        steps: dists.to_vec(),
+    });
+    r
+}
+
+#[test]
+fn gnbench_success_needs_stop_and_0_lt_d_lt_3() {
+    let run = |d: f64, stop: bool| {
+        evaluate(&gn_record(&[1.0], Some(5.0), &[Some(d)], stop), Mode::GnBench).unwrap()
+    };
+    let m = run(2.99, true);
+    assert_eq!((m.sr, m.osr, m.ne), (Some(1.0), Some(1.0), Some(2.99)));
+    // SPL = d0 / max(d0, L) = 5 / max(5, 1).
+    assert_eq!(m.spl, Some(1.0));
+    // Without STOP: no success, the oracle still counts.
+    let m = run(2.99, false);
+    assert_eq!((m.sr, m.osr, m.spl), (Some(0.0), Some(1.0), Some(0.0)));
+    // 3.0 is not below the threshold.
+    let m = run(3.0, true);
+    assert_eq!((m.sr, m.osr), (Some(0.0), Some(0.0)));
+    // Exactly 0 (on the goal's pixel) fails; the oracle counts it.
+    let m = run(0.0, true);
+    assert_eq!((m.sr, m.osr), (Some(0.0), Some(1.0)));
+    // GN-Bench measures no collisions, smoothness or path alignment.
+    assert_eq!((m.cr, m.csr, m.icp, m.ps, m.ndtw, m.sdtw), (None, None, None, None, None, None));
+    assert_eq!(m.tl, Some(1.0));
+}
+
+#[test]
+fn gnbench_oracle_counts_the_reset_position() {
+    let r = gn_record(&[1.0, 2.0], Some(2.5), &[Some(3.5), Some(4.5)], true);
+    let m = evaluate(&r, Mode::GnBench).unwrap();
+    assert_eq!((m.sr, m.osr, m.ne), (Some(0.0), Some(1.0), Some(4.5)));
+    let r = gn_record(&[1.0, 2.0], Some(3.2), &[Some(3.5), Some(4.5)], true);
+    assert_eq!(evaluate(&r, Mode::GnBench).unwrap().osr, Some(0.0));
+}
+
+#[test]
+fn gnbench_spl_against_the_path_taken() {
+    // d0 = 4, L = 2 (shorter than d0: the grid distance exceeds the straight line): SPL 1.
+    let r = gn_record(&[1.0, 2.0], Some(4.0), &[Some(3.0), Some(2.0)], true);
+    close(evaluate(&r, Mode::GnBench).unwrap().spl, 1.0);
+    // d0 = 1.5, L = 3 (a detour): SPL = 1.5 / 3.
+    let r = gn_record(&[1.0, 2.0, 3.0], Some(1.5), &[Some(2.5), Some(2.6), Some(2.0)], true);
+    close(evaluate(&r, Mode::GnBench).unwrap().spl, 0.5);
+}
+
+#[test]
+fn gnbench_distance_is_kept_for_moves_within_1e_4() {
+    // The second step moves 5e-5: GN-Bench does not recompute, so the 2.5 recorded there is
+    // not read; the start's 3.5 repeats up to the third step's real move.
+    let r = gn_record(&[0.00005, 0.00005, 1.0], Some(3.5), &[Some(2.5), Some(2.5), Some(3.2)], true);
+    let m = evaluate(&r, Mode::GnBench).unwrap();
+    assert_eq!((m.osr, m.sr, m.ne), (Some(0.0), Some(0.0), Some(3.2)));
+    // A real move (1 m) is measured.
+    let r = gn_record(&[1.0, 1.0, 2.0], Some(3.5), &[Some(2.5), Some(2.5), Some(3.2)], true);
+    assert_eq!(evaluate(&r, Mode::GnBench).unwrap().osr, Some(1.0));
+}
+
+#[test]
+fn gnbench_forced_stop_cuts_after_26_unchanged_readings() {
+    // The agent turns on the spot 2.0 m from the goal and never calls STOP.
+    let spin = |n: usize| {
+        gn_record(&vec![0.0; n], Some(2.0), &vec![Some(2.0); n], false)
+    };
+    // 25 turns: readings 0..=24 before steps 1..=25 never exceed 25 repeats: no cut, no STOP.
+    let r = spin(25);
+    assert_eq!(gnbench_forced_stop(&r, Mode::GnBench).unwrap(), None);
+    let m = evaluate(&r, Mode::GnBench).unwrap();
+    assert_eq!((m.sr, m.steps), (Some(0.0), Some(25.0)));
+    // 26 turns: still none (the reading after the last step forces nothing).
+    assert_eq!(gnbench_forced_stop(&spin(26), Mode::GnBench).unwrap(), None);
+    // 40 turns: the reading before step 27 is the 26th repeat, so step 27 is a forced STOP,
+    // which succeeds 2.0 m from the goal.
+    let r = spin(40);
+    assert_eq!(gnbench_forced_stop(&r, Mode::GnBench).unwrap(), Some(26));
+    let m = evaluate(&r, Mode::GnBench).unwrap();
+    assert_eq!((m.sr, m.steps, m.ne), (Some(1.0), Some(27.0), Some(2.0)));
+    // Other modes never cut.
+    assert_eq!(gnbench_forced_stop(&r, Mode::Vlnce).unwrap(), None);
+    assert_eq!(evaluate(&r, Mode::Vlnce).unwrap().steps, Some(40.0));
+    // A move that changes the distance resets the count.
+    let mut xs = vec![0.0; 20];
+    xs.extend(vec![1.0; 20]);
+    let mut ds = vec![Some(2.0); 20];
+    ds.extend(vec![Some(1.5); 20]);
+    let r = gn_record(&xs, Some(2.0), &ds, false);
+    assert_eq!(gnbench_forced_stop(&r, Mode::GnBench).unwrap(), None);
+}
+
+#[test]
+fn gnbench_unreachable_goal_is_infinite_and_averages_as_zero() {
+    let r = gn_record(&[1.0], None, &[None], true);
+    let m = evaluate(&r, Mode::GnBench).unwrap();
+    assert_eq!((m.sr, m.osr), (Some(0.0), Some(0.0)));
+    assert_eq!(m.ne, Some(f64::INFINITY));
+    assert!(m.spl.unwrap().is_nan());
+    let ok = evaluate(
+        &gn_record(&[1.0], Some(2.0), &[Some(1.0)], true),
+        Mode::GnBench,
+    )
+    .unwrap();
+    // Through JSON (where ∞ and NaN become null) and back, the means are the same: NE and SPL
+    // of the unreachable episode count as 0 over both episodes.
+    let back: EpisodeMetrics = serde_json::from_str(&serde_json::to_string(&m).unwrap()).unwrap();
+    for bad in [&m, &back] {
+        let agg = aggregate(Mode::GnBench, [bad, &ok]);
+        assert_eq!(agg.means["ne"], 0.5);
+        assert_eq!(agg.means["spl"], 0.5);
+        assert_eq!(agg.means["sr"], 0.5);
+        assert_eq!(agg.means["tl"], 1.0);
+    }
+    // Mode vlnce leaves a missing value out of its mean.
+    let agg = aggregate(Mode::Vlnce, [&back, &ok]);
+    assert_eq!(agg.means["ne"], 1.0);
+}
+
+#[test]
+fn gnbench_needs_its_distances() {
+    let mut r = gn_record(&[1.0], Some(2.0), &[Some(1.0)], true);
+    r.gnbench = None;
+    let e = evaluate(&r, Mode::GnBench).unwrap_err();
+    assert!(e.message().contains("GN-Bench distances"), "{e}");
+    r.gnbench = Some(GnBenchDistances {
+        start: Some(2.0),
+        steps: vec![],
+    });
+    let e = evaluate(&r, Mode::GnBench).unwrap_err();
+    assert!(e.message().contains("gnbench.steps"), "{e}");
+    // Other modes do not need them.
+    r.gnbench = None;
+    evaluate(&r, Mode::Sage).unwrap();
 }

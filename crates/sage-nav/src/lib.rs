@@ -12,6 +12,7 @@
 pub mod astar;
 pub mod cost;
 pub mod edt;
+pub mod gnbench;
 pub mod grid;
 pub mod path;
 pub mod pathfinder;

@@ -9,8 +9,12 @@
 //!
 //! The builder works in its own map frame M, a point reflection of the world W through the
 //! grid's centre: column `w − 1 − j` and row `h − 1 − i` of M hold world cell `(j, i)` at
-//! `x = x0 + (j + ½)·s`, `y = y0 + (i + ½)·s`. Boxes are computed and rounded there and
-//! reflected back (`x_W = 2·x0 + w·s − x_M`), so distances and box tests are the builder's.
+//! `x = x0 + (j + ½)·s`, `y = y0 + (i + ½)·s`. Boxes are computed and rounded there. The
+//! published harness maps an agent position p (its stage is W turned 180° about Z, so p is
+//! `−p_W`) into M as `p + (m + M)`, m and M the least and greatest coordinates of all mask
+//! pixels in the file (research notes §1.6), which is the exact reflection only when the masks
+//! reach the grid's edges. Boxes are reflected back into W the same way
+//! (`x_W = (m_x + M_x) − x_M`), so box tests on W positions are the harness's.
 
 use glam::Vec2;
 use sage_scene::Object;
@@ -53,9 +57,10 @@ pub struct PublishedEntry {
     /// `item_id`: the label in lower case with spaces as `_`, then `_{n}` counted per label
     /// over the kept entries.
     pub item_id: String,
-    /// Lower corner of `bbox_m`, reflected into the world frame, metres.
+    /// Lower corner of `bbox_m`, reflected into the world frame as the harness maps positions
+    /// (through the extent of all mask coordinates), metres.
     pub min: [f64; 2],
-    /// Upper corner of `bbox_m`, reflected into the world frame, metres.
+    /// Upper corner of `bbox_m`, reflected into the world frame likewise, metres.
     pub max: [f64; 2],
     /// The mask's pixels `(column, row)` in the builder's frame, row by row.
     pub pixels: Vec<(usize, usize)>,
@@ -125,11 +130,34 @@ impl Grid {
         ]
     }
 
-    /// A mask's box as the evaluator reads it (two decimals), reflected into the world frame.
-    fn world_box(&self, pixels: &[(usize, usize)]) -> ([f64; 2], [f64; 2]) {
+    /// The centre the harness reflects through: per axis m + M, the least and greatest
+    /// `mask_coords_m` value (pixel centres, two decimals) over every entry; the grid's exact
+    /// centre `2·x0 + w·s` when there is no mask at all.
+    fn harness_centre<'a>(&self, masks: impl IntoIterator<Item = &'a [(usize, usize)]>) -> [f64; 2] {
+        let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
+        for &(c, r) in masks.into_iter().flatten() {
+            (c0, c1, r0, r1) = (c0.min(c), c1.max(c), r0.min(r), r1.max(r));
+        }
+        if c0 > c1 {
+            return [
+                2.0 * self.x0 + self.w as f64 * self.s,
+                2.0 * self.y0 + self.h as f64 * self.s,
+            ];
+        }
+        // Rounding to two decimals keeps the order, so the extremes of the written values are
+        // those of the extreme pixels.
+        let at = |origin: f64, k: usize| two_decimals(origin + (k as f64 + 0.5) * self.s);
+        [
+            at(self.x0, c0) + at(self.x0, c1),
+            at(self.y0, r0) + at(self.y0, r1),
+        ]
+    }
+
+    /// A mask's box as the evaluator reads it (two decimals), reflected into the world frame
+    /// through `centre` ([`Grid::harness_centre`]).
+    fn world_box(&self, pixels: &[(usize, usize)], centre: [f64; 2]) -> ([f64; 2], [f64; 2]) {
         let [left, bottom, right, top] = self.bbox(pixels).map(two_decimals);
-        let cx = 2.0 * self.x0 + self.w as f64 * self.s;
-        let cy = 2.0 * self.y0 + self.h as f64 * self.s;
+        let [cx, cy] = centre;
         ([cx - right, cy - top], [cx - left, cy - bottom])
     }
 }
@@ -260,7 +288,8 @@ impl PublishedMap {
                          z: [f64; 2]| {
             let n = counters.entry(label.to_string()).or_insert(0);
             *n += 1;
-            let (min, max) = g.world_box(&pixels);
+            // Placed once every mask is known (`harness_centre` needs them all).
+            let (min, max) = ([0.0; 2], [0.0; 2]);
             PublishedEntry {
                 category_id,
                 label: label.to_string(),
@@ -308,6 +337,10 @@ impl PublishedMap {
                 let id = format!("unable_area_{}", k + 1);
                 entries.push(entry(-1, "Unable Area", id, pixels, [0.0, 0.0]));
             }
+        }
+        let centre = g.harness_centre(entries.iter().map(|e| e.pixels.as_slice()));
+        for e in &mut entries {
+            (e.min, e.max) = g.world_box(&e.pixels, centre);
         }
         PublishedMap { entries, grid: g }
     }
@@ -493,6 +526,58 @@ mod tests {
         assert_eq!(t["mask_coords_m"][0], serde_json::json!(["0.45", "1.35"]));
         assert_eq!(json[2]["instance_id"], "wall_1");
         assert_eq!(json[3]["category_label"], "Unable Area");
+    }
+
+    /// The harness's goal test from the written file alone: p (in W) mapped into the builder's
+    /// frame through the extent of every `mask_coords_m` value, tested against `bbox_m`.
+    fn harness_inside(json: &serde_json::Value, entry: usize, p: [f64; 2]) -> bool {
+        let num = |v: &serde_json::Value| v.as_str().unwrap().parse::<f64>().unwrap();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for e in json.as_array().unwrap() {
+            for yx in e["mask_coords_m"].as_array().unwrap() {
+                // Pairs are [y, x].
+                for (k, v) in [(1, num(&yx[0])), (0, num(&yx[1]))] {
+                    lo[k] = lo[k].min(v);
+                    hi[k] = hi[k].max(v);
+                }
+            }
+        }
+        let b: Vec<f64> = json[entry]["bbox_m"].as_array().unwrap().iter().map(num).collect();
+        let m = [lo[0] + hi[0] - p[0], lo[1] + hi[1] - p[1]];
+        m[0] >= b[0] && m[0] <= b[2] && m[1] >= b[1] && m[1] <= b[3]
+    }
+
+    #[test]
+    fn boxes_follow_the_harness_frame_when_masks_miss_the_edges() {
+        // Free image column 0 (world max-x) and image row 0 (world min-y): the wall no longer
+        // reaches those edges, so the masks span x 0.15..1.95 (m + M = 2.1, not 2.0) and
+        // y 0.05..0.85 (0.9, not 1.0).
+        let mut occ = map();
+        for r in 0..occ.height {
+            occ.cells[r * occ.width] = FREE;
+        }
+        for c in 0..occ.width {
+            occ.cells[c] = FREE;
+        }
+        let objects = [object("Coffee Table", [0.5, 0.5], [0.2, 0.1])];
+        let map = PublishedMap::from_footprints(objects, &occ);
+        let table = &map.entries[0];
+        // The file is the builder's and has not moved: bbox_m 1.30..1.70 × 0.40..0.60.
+        let json = map.to_json();
+        assert_eq!(json[0]["bbox_m"], serde_json::json!(["1.30", "0.40", "1.70", "0.60"]));
+        // The box as the harness places it in W: shifted by (+0.1, −0.1) from the exact
+        // reflection's 0.3..0.7 × 0.4..0.6.
+        for (got, want) in table.min.iter().chain(&table.max).zip([0.4, 0.3, 0.8, 0.5]) {
+            assert!((got - want).abs() < 1e-9, "{:?} {:?}", table.min, table.max);
+        }
+        // Points where the two mappings disagree: the box test on W agrees with the harness
+        // run on the file.
+        for p in [[0.75, 0.35], [0.35, 0.55], [0.5, 0.45], [0.85, 0.45]] {
+            let ours = (0..2).all(|k| p[k] >= table.min[k] && p[k] <= table.max[k]);
+            assert_eq!(ours, harness_inside(&json, 0, p), "{p:?}");
+        }
+        assert!(harness_inside(&json, 0, [0.75, 0.35]));
+        assert!(!harness_inside(&json, 0, [0.35, 0.55]));
     }
 
     #[test]

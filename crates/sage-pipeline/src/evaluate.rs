@@ -27,7 +27,7 @@ pub struct EvalOptions {
     /// Dataset split, one of those DATASET/splits.json lists (`DATASET/episodes/{split}.jsonl`).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().split))]
     pub split: String,
-    /// Metric mode: sage, vlnce or sage-official.
+    /// Metric mode: sage, vlnce, sage-official or gnbench.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().mode))]
     pub mode: Mode,
     /// nDTW alignment: exact or fast (FastDTW, radius 1, as VLN-CE computes it).
@@ -36,7 +36,7 @@ pub struct EvalOptions {
     /// Seed of the agent (each episode mixes in its id).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().seed))]
     pub seed: u64,
-    /// Environment preset: sage or vlnce.
+    /// Environment preset: sage, vlnce or gnbench.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().preset))]
     pub preset: String,
     /// Where images are rendered for agents that read them: cpu; gpu (any GPU adapter, a
