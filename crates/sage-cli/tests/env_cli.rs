@@ -48,6 +48,20 @@ fn oracle_runs_a_dataset_episode_and_scores_it() {
         assert_eq!(last["mode"], mode);
         assert!(last["metrics"]["ne"].as_f64().unwrap() < 1.5, "{out}");
     }
+    // GN-Bench's camera (480×360 RGB rendered at every step) and its metrics.
+    let out = run_ok(&[
+        "--episode",
+        id,
+        "--mode",
+        "gnbench",
+        "--preset",
+        "gnbench",
+        "--render",
+    ]);
+    let last: serde_json::Value = serde_json::from_str(out.lines().last().unwrap()).unwrap();
+    assert_eq!(last["mode"], "gnbench");
+    assert!(last["metrics"]["osr"].as_f64().is_some(), "{out}");
+    assert!(last["metrics"]["cr"].is_null(), "{out}");
     let bad = run(&["--agent", "genius"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--agent 'genius'"));

@@ -333,3 +333,54 @@ fn eval_runs_in_the_scenes_the_dataset_records_unless_told_otherwise() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(read(&legacy.join("episodes.jsonl")).lines().count(), 1);
 }
+
+#[test]
+fn eval_scores_as_gn_bench_with_its_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let run = dir.path().join("gn");
+    let args = [
+        "--agent", "oracle", "--mode", "gnbench", "--preset", "gnbench",
+    ];
+    let out = eval("1", &data, &scenes, &run, &args);
+    assert!(out.contains("overall"), "{out}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&read(&run.join("summary.json"))).unwrap();
+    assert_eq!(summary["mode"], "gnbench");
+    let settings: serde_json::Value =
+        serde_json::from_str(&read(&run.join("sage3d_run.json"))).unwrap();
+    assert_eq!(settings["settings"]["preset"], "gnbench");
+    let mut vln = 0;
+    for l in read(&run.join("episodes.jsonl")).lines() {
+        let r: serde_json::Value = serde_json::from_str(l).unwrap();
+        if r["task"] != "vln" {
+            continue;
+        }
+        vln += 1;
+        // A distance per position, from the occupancy image, and GN-Bench's metrics only.
+        let d = &r["record"]["gnbench"];
+        assert_eq!(
+            d["steps"].as_array().unwrap().len(),
+            r["record"]["steps"].as_array().unwrap().len(),
+            "{l}"
+        );
+        let m = &r["metrics"];
+        assert!(
+            m["osr"].as_f64().is_some() && m["sr"].as_f64().is_some(),
+            "{l}"
+        );
+        for absent in ["cr", "csr", "icp", "ps", "ndtw", "sdtw"] {
+            assert!(m[absent].is_null(), "{absent}: {l}");
+        }
+    }
+    assert!(vln >= 3);
+    let bad = eval_output(
+        "1",
+        &data,
+        &scenes,
+        &dir.path().join("bad"),
+        &["--agent", "oracle", "--mode", "gn"],
+    );
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("gnbench"));
+}

@@ -342,7 +342,11 @@ mod tests {
         assert_eq!(g.actions, ActionSpace::default());
         // 70° vertical at 4:3 is 86.07° horizontal; back through the intrinsics the vertical
         // field of view is 70° again.
-        assert!((g.sensors.hfov_deg - 86.0702).abs() < 1e-3, "{}", g.sensors.hfov_deg);
+        assert!(
+            (g.sensors.hfov_deg - 86.0702).abs() < 1e-3,
+            "{}",
+            g.sensors.hfov_deg
+        );
         let fy = 240.0 / (f64::from(g.sensors.hfov_deg).to_radians() / 2.0).tan();
         let vfov = 2.0 * (180.0 / fy).atan().to_degrees();
         assert!((vfov - 70.0).abs() < 1e-4, "{vfov}");

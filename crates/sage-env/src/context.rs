@@ -99,7 +99,12 @@ impl SceneContext {
     /// `gnbench`), built on the first call and kept; `None` without an occupancy image.
     pub fn gnbench_grid(&self) -> Option<&GnBenchGrid> {
         self.gnbench
-            .get_or_init(|| self.scene.occupancy.as_ref().map(GnBenchGrid::from_occupancy))
+            .get_or_init(|| {
+                self.scene
+                    .occupancy
+                    .as_ref()
+                    .map(GnBenchGrid::from_occupancy)
+            })
             .as_ref()
     }
 

@@ -624,3 +624,42 @@ fn gpu_observations_match_the_cpu() {
         assert_eq!(single.reset(i).unwrap().obs, t.obs, "sub-environment {i}");
     }
 }
+
+#[test]
+fn the_gnbench_preset_renders_480_by_360_and_its_mode_scores_on_the_occupancy_image() {
+    use sage_metrics::Mode;
+    use sage_metrics::gnbench::GnBenchDistances;
+    let f = fixture();
+    let mut env = Env::new(f.ctx.clone(), EnvConfig::preset("gnbench").unwrap()).unwrap();
+    let e = &f.episodes[0];
+    let im = env.reset(e).unwrap().images.unwrap();
+    assert_eq!((im.width, im.height), (480, 360));
+    assert_eq!(im.rgb.as_ref().unwrap().len(), 480 * 360 * 3);
+    assert!(im.depth.is_none());
+    // The oracle's trace, scored as GN-Bench: the record carries a distance per position,
+    // computed on the occupancy image; other modes leave them out.
+    let mut blind_env = Env::new(f.ctx.clone(), blind()).unwrap();
+    let trace = run_episode(&mut blind_env, &mut OracleAgent::new(0.25), e).unwrap();
+    let record = sage_env::scoring::metric_record(&f.ctx, &trace, Mode::GnBench);
+    let d: &GnBenchDistances = record.gnbench.as_ref().unwrap();
+    assert_eq!(d.steps.len(), trace.steps.len());
+    let start = d
+        .start
+        .expect("the goal is reachable on the occupancy image");
+    assert!(start > 0.0);
+    let m = sage_metrics::evaluate(&record, Mode::GnBench).unwrap();
+    // The oracle ends within a metre of its goal, well inside GN-Bench's 3 m.
+    assert_eq!(m.osr, Some(1.0));
+    assert!(m.ne.unwrap() < 3.0, "{m:?}");
+    assert_eq!((m.cr, m.ndtw), (None, None));
+    assert!(
+        sage_env::scoring::metric_record(&f.ctx, &trace, Mode::Sage)
+            .gnbench
+            .is_none()
+    );
+    // The same scene's grids are built once and shared.
+    assert!(std::ptr::eq(
+        f.ctx.gnbench_grid().unwrap(),
+        f.ctx.gnbench_grid().unwrap()
+    ));
+}

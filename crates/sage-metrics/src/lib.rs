@@ -448,8 +448,7 @@ pub fn gnbench_forced_stop(rec: &EpisodeRecord, mode: Mode) -> Result<Option<usi
     let readings = gnbench_readings(rec)?;
     // Reading k is taken before step k + 1; the last one (after the last step) forces nothing.
     let t = rec.steps.len();
-    Ok(gnbench::forced_stop(&readings[..t])
-        .filter(|&k| !(rec.stop_called && k + 1 == t)))
+    Ok(gnbench::forced_stop(&readings[..t]).filter(|&k| !(rec.stop_called && k + 1 == t)))
 }
 
 /// `rec` as GN-Bench's runner would have ended it: its first `steps` steps, then a STOP where
@@ -616,9 +615,7 @@ fn vln_metrics(
             let success = gnbench::success(rec.stop_called, d_final);
             m.ne = Some(d_final);
             m.sr = Some(flag(success));
-            m.osr = Some(flag(
-                d.iter().any(|&v| v < gnbench::SUCCESS_DISTANCE),
-            ));
+            m.osr = Some(flag(d.iter().any(|&v| v < gnbench::SUCCESS_DISTANCE)));
             m.spl = Some(gnbench::spl(success, d[0], tl));
             return Ok(());
         }

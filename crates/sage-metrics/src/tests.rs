@@ -531,7 +531,11 @@ fn gn_record(xs: &[f32], start: Option<f64>, dists: &[Option<f64>], stop: bool) 
 #[test]
 fn gnbench_success_needs_stop_and_0_lt_d_lt_3() {
     let run = |d: f64, stop: bool| {
-        evaluate(&gn_record(&[1.0], Some(5.0), &[Some(d)], stop), Mode::GnBench).unwrap()
+        evaluate(
+            &gn_record(&[1.0], Some(5.0), &[Some(d)], stop),
+            Mode::GnBench,
+        )
+        .unwrap()
     };
     let m = run(2.99, true);
     assert_eq!((m.sr, m.osr, m.ne), (Some(1.0), Some(1.0), Some(2.99)));
@@ -547,7 +551,10 @@ fn gnbench_success_needs_stop_and_0_lt_d_lt_3() {
     let m = run(0.0, true);
     assert_eq!((m.sr, m.osr), (Some(0.0), Some(1.0)));
     // GN-Bench measures no collisions, smoothness or path alignment.
-    assert_eq!((m.cr, m.csr, m.icp, m.ps, m.ndtw, m.sdtw), (None, None, None, None, None, None));
+    assert_eq!(
+        (m.cr, m.csr, m.icp, m.ps, m.ndtw, m.sdtw),
+        (None, None, None, None, None, None)
+    );
     assert_eq!(m.tl, Some(1.0));
 }
 
@@ -566,7 +573,12 @@ fn gnbench_spl_against_the_path_taken() {
     let r = gn_record(&[1.0, 2.0], Some(4.0), &[Some(3.0), Some(2.0)], true);
     close(evaluate(&r, Mode::GnBench).unwrap().spl, 1.0);
     // d0 = 1.5, L = 3 (a detour): SPL = 1.5 / 3.
-    let r = gn_record(&[1.0, 2.0, 3.0], Some(1.5), &[Some(2.5), Some(2.6), Some(2.0)], true);
+    let r = gn_record(
+        &[1.0, 2.0, 3.0],
+        Some(1.5),
+        &[Some(2.5), Some(2.6), Some(2.0)],
+        true,
+    );
     close(evaluate(&r, Mode::GnBench).unwrap().spl, 0.5);
 }
 
@@ -574,20 +586,28 @@ fn gnbench_spl_against_the_path_taken() {
 fn gnbench_distance_is_kept_for_moves_within_1e_4() {
     // The second step moves 5e-5: GN-Bench does not recompute, so the 2.5 recorded there is
     // not read; the start's 3.5 repeats up to the third step's real move.
-    let r = gn_record(&[0.00005, 0.00005, 1.0], Some(3.5), &[Some(2.5), Some(2.5), Some(3.2)], true);
+    let r = gn_record(
+        &[0.00005, 0.00005, 1.0],
+        Some(3.5),
+        &[Some(2.5), Some(2.5), Some(3.2)],
+        true,
+    );
     let m = evaluate(&r, Mode::GnBench).unwrap();
     assert_eq!((m.osr, m.sr, m.ne), (Some(0.0), Some(0.0), Some(3.2)));
     // A real move (1 m) is measured.
-    let r = gn_record(&[1.0, 1.0, 2.0], Some(3.5), &[Some(2.5), Some(2.5), Some(3.2)], true);
+    let r = gn_record(
+        &[1.0, 1.0, 2.0],
+        Some(3.5),
+        &[Some(2.5), Some(2.5), Some(3.2)],
+        true,
+    );
     assert_eq!(evaluate(&r, Mode::GnBench).unwrap().osr, Some(1.0));
 }
 
 #[test]
 fn gnbench_forced_stop_cuts_after_26_unchanged_readings() {
     // The agent turns on the spot 2.0 m from the goal and never calls STOP.
-    let spin = |n: usize| {
-        gn_record(&vec![0.0; n], Some(2.0), &vec![Some(2.0); n], false)
-    };
+    let spin = |n: usize| gn_record(&vec![0.0; n], Some(2.0), &vec![Some(2.0); n], false);
     // 25 turns: readings 0..=24 before steps 1..=25 never exceed 25 repeats: no cut, no STOP.
     let r = spin(25);
     assert_eq!(gnbench_forced_stop(&r, Mode::GnBench).unwrap(), None);

@@ -133,7 +133,10 @@ impl Grid {
     /// The centre the harness reflects through: per axis m + M, the least and greatest
     /// `mask_coords_m` value (pixel centres, two decimals) over every entry; the grid's exact
     /// centre `2·x0 + w·s` when there is no mask at all.
-    fn harness_centre<'a>(&self, masks: impl IntoIterator<Item = &'a [(usize, usize)]>) -> [f64; 2] {
+    fn harness_centre<'a>(
+        &self,
+        masks: impl IntoIterator<Item = &'a [(usize, usize)]>,
+    ) -> [f64; 2] {
         let (mut c0, mut c1, mut r0, mut r1) = (usize::MAX, 0, usize::MAX, 0);
         for &(c, r) in masks.into_iter().flatten() {
             (c0, c1, r0, r1) = (c0.min(c), c1.max(c), r0.min(r), r1.max(r));
@@ -542,7 +545,12 @@ mod tests {
                 }
             }
         }
-        let b: Vec<f64> = json[entry]["bbox_m"].as_array().unwrap().iter().map(num).collect();
+        let b: Vec<f64> = json[entry]["bbox_m"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(num)
+            .collect();
         let m = [lo[0] + hi[0] - p[0], lo[1] + hi[1] - p[1]];
         m[0] >= b[0] && m[0] <= b[2] && m[1] >= b[1] && m[1] <= b[3]
     }
@@ -564,7 +572,10 @@ mod tests {
         let table = &map.entries[0];
         // The file is the builder's and has not moved: bbox_m 1.30..1.70 × 0.40..0.60.
         let json = map.to_json();
-        assert_eq!(json[0]["bbox_m"], serde_json::json!(["1.30", "0.40", "1.70", "0.60"]));
+        assert_eq!(
+            json[0]["bbox_m"],
+            serde_json::json!(["1.30", "0.40", "1.70", "0.60"])
+        );
         // The box as the harness places it in W: shifted by (+0.1, −0.1) from the exact
         // reflection's 0.3..0.7 × 0.4..0.6.
         for (got, want) in table.min.iter().chain(&table.max).zip([0.4, 0.3, 0.8, 0.5]) {

@@ -71,7 +71,10 @@ fn corners_are_never_cut_but_line_of_sight_shortens() {
 
 #[test]
 fn smoothing_keeps_keypoints_where_sight_is_blocked() {
-    let g = grid(&["........", "........", "..####..", "..####..", "........"], &[0]);
+    let g = grid(
+        &["........", "........", "..####..", "..####..", "........"],
+        &[0],
+    );
     let (a, b) = ((0, 4), (7, 0));
     let path = g.path(a, b).unwrap();
     let smooth = g.smooth(&path);
@@ -106,7 +109,10 @@ fn margins_fall_back_from_seven_to_four_pixels() {
     let strict = grid(&rows, &MARGINS[..3]);
     assert_eq!(strict.pixel_distance(a, b), f64::INFINITY);
     let positions = [centre(&strict, a)];
-    assert_eq!(strict.trace_distances(&positions, centre(&strict, b)), vec![None]);
+    assert_eq!(
+        strict.trace_distances(&positions, centre(&strict, b)),
+        vec![None]
+    );
 }
 
 #[test]
@@ -156,7 +162,9 @@ fn lengths_count_pixel_steps_in_metres() {
 /// priority queue, no heuristic).
 fn reference(rows: &[Vec<bool>], a: Pixel, b: Pixel) -> Option<f64> {
     let (h, w) = (rows.len(), rows[0].len());
-    let free = |x: isize, y: isize| x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h && rows[y as usize][x as usize];
+    let free = |x: isize, y: isize| {
+        x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h && rows[y as usize][x as usize]
+    };
     let mut d = vec![vec![f64::INFINITY; w]; h];
     d[a.1][a.0] = 0.0;
     loop {
@@ -192,7 +200,9 @@ fn reference(rows: &[Vec<bool>], a: Pixel, b: Pixel) -> Option<f64> {
 fn astar_lengths_match_a_brute_force_reference() {
     let mut state = 0x2545_f491_u64;
     let mut next = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (state >> 33) as usize
     };
     for _ in 0..60 {
@@ -215,7 +225,9 @@ fn astar_lengths_match_a_brute_force_reference() {
             let got = g.astar(0, a, b).map(|p| cost(&p));
             let want = reference(&rows, a, b);
             match (got, want) {
-                (Some(x), Some(y)) => assert!((x - y).abs() < 1e-9, "{text:?} {a:?}→{b:?}: {x} vs {y}"),
+                (Some(x), Some(y)) => {
+                    assert!((x - y).abs() < 1e-9, "{text:?} {a:?}→{b:?}: {x} vs {y}")
+                }
                 (None, None) => {}
                 other => panic!("{text:?} {a:?}→{b:?}: {other:?}"),
             }
