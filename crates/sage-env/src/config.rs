@@ -122,7 +122,7 @@ pub const GNBENCH_VFOV_DEG: f64 = 70.0;
 pub const GNBENCH_EYE_HEIGHT: f32 = 1.3;
 
 /// The horizontal field of view of GN-Bench's camera, degrees: its 70° is vertical, so with
-/// square pixels hfov = 2·atan(tan(35°) · 480/360) ≈ 86.07°.
+/// square pixels hfov = 2·atan(tan(35°) · 480/360) ≈ 86.067°.
 pub fn gnbench_hfov_deg() -> f32 {
     let [w, h] = GNBENCH_SIZE.map(f64::from);
     let half = (GNBENCH_VFOV_DEG.to_radians() / 2.0).tan() * w / h;
@@ -340,10 +340,10 @@ mod tests {
         assert!(g.sensors.rgb && !g.sensors.depth);
         assert_eq!(g.task.max_steps, 500);
         assert_eq!(g.actions, ActionSpace::default());
-        // 70° vertical at 4:3 is 86.07° horizontal; back through the intrinsics the vertical
+        // 70° vertical at 4:3 is 86.067° horizontal; back through the intrinsics the vertical
         // field of view is 70° again.
         assert!(
-            (g.sensors.hfov_deg - 86.0702).abs() < 1e-3,
+            (g.sensors.hfov_deg - 86.0671).abs() < 1e-3,
             "{}",
             g.sensors.hfov_deg
         );
