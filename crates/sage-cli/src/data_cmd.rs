@@ -182,7 +182,10 @@ fn data_import(a: ImportArgs) -> Result<()> {
     };
     let r = sage_pipeline::dataset::import(&source, &a.out, &a.split, a.force)?;
     for x in &r.rejected {
-        eprintln!("rejected row {} ({}, {}): {}", x.row, x.episode_id, x.column, x.reason);
+        eprintln!(
+            "rejected row {} ({}, {}): {}",
+            x.row, x.episode_id, x.column, x.reason
+        );
     }
     if let Some(report) = &r.report {
         eprintln!(

@@ -251,4 +251,3 @@ pub fn import(source: &Source, out: &Path, split: &str, force: bool) -> Result<I
         report: imported.report,
     })
 }
-
