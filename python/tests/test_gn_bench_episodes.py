@@ -178,7 +178,7 @@ def test_the_plain_instruction_on_request(tmp_path, sage3d, scenes, imported):
     assert eps[0]["instruction_texts"]["grounded"].startswith("walk ahead to the ")
 
 
-@pytest.mark.parametrize("case", ["missing", "unequal", "nan", "scene"])
+@pytest.mark.parametrize("case", ["missing", "unequal", "nan", "nan_kept", "scene"])
 def test_bad_files_name_the_row_and_column(tmp_path, sage3d, scenes, split, case):
     df = split[0].iloc[[0, 1]].reset_index(drop=True).copy()
     if case == "missing":
@@ -188,12 +188,24 @@ def test_bad_files_name_the_row_and_column(tmp_path, sage3d, scenes, split, case
         df["path_raster_pixel_y"] = [v if i != 1 else v[:-1] for i, v in enumerate(df["path_raster_pixel_y"])]
         want = ["row 2.path_raster_pixel_y", "equal lengths"]
     elif case == "nan":
+        # pandas writes a NaN as null.
         df.loc[1, "start_world_x"] = float("nan")
-        want = ["row 2.start_world_x", "finite"]
+        want = ["row 2.start_world_x", "null: expected a finite number"]
+    elif case == "nan_kept":
+        # A NaN kept as NaN (pyarrow without pandas' null conversion), inside a path list.
+        df["path_raster_world_y"] = [v if i != 1 else [*v[:4], float("nan"), *v[5:]]
+                                     for i, v in enumerate(df["path_raster_world_y"])]
+        want = ["row 2.path_raster_world_y", "element 4: NaN: expected a finite number"]
     else:
         df["scene"] = "elsewhere"
         want = ["row 1.scene", "scene 'elsewhere' is not in the scenes folder", "2 of 2 rejected"]
-    df.to_parquet(tmp_path / "bad.parquet")
+    if case == "nan_kept":
+        table = pa.Table.from_pandas(df, preserve_index=False)
+        k = table.column_names.index("path_raster_world_y")
+        col = pa.array(list(df["path_raster_world_y"]), type=pa.list_(pa.float64()), from_pandas=False)
+        pq.write_table(table.set_column(k, "path_raster_world_y", col), tmp_path / "bad.parquet")
+    else:
+        df.to_parquet(tmp_path / "bad.parquet")
     proc = sage3d("data", "import", tmp_path / "bad.parquet", "--gn-bench", "--scenes", scenes,
                   "--out", tmp_path / "d", check=False)
     assert proc.returncode != 0

@@ -295,7 +295,11 @@ enum Num {
 /// The number at `i` of a number column (ints and floats of the widths pandas writes).
 fn number(a: &dyn Array, i: usize) -> std::result::Result<Num, String> {
     if a.is_null(i) {
-        return Err("null (GN-Bench's columns are required and non-null)".into());
+        return Err(
+            "null: expected a finite number (pandas writes a NaN as null; GN-Bench's columns \
+             are required and non-null)"
+                .into(),
+        );
     }
     Ok(match a.data_type() {
         DataType::Int64 => Num::Int(a.as_primitive::<Int64Type>().value(i)),
