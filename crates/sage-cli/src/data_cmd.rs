@@ -1,6 +1,6 @@
 //! `sage3d data …`: benchmark datasets (instructions, episodes, splits, files).
 
-use clap::{Args, Subcommand};
+use clap::{Args, Subcommand, ValueEnum};
 use sage_core::Result;
 use sage_io::runner::{Status, Tally};
 use sage_pipeline::dataset::{BuildSettings, DatasetReport};
@@ -17,15 +17,57 @@ pub enum DataCommand {
     /// discrete actions, walked through physics, a frame rendered before every action, written
     /// as NaVILA annotations, WebDataset shards or a folder tree (parallel, resumable).
     Render(RenderArgs),
-    /// Read episodes from a SAGE-Bench GVLN file or an R2R-VLNCE split into a dataset folder's
-    /// split (DATASET/episodes/SPLIT.jsonl, listed in DATASET/splits.json), for `eval` and
-    /// `data render`.
+    /// Read episodes from a SAGE-Bench GVLN file, an R2R-VLNCE split or a GN-Bench Parquet
+    /// split into a dataset folder's split (DATASET/episodes/SPLIT.jsonl, listed in
+    /// DATASET/splits.json), for `eval` and `data render`.
     Import(ImportArgs),
+    /// Write a split of a dataset as another tool's file: a GN-Bench Parquet split, so that
+    /// sage3d's episodes run in GN-Bench.
+    Export(ExportArgs),
+}
+
+/// The instruction text a GN-Bench import gives the agent.
+#[derive(Clone, Copy, ValueEnum)]
+enum GnInstruction {
+    /// `grounded_instruction`, what GN-Bench's instruction sensor gives (the default).
+    Grounded,
+    /// `instruction`.
+    Plain,
+}
+
+/// The formats `data export` writes.
+#[derive(Clone, Copy, ValueEnum)]
+enum ExportFormat {
+    /// A GN-Bench split: Parquet, one row per episode, every column GN-Bench reads.
+    GnBench,
+}
+
+#[derive(Args)]
+pub struct ExportArgs {
+    /// The dataset folder.
+    dataset: PathBuf,
+    /// The split to write.
+    #[arg(long)]
+    split: String,
+    /// The file to write.
+    #[arg(long)]
+    out: PathBuf,
+    /// The format.
+    #[arg(long, value_enum, default_value = "gn-bench")]
+    format: ExportFormat,
+    /// The scenes folder, whose occupancy maps give the pixel columns (default: the one the
+    /// dataset records).
+    #[arg(long)]
+    scenes: Option<PathBuf>,
+    /// Replace --out when it exists.
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
 pub struct ImportArgs {
-    /// A GVLN JSON file, or an R2R-VLNCE folder (with --r2r-split).
+    /// A GVLN JSON file, an R2R-VLNCE folder (with --r2r-split) or a GN-Bench Parquet file
+    /// (with --gn-bench).
     source: PathBuf,
     /// The dataset folder to write into: new, empty, or one `data build` or `data import` wrote.
     #[arg(long)]
@@ -36,6 +78,16 @@ pub struct ImportArgs {
     /// Read SOURCE as an R2R-VLNCE folder and take this split of it.
     #[arg(long)]
     r2r_split: Option<String>,
+    /// Read SOURCE as a GN-Bench split (Parquet): every episode is checked against its
+    /// scene's occupancy map in --scenes; rows that fail are listed and not imported.
+    #[arg(long, conflicts_with = "r2r_split")]
+    gn_bench: bool,
+    /// The scenes folder of a GN-Bench import (default: the one the dataset records).
+    #[arg(long, requires = "gn_bench")]
+    scenes: Option<PathBuf>,
+    /// Which text of a GN-Bench row the agent gets (the other is kept in the episode).
+    #[arg(long, value_enum, default_value = "grounded", requires = "gn_bench")]
+    instruction: GnInstruction,
     /// S-frame offset DX,DY of a GVLN file that does not state its frame (the published ones).
     #[arg(long, default_value = "0,0", allow_hyphen_values = true)]
     offset: String,
@@ -77,6 +129,7 @@ pub fn run(cmd: DataCommand) -> Result<()> {
         DataCommand::Build(a) => data_build(a),
         DataCommand::Render(a) => data_render(a),
         DataCommand::Import(a) => data_import(a),
+        DataCommand::Export(a) => data_export(a),
     }
 }
 
@@ -102,28 +155,76 @@ fn data_build(a: BuildArgs) -> Result<()> {
 }
 
 fn data_import(a: ImportArgs) -> Result<()> {
+    use sage_dataset::formats::gnbench::InstructionChoice;
     use sage_dataset::import::Source;
-    let source = match &a.r2r_split {
-        Some(split) => Source::R2r {
+    let source = if a.gn_bench {
+        Source::GnBench {
+            file: a.source.clone(),
+            scenes: a.scenes.clone(),
+            instruction: match a.instruction {
+                GnInstruction::Grounded => InstructionChoice::Grounded,
+                GnInstruction::Plain => InstructionChoice::Plain,
+            },
+        }
+    } else if let Some(split) = &a.r2r_split {
+        Source::R2r {
             dir: a.source.clone(),
             split: split.clone(),
-        },
-        None => {
-            let bad = || sage_core::Error::invalid(format!("--offset '{}' is not DX,DY", a.offset));
-            let (x, y) = a.offset.split_once(',').ok_or_else(bad)?;
-            let num = |v: &str| v.trim().parse::<f32>().map_err(|_| bad());
-            Source::Gvln {
-                file: a.source.clone(),
-                offset: glam::Vec2::new(num(x)?, num(y)?),
-            }
+        }
+    } else {
+        let bad = || sage_core::Error::invalid(format!("--offset '{}' is not DX,DY", a.offset));
+        let (x, y) = a.offset.split_once(',').ok_or_else(bad)?;
+        let num = |v: &str| v.trim().parse::<f32>().map_err(|_| bad());
+        Source::Gvln {
+            file: a.source.clone(),
+            offset: glam::Vec2::new(num(x)?, num(y)?),
         }
     };
     let r = sage_pipeline::dataset::import(&source, &a.out, &a.split, a.force)?;
+    for x in &r.rejected {
+        eprintln!(
+            "rejected row {} ({}, {}): {}",
+            x.row, x.episode_id, x.column, x.reason
+        );
+    }
+    if let Some(report) = &r.report {
+        eprintln!(
+            "{} rows imported, {} rejected (listed in {})",
+            r.episodes,
+            r.rejected.len(),
+            report.display()
+        );
+    }
     println!(
         "{} episodes of {} scenes -> {}",
         r.episodes,
         r.scenes,
         r.file.display()
+    );
+    Ok(())
+}
+
+fn data_export(a: ExportArgs) -> Result<()> {
+    use sage_dataset::export::Format;
+    let format = match a.format {
+        ExportFormat::GnBench => Format::GnBench,
+    };
+    let r = sage_dataset::export::export(
+        &a.dataset,
+        &a.split,
+        a.scenes.as_deref(),
+        format,
+        &a.out,
+        a.force,
+    )?;
+    for l in &r.left_out {
+        eprintln!("left out {}: {}", l.episode_id, l.reason);
+    }
+    println!(
+        "{} episodes ({} left out) -> {}",
+        r.rows,
+        r.left_out.len(),
+        a.out.display()
     );
     Ok(())
 }

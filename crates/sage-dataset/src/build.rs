@@ -187,6 +187,7 @@ fn make_episode(scene: &str, assets: usize, id: String, ins: &Instruction, m: Mo
         task: if nogoal { Task::Nogoal } else { Task::Vln },
         trajectory_id: None,
         instruction: ins.text.clone(),
+        instruction_texts: Default::default(),
         level: ins.kind.level(),
         instruction_type: ins.kind,
         subtype: ins.subtype,

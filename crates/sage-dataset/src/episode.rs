@@ -5,6 +5,7 @@ use sage_core::{Error, Pose, Result, ResultExt, Vec3};
 use sage_env::{EnvEpisode, EnvGoal};
 use sage_lang::{DiscreteAction, InstructionType, Level, SingleGoalKind, Source};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 pub use sage_core::Task;
 
@@ -52,8 +53,13 @@ pub struct Episode {
     /// Index of the trajectory in the scene (`None` for Base-Action and no-goal).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub trajectory_id: Option<usize>,
-    /// Instruction text.
+    /// Instruction text: what the agent is given.
     pub instruction: String,
+    /// Every wording of the instruction the source file holds, by name, when it holds more
+    /// than one (GN-Bench's `grounded` and `plain`; `instruction` is the one chosen at import).
+    /// Empty for episodes with one wording, and in files written before the field existed.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub instruction_texts: BTreeMap<String, String>,
     /// `high` or `low` (`None` for no-goal).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub level: Option<Level>,

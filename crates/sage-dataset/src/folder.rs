@@ -171,7 +171,7 @@ pub fn add_split(dataset: &Path, split: &str, episodes: &[Episode]) -> Result<()
 
 /// `path` made absolute: resolved through links when it exists, else joined to the working
 /// directory.
-fn absolute(path: &Path) -> PathBuf {
+pub(crate) fn absolute(path: &Path) -> PathBuf {
     std::fs::canonicalize(path)
         .or_else(|_| std::path::absolute(path))
         .unwrap_or_else(|_| path.to_path_buf())

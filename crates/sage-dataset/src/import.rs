@@ -1,6 +1,8 @@
-//! Episodes from elsewhere (the published SAGE-Bench GVLN files, R2R-VLNCE splits) as one split
-//! of a dataset folder, so that `eval` and `data render` read them like a built dataset.
+//! Episodes from elsewhere (the published SAGE-Bench GVLN files, R2R-VLNCE splits, GN-Bench
+//! Parquet splits) as one split of a dataset folder, so that `eval` and `data render` read them
+//! like a built dataset.
 
+use crate::formats::gnbench::{self, InstructionChoice, Rejected};
 use crate::formats::{gvln, jsonl, r2r};
 use crate::{Episode, folder};
 use glam::Vec2;
@@ -25,31 +27,92 @@ pub enum Source {
         /// The split's name there.
         split: String,
     },
+    /// A GN-Bench split (Parquet), checked against its scenes ([`gnbench::read`]).
+    GnBench {
+        /// The file.
+        file: PathBuf,
+        /// The scenes folder (a scene folder or a folder of them); `None`: the one the
+        /// dataset folder records ([`folder::scenes_folder`]).
+        scenes: Option<PathBuf>,
+        /// Which instruction text the agent gets.
+        instruction: InstructionChoice,
+    },
+}
+
+/// The folder of a dataset where a GN-Bench import writes its report,
+/// `import_reports/{split}.json`.
+pub const REPORTS_DIR: &str = "import_reports";
+
+/// What [`import`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Imported {
+    /// The episodes written.
+    pub episodes: Vec<Episode>,
+    /// Rows of the source that were not imported, with their reasons (GN-Bench only).
+    pub rejected: Vec<Rejected>,
+    /// The report file listing them (GN-Bench only).
+    pub report: Option<PathBuf>,
 }
 
 /// The command, as the run record of a dataset folder it made names it.
 pub const COMMAND: &str = "data import";
 
 /// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
-/// in the dataset's `splits.json` ([`folder::add_split`]); returns the episodes. `dataset` must
+/// in the dataset's `splits.json` ([`folder::add_split`]). `dataset` must
 /// be new, empty, or a dataset folder written by `data build` or `data import` (a folder
-/// without a run record gets this command's); with `force`, a folder of other files is
+/// without a run record gets this command's, naming the scenes folder of a GN-Bench import so
+/// that `eval` finds it); with `force`, a folder of other files is
 /// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]), and
 /// an existing split file is replaced.
+///
+/// A GN-Bench import also writes `dataset/import_reports/{split}.json`: the source, the
+/// instruction chosen, the row of each imported episode and each rejected row with its column
+/// and reason.
 ///
 /// # Errors
 ///
 /// A split name that would name a file outside the dataset, an output folder holding files a
 /// dataset command did not write, a bad source file (naming
-/// the file and field), an existing split without `force`, a write error.
-pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Vec<Episode>> {
+/// the file and field), a GN-Bench file none of whose rows could be imported (naming the first
+/// row and column), a GN-Bench import without a scenes folder, an existing split without
+/// `force`, a write error.
+pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Imported> {
     sage_io::names::check_plain("split", split).within("`split`")?;
-    let names = ["episodes", folder::SPLITS_FILE, sage_io::RUN_RECORD];
+    let names = [
+        "episodes",
+        folder::SPLITS_FILE,
+        sage_io::RUN_RECORD,
+        REPORTS_DIR,
+    ];
     let _lock = sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
     let space = StepSizes::default();
+    let mut gn = None;
     let episodes = match source {
         Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
         Source::R2r { dir, split } => r2r::read(dir, split, &space)?,
+        Source::GnBench {
+            file,
+            scenes,
+            instruction,
+        } => {
+            let scenes = match scenes {
+                Some(s) => s.clone(),
+                // A new folder records none (`scenes_folder` would call it no dataset).
+                None if sage_io::run::recorded_command(dataset).is_none() => {
+                    return Err(Error::invalid(
+                        "a GN-Bench import checks its episodes against their scenes: name the scenes folder (`scenes`)",
+                    ));
+                }
+                None => folder::scenes_folder(dataset, None)?,
+            };
+            let mut read = gnbench::read(file, &scenes, *instruction, &space)?;
+            if read.episodes.is_empty() {
+                return Err(read.nothing_imported(file));
+            }
+            let episodes = std::mem::take(&mut read.episodes);
+            gn = Some((file, *instruction, scenes, read));
+            episodes
+        }
     };
     let dir = dataset.join("episodes");
     let file = dir.join(format!("{split}.jsonl"));
@@ -64,7 +127,42 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     folder::add_split(dataset, split, &episodes)?;
     // A built dataset keeps its build's record (it names the scenes folder `eval` reads).
     if sage_io::run::recorded_command(dataset).is_none() {
-        sage_io::run::write_run_record(dataset, COMMAND, None, serde_json::json!({}))?;
+        let settings = match &gn {
+            Some((_, _, s, _)) => serde_json::json!({"scenes": folder::scenes_record(dataset, s)}),
+            None => serde_json::json!({}),
+        };
+        sage_io::run::write_run_record(dataset, COMMAND, None, settings)?;
     }
-    Ok(episodes)
+    let mut out = Imported {
+        episodes,
+        rejected: Vec::new(),
+        report: None,
+    };
+    if let Some((source_file, instruction, _, read)) = gn {
+        let reports = dataset.join(REPORTS_DIR);
+        std::fs::create_dir_all(&reports).map_err(|e| Error::io(&reports, e))?;
+        let path = reports.join(format!("{split}.json"));
+        let rows: serde_json::Map<String, serde_json::Value> = out
+            .episodes
+            .iter()
+            .zip(&read.episode_rows)
+            .map(|(e, r)| (e.episode_id.clone(), (*r).into()))
+            .collect();
+        sage_io::files::write_json(
+            &path,
+            &serde_json::json!({
+                "format": "gn-bench",
+                "source": folder::absolute(source_file),
+                "split": split,
+                "instruction": instruction,
+                "rows": read.rows,
+                "imported": out.episodes.len(),
+                "episode_rows": rows,
+                "rejected": read.rejected,
+            }),
+        )?;
+        out.rejected = read.rejected;
+        out.report = Some(path);
+    }
+    Ok(out)
 }

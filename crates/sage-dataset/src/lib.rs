@@ -3,14 +3,16 @@
 //!
 //! [`episode`] is the record of one episode, [`slices`] its complexity tags, [`split`] the
 //! train / val / test assignment with the three unseen test sets, [`selector`] the balanced test
-//! selection, [`formats`] the files (JSONL, SAGE-Bench GVLN, R2R-VLNCE), [`build`] the steps of
+//! selection, [`formats`] the files (JSONL, SAGE-Bench GVLN, R2R-VLNCE,
+//! GN-Bench Parquet), [`build`] the steps of
 //! the build over a folder of scenes (the pipeline itself is `sage_pipeline::dataset`),
-//! [`import`] a split from other files, and [`folder`] what a dataset folder records about
+//! [`import`] a split from other files, [`export`] one to another tool's file, and [`folder`] what a dataset folder records about
 //! itself and how a split is read from it ([`folder::split_episodes`]) — what the evaluator,
 //! the training-data render and Python all read datasets through.
 
 pub mod build;
 pub mod episode;
+pub mod export;
 pub mod folder;
 pub mod formats;
 pub mod import;

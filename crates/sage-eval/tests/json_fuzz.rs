@@ -39,6 +39,7 @@ fn episode(trajectory: usize, corners: &[[f32; 2]], yaw: f32, instruction: &str)
         task: Task::Vln,
         trajectory_id: Some(trajectory),
         instruction: instruction.into(),
+        instruction_texts: Default::default(),
         level: Some(Level::Low),
         instruction_type: InstructionType::SingleGoal,
         subtype: None,

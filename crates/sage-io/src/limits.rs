@@ -83,14 +83,47 @@ pub const COLLISION_MB: Limit = Limit {
     what: "a collision file",
 };
 
+/// The size of a Parquet file (a GN-Bench episode split) before it is opened: the published
+/// splits are a few megabytes.
+pub const PARQUET_MB: Limit = Limit {
+    variable: "SAGE3D_MAX_PARQUET_MB",
+    default: 1024,
+    unit: "MB",
+    scale: 1 << 20,
+    what: "a Parquet file",
+};
+
+/// The rows of a Parquet file, as its footer declares them, checked before any is decoded.
+pub const PARQUET_ROWS: Limit = Limit {
+    variable: "SAGE3D_MAX_PARQUET_ROWS",
+    default: 1_000_000,
+    unit: "rows",
+    scale: 1,
+    what: "a Parquet file",
+};
+
+/// The values of a Parquet file (every cell and every element of a list column), as its footer
+/// declares them: a small file can encode far more values than its size suggests (runs of one
+/// value), so the decoded size is bounded by this count, not by the file's size.
+pub const PARQUET_VALUES: Limit = Limit {
+    variable: "SAGE3D_MAX_PARQUET_VALUES",
+    default: 100_000_000,
+    unit: "values",
+    scale: 1,
+    what: "a Parquet file",
+};
+
 /// Every limit (what docs/scene-format.md lists).
-pub const ALL: [Limit; 6] = [
+pub const ALL: [Limit; 9] = [
     SCENE_JSON_MB,
     JSON_MB,
     LABELS,
     IMAGE_MEGAPIXELS,
     MESH_MB,
     COLLISION_MB,
+    PARQUET_MB,
+    PARQUET_ROWS,
+    PARQUET_VALUES,
 ];
 
 impl Limit {

@@ -228,20 +228,26 @@ pub struct ImportReport {
     pub scenes: usize,
     /// The split's episodes file.
     pub file: PathBuf,
+    /// Rows of a GN-Bench file that were not imported, with their reasons.
+    pub rejected: Vec<sage_dataset::formats::gnbench::Rejected>,
+    /// The report listing them (GN-Bench imports).
+    pub report: Option<PathBuf>,
 }
 
-/// Imports the episodes of `source` (a SAGE-Bench GVLN file or an R2R-VLNCE split) as split
-/// `split` of the dataset folder `out` ([`sage_dataset::import::import`]).
+/// Imports the episodes of `source` (a SAGE-Bench GVLN file, an R2R-VLNCE split or a GN-Bench
+/// split) as split `split` of the dataset folder `out` ([`sage_dataset::import::import`]).
 ///
 /// # Errors
 ///
 /// As [`sage_dataset::import::import`].
 pub fn import(source: &Source, out: &Path, split: &str, force: bool) -> Result<ImportReport> {
-    let episodes = sage_dataset::import::import(source, out, split, force)?;
-    let scenes: BTreeSet<&str> = episodes.iter().map(|e| e.scene.as_str()).collect();
+    let imported = sage_dataset::import::import(source, out, split, force)?;
+    let scenes: BTreeSet<&str> = imported.episodes.iter().map(|e| e.scene.as_str()).collect();
     Ok(ImportReport {
-        episodes: episodes.len(),
+        episodes: imported.episodes.len(),
         scenes: scenes.len(),
         file: out.join("episodes").join(format!("{split}.jsonl")),
+        rejected: imported.rejected,
+        report: imported.report,
     })
 }

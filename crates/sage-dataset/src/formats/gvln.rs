@@ -88,6 +88,15 @@ fn headings(path: &[[f32; 3]], last: f32) -> Vec<f32> {
         .collect()
 }
 
+/// A path read from a file as points in the floor plane, with its length (metres): what
+/// the ground-truth actions follow ([`follow`]) and what the path slice and the geodesic
+/// distance of an imported episode come from (the files hold no other distance).
+pub(crate) fn planar(path: &[[f32; 3]]) -> (Vec<Vec2>, f32) {
+    let flat: Vec<Vec2> = path.iter().map(|p| Vec2::new(p[0], p[1])).collect();
+    let length = flat.windows(2).map(|w| w[0].distance(w[1])).sum();
+    (flat, length)
+}
+
 /// Writes episodes as one GVLN file in `frame` (atomically).
 pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSizes) -> Result<()> {
     let mut scenes: BTreeMap<&str, BTreeMap<String, Vec<&Episode>>> = BTreeMap::new();
@@ -297,8 +306,7 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                 }
                 let start_yaw = yaws[0].unwrap_or(0.0);
                 let final_yaw = yaws.last().copied().flatten();
-                let flat: Vec<Vec2> = positions.iter().map(|p| Vec2::new(p[0], p[1])).collect();
-                let length: f32 = flat.windows(2).map(|w| w[0].distance(w[1])).sum();
+                let (flat, length) = planar(&positions);
                 let tid = text(sample, "trajectory_id");
                 // A goal-directed trajectory's id is its index, which the published files
                 // spell as a string ("0"): anything else there is a damaged file, not a
@@ -360,6 +368,7 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                         task,
                         trajectory_id: index(kind, task)?,
                         instruction: text(ins, "generated_instruction"),
+                        instruction_texts: Default::default(),
                         level: ins
                             .get("level")
                             .and_then(|l| serde_json::from_value::<Level>(l.clone()).ok())

@@ -349,6 +349,7 @@ pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> 
                     .filter(|x| x.instruction_type != InstructionType::BaseAction)
                     .map(|_| r.trajectory_id as usize),
                 instruction: r.instruction.instruction_text.clone(),
+                instruction_texts: Default::default(),
                 level: x.as_ref().map_or(Some(sage_lang::Level::Low), |x| x.level),
                 instruction_type: x
                     .as_ref()
