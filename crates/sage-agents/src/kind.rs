@@ -239,7 +239,10 @@ mod tests {
             ),
             ("socket:h:1?history=0", "history"),
             ("ws:h", "ws:HOST:PORT"),
-            ("ws:h:1?history=3", "actions, state, format, rotate, history_cap"),
+            (
+                "ws:h:1?history=3",
+                "actions, state, format, rotate, history_cap",
+            ),
             ("ws:h:1?format=joint", "auto, discrete or nav_delta"),
             ("ws:h:1?rotate=world", "chunk_start or current"),
             ("ws:h:1?state=maybe", "1 or 0"),

@@ -320,7 +320,10 @@ fn displacements_are_one_step_through_physics() {
         assert!(a.0.position.distance(b.0.position) < 1e-5, "{a:?} {b:?}");
         assert_eq!((a.1, a.2), (b.1, b.2));
     }
-    assert!(walked[1].iter().any(|p| p.1), "the walk never touched anything");
+    assert!(
+        walked[1].iter().any(|p| p.1),
+        "the walk never touched anything"
+    );
     // Sideways and a turn: (dx, dy) in the body frame at the start heading, then the turn.
     env.reset(e).unwrap();
     let (dx, dy, dyaw) = (0.1f32, 0.05f32, 0.3f32);

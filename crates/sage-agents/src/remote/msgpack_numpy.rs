@@ -80,7 +80,11 @@ impl NdArray {
     ///
     /// `data` does not hold exactly the elements of `shape` (a caller's bug).
     pub fn uint8(shape: Vec<usize>, data: Vec<u8>) -> NdArray {
-        assert_eq!(shape.iter().product::<usize>(), data.len(), "uint8 {shape:?}");
+        assert_eq!(
+            shape.iter().product::<usize>(),
+            data.len(),
+            "uint8 {shape:?}"
+        );
         NdArray {
             dtype: "|u1".into(),
             shape,
@@ -94,7 +98,11 @@ impl NdArray {
     ///
     /// `values` does not hold exactly the elements of `shape` (a caller's bug).
     pub fn float32(shape: Vec<usize>, values: &[f32]) -> NdArray {
-        assert_eq!(shape.iter().product::<usize>(), values.len(), "f32 {shape:?}");
+        assert_eq!(
+            shape.iter().product::<usize>(),
+            values.len(),
+            "f32 {shape:?}"
+        );
         NdArray {
             dtype: "<f4".into(),
             shape,
@@ -328,6 +336,24 @@ pub fn numbers(item: &Item) -> Result<Numbers, String> {
     }
 }
 
+/// An item written out compactly, JSON-like (arrays as `dtype[shape]`, bytes as their count),
+/// for the record's notes.
+pub fn show(item: &Item) -> String {
+    match item {
+        Item::Str(s) => format!("{s:?}"),
+        Item::List(l) => format!("[{}]", l.iter().map(show).collect::<Vec<_>>().join(", ")),
+        Item::Map(m) => format!(
+            "{{{}}}",
+            m.iter()
+                .map(|(k, v)| format!("{k:?}: {}", show(v)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        Item::Array(a) => format!("{}{:?}", a.dtype, a.shape),
+        other => describe(other),
+    }
+}
+
 /// A short description of an item for messages.
 pub fn describe(item: &Item) -> String {
     match item {
@@ -394,7 +420,10 @@ mod tests {
         assert_eq!(n.values, [0.25, -1.0, 0.5, 3.0, 0.0, -0.125]);
         assert!(n.float);
         let l = numbers(item.get("list").unwrap()).unwrap();
-        assert_eq!((l.values, l.shape, l.float), (vec![1.0, -2.0], vec![2], false));
+        assert_eq!(
+            (l.values, l.shape, l.float),
+            (vec![1.0, -2.0], vec![2], false)
+        );
         // A 0-d array, big-endian and half floats, a NumPy scalar.
         let zero_d = NdArray {
             dtype: ">i2".into(),
@@ -415,6 +444,10 @@ mod tests {
             (key("dtype"), Value::from("<f8")),
         ]);
         assert_eq!(decode(&encode(&scalar)).unwrap(), Item::Float(1.5));
+        assert_eq!(
+            show(&item),
+            r#"{"actions": <f4[2, 3], "k": "v", "list": [1, -2]}"#
+        );
     }
 
     #[test]

@@ -41,8 +41,9 @@ pub const ACTION_KEYS: [&str; 5] = [
 /// Reply keys that may declare the actions' type, in the order they are tried.
 const TYPE_KEYS: [&str; 3] = ["action_type", "action.type", "action_format"];
 
-/// A `nav_delta` row with every component within this is STOP (GN0's threshold).
-pub const STOP_EPSILON: f64 = 1e-3;
+/// A `nav_delta` row with every component within this is STOP (GN0's threshold, compared in
+/// float32 as NumPy compares a float32 row with it).
+pub const STOP_EPSILON: f32 = 1e-3;
 
 /// How a reply's actions are read (`format`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -224,7 +225,10 @@ pub enum Step {
 /// A server error (a reply with an `error` and no actions) or an unparseable reply: no action
 /// key, no actions, codes outside 0–5, rows that are not `(N, ≥3)` finite floats, a declared
 /// type that is neither `discrete` nor `nav_delta`.
-pub fn parse_reply(reply: &Item, format: ActionFormat) -> std::result::Result<Vec<Step>, ReplyFault> {
+pub fn parse_reply(
+    reply: &Item,
+    format: ActionFormat,
+) -> std::result::Result<Vec<Step>, ReplyFault> {
     let unparseable = |m: String| (FaultKind::Unparseable, m);
     let Item::Map(_) = reply else {
         return Err(unparseable(format!(
@@ -256,10 +260,7 @@ pub fn parse_reply(reply: &Item, format: ActionFormat) -> std::result::Result<Ve
             Some(t) => Some(
                 t.as_str()
                     .ok_or_else(|| {
-                        unparseable(format!(
-                            "the action type is {}",
-                            msgpack_numpy::describe(t)
-                        ))
+                        unparseable(format!("the action type is {}", msgpack_numpy::describe(t)))
                     })?
                     .parse::<ActionFormat>()
                     .map_err(|e| unparseable(e.message().to_string()))?,
@@ -342,10 +343,7 @@ pub fn row_action(step: Step, rotate: Rotate, chunk_yaw: f32, yaw: f32) -> Actio
         Step::Code(a) => return a,
         Step::Delta(d) => d,
     };
-    if [dx, dy, dyaw]
-        .iter()
-        .all(|v| f64::from(v.abs()) <= STOP_EPSILON)
-    {
+    if [dx, dy, dyaw].iter().all(|v| v.abs() <= STOP_EPSILON) {
         return Action::Stop;
     }
     let (dx, dy) = match rotate {
@@ -372,7 +370,6 @@ struct Link {
     timeout: Duration,
     metadata_wait: Duration,
     conn: Option<WsConnection>,
-    session: String,
     /// The next query is the first of the session on this connection (HWC, current frame).
     first: bool,
 }
@@ -386,7 +383,7 @@ impl Link {
         }
         let mut conn = WsConnection::open(&self.host, self.port, self.timeout, self.metadata_wait)?;
         if let Some(m) = &conn.metadata {
-            let text: String = msgpack_numpy::describe(m).chars().take(200).collect();
+            let text: String = msgpack_numpy::show(m).chars().take(300).collect();
             notes.push(format!("server metadata: {text}"));
         }
         let reset = rmpv::Value::Map(vec![("endpoint".into(), "reset".into())]);
@@ -429,7 +426,10 @@ fn infer_request(
     } else {
         let mut shape = vec![pending.len()];
         shape.extend(hwc);
-        NdArray::uint8(shape, pending.iter().flat_map(|f| f.rgb.iter().copied()).collect())
+        NdArray::uint8(
+            shape,
+            pending.iter().flat_map(|f| f.rgb.iter().copied()).collect(),
+        )
     };
     let mut map = vec![
         ("endpoint".into(), "infer".into()),
@@ -448,6 +448,8 @@ pub struct PolicyAgent {
     spec: RemoteSpec,
     name: String,
     link: Link,
+    /// The episode id, sent as `session_id`.
+    session: String,
     instruction: String,
     /// Frames observed since the last query, oldest first.
     pending: VecDeque<Frame>,
@@ -475,10 +477,10 @@ impl PolicyAgent {
                 timeout: spec.options.timeout(),
                 metadata_wait: Duration::from_secs_f64(spec.options.policy.metadata_s),
                 conn: None,
-                session: String::new(),
                 first: true,
             },
             spec,
+            session: String::new(),
             instruction: String::new(),
             pending: VecDeque::new(),
             queue: VecDeque::new(),
@@ -501,7 +503,7 @@ impl Agent for PolicyAgent {
         self.faults.clear();
         self.notes.clear();
         self.instruction = episode.instruction.clone();
-        self.link.session = episode.id.clone();
+        self.session = episode.id.clone();
         self.link.conn = None;
         let (link, notes) = (&mut self.link, &mut self.notes);
         with_retries(
@@ -537,12 +539,12 @@ impl Agent for PolicyAgent {
                 NdArray::float32(vec![3], &[p.position.x, p.position.y, p.yaw])
             });
             let format = options.format;
-            let session = self.link.session.clone();
             let (pending, instruction) = (&self.pending, self.instruction.as_str());
+            let session = self.session.as_str();
             let (link, notes) = (&mut self.link, &mut self.notes);
             let mut steps = with_retries(&self.spec, &mut self.faults, obs.step, "reply", || {
                 let reply = link.ask(notes, |first| {
-                    infer_request(pending, first, instruction, &session, state.as_ref())
+                    infer_request(pending, first, instruction, session, state.as_ref())
                 })?;
                 // The server has taken the frames; the retry starts the session afresh.
                 parse_reply(&reply, format).inspect_err(|_| link.conn = None)
@@ -633,12 +635,17 @@ mod tests {
         // Each legacy key alone, typed by its name or its values; `actions` wins over the rest.
         for (key, value, want) in [
             ("action.nav_delta", rows(&d[..1]), vec![Step::Delta(d[0])]),
-            ("action.discrete", ints(&[3]), vec![Step::Code(Action::TurnRight)]),
+            (
+                "action.discrete",
+                ints(&[3]),
+                vec![Step::Code(Action::TurnRight)],
+            ),
             ("action.vlnce", Item::Int(0), vec![Step::Code(Action::Stop)]),
-            ("action", Item::Array(NdArray::uint8(vec![2], vec![1, 1])), vec![
-                Step::Code(Action::MoveForward);
-                2
-            ]),
+            (
+                "action",
+                Item::Array(NdArray::uint8(vec![2], vec![1, 1])),
+                vec![Step::Code(Action::MoveForward); 2],
+            ),
             ("action", rows(&d[1..]), vec![Step::Delta(d[1])]),
         ] {
             assert_eq!(
@@ -647,11 +654,17 @@ mod tests {
                 "{key}"
             );
             let both = map(vec![(key, value), ("actions", ints(&[2]))]);
-            assert_eq!(codes(&parse_reply(&both, Auto).unwrap()), [Action::TurnLeft]);
+            assert_eq!(
+                codes(&parse_reply(&both, Auto).unwrap()),
+                [Action::TurnLeft]
+            );
         }
         // Auto typing: a float scalar is a code; 1-D floats of 3+ are one row.
         let r = map(vec![("actions", Item::Float(1.0))]);
-        assert_eq!(codes(&parse_reply(&r, Auto).unwrap()), [Action::MoveForward]);
+        assert_eq!(
+            codes(&parse_reply(&r, Auto).unwrap()),
+            [Action::MoveForward]
+        );
         let one = Item::List(vec![Item::Float(0.1), Item::Float(0.0), Item::Float(0.0)]);
         assert_eq!(
             parse_reply(&map(vec![("actions", one.clone())]), Auto).unwrap(),
@@ -662,7 +675,10 @@ mod tests {
             ("action_type", Item::Str("nav_delta".into())),
             ("actions", ints(&[1])),
         ]);
-        assert_eq!(codes(&parse_reply(&r, Discrete).unwrap()), [Action::MoveForward]);
+        assert_eq!(
+            codes(&parse_reply(&r, Discrete).unwrap()),
+            [Action::MoveForward]
+        );
         assert!(parse_reply(&r, NavDelta).is_err());
         assert_eq!(
             parse_reply(&map(vec![("actions", ints(&[1, 0, 0]))]), NavDelta).unwrap(),
@@ -685,8 +701,16 @@ mod tests {
                 "CUDA out of memory",
             ),
             (ints(&[1]), FaultKind::Unparseable, "expected a map"),
-            (map(vec![("actions", ints(&[]))]), FaultKind::Unparseable, "no action"),
-            (map(vec![("actions", ints(&[7]))]), FaultKind::Unparseable, "7 is not"),
+            (
+                map(vec![("actions", ints(&[]))]),
+                FaultKind::Unparseable,
+                "no action",
+            ),
+            (
+                map(vec![("actions", ints(&[7]))]),
+                FaultKind::Unparseable,
+                "7 is not",
+            ),
             (
                 map(vec![("actions", Item::Str("forward".into()))]),
                 FaultKind::Unparseable,
@@ -775,6 +799,9 @@ mod tests {
             Action::Displace { .. }
         ));
         let code = Step::Code(Action::TurnLeft);
-        assert_eq!(row_action(code, Rotate::ChunkStart, 0.0, 2.0), Action::TurnLeft);
+        assert_eq!(
+            row_action(code, Rotate::ChunkStart, 0.0, 2.0),
+            Action::TurnLeft
+        );
     }
 }

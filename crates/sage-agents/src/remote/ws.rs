@@ -58,9 +58,10 @@ impl WsConnection {
         let stream = TcpStream::connect_timeout(&addr, timeout)
             .map_err(|e| transport(format!("connect {url}: {e}")))?;
         let _ = stream.set_nodelay(true);
-        for set in [TcpStream::set_read_timeout, TcpStream::set_write_timeout] {
-            set(&stream, Some(timeout)).map_err(|e| transport(format!("socket: {e}")))?;
-        }
+        stream
+            .set_read_timeout(Some(timeout))
+            .and_then(|()| stream.set_write_timeout(Some(timeout)))
+            .map_err(|e| transport(format!("socket: {e}")))?;
         let config = WebSocketConfig::default()
             .max_message_size(Some(MAX_REQUEST))
             .max_frame_size(None);
@@ -90,7 +91,12 @@ impl WsConnection {
             .map_err(|e| (FaultKind::Transport, format!("socket: {e}")))?;
         self.socket
             .send(Message::binary(request.to_vec()))
-            .map_err(|e| (FaultKind::Transport, format!("sending to {}: {e}", self.url)))?;
+            .map_err(|e| {
+                (
+                    FaultKind::Transport,
+                    format!("sending to {}: {e}", self.url),
+                )
+            })?;
         let left = deadline
             .checked_duration_since(Instant::now())
             .filter(|d| !d.is_zero())
@@ -152,7 +158,7 @@ impl WsConnection {
                             Some(f) => format!(
                                 "the server closed the connection ({} {})",
                                 u16::from(f.code),
-                                f.reason
+                                f.reason.as_str()
                             )
                             .trim_end()
                             .to_string(),
