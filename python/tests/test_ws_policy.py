@@ -156,8 +156,8 @@ def test_wnm3d_like_server_episodes_complete_with_nav_delta_chunks(sage3d, datas
         assert rec["termination"] == "stop"
         steps = rec["record"]["steps"]
         assert len(steps) == 9
-        moved = [s for s in steps[:8] if not s["collision"]]
-        assert moved and all(s["commanded"] == pytest.approx(0.1, abs=1e-4) for s in moved)
+        # Each row commands 0.1 m (what physics let through is the step's own business).
+        assert all(s["commanded"] == pytest.approx(0.1, abs=1e-4) for s in steps[:8])
         seen = server.sessions[eid]
         assert [(kind, len(shape)) for kind, shape, _, _ in seen] == [("hwc", 3), ("thwc", 4), ("thwc", 4)]
         assert [shape[0] for _, shape, _, _ in seen[1:]] == [4, 4]

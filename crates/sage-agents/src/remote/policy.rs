@@ -467,7 +467,7 @@ impl PolicyAgent {
     /// `spec` is not a `ws:` spec (a caller's bug).
     pub fn new(spec: RemoteSpec) -> PolicyAgent {
         let super::Protocol::Ws { host, port } = &spec.protocol else {
-            panic!("PolicyAgent of a {} spec", spec);
+            panic!("PolicyAgent of a {spec} spec");
         };
         PolicyAgent {
             name: spec.to_string(),
