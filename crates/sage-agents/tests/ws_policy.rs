@@ -443,7 +443,7 @@ fn faults_reconnect_reset_and_retry_and_are_never_moves() {
             (key("shape"), Value::Array(vec![Value::from(1)])),
         ]),
     )]);
-    let script = vec![
+    let script = [
         Answer::Reply(discrete_reply(&[1, 1])),
         Answer::Traceback,
         Answer::Close,
