@@ -1,7 +1,7 @@
 //! Which agent an evaluation runs, as `--agent` names it, and the maker of one agent per
 //! episode.
 
-use crate::remote::{RemoteAgent, RemoteSpec};
+use crate::remote::{self, RemoteSpec};
 use crate::replay::{ReplayAgent, ReplayFile};
 use sage_core::{Error, Result};
 use sage_env::ActionSpace;
@@ -13,8 +13,8 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 /// The agent of an evaluation, as named by `--agent` and stored in the run record as the same
-/// string: `random`, `forward`, `oracle`, `replay:FILE`, `socket:HOST:PORT`, `http:URL` or
-/// `chat:MODEL@BASE_URL`, the remote ones with `?key=value&…` options
+/// string: `random`, `forward`, `oracle`, `replay:FILE`, `socket:HOST:PORT`, `http:URL`,
+/// `chat:MODEL@BASE_URL` or `ws:HOST:PORT`, the remote ones with `?key=value&…` options
 /// ([`RemoteSpec`]). Display writes the canonical string (default options left out), which
 /// parses back to the same kind.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,8 +32,8 @@ pub enum AgentKind {
 }
 
 /// The kinds as error messages list them.
-const KINDS: &str =
-    "random, forward, oracle, replay:FILE, socket:HOST:PORT, http:URL, chat:MODEL@BASE_URL";
+const KINDS: &str = "random, forward, oracle, replay:FILE, socket:HOST:PORT, http:URL, \
+                     chat:MODEL@BASE_URL, ws:HOST:PORT";
 
 impl AgentKind {
     /// Reads what the kind needs once (the replay file) and returns the maker of one agent
@@ -86,7 +86,7 @@ impl AgentMaker {
             (AgentKind::Replay(file), None) => {
                 Box::new(ReplayAgent::new(Arc::new(ReplayFile::read(file)?)))
             }
-            (AgentKind::Remote(spec), _) => Box::new(RemoteAgent::new(spec.clone())),
+            (AgentKind::Remote(spec), _) => remote::agent(spec.clone()),
         })
     }
 
@@ -136,7 +136,7 @@ impl FromStr for AgentKind {
             ("replay", Some(file)) if !file.trim().is_empty() => {
                 Ok(AgentKind::Replay(PathBuf::from(file.trim())))
             }
-            ("socket" | "http" | "chat", Some(rest)) => {
+            ("socket" | "http" | "chat" | "ws", Some(rest)) => {
                 Ok(AgentKind::Remote(RemoteSpec::parse(&kind, rest)?))
             }
             _ => Err(Error::invalid(format!(
@@ -180,6 +180,9 @@ mod tests {
             "socket:127.0.0.1:7777?server=mllm&history=3",
             "socket:127.0.0.1:54321?server=navila&repeat=3",
             "socket:127.0.0.1:9?repeat=all",
+            "ws:127.0.0.1:8000",
+            "ws:127.0.0.1:8000?actions=4&state=1&format=nav_delta&rotate=current&history_cap=16&metadata=0&timeout=5&retries=1",
+            "ws:[::1]:8001?format=discrete",
         ] {
             let k: AgentKind = spec.parse().unwrap();
             assert_eq!(k.to_string(), spec);
@@ -210,6 +213,16 @@ mod tests {
                 .unwrap()
                 .serial()
         );
+        // GN0's defaults: 8 actions, 120 s, the frame cap max(64, 4 · actions).
+        let k: AgentKind = "ws:h:1?timeout=120&actions=8&format=auto&state=off&history_cap=auto"
+            .parse()
+            .unwrap();
+        assert_eq!(k.to_string(), "ws:h:1");
+        let AgentKind::Remote(spec) = "ws:h:1?actions=32".parse::<AgentKind>().unwrap() else {
+            panic!()
+        };
+        assert_eq!(spec.options.policy.cap(), 128);
+        assert!(k.maker().unwrap().reads_images() && !k.maker().unwrap().serial());
         let k: AgentKind = "http:127.0.0.1:8000".parse().unwrap();
         assert_eq!(k.to_string(), "http:http://127.0.0.1:8000/vln_step");
         for (bad, says) in [
@@ -225,6 +238,16 @@ mod tests {
                 "history, timeout, retries, quality, repeat",
             ),
             ("socket:h:1?history=0", "history"),
+            ("ws:h", "ws:HOST:PORT"),
+            (
+                "ws:h:1?history=3",
+                "actions, state, format, rotate, history_cap",
+            ),
+            ("ws:h:1?format=joint", "auto, discrete or nav_delta"),
+            ("ws:h:1?rotate=world", "chunk_start or current"),
+            ("ws:h:1?state=maybe", "1 or 0"),
+            ("ws:h:1?actions=0", "1..=4096"),
+            ("socket:h:1?actions=3", "server, history"),
             ("socket:h:1?server=habitat", "navila, navid, mllm"),
             ("http:127.0.0.1:8000?server=navid", "socket protocol"),
             ("socket:h:1?repeat=many", "or all"),

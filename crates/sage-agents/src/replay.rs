@@ -186,6 +186,11 @@ fn action(v: &Value) -> std::result::Result<Action, String> {
         {
             Err(format!("{v}: velocity values must be finite numbers"))
         }
+        Some(Action::Displace { dx, dy, dyaw })
+            if ![dx, dy, dyaw].iter().all(|n| n.is_finite()) =>
+        {
+            Err(format!("{v}: displacement values must be finite numbers"))
+        }
         Some(a) => Ok(a),
         None => Err(format!("{v}: {expected}")),
     }
@@ -275,5 +280,25 @@ impl Agent for ReplayAgent {
             },
             None => return Err(Error::invalid("replay: act before reset")),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn displacements_replay_as_recorded_and_must_be_finite() {
+        let ok = serde_json::json!({"type": "displace", "dx": 0.1, "dy": 0.0, "dyaw": 0.2});
+        assert_eq!(
+            action(&ok).unwrap(),
+            Action::Displace {
+                dx: 0.1,
+                dy: 0.0,
+                dyaw: 0.2
+            }
+        );
+        let huge = serde_json::json!({"type": "displace", "dx": 1e39, "dy": 0.0, "dyaw": 0.0});
+        assert!(action(&huge).unwrap_err().contains("finite"));
     }
 }

@@ -19,7 +19,9 @@ pub struct EvalArgs {
     /// episode); socket:HOST:PORT (SAGE socket protocol), http:URL (POST /vln_step) or
     /// chat:MODEL@BASE_URL (OpenAI-compatible; key from OPENAI_API_KEY), with options
     /// ?history=8&timeout=60&retries=3&quality=90&repeat=3 (chat also temperature=0.1,
-    /// max_tokens=64; socket also server=navila|navid|mllm for the published SAGE-3D servers).
+    /// max_tokens=64; socket also server=navila|navid|mllm for the published SAGE-3D servers);
+    /// ws:HOST:PORT (GN0 / openpi WebSocket policy server, ws:// only) with
+    /// ?actions=8&state=0&format=auto&rotate=chunk_start&history_cap=auto&metadata=2&timeout=120&retries=3.
     /// See docs/evaluation.md.
     #[arg(long)]
     agent: String,

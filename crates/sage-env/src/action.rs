@@ -18,6 +18,18 @@ pub enum Action {
     LookUp,
     /// Discrete: tilt the camera down one step.
     LookDown,
+    /// Discrete space: move by `(dx, dy)` in the body frame and turn by `dyaw`, as one step
+    /// (a GN0 `nav_delta` row). It runs through physics as the ground velocity
+    /// `(dx, dy, dyaw) / seconds` held for the step's `seconds` (1 s when steps take no time), so the body slides along what
+    /// it hits (never through it) and the profile's speed and yaw-rate limits apply.
+    Displace {
+        /// Metres forward.
+        dx: f32,
+        /// Metres to the left.
+        dy: f32,
+        /// Radians, counter-clockwise.
+        dyaw: f32,
+    },
     /// Ground velocity in the body frame (x forward, y left), yaw rate, held for `dt`.
     Velocity {
         /// m/s.

@@ -371,6 +371,17 @@ impl Env {
                 Ok((Command::Stop, seconds, 0.0))
             }
             (_, Action::Stop) => Ok((Command::Stop, 0.0, 0.0)),
+            (ActionSpace::Discrete { seconds, .. }, Action::Displace { dx, dy, dyaw }) => {
+                if !([dx, dy, dyaw].iter().all(|v| v.is_finite())) {
+                    return Err(Error::invalid(format!(
+                        "action {action:?}: the displacement must be finite"
+                    )));
+                }
+                // A preset whose steps take no simulated time still moves over 1 s of physics.
+                let dt = if seconds > 0.0 { seconds } else { 1.0 };
+                let (vx, vy, wz) = (dx / dt, dy / dt, dyaw / dt);
+                Ok((Command::Ground { vx, vy, wz, dt }, seconds, 0.0))
+            }
             (
                 ActionSpace::Discrete {
                     forward,

@@ -293,6 +293,71 @@ fn action_spaces() {
     assert!((obs.pose.position.z - (start.start.position.z + 0.5)).abs() < 1e-4);
 }
 
+#[test]
+fn displacements_are_one_step_through_physics() {
+    let f = fixture();
+    let e = &f.episodes[0];
+    let mut env = Env::new(f.ctx.clone(), blind()).unwrap();
+    // Forward-only displacements follow exactly the path of FORWARD steps, blocked by the
+    // same bodies (slid along, never passed through).
+    let forward = Action::Displace {
+        dx: 0.25,
+        dy: 0.0,
+        dyaw: 0.0,
+    };
+    let mut walked = Vec::new();
+    for action in [Action::MoveForward, forward] {
+        env.reset(e).unwrap();
+        let mut poses = Vec::new();
+        while !env.done() && poses.len() < 60 {
+            let (_, info) = env.step(action).unwrap();
+            poses.push((info.pose, info.collision, info.time));
+        }
+        walked.push(poses);
+    }
+    assert_eq!(walked[0].len(), walked[1].len());
+    for (a, b) in walked[0].iter().zip(&walked[1]) {
+        assert!(a.0.position.distance(b.0.position) < 1e-5, "{a:?} {b:?}");
+        assert_eq!((a.1, a.2), (b.1, b.2));
+    }
+    assert!(
+        walked[1].iter().any(|p| p.1),
+        "the walk never touched anything"
+    );
+    // Sideways and a turn: (dx, dy) in the body frame at the start heading, then the turn.
+    env.reset(e).unwrap();
+    let (dx, dy, dyaw) = (0.1f32, 0.05f32, 0.3f32);
+    let (obs, info) = env.step(Action::Displace { dx, dy, dyaw }).unwrap();
+    let (s, c) = e.start.yaw.sin_cos();
+    let want = e.start.position.truncate() + glam::Vec2::new(c * dx - s * dy, s * dx + c * dy);
+    assert!(!info.collision);
+    assert!(obs.pose.position.truncate().distance(want) < 1e-4);
+    assert!((obs.pose.yaw - sage_core::wrap_angle(e.start.yaw + dyaw)).abs() < 1e-5);
+    assert_eq!(info.time, 1.0);
+    // The profile's speed limit (the wheeled robot: 1 m/s over the 1 s step) caps a long row.
+    env.reset(e).unwrap();
+    let (obs, _) = env
+        .step(Action::Displace {
+            dx: 3.0,
+            dy: 0.0,
+            dyaw: 0.0,
+        })
+        .unwrap();
+    assert!(obs.pose.position.distance(e.start.position) <= 1.0 + 1e-4);
+    let bad = Action::Displace {
+        dx: f32::NAN,
+        dy: 0.0,
+        dyaw: 0.0,
+    };
+    assert!(env.step(bad).unwrap_err().message().contains("finite"));
+    // Only the discrete space takes displacements.
+    let mut cfg = blind();
+    cfg.actions = ActionSpace::Ground { max_dt: 1.0 };
+    let mut env = Env::new(f.ctx.clone(), cfg).unwrap();
+    env.reset(e).unwrap();
+    assert!(env.step(forward).unwrap_err().message().contains("ground"));
+}
+
 /// Runs every episode with a seeded random agent, rendering, and returns traces and images.
 fn rollout(threads: usize) -> Vec<(String, Vec<u8>)> {
     let f = fixture();

@@ -3,7 +3,8 @@
 //!
 //! Three protocols carry the same request: [`socket`] (the SAGE-3D socket protocol, 8-byte
 //! big-endian length + JSON `{images, query}`), [`http`] (`POST /vln_step` and OpenAI-compatible
-//! `/chat/completions`). [`frames`] keeps the last `history` frames as base64 JPEGs — the real
+//! `/chat/completions`). A fourth, GN0's remote-policy protocol over WebSocket ([`ws`],
+//! [`msgpack_numpy`]), sends raw frames and takes action chunks; its agent is [`policy`]. [`frames`] keeps the last `history` frames as base64 JPEGs — the real
 //! recent frames (the published client sent copies of the first frame) — and [`flavour`]
 //! arranges them as the published server behind a socket needs them (NaVILA: exactly 8, padded;
 //! MLLM: current first; NaVid: a reset per episode, one episode at a time). [`parse`] turns a
@@ -17,12 +18,16 @@
 pub mod flavour;
 pub mod frames;
 pub mod http;
+pub mod msgpack_numpy;
 pub mod parse;
+pub mod policy;
 pub mod socket;
+pub mod ws;
 
 pub use flavour::Server;
 use frames::FrameHistory;
 use parse::Steps;
+use policy::{PolicyAgent, PolicyOptions};
 use sage_core::{Error, Result};
 use sage_env::agents::{Agent, Fault, FaultKind};
 use sage_env::{Action, ActionSpace, Env, EnvEpisode, Observation};
@@ -52,6 +57,14 @@ pub enum Protocol {
         /// Full URL, `/vln_step` appended when it named no path.
         url: String,
     },
+    /// A GN0 / openpi policy server over WebSocket (`ws://HOST:PORT/`), one connection per
+    /// episode.
+    Ws {
+        /// Host name or address (IPv6 in brackets).
+        host: String,
+        /// TCP port.
+        port: u16,
+    },
     /// OpenAI-compatible `POST BASE_URL/chat/completions` with image data URIs.
     Chat {
         /// Model name sent in the request.
@@ -80,10 +93,13 @@ pub struct RemoteOptions {
     pub temperature: f32,
     /// Chat answer length limit (`max_tokens`; 64).
     pub max_tokens: u32,
+    /// The options of `ws:` policy servers.
+    pub policy: PolicyOptions,
 }
 
 impl RemoteOptions {
-    /// The defaults of a protocol and server flavour (chat models see the current image only).
+    /// The defaults of a protocol and server flavour (chat models see the current image only;
+    /// policy servers get GN0's 120 s timeout).
     pub fn defaults(protocol: &Protocol, server: Server) -> RemoteOptions {
         RemoteOptions {
             server,
@@ -92,12 +108,17 @@ impl RemoteOptions {
             } else {
                 server.default_history()
             },
-            timeout_s: 60.0,
+            timeout_s: if matches!(protocol, Protocol::Ws { .. }) {
+                120.0
+            } else {
+                60.0
+            },
             retries: 3,
             quality: 90,
             max_repeat: server.default_repeat(),
             temperature: 0.1,
             max_tokens: 64,
+            policy: PolicyOptions::default(),
         }
     }
 
@@ -107,6 +128,16 @@ impl RemoteOptions {
             "server", "history", "timeout", "retries", "quality", "repeat",
         ];
         const COMMON: [&str; 5] = ["history", "timeout", "retries", "quality", "repeat"];
+        const WS: [&str; 8] = [
+            "actions",
+            "state",
+            "format",
+            "rotate",
+            "history_cap",
+            "metadata",
+            "timeout",
+            "retries",
+        ];
         const CHAT: [&str; 7] = [
             "history",
             "timeout",
@@ -120,11 +151,15 @@ impl RemoteOptions {
             Protocol::Socket { .. } => &SOCKET,
             Protocol::Chat { .. } => &CHAT,
             Protocol::Http { .. } => &COMMON,
+            Protocol::Ws { .. } => &WS,
         }
     }
 
     /// The value of option `key` as written in the canonical string.
     fn value(&self, key: &str) -> String {
+        if PolicyOptions::KEYS.contains(&key) {
+            return self.policy.value(key);
+        }
         match key {
             "server" => self.server.to_string(),
             "history" => self.history.to_string(),
@@ -141,6 +176,9 @@ impl RemoteOptions {
 
     /// Sets option `key` from its text, checking its range.
     fn set(&mut self, key: &str, v: &str) -> Result<()> {
+        if PolicyOptions::KEYS.contains(&key) {
+            return self.policy.set(key, v);
+        }
         let bad = |want: &str| Error::invalid(format!("option {key}={v}: expected {want}"));
         let int = |lo: u64, hi: u64| {
             v.parse::<u64>()
@@ -209,7 +247,7 @@ pub struct RemoteSpec {
 }
 
 impl RemoteSpec {
-    /// Parses the part after `socket:`, `http:` or `chat:` (`kind`).
+    /// Parses the part after `socket:`, `ws:`, `http:` or `chat:` (`kind`).
     ///
     /// # Errors
     ///
@@ -219,21 +257,26 @@ impl RemoteSpec {
             Some((a, q)) => (a.trim(), Some(q)),
             None => (rest.trim(), None),
         };
+        let host_port = || {
+            let (host, port) = address
+                .rsplit_once(':')
+                .filter(|(h, _)| !h.is_empty())
+                .ok_or_else(|| {
+                    Error::invalid(format!("{kind}:{rest}: expected {kind}:HOST:PORT"))
+                })?;
+            let port = port.parse::<u16>().ok().filter(|p| *p > 0).ok_or_else(|| {
+                Error::invalid(format!("{kind}:{rest}: port '{port}' is not 1–65535"))
+            })?;
+            Ok::<_, Error>((host.to_string(), port))
+        };
         let protocol = match kind {
             "socket" => {
-                let (host, port) = address
-                    .rsplit_once(':')
-                    .filter(|(h, _)| !h.is_empty())
-                    .ok_or_else(|| {
-                        Error::invalid(format!("socket:{rest}: expected socket:HOST:PORT"))
-                    })?;
-                let port = port.parse::<u16>().ok().filter(|p| *p > 0).ok_or_else(|| {
-                    Error::invalid(format!("socket:{rest}: port '{port}' is not 1–65535"))
-                })?;
-                Protocol::Socket {
-                    host: host.to_string(),
-                    port,
-                }
+                let (host, port) = host_port()?;
+                Protocol::Socket { host, port }
+            }
+            "ws" => {
+                let (host, port) = host_port()?;
+                Protocol::Ws { host, port }
             }
             "http" => Protocol::Http {
                 url: http::step_url(address)?,
@@ -289,7 +332,9 @@ impl RemoteSpec {
     /// The server's address for messages: `HOST:PORT`, the URL, or `MODEL@BASE_URL`.
     pub fn server(&self) -> String {
         match &self.protocol {
-            Protocol::Socket { host, port } => format!("{host}:{port}"),
+            Protocol::Socket { host, port } | Protocol::Ws { host, port } => {
+                format!("{host}:{port}")
+            }
             Protocol::Http { url } => url.clone(),
             Protocol::Chat { model, base_url } => format!("{model}@{base_url}"),
         }
@@ -300,6 +345,7 @@ impl fmt::Display for RemoteSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let kind = match self.protocol {
             Protocol::Socket { .. } => "socket",
+            Protocol::Ws { .. } => "ws",
             Protocol::Http { .. } => "http",
             Protocol::Chat { .. } => "chat",
         };
@@ -353,23 +399,103 @@ pub struct RemoteAgent {
     notes: Vec<String>,
 }
 
-impl RemoteAgent {
-    /// An agent speaking `spec`'s protocol (connections are opened per request).
-    pub fn new(spec: RemoteSpec) -> RemoteAgent {
-        let o = &spec.options;
-        let transport: Box<dyn Transport> = match &spec.protocol {
-            Protocol::Socket { host, port } => {
-                Box::new(socket::SocketClient::new(host, *port, o.timeout()))
+/// The agent of `spec`: a [`PolicyAgent`] for `ws:`, else a [`RemoteAgent`] over the
+/// protocol's client (connections are opened per request or episode, not here).
+pub fn agent(spec: RemoteSpec) -> Box<dyn Agent> {
+    let o = &spec.options;
+    let transport: Box<dyn Transport> = match &spec.protocol {
+        Protocol::Socket { host, port } => {
+            Box::new(socket::SocketClient::new(host, *port, o.timeout()))
+        }
+        Protocol::Http { url } => Box::new(http::StepClient::new(url, o.timeout())),
+        Protocol::Chat { model, base_url } => Box::new(http::ChatClient::new(
+            model,
+            base_url,
+            o.timeout(),
+            o.temperature,
+            o.max_tokens,
+        )),
+        Protocol::Ws { .. } => return Box::new(PolicyAgent::new(spec)),
+    };
+    Box::new(RemoteAgent::new(spec, transport))
+}
+
+/// Checks that `env` suits a remote agent (the discrete action space and RGB images) and
+/// returns the discrete forward step (m) and turn step (degrees).
+///
+/// # Errors
+///
+/// Another action space, or no RGB sensor.
+fn check_env(env: &Env) -> Result<(f32, f32)> {
+    let ActionSpace::Discrete {
+        forward, turn_deg, ..
+    } = env.config().actions
+    else {
+        return Err(Error::invalid(
+            "remote agents need the discrete action space",
+        ));
+    };
+    if !env.config().sensors.rgb {
+        return Err(Error::invalid(
+            "remote agents need RGB images (the environment renders none)",
+        ));
+    }
+    Ok((forward, turn_deg))
+}
+
+/// Runs `attempt` under `spec`'s retry policy for the request of `step`, recording each
+/// failed attempt in `faults` with its kind (marked recovered when a later attempt succeeds).
+///
+/// # Errors
+///
+/// Every attempt failed: the server, the step and the last fault.
+fn with_retries<T>(
+    spec: &RemoteSpec,
+    faults: &mut Vec<Fault>,
+    step: usize,
+    what: &str,
+    mut attempt: impl FnMut() -> std::result::Result<T, parse::ReplyFault>,
+) -> Result<T> {
+    let first = faults.len();
+    let kind = Cell::new(FaultKind::Transport);
+    let result = spec.options.retry_policy().run(
+        |_| {
+            attempt().map_err(|(k, message)| {
+                kind.set(k);
+                Failure::new(message)
+            })
+        },
+        |n, f| {
+            faults.push(Fault {
+                step,
+                attempt: n + 1,
+                kind: kind.get(),
+                message: f.message.clone(),
+                recovered: false,
+            });
+        },
+        std::thread::sleep,
+    );
+    match result {
+        Ok(value) => {
+            for f in &mut faults[first..] {
+                f.recovered = true;
             }
-            Protocol::Http { url } => Box::new(http::StepClient::new(url, o.timeout())),
-            Protocol::Chat { model, base_url } => Box::new(http::ChatClient::new(
-                model,
-                base_url,
-                o.timeout(),
-                o.temperature,
-                o.max_tokens,
-            )),
-        };
+            Ok(value)
+        }
+        Err(gave_up) => Err(Error::invalid(format!(
+            "{}: no usable {what} at step {step} after {} attempts: {}",
+            spec.server(),
+            gave_up.attempts,
+            gave_up.last.message
+        ))),
+    }
+}
+
+impl RemoteAgent {
+    /// An agent speaking `spec`'s protocol through `transport`.
+    fn new(spec: RemoteSpec, transport: Box<dyn Transport>) -> RemoteAgent {
+        let o = &spec.options;
         RemoteAgent {
             name: spec.to_string(),
             frames: FrameHistory::new(o.history, o.quality),
@@ -386,55 +512,6 @@ impl RemoteAgent {
             notes: Vec::new(),
         }
     }
-
-    /// Runs `attempt` under the retry policy for the request of `step`, recording each failed
-    /// attempt as a fault (marked recovered when a later attempt succeeds).
-    ///
-    /// # Errors
-    ///
-    /// Every attempt failed: the server, the step and the last fault.
-    fn with_retries<T>(
-        &mut self,
-        step: usize,
-        what: &str,
-        mut attempt: impl FnMut(&mut dyn Transport) -> std::result::Result<T, parse::ReplyFault>,
-    ) -> Result<T> {
-        let first = self.faults.len();
-        let kind = Cell::new(FaultKind::Transport);
-        let (transport, faults) = (&mut self.transport, &mut self.faults);
-        let result = self.spec.options.retry_policy().run(
-            |_| {
-                attempt(transport.as_mut()).map_err(|(k, message)| {
-                    kind.set(k);
-                    Failure::new(message)
-                })
-            },
-            |n, f| {
-                faults.push(Fault {
-                    step,
-                    attempt: n + 1,
-                    kind: kind.get(),
-                    message: f.message.clone(),
-                    recovered: false,
-                });
-            },
-            std::thread::sleep,
-        );
-        match result {
-            Ok(value) => {
-                for f in &mut self.faults[first..] {
-                    f.recovered = true;
-                }
-                Ok(value)
-            }
-            Err(gave_up) => Err(Error::invalid(format!(
-                "{}: no usable {what} at step {step} after {} attempts: {}",
-                self.spec.server(),
-                gave_up.attempts,
-                gave_up.last.message
-            ))),
-        }
-    }
 }
 
 impl Agent for RemoteAgent {
@@ -443,19 +520,7 @@ impl Agent for RemoteAgent {
     }
 
     fn reset(&mut self, env: &Env, episode: &EnvEpisode) -> Result<()> {
-        let ActionSpace::Discrete {
-            forward, turn_deg, ..
-        } = env.config().actions
-        else {
-            return Err(Error::invalid(
-                "remote agents need the discrete action space",
-            ));
-        };
-        if !env.config().sensors.rgb {
-            return Err(Error::invalid(
-                "remote agents need RGB images (the environment renders none)",
-            ));
-        }
+        let (forward, turn_deg) = check_env(env)?;
         self.steps.forward = forward;
         self.steps.turn_deg = turn_deg;
         self.frames.clear();
@@ -464,9 +529,18 @@ impl Agent for RemoteAgent {
         self.notes.clear();
         self.instruction = episode.instruction.clone();
         if let Some(message) = self.spec.options.server.episode_start() {
-            self.with_retries(0, "reply to the episode's reset", |t| {
-                t.send(&message).map_err(|e| (FaultKind::Transport, e))
-            })?;
+            let transport = &mut self.transport;
+            with_retries(
+                &self.spec,
+                &mut self.faults,
+                0,
+                "reply to the episode's reset",
+                || {
+                    transport
+                        .send(&message)
+                        .map_err(|e| (FaultKind::Transport, e))
+                },
+            )?;
         }
         Ok(())
     }
@@ -481,8 +555,9 @@ impl Agent for RemoteAgent {
             .server
             .arrange(self.frames.frames(), options.history);
         let (server, steps, instruction) = (options.server, self.steps, self.instruction.clone());
-        let mut actions = self.with_retries(obs.step, "reply", |t| {
-            let reply = t
+        let transport = &mut self.transport;
+        let mut actions = with_retries(&self.spec, &mut self.faults, obs.step, "reply", || {
+            let reply = transport
                 .ask(&images, &instruction)
                 .map_err(|e| (FaultKind::Transport, e))?;
             // A reply that says the server failed is that, whatever else it holds.

@@ -61,7 +61,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     required.
 
     ``agent`` is an agent string as ``sage3d eval --agent`` takes it (``"oracle"``,
-    ``"socket:HOST:PORT?server=navila"``, …; then exactly the CLI's run), or a Python agent: an object (or class) with ``act(obs) -> action`` and optionally
+    ``"socket:HOST:PORT?server=navila"``, ``"ws:HOST:PORT?state=1"``, …; then exactly the CLI's run), or a Python agent: an object (or class) with ``act(obs) -> action`` and optionally
     ``reset(episode)``; it sees the observations of :class:`~sage3d.SageEnv` (the preset's
     images, resized by ``width``/``height``) and answers actions as ``SageEnv.step`` takes them.
     Each episode gets a fresh agent (the class called, or a deep copy of the object). Episodes
