@@ -1120,9 +1120,12 @@ mod tests {
         assert_eq!(read_rows(&path).unwrap(), rows);
     }
 
+    /// An edit of a test file's columns.
+    type Edit = Box<dyn FnOnce(&mut Vec<(String, ArrayRef)>)>;
+
     #[test]
     fn bad_rows_name_the_row_and_the_column() {
-        let message = |edit: Box<dyn FnOnce(&mut Vec<(String, ArrayRef)>)>| {
+        let message = |edit: Edit| {
             let (_d, path) = file_with(edit);
             read_rows(&path).unwrap_err().to_string()
         };

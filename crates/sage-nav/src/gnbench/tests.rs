@@ -93,14 +93,14 @@ fn margins_fall_back_from_seven_to_four_pixels() {
     // sides, so the gap is open when inflated by 4 px and closed by 5, 6 or 7.
     let w = 41;
     let mut rows: Vec<String> = (0..60).map(|_| ".".repeat(w)).collect();
-    for r in 28..32 {
-        rows[r] = format!("{}{}{}", "#".repeat(16), ".".repeat(9), "#".repeat(16));
+    for row in &mut rows[28..32] {
+        *row = format!("{}{}{}", "#".repeat(16), ".".repeat(9), "#".repeat(16));
     }
     let rows: Vec<&str> = rows.iter().map(String::as_str).collect();
     let g = grid(&rows, &MARGINS);
     let (a, b) = ((20, 5), (20, 55));
-    for k in 0..3 {
-        assert!(g.astar(k, a, b).is_none(), "margin {}", MARGINS[k]);
+    for (k, margin) in MARGINS[..3].iter().enumerate() {
+        assert!(g.astar(k, a, b).is_none(), "margin {margin}");
     }
     let path = g.astar(3, a, b).unwrap();
     assert_eq!(g.path(a, b).unwrap(), path);
