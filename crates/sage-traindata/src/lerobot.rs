@@ -404,9 +404,7 @@ fn arrow_type(f: &Feature) -> DataType {
     match f.shape.as_slice() {
         [1] => scalar,
         [n] => DataType::FixedSizeList(item(scalar), *n as i32),
-        dims => dims
-            .iter()
-            .fold(scalar, |t, _| DataType::List(item(t))),
+        dims => dims.iter().fold(scalar, |t, _| DataType::List(item(t))),
     }
 }
 
@@ -518,7 +516,9 @@ fn batch(
         Arc::new(Int64Array::from_iter_values(
             frames.clone().map(|_| episode_index),
         )),
-        Arc::new(Int64Array::from_iter_values(frames.clone().map(|k| first_index + k))),
+        Arc::new(Int64Array::from_iter_values(
+            frames.clone().map(|k| first_index + k),
+        )),
         Arc::new(Int64Array::from_iter_values(frames.map(|_| task_index))),
     ]);
     RecordBatch::try_new(schema.clone(), columns)
@@ -640,11 +640,7 @@ fn shaped(flat: &[f64], shape: &[usize]) -> Value {
         [] | [_] => json!(flat),
         [_, rest @ ..] => {
             let inner: usize = rest.iter().product();
-            Value::Array(
-                flat.chunks(inner.max(1))
-                    .map(|c| shaped(c, rest))
-                    .collect(),
-            )
+            Value::Array(flat.chunks(inner.max(1)).map(|c| shaped(c, rest)).collect())
         }
     }
 }
@@ -724,7 +720,9 @@ pub fn write(out: &Path, episodes: &[EpisodeSample], spec: &Spec) -> Result<Vec<
             let mut bytes = 0;
             for f in &e.files {
                 let p = images.join(&f[0]);
-                bytes += std::fs::metadata(&p).map_err(|err| Error::io(&p, err))?.len();
+                bytes += std::fs::metadata(&p)
+                    .map_err(|err| Error::io(&p, err))?
+                    .len();
                 bytes += per_frame_depth + 128;
             }
             Ok(bytes)
@@ -908,7 +906,9 @@ mod tests {
         // Brute force: the same rule on a sorted copy, for many lengths and quantiles.
         let mut seed = 7u64;
         let mut next = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((seed >> 33) % 1000) as f64 / 10.0
         };
         for n in [1usize, 2, 3, 10, 99, 100, 101, 1000] {
