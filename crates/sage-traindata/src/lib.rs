@@ -7,13 +7,15 @@
 //! preset's discrete actions ([`preset::ActionPreset`]: `vlnce`, `navila_small`,
 //! `navila_large`, `custom_small`); the camera's frame before each action is rendered and
 //! encoded ([`encode`]); and the samples are written as NaVILA's annotation parts, WebDataset
-//! shards or a plain folder tree ([`output`]), with a manifest last ([`run`]). A route is
+//! shards, a plain folder tree ([`output`]) or a LeRobot v3.0 dataset ([`lerobot`]), with a
+//! manifest last ([`run`]). A route is
 //! the unit of resumption: its `route.json` is written after its frames, so a rerun after a
 //! crash redoes only unfinished routes. Nothing depends on thread count or order: the same
 //! settings give the same bytes.
 
 pub mod encode;
 pub mod follow;
+pub mod lerobot;
 pub mod options;
 pub mod output;
 pub mod preset;

@@ -56,7 +56,7 @@ pub struct Options {
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().sensors))]
     #[serde(with = "sensor_names")]
     pub sensors: Sensors,
-    /// Output layout: navila, webdataset or frames.
+    /// Output layout: navila, webdataset, frames or lerobot (LeRobot v3.0; frames always PNG).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().format))]
     pub format: Layout,
     /// Samples per NaVILA part (default 10000), episodes per WebDataset shard (default 100).
@@ -170,7 +170,11 @@ impl Options {
             height: self.height,
             hfov_deg: self.hfov,
             sensors: self.sensors,
-            rgb_codec: self.image.codec(self.jpeg_quality),
+            // LeRobot's image feature holds PNG bytes: lossless, as LeRobot writes them.
+            rgb_codec: match self.format {
+                Layout::Lerobot => crate::encode::RgbCodec::Png,
+                _ => self.image.codec(self.jpeg_quality),
+            },
             format: self.format,
             shard_size: self.shard_size.unwrap_or(match self.format {
                 Layout::Webdataset => 100,

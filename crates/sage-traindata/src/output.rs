@@ -1,5 +1,6 @@
 //! The output formats: NaVILA's annotation parts, WebDataset tar shards and a plain folder
-//! tree, each written from the episode samples with atomic renames.
+//! tree, each written from the episode samples with atomic renames (the LeRobot layout has
+//! its own module, [`crate::lerobot`]).
 
 use crate::preset::{ActionPreset, action_from_name};
 use crate::sample::{EpisodeSample, IMAGES_DIR};
@@ -24,11 +25,20 @@ pub enum Layout {
     Webdataset,
     /// The frames under `images/` and `episodes.jsonl`, for inspection.
     Frames,
+    /// A LeRobot dataset, codebase version v3.0 ([`crate::lerobot`]): frames, poses and
+    /// actions in Parquet files, with the metadata and statistics `LeRobotDataset` loads.
+    Lerobot,
 }
 
 impl Layout {
     /// Every format's name.
-    pub const NAMES: [&'static str; 3] = ["navila", "webdataset", "frames"];
+    pub const NAMES: [&'static str; 4] = ["navila", "webdataset", "frames", "lerobot"];
+
+    /// True when the format's files hold the frames themselves (WebDataset shards, LeRobot
+    /// Parquet files): the frames folder is removed once they are written.
+    pub fn packs_frames(self) -> bool {
+        matches!(self, Layout::Webdataset | Layout::Lerobot)
+    }
 
     /// The format's name.
     pub fn as_str(self) -> &'static str {
@@ -36,6 +46,7 @@ impl Layout {
             Layout::Navila => "navila",
             Layout::Webdataset => "webdataset",
             Layout::Frames => "frames",
+            Layout::Lerobot => "lerobot",
         }
     }
 }
@@ -54,6 +65,7 @@ impl std::str::FromStr for Layout {
             "navila" => Ok(Layout::Navila),
             "webdataset" | "wds" => Ok(Layout::Webdataset),
             "frames" => Ok(Layout::Frames),
+            "lerobot" => Ok(Layout::Lerobot),
             other => Err(Error::invalid(format!(
                 "unknown format '{other}' (known: {})",
                 Layout::NAMES.join(", ")

@@ -510,9 +510,15 @@ fn resize(src: &[u8], stride: usize, sw: usize, sh: usize, dw: usize, dh: usize)
 /// An RGB frame file (JPEG or PNG, told by its first bytes) as `(rgb, width, height)`.
 fn read_rgb(path: &Path) -> Result<(Vec<u8>, usize, usize)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    decode_rgb(&bytes, path)
+}
+
+/// The bytes of an RGB frame file `path` (JPEG or PNG, told by its first bytes) as
+/// `(rgb, width, height)`.
+pub(crate) fn decode_rgb(bytes: &[u8], path: &Path) -> Result<(Vec<u8>, usize, usize)> {
     let bad = |why: String| Error::invalid(format!("cannot decode the frame: {why}")).in_file(path);
     let (pixels, w, h) = if bytes.starts_with(&[0xFF, 0xD8]) {
-        let mut dec = zune_jpeg::JpegDecoder::new(bytes.as_slice());
+        let mut dec = zune_jpeg::JpegDecoder::new(bytes);
         dec.decode_headers().map_err(|e| bad(format!("{e:?}")))?;
         let (w, h) = dec
             .dimensions()

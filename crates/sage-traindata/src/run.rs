@@ -587,7 +587,8 @@ impl Manifest {
 }
 
 /// Writes the format's files from the rendered routes, the preview when asked for, then the
-/// manifest, then (WebDataset) removes the frames folder the shards now hold.
+/// manifest, then (WebDataset, LeRobot) removes the frames folder the shards or Parquet files
+/// now hold.
 ///
 /// # Errors
 ///
@@ -651,6 +652,7 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
         )?,
         Layout::Webdataset => output::write_webdataset(out, &samples, s.shard_size, &s.split)?,
         Layout::Frames => output::write_frames_index(out, &samples)?,
+        Layout::Lerobot => crate::lerobot::write(out, &samples, &lerobot_spec(plan)?)?,
     };
     let files = written
         .iter()
@@ -663,7 +665,7 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
             })
         })
         .collect::<Result<Vec<_>>>()?;
-    let images = (s.format != Layout::Webdataset)
+    let images = (!s.format.packs_frames())
         .then(|| images_entry(out, &samples))
         .transpose()?;
     let manifest = Manifest {
@@ -686,10 +688,35 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
     }
     write_json(&out.join(MANIFEST), &manifest)?;
     let frames = out.join(IMAGES_DIR);
-    if s.format == Layout::Webdataset && frames.exists() {
+    if s.format.packs_frames() && frames.exists() {
         std::fs::remove_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
     }
     Ok(manifest)
+}
+
+/// What the LeRobot files are made from besides the samples: the render's frame size and
+/// camera, and each episode's floor height (its start's z: a ground agent stays on it).
+fn lerobot_spec(plan: &Plan) -> Result<crate::lerobot::Spec> {
+    let s = &plan.settings;
+    let sensors = &plan.env.sensors;
+    Ok(crate::lerobot::Spec {
+        split: s.split.clone(),
+        robot_type: s.agent.clone(),
+        width: s.width,
+        height: s.height,
+        hfov_deg: s.hfov_deg,
+        depth: s.sensors.depth,
+        eye_height: sensors
+            .camera_height
+            .map_or_else(|| plan.env.profile().map(|p| p.camera_height), Ok)?,
+        floor: plan
+            .routes
+            .values()
+            .flatten()
+            .flat_map(|r| &r.episodes)
+            .map(|e| (e.episode_id.clone(), e.start.position[2]))
+            .collect(),
+    })
 }
 
 /// The frames of the kept samples as one entry: count, bytes and a hash over paths and bytes.
@@ -720,8 +747,10 @@ fn images_entry(out: &Path, samples: &[EpisodeSample]) -> Result<FileEntry> {
 const COMMAND: &str = "data render";
 
 /// The files a render may have written in an output folder (nothing else is ever touched).
-const OWN: [&str; 7] = [
+const OWN: [&str; 9] = [
     IMAGES_DIR,
+    crate::lerobot::META_DIR,
+    crate::lerobot::DATA_DIR,
     output::SHARDS_DIR,
     output::EPISODES_FILE,
     "dataset_info.json",
