@@ -1,9 +1,10 @@
 //! Environment settings: action space, sensors, task limits, and the named presets (SPEC §11,
 //! §13).
 
-use sage_core::{Error, Result};
-use sage_physics::AgentProfile;
-use sage_splat::Device;
+use glam::Vec3;
+use sage_core::{Error, Pose, Result};
+use sage_physics::{AgentProfile, Locomotion};
+use sage_splat::{Camera, Device, Intrinsics};
 use serde::{Deserialize, Serialize};
 
 /// What actions the agent may send (STOP is allowed in every space).
@@ -245,6 +246,36 @@ impl EnvConfig {
     /// An unknown profile name.
     pub fn profile(&self) -> Result<AgentProfile> {
         self.agent.parse().map_err(|e: Error| e.within("agent"))
+    }
+
+    /// The camera of an agent of `profile` standing at `pose` with its camera tilted by
+    /// `pitch` (radians, up positive), `width` × `height` pixels with the sensors' field of
+    /// view: the eye at the sensors' camera height (else the profile's) above the pose, or at
+    /// the pose itself for a drone. Every image of an agent — observations, the viewer's
+    /// frames, episode videos — comes from this camera.
+    ///
+    /// # Errors
+    ///
+    /// A size or field of view that makes no camera.
+    pub fn camera(
+        &self,
+        profile: &AgentProfile,
+        pose: Pose,
+        pitch: f32,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera> {
+        let eye = if profile.kind == Locomotion::Uav {
+            pose.position
+        } else {
+            pose.position + Vec3::Z * self.sensors.camera_height.unwrap_or(profile.camera_height)
+        };
+        Ok(Camera::from_yaw_pitch(
+            Intrinsics::from_hfov(width, height, self.sensors.hfov_deg)?,
+            eye,
+            pose.yaw,
+            pitch,
+        ))
     }
 
     /// Checks every range, naming the field at fault.

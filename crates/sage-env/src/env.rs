@@ -4,13 +4,13 @@ use crate::action::Action;
 use crate::config::{ActionSpace, EnvConfig};
 use crate::context::SceneContext;
 use crate::episode::{EnvEpisode, EpisodeTrace, StepInfo, Termination, TraceGeodesics};
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 use sage_core::Task;
 use sage_core::{Error, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
-use sage_physics::{AgentBody, AgentProfile, Command, Locomotion, Touch, World};
-use sage_splat::{Backend, Camera, Intrinsics, RenderOptions, RenderOutput};
+use sage_physics::{AgentBody, AgentProfile, Command, Touch, World};
+use sage_splat::{Backend, Camera, RenderOptions, RenderOutput};
 use std::sync::Arc;
 
 /// Largest camera tilt reachable with look actions (degrees).
@@ -422,19 +422,9 @@ impl Env {
         let sensors = self.config.sensors;
         let mut cameras = Vec::new();
         if self.renderer.is_some() {
-            let height = sensors.camera_height.unwrap_or(self.profile.camera_height);
-            let eye = if self.profile.kind == Locomotion::Uav {
-                s.body.pose.position
-            } else {
-                s.body.pose.position + Vec3::Z * height
-            };
-            let camera = |w: u32, h: u32| -> Result<Camera> {
-                Ok(Camera::from_yaw_pitch(
-                    Intrinsics::from_hfov(w, h, sensors.hfov_deg)?,
-                    eye,
-                    s.body.pose.yaw,
-                    s.pitch,
-                ))
+            let camera = |w: u32, h: u32| {
+                self.config
+                    .camera(&self.profile, s.body.pose, s.pitch, w, h)
             };
             cameras.push(camera(sensors.width, sensors.height)?);
             if let Some([w, h]) = sensors.depth_size

@@ -271,7 +271,7 @@ pub fn legend_keys(map: &SemanticMap, grid: &NavGrid, rec: &EvalRecord) -> Vec<K
 /// The semantic map drawn for the report over `grid`'s extent, `width` pixels wide (at least
 /// the map's) and `height` pixels tall (at least the map's), white beyond the map: rooms and
 /// objects by category in muted tints, walls, and doors by state.
-fn base_map(map: &SemanticMap, grid: &NavGrid, width: usize, height: usize) -> Canvas {
+pub fn base_map(map: &SemanticMap, grid: &NavGrid, width: usize, height: usize) -> Canvas {
     // Whole pixels per cell, so that a typical floor plan is drawn about 800 pixels across.
     let zoom = map_zoom(grid);
     let map_h = grid.height * zoom;
@@ -320,7 +320,7 @@ fn base_map(map: &SemanticMap, grid: &NavGrid, width: usize, height: usize) -> C
 }
 
 /// Pixels per grid cell of the map part.
-fn map_zoom(grid: &NavGrid) -> usize {
+pub fn map_zoom(grid: &NavGrid) -> usize {
     (MAP_PIXELS / grid.width.max(grid.height).max(1)).clamp(1, 8)
 }
 
