@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 /// The agent of an evaluation, as named by `--agent` and stored in the run record as the same
 /// string: `random`, `forward`, `oracle`, `replay:FILE`, `socket:HOST:PORT`, `http:URL`,
-/// `chat:MODEL@BASE_URL` or `ws:HOST:PORT`, the remote ones with `?key=value&…` options
+/// `chat:MODEL@BASE_URL`, `ws:HOST:PORT` or `human`, the remote ones with `?key=value&…` options
 /// ([`RemoteSpec`]). Display writes the canonical string (default options left out), which
 /// parses back to the same kind.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,11 +29,14 @@ pub enum AgentKind {
     Replay(PathBuf),
     /// A model server or chat model queried every step with the recent frames.
     Remote(RemoteSpec),
+    /// A person playing the episodes in the browser viewer (`sage3d view --play`): recorded
+    /// and scored like any agent, but never built by an evaluation.
+    Human,
 }
 
 /// The kinds as error messages list them.
 const KINDS: &str = "random, forward, oracle, replay:FILE, socket:HOST:PORT, http:URL, \
-                     chat:MODEL@BASE_URL, ws:HOST:PORT";
+                     chat:MODEL@BASE_URL, ws:HOST:PORT, human";
 
 impl AgentKind {
     /// Reads what the kind needs once (the replay file) and returns the maker of one agent
@@ -76,7 +79,8 @@ impl AgentMaker {
     ///
     /// # Errors
     ///
-    /// The agent's own parameter checks.
+    /// The agent's own parameter checks; `human`, whose steps come from a person in the
+    /// viewer, not from a built agent.
     pub fn build(&self, seed: u64) -> Result<Box<dyn Agent>> {
         Ok(match (&self.kind, &self.replay) {
             (AgentKind::Random, _) => Box::new(RandomAgent::new(seed, 0.02)?),
@@ -87,6 +91,11 @@ impl AgentMaker {
                 Box::new(ReplayAgent::new(Arc::new(ReplayFile::read(file)?)))
             }
             (AgentKind::Remote(spec), _) => remote::agent(spec.clone()),
+            (AgentKind::Human, _) => {
+                return Err(Error::invalid(
+                    "the human agent is a person: play the split in `sage3d view DATASET --play RUN`",
+                ));
+            }
         })
     }
 
@@ -96,9 +105,10 @@ impl AgentMaker {
         matches!(&self.kind, AgentKind::Remote(spec) if spec.options.server.serial())
     }
 
-    /// True when the agent reads RGB images (the remote agents); the others run blind.
+    /// True when the agent reads RGB images (the remote agents, and a person); the others run
+    /// blind.
     pub fn reads_images(&self) -> bool {
-        matches!(self.kind, AgentKind::Remote(_))
+        matches!(self.kind, AgentKind::Remote(_) | AgentKind::Human)
     }
 
     /// The action space the agent needs instead of the preset's: the ground-velocity space
@@ -116,6 +126,7 @@ impl fmt::Display for AgentKind {
             AgentKind::Oracle => f.write_str("oracle"),
             AgentKind::Replay(file) => write!(f, "replay:{}", file.display()),
             AgentKind::Remote(spec) => spec.fmt(f),
+            AgentKind::Human => f.write_str("human"),
         }
     }
 }
@@ -133,6 +144,7 @@ impl FromStr for AgentKind {
             ("random", None) => Ok(AgentKind::Random),
             ("forward", None) => Ok(AgentKind::Forward),
             ("oracle", None) => Ok(AgentKind::Oracle),
+            ("human", None) => Ok(AgentKind::Human),
             ("replay", Some(file)) if !file.trim().is_empty() => {
                 Ok(AgentKind::Replay(PathBuf::from(file.trim())))
             }
@@ -183,6 +195,7 @@ mod tests {
             "ws:127.0.0.1:8000",
             "ws:127.0.0.1:8000?actions=4&state=1&format=nav_delta&rotate=current&history_cap=16&metadata=0&timeout=5&retries=1",
             "ws:[::1]:8001?format=discrete",
+            "human",
         ] {
             let k: AgentKind = spec.parse().unwrap();
             assert_eq!(k.to_string(), spec);

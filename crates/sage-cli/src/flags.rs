@@ -5,8 +5,10 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 17] = [
+const NAMED_SETTINGS: [&str; 19] = [
     "force",
+    "play",
+    "public",
     "scenes",
     "split",
     "out",

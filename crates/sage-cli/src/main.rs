@@ -18,6 +18,7 @@ mod render_cmd;
 mod report_cmd;
 mod scene_cmd;
 mod splat_cmd;
+mod view_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -73,6 +74,10 @@ enum Command {
     Eval(eval_cmd::EvalArgs),
     /// Write an evaluation run's report: report.html (tables, charts, trajectory maps) and PNGs.
     Report(report_cmd::ReportArgs),
+    /// The browser viewer: a scene's map and first-person view, driving with the keyboard, an
+    /// evaluation run's episodes step by step, human play of a dataset split scored like any
+    /// agent (`--play RUN`).
+    View(view_cmd::ViewArgs),
     /// Benchmarks (SPEC §12): report figures beside the machine they ran on.
     #[command(subcommand)]
     Bench(bench::BenchCommand),
@@ -151,6 +156,7 @@ fn dispatch(command: Command) -> sage_core::Result<()> {
         Command::Env(c) => env_cmd::run(c),
         Command::Eval(a) => eval_cmd::run(a),
         Command::Report(a) => report_cmd::run(a),
+        Command::View(a) => view_cmd::run(a),
         Command::Bench(c) => bench::run(c),
     }
 }

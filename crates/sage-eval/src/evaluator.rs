@@ -21,7 +21,7 @@ use sage_dataset::Episode;
 use sage_dataset::folder::{non_empty_splits, split_episodes};
 use sage_env::SceneContext;
 use sage_env::agents::{Agent, run_episode};
-use sage_env::{Env, EnvConfig, SensorConfig};
+use sage_env::{Env, EnvConfig, EpisodeTrace, SensorConfig};
 use sage_io::lock::FolderLock;
 use sage_io::run::RUN_RECORD;
 use sage_metrics::{Dtw, Scoring};
@@ -105,8 +105,8 @@ pub struct Runner<'a> {
     pub serial: bool,
 }
 
-/// The record of episode `e` before it runs: its tags, no outcome yet.
-fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
+/// The record of episode `e` by agent `agent` before it runs: its tags, no outcome yet.
+pub(crate) fn blank_record(agent: &str, e: &Episode) -> EvalRecord {
     EvalRecord {
         episode_id: e.episode_id.clone(),
         scene: e.scene.clone(),
@@ -114,7 +114,7 @@ fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
         level: e.level,
         instruction_type: e.instruction_type,
         slices: e.slices.clone(),
-        agent: runner.agent_name.clone(),
+        agent: agent.to_string(),
         termination: None,
         metrics: None,
         error: None,
@@ -126,6 +126,25 @@ fn blank_record(runner: &Runner, e: &Episode) -> EvalRecord {
     }
 }
 
+/// Scores a finished episode's trace as every run does: its metric record in `scoring`'s mode
+/// and the metrics of that record, written into `rec` with the trace's termination.
+///
+/// # Errors
+///
+/// A record the metrics refuse.
+pub fn score_into(
+    rec: &mut EvalRecord,
+    ctx: &SceneContext,
+    scoring: Scoring,
+    trace: &EpisodeTrace,
+) -> Result<()> {
+    let record = sage_env::scoring::metric_record(ctx, trace, scoring.mode);
+    rec.metrics = Some(sage_metrics::evaluate(&record, scoring)?);
+    rec.termination = trace.termination;
+    rec.record = Some(record);
+    Ok(())
+}
+
 /// Runs one episode to its record; a failure is recorded, not returned.
 fn run_one(
     ctx: &Arc<sage_env::SceneContext>,
@@ -133,24 +152,17 @@ fn run_one(
     scoring: Scoring,
     e: &Episode,
 ) -> EvalRecord {
-    let mut rec = blank_record(runner, e);
+    let mut rec = blank_record(&runner.agent_name, e);
     rec.bodies = ctx.body_sources.clone();
     let mut agent = None;
     let result = (|| {
         let mut env = Env::new(ctx.clone(), runner.config.clone())?;
         let agent = agent.insert((runner.agent)()?);
         let trace = run_episode(&mut env, agent.as_mut(), &e.env_episode())?;
-        let record = sage_env::scoring::metric_record(ctx, &trace, scoring.mode);
-        let m = sage_metrics::evaluate(&record, scoring)?;
-        Ok::<_, Error>((trace.termination, m, record))
+        score_into(&mut rec, ctx, scoring, &trace)
     })();
-    match result {
-        Ok((termination, m, record)) => {
-            rec.termination = termination;
-            rec.metrics = Some(m);
-            rec.record = Some(record);
-        }
-        Err(err) => rec.error = Some(err.to_string()),
+    if let Err(err) = result {
+        rec.error = Some(err.to_string());
     }
     if let Some(mut agent) = agent {
         rec.faults = agent.take_faults();
@@ -237,6 +249,69 @@ pub(crate) fn write_run_record(
     )
 }
 
+/// A run's split as [`open_split`] prepared it.
+pub(crate) struct Split {
+    /// The episodes of the run (the shard's, when there is one).
+    pub(crate) episodes: Vec<Episode>,
+    /// The scene folders by name; every episode's scene is among them.
+    pub(crate) dirs: BTreeMap<String, std::path::PathBuf>,
+    /// The ids already recorded in the run folder.
+    pub(crate) done: BTreeSet<String>,
+}
+
+/// Reads the split of `settings` (the episodes `shard` keeps), checks that every episode's
+/// scene is present, and claims `out` for a run of `agent` with these settings: its run record
+/// written (or checked against an earlier one) and its records file ready to resume.
+///
+/// # Errors
+///
+/// An empty or unknown split, a scene missing, a run folder of another run, a corrupt records
+/// file.
+pub(crate) fn open_split(
+    settings: &EvalSettings,
+    agent: &str,
+    shard: Option<&(dyn Fn(&Episode) -> bool + Sync)>,
+    out: &Path,
+) -> Result<Split> {
+    let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
+    if episodes.is_empty() {
+        let with_episodes = non_empty_splits(&settings.dataset)?;
+        return Err(Error::invalid(format!(
+            "split '{}' has no episodes (splits with episodes: {})",
+            settings.split,
+            if with_episodes.is_empty() {
+                "none".to_string()
+            } else {
+                with_episodes.join(", ")
+            }
+        ))
+        .in_file(&file));
+    }
+    if let Some(keep) = shard {
+        episodes.retain(|e| keep(e));
+    }
+    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+    let dataset_hash = sage_io::hash::fnv1a64_hex(&bytes);
+    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
+    if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
+        return Err(Error::invalid(format!(
+            "scene '{}' of episode {} is not among the scenes",
+            e.scene, e.episode_id
+        ))
+        .in_file(&settings.scenes));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let recorded = recorded_settings(settings, agent)?;
+    claim_run_folder(out, &recorded, &dataset_hash)?;
+    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    let done = records::resume(&out.join(RECORDS_FILE), &ids)?;
+    Ok(Split {
+        episodes,
+        dirs,
+        done,
+    })
+}
+
 /// Runs (or resumes) an evaluation into `out`, calling `on_done(record, to_run)` after each
 /// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`.
 /// Callers [`claim`] `out` first and hold its lock until the run and its report are written.
@@ -251,6 +326,11 @@ pub fn run(
     out: &Path,
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
+    if settings.agent == sage_agents::AgentKind::Human {
+        return Err(Error::invalid(
+            "agent human: a person plays the split in `sage3d view DATASET --play RUN`; eval runs built agents",
+        ));
+    }
     let maker = settings.agent.maker()?;
     let runner = Runner {
         config: env_config(&settings.preset, &maker, settings.device).within("preset")?,
@@ -274,39 +354,13 @@ pub fn run_with(
     out: &Path,
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
-    let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
-    if episodes.is_empty() {
-        let with_episodes = non_empty_splits(&settings.dataset)?;
-        return Err(Error::invalid(format!(
-            "split '{}' has no episodes (splits with episodes: {})",
-            settings.split,
-            if with_episodes.is_empty() {
-                "none".to_string()
-            } else {
-                with_episodes.join(", ")
-            }
-        ))
-        .in_file(&file));
-    }
-    if let Some(keep) = runner.shard {
-        episodes.retain(|e| keep(e));
-    }
-    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
-    let dataset_hash = sage_io::hash::fnv1a64_hex(&bytes);
-    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
-    if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
-        return Err(Error::invalid(format!(
-            "scene '{}' of episode {} is not among the scenes",
-            e.scene, e.episode_id
-        ))
-        .in_file(&settings.scenes));
-    }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let recorded = recorded_settings(settings, &runner.agent_name)?;
-    claim_run_folder(out, &recorded, &dataset_hash)?;
-    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    let Split {
+        episodes,
+        dirs,
+        done,
+    } = open_split(settings, &runner.agent_name, runner.shard, out)?;
     let records_path = out.join(RECORDS_FILE);
-    let done = records::resume(&records_path, &ids)?;
+    let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let mut groups: BTreeMap<&str, Vec<&Episode>> = BTreeMap::new();
     for e in episodes
         .iter()
@@ -327,7 +381,7 @@ pub fn run_with(
                 Err(err) => EvalRecord {
                     error: Some(err.to_string()),
                     failure: Some(Failure::SceneLoad),
-                    ..blank_record(runner, e)
+                    ..blank_record(&runner.agent_name, e)
                 },
             };
             writer

@@ -4,18 +4,21 @@
 //! `sage-dataset`) in the environment, resumably and in parallel; [`settings`] is what a run
 //! folder records and resumes, [`records`] the per-episode records file, [`summary`] the
 //! metric means overall and per slice, [`merge`] the merge of sharded runs, and [`folder`] the
-//! layout of a run folder. [`report`] turns a run folder into a self-contained HTML page with
+//! layout of a run folder; [`human`] records and scores the episodes a person plays in the
+//! viewer like an agent's. [`report`] turns a run folder into a self-contained HTML page with
 //! the metric tables, per-slice charts and per-episode trajectory maps.
 
 pub mod evaluator;
 pub mod folder;
+pub mod human;
 pub mod merge;
 pub mod records;
 pub mod report;
 pub mod settings;
 pub mod summary;
 
-pub use evaluator::{RunOutcome, Runner, claim, env_config, run, run_with};
+pub use evaluator::{RunOutcome, Runner, claim, env_config, run, run_with, score_into};
+pub use human::HumanRun;
 pub use merge::merge_shards;
 pub use records::{EvalRecord, Failure};
 pub use settings::EvalSettings;

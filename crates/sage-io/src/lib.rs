@@ -8,6 +8,7 @@
 //! - [`limits`]: the caps on what an input file may hold or declare (file sizes, label counts,
 //!   image pixels, decoded meshes), each raised by an environment variable `SAGE3D_MAX_…`;
 //! - [`hash`]: the one stable hash (FNV-1a) for fingerprints, cache keys and derived seeds;
+//! - [`image`]: PNG and JPEG encoded in memory (frames, responses, training data);
 //! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made, and the
 //!   claim of an output folder;
 //! - [`lock`]: one writer per output folder (an OS advisory lock held while a command writes
@@ -23,6 +24,7 @@
 pub mod canvas;
 pub mod files;
 pub mod hash;
+pub mod image;
 pub mod limits;
 pub mod lock;
 pub mod marks;

@@ -20,6 +20,15 @@ pub fn distinct_color(k: u32) -> [u8; 3] {
     rgb.map(|c| (c * 255.0).round() as u8)
 }
 
+/// The colour of an id in instance and semantic images and their legends: its
+/// [`distinct_color`], and black for id 0 (nothing).
+pub fn id_color(id: u32) -> [u8; 3] {
+    if id == 0 {
+        return [0, 0, 0];
+    }
+    distinct_color(id)
+}
+
 /// Okabe and Ito's eight colours ("Color Universal Design", 2008), chosen to stay apart for
 /// the common colour-vision deficiencies: black, orange, sky blue, bluish green, yellow, blue,
 /// vermillion, reddish purple.

@@ -315,14 +315,7 @@ pub fn render_to_folder(
     })
 }
 
-/// A distinct, stable colour per id (golden-ratio hues), as the instance and semantic images
-/// and the legend draw it; id 0 (nothing) is black.
-pub fn id_color(id: u32) -> [u8; 3] {
-    if id == 0 {
-        return [0, 0, 0];
-    }
-    sage_io::palette::distinct_color(id)
-}
+pub use sage_io::palette::id_color;
 
 fn colorize(ids: impl Iterator<Item = u32>) -> Vec<u8> {
     ids.flat_map(id_color).collect()

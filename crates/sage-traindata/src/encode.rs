@@ -3,6 +3,7 @@
 
 use sage_core::{Error, Result};
 use sage_env::Images;
+use sage_io::image::{encode_jpeg, encode_png};
 use serde::{Deserialize, Serialize};
 
 /// How the RGB frame is stored.
@@ -103,8 +104,8 @@ pub fn encode(images: &Images, codec: RgbCodec) -> Result<Vec<(&'static str, Vec
     let mut out = Vec::with_capacity(4);
     if let Some(rgb) = &images.rgb {
         let bytes = match codec {
-            RgbCodec::Jpeg { quality } => jpeg(rgb, w, h, quality)?,
-            RgbCodec::Png => png_bytes(w, h, png::ColorType::Rgb, png::BitDepth::Eight, rgb)?,
+            RgbCodec::Jpeg { quality } => encode_jpeg(rgb, w, h, quality)?,
+            RgbCodec::Png => encode_png(w, h, png::ColorType::Rgb, png::BitDepth::Eight, rgb)?,
         };
         out.push((codec.extension(), bytes));
     }
@@ -141,46 +142,9 @@ pub fn depth_mm(metres: f32) -> u16 {
     }
 }
 
-fn jpeg(rgb: &[u8], w: usize, h: usize, quality: u8) -> Result<Vec<u8>> {
-    let mut out = Vec::new();
-    let (w16, h16) = (dim16(w)?, dim16(h)?);
-    jpeg_encoder::Encoder::new(&mut out, quality.clamp(1, 100))
-        .encode(rgb, w16, h16, jpeg_encoder::ColorType::Rgb)
-        .map_err(|e| Error::invalid(format!("JPEG encoding: {e}")))?;
-    Ok(out)
-}
-
-fn dim16(n: usize) -> Result<u16> {
-    u16::try_from(n).map_err(|_| Error::invalid(format!("image side {n} exceeds 65535 pixels")))
-}
-
 fn png16(w: usize, h: usize, values: &[u16]) -> Result<Vec<u8>> {
     let be: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
-    png_bytes(w, h, png::ColorType::Grayscale, png::BitDepth::Sixteen, &be)
-}
-
-fn png_bytes(
-    w: usize,
-    h: usize,
-    color: png::ColorType,
-    depth: png::BitDepth,
-    data: &[u8],
-) -> Result<Vec<u8>> {
-    let mut out = Vec::new();
-    let err = |e: png::EncodingError| Error::invalid(format!("PNG encoding: {e}"));
-    let (w32, h32) = (
-        u32::try_from(w).map_err(|_| Error::invalid("image too wide"))?,
-        u32::try_from(h).map_err(|_| Error::invalid("image too tall"))?,
-    );
-    let mut enc = png::Encoder::new(&mut out, w32, h32);
-    enc.set_color(color);
-    enc.set_depth(depth);
-    // Fast filters and compression: frames are written by the million.
-    enc.set_compression(png::Compression::Fast);
-    let mut writer = enc.write_header().map_err(err)?;
-    writer.write_image_data(data).map_err(err)?;
-    writer.finish().map_err(err)?;
-    Ok(out)
+    encode_png(w, h, png::ColorType::Grayscale, png::BitDepth::Sixteen, &be)
 }
 
 sage_core::named_by_string!(ImageType);

@@ -8,30 +8,7 @@ use sage_core::{Error, Result};
 use sage_env::Observation;
 use std::collections::VecDeque;
 
-/// Encodes a row-major RGB image as a baseline JPEG of `quality` (1–100).
-///
-/// # Errors
-///
-/// A size that does not match the pixels or exceeds JPEG's 65,535-pixel sides.
-pub fn encode_jpeg(rgb: &[u8], width: usize, height: usize, quality: u8) -> Result<Vec<u8>> {
-    let side = |n: usize| u16::try_from(n).ok().filter(|n| *n > 0);
-    let (Some(w), Some(h)) = (side(width), side(height)) else {
-        return Err(Error::invalid(format!(
-            "jpeg: image size {width}×{height} is not 1–65535 pixels a side"
-        )));
-    };
-    if rgb.len() != width * height * 3 {
-        return Err(Error::invalid(format!(
-            "jpeg: {} bytes are not a {width}×{height} RGB image",
-            rgb.len()
-        )));
-    }
-    let mut out = Vec::new();
-    jpeg_encoder::Encoder::new(&mut out, quality.clamp(1, 100))
-        .encode(rgb, w, h, jpeg_encoder::ColorType::Rgb)
-        .map_err(|e| Error::invalid(format!("jpeg: {e}")))?;
-    Ok(out)
-}
+pub use sage_io::image::encode_jpeg;
 
 /// The last frames of an episode, base64 JPEG, oldest first.
 #[derive(Debug, Clone)]

@@ -1,0 +1,134 @@
+//! The episodes the page lists (a dataset's, a run's, a human run's) and, for the player, an
+//! evaluated episode step by step.
+
+use crate::subject::Subject;
+use sage_dataset::Episode;
+use sage_eval::EvalRecord;
+use serde_json::{Value, json};
+
+/// The episodes of `subject` for the page's list: id, scene, instruction and tags; for a run
+/// the outcome (termination, SR, NE, CR, the error of a faulted one); for human play whether
+/// each was played and its outcome.
+pub fn episode_list(subject: &Subject) -> Vec<Value> {
+    match subject {
+        Subject::Scenes => Vec::new(),
+        Subject::Dataset { episodes, .. } => episodes.iter().map(|e| listed(e, None)).collect(),
+        Subject::Play { run } => run
+            .episodes()
+            .iter()
+            .map(|e| listed(e, run.recorded(&e.episode_id)))
+            .collect(),
+        Subject::Run {
+            records,
+            instructions,
+            ..
+        } => records
+            .iter()
+            .map(|r| {
+                let mut v = outcome(r);
+                v["id"] = json!(r.episode_id);
+                v["scene"] = json!(r.scene);
+                v["task"] = json!(r.task);
+                v["instruction"] = json!(instructions.get(&r.episode_id));
+                v
+            })
+            .collect(),
+    }
+}
+
+/// An episode of a split for the list, with its record once played.
+fn listed(e: &Episode, rec: Option<&EvalRecord>) -> Value {
+    let mut v = rec.map_or_else(|| json!({}), outcome);
+    v["id"] = json!(e.episode_id);
+    v["scene"] = json!(e.scene);
+    v["task"] = json!(e.task);
+    v["instruction"] = json!(e.instruction);
+    v["instruction_type"] = json!(e.instruction_type);
+    v["played"] = json!(rec.is_some());
+    v
+}
+
+/// A record's outcome: termination, SR, NE, CR, SPL, nDTW, the error of a faulted episode and
+/// the record's notes.
+fn outcome(r: &EvalRecord) -> Value {
+    let m = r.metrics.clone().unwrap_or_default();
+    json!({
+        "termination": r.termination,
+        "sr": m.sr,
+        "ne": m.ne,
+        "cr": m.cr,
+        "spl": m.spl,
+        "ndtw": m.ndtw,
+        "error": r.error,
+        "notes": r.notes,
+    })
+}
+
+/// One evaluated episode for the player: its outcome and metrics, instruction, start, goal,
+/// reference path, and every step with its pose, the action taken (as the record implies it:
+/// [`step_actions`]), the contact with its intensity c(t) and the geodesic distance to the goal.
+pub fn episode_detail(rec: &EvalRecord, instruction: Option<&str>) -> Value {
+    let mut v = outcome(rec);
+    v["id"] = json!(rec.episode_id);
+    v["scene"] = json!(rec.scene);
+    v["agent"] = json!(rec.agent);
+    v["instruction"] = json!(instruction);
+    v["metrics"] = json!(rec.metrics);
+    let Some(r) = &rec.record else {
+        v["steps"] = json!([]);
+        return v;
+    };
+    let actions = step_actions(r);
+    v["start"] = json!({"x": r.start[0], "y": r.start[1], "z": r.start[2], "yaw": r.start_yaw});
+    v["reference_path"] = json!(
+        r.reference_path
+            .iter()
+            .map(|p| [p[0], p[1]])
+            .collect::<Vec<_>>()
+    );
+    v["goal"] = json!(r.goal);
+    v["steps"] = r
+        .steps
+        .iter()
+        .zip(&actions)
+        .map(|(s, a)| {
+            json!({
+                "x": s.position[0], "y": s.position[1], "z": s.position[2], "yaw": s.yaw,
+                "time": s.time,
+                "action": a,
+                "contact": s.contact,
+                "intensity": s.intensity,
+                "geodesic_to_goal": s.geodesic_to_goal_point,
+            })
+        })
+        .collect();
+    v
+}
+
+/// The action of each step of `r` as the record implies it (records keep poses, not
+/// actions): `stop` for the last step when the agent called STOP, `forward` where a
+/// translation was commanded, `left` / `right` where the heading turned, else `-` (a camera
+/// tilt, or a step that did nothing).
+pub fn step_actions(r: &sage_metrics::EpisodeRecord) -> Vec<&'static str> {
+    let mut yaw = r.start_yaw;
+    let n = r.steps.len();
+    r.steps
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let turn = sage_core::wrap_angle(s.yaw - yaw);
+            yaw = s.yaw;
+            if k + 1 == n && r.stop_called {
+                "stop"
+            } else if s.commanded > 0.0 {
+                "forward"
+            } else if turn > 1e-4 {
+                "left"
+            } else if turn < -1e-4 {
+                "right"
+            } else {
+                "-"
+            }
+        })
+        .collect()
+}

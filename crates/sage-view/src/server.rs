@@ -1,0 +1,557 @@
+//! The web server: the page, its assets and the JSON API, on axum over tokio.
+//!
+//! Routes (every `/api` answer is JSON unless it is an image; errors are `{"error": …}` with
+//! 400 for a bad request and 404 for something that is not here):
+//!
+//! | route | what |
+//! |---|---|
+//! | `GET /` | the page ([`crate::assets`]) |
+//! | `GET /api/info` | what is viewed: kind, scenes, episodes with outcomes, preset, play progress |
+//! | `GET /api/scenes/{scene}/map` | the map's pixel frame and its objects, rooms, doors |
+//! | `GET /api/scenes/{scene}/map.png` | the map image |
+//! | `GET /api/scenes/{scene}/frame?x&y&z&yaw&pitch&width&height&layer&format` | a frame |
+//! | `POST /api/sessions` | open a session: `{scene}` or `{episode}`, `{play: true}` to play it |
+//! | `POST /api/sessions/{id}/step` | `{action}`; a played episode that ends is recorded |
+//! | `POST /api/sessions/{id}/place` | `{x, y, yaw}`: an explore session starts again there |
+//! | `POST /api/sessions/{id}/map` | a play session notes that the map was shown |
+//! | `GET /api/episodes/{id}` | a run's (or a played) episode, step by step |
+//!
+//! Names in a request (scenes, episodes, sessions) are looked up among those the viewer
+//! opened; none becomes a path.
+
+use crate::frame::{self, FrameRequest};
+use crate::player::{episode_detail, episode_list};
+use crate::scenes::SceneCache;
+use crate::session::{self, Purpose, Session, Sessions};
+use crate::subject::{self, Subject, ViewOptions};
+use axum::Router;
+use axum::body::Body;
+use axum::extract::{Path, Query, Request, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use sage_core::{Error, Result};
+use sage_env::EnvConfig;
+use sage_physics::AgentProfile;
+use serde::Deserialize;
+use serde_json::{Value, json};
+use std::net::{IpAddr, SocketAddr};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// A started viewer: where it listens and the URL to open.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Server {
+    /// The bound address.
+    pub addr: SocketAddr,
+    /// The page's URL (with the token when one is needed).
+    pub url: String,
+}
+
+/// The viewer's state, shared by every request.
+struct App {
+    subject: Mutex<Subject>,
+    scenes: SceneCache,
+    sessions: Mutex<Sessions>,
+    /// The environment explore sessions move in (the preset's, or the run's).
+    config: EnvConfig,
+    /// The environment a person plays in (the human run's).
+    play_config: Option<EnvConfig>,
+    profile: AgentProfile,
+    token: Option<String>,
+    loopback: bool,
+    title: String,
+}
+
+/// An error as the API answers it.
+struct ApiError(StatusCode, String);
+
+impl From<Error> for ApiError {
+    fn from(e: Error) -> ApiError {
+        ApiError(StatusCode::BAD_REQUEST, e.to_string())
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, axum::Json(json!({"error": self.1}))).into_response()
+    }
+}
+
+fn not_found(what: String) -> ApiError {
+    ApiError(StatusCode::NOT_FOUND, what)
+}
+
+type ApiResult<T> = std::result::Result<T, ApiError>;
+
+/// Runs `work` off the async threads (loads, renders and physics take milliseconds to
+/// seconds).
+async fn blocking<T: Send + 'static>(
+    work: impl FnOnce() -> ApiResult<T> + Send + 'static,
+) -> ApiResult<T> {
+    tokio::task::spawn_blocking(work)
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
+}
+
+fn lock<T>(m: &Mutex<T>) -> ApiResult<std::sync::MutexGuard<'_, T>> {
+    m.lock()
+        .map_err(|_| ApiError(StatusCode::INTERNAL_SERVER_ERROR, "state poisoned".into()))
+}
+
+/// Opens what `opts` names, binds, calls `on_ready` with the address and URL, and serves
+/// until `keep_going` returns false (it is asked four times a second).
+///
+/// # Errors
+///
+/// What [`subject::open`] refuses, a non-loopback address without [`ViewOptions::public`],
+/// an address that cannot be bound.
+pub fn serve(
+    opts: &ViewOptions,
+    on_ready: impl FnOnce(&Server),
+    keep_going: impl Fn() -> bool + Send + 'static,
+) -> Result<()> {
+    if !opts.host.is_loopback() && !opts.public {
+        return Err(Error::invalid(format!(
+            "{} is not a loopback address: serving to other machines needs the explicit flag `public` (every request then needs the printed URL's token)",
+            opts.host
+        )));
+    }
+    let app = Arc::new(open_app(opts)?);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| Error::invalid(format!("cannot start the server's runtime: {e}")))?;
+    runtime.block_on(async move {
+        let addr = SocketAddr::new(opts.host, opts.port);
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .map_err(|e| Error::invalid(format!("cannot listen on {addr}: {e}")))?;
+        let addr = listener
+            .local_addr()
+            .map_err(|e| Error::invalid(e.to_string()))?;
+        let host = match addr.ip() {
+            IpAddr::V6(ip) => format!("[{ip}]"),
+            IpAddr::V4(ip) => ip.to_string(),
+        };
+        let url = match &app.token {
+            Some(t) => format!("http://{host}:{}/?token={t}", addr.port()),
+            None => format!("http://{host}:{}/", addr.port()),
+        };
+        on_ready(&Server { addr, url });
+        let stop = async move {
+            while keep_going() {
+                tokio::time::sleep(Duration::from_millis(250)).await;
+            }
+        };
+        axum::serve(listener, router(app))
+            .with_graceful_shutdown(stop)
+            .await
+            .map_err(|e| Error::invalid(format!("server: {e}")))
+    })
+}
+
+/// The state of a viewer of `opts`.
+fn open_app(opts: &ViewOptions) -> Result<App> {
+    let (subject, dirs) = subject::open(opts)?;
+    let (config, play_config, title) = match &subject {
+        Subject::Run { settings, .. } => (
+            EnvConfig::preset(&settings.preset)?,
+            None,
+            format!("run: {} on {}", settings.agent, settings.split),
+        ),
+        Subject::Play { run } => (
+            EnvConfig::preset(&run.settings().preset)?,
+            Some(run.env_config()?),
+            format!("human play: {}", run.folder().display()),
+        ),
+        Subject::Dataset { split, .. } => (
+            EnvConfig::preset(&opts.preset)?,
+            None,
+            format!("dataset split {split}"),
+        ),
+        Subject::Scenes => (EnvConfig::preset(&opts.preset)?, None, "scenes".into()),
+    };
+    let profile = config.profile()?;
+    let token = if opts.public {
+        let mut bytes = [0u8; 16];
+        getrandom::fill(&mut bytes).map_err(|e| Error::invalid(format!("no random token: {e}")))?;
+        Some(bytes.iter().map(|b| format!("{b:02x}")).collect())
+    } else {
+        None
+    };
+    Ok(App {
+        subject: Mutex::new(subject),
+        scenes: SceneCache::new(dirs, opts.device),
+        sessions: Mutex::new(Sessions::default()),
+        config,
+        play_config,
+        profile,
+        token,
+        loopback: opts.host.is_loopback(),
+        title: format!("{title} — {}", opts.path.display()),
+    })
+}
+
+/// The routes over `app`, behind the guard.
+fn router(app: Arc<App>) -> Router {
+    Router::new()
+        .route("/", get(crate::assets::page))
+        .route("/app.js", get(crate::assets::script))
+        .route("/app.css", get(crate::assets::style))
+        .route("/api/info", get(info))
+        .route("/api/scenes/{scene}/map", get(map))
+        .route("/api/scenes/{scene}/map.png", get(map_png))
+        .route("/api/scenes/{scene}/frame", get(frame))
+        .route("/api/sessions", post(open_session))
+        .route("/api/sessions/{id}/step", post(step))
+        .route("/api/sessions/{id}/place", post(place))
+        .route("/api/sessions/{id}/map", post(map_shown))
+        .route("/api/episodes/{id}", get(episode))
+        .layer(middleware::from_fn_with_state(app.clone(), guard))
+        .with_state(app)
+}
+
+/// Lets a request through only with the token (when the viewer has one) and, on a loopback
+/// address, only when it names a loopback host (a page of another site cannot reach the
+/// viewer through a name that resolves to 127.0.0.1).
+async fn guard(State(app): State<Arc<App>>, req: Request, next: Next) -> Response {
+    if app.loopback && !loopback_host(req.headers()) {
+        return ApiError(
+            StatusCode::FORBIDDEN,
+            "the viewer answers requests to localhost only".into(),
+        )
+        .into_response();
+    }
+    // The script and style sheet hold no data: the page loads them without the token.
+    let asset = matches!(req.uri().path(), "/app.js" | "/app.css");
+    if let Some(token) = app.token.as_ref().filter(|_| !asset) {
+        let given = req
+            .headers()
+            .get("x-sage3d-token")
+            .and_then(|v| v.to_str().ok())
+            .map(str::to_string)
+            .or_else(|| {
+                req.uri().query().and_then(|q| {
+                    q.split('&')
+                        .find_map(|kv| kv.strip_prefix("token=").map(str::to_string))
+                })
+            });
+        if !given.is_some_and(|g| same(g.as_bytes(), token.as_bytes())) {
+            return ApiError(
+                StatusCode::FORBIDDEN,
+                "this viewer needs the token of the URL it printed".into(),
+            )
+            .into_response();
+        }
+    }
+    next.run(req).await
+}
+
+/// True when the request's `Host` names a loopback host.
+fn loopback_host(headers: &HeaderMap) -> bool {
+    let Some(host) = headers.get(header::HOST).and_then(|h| h.to_str().ok()) else {
+        return false;
+    };
+    let name = match host.rsplit_once(':') {
+        Some((name, port)) if port.bytes().all(|b| b.is_ascii_digit()) => name,
+        _ => host,
+    };
+    let name = name.trim_start_matches('[').trim_end_matches(']');
+    name.eq_ignore_ascii_case("localhost")
+        || name.parse::<IpAddr>().is_ok_and(|ip| ip.is_loopback())
+}
+
+/// Equality in time independent of where the bytes differ.
+fn same(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+async fn info(State(app): State<Arc<App>>) -> ApiResult<axum::Json<Value>> {
+    let subject = lock(&app.subject)?;
+    let (forward, turn_deg, look_deg) = match app.config.actions {
+        sage_env::ActionSpace::Discrete {
+            forward,
+            turn_deg,
+            look_deg,
+            ..
+        } => (forward, turn_deg, look_deg),
+        _ => (0.0, 0.0, 0.0),
+    };
+    let play = match &*subject {
+        Subject::Play { run } => json!({
+            "folder": run.folder(),
+            "played": run.played(),
+            "total": run.episodes().len(),
+            "mode": run.settings().mode,
+            "size": app.play_config.as_ref().map(|c| [c.sensors.width, c.sensors.height]),
+        }),
+        _ => Value::Null,
+    };
+    Ok(axum::Json(json!({
+        "title": app.title,
+        "kind": subject.kind(),
+        "scenes": app.scenes.names(),
+        "episodes": episode_list(&subject),
+        "preset": {
+            "forward": forward,
+            "turn_deg": turn_deg,
+            "look_deg": look_deg,
+            "hfov_deg": app.config.sensors.hfov_deg,
+            "max_steps": app.config.task.max_steps,
+            "success_distance": app.config.task.success_distance,
+        },
+        "play": play,
+    })))
+}
+
+async fn map(
+    State(app): State<Arc<App>>,
+    Path(scene): Path<String>,
+) -> ApiResult<axum::Json<Value>> {
+    let loaded = load(app, scene).await?;
+    Ok(axum::Json(loaded.map.clone()))
+}
+
+async fn map_png(State(app): State<Arc<App>>, Path(scene): Path<String>) -> ApiResult<Response> {
+    let loaded = load(app, scene).await?;
+    Ok(image("image/png", loaded.map_png.clone()))
+}
+
+/// Scene `scene`, loaded off the async threads.
+async fn load(app: Arc<App>, scene: String) -> ApiResult<Arc<crate::scenes::LoadedScene>> {
+    if !app.scenes.contains(&scene) {
+        return Err(not_found(format!("no scene '{scene}' here")));
+    }
+    blocking(move || Ok(app.scenes.get(&scene)?)).await
+}
+
+fn image(content_type: &'static str, bytes: Vec<u8>) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, content_type),
+            (header::CACHE_CONTROL, "no-store"),
+        ],
+        Body::from(bytes),
+    )
+        .into_response()
+}
+
+async fn frame(
+    State(app): State<Arc<App>>,
+    Path(scene): Path<String>,
+    Query(req): Query<FrameRequest>,
+) -> ApiResult<Response> {
+    let loaded = load(app.clone(), scene).await?;
+    let bytes =
+        blocking(move || Ok(frame::render(&loaded, &app.config, &app.profile, &req)?)).await?;
+    Ok(image(req.format.content_type(), bytes))
+}
+
+/// What opens a session.
+#[derive(Deserialize)]
+struct OpenSession {
+    /// The scene to explore (default: the episode's, else the first).
+    scene: Option<String>,
+    /// The episode to explore from or play.
+    episode: Option<String>,
+    /// Play the episode (human play) rather than explore from its start.
+    #[serde(default)]
+    play: bool,
+    /// The person chose to see the map from the start.
+    #[serde(default)]
+    map_shown: bool,
+}
+
+async fn open_session(
+    State(app): State<Arc<App>>,
+    axum::Json(req): axum::Json<OpenSession>,
+) -> ApiResult<axum::Json<Value>> {
+    blocking(move || {
+        let (scene, episode) = session_episode(&app, &req)?;
+        let loaded = app.scenes.get(&scene)?;
+        let episode = match episode {
+            Some(e) => e,
+            None => session::explore_episode(session::default_start(&loaded)?, 0.0),
+        };
+        let (config, purpose) = if req.play {
+            let config = app
+                .play_config
+                .as_ref()
+                .ok_or_else(|| Error::invalid("this viewer has no human play (`play`)"))?;
+            let purpose = Purpose::Play {
+                map_shown: req.map_shown,
+            };
+            (config, purpose)
+        } else {
+            (&app.config, Purpose::Explore)
+        };
+        let session = Session::start(&scene, loaded, config, episode, purpose)?;
+        let mut sessions = lock(&app.sessions)?;
+        let id = sessions.insert(session);
+        Ok(axum::Json(sessions.get_mut(id)?.state(id)))
+    })
+    .await
+}
+
+/// The scene and the environment episode a session request names: a play request needs an
+/// episode of the human run not yet played; an explore request may name an episode (its start
+/// and goal) or a scene.
+fn session_episode(
+    app: &App,
+    req: &OpenSession,
+) -> ApiResult<(String, Option<sage_env::EnvEpisode>)> {
+    let subject = lock(&app.subject)?;
+    let Some(id) = &req.episode else {
+        if req.play {
+            return Err(Error::invalid("play: name the episode to play").into());
+        }
+        let scene = match &req.scene {
+            Some(s) if app.scenes.contains(s) => s.clone(),
+            Some(s) => return Err(not_found(format!("no scene '{s}' here"))),
+            None => app.scenes.names().into_iter().next().unwrap_or_default(),
+        };
+        return Ok((scene, None));
+    };
+    let unknown = || not_found(format!("no episode '{id}' here"));
+    match &*subject {
+        Subject::Play { run } => {
+            let e = run.episode(id).ok_or_else(unknown)?;
+            if req.play && run.recorded(id).is_some() {
+                return Err(Error::invalid(format!(
+                    "episode {id} is already played and recorded in this run"
+                ))
+                .into());
+            }
+            Ok((e.scene.clone(), Some(e.env_episode())))
+        }
+        _ if req.play => Err(Error::invalid("this viewer has no human play (`play`)").into()),
+        Subject::Dataset { episodes, .. } => {
+            let e = episodes
+                .iter()
+                .find(|e| &e.episode_id == id)
+                .ok_or_else(unknown)?;
+            Ok((e.scene.clone(), Some(e.env_episode())))
+        }
+        Subject::Run { records, .. } => {
+            let r = records
+                .iter()
+                .find(|r| &r.episode_id == id)
+                .ok_or_else(unknown)?;
+            let rec = r.record.as_ref().ok_or_else(|| {
+                Error::invalid(format!(
+                    "episode {id} faulted: there is no start to explore from"
+                ))
+            })?;
+            let start = glam::Vec3::from_array(rec.start);
+            Ok((
+                r.scene.clone(),
+                Some(session::explore_episode(start, rec.start_yaw)),
+            ))
+        }
+        Subject::Scenes => Err(unknown()),
+    }
+}
+
+/// A step request.
+#[derive(Deserialize)]
+struct StepRequest {
+    action: String,
+}
+
+async fn step(
+    State(app): State<Arc<App>>,
+    Path(id): Path<u64>,
+    axum::Json(req): axum::Json<StepRequest>,
+) -> ApiResult<axum::Json<Value>> {
+    blocking(move || {
+        let action = session::parse_action(&req.action)?;
+        let mut sessions = lock(&app.sessions)?;
+        let s = sessions.get_mut(id).map_err(|e| not_found(e.to_string()))?;
+        s.step(action)?;
+        let mut state = s.state(id);
+        if let (Purpose::Play { map_shown }, true) = (s.purpose, s.env().done()) {
+            let trace = s.env().trace().expect("a started episode").clone();
+            let ctx = s.loaded().ctx.clone();
+            drop(sessions);
+            let notes = if map_shown {
+                vec![sage_eval::human::NOTE_MAP_SHOWN.to_string()]
+            } else {
+                Vec::new()
+            };
+            let mut subject = lock(&app.subject)?;
+            let Subject::Play { run } = &mut *subject else {
+                return Err(Error::invalid("a play session outside human play").into());
+            };
+            let rec = run.record(&ctx, &trace.episode.id, &trace, notes)?;
+            state["record"] = episode_detail(&rec, Some(&trace.episode.instruction));
+            state["played"] = json!(run.played());
+        }
+        Ok(axum::Json(state))
+    })
+    .await
+}
+
+/// A place request.
+#[derive(Deserialize)]
+struct PlaceRequest {
+    x: f32,
+    y: f32,
+    #[serde(default)]
+    yaw: f32,
+}
+
+async fn place(
+    State(app): State<Arc<App>>,
+    Path(id): Path<u64>,
+    axum::Json(req): axum::Json<PlaceRequest>,
+) -> ApiResult<axum::Json<Value>> {
+    blocking(move || {
+        let mut sessions = lock(&app.sessions)?;
+        let s = sessions.get_mut(id).map_err(|e| not_found(e.to_string()))?;
+        s.place(req.x, req.y, req.yaw)?;
+        Ok(axum::Json(s.state(id)))
+    })
+    .await
+}
+
+async fn map_shown(
+    State(app): State<Arc<App>>,
+    Path(id): Path<u64>,
+) -> ApiResult<axum::Json<Value>> {
+    let mut sessions = lock(&app.sessions)?;
+    let s = sessions.get_mut(id).map_err(|e| not_found(e.to_string()))?;
+    if let Purpose::Play { map_shown } = &mut s.purpose {
+        *map_shown = true;
+    }
+    Ok(axum::Json(s.state(id)))
+}
+
+async fn episode(
+    State(app): State<Arc<App>>,
+    Path(id): Path<String>,
+) -> ApiResult<axum::Json<Value>> {
+    let subject = lock(&app.subject)?;
+    let unknown = || not_found(format!("no recorded episode '{id}' here"));
+    let detail = match &*subject {
+        Subject::Run {
+            records,
+            instructions,
+            ..
+        } => {
+            let r = records
+                .iter()
+                .find(|r| r.episode_id == id)
+                .ok_or_else(unknown)?;
+            episode_detail(r, instructions.get(&id).map(String::as_str))
+        }
+        Subject::Play { run } => {
+            let r = run.recorded(&id).ok_or_else(unknown)?;
+            episode_detail(r, run.episode(&id).map(|e| e.instruction.as_str()))
+        }
+        _ => return Err(unknown()),
+    };
+    Ok(axum::Json(detail))
+}

@@ -1,0 +1,485 @@
+//! The viewer's server over real HTTP on loopback: every route, the guard (host, token, paths
+//! that try to leave the folders), explore sessions through the environment, and human play
+//! recorded exactly as `sage3d eval` scores the same actions.
+
+use sage_dataset::build::{self, AssembleParams, SceneParams};
+use sage_dataset::split::SplitParams;
+use sage_eval::{EvalRecord, EvalSettings};
+use sage_synth::{SynthConfig, generate};
+use sage_view::ViewOptions;
+use serde_json::{Value, json};
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock, mpsc};
+
+/// A generated 3-room home and its dataset: (temp dir, scenes folder, dataset folder).
+fn fixture() -> &'static (tempfile::TempDir, PathBuf, PathBuf) {
+    static F: OnceLock<(tempfile::TempDir, PathBuf, PathBuf)> = OnceLock::new();
+    F.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let scenes = dir.path().join("scenes");
+        let home = scenes.join("home1");
+        generate(&SynthConfig {
+            seed: 4,
+            rooms: 3,
+            objects: 24,
+            gaussians: 3000,
+            ..SynthConfig::default()
+        })
+        .unwrap()
+        .save(&home, sage_scene::SplatLayout::Compressed)
+        .unwrap();
+        let data = dir.path().join("data");
+        let assemble = AssembleParams {
+            seed: 3,
+            split: SplitParams::default(),
+            balanced: 0,
+        };
+        build::build(
+            std::slice::from_ref(&home),
+            &data,
+            &SceneParams::new(3, 2),
+            &assemble,
+            &|_| {},
+        )
+        .unwrap();
+        (dir, scenes, data)
+    })
+}
+
+/// A running viewer; stops when dropped.
+struct Viewer {
+    addr: SocketAddr,
+    url: String,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<sage_core::Result<()>>>,
+}
+
+impl Drop for Viewer {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            t.join().unwrap().unwrap();
+        }
+    }
+}
+
+fn start(opts: ViewOptions) -> Viewer {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = mpsc::channel();
+    let flag = stop.clone();
+    let thread = std::thread::spawn(move || {
+        let tx2 = tx.clone();
+        let r = sage_view::serve(
+            &opts,
+            move |s| tx.send(Ok(s.clone())).unwrap(),
+            move || !flag.load(Ordering::SeqCst),
+        );
+        if let Err(e) = &r {
+            let _ = tx2.send(Err(e.to_string()));
+        }
+        r
+    });
+    let server = rx.recv().unwrap().unwrap();
+    Viewer {
+        addr: server.addr,
+        url: server.url,
+        stop,
+        thread: Some(thread),
+    }
+}
+
+fn options(path: &Path) -> ViewOptions {
+    ViewOptions {
+        port: 0,
+        ..ViewOptions::new(path)
+    }
+}
+
+/// One HTTP/1.1 request with `headers`; returns the status and the body.
+fn request(
+    addr: SocketAddr,
+    method: &str,
+    target: &str,
+    body: Option<&Value>,
+    headers: &[(&str, &str)],
+) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    let body = body.map(|b| b.to_string()).unwrap_or_default();
+    let mut head = format!(
+        "{method} {target} HTTP/1.1\r\nConnection: close\r\nContent-Length: {}\r\n",
+        body.len()
+    );
+    if !headers.iter().any(|(k, _)| k.eq_ignore_ascii_case("host")) {
+        head += &format!("Host: 127.0.0.1:{}\r\n", addr.port());
+    }
+    if !body.is_empty() {
+        head += "Content-Type: application/json\r\n";
+    }
+    for (k, v) in headers {
+        head += &format!("{k}: {v}\r\n");
+    }
+    s.write_all(format!("{head}\r\n{body}").as_bytes()).unwrap();
+    let mut reply = Vec::new();
+    s.read_to_end(&mut reply).unwrap();
+    let split = reply.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
+    let status: u16 = String::from_utf8_lossy(&reply[9..12]).parse().unwrap();
+    let head = String::from_utf8_lossy(&reply[..split]).to_ascii_lowercase();
+    assert!(
+        !head.contains("transfer-encoding: chunked"),
+        "bodies have a length"
+    );
+    (status, reply[split + 4..].to_vec())
+}
+
+fn get_json(v: &Viewer, target: &str) -> Value {
+    let (status, body) = request(v.addr, "GET", target, None, &[]);
+    let json: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(status, 200, "{target}: {json}");
+    json
+}
+
+fn post_json(v: &Viewer, target: &str, body: Value) -> Value {
+    let (status, reply) = request(v.addr, "POST", target, Some(&body), &[]);
+    let json: Value = serde_json::from_slice(&reply).unwrap();
+    assert_eq!(status, 200, "{target} {body}: {json}");
+    json
+}
+
+#[test]
+fn scenes_map_frames_and_explore_sessions_through_physics() {
+    let (_, scenes, _) = fixture();
+    let v = start(options(scenes));
+    assert!(v.url.starts_with("http://127.0.0.1:") && !v.url.contains("token"));
+    let info = get_json(&v, "/api/info");
+    assert_eq!(info["kind"], "scenes");
+    assert_eq!(info["scenes"], json!(["home1"]));
+    let (status, page) = request(v.addr, "GET", "/", None, &[]);
+    assert_eq!(status, 200);
+    assert!(String::from_utf8(page).unwrap().contains("app.js"));
+    // The map: its PNG is as large as its frame says, and it lists the scene's objects.
+    let map = get_json(&v, "/api/scenes/home1/map");
+    let (status, png) = request(v.addr, "GET", "/api/scenes/home1/map.png", None, &[]);
+    assert_eq!(status, 200);
+    let decoder = png::Decoder::new(std::io::Cursor::new(png));
+    let reader = decoder.read_info().unwrap();
+    assert_eq!(
+        (reader.info().width as u64, reader.info().height as u64),
+        (
+            map["width"].as_u64().unwrap(),
+            map["height"].as_u64().unwrap()
+        )
+    );
+    let ctx = sage_env::SceneContext::load(&scenes.join("home1"), None).unwrap();
+    let ids: Vec<&str> = map["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|i| i["id"].as_str().unwrap())
+        .collect();
+    let expected: Vec<&str> = ctx
+        .semantic
+        .items
+        .iter()
+        .map(|i| i.item_id.as_str())
+        .collect();
+    assert_eq!(ids, expected);
+    assert!(!ids.is_empty());
+    // An explore session steps through the environment: forward moves the preset's step
+    // along the heading (or less against a body), a turn turns the preset's angle.
+    let s0 = post_json(&v, "/api/sessions", json!({}));
+    let id = s0["session"].as_str().unwrap().to_string();
+    let s1 = post_json(
+        &v,
+        &format!("/api/sessions/{id}/step"),
+        json!({"action": "left"}),
+    );
+    let turned = s1["pose"]["yaw"].as_f64().unwrap() - s0["pose"]["yaw"].as_f64().unwrap();
+    assert!((turned - 15f64.to_radians()).abs() < 1e-4, "{turned}");
+    let s2 = post_json(
+        &v,
+        &format!("/api/sessions/{id}/step"),
+        json!({"action": "forward"}),
+    );
+    let moved = ((s2["pose"]["x"].as_f64().unwrap() - s1["pose"]["x"].as_f64().unwrap()).powi(2)
+        + (s2["pose"]["y"].as_f64().unwrap() - s1["pose"]["y"].as_f64().unwrap()).powi(2))
+    .sqrt();
+    assert!(moved <= 0.25 + 1e-4 && (moved > 0.2 || s2["contact"] == true));
+    assert_eq!(s2["step"], 2);
+    assert_eq!(s2["path"].as_array().unwrap().len(), 3);
+    // Placing snaps to navigable floor; far off the map is refused with the reason.
+    let p = post_json(
+        &v,
+        &format!("/api/sessions/{id}/place"),
+        json!({"x": s0["pose"]["x"], "y": s0["pose"]["y"], "yaw": 1.0}),
+    );
+    assert_eq!(p["step"], 0);
+    assert!((p["pose"]["yaw"].as_f64().unwrap() - 1.0).abs() < 1e-5);
+    let (status, body) = request(
+        v.addr,
+        "POST",
+        &format!("/api/sessions/{id}/place"),
+        Some(&json!({"x": 1e4, "y": 1e4})),
+        &[],
+    );
+    assert_eq!(status, 400);
+    assert!(String::from_utf8_lossy(&body).contains("no navigable floor"));
+    let (status, body) = request(
+        v.addr,
+        "POST",
+        &format!("/api/sessions/{id}/step"),
+        Some(&json!({"action": "jump"})),
+        &[],
+    );
+    assert_eq!(status, 400);
+    assert!(String::from_utf8_lossy(&body).contains("forward, left, right, stop"));
+    // Frames: each layer at the requested size, as PNG and JPEG; a bad size is refused.
+    let pose = &p["pose"];
+    let q = |layer: &str, format: &str| {
+        format!(
+            "/api/scenes/home1/frame?x={}&y={}&z={}&yaw={}&width=160&height=120&layer={layer}&format={format}",
+            pose["x"], pose["y"], pose["z"], pose["yaw"]
+        )
+    };
+    for layer in ["rgb", "depth", "semantic", "instance"] {
+        let (status, bytes) = request(v.addr, "GET", &q(layer, "png"), None, &[]);
+        assert_eq!(status, 200, "{layer}");
+        let reader = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        assert_eq!((reader.info().width, reader.info().height), (160, 120));
+    }
+    let (status, jpeg) = request(v.addr, "GET", &q("rgb", "jpeg"), None, &[]);
+    assert_eq!((status, &jpeg[..2]), (200, &[0xff, 0xd8][..]));
+    let (status, _) = request(
+        v.addr,
+        "GET",
+        "/api/scenes/home1/frame?x=0&y=0&z=0&yaw=0&width=0",
+        None,
+        &[],
+    );
+    assert_eq!(status, 400);
+}
+
+#[test]
+fn only_its_own_routes_and_only_for_localhost() {
+    let (_, scenes, _) = fixture();
+    let v = start(options(scenes));
+    for target in [
+        "/../../etc/passwd",
+        "/%2e%2e/%2e%2e/etc/passwd",
+        "//etc/passwd",
+        "/etc/passwd",
+        "/api/scenes/..%2F..%2Fetc/map",
+        "/api/scenes/%2Fetc%2Fpasswd/map.png",
+        "/api/scenes/home1/..%2F..%2Fsage3d_run.json",
+        "/api/scenes/..%5Chome1/map",
+        "/api/episodes/..%2Fepisodes.jsonl",
+        "/home1/3dgs_compressed.ply",
+        "/api/scenes/home1/3dgs_compressed.ply",
+    ] {
+        let (status, body) = request(v.addr, "GET", target, None, &[]);
+        assert_eq!(status, 404, "{target}: {}", String::from_utf8_lossy(&body));
+    }
+    // A page of another site reaching the viewer through a name that resolves to 127.0.0.1.
+    let (status, _) = request(
+        v.addr,
+        "GET",
+        "/api/info",
+        None,
+        &[("Host", "attacker.example:80")],
+    );
+    assert_eq!(status, 403);
+    let (status, _) = request(v.addr, "GET", "/api/info", None, &[("Host", "localhost")]);
+    assert_eq!(status, 200);
+}
+
+#[test]
+fn a_public_viewer_needs_its_token_and_other_addresses_need_the_flag() {
+    let (_, scenes, _) = fixture();
+    let err = sage_view::serve(
+        &ViewOptions {
+            host: "0.0.0.0".parse().unwrap(),
+            ..options(scenes)
+        },
+        |_| panic!("must not start"),
+        || false,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("`public`"), "{err}");
+    let v = start(ViewOptions {
+        public: true,
+        ..options(scenes)
+    });
+    let token = v.url.split("token=").nth(1).unwrap().to_string();
+    assert_eq!(token.len(), 32);
+    for target in ["/", "/api/info", "/api/scenes/home1/map.png"] {
+        let (status, _) = request(v.addr, "GET", target, None, &[]);
+        assert_eq!(status, 403, "{target}");
+        let (status, _) = request(
+            v.addr,
+            "GET",
+            &format!("{target}?token=0{}", &token[1..]),
+            None,
+            &[],
+        );
+        assert_eq!(status, 403, "{target} with a wrong token");
+        let (status, _) = request(v.addr, "GET", &format!("{target}?token={token}"), None, &[]);
+        assert_eq!(status, 200, "{target}");
+    }
+    let (status, _) = request(
+        v.addr,
+        "GET",
+        "/api/info",
+        None,
+        &[("X-Sage3d-Token", token.as_str())],
+    );
+    assert_eq!(status, 200);
+    // The script and style sheet hold no data and load without it.
+    assert_eq!(request(v.addr, "GET", "/app.js", None, &[]).0, 200);
+}
+
+/// The records of a run folder by episode id.
+fn records(run: &Path) -> std::collections::BTreeMap<String, EvalRecord> {
+    std::fs::read_to_string(run.join("episodes.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<EvalRecord>(l).unwrap())
+        .map(|r| (r.episode_id.clone(), r))
+        .collect()
+}
+
+#[test]
+fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
+    let (dir, scenes, data) = fixture();
+    let run = dir.path().join("human");
+    let opts = ViewOptions {
+        play: Some(run.clone()),
+        scenes: Some(scenes.clone()),
+        split: Some("train".into()),
+        ..options(data)
+    };
+    let played: Vec<(String, Vec<&str>)>;
+    {
+        let v = start(opts.clone());
+        let info = get_json(&v, "/api/info");
+        assert_eq!(info["kind"], "play");
+        assert_eq!(info["play"]["played"], 0);
+        let episodes: Vec<Value> = info["episodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["task"] == "vln")
+            .take(2)
+            .cloned()
+            .collect();
+        assert_eq!(episodes.len(), 2);
+        // Exploring is not playing: a play session needs an episode.
+        let (status, _) = request(
+            v.addr,
+            "POST",
+            "/api/sessions",
+            Some(&json!({"play": true})),
+            &[],
+        );
+        assert_eq!(status, 400);
+        let moves = [
+            vec!["forward", "forward", "left", "forward", "stop"],
+            vec!["right", "forward", "forward", "stop"],
+        ];
+        played = episodes
+            .iter()
+            .zip(moves)
+            .enumerate()
+            .map(|(k, (e, moves))| {
+                let id = e["id"].as_str().unwrap().to_string();
+                let s = post_json(&v, "/api/sessions", json!({"episode": id, "play": true}));
+                let sid = s["session"].as_str().unwrap().to_string();
+                if k == 1 {
+                    post_json(&v, &format!("/api/sessions/{sid}/map"), json!({}));
+                }
+                let mut last = Value::Null;
+                for m in &moves {
+                    last = post_json(
+                        &v,
+                        &format!("/api/sessions/{sid}/step"),
+                        json!({"action": m}),
+                    );
+                }
+                assert_eq!(last["done"], true);
+                assert_eq!(last["played"], k + 1);
+                assert_eq!(last["record"]["id"], json!(id));
+                // A played episode is not played twice.
+                let (status, _) = request(
+                    v.addr,
+                    "POST",
+                    "/api/sessions",
+                    Some(&json!({"episode": id, "play": true})),
+                    &[],
+                );
+                assert_eq!(status, 400);
+                (id, moves)
+            })
+            .collect();
+        let detail = get_json(&v, &format!("/api/episodes/{}", played[0].0));
+        let actions: Vec<&str> = detail["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["action"].as_str().unwrap())
+            .collect();
+        assert_eq!(actions, played[0].1);
+    }
+    // The server is gone; the records are on disk, and a new sitting resumes them.
+    let v = start(opts);
+    assert_eq!(get_json(&v, "/api/info")["play"]["played"], 2);
+    drop(v);
+    let human = records(&run);
+    assert_eq!(human.len(), 2);
+    let summary: Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["episodes"], 2);
+    // The same actions replayed by the evaluator score the same, bit for bit.
+    let replay = dir.path().join("replay.jsonl");
+    let lines: Vec<String> = played
+        .iter()
+        .map(|(id, moves)| {
+            let names: Vec<&str> = moves
+                .iter()
+                .map(|m| match *m {
+                    "forward" => "MOVE_FORWARD",
+                    "left" => "TURN_LEFT",
+                    "right" => "TURN_RIGHT",
+                    _ => "STOP",
+                })
+                .collect();
+            json!({"episode_id": id, "actions": names}).to_string()
+        })
+        .collect();
+    std::fs::write(&replay, lines.join("\n") + "\n").unwrap();
+    let out = dir.path().join("replayed");
+    let settings = EvalSettings {
+        dataset: data.clone(),
+        scenes: scenes.clone(),
+        split: "train".into(),
+        agent: format!("replay:{}", replay.display()).parse().unwrap(),
+        mode: Default::default(),
+        dtw: Default::default(),
+        seed: 0,
+        preset: "sage".into(),
+        device: Default::default(),
+    };
+    sage_eval::run(&settings, &out, &|_, _| {}).unwrap();
+    let evaluated = records(&out);
+    for (id, _) in &played {
+        let (h, e) = (&human[id], &evaluated[id]);
+        assert_eq!(h.agent, "human");
+        assert_eq!(h.metrics, e.metrics, "{id}");
+        assert_eq!(h.record, e.record, "{id}");
+        assert_eq!(h.termination, e.termination, "{id}");
+    }
+    assert!(human[&played[0].0].notes.is_empty());
+    assert_eq!(human[&played[1].0].notes, vec!["map shown".to_string()]);
+}
