@@ -12,6 +12,7 @@ use sage_perf::nav::NavSettings;
 use sage_perf::physics::PhysicsSettings;
 use sage_perf::render::RenderSettings;
 use sage_perf::traindata::TrainDataSettings;
+use sage_perf::view::ViewSettings;
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 use std::ffi::OsString;
@@ -49,6 +50,41 @@ pub enum BenchCommand {
     /// JPEG, NaVILA files) at each size: frames per second per core and the CPU-hours of the
     /// paper's 500k training pairs.
     TrainData(TrainDataBenchArgs),
+    /// Serve a generated 1M-Gaussian home in the browser viewer on loopback and time what the
+    /// page asks for: a keypress (a step through physics) and the 640×480 first-person frame at
+    /// the new pose (CPU render + JPEG + HTTP); report frames per second.
+    View(ViewBenchArgs),
+}
+
+#[derive(Args)]
+pub struct ViewBenchArgs {
+    /// Gaussians in the generated home.
+    #[arg(long, default_value_t = ViewSettings::default().gaussians)]
+    gaussians: usize,
+    /// Objects in the generated home.
+    #[arg(long, default_value_t = ViewSettings::default().objects)]
+    objects: usize,
+    /// Seed of the home.
+    #[arg(long, default_value_t = ViewSettings::default().seed)]
+    seed: u64,
+    /// Keypresses to time (each a step and a frame).
+    #[arg(long, default_value_t = ViewSettings::default().steps)]
+    steps: usize,
+    /// Frame size, WxH.
+    #[arg(long, default_value = "640x480")]
+    size: String,
+}
+
+impl ViewBenchArgs {
+    fn settings(&self) -> Result<ViewSettings> {
+        Ok(ViewSettings {
+            gaussians: self.gaussians,
+            objects: self.objects,
+            seed: self.seed,
+            steps: self.steps,
+            size: crate::flags::parse_size(&self.size)?,
+        })
+    }
 }
 
 #[derive(Args)]
@@ -416,6 +452,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::TrainData(a) => {
             print_report(&sage_perf::traindata::run(&a.settings()?)?, false)
         }
+        BenchCommand::View(a) => print_report(&sage_perf::view::run(&a.settings()?)?, false),
     }
 }
 
@@ -489,6 +526,7 @@ mod tests {
             "env",
             "fit",
             "train-data",
+            "view",
         ] {
             match parse(&[name]) {
                 BenchCommand::Load(a) => assert_eq!(a.settings().unwrap(), LoadSettings::default()),
@@ -505,6 +543,7 @@ mod tests {
                 BenchCommand::TrainData(a) => {
                     assert_eq!(a.settings().unwrap(), TrainDataSettings::default());
                 }
+                BenchCommand::View(a) => assert_eq!(a.settings().unwrap(), ViewSettings::default()),
             }
         }
     }

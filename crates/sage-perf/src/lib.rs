@@ -1,7 +1,7 @@
 //! `sage-perf`: the performance benchmarks behind `sage3d bench` (the figures of SPEC §12).
 //!
 //! One module per benchmark: [`load`], [`render`], [`nav`], [`physics`], [`bodies`], [`env`],
-//! [`fit`] and [`traindata`].
+//! [`fit`], [`traindata`] and [`view`].
 //! Each has a settings struct whose `Default` is the command's defaults and a `run` function
 //! that sets up the benchmark's scene (synthesising one when none is given), times the work and
 //! returns a report: `Display` gives the lines `sage3d bench` prints, serde the same figures as
@@ -20,6 +20,7 @@ pub mod nav;
 pub mod physics;
 pub mod render;
 pub mod traindata;
+pub mod view;
 
 use sage_core::Result;
 use sage_scene::Gaussians;

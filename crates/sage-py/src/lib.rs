@@ -5,7 +5,8 @@
 //! buffers ([`sim`]), datasets, the evaluator with agents written in Python, and the per-scene
 //! steps of dataset generation and evaluation that `sage3d.distributed` spreads over a Ray
 //! cluster ([`bench`]), and the pipelines the CLI runs ([`pipeline`]: the demo, the dataset
-//! build), and the training-data render with its per-scene steps ([`training`]). Long calls
+//! build), and the training-data render with its per-scene steps ([`training`]), and the browser
+//! viewer ([`view`]). Long calls
 //! release the GIL. The Gymnasium classes are pure Python on
 //! top of this module (`python/sage3d/`).
 
@@ -16,6 +17,7 @@ pub mod pipeline;
 pub mod scene;
 pub mod sim;
 pub mod training;
+pub mod view;
 
 use pyo3::prelude::*;
 
@@ -48,5 +50,6 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(training::training_render_scene, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_claim, m)?)?;
     m.add_function(wrap_pyfunction!(training::training_finish, m)?)?;
+    m.add_function(wrap_pyfunction!(view::view, m)?)?;
     Ok(())
 }

@@ -351,7 +351,6 @@ async function openEpisode(id) {
   viewer.episode = await api(`/api/episodes/${encodeURIComponent(id)}`);
   const e = viewer.episode;
   await showScene(e.scene);
-  $("player").hidden = !e.start;
   $("timeline").max = e.steps.length;
   setIndex(0);
   showInstruction(e.instruction);
@@ -414,6 +413,7 @@ function setMode(mode) {
   const words = { explore: "explore", player: "episode player", play: "human play" };
   $("mode").textContent = words[mode];
   $("controls").classList.toggle("off", mode === "player");
+  $("player").hidden = !(mode === "player" && viewer.episode && viewer.episode.start);
   $("show-map").hidden = !(mode === "play" && !viewer.mapVisible);
   drawMap();
 }
@@ -506,6 +506,8 @@ async function start() {
   };
   $("scene-pick").hidden = viewer.info.kind === "play";
   $("search").oninput = listEpisodes;
+  $("search").hidden = !viewer.info.episodes.length;
+  $("episodes").hidden = !viewer.info.episodes.length;
   listEpisodes();
   $("map").addEventListener("mousemove", onMapMove);
   $("map").addEventListener("mouseleave", () => ($("tip").hidden = true));

@@ -14,6 +14,8 @@
 //! - the episodes of a run with their outcome and, per episode, every recorded step for the
 //!   player's timeline ([`player`]).
 //!
+//! [`client`] is a minimal HTTP client of these routes for the benchmark and the tests.
+//!
 //! Human play records the person as agent `human` in a run folder of the evaluator's format
 //! ([`sage_eval::HumanRun`]), so the same code scores people and models.
 //!
@@ -24,6 +26,7 @@
 //! and it writes nothing but the human-play run folder.
 
 pub mod assets;
+pub mod client;
 pub mod frame;
 pub mod player;
 pub mod scenes;

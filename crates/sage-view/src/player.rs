@@ -93,16 +93,23 @@ pub fn episode_detail(rec: &EvalRecord, instruction: Option<&str>) -> Value {
         .zip(&actions)
         .map(|(s, a)| {
             json!({
-                "x": s.position[0], "y": s.position[1], "z": s.position[2], "yaw": s.yaw,
-                "time": s.time,
+                "x": num(s.position[0]), "y": num(s.position[1]), "z": num(s.position[2]),
+                "yaw": num(s.yaw),
+                "time": num(s.time),
                 "action": a,
                 "contact": s.contact,
-                "intensity": s.intensity,
-                "geodesic_to_goal": s.geodesic_to_goal_point,
+                "intensity": num(s.intensity),
+                "geodesic_to_goal": s.geodesic_to_goal_point.map(num),
             })
         })
         .collect();
     v
+}
+
+/// `v` as the JSON number the records print for it: the shortest decimal that reads back as
+/// this `f32` (a plain widening to `f64` would print its binary expansion instead).
+pub fn num(v: f32) -> f64 {
+    v.to_string().parse().unwrap_or(f64::from(v))
 }
 
 /// The action of each step of `r` as the record implies it (records keep poses, not

@@ -49,6 +49,11 @@ impl SceneCache {
         self.dirs.keys().cloned().collect()
     }
 
+    /// The folder of scene `name`.
+    pub fn dir(&self, name: &str) -> Option<&std::path::Path> {
+        self.dirs.get(name).map(PathBuf::as_path)
+    }
+
     /// True when `name` is one of the scenes.
     pub fn contains(&self, name: &str) -> bool {
         self.dirs.contains_key(name)

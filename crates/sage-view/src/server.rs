@@ -9,7 +9,7 @@
 //! | `GET /api/info` | what is viewed: kind, scenes, episodes with outcomes, preset, play progress |
 //! | `GET /api/scenes/{scene}/map` | the map's pixel frame and its objects, rooms, doors |
 //! | `GET /api/scenes/{scene}/map.png` | the map image |
-//! | `GET /api/scenes/{scene}/frame?x&y&z&yaw&pitch&width&height&layer&format` | a frame |
+//! | `GET /api/scenes/{scene}/frame?x&y&z&yaw&pitch&width&height&layer&format` | a frame; its `X-Sage3d-Render` header is the `sage3d render` command of the same image |
 //! | `POST /api/sessions` | open a session: `{scene}` or `{episode}`, `{play: true}` to play it |
 //! | `POST /api/sessions/{id}/step` | `{action}`; a played episode that ends is recorded |
 //! | `POST /api/sessions/{id}/place` | `{x, y, yaw}`: an explore session starts again there |
@@ -344,10 +344,21 @@ async fn frame(
     Path(scene): Path<String>,
     Query(req): Query<FrameRequest>,
 ) -> ApiResult<Response> {
-    let loaded = load(app.clone(), scene).await?;
-    let bytes =
-        blocking(move || Ok(frame::render(&loaded, &app.config, &app.profile, &req)?)).await?;
-    Ok(image(req.format.content_type(), bytes))
+    let loaded = load(app.clone(), scene.clone()).await?;
+    let dir = app.scenes.dir(&scene).map(|d| d.display().to_string());
+    let (bytes, command) = blocking(move || {
+        let bytes = frame::render(&loaded, &app.config, &app.profile, &req)?;
+        let command =
+            frame::render_command(&dir.unwrap_or(scene), &app.config, &app.profile, &req)?;
+        Ok((bytes, command))
+    })
+    .await?;
+    let mut response = image(req.format.content_type(), bytes);
+    // The same image from the command line, for a figure or a bug report.
+    if let Ok(value) = header::HeaderValue::from_str(&command) {
+        response.headers_mut().insert("x-sage3d-render", value);
+    }
+    Ok(response)
 }
 
 /// What opens a session.

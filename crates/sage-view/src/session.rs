@@ -8,6 +8,7 @@
 //! The environment renders nothing itself: the page asks for frames at the session's pose
 //! ([`crate::frame`]), at its own size.
 
+use crate::player::num;
 use crate::scenes::LoadedScene;
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Pose, Result, Task};
@@ -147,13 +148,13 @@ impl Session {
     pub fn state(&self, id: u64) -> Value {
         let trace = self.env.trace();
         let pose = self.env.pose().unwrap_or(self.started.start);
-        let path: Vec<[f32; 2]> = std::iter::once(self.started.start.position)
+        let path: Vec<[f64; 2]> = std::iter::once(self.started.start.position)
             .chain(
                 trace
                     .iter()
                     .flat_map(|t| t.steps.iter().map(|s| s.pose.position)),
             )
-            .map(|p| [p.x, p.y])
+            .map(|p| [num(p.x), num(p.y)])
             .collect();
         let last = self.last.as_ref();
         json!({
@@ -161,16 +162,21 @@ impl Session {
             "scene": self.scene,
             "episode": self.episode,
             "purpose": match self.purpose { Purpose::Explore => "explore", Purpose::Play { .. } => "play" },
-            "pose": {"x": pose.position.x, "y": pose.position.y, "z": pose.position.z, "yaw": pose.yaw},
-            "pitch": last.map_or(0.0, |s| s.pitch),
+            "pose": {
+                "x": num(pose.position.x),
+                "y": num(pose.position.y),
+                "z": num(pose.position.z),
+                "yaw": num(pose.yaw),
+            },
+            "pitch": num(last.map_or(0.0, |s| s.pitch)),
             "step": trace.map_or(0, |t| t.steps.len()),
             "time": last.map_or(0.0, |s| s.time),
             "action": last.map(|s| action_name(&s.action)),
             "contact": last.is_some_and(|s| s.collision || !s.touched.is_empty()),
             "collision": last.is_some_and(|s| s.collision),
-            "intensity": last.map_or(0.0, |s| s.intensity),
+            "intensity": num(last.map_or(0.0, |s| s.intensity)),
             "touched": last.map(|s| s.touched.clone()).unwrap_or_default(),
-            "distance_to_goal": last.and_then(|s| s.distance_to_goal),
+            "distance_to_goal": last.and_then(|s| s.distance_to_goal).map(num),
             "done": self.env.done(),
             "termination": trace.and_then(|t| t.termination),
             "path": path,

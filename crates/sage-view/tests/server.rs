@@ -8,8 +8,7 @@ use sage_eval::{EvalRecord, EvalSettings};
 use sage_synth::{SynthConfig, generate};
 use sage_view::ViewOptions;
 use serde_json::{Value, json};
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock, mpsc};
@@ -98,7 +97,7 @@ fn options(path: &Path) -> ViewOptions {
     }
 }
 
-/// One HTTP/1.1 request with `headers`; returns the status and the body.
+/// One request through the viewer's client; returns the status and the body.
 fn request(
     addr: SocketAddr,
     method: &str,
@@ -106,32 +105,15 @@ fn request(
     body: Option<&Value>,
     headers: &[(&str, &str)],
 ) -> (u16, Vec<u8>) {
-    let mut s = TcpStream::connect(addr).unwrap();
-    let body = body.map(|b| b.to_string()).unwrap_or_default();
-    let mut head = format!(
-        "{method} {target} HTTP/1.1\r\nConnection: close\r\nContent-Length: {}\r\n",
-        body.len()
-    );
-    if !headers.iter().any(|(k, _)| k.eq_ignore_ascii_case("host")) {
-        head += &format!("Host: 127.0.0.1:{}\r\n", addr.port());
-    }
-    if !body.is_empty() {
-        head += "Content-Type: application/json\r\n";
-    }
-    for (k, v) in headers {
-        head += &format!("{k}: {v}\r\n");
-    }
-    s.write_all(format!("{head}\r\n{body}").as_bytes()).unwrap();
-    let mut reply = Vec::new();
-    s.read_to_end(&mut reply).unwrap();
-    let split = reply.windows(4).position(|w| w == b"\r\n\r\n").unwrap();
-    let status: u16 = String::from_utf8_lossy(&reply[9..12]).parse().unwrap();
-    let head = String::from_utf8_lossy(&reply[..split]).to_ascii_lowercase();
+    let reply = sage_view::client::request(addr, method, target, body, headers).unwrap();
     assert!(
-        !head.contains("transfer-encoding: chunked"),
+        !reply
+            .headers
+            .iter()
+            .any(|(k, v)| k == "transfer-encoding" && v.contains("chunked")),
         "bodies have a length"
     );
-    (status, reply[split + 4..].to_vec())
+    (reply.status, reply.body)
 }
 
 fn get_json(v: &Viewer, target: &str) -> Value {

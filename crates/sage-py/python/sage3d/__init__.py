@@ -10,6 +10,8 @@
 - ``render_training_data(dataset, scenes, out)`` / ``TrainingSet(out)``: training data for VLN
   models as ``sage3d data render`` writes it (NaVILA, WebDataset or frames), and its reader
   (``sage3d.training``, with a PyTorch dataset when torch is installed).
+- ``view(path)``: the browser viewer of ``sage3d view`` (map, first-person view, keyboard
+  driving, the episodes of a run step by step, human play with ``play=RUN``).
 - ``sage3d.distributed``: dataset generation, evaluation and training-data rendering sharded
   over a Ray cluster.
 """
@@ -24,6 +26,7 @@ from ._sage3d import (
     demo,
     env_config,
     render_training_data,
+    view,
 )
 from .dataset import Dataset, filter_episodes, load_dataset
 from .env import SageEnv, cache_dir, make_env, synth_scene
@@ -50,6 +53,7 @@ __all__ = [
     "make_vec_env",
     "render_training_data",
     "synth_scene",
+    "view",
 ]
 
 for _id, _task in (("SageVLN-v0", "vln"), ("SageNoGoal-v0", "nogoal")):

@@ -1,0 +1,86 @@
+//! The browser viewer from Python: `sage3d.view(path)` serves what `sage3d view PATH` serves
+//! (`sage-view`), until Ctrl-C.
+
+use crate::convert::PyResultExt;
+use pyo3::prelude::*;
+use sage_core::{Error, ResultExt};
+use sage_view::ViewOptions;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+/// Serves the viewer over `path` (a scene, a folder of scenes, a dataset or an evaluation run)
+/// until interrupted (Ctrl-C, which is raised as `KeyboardInterrupt` when the server has
+/// stopped). The keyword arguments are `sage3d view`'s flags by name; `on_ready(url)` is
+/// called once the server listens (default: print the URL). `play=RUN` records human play of
+/// the dataset split into the run folder RUN.
+#[pyfunction]
+#[pyo3(signature = (
+    path, *, scenes=None, split=None, play=None, force=false, preset="sage".to_string(),
+    mode="sage".to_string(), device="cpu".to_string(), host="127.0.0.1".to_string(), port=8765,
+    public=false, on_ready=None
+))]
+#[allow(clippy::too_many_arguments)]
+pub fn view(
+    py: Python<'_>,
+    path: PathBuf,
+    scenes: Option<PathBuf>,
+    split: Option<String>,
+    play: Option<PathBuf>,
+    force: bool,
+    preset: String,
+    mode: String,
+    device: String,
+    host: String,
+    port: u16,
+    public: bool,
+    on_ready: Option<Py<PyAny>>,
+) -> PyResult<()> {
+    let opts = ViewOptions {
+        scenes,
+        split,
+        play,
+        force,
+        preset,
+        mode: mode.parse().within("mode").py()?,
+        device: device.parse().within("device").py()?,
+        host: host
+            .parse()
+            .map_err(|_| Error::invalid(format!("host: '{host}' is not an IP address")))
+            .py()?,
+        port,
+        public,
+        ..ViewOptions::new(path)
+    };
+    // The interrupt that stopped the server, raised once it has.
+    let interrupted: Arc<Mutex<Option<PyErr>>> = Arc::default();
+    let slot = interrupted.clone();
+    py.detach(|| {
+        sage_view::serve(
+            &opts,
+            |server| {
+                Python::attach(|py| match &on_ready {
+                    Some(f) => {
+                        if let Err(e) = f.call1(py, (server.url.clone(),)) {
+                            e.print(py);
+                        }
+                    }
+                    None => println!("sage3d view: open {}", server.url),
+                })
+            },
+            move || {
+                Python::attach(|py| match py.check_signals() {
+                    Ok(()) => true,
+                    Err(e) => {
+                        if let Ok(mut slot) = slot.lock() {
+                            *slot = Some(e);
+                        }
+                        false
+                    }
+                })
+            },
+        )
+    })
+    .py()?;
+    let raised = interrupted.lock().ok().and_then(|mut e| e.take());
+    raised.map_or(Ok(()), Err)
+}
