@@ -36,6 +36,7 @@ use sage_env::EnvConfig;
 use sage_physics::AgentProfile;
 use serde::Deserialize;
 use serde_json::{Value, json};
+use std::future::IntoFuture;
 use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -101,7 +102,7 @@ fn lock<T>(m: &Mutex<T>) -> ApiResult<std::sync::MutexGuard<'_, T>> {
 }
 
 /// Opens what `opts` names, binds, calls `on_ready` with the address and URL, and serves
-/// until `keep_going` returns false (it is asked four times a second).
+/// until `keep_going` returns false (it is asked four times a second, on the calling thread).
 ///
 /// # Errors
 ///
@@ -110,7 +111,7 @@ fn lock<T>(m: &Mutex<T>) -> ApiResult<std::sync::MutexGuard<'_, T>> {
 pub fn serve(
     opts: &ViewOptions,
     on_ready: impl FnOnce(&Server),
-    keep_going: impl Fn() -> bool + Send + 'static,
+    keep_going: impl Fn() -> bool,
 ) -> Result<()> {
     if !opts.host.is_loopback() && !opts.public {
         return Err(Error::invalid(format!(
@@ -141,14 +142,22 @@ pub fn serve(
             None => format!("http://{host}:{}/", addr.port()),
         };
         on_ready(&Server { addr, url });
-        let stop = async move {
-            while keep_going() {
-                tokio::time::sleep(Duration::from_millis(250)).await;
-            }
-        };
-        axum::serve(listener, router(app))
-            .with_graceful_shutdown(stop)
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let server = tokio::spawn(
+            axum::serve(listener, router(app))
+                .with_graceful_shutdown(async {
+                    let _ = stopped.await;
+                })
+                .into_future(),
+        );
+        // Asked here, on the calling thread: Python can only see its signals there.
+        while keep_going() && !server.is_finished() {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+        }
+        let _ = stop.send(());
+        server
             .await
+            .map_err(|e| Error::invalid(format!("server: {e}")))?
             .map_err(|e| Error::invalid(format!("server: {e}")))
     })
 }

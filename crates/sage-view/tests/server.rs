@@ -462,6 +462,19 @@ fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
         assert_eq!(h.record, e.record, "{id}");
         assert_eq!(h.termination, e.termination, "{id}");
     }
+    // A human run never writes into another run's folder.
+    let err = sage_view::serve(
+        &ViewOptions {
+            play: Some(out.clone()),
+            scenes: Some(scenes.clone()),
+            split: Some("train".into()),
+            ..options(data)
+        },
+        |_| panic!("must not start"),
+        || false,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("other settings"), "{err}");
     assert!(human[&played[0].0].notes.is_empty());
     assert_eq!(human[&played[1].0].notes, vec!["map shown".to_string()]);
 }
