@@ -165,6 +165,7 @@ function drawMap() {
   if (!viewer.mapImage) return;
   ctx.imageSmoothingEnabled = false;
   ctx.drawImage(viewer.mapImage, 0, 0, c.width, c.height);
+  roomLabels(ctx);
   const e = viewer.episode;
   if (viewer.mode === "player" && e && e.start) {
     if (e.goal && e.goal.footprint) line(ctx, [...e.goal.footprint, e.goal.footprint[0]], "#e69f00", 2);
@@ -178,11 +179,32 @@ function drawMap() {
     agent(ctx, p.x, p.y, p.yaw);
   } else if (viewer.state) {
     const s = viewer.state;
+    // A played episode's reference path and goal would tell the way: only the map shows them.
+    if (viewer.mode === "explore") {
+      line(ctx, s.reference_path, "#009e73", 3, [8, 6]);
+      if (s.goal) marker(ctx, s.goal[0], s.goal[1], "diamond", "#e69f00", 8);
+    }
     line(ctx, s.path, "#0072b2", 3);
     if (s.path.length) marker(ctx, s.path[0][0], s.path[0][1], "square", "#56b4e9", 6);
     (viewer.contacts || []).forEach(([x, y]) => marker(ctx, x, y, "cross", "#d55e00", 5));
     agent(ctx, s.pose.x, s.pose.y, s.pose.yaw);
   }
+}
+
+// Each room's type at the middle of its outline.
+function roomLabels(ctx) {
+  ctx.save();
+  ctx.font = "11px sans-serif";
+  ctx.textAlign = "center";
+  ctx.fillStyle = "rgba(40, 40, 40, 0.75)";
+  for (const r of viewer.map.rooms) {
+    if (!r.polygon.length) continue;
+    const x = r.polygon.reduce((a, p) => a + p[0], 0) / r.polygon.length;
+    const y = r.polygon.reduce((a, p) => a + p[1], 0) / r.polygon.length;
+    const [u, v] = toCanvas(x, y);
+    ctx.fillText(r.type.replace(/_/g, " "), u, v);
+  }
+  ctx.restore();
 }
 
 function inside(poly, x, y) {

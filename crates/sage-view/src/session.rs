@@ -144,7 +144,8 @@ impl Session {
 
     /// The session as the page shows it: the pose and camera pitch, the step, the last step's
     /// contact (its intensity c(t) and the bodies touched) and distance to the goal, whether
-    /// the episode ended and why, and the path walked so far.
+    /// the episode ended and why, the path walked so far, and an episode's reference path and
+    /// goal point.
     pub fn state(&self, id: u64) -> Value {
         let trace = self.env.trace();
         let pose = self.env.pose().unwrap_or(self.started.start);
@@ -157,6 +158,8 @@ impl Session {
             .map(|p| [num(p.x), num(p.y)])
             .collect();
         let last = self.last.as_ref();
+        // A person playing sees what an agent sees: no goal, no way, no distance.
+        let explore = self.purpose == Purpose::Explore;
         json!({
             "session": id.to_string(),
             "scene": self.scene,
@@ -176,10 +179,23 @@ impl Session {
             "collision": last.is_some_and(|s| s.collision),
             "intensity": num(last.map_or(0.0, |s| s.intensity)),
             "touched": last.map(|s| s.touched.clone()).unwrap_or_default(),
-            "distance_to_goal": last.and_then(|s| s.distance_to_goal).map(num),
+            "distance_to_goal": last.and_then(|s| s.distance_to_goal).filter(|_| explore).map(num),
             "done": self.env.done(),
             "termination": trace.and_then(|t| t.termination),
             "path": path,
+            "reference_path": self
+                .started
+                .reference_path
+                .iter()
+                .filter(|_| explore)
+                .map(|p| [num(p.x), num(p.y)])
+                .collect::<Vec<_>>(),
+            "goal": self
+                .episode
+                .as_ref()
+                .filter(|_| explore)
+                .and(self.started.goal.as_ref())
+                .map(|g| [num(g.point.x), num(g.point.y)]),
         })
     }
 }

@@ -379,6 +379,8 @@ fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
                 let id = e["id"].as_str().unwrap().to_string();
                 let s = post_json(&v, "/api/sessions", json!({"episode": id, "play": true}));
                 let sid = s["session"].as_str().unwrap().to_string();
+                // The person sees what an agent sees: no goal, no reference path.
+                assert!(s["goal"].is_null() && s["reference_path"] == json!([]));
                 if k == 1 {
                     post_json(&v, &format!("/api/sessions/{sid}/map"), json!({}));
                 }
