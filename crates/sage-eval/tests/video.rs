@@ -1,4 +1,4 @@
-//! Episode videos on a real evaluation (one small synthetic scene, the forward agent): the GIF
+//! Episode videos on a real evaluation (one small synthetic scene, the oracle agent): the GIF
 //! has a frame for the start and one per step, at the layout's size; its first-person part is
 //! a render through the agent's camera at the pose (compared with a direct render); the
 //! agent's marker on the map is where the record puts it; the same inputs give the same
@@ -20,7 +20,8 @@ use sage_splat::{Device, RenderOptions};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-/// A scene, a finished forward-agent run (no report yet) and the loaded scene context.
+/// A scene, a finished oracle run (no report yet; its no-goal episodes fault) and the loaded
+/// scene context.
 struct Fixture {
     _dir: tempfile::TempDir,
     scenes: PathBuf,
@@ -38,7 +39,7 @@ fn fixture() -> &'static Fixture {
             dataset: data,
             scenes: scenes.clone(),
             split: "train".into(),
-            agent: "forward".parse().unwrap(),
+            agent: "oracle".parse().unwrap(),
             mode: Mode::Sage,
             dtw: Default::default(),
             seed: 0,
@@ -131,7 +132,11 @@ fn decode(bytes: &[u8]) -> (usize, usize, Vec<(Vec<u8>, u16)>) {
         // Every frame covers the whole image.
         assert_eq!((f.left, f.top), (0, 0));
         assert_eq!((f.width as usize, f.height as usize), (w, h));
-        let rgb = f.buffer.chunks(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+        let rgb = f
+            .buffer
+            .chunks(4)
+            .flat_map(|p| [p[0], p[1], p[2]])
+            .collect();
         out.push((rgb, f.delay));
     }
     (w, h, out)
@@ -209,7 +214,14 @@ fn the_gif_has_a_frame_per_step_and_the_first_person_view_is_a_render_at_the_pos
 }
 
 /// How many pixels within `r` of world point `p` on the frame's map panel have `colour`.
-fn count_near(frame: &Canvas, panel: &Canvas, at: (usize, usize), p: Vec2, r: i64, c: [u8; 3]) -> usize {
+fn count_near(
+    frame: &Canvas,
+    panel: &Canvas,
+    at: (usize, usize),
+    p: Vec2,
+    r: i64,
+    c: [u8; 3],
+) -> usize {
     let q = panel.to_pixel(p);
     let (cx, cy) = (at.0 as i64 + q.x as i64, at.1 as i64 + q.y as i64);
     let mut hits = 0;
@@ -254,12 +266,17 @@ fn the_agent_marker_moves_on_the_map_with_the_record() {
     let apart = panel.to_pixel(far).distance(panel.to_pixel(start));
     assert!(apart > 14.0, "the walker moved {apart} pixels");
     // The marker: a disc of the agent's colour, radius 5, at the frame's pose.
-    let at = |frame: usize, p: Vec2| count_near(&canvases[frame], &panel, (mx, my), p, 3, AGENT_PATH);
+    let at =
+        |frame: usize, p: Vec2| count_near(&canvases[frame], &panel, (mx, my), p, 3, AGENT_PATH);
     // A radius-3 disc holds 29 pixels; the heading tick may cross a few of them.
     assert!(at(0, start) >= 20, "frame 0 at the start: {}", at(0, start));
     assert!(at(k, far) >= 20, "frame {k} at its pose: {}", at(k, far));
     // Before the walk the agent is not at the far pose: neither marker nor path is drawn there.
-    assert!(at(0, far) <= 8, "frame 0 at frame {k}'s pose: {}", at(0, far));
+    assert!(
+        at(0, far) <= 8,
+        "frame 0 at frame {k}'s pose: {}",
+        at(0, far)
+    );
 }
 
 #[test]
@@ -316,9 +333,15 @@ fn write_report(run: &Path, videos: usize) -> report::ReportOutcome {
         ..ReportOptions::default()
     };
     let seen = std::sync::Mutex::new(Vec::new());
-    let outcome = report::write_with_options(run, &fixture().scenes, &options, &|_, _| {}, &|id, total| {
-        seen.lock().unwrap().push((id.to_string(), total));
-    })
+    let outcome = report::write_with_options(
+        run,
+        &fixture().scenes,
+        &options,
+        &|_, _| {},
+        &|id, total| {
+            seen.lock().unwrap().push((id.to_string(), total));
+        },
+    )
     .unwrap();
     let seen = seen.into_inner().unwrap();
     assert_eq!(seen.len(), outcome.videos);
@@ -364,8 +387,12 @@ fn the_report_writes_the_videos_asked_for_in_gallery_order_and_shows_them() {
         .map(|m| report::video_file_name(&m.record.episode_id))
         .collect();
     // The page shows them in gallery order.
-    let first = section.find(&format!("report/videos/{}", expected[0])).unwrap();
-    let second = section.find(&format!("report/videos/{}", expected[1])).unwrap();
+    let first = section
+        .find(&format!("report/videos/{}", expected[0]))
+        .unwrap();
+    let second = section
+        .find(&format!("report/videos/{}", expected[1]))
+        .unwrap();
     assert!(first < second);
     expected.sort();
     assert_eq!(written, expected);

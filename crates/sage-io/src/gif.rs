@@ -64,7 +64,11 @@ impl<W: Write> GifWriter<W> {
         if rgb.len() != w as usize * h as usize * 3 {
             return Err(Error::new(
                 ErrorKind::InvalidInput,
-                format!("a GIF frame of {w}×{h} pixels needs {} bytes of RGB, not {}", w as usize * h as usize * 3, rgb.len()),
+                format!(
+                    "a GIF frame of {w}×{h} pixels needs {} bytes of RGB, not {}",
+                    w as usize * h as usize * 3,
+                    rgb.len()
+                ),
             ));
         }
         let mut frame = ::gif::Frame::from_rgb_speed(w, h, rgb, SPEED);

@@ -335,13 +335,7 @@ fn compose(
     })?;
     let (rgb, w, h) = read_rgb(&out.join(IMAGES_DIR).join(file))?;
     let frame = resize(&rgb, w, w, h, layout.frame_width, layout.panel_height);
-    image.blit(
-        &frame,
-        layout.frame_width,
-        layout.panel_height,
-        PAD,
-        PAD,
-    );
+    image.blit(&frame, layout.frame_width, layout.panel_height, PAD, PAD);
     let map = walk_map(base, sample, k, episode);
     let x = 2 * PAD + layout.frame_width + (layout.map_width.saturating_sub(map.width)) / 2;
     let y = PAD + (layout.panel_height.saturating_sub(map.height)) / 2;

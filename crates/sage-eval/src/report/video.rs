@@ -6,8 +6,9 @@
 //! scene's semantic map ([`maps::base_map_rows`]) with the record's reference path, the
 //! agent's path so far, the contacts so far as crosses ([`maps::overlay`] of the steps taken)
 //! and a marker with a heading tick at the current pose. Above both a white band holds the
-//! episode, its instruction wrapped over as many lines as it needs, and a status line:
-//! `step k/n · action · contact c(t)=… · d_goal=…`. Frames follow each other every
+//! episode, its instruction wrapped over as many lines as it needs, and the step's status
+//! on two lines (one would not fit beside a 320-pixel view): `step k/n · action` and
+//! `contact c(t)=… · d_goal=…`. Frames follow each other every
 //! [`STEP_DELAY`]; the last one stays [`END_DELAY`]. The same record and scene give the same
 //! bytes (the renderer on the CPU is independent of the thread count, the GIF encoding
 //! deterministic).
@@ -109,8 +110,8 @@ impl VideoLayout {
         if lines.is_empty() {
             lines.push("(no instruction)".into());
         }
-        // The episode line, the instruction, the status line.
-        let band = (lines.len() + 2) * 10 * text_scale;
+        // The episode line, the instruction, the two status lines.
+        let band = (lines.len() + 3) * 10 * text_scale;
         let top = 2 * PAD + band;
         VideoLayout {
             width,
@@ -251,7 +252,10 @@ fn for_each_frame(
     let (_, _, map_w, map_h) = layout.map;
     let base = maps::base_map_rows(map, grid, map_h, map_w, map_h);
     let header = clip(
-        &printable(&format!("episode {}{SEP}scene {}", rec.episode_id, rec.scene)),
+        &printable(&format!(
+            "episode {}{SEP}scene {}",
+            rec.episode_id, rec.scene
+        )),
         layout.chars_per_line(),
     );
     let mut renderer = ctx.renderer(config.device)?;
@@ -288,12 +292,14 @@ fn for_each_frame(
                 0 => ("start".to_string(), 0.0),
                 _ => (step_action(record, k - 1), record.steps[k - 1].intensity),
             };
-            let status = format!(
-                "step {k}/{n}{SEP}{action}{SEP}contact c(t)={intensity:.2}{SEP}d_goal={}",
-                distances[k]
-            );
-            let y = layout.line_y(1 + layout.instruction.len());
-            frame.text(left, y, &clip(&status, layout.chars_per_line()), INK, ts);
+            let status = [
+                format!("step {k}/{n}{SEP}{action}"),
+                format!("contact c(t)={intensity:.2}{SEP}d_goal={}", distances[k]),
+            ];
+            for (j, line) in status.iter().enumerate() {
+                let y = layout.line_y(1 + layout.instruction.len() + j);
+                frame.text(left, y, &clip(line, layout.chars_per_line()), INK, ts);
+            }
             each(k, n + 1, frame)?;
         }
     }
@@ -490,8 +496,9 @@ mod tests {
 
     #[test]
     fn a_long_floor_plan_is_fitted_into_the_panel() {
-        let grid =
-            |w: usize, h: usize| NavGrid::new(Vec2::ZERO, Vec2::new(w as f32, h as f32), 1.0).unwrap();
+        let grid = |w: usize, h: usize| {
+            NavGrid::new(Vec2::ZERO, Vec2::new(w as f32, h as f32), 1.0).unwrap()
+        };
         let size = VideoSize::default();
         let square = VideoLayout::new(&grid(100, 100), size, "go");
         assert_eq!((square.map.2, square.map.3), (320, 320));
