@@ -1,9 +1,10 @@
-//! `sage3d report RUN [--scenes SCENES]`: (re)writes an evaluation run's `report.html` and its
-//! PNGs under a progress bar (`docs/evaluation.md`, "Report"), holding the run folder's lock
+//! `sage3d report RUN [--scenes SCENES] [--videos N]`: (re)writes an evaluation run's
+//! `report.html`, its PNGs and N episode videos under progress bars (`docs/evaluation.md`,
+//! "Report"), holding the run folder's lock
 //! (`sage_pipeline::evaluate::report`); `sage3d eval` calls the same writer at the end of a run.
 
 use sage_core::{Error, Result};
-use sage_eval::report::ReportOutcome;
+use sage_eval::report::{ReportOptions, ReportOutcome};
 use sage_io::run::RUN_RECORD;
 use std::path::{Path, PathBuf};
 
@@ -15,18 +16,38 @@ pub struct ReportArgs {
     /// One scene folder or a folder of scene folders (default: the run's own `--scenes`).
     #[arg(long)]
     scenes: Option<PathBuf>,
+    /// Write episode videos (report/videos/*.gif, shown by the page) of the first N episodes
+    /// in the gallery's order: unsuccessful first, then by id.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    videos: usize,
 }
 
-/// Writes the report of `run` with the scenes of `scenes` under a progress bar over the
-/// episodes' maps.
-fn write_with_bar(run: &Path, scenes: &Path) -> Result<ReportOutcome> {
-    let bar = crate::progress::bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
-    let outcome = sage_pipeline::evaluate::report(run, scenes, &|id, total| {
+/// Writes the report of `run` with the scenes of `scenes` and `videos` episode videos under
+/// progress bars over the episodes' maps and videos.
+fn write_with_bar(run: &Path, scenes: &Path, videos: usize) -> Result<ReportOutcome> {
+    let maps = crate::progress::bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
+    let clips = crate::progress::bar("{bar:30} {pos}/{len} videos {elapsed} (eta {eta}) {msg}");
+    let tick = |bar: &indicatif::ProgressBar, id: &str, total: usize| {
         bar.set_length(total as u64);
         bar.set_message(id.to_string());
         bar.inc(1);
-    });
-    bar.finish_and_clear();
+    };
+    let options = ReportOptions {
+        videos,
+        ..ReportOptions::default()
+    };
+    let outcome = sage_pipeline::evaluate::report_with_options(
+        run,
+        scenes,
+        &options,
+        &|id, total| tick(&maps, id, total),
+        &|id, total| {
+            maps.finish_and_clear();
+            tick(&clips, id, total)
+        },
+    );
+    maps.finish_and_clear();
+    clips.finish_and_clear();
     outcome
 }
 
@@ -60,7 +81,17 @@ pub fn run(a: ReportArgs) -> Result<()> {
         Some(s) => s,
         None => recorded_scenes(&a.run)?,
     };
-    let outcome = write_with_bar(&a.run, &scenes)?;
+    let outcome = write_with_bar(&a.run, &scenes, a.videos)?;
     println!("{}", describe(&outcome));
+    if a.videos > 0 {
+        let mut line = format!("videos: {} in report/videos/", outcome.videos);
+        if outcome.videos < a.videos {
+            line.push_str(&format!(
+                " (asked for {}; the run has {} episodes with a trajectory)",
+                a.videos, outcome.maps
+            ));
+        }
+        println!("{line}");
+    }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `sage3d report` and the report `sage3d eval` writes: eval prints the report's path, a
 //! regenerated report is the same bytes (also with the run's own scenes folder), faulted
-//! episodes are listed under a banner, and bad run folders give errors naming the file.
+//! episodes are listed under a banner, bad run folders give errors naming the file, and
+//! `--videos N` writes N episode videos that the page shows (one per episode when N is more).
 
 mod common;
 
@@ -114,4 +115,52 @@ fn bad_run_folders_name_the_file() {
     let e = fails(&["report", s(run)]);
     assert!(e.contains("sage3d_run.json"), "{e}");
     assert!(!run.join("report.html").exists());
+}
+
+#[test]
+fn report_videos_writes_gifs_the_page_shows() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let run = dir.path().join("run");
+    // The oracle's episodes are short (it walks the reference path and stops).
+    eval("2", &data, &scenes, &run, &["--agent", "oracle"]);
+    let videos = run.join("report/videos");
+    // `eval` writes none.
+    assert!(!videos.exists());
+    let names = |dir: &std::path::Path| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        v.sort();
+        v
+    };
+
+    let out = ok(&["report", s(&run), "--videos", "2"]);
+    assert!(out.contains("videos: 2 in report/videos/"), "{out}");
+    assert!(!out.contains("asked for"), "{out}");
+    let gifs = names(&videos);
+    assert_eq!(gifs.len(), 2);
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    assert!(html.contains("Episode videos"));
+    for g in &gifs {
+        assert!(g.ends_with(".gif"));
+        assert!(html.contains(&format!("src=\"report/videos/{g}\"")), "{g}");
+        let bytes = std::fs::read(videos.join(g)).unwrap();
+        assert!(bytes.starts_with(b"GIF89a"));
+    }
+
+    // More than the run has: one per episode with a trajectory, and it says so.
+    let maps = names(&run.join("report/maps")).len();
+    let out = ok(&["report", s(&run), "--videos", "500"]);
+    assert!(
+        out.contains(&format!("videos: {maps} in report/videos/"))
+            && out.contains(&format!(
+                "(asked for 500; the run has {maps} episodes with a trajectory)"
+            )),
+        "{out}"
+    );
+    assert_eq!(names(&videos).len(), maps);
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    assert_eq!(html.matches("src=\"report/videos/").count(), maps);
 }

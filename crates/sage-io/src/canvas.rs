@@ -1,6 +1,7 @@
 //! A small RGB canvas for the map images: filled polygons, lines, discs and a 5×7 bitmap font
 //! for the legend (upper-case letters, digits and a few signs), so the PNGs explain themselves
-//! without a font library.
+//! without a font library; [`printable`], [`clip`] and [`wrap`] fit text to that font and to
+//! lines of a width.
 
 use glam::Vec2;
 use sage_core::Result;
@@ -164,6 +165,24 @@ impl Canvas {
         }
     }
 
+    /// Copies `src` (`w × h` RGB, rows top to bottom) into the canvas with its top-left at
+    /// pixel (x0, y0), clipped to the canvas.
+    pub fn blit(&mut self, src: &[u8], w: usize, h: usize, x0: usize, y0: usize) {
+        if x0 >= self.width {
+            return;
+        }
+        let cols = w.min(self.width - x0);
+        for y in 0..h.min(self.height.saturating_sub(y0)) {
+            let d = ((y0 + y) * self.width + x0) * 3;
+            let s = y * w * 3;
+            if let (Some(dst), Some(src)) =
+                (self.rgb.get_mut(d..d + cols * 3), src.get(s..s + cols * 3))
+            {
+                dst.copy_from_slice(src);
+            }
+        }
+    }
+
     /// Saves the canvas as an RGB PNG (atomically).
     pub fn save_png(&self, path: &Path) -> Result<()> {
         crate::files::write_rgb_png(path, self.width, self.height, &self.rgb)
@@ -186,6 +205,76 @@ pub fn legend_height(rows: usize) -> usize {
 /// A distinct, stable colour per index.
 pub fn palette(index: usize) -> [u8; 3] {
     crate::palette::distinct_color(index as u32 + 1)
+}
+
+/// `text` in the characters the bitmap font has: marks it lacks that only separate words
+/// (commas, quotes, …) are left out, white space becomes one space; anything else the font
+/// draws as its unknown-character sign.
+pub fn printable(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            ',' | ';' | '!' | '\'' | '"' | '`' | '\u{2018}' | '\u{2019}' | '\u{201C}'
+            | '\u{201D}' => {}
+            c if c.is_whitespace() => {
+                if !out.ends_with(' ') {
+                    out.push(' ');
+                }
+            }
+            c => out.push(c),
+        }
+    }
+    out.trim().to_string()
+}
+
+/// `text` cut to `n` characters, ending in `...` when cut.
+pub fn clip(text: &str, n: usize) -> String {
+    if text.chars().count() <= n {
+        return text.to_string();
+    }
+    let kept: String = text.chars().take(n.saturating_sub(3)).collect();
+    format!("{kept}...")
+}
+
+/// `text` word-wrapped to lines of at most `width` characters, at most `lines` of them (the
+/// last ending in `...` when the text goes on); a word longer than a line is broken.
+pub fn wrap(text: &str, width: usize, lines: usize) -> Vec<String> {
+    let width = width.max(4);
+    let mut out: Vec<String> = Vec::new();
+    let mut line = String::new();
+    for word in text.split_whitespace() {
+        let mut word: Vec<char> = word.chars().collect();
+        loop {
+            let used = line.chars().count();
+            let room = if used == 0 { width } else { width - used - 1 };
+            if word.len() <= room {
+                if used > 0 {
+                    line.push(' ');
+                }
+                line.extend(word.iter());
+                break;
+            }
+            if used == 0 {
+                // Longer than a whole line: break it.
+                line.extend(word.drain(..width));
+            }
+            out.push(std::mem::take(&mut line));
+        }
+        if line.chars().count() >= width {
+            out.push(std::mem::take(&mut line));
+        }
+    }
+    if !line.is_empty() {
+        out.push(line);
+    }
+    if out.len() > lines {
+        out.truncate(lines);
+        if let Some(last) = out.last_mut() {
+            let kept: String = last.chars().take(width - 3).collect();
+            *last = format!("{}...", kept.trim_end());
+        }
+    }
+    out
 }
 
 /// The 5×7 bitmap of a character (rows top to bottom, bit 4 = leftmost column).
@@ -234,6 +323,8 @@ fn glyph(c: char) -> [u8; 7] {
         '(' => [0x02, 0x04, 0x08, 0x08, 0x08, 0x04, 0x02],
         ')' => [0x08, 0x04, 0x02, 0x02, 0x02, 0x04, 0x08],
         '/' => [0, 0x01, 0x02, 0x04, 0x08, 0x10, 0],
+        '=' => [0, 0, 0x1F, 0, 0x1F, 0, 0],
+        '\u{B7}' => [0, 0, 0, 0x0C, 0x0C, 0, 0],
         ' ' => [0; 7],
         _ => [0x0E, 0x11, 0x01, 0x02, 0x04, 0, 0x04],
     }
@@ -261,5 +352,25 @@ mod tests {
         // World y up = image row down: (1.0, 1.0) is at row 10, column 10.
         assert_eq!(c.to_pixel(Vec2::new(1.0, 1.0)), Vec2::new(10.0, 10.0));
         assert_eq!(c.to_world(Vec2::new(10.0, 10.0)), Vec2::new(1.0, 1.0));
+    }
+
+    #[test]
+    fn wrap_breaks_at_words_and_marks_what_is_left_out() {
+        let lines = wrap("walk past the sofa and stop at the door", 12, 3);
+        assert_eq!(lines, ["walk past", "the sofa and", "stop at t..."]);
+        assert_eq!(wrap("short", 12, 3), ["short"]);
+        assert_eq!(wrap("abcdefghijklmnop", 6, 3), ["abcdef", "ghijkl", "mnop"]);
+        assert!(wrap("", 10, 3).is_empty());
+        for l in wrap(&"word ".repeat(50), 17, 3) {
+            assert!(l.chars().count() <= 17, "{l}");
+        }
+    }
+
+    #[test]
+    fn printable_drops_marks_the_font_lacks() {
+        assert_eq!(
+            printable("Go to the sofa,  then don't\tstop!"),
+            "Go to the sofa then dont stop"
+        );
     }
 }

@@ -17,12 +17,14 @@
 //! - [`runner`]: the resumable per-scene runner and its typed outcome;
 //! - [`canvas`]: the small RGB canvas that draws maps, plans and charts to PNG,
 //!   [`palette`]: distinct, stable colours for ids, and [`marks`]: the paths and markers drawn
-//!   over top-down maps.
+//!   over top-down maps;
+//! - [`gif`]: the one writer of animated GIFs.
 //!
 //! It knows nothing of scenes beyond their folder layout, so every other crate can use it.
 
 pub mod canvas;
 pub mod files;
+pub mod gif;
 pub mod hash;
 pub mod image;
 pub mod limits;

@@ -95,6 +95,24 @@ pub fn marker(canvas: &mut Canvas, p: Vec2, radius: i64, c: [u8; 3]) {
     mark(canvas, p, Shape::Disc, radius, c);
 }
 
+/// Pixel radius of the marker of an agent's current pose ([`pose_marker`]).
+pub const POSE_RADIUS: i64 = 5;
+/// Pixel length of the heading tick of [`pose_marker`], from the marker's centre.
+pub const TICK_LENGTH: f32 = 14.0;
+/// The heading tick's colour: near-black, over a white halo.
+pub const TICK: [u8; 3] = [20, 20, 20];
+
+/// The marker of an agent at world point `p` heading `yaw` (radians counter-clockwise from
+/// +x): a tick [`TICK_LENGTH`] pixels long along the heading, then a disc of `c` over it.
+pub fn pose_marker(canvas: &mut Canvas, p: Vec2, yaw: f32, c: [u8; 3]) {
+    // The canvas maps world to pixels at one scale: two points one metre apart give it.
+    let pixels_per_metre = canvas.to_pixel(p + Vec2::X).distance(canvas.to_pixel(p));
+    let tip = p + Vec2::from_angle(yaw) * (TICK_LENGTH / pixels_per_metre.max(1e-6));
+    canvas.line(p, tip, HALO, 5);
+    canvas.line(p, tip, TICK, 3);
+    marker(canvas, p, POSE_RADIUS, c);
+}
+
 /// A path `width` pixels wide over a white halo one pixel wider on each side.
 pub fn polyline(canvas: &mut Canvas, points: &[Vec2], c: [u8; 3], width: i64) {
     halo(canvas, points, width);

@@ -5,7 +5,7 @@ use sage_agents::AgentKind;
 use sage_core::Result;
 use sage_dataset::folder::scenes_folder;
 use sage_eval::folder::COMMAND;
-use sage_eval::report::{self, ReportOutcome};
+use sage_eval::report::{self, ReportOptions, ReportOutcome};
 use sage_eval::{EvalRecord, EvalSettings, RunOutcome, Runner, Summary};
 use sage_io::lock::FolderLock;
 use sage_metrics::{Dtw, Mode};
@@ -183,9 +183,25 @@ pub fn report(
     scenes: &Path,
     on_map: &(dyn Fn(&str, usize) + Sync),
 ) -> Result<ReportOutcome> {
+    report_with_options(run, scenes, &ReportOptions::default(), on_map, &|_, _| {})
+}
+
+/// [`report`] with `options` (episode videos: [`report::write_with_options`], `on_video`
+/// called after each video).
+///
+/// # Errors
+///
+/// A folder that another command is writing, or as [`report::write_with_options`].
+pub fn report_with_options(
+    run: &Path,
+    scenes: &Path,
+    options: &ReportOptions,
+    on_map: &(dyn Fn(&str, usize) + Sync),
+    on_video: &(dyn Fn(&str, usize) + Sync),
+) -> Result<ReportOutcome> {
     let lock = FolderLock::acquire(run, "report")?;
     if sage_io::run::recorded_command(run).as_deref() == Some(COMMAND) {
         lock.remove_temporary();
     }
-    report::write_with(run, scenes, on_map)
+    report::write_with_options(run, scenes, options, on_map, on_video)
 }

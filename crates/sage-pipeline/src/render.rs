@@ -5,6 +5,7 @@
 use glam::Vec3;
 use sage_core::{Error, Result};
 use sage_io::files::{write_json, write_npy_f32, write_png, write_rgb_png};
+use sage_io::gif::GifWriter;
 use sage_scene::{InstanceKind, Scene};
 use sage_splat::camera::default_eye;
 use sage_splat::{
@@ -193,6 +194,8 @@ pub const TURNTABLE_DIR: &str = "turntable";
 
 /// The turntable's animation inside a render folder.
 pub const TURNTABLE_GIF: &str = "turntable.gif";
+/// How long each turntable frame is shown, hundredths of a second.
+const TURNTABLE_DELAY: u16 = 8;
 
 /// The images of one view, written at the top of a render folder, in the order written.
 const IMAGES: [&str; 7] = [
@@ -455,19 +458,15 @@ fn write_turntable(
         }
     }
     let (w, h) = (
-        camera.intrinsics.width as u16,
-        camera.intrinsics.height as u16,
+        camera.intrinsics.width as usize,
+        camera.intrinsics.height as usize,
     );
     sage_io::files::write_atomic(&dir.join(TURNTABLE_GIF), |out| {
-        let mut enc = gif::Encoder::new(out, w, h, &[]).map_err(std::io::Error::other)?;
-        enc.set_repeat(gif::Repeat::Infinite)
-            .map_err(std::io::Error::other)?;
+        let mut gif = GifWriter::new(out, w, h)?;
         for rgb in &images {
-            let mut frame = gif::Frame::from_rgb_speed(w, h, rgb, 10);
-            frame.delay = 8;
-            enc.write_frame(&frame).map_err(std::io::Error::other)?;
+            gif.frame(rgb, TURNTABLE_DELAY)?;
         }
-        Ok(())
+        gif.finish().map(|_| ())
     })
 }
 

@@ -27,6 +27,8 @@ use sage_core::{Error, Result, ResultExt};
 use sage_dataset::Episode;
 use sage_env::SceneContext;
 use sage_io::Canvas;
+use sage_io::canvas::{clip, printable, wrap};
+use sage_io::gif::GifWriter;
 use sage_io::{marks, palette};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -43,17 +45,10 @@ const PAD: usize = 8;
 const INSTRUCTION_LINES: usize = 3;
 /// Lines of the text band: the episode and step, the instruction, the action, the key.
 const BAND_LINES: usize = INSTRUCTION_LINES + 3;
-/// NeuQuant's sampling step when a frame has more than 256 colours: fast, and good enough for
-/// a preview.
-const GIF_SPEED: i32 = 10;
 /// The page behind the panels and the text.
 const BACKGROUND: [u8; 3] = [255, 255, 255];
-/// Text, and the heading tick.
+/// Text.
 const INK: [u8; 3] = [20, 20, 20];
-/// Radius of the current-pose marker, pixels.
-const AGENT_RADIUS: i64 = 5;
-/// Length of the heading tick from the marker's centre, pixels.
-const TICK_LENGTH: f32 = 14.0;
 
 /// What the preview is drawn from besides the samples.
 pub struct Sources<'a> {
@@ -102,47 +97,34 @@ pub fn write(from: &Sources<'_>, out: &Path, samples: &[EpisodeSample], n: usize
         from.frame_size.1,
         scenes.values().map(SceneMap::aspect).fold(0.0, f32::max),
     );
-    let (w16, h16) = match (u16::try_from(layout.width), u16::try_from(layout.height)) {
-        (Ok(w), Ok(h)) => (w, h),
-        _ => {
-            return Err(Error::invalid(format!(
-                "preview: {}×{} pixels is too large for a GIF",
-                layout.width, layout.height
-            )));
-        }
-    };
     let panels: BTreeMap<&str, Canvas> = scenes
         .iter()
         .map(|(name, map)| (*name, map.panel(layout.map_width, layout.panel_height)))
         .collect();
     let path = out.join(PREVIEW_FILE);
-    let gif_error = |e: gif::EncodingError| Error::io(&path, std::io::Error::other(e));
+    let gif_error = |e: std::io::Error| Error::io(&path, e);
     // The GIF is made in memory (it is small) and written in one go: a frame that cannot be
     // read is reported as that frame's error, not as a failed write of the preview.
-    let mut bytes = Vec::new();
-    {
-        let mut enc = gif::Encoder::new(&mut bytes, w16, h16, &[]).map_err(gif_error)?;
-        enc.set_repeat(gif::Repeat::Infinite).map_err(gif_error)?;
-        for (sample, episode) in shown.iter().zip(&episodes) {
-            let map = &scenes[sample.scene.as_str()];
-            let base = episode_base(&panels[sample.scene.as_str()], map, *episode);
-            let instruction = wrap(
-                &printable(&sample.instruction),
-                layout.chars_per_line(),
-                INSTRUCTION_LINES,
-            );
-            for k in 0..sample.steps.len() {
-                let image = compose(&layout, out, sample, k, &base, *episode, &instruction)?;
-                let mut frame = gif::Frame::from_rgb_speed(w16, h16, &image.rgb, GIF_SPEED);
-                frame.delay = if k + 1 == sample.steps.len() {
-                    END_DELAY
-                } else {
-                    STEP_DELAY
-                };
-                enc.write_frame(&frame).map_err(gif_error)?;
-            }
+    let mut gif = GifWriter::new(Vec::new(), layout.width, layout.height).map_err(gif_error)?;
+    for (sample, episode) in shown.iter().zip(&episodes) {
+        let map = &scenes[sample.scene.as_str()];
+        let base = episode_base(&panels[sample.scene.as_str()], map, *episode);
+        let instruction = wrap(
+            &printable(&sample.instruction),
+            layout.chars_per_line(),
+            INSTRUCTION_LINES,
+        );
+        for k in 0..sample.steps.len() {
+            let image = compose(&layout, out, sample, k, &base, *episode, &instruction)?;
+            let delay = if k + 1 == sample.steps.len() {
+                END_DELAY
+            } else {
+                STEP_DELAY
+            };
+            gif.frame(&image.rgb, delay).map_err(gif_error)?;
         }
     }
+    let bytes = gif.finish().map_err(gif_error)?;
     sage_io::files::write_atomic(&path, |w| w.write_all(&bytes))
 }
 
@@ -353,18 +335,11 @@ fn compose(
     })?;
     let (rgb, w, h) = read_rgb(&out.join(IMAGES_DIR).join(file))?;
     let frame = resize(&rgb, w, w, h, layout.frame_width, layout.panel_height);
-    blit(
-        &mut image,
-        &frame,
-        layout.frame_width,
-        layout.panel_height,
-        PAD,
-        PAD,
-    );
+    image.blit(&frame, layout.frame_width, layout.panel_height, PAD, PAD);
     let map = walk_map(base, sample, k, episode);
     let x = 2 * PAD + layout.frame_width + (layout.map_width.saturating_sub(map.width)) / 2;
     let y = PAD + (layout.panel_height.saturating_sub(map.height)) / 2;
-    blit(&mut image, &map.rgb, map.width, map.height, x, y);
+    image.blit(&map.rgb, map.width, map.height, x, y);
 
     let ts = layout.text_scale as i64;
     let left = PAD as i64;
@@ -435,15 +410,7 @@ fn walk_map(base: &Canvas, sample: &EpisodeSample, k: usize, episode: Option<&Ep
         canvas.disc(*p, marks::COLLISION_RADIUS, palette::COLLISION);
     }
     let [x, y, yaw] = steps[steps.len() - 1].pose;
-    let here = xy(x, y);
-    // The canvas maps world to pixels at one scale: two points one metre apart give it.
-    let pixels_per_metre = canvas
-        .to_pixel(here + Vec2::X)
-        .distance(canvas.to_pixel(here));
-    let tip = here + Vec2::from_angle(yaw) * (TICK_LENGTH / pixels_per_metre.max(1e-6));
-    canvas.line(here, tip, marks::HALO, 5);
-    canvas.line(here, tip, INK, 3);
-    marks::marker(&mut canvas, here, AGENT_RADIUS, palette::AGENT_PATH);
+    marks::pose_marker(&mut canvas, xy(x, y), yaw, palette::AGENT_PATH);
     canvas
 }
 
@@ -469,24 +436,6 @@ fn key(image: &mut Canvas, layout: &Layout, y: i64) {
 /// World point (x, y).
 fn xy(x: f32, y: f32) -> Vec2 {
     Vec2::new(x, y)
-}
-
-/// Copies `src` (`w × h` RGB) into `image` with its top-left at pixel (x0, y0), clipped to the
-/// image.
-fn blit(image: &mut Canvas, src: &[u8], w: usize, h: usize, x0: usize, y0: usize) {
-    if x0 >= image.width {
-        return;
-    }
-    let cols = w.min(image.width - x0);
-    for y in 0..h.min(image.height.saturating_sub(y0)) {
-        let d = ((y0 + y) * image.width + x0) * 3;
-        let s = y * w * 3;
-        if let (Some(dst), Some(src)) =
-            (image.rgb.get_mut(d..d + cols * 3), src.get(s..s + cols * 3))
-        {
-            dst.copy_from_slice(src);
-        }
-    }
 }
 
 /// The top-left `sw × sh` pixels of `src` (RGB rows of `stride` pixels) resampled to
@@ -558,99 +507,9 @@ pub(crate) fn decode_rgb(bytes: &[u8], path: &Path) -> Result<(Vec<u8>, usize, u
     Ok((rgb, w, h))
 }
 
-/// `text` in the characters the bitmap font has: marks it lacks that only separate words
-/// (commas, quotes, …) are left out, white space becomes one space; anything else the font
-/// draws as its unknown-character sign.
-fn printable(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for c in text.chars() {
-        match c {
-            ',' | ';' | '!' | '\'' | '"' | '`' | '\u{2018}' | '\u{2019}' | '\u{201C}'
-            | '\u{201D}' => {}
-            c if c.is_whitespace() => {
-                if !out.ends_with(' ') {
-                    out.push(' ');
-                }
-            }
-            c => out.push(c),
-        }
-    }
-    out.trim().to_string()
-}
-
-/// `text` cut to `n` characters, ending in `...` when cut.
-fn clip(text: &str, n: usize) -> String {
-    if text.chars().count() <= n {
-        return text.to_string();
-    }
-    let kept: String = text.chars().take(n.saturating_sub(3)).collect();
-    format!("{kept}...")
-}
-
-/// `text` word-wrapped to lines of at most `width` characters, at most `lines` of them (the
-/// last ending in `...` when the text goes on); a word longer than a line is broken.
-fn wrap(text: &str, width: usize, lines: usize) -> Vec<String> {
-    let width = width.max(4);
-    let mut out: Vec<String> = Vec::new();
-    let mut line = String::new();
-    for word in text.split_whitespace() {
-        let mut word: Vec<char> = word.chars().collect();
-        loop {
-            let used = line.chars().count();
-            let room = if used == 0 { width } else { width - used - 1 };
-            if word.len() <= room {
-                if used > 0 {
-                    line.push(' ');
-                }
-                line.extend(word.iter());
-                break;
-            }
-            if used == 0 {
-                // Longer than a whole line: break it.
-                line.extend(word.drain(..width));
-            }
-            out.push(std::mem::take(&mut line));
-        }
-        if line.chars().count() >= width {
-            out.push(std::mem::take(&mut line));
-        }
-    }
-    if !line.is_empty() {
-        out.push(line);
-    }
-    if out.len() > lines {
-        out.truncate(lines);
-        if let Some(last) = out.last_mut() {
-            let kept: String = last.chars().take(width - 3).collect();
-            *last = format!("{}...", kept.trim_end());
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn wrap_breaks_at_words_and_marks_what_is_left_out() {
-        let lines = wrap("walk past the sofa and stop at the door", 12, 3);
-        assert_eq!(lines, ["walk past", "the sofa and", "stop at t..."]);
-        assert_eq!(wrap("short", 12, 3), ["short"]);
-        assert_eq!(wrap("abcdefghijklmnop", 6, 3), ["abcdef", "ghijkl", "mnop"]);
-        assert!(wrap("", 10, 3).is_empty());
-        for l in wrap(&"word ".repeat(50), 17, 3) {
-            assert!(l.chars().count() <= 17, "{l}");
-        }
-    }
-
-    #[test]
-    fn printable_drops_marks_the_font_lacks() {
-        assert_eq!(
-            printable("Go to the sofa,  then don't\tstop!"),
-            "Go to the sofa then dont stop"
-        );
-    }
 
     #[test]
     fn resize_by_a_whole_factor_repeats_every_pixel() {

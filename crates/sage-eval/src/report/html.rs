@@ -30,6 +30,8 @@ pub struct PageInput<'a> {
     pub scale_ends: &'a BTreeMap<&'static str, f64>,
     /// The instruction of each episode by id, or why they could not be read.
     pub instructions: &'a Result<BTreeMap<String, String>>,
+    /// The episode videos written, in gallery order (linked, not embedded: they are large).
+    pub videos: &'a [MapFile<'a>],
 }
 
 /// The page's style: readable at a desktop width, and on paper (A4 or Letter) without cut
@@ -195,6 +197,37 @@ fn banners(t: &mut String, files: &RunFiles) {
             faults.len() - recovered
         );
     }
+}
+
+/// The "Episode videos" section, when there are videos: each GIF (by its path under the
+/// report folder, as they are too large to embed) with its episode and instruction.
+fn videos<'i>(t: &mut String, input: &PageInput, instruction: &dyn Fn(&str) -> &'i str) {
+    if input.videos.is_empty() {
+        return;
+    }
+    let _ = write!(
+        t,
+        "<h2 id=\"videos\">Episode videos</h2>\n<p>{} episodes, the first of the maps' order, as \
+         animated GIFs in <code>report/videos/</code> (beside this page, not embedded): one frame \
+         for the start and one per step, the agent's first-person view (level: the records hold \
+         no camera pitch) beside the map with the reference path, the agent's path and contacts \
+         so far and its pose, and above them the instruction and the step's action, collision \
+         intensity c(t) and distance to the goal.</p>\n<div class=\"gallery\">\n",
+        input.videos.len()
+    );
+    for v in input.videos {
+        let class = if succeeded(v.record) { "ok" } else { "fail" };
+        let _ = writeln!(
+            t,
+            "<figure><a href=\"{path}\"><img alt=\"video of episode {id}\" src=\"{path}\" \
+             loading=\"lazy\"></a><figcaption><b class=\"{class}\">{id}</b>\
+             <span class=\"instr\">{instr}</span></figcaption></figure>",
+            path = escape(&v.rel_path),
+            id = escape(&v.record.episode_id),
+            instr = escape(instruction(&v.record.episode_id)),
+        );
+    }
+    t.push_str("</div>\n");
 }
 
 /// The whole page.
@@ -366,6 +399,8 @@ pub fn page(input: &PageInput) -> Result<String> {
         }
         t.push_str("</ul>\n");
     }
+
+    videos(&mut t, input, &instruction);
 
     t.push_str("<h2>Episodes</h2>\n");
     if let Err(e) = input.instructions {

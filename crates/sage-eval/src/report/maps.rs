@@ -270,19 +270,41 @@ pub fn legend_keys(map: &SemanticMap, grid: &NavGrid, rec: &EvalRecord) -> Vec<K
 
 /// The semantic map drawn for the report over `grid`'s extent, `width` pixels wide (at least
 /// the map's) and `height` pixels tall (at least the map's), white beyond the map: rooms and
-/// objects by category in muted tints, walls, and doors by state.
+/// objects by category in muted tints, walls, and doors by state. The map is drawn at
+/// [`map_zoom`] whole pixels per grid cell.
 pub fn base_map(map: &SemanticMap, grid: &NavGrid, width: usize, height: usize) -> Canvas {
-    // Whole pixels per cell, so that a typical floor plan is drawn about 800 pixels across.
-    let zoom = map_zoom(grid);
-    let map_h = grid.height * zoom;
+    base_map_rows(map, grid, grid.height * map_zoom(grid), width, height)
+}
+
+/// [`base_map`] with the map drawn `map_rows` pixels tall (any number, so a map can fit a
+/// panel of another image: the episode videos'); the cells take whole pixels, each as many as
+/// its share of the rows rounds to, and walls and doors are drawn with their outlines, so thin
+/// ones show at any size.
+pub fn base_map_rows(
+    map: &SemanticMap,
+    grid: &NavGrid,
+    map_rows: usize,
+    width: usize,
+    height: usize,
+) -> Canvas {
+    let map_rows = map_rows.max(1);
+    // Pixels per cell: a whole number for the report's own maps, so they stay as they were.
+    let zoom = map_rows as f32 / grid.height.max(1) as f32;
     let mut canvas = Canvas::new(
         width,
         height,
         [255; 3],
         grid.origin,
-        grid.cell / zoom as f32,
-        map_h,
+        grid.cell / zoom,
+        map_rows,
     );
+    // The pixel edges of cells 0..=n along an axis.
+    let edges = |n: usize| -> Vec<i64> {
+        (0..=n)
+            .map(|k| (k as f64 * f64::from(zoom)).floor() as i64)
+            .collect()
+    };
+    let (xs, ys) = (edges(grid.width), edges(grid.height));
     for j in 0..grid.height {
         for i in 0..grid.width {
             let k = grid.index(i, j);
@@ -291,15 +313,9 @@ pub fn base_map(map: &SemanticMap, grid: &NavGrid, width: usize, height: usize) 
                 (_, NO_ROOM) => OUTSIDE,
                 (_, r) => room_colour(r as usize),
             };
-            let y0 = (grid.height - 1 - j) * zoom;
-            fill(
-                &mut canvas,
-                (i * zoom) as i64,
-                y0 as i64,
-                zoom as i64,
-                zoom as i64,
-                c,
-            );
+            // Row 0 of the image is the grid's top row.
+            let (y0, y1) = (ys[grid.height - 1 - j], ys[grid.height - j]);
+            fill(&mut canvas, xs[i], y0, xs[i + 1] - xs[i], y1 - y0, c);
         }
     }
     let colours = categories(map);

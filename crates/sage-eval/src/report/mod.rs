@@ -7,7 +7,9 @@
 //! metric for the whole report, as inline SVG ([`charts`], also written as PNG), a gallery of
 //! per-episode top-down maps — the semantic map with the reference path, the agent's path and
 //! its collision points, the paper's figure of ground truth against agent trajectories
-//! ([`maps`]) — and a table of the episodes with their instructions. Everything is read back
+//! ([`maps`]) — a table of the episodes with their instructions, and, when asked
+//! ([`ReportOptions::videos`]), episode videos: animated GIFs of the agent's view beside the
+//! map, step by step ([`video`]). Everything is read back
 //! from the run folder (`summary.json`, `episodes.jsonl`, `sage3d_run.json`) plus the scenes
 //! and the instructions of the run's dataset, so a report can be regenerated at any time; the
 //! same inputs give the same bytes.
@@ -16,6 +18,7 @@ pub mod charts;
 pub mod escape;
 pub mod html;
 pub mod maps;
+pub mod video;
 
 use crate::folder::{RECORDS_FILE, REPORT_DIR, REPORT_FILE, SUMMARY_FILE};
 use crate::records::EvalRecord;
@@ -23,6 +26,7 @@ use crate::summary::AXES;
 use crate::summary::Summary;
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt};
+use sage_env::{EnvConfig, SceneContext};
 use sage_io::run::RUN_RECORD;
 use sage_nav::{NavGrid, SemanticMap, TrajectoryParams};
 use sage_scene::Scene;
@@ -54,14 +58,29 @@ pub struct ReportOutcome {
     pub maps: usize,
     /// Maps embedded in the page (the others are linked).
     pub embedded: usize,
+    /// Episode videos written (GIFs under `report/videos/`, shown by the page).
+    pub videos: usize,
 }
 
-/// One drawn episode map: the record it shows and its PNG path relative to the run folder.
+/// What a report makes besides its page, charts and maps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ReportOptions {
+    /// Episode videos to write ([`video`]): one for each of this many first episodes of the
+    /// gallery order ([`gallery_order`]; episodes with a record), all of them when the run
+    /// has fewer; 0 writes none.
+    pub videos: usize,
+    /// The first-person view's size in the videos.
+    pub video_size: video::VideoSize,
+}
+
+/// One image of an episode (its map PNG, or its video GIF): the record it shows and the
+/// file's path relative to the run folder.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MapFile<'a> {
     /// The episode.
     pub record: &'a EvalRecord,
-    /// `report/maps/{name}.png`, with `/` separators (it is also the page's link).
+    /// `report/maps/{name}.png` (or `report/videos/{name}.gif`), with `/` separators (it is
+    /// also the page's link).
     pub rel_path: String,
 }
 
@@ -143,6 +162,11 @@ pub fn map_file_name(episode_id: &str) -> String {
     format!("{}.png", sage_io::names::stem(episode_id))
 }
 
+/// The file name of an episode's video: the stem of its map's ([`map_file_name`]), `.gif`.
+pub fn video_file_name(episode_id: &str) -> String {
+    format!("{}.gif", sage_io::names::stem(episode_id))
+}
+
 /// The order of the gallery: unsuccessful episodes first, then by id.
 pub fn gallery_order<'a>(maps: &[MapFile<'a>]) -> Vec<MapFile<'a>> {
     let mut order = maps.to_vec();
@@ -210,17 +234,40 @@ pub fn write(run_dir: &Path, scenes_dir: &Path) -> Result<ReportOutcome> {
 
 /// [`write`], calling `on_map(episode_id, total)` after each episode map is drawn.
 ///
-/// Every file is written atomically, the PNGs first and the page last, so a page on disk always
-/// shows complete images.
-///
 /// # Errors
 ///
-/// A bad run folder ([`read_run`]), a scene of a record that is not among the scenes or cannot
-/// be loaded, or a write error.
+/// As [`write_with_options`].
 pub fn write_with(
     run_dir: &Path,
     scenes_dir: &Path,
     on_map: &(dyn Fn(&str, usize) + Sync),
+) -> Result<ReportOutcome> {
+    write_with_options(
+        run_dir,
+        scenes_dir,
+        &ReportOptions::default(),
+        on_map,
+        &|_, _| {},
+    )
+}
+
+/// [`write_with`] with `options`: the episode videos it asks for are written too, calling
+/// `on_video(episode_id, total)` after each.
+///
+/// Every file is written atomically, the images first and the page last, so a page on disk
+/// always shows complete images.
+///
+/// # Errors
+///
+/// A bad run folder ([`read_run`]), a scene of a record that is not among the scenes or cannot
+/// be loaded, a run record without the preset the videos are rendered with, a video that
+/// cannot be made, or a write error.
+pub fn write_with_options(
+    run_dir: &Path,
+    scenes_dir: &Path,
+    options: &ReportOptions,
+    on_map: &(dyn Fn(&str, usize) + Sync),
+    on_video: &(dyn Fn(&str, usize) + Sync),
 ) -> Result<ReportOutcome> {
     let files = read_run(run_dir)?;
     let drawn: Vec<&EvalRecord> = files
@@ -283,6 +330,21 @@ pub fn write_with(
 
     let gallery = gallery_order(&map_files);
     let embedded = gallery.len().min(EMBEDDED_MAPS);
+    let instructions = read_instructions(&files.run, &files.summary.split);
+    let chosen: Vec<&EvalRecord> = gallery
+        .iter()
+        .take(options.videos)
+        .map(|m| m.record)
+        .collect();
+    let videos = write_videos(
+        run_dir,
+        &files.run,
+        &dirs,
+        &chosen,
+        &instructions,
+        options.video_size,
+        on_video,
+    )?;
     let page = html::page(&html::PageInput {
         run_dir,
         files: &files,
@@ -290,7 +352,8 @@ pub fn write_with(
         gallery: &gallery,
         embed: embedded,
         scale_ends: &scale_ends,
-        instructions: &read_instructions(&files.run, &files.summary.split),
+        instructions: &instructions,
+        videos: &videos,
     })?;
     let html_path = run_dir.join(REPORT_FILE);
     sage_io::files::write_atomic(&html_path, |w| {
@@ -301,7 +364,88 @@ pub fn write_with(
         charts: chart_list.len(),
         maps: map_files.len(),
         embedded,
+        videos: videos.len(),
     })
+}
+
+/// The environment preset of the run record `run` (`settings.preset`): the agent's camera
+/// in the videos. Only that field is read, so runs of agents this build cannot name (written
+/// from Python) get videos too.
+fn recorded_preset(run: &serde_json::Value) -> Result<EnvConfig> {
+    let preset = run
+        .get("settings")
+        .and_then(|s| s.get("preset"))
+        .and_then(|p| p.as_str())
+        .ok_or_else(|| Error::invalid(format!("{RUN_RECORD} has no settings.preset")))?;
+    let config = EnvConfig::preset(preset).within(format!("{RUN_RECORD}: settings.preset"))?;
+    // The CPU renderer: its frames do not depend on the machine or the thread count, so a
+    // report's videos are the same bytes wherever it is written.
+    Ok(EnvConfig {
+        device: sage_splat::Device::Cpu,
+        ..config
+    })
+}
+
+/// Writes the videos of `chosen` under `RUN/report/videos/` ([`video::episode_gif`]), loading
+/// each scene once, and returns them in `chosen`'s order.
+fn write_videos<'a>(
+    run_dir: &Path,
+    run: &serde_json::Value,
+    dirs: &BTreeMap<String, PathBuf>,
+    chosen: &[&'a EvalRecord],
+    instructions: &Result<BTreeMap<String, String>>,
+    size: video::VideoSize,
+    on_video: &(dyn Fn(&str, usize) + Sync),
+) -> Result<Vec<MapFile<'a>>> {
+    if chosen.is_empty() {
+        return Ok(Vec::new());
+    }
+    let config = recorded_preset(run)?;
+    let videos_dir = run_dir.join(REPORT_DIR).join(video::VIDEOS_DIR);
+    std::fs::create_dir_all(&videos_dir).map_err(|e| Error::io(&videos_dir, e))?;
+    let instruction = |id: &str| match instructions {
+        Ok(texts) => texts.get(id).map_or("", String::as_str),
+        Err(_) => "(instruction unavailable: see the report's episode table)",
+    };
+    let mut by_scene: BTreeMap<&str, Vec<&EvalRecord>> = BTreeMap::new();
+    for r in chosen {
+        by_scene.entry(r.scene.as_str()).or_default().push(r);
+    }
+    let total = chosen.len();
+    // One scene in memory at a time (a scene context holds its Gaussians and physics); its
+    // episodes in parallel, each with its own renderer.
+    for (scene, recs) in &by_scene {
+        let ctx = SceneContext::load(&dirs[*scene], None).within(format!("scene {scene}"))?;
+        recs.par_iter()
+            .map(|r| {
+                let bytes = video::episode_gif(
+                    &ctx,
+                    &config,
+                    &ctx.semantic,
+                    &ctx.pathfinder.grid,
+                    r,
+                    instruction(&r.episode_id),
+                    size,
+                )
+                .within(format!("episode {}", r.episode_id))?;
+                let path = videos_dir.join(video_file_name(&r.episode_id));
+                sage_io::files::write_atomic(&path, |w| std::io::Write::write_all(w, &bytes))?;
+                on_video(&r.episode_id, total);
+                Ok(())
+            })
+            .collect::<Result<Vec<()>>>()?;
+    }
+    Ok(chosen
+        .iter()
+        .map(|r| MapFile {
+            record: r,
+            rel_path: format!(
+                "{REPORT_DIR}/{}/{}",
+                video::VIDEOS_DIR,
+                video_file_name(&r.episode_id)
+            ),
+        })
+        .collect())
 }
 
 #[cfg(test)]
