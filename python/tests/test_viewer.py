@@ -112,6 +112,12 @@ def test_episode_records_are_served_as_the_run_holds_them(world):
             steps = rec["record"]["steps"]
             assert [[s["x"], s["y"]] for s in ep["steps"]] == [s["position"][:2] for s in steps]
             assert ep["steps"][-1]["action"] == "stop"
+        # The player's export: the episode as an animation, a frame for the start and each step.
+        eid, rec = next(iter(records.items()))
+        gif, headers = v.get(f"/api/episodes/{eid}/video.gif")
+        assert headers["content-type"] == "image/gif" and "attachment" in headers["content-disposition"]
+        animation = Image.open(io.BytesIO(gif))
+        assert animation.n_frames == len(rec["record"]["steps"]) + 1
         with pytest.raises(urllib.error.HTTPError) as e:
             v.get("/api/episodes/..%2Fsummary.json")
         assert e.value.code == 404

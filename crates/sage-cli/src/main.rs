@@ -72,7 +72,8 @@ enum Command {
     Env(env_cmd::EnvCommand),
     /// Evaluate an agent on a dataset split: per-episode records, resumable, summary per slice.
     Eval(eval_cmd::EvalArgs),
-    /// Write an evaluation run's report: report.html (tables, charts, trajectory maps) and PNGs.
+    /// Write an evaluation run's report: report.html (tables, charts, trajectory maps), PNGs and,
+    /// with --videos N, episode GIFs.
     Report(report_cmd::ReportArgs),
     /// The browser viewer: a scene's map and first-person view, driving with the keyboard, an
     /// evaluation run's episodes step by step, human play of a dataset split scored like any

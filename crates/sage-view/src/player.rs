@@ -4,6 +4,7 @@
 use crate::subject::Subject;
 use sage_dataset::Episode;
 use sage_eval::EvalRecord;
+use sage_eval::report::video::{StepMove, step_move};
 use serde_json::{Value, json};
 
 /// The episodes of `subject` for the page's list: id, scene, instruction and tags; for a run
@@ -112,30 +113,17 @@ pub fn num(v: f32) -> f64 {
     v.to_string().parse().unwrap_or(f64::from(v))
 }
 
-/// The action of each step of `r` as the record implies it (records keep poses, not
-/// actions): `stop` for the last step when the agent called STOP, `forward` where a
-/// translation was commanded, `left` / `right` where the heading turned, else `-` (a camera
-/// tilt, or a step that did nothing).
+/// The action of each step of `r` by the viewer's key names, as the record implies it
+/// ([`step_move`]): `stop`, `forward`, `left`, `right`, or `-` (a camera tilt, or a step that
+/// did nothing).
 pub fn step_actions(r: &sage_metrics::EpisodeRecord) -> Vec<&'static str> {
-    let mut yaw = r.start_yaw;
-    let n = r.steps.len();
-    r.steps
-        .iter()
-        .enumerate()
-        .map(|(k, s)| {
-            let turn = sage_core::wrap_angle(s.yaw - yaw);
-            yaw = s.yaw;
-            if k + 1 == n && r.stop_called {
-                "stop"
-            } else if s.commanded > 0.0 {
-                "forward"
-            } else if turn > 1e-4 {
-                "left"
-            } else if turn < -1e-4 {
-                "right"
-            } else {
-                "-"
-            }
+    (0..r.steps.len())
+        .map(|k| match step_move(r, k) {
+            StepMove::Stop => "stop",
+            StepMove::Forward(_) => "forward",
+            StepMove::Turn(t) if t > 0.0 => "left",
+            StepMove::Turn(_) => "right",
+            StepMove::Nothing => "-",
         })
         .collect()
 }

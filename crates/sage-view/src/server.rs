@@ -15,6 +15,7 @@
 //! | `POST /api/sessions/{id}/place` | `{x, y, yaw}`: an explore session starts again there |
 //! | `POST /api/sessions/{id}/map` | a play session notes that the map was shown |
 //! | `GET /api/episodes/{id}` | a run's (or a played) episode, step by step |
+//! | `GET /api/episodes/{id}/video.gif` | that episode as an animation (`sage3d report --videos`'s) |
 //!
 //! Names in a request (scenes, episodes, sessions) are looked up among those the viewer
 //! opened; none becomes a path.
@@ -33,6 +34,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sage_core::{Error, Result};
 use sage_env::EnvConfig;
+use sage_eval::EvalRecord;
 use sage_physics::AgentProfile;
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -219,6 +221,7 @@ fn router(app: Arc<App>) -> Router {
         .route("/api/sessions/{id}/place", post(place))
         .route("/api/sessions/{id}/map", post(map_shown))
         .route("/api/episodes/{id}", get(episode))
+        .route("/api/episodes/{id}/video.gif", get(video))
         .layer(middleware::from_fn_with_state(app.clone(), guard))
         .with_state(app)
 }
@@ -554,8 +557,14 @@ async fn episode(
     Path(id): Path<String>,
 ) -> ApiResult<axum::Json<Value>> {
     let subject = lock(&app.subject)?;
+    let (r, instruction) = recorded(&subject, &id)?;
+    Ok(axum::Json(episode_detail(&r, instruction.as_deref())))
+}
+
+/// The record of episode `id` of a run or human run, with its instruction.
+fn recorded(subject: &Subject, id: &str) -> ApiResult<(EvalRecord, Option<String>)> {
     let unknown = || not_found(format!("no recorded episode '{id}' here"));
-    let detail = match &*subject {
+    match subject {
         Subject::Run {
             records,
             instructions,
@@ -565,13 +574,40 @@ async fn episode(
                 .iter()
                 .find(|r| r.episode_id == id)
                 .ok_or_else(unknown)?;
-            episode_detail(r, instructions.get(&id).map(String::as_str))
+            Ok((r.clone(), instructions.get(id).cloned()))
         }
         Subject::Play { run } => {
-            let r = run.recorded(&id).ok_or_else(unknown)?;
-            episode_detail(r, run.episode(&id).map(|e| e.instruction.as_str()))
+            let r = run.recorded(id).ok_or_else(unknown)?;
+            Ok((r.clone(), run.episode(id).map(|e| e.instruction.clone())))
         }
-        _ => return Err(unknown()),
-    };
-    Ok(axum::Json(detail))
+        _ => Err(unknown()),
+    }
+}
+
+async fn video(State(app): State<Arc<App>>, Path(id): Path<String>) -> ApiResult<Response> {
+    let (rec, instruction) = recorded(&*lock(&app.subject)?, &id)?;
+    let loaded = load(app.clone(), rec.scene.clone()).await?;
+    let gif = blocking(move || {
+        let ctx = &loaded.ctx;
+        Ok(sage_eval::report::video::episode_gif(
+            ctx,
+            &app.config,
+            &ctx.semantic,
+            &ctx.pathfinder.grid,
+            &rec,
+            instruction.as_deref().unwrap_or_default(),
+            sage_eval::report::video::VideoSize::default(),
+        )?)
+    })
+    .await?;
+    let mut response = image("image/gif", gif);
+    if let Ok(value) = header::HeaderValue::from_str(&format!(
+        "attachment; filename=\"{}.gif\"",
+        sage_io::names::stem(&id)
+    )) {
+        response
+            .headers_mut()
+            .insert(header::CONTENT_DISPOSITION, value);
+    }
+    Ok(response)
 }

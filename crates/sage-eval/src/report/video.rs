@@ -134,18 +134,32 @@ impl VideoLayout {
     }
 }
 
-/// What step `k` (0-based) of `rec` did, in words: `stop` for the last step of an episode that
-/// called STOP, `forward 0.25m` for a commanded translation, `turn left 15deg` or `turn right
-/// 15deg` for a change of heading alone, `-` for anything else (a step that did nothing).
-pub fn step_action(rec: &EpisodeRecord, k: usize) -> String {
+/// What a step of an episode record did, as the record implies it: records keep poses, not
+/// actions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StepMove {
+    /// The agent called STOP (the last step of an episode that did).
+    Stop,
+    /// A translation was commanded, metres.
+    Forward(f32),
+    /// The heading alone changed, radians (counter-clockwise positive).
+    Turn(f32),
+    /// Nothing the record shows (a camera tilt, or a step that did nothing).
+    Nothing,
+}
+
+/// What step `k` (0-based) of `rec` did: [`StepMove::Stop`] for the last step of an episode
+/// that called STOP, [`StepMove::Forward`] for a commanded translation, [`StepMove::Turn`] for a
+/// change of heading alone, else [`StepMove::Nothing`].
+pub fn step_move(rec: &EpisodeRecord, k: usize) -> StepMove {
     let Some(step) = rec.steps.get(k) else {
-        return "-".into();
+        return StepMove::Nothing;
     };
     if rec.stop_called && k + 1 == rec.steps.len() {
-        return "stop".into();
+        return StepMove::Stop;
     }
     if step.commanded > 0.0 {
-        return format!("forward {:.2}m", step.commanded);
+        return StepMove::Forward(step.commanded);
     }
     let before = if k == 0 {
         rec.start_yaw
@@ -154,10 +168,24 @@ pub fn step_action(rec: &EpisodeRecord, k: usize) -> String {
     };
     let turn = wrap_angle(step.yaw - before);
     if turn.abs() < TURN_EPS {
-        return "-".into();
+        StepMove::Nothing
+    } else {
+        StepMove::Turn(turn)
     }
-    let side = if turn > 0.0 { "left" } else { "right" };
-    format!("turn {side} {:.0}deg", turn.abs().to_degrees())
+}
+
+/// What step `k` (0-based) of `rec` did, in words ([`step_move`]): `stop`, `forward 0.25m`,
+/// `turn left 15deg` or `turn right 15deg`, `-` for anything else.
+pub fn step_action(rec: &EpisodeRecord, k: usize) -> String {
+    match step_move(rec, k) {
+        StepMove::Stop => "stop".into(),
+        StepMove::Forward(m) => format!("forward {m:.2}m"),
+        StepMove::Turn(turn) => {
+            let side = if turn > 0.0 { "left" } else { "right" };
+            format!("turn {side} {:.0}deg", turn.abs().to_degrees())
+        }
+        StepMove::Nothing => "-".into(),
+    }
 }
 
 /// The poses of the frames: the start, then where each step left the agent.
