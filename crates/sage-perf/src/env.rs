@@ -7,7 +7,6 @@ use sage_env::agents::{Agent, RandomAgent};
 use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
 use sage_nav::{GridParams, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies};
-use sage_synth::{SceneKind, SynthConfig};
 use serde::Serialize;
 use std::fmt;
 use std::path::PathBuf;
@@ -177,19 +176,7 @@ fn measure(
 ///
 /// The scene, its bodies or its trajectories cannot be made, or the environment fails.
 pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
-    let config = SynthConfig {
-        seed: settings.seed,
-        kind: SceneKind::Home,
-        rooms: (settings.objects / 14).clamp(1, 64),
-        objects: settings.objects,
-        gaussians: settings.gaussians,
-        ..SynthConfig::default()
-    };
-    eprintln!(
-        "generating a {}-object home of {} Gaussians …",
-        settings.objects, settings.gaussians
-    );
-    let scene = sage_synth::generate(&config)?;
+    let scene = crate::generated_home(settings.seed, settings.objects, settings.gaussians)?;
     let cache = HullCache::new(
         settings
             .cache

@@ -31,6 +31,24 @@ fn scratch_dir() -> PathBuf {
     std::env::temp_dir().join(format!("sage3d-bench-{}", std::process::id()))
 }
 
+/// The generated home the scene benchmarks run in: `objects` objects over one room per 14 of
+/// them (1 to 64) and `gaussians` Gaussians, from `seed`; says on stderr what it makes.
+///
+/// # Errors
+///
+/// The generator's errors.
+fn generated_home(seed: u64, objects: usize, gaussians: usize) -> Result<sage_scene::Scene> {
+    eprintln!("generating a {objects}-object home of {gaussians} Gaussians …");
+    sage_synth::generate(&sage_synth::SynthConfig {
+        seed,
+        kind: sage_synth::SceneKind::Home,
+        rooms: (objects / 14).clamp(1, 64),
+        objects,
+        gaussians,
+        ..sage_synth::SynthConfig::default()
+    })
+}
+
 /// The median of `values` (the upper one of an even count; NaN when there are none).
 fn median(values: &[f64]) -> f64 {
     let mut sorted = values.to_vec();

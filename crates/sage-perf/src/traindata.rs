@@ -7,7 +7,6 @@ use crate::machine;
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, SceneParams};
 use sage_dataset::split::SplitParams;
-use sage_synth::{SceneKind, SynthConfig};
 use sage_traindata::{Layout, PresetName, Progress, Settings};
 use serde::Serialize;
 use std::fmt;
@@ -137,18 +136,7 @@ pub fn run(settings: &TrainDataSettings) -> Result<TrainDataReport> {
 
 fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<TrainDataReport> {
     let home = scratch.join("scenes").join("home");
-    eprintln!(
-        "generating a {}-object home of {} Gaussians and its dataset …",
-        settings.objects, settings.gaussians
-    );
-    sage_synth::generate(&SynthConfig {
-        seed: settings.seed,
-        kind: SceneKind::Home,
-        rooms: (settings.objects / 14).clamp(1, 64),
-        objects: settings.objects,
-        gaussians: settings.gaussians,
-        ..SynthConfig::default()
-    })?
+    crate::generated_home(settings.seed, settings.objects, settings.gaussians)?
     .save(&home, sage_scene::SplatLayout::Compressed)?;
     let dataset = scratch.join("data");
     let assemble = AssembleParams {

@@ -5,7 +5,6 @@
 
 use crate::machine;
 use sage_core::{Error, Result};
-use sage_synth::{SceneKind, SynthConfig};
 use sage_view::ViewOptions;
 use sage_view::client::request;
 use serde::Serialize;
@@ -92,18 +91,7 @@ impl fmt::Display for ViewReport {
 ///
 /// The scene cannot be made or saved, the viewer cannot start, or a request fails.
 pub fn run(settings: &ViewSettings) -> Result<ViewReport> {
-    eprintln!(
-        "generating a {}-object home of {} Gaussians …",
-        settings.objects, settings.gaussians
-    );
-    let scene = sage_synth::generate(&SynthConfig {
-        seed: settings.seed,
-        kind: SceneKind::Home,
-        rooms: (settings.objects / 14).clamp(1, 64),
-        objects: settings.objects,
-        gaussians: settings.gaussians,
-        ..SynthConfig::default()
-    })?;
+    let scene = crate::generated_home(settings.seed, settings.objects, settings.gaussians)?;
     let gaussians = scene.gaussians.len();
     let dir = std::env::temp_dir().join(format!("sage3d-bench-view-{}", std::process::id()));
     let home = dir.join("home");
