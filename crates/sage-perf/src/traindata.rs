@@ -137,7 +137,7 @@ pub fn run(settings: &TrainDataSettings) -> Result<TrainDataReport> {
 fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<TrainDataReport> {
     let home = scratch.join("scenes").join("home");
     crate::generated_home(settings.seed, settings.objects, settings.gaussians)?
-    .save(&home, sage_scene::SplatLayout::Compressed)?;
+        .save(&home, sage_scene::SplatLayout::Compressed)?;
     let dataset = scratch.join("data");
     let assemble = AssembleParams {
         seed: settings.seed,
