@@ -234,7 +234,7 @@ pub fn action_name(action: &Action) -> &'static str {
     }
 }
 
-/// An episode to explore scene `loaded` from `start` facing `yaw`: a point goal at the start
+/// An episode to explore a scene from `start` facing `yaw`: a point goal at the start
 /// itself (walking has no target), no step limit of its own.
 pub fn explore_episode(start: Vec3, yaw: f32) -> EnvEpisode {
     EnvEpisode {
