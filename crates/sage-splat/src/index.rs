@@ -73,7 +73,7 @@ fn box_reaches(b: &Aabb, n: Vec3, d: f32) -> bool {
 
 /// Inward planes (n, d) with n·p ≥ d inside: near, far and the four sides, the sides widened
 /// by the 1.3× Jacobian clamp margin of the projection so no contributing splat is lost.
-fn frustum_planes(c: &Camera) -> [(Vec3, f32); 6] {
+pub(crate) fn frustum_planes(c: &Camera) -> [(Vec3, f32); 6] {
     let (right, down, fwd) = (c.rotation.x_axis, c.rotation.y_axis, c.rotation.z_axis);
     let tan_l = (c.intrinsics.cx / c.intrinsics.fx) * 1.3 + 0.05;
     let tan_r = ((c.intrinsics.width as f32 - c.intrinsics.cx) / c.intrinsics.fx) * 1.3 + 0.05;

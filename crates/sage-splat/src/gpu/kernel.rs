@@ -18,26 +18,14 @@ pub(crate) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEnt
     }
 }
 
-/// A storage buffer binding whose offset is given at dispatch.
-pub(crate) fn storage_at_offset(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    let mut entry = storage(binding, false);
-    if let wgpu::BindingType::Buffer {
-        has_dynamic_offset, ..
-    } = &mut entry.ty
-    {
-        *has_dynamic_offset = true;
-    }
-    entry
-}
-
-/// A uniform buffer binding, its offset given at dispatch when `dynamic`.
-pub(crate) fn uniform(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+/// A uniform buffer binding.
+pub(crate) fn uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: dynamic,
+            has_dynamic_offset: false,
             min_binding_size: None,
         },
         count: None,
@@ -134,7 +122,7 @@ impl Kernel {
         self.run_grid(
             pass,
             &groups.iter().map(|g| (*g, &[][..])).collect::<Vec<_>>(),
-            (x, workgroups.max(1).div_ceil(x)),
+            (x, workgroups.max(1).div_ceil(x), 1),
         );
     }
 
@@ -143,19 +131,28 @@ impl Kernel {
         &self,
         pass: &mut wgpu::ComputePass<'_>,
         groups: &[(&wgpu::BindGroup, &[u32])],
-        grid: (u32, u32),
+        grid: (u32, u32, u32),
+    ) {
+        self.bind(pass, groups);
+        pass.dispatch_workgroups(grid.0, grid.1, grid.2);
+    }
+
+    /// Sets the pipeline and the bind groups with their dynamic offsets, for a dispatch.
+    pub(crate) fn bind(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        groups: &[(&wgpu::BindGroup, &[u32])],
     ) {
         pass.set_pipeline(&self.pipeline);
         for (i, (group, offsets)) in groups.iter().enumerate() {
             pass.set_bind_group(i as u32, *group, offsets);
         }
-        pass.dispatch_workgroups(grid.0, grid.1, 1);
     }
 }
 
 /// Linear workgroups of 256 threads for `threads` threads, as a 2-D grid.
-pub(crate) fn threads_grid(threads: u32) -> (u32, u32) {
+pub(crate) fn threads_grid(threads: u32) -> (u32, u32, u32) {
     let groups = threads.div_ceil(256).max(1);
     let x = groups.min(MAX_GROUPS);
-    (x, groups.div_ceil(x))
+    (x, groups.div_ceil(x), 1)
 }

@@ -1,13 +1,18 @@
 //! The wgpu compute renderer (cargo feature `gpu`): the image formation of the CPU renderer
-//! (the same constants, from [`crate::project`], [`crate::tile`] and [`crate::sh`]) run as
-//! compute shaders — projection with EWA covariance and SH colour, tile binning with a GPU
-//! radix sort by depth and tile, and per-tile front-to-back blending — with a scene's
-//! Gaussians uploaded once and kept resident, and many cameras rendered in one submission.
+//! (the same constants, from [`crate::project`], [`crate::tile`] and [`crate::sh`], and the
+//! same chunk culling, from [`crate::index`]) run as compute shaders — culling of chunks
+//! against each camera's frustum, projection with EWA covariance and SH colour, tile binning
+//! with a GPU radix sort by depth and tile, and per-tile front-to-back blending — over a batch
+//! of cameras in the same dispatches, each pass sized by what the pass before found. A scene's
+//! Gaussians are uploaded once and kept resident; the work space persists between batches.
 
 mod context;
 mod kernel;
+mod live;
 mod renderer;
+mod scene;
 mod sort;
+mod workspace;
 
 pub use context::Gpu;
 
@@ -16,4 +21,4 @@ pub use context::Gpu;
 pub fn is_fault(e: &sage_core::Error) -> bool {
     e.message().starts_with("GPU ")
 }
-pub use renderer::{GpuRenderer, GpuStats};
+pub use renderer::{GpuRenderer, GpuStats, Submitted};

@@ -1,32 +1,32 @@
-//! The GPU renderer of one scene: the resident upload, the frame work space, and the recording
-//! of a batch of cameras into one submission (`splat.wgsl` holds the kernels).
+//! The GPU renderer of one scene: the resident upload, the batches it renders in the
+//! persistent work space, and the overlap of one batch's read-back with the next batch's
+//! rendering (`splat.wgsl` holds the kernels, [`super::workspace`] the buffers).
 
 use super::Gpu;
-use super::kernel::{Kernel, bind, layout, storage, storage_at_offset, threads_grid, uniform};
-use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
+use super::kernel::bind;
+use super::scene::{SceneBuffers, init_buffer, sh_words};
+use super::workspace::{
+    CAMERA_WORDS, Caps, Kernels, LIVE_CAMERA_CHUNKS, LIVE_TILE_PARITY, LIVE_TILES, PLANES,
+    TILE_SORT_PASSES, Workspace,
+};
 use crate::camera::Camera;
+use crate::index::frustum_planes;
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
 use crate::render::{RenderOptions, RenderOutput};
 use crate::sh;
 use crate::tile::{MIN_TRANSMITTANCE, TILE, TileGrid};
+use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
 use sage_scene::gaussians::{LOG_SCALE_STEP, OPACITY_LOGIT_STEP, sh_rest_count};
-use std::sync::{Arc, Mutex, mpsc};
-use wgpu::util::DeviceExt;
+use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 
-/// Bytes of one camera's uniform block (the largest offset alignment adapters ask for).
-const CAMERA_BYTES: u64 = 256;
-/// Image planes per camera: r, g, b, alpha, expected depth, median depth, instance, category.
-const PLANES: u64 = 8;
-/// Words per projected splat (four vec4).
-const SPLAT_WORDS: u64 = 16;
+/// Most cameras in one batch: the blending grid's third dimension.
+const MAX_CAMERAS: usize = 65_535;
 
 /// The WGSL constants shared with the CPU renderer, so both executors form images with the
-/// same numbers.
-fn prelude(sh_rest: usize) -> String {
-    let c2 = sh::C2;
-    let c3 = sh::C3;
+/// same numbers, and the scene's sizes.
+fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
     let mut s = format!(
         "const TILE: u32 = {TILE}u;\nconst LOW_PASS: f32 = {LOW_PASS:?};\n\
          const MIN_ALPHA: f32 = {MIN_ALPHA:?};\nconst MAX_ALPHA: f32 = {MAX_ALPHA:?};\n\
@@ -34,233 +34,21 @@ fn prelude(sh_rest: usize) -> String {
          const LOG_SCALE_STEP: f32 = {LOG_SCALE_STEP:?};\n\
          const OPACITY_LOGIT_STEP: f32 = {OPACITY_LOGIT_STEP:?};\n\
          const SH_C0: f32 = {:?};\nconst SH_C1: f32 = {:?};\n\
-         const SH_REST: u32 = {sh_rest}u;\nconst SH_WORDS: u32 = {}u;\n",
+         const SH_REST: u32 = {sh_rest}u;\nconst SH_WORDS: u32 = {}u;\n\
+         const GAUSSIANS: u32 = {gaussians}u;\nconst CHUNKS: u32 = {chunks}u;\n\
+         const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
+         const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n",
         sh::C0,
         sh::C1,
         sh_words(sh_rest).max(1),
     );
-    for (k, c) in c2.iter().enumerate() {
+    for (k, c) in sh::C2.iter().enumerate() {
         s += &format!("const SH_C2_{k}: f32 = {c:?};\n");
     }
-    for (k, c) in c3.iter().enumerate() {
+    for (k, c) in sh::C3.iter().enumerate() {
         s += &format!("const SH_C3_{k}: f32 = {c:?};\n");
     }
     s
-}
-
-/// Words of packed i8 SH codes per Gaussian.
-fn sh_words(sh_rest: usize) -> usize {
-    (sh_rest * 3).div_ceil(4)
-}
-
-/// The kernels of `splat.wgsl` and the layouts of their three bind groups.
-struct Kernels {
-    scene_layout: wgpu::BindGroupLayout,
-    frame_layout: wgpu::BindGroupLayout,
-    camera_layout: wgpu::BindGroupLayout,
-    project: Kernel,
-    compact: Kernel,
-    count_tiles: Kernel,
-    emit: Kernel,
-    clear_ranges: Kernel,
-    ranges: Kernel,
-    raster: Kernel,
-    record: Kernel,
-    scan: Scan,
-    sort: RadixSort,
-}
-
-impl Kernels {
-    fn new(gpu: &Gpu, sh_rest: usize) -> Kernels {
-        let source = prelude(sh_rest) + include_str!("splat.wgsl");
-        let module = gpu
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("splat"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
-        let scene_layout = layout(gpu, &(0..6).map(|b| storage(b, true)).collect::<Vec<_>>());
-        let mut frame: Vec<_> = (0..11).map(|b| storage(b, false)).collect();
-        frame.push(storage_at_offset(11));
-        let frame_layout = layout(gpu, &frame);
-        let camera_layout = layout(gpu, &[uniform(0, true)]);
-        let layouts = [&scene_layout, &frame_layout, &camera_layout];
-        let kernel = |entry: &str| Kernel::new(gpu, &module, entry, &layouts);
-        Kernels {
-            project: kernel("project"),
-            compact: kernel("compact"),
-            count_tiles: kernel("count_tiles"),
-            emit: kernel("emit"),
-            clear_ranges: kernel("clear_ranges"),
-            ranges: kernel("ranges"),
-            raster: kernel("raster"),
-            record: kernel("record"),
-            scan: Scan::new(gpu),
-            sort: RadixSort::new(gpu),
-            scene_layout,
-            frame_layout,
-            camera_layout,
-        }
-    }
-}
-
-/// The scene on the GPU.
-struct SceneBuffers {
-    positions: wgpu::Buffer,
-    shapes: wgpu::Buffer,
-    colors: wgpu::Buffer,
-    sh_codes: wgpu::Buffer,
-    instances: wgpu::Buffer,
-}
-
-/// A storage buffer of `words` u32 (at least one).
-fn words_buffer(gpu: &Gpu, label: &str, words: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
-    gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: words.max(1) * 4,
-        usage: wgpu::BufferUsages::STORAGE | extra,
-        mapped_at_creation: false,
-    })
-}
-
-fn init_buffer(gpu: &Gpu, label: &str, contents: &[u32]) -> wgpu::Buffer {
-    let one = [0u32];
-    gpu.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytemuck::cast_slice(if contents.is_empty() { &one } else { contents }),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        })
-}
-
-/// Two i16 in one word, low first.
-fn pair(lo: i16, hi: i16) -> u32 {
-    u32::from(lo as u16) | u32::from(hi as u16) << 16
-}
-
-impl SceneBuffers {
-    /// Uploads the store as it is (the same quantised values the CPU renderer reads).
-    fn upload(gpu: &Gpu, g: &Gaussians) -> SceneBuffers {
-        let n = g.len();
-        let positions: Vec<u32> = g.positions.iter().flatten().map(|v| v.to_bits()).collect();
-        let shapes: Vec<u32> = (0..n)
-            .flat_map(|i| {
-                let [w, x, y, z] = g.rotations[i];
-                let [sx, sy, sz] = g.log_scales[i];
-                [
-                    pair(w, x),
-                    pair(y, z),
-                    pair(sx, sy),
-                    pair(sz, g.opacity_logits[i]),
-                ]
-            })
-            .collect();
-        let half =
-            |lo: half::f16, hi: half::f16| u32::from(lo.to_bits()) | u32::from(hi.to_bits()) << 16;
-        let rest = sh_rest_count(g.sh_degree());
-        let colors: Vec<u32> = (0..n)
-            .flat_map(|i| {
-                let [r, gr, b] = g.sh_dc[i];
-                let step = if rest > 0 {
-                    g.sh_steps[i]
-                } else {
-                    half::f16::ZERO
-                };
-                [half(r, gr), half(b, step)]
-            })
-            .collect();
-        let words = sh_words(rest);
-        let mut sh_codes = vec![0u32; n * words];
-        if rest > 0 {
-            for (i, codes) in g.sh_codes.chunks_exact(rest * 3).enumerate() {
-                for (j, &c) in codes.iter().enumerate() {
-                    sh_codes[i * words + j / 4] |= u32::from(c as u8) << (8 * (j % 4));
-                }
-            }
-        }
-        SceneBuffers {
-            positions: init_buffer(gpu, "positions", &positions),
-            shapes: init_buffer(gpu, "shapes", &shapes),
-            colors: init_buffer(gpu, "colors", &colors),
-            sh_codes: init_buffer(gpu, "sh codes", &sh_codes),
-            instances: init_buffer(gpu, "instances", &g.instances),
-        }
-    }
-}
-
-/// A frame's buffers for up to `capacity` tile entries and `tiles` tiles.
-struct Workspace {
-    capacity: u32,
-    tiles: u32,
-    splats: wgpu::Buffer,
-    visible: wgpu::Buffer,
-    depth: [wgpu::Buffer; 4],
-    tile_offsets: wgpu::Buffer,
-    tile_pairs: [wgpu::Buffer; 4],
-    tile_ranges: wgpu::Buffer,
-    visible_scan: ScanPlan,
-    offsets_scan: ScanPlan,
-    depth_sort: SortPlan,
-    tile_sort: SortPlan,
-}
-
-/// Most passes the tile sort takes: 8 bits each, up to 2²⁴ tiles (a 65536² image).
-const TILE_SORT_PASSES: u32 = 3;
-
-impl Workspace {
-    fn new(gpu: &Gpu, k: &Kernels, n: u32, capacity: u32, tiles: u32) -> Workspace {
-        let n1 = u64::from(n) + 1;
-        let rw = wgpu::BufferUsages::empty();
-        let splats = words_buffer(gpu, "splats", u64::from(n) * SPLAT_WORDS, rw);
-        let visible = words_buffer(gpu, "visible", n1, rw);
-        let depth = [
-            "depth keys",
-            "depth values",
-            "depth keys 2",
-            "depth values 2",
-        ]
-        .map(|l| words_buffer(gpu, l, u64::from(n), rw));
-        let tile_offsets = words_buffer(gpu, "tile offsets", n1, rw);
-        let tile_pairs = ["tile keys", "tile values", "tile keys 2", "tile values 2"]
-            .map(|l| words_buffer(gpu, l, u64::from(capacity), rw));
-        let tile_ranges = words_buffer(gpu, "tile ranges", 2 * u64::from(tiles), rw);
-        let visible_scan = k.scan.plan(gpu, &visible, n + 1);
-        let offsets_scan = k.scan.plan(gpu, &tile_offsets, n + 1);
-        let depth_sort = k.sort.plan(
-            gpu,
-            &k.scan,
-            (&depth[0], &depth[1]),
-            (&depth[2], &depth[3]),
-            n,
-            &visible,
-            n,
-            4,
-        );
-        let tile_sort = k.sort.plan(
-            gpu,
-            &k.scan,
-            (&tile_pairs[0], &tile_pairs[1]),
-            (&tile_pairs[2], &tile_pairs[3]),
-            capacity,
-            &tile_offsets,
-            n,
-            TILE_SORT_PASSES,
-        );
-        Workspace {
-            capacity,
-            tiles,
-            splats,
-            visible,
-            depth,
-            tile_offsets,
-            tile_pairs,
-            tile_ranges,
-            visible_scan,
-            offsets_scan,
-            depth_sort,
-            tile_sort,
-        }
-    }
 }
 
 /// The work of the last batch a [`GpuRenderer`] rendered.
@@ -268,14 +56,19 @@ impl Workspace {
 pub struct GpuStats {
     /// Cameras in the batch.
     pub cameras: usize,
+    /// (camera, chunk of 256 Gaussians) pairs that passed frustum culling, of cameras ×
+    /// chunks.
+    pub chunks: u64,
     /// Splats that passed projection, summed over the cameras.
     pub splats: u64,
     /// (splat, tile) pairs, summed over the cameras.
     pub tile_entries: u64,
-    /// (splat, tile) pairs the work space holds per camera.
+    /// (splat, tile) pairs the work space holds.
     pub capacity: u32,
-    /// Times the batch was rendered again after growing the work space.
+    /// Times a batch was rendered again after growing the work space.
     pub regrown: u32,
+    /// Device bytes of the work space (the scene's upload not included).
+    pub workspace_bytes: u64,
 }
 
 /// A render one caller asked for, queued until whoever holds the GPU takes it: callers on
@@ -300,6 +93,8 @@ struct State {
     scene_group: wgpu::BindGroup,
     categories_buffer: wgpu::Buffer,
     workspace: Option<Workspace>,
+    /// Read-back buffers not in flight.
+    staging: Vec<wgpu::Buffer>,
 }
 
 /// One scene's Gaussians resident on a [`Gpu`], and the buffers its frames reuse. Shared by
@@ -307,6 +102,8 @@ struct State {
 pub struct GpuRenderer {
     gpu: Arc<Gpu>,
     count: usize,
+    chunks: u32,
+    scene_bytes: u64,
     kernels: Kernels,
     scene: SceneBuffers,
     state: Mutex<State>,
@@ -317,9 +114,74 @@ pub struct GpuRenderer {
 /// A camera's place in a batch.
 struct Slot {
     grid: TileGrid,
-    /// Byte offset of its images in the output buffer.
+    /// First word of its images in the images buffer.
     offset: u64,
-    tile_passes: u32,
+}
+
+/// A batch recorded and submitted, its read-back not yet mapped.
+struct InFlight {
+    staging: wgpu::Buffer,
+    submission: wgpu::SubmissionIndex,
+    mapped: mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
+    slots: Vec<Slot>,
+    image_words: u64,
+    /// What the work space held when it rendered, and the live slots of its unclamped counts.
+    caps: Caps,
+    raw: [u32; 3],
+}
+
+/// The outcome of a batch: its images, or the larger work space it needs.
+enum Finished {
+    Images(Vec<RenderOutput>, GpuStats),
+    Grow(Caps),
+}
+
+/// A batch submitted to the GPU by [`GpuRenderer::submit`]: the caller does other work while
+/// it renders and reads back, then [`Submitted::wait`]s for the images.
+pub struct Submitted {
+    renderer: Arc<GpuRenderer>,
+    cameras: Vec<Camera>,
+    categories: Vec<u16>,
+    options: RenderOptions,
+    flight: Flight,
+}
+
+/// Where a submitted batch is.
+enum Flight {
+    /// On the GPU.
+    Out(InFlight),
+    /// Rendered already (a batch too large for one submission is rendered in parts at once).
+    Done(Vec<RenderOutput>),
+}
+
+impl Submitted {
+    /// The images, in camera order (rendered again, after the work space grew, when the batch
+    /// needed more than it held).
+    ///
+    /// # Errors
+    ///
+    /// A GPU fault.
+    pub fn wait(self) -> Result<Vec<RenderOutput>> {
+        let flight = match self.flight {
+            Flight::Done(images) => return Ok(images),
+            Flight::Out(flight) => flight,
+        };
+        let r = &self.renderer;
+        let mut state = r.lock();
+        // A render again after growing needs this batch's categories bound.
+        r.use_categories(&mut state, &self.categories);
+        let mut regrown = 0;
+        let (images, mut stats) = r.settle(
+            &mut state,
+            flight,
+            &self.cameras,
+            &self.options,
+            &mut regrown,
+        )?;
+        stats.regrown = regrown;
+        state.stats = stats;
+        Ok(images)
+    }
 }
 
 impl GpuRenderer {
@@ -330,7 +192,7 @@ impl GpuRenderer {
     /// A scene larger than the adapter's buffers, or a GPU fault.
     pub fn new(gpu: &Arc<Gpu>, gaussians: &Gaussians) -> Result<Arc<GpuRenderer>> {
         let n = gaussians.len();
-        let largest = (n as u64 * SPLAT_WORDS * 4).max(n as u64 * 16);
+        let largest = n as u64 * 16;
         let bound = gpu.largest_binding();
         if largest > bound || n >= u32::MAX as usize / 2 {
             return Err(Error::invalid(format!(
@@ -340,14 +202,18 @@ impl GpuRenderer {
                 bound >> 20
             )));
         }
-        let kernels = Kernels::new(gpu, sh_rest_count(gaussians.sh_degree()));
         let scene = SceneBuffers::upload(gpu, gaussians);
+        let source = prelude(sh_rest_count(gaussians.sh_degree()), n as u32, scene.chunks)
+            + include_str!("splat.wgsl");
+        let kernels = Kernels::new(gpu, source);
         let categories_buffer = init_buffer(gpu, "categories", &[]);
         let scene_group = Self::scene_group(gpu, &kernels, &scene, &categories_buffer);
         gpu.check()?;
         Ok(Arc::new(GpuRenderer {
             gpu: gpu.clone(),
             count: n,
+            chunks: scene.chunks,
+            scene_bytes: scene.bytes,
             kernels,
             scene,
             state: Mutex::new(State {
@@ -356,6 +222,7 @@ impl GpuRenderer {
                 scene_group,
                 categories_buffer,
                 workspace: None,
+                staging: Vec::new(),
             }),
             pending: Mutex::new(Vec::new()),
         }))
@@ -377,8 +244,13 @@ impl GpuRenderer {
                 s.sh_codes.as_entire_binding(),
                 s.instances.as_entire_binding(),
                 categories.as_entire_binding(),
+                s.chunk_bounds.as_entire_binding(),
             ],
         )
+    }
+
+    fn lock(&self) -> MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     /// How many Gaussians it holds.
@@ -386,9 +258,14 @@ impl GpuRenderer {
         self.count
     }
 
+    /// Device bytes of the resident scene (Gaussians and chunk bounds).
+    pub fn scene_bytes(&self) -> u64 {
+        self.scene_bytes
+    }
+
     /// The work of the last batch.
     pub fn stats(&self) -> GpuStats {
-        self.state.lock().unwrap_or_else(|p| p.into_inner()).stats
+        self.lock().stats
     }
 
     /// The GPU it renders on.
@@ -413,21 +290,8 @@ impl GpuRenderer {
         Ok(out.remove(0))
     }
 
-    /// Renders every camera of `cameras` (any sizes) in one submission and one read-back;
-    /// `categories[instance]` gives each instance's semantic id (missing → 0). Calls from
-    /// several threads at once take turns on the GPU, and whoever takes it renders what the
-    /// others queued meanwhile in the same submission.
-    ///
-    /// # Errors
-    ///
-    /// Another set of Gaussians, a camera the renderer refuses, or a GPU fault.
-    pub fn render_batch(
-        &self,
-        gaussians: &Gaussians,
-        categories: &[u16],
-        cameras: &[Camera],
-        options: &RenderOptions,
-    ) -> Result<Vec<RenderOutput>> {
+    /// Checks a request: the scene it was built for, cameras it can render.
+    fn check(&self, gaussians: &Gaussians, cameras: &[Camera]) -> Result<()> {
         if gaussians.len() != self.count {
             return Err(Error::invalid(format!(
                 "renderer was built for {} Gaussians, asked to render {}",
@@ -435,9 +299,26 @@ impl GpuRenderer {
                 gaussians.len()
             )));
         }
-        for c in cameras {
-            c.validate()?;
-        }
+        cameras.iter().try_for_each(Camera::validate)
+    }
+
+    /// Renders every camera of `cameras` (any sizes) in the same dispatches, one submission
+    /// and one read-back per batch that fits the adapter's buffers; `categories[instance]`
+    /// gives each instance's semantic id (missing → 0). Calls from several threads at once
+    /// are rendered together: whoever takes the GPU renders everything queued.
+    ///
+    /// # Errors
+    ///
+    /// Another set of Gaussians than the renderer was built for, a camera the CPU renderer
+    /// would refuse, a frame larger than the adapter's buffers, or a GPU fault.
+    pub fn render_batch(
+        &self,
+        gaussians: &Gaussians,
+        categories: &[u16],
+        cameras: &[Camera],
+        options: &RenderOptions,
+    ) -> Result<Vec<RenderOutput>> {
+        self.check(gaussians, cameras)?;
         if cameras.is_empty() {
             return Ok(Vec::new());
         }
@@ -459,7 +340,7 @@ impl GpuRenderer {
                 Err(mpsc::TryRecvError::Disconnected) => return Err(lost()),
                 Err(mpsc::TryRecvError::Empty) => {}
             }
-            let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
+            let mut state = self.lock();
             match answer.try_recv() {
                 Ok(out) => return out,
                 Err(mpsc::TryRecvError::Disconnected) => return Err(lost()),
@@ -471,6 +352,42 @@ impl GpuRenderer {
                 std::mem::take(&mut *self.pending.lock().unwrap_or_else(|p| p.into_inner()));
             self.serve(&mut state, requests);
         }
+    }
+
+    /// Submits `cameras` as one batch and returns at once: the caller overlaps its own work
+    /// (encoding the last batch's images, stepping physics) with the rendering and read-back,
+    /// then [`Submitted::wait`]s. Images equal [`GpuRenderer::render_batch`]'s.
+    ///
+    /// # Errors
+    ///
+    /// As [`GpuRenderer::render_batch`].
+    pub fn submit(
+        self: &Arc<Self>,
+        gaussians: &Gaussians,
+        categories: &[u16],
+        cameras: &[Camera],
+        options: &RenderOptions,
+    ) -> Result<Submitted> {
+        self.check(gaussians, cameras)?;
+        let mut state = self.lock();
+        self.use_categories(&mut state, categories);
+        let need = self.need(&state, cameras);
+        let flight = if cameras.is_empty() {
+            Flight::Done(Vec::new())
+        } else if need.largest_buffer() > self.gpu.largest_binding() || cameras.len() > MAX_CAMERAS
+        {
+            // Too large for one submission: rendered in parts now.
+            Flight::Done(self.render_held(&mut state, categories, cameras, options)?)
+        } else {
+            Flight::Out(self.launch(&mut state, cameras, options, need)?)
+        };
+        Ok(Submitted {
+            renderer: self.clone(),
+            cameras: cameras.to_vec(),
+            categories: categories.to_vec(),
+            options: *options,
+            flight,
+        })
     }
 
     /// Renders queued requests — those with the same categories and options in one
@@ -501,7 +418,58 @@ impl GpuRenderer {
         }
     }
 
-    /// Renders `cameras` in one submission with the GPU held.
+    /// Points the scene's bind group at `categories`, when they changed.
+    fn use_categories(&self, state: &mut State, categories: &[u16]) {
+        if state.categories != categories {
+            let words: Vec<u32> = categories.iter().map(|&c| u32::from(c)).collect();
+            state.categories_buffer = init_buffer(&self.gpu, "categories", &words);
+            state.scene_group = Self::scene_group(
+                &self.gpu,
+                &self.kernels,
+                &self.scene,
+                &state.categories_buffer,
+            );
+            state.categories = categories.to_vec();
+        }
+    }
+
+    /// What a batch of `cameras` needs the work space to hold: its cameras, tiles and images
+    /// exactly; the counts found on the GPU as the work space holds them now, or a first
+    /// guess (grown after the batch when short).
+    fn need(&self, state: &State, cameras: &[Camera]) -> Caps {
+        let c = cameras.len() as u32;
+        let camera_chunks = c.saturating_mul(self.chunks);
+        let (tiles, image_words) = cameras.iter().fold((0u32, 0u64), |(t, w), cam| {
+            let grid = TileGrid::new(cam);
+            (
+                t.saturating_add(grid.tiles() as u32),
+                w + PLANES * (grid.width * grid.height) as u64,
+            )
+        });
+        let splats = c.saturating_mul(self.count.min(1 << 18) as u32);
+        let guess = Caps {
+            cameras: c,
+            camera_chunks,
+            entries: camera_chunks,
+            splats,
+            tile_entries: splats.saturating_mul(2).saturating_add(65_536),
+            tiles,
+            image_words,
+        };
+        match &state.workspace {
+            Some(w) => Caps {
+                entries: camera_chunks,
+                splats: w.caps.splats,
+                tile_entries: w.caps.tile_entries,
+                ..guess
+            },
+            None => guess,
+        }
+    }
+
+    /// Renders `cameras` with the GPU held: in parts the adapter's buffers hold, each part's
+    /// read-back overlapping the next part's rendering, a part rendered again when the work
+    /// space had to grow.
     fn render_held(
         &self,
         state: &mut State,
@@ -509,168 +477,139 @@ impl GpuRenderer {
         cameras: &[Camera],
         options: &RenderOptions,
     ) -> Result<Vec<RenderOutput>> {
-        let gpu = &*self.gpu;
-        if state.categories != categories {
-            let words: Vec<u32> = categories.iter().map(|&c| u32::from(c)).collect();
-            state.categories_buffer = init_buffer(gpu, "categories", &words);
-            state.scene_group =
-                Self::scene_group(gpu, &self.kernels, &self.scene, &state.categories_buffer);
-            state.categories = categories.to_vec();
-        }
-        let align = u64::from(gpu.limits().min_storage_buffer_offset_alignment).max(4);
-        let mut offset = 0;
-        let slots: Vec<Slot> = cameras
-            .iter()
-            .map(|c| {
-                let grid = TileGrid::new(c);
-                let bits = u32::BITS - (grid.tiles() as u32 - 1).leading_zeros();
-                let slot = Slot {
-                    grid,
-                    offset,
-                    tile_passes: bits.div_ceil(8).max(1),
-                };
-                offset += (PLANES * 4 * (grid.width * grid.height) as u64).next_multiple_of(align);
-                slot
-            })
-            .collect();
-        let tiles = slots
-            .iter()
-            .map(|s| s.grid.tiles() as u32)
-            .max()
-            .unwrap_or(1);
-        let n = self.count as u32;
-        let most_entries = (gpu.largest_binding() / 4).min(u64::from(u32::MAX)) as u32;
+        self.use_categories(state, categories);
+        let parts = self.parts(state, cameras)?;
+        let mut out = Vec::with_capacity(cameras.len());
         let mut regrown = 0;
-        let mut capacity = state
-            .workspace
-            .as_ref()
-            .map_or(n.saturating_mul(2).saturating_add(65_536), |w| w.capacity)
-            .min(most_entries);
+        let mut total = GpuStats::default();
+        let mut previous: Option<(InFlight, &[Camera])> = None;
+        for part in parts.iter().map(|r| &cameras[r.clone()]).chain([&[][..]]) {
+            let next = if part.is_empty() {
+                None
+            } else {
+                let need = self.need(state, part);
+                Some((self.launch(state, part, options, need)?, part))
+            };
+            if let Some((flight, cams)) = previous.take() {
+                let (images, stats) = self.settle(state, flight, cams, options, &mut regrown)?;
+                out.extend(images);
+                total = GpuStats {
+                    chunks: total.chunks + stats.chunks,
+                    splats: total.splats + stats.splats,
+                    tile_entries: total.tile_entries + stats.tile_entries,
+                    ..stats
+                };
+            }
+            previous = next;
+        }
+        total.cameras = cameras.len();
+        total.regrown = regrown;
+        state.stats = total;
+        Ok(out)
+    }
+
+    /// The images of `flight`, rendering `cameras` again (after growing) until the work space
+    /// held them.
+    fn settle(
+        &self,
+        state: &mut State,
+        flight: InFlight,
+        cameras: &[Camera],
+        options: &RenderOptions,
+        regrown: &mut u32,
+    ) -> Result<(Vec<RenderOutput>, GpuStats)> {
+        let mut flight = flight;
         loop {
-            let fits = state
-                .workspace
-                .as_ref()
-                .is_some_and(|w| w.tiles >= tiles && w.capacity >= capacity);
-            if !fits {
-                let tiles = state
-                    .workspace
-                    .as_ref()
-                    .map_or(tiles, |w| w.tiles.max(tiles));
-                state.workspace = Some(Workspace::new(gpu, &self.kernels, n, capacity, tiles));
-            }
-            let workspace = state.workspace.as_ref().expect("allocated above");
-            let (images, counts) =
-                self.run_batch(&state.scene_group, workspace, cameras, &slots, options)?;
-            let needed = counts.iter().skip(1).step_by(2).copied().max().unwrap_or(0);
-            if needed > workspace.capacity {
-                // More (splat, tile) entries than the buffers hold: grow and render again.
-                if needed > most_entries {
-                    return Err(Error::invalid(format!(
-                        "GPU {}: a frame needs {needed} (splat, tile) entries; the adapter's \
-                         buffers hold {most_entries} (render smaller images)",
-                        gpu.describe()
-                    )));
+            match self.finish(state, flight)? {
+                Finished::Images(images, stats) => return Ok((images, stats)),
+                Finished::Grow(need) => {
+                    if need.largest_buffer() > self.gpu.largest_binding() {
+                        return Err(Error::invalid(format!(
+                            "GPU {}: a frame needs {need:?} of work space, more than one of \
+                             the adapter's buffers holds (render smaller images)",
+                            self.gpu.describe()
+                        )));
+                    }
+                    *regrown += 1;
+                    flight = self.launch(state, cameras, options, need)?;
                 }
-                capacity = needed.saturating_add(needed / 4).min(most_entries);
-                regrown += 1;
-                continue;
             }
-            let sum = |k: usize| {
-                counts
-                    .iter()
-                    .skip(k)
-                    .step_by(2)
-                    .map(|&c| u64::from(c))
-                    .sum()
-            };
-            state.stats = GpuStats {
-                cameras: cameras.len(),
-                splats: sum(0),
-                tile_entries: sum(1),
-                capacity: workspace.capacity,
-                regrown,
-            };
-            return Ok(slots.iter().map(|s| unpack(&images, s)).collect());
         }
     }
 
-    /// Records, submits and reads back one batch; returns the images (all slots) and the
-    /// visible-splat and tile-entry counts of each camera.
-    fn run_batch(
-        &self,
-        scene_group: &wgpu::BindGroup,
-        w: &Workspace,
-        cameras: &[Camera],
-        slots: &[Slot],
-        options: &RenderOptions,
-    ) -> Result<(Vec<u32>, Vec<u32>)> {
-        let gpu = &*self.gpu;
-        let k = &self.kernels;
-        let n = self.count as u32;
-        let last = slots.last().expect("a batch has cameras");
-        let largest = slots
-            .iter()
-            .map(|s| PLANES * 4 * (s.grid.width * s.grid.height) as u64)
-            .max()
-            .unwrap_or(4);
-        let image_bytes = last.offset + largest;
-        let images = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("images"),
-            size: image_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let counts_bytes = 8 * cameras.len() as u64;
-        let counts = words_buffer(
-            gpu,
-            "counts",
-            2 * cameras.len() as u64,
-            wgpu::BufferUsages::COPY_SRC,
-        );
-        let mut uniforms = Vec::with_capacity(cameras.len() * CAMERA_BYTES as usize / 4);
-        for (i, (c, s)) in cameras.iter().zip(slots).enumerate() {
-            uniforms.extend_from_slice(&camera_block(c, s, n, w.capacity, i as u32, options));
+    /// Splits `cameras` into batches the adapter's buffers hold (whole cameras each).
+    fn parts(&self, state: &State, cameras: &[Camera]) -> Result<Vec<std::ops::Range<usize>>> {
+        let bound = self.gpu.largest_binding();
+        let mut parts = Vec::new();
+        let mut start = 0;
+        while start < cameras.len() {
+            let mut end = cameras.len().min(start + MAX_CAMERAS);
+            while self.need(state, &cameras[start..end]).largest_buffer() > bound {
+                if end - start == 1 {
+                    return Err(Error::invalid(format!(
+                        "GPU {}: a {}x{} frame needs more than one of the adapter's buffers \
+                         holds ({} MB)",
+                        self.gpu.describe(),
+                        cameras[start].intrinsics.width,
+                        cameras[start].intrinsics.height,
+                        bound >> 20
+                    )));
+                }
+                end = start + (end - start).div_ceil(2);
+            }
+            parts.push(start..end);
+            start = end;
         }
-        let camera_buffer = gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("cameras"),
-                contents: bytemuck::cast_slice(&uniforms),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-        let camera_group = bind(
-            gpu,
-            &k.camera_layout,
-            &[wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                buffer: &camera_buffer,
-                offset: 0,
-                size: wgpu::BufferSize::new(CAMERA_BYTES),
-            })],
-        );
-        let [d0, d1, ..] = &w.depth;
-        let [t0, t1, t2, t3] = &w.tile_pairs;
-        let frame_group = bind(
-            gpu,
-            &k.frame_layout,
-            &[
-                w.splats.as_entire_binding(),
-                w.visible.as_entire_binding(),
-                d0.as_entire_binding(),
-                d1.as_entire_binding(),
-                w.tile_offsets.as_entire_binding(),
-                t0.as_entire_binding(),
-                t1.as_entire_binding(),
-                t2.as_entire_binding(),
-                t3.as_entire_binding(),
-                w.tile_ranges.as_entire_binding(),
-                counts.as_entire_binding(),
-                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &images,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(largest),
-                }),
-            ],
-        );
+        Ok(parts)
+    }
+
+    /// Records and submits one batch of `cameras` into a work space of at least `need`.
+    fn launch(
+        &self,
+        state: &mut State,
+        cameras: &[Camera],
+        options: &RenderOptions,
+        need: Caps,
+    ) -> Result<InFlight> {
+        let gpu = &*self.gpu;
+        if !state
+            .workspace
+            .as_ref()
+            .is_some_and(|w| w.caps.holds(&need))
+        {
+            let caps = state.workspace.as_ref().map_or(need, |w| w.caps.max(&need));
+            // Drop the old buffers before allocating the new ones.
+            state.workspace = None;
+            state.workspace = Some(Workspace::new(gpu, &self.kernels, caps));
+        }
+        let w = state.workspace.as_ref().expect("made above");
+        let mut offset = 0;
+        let mut tile_base = 0u32;
+        let mut blocks = Vec::with_capacity(cameras.len() * CAMERA_WORDS);
+        let mut slots = Vec::with_capacity(cameras.len());
+        let mut grid = (1, 1, cameras.len() as u32);
+        for c in cameras {
+            let g = TileGrid::new(c);
+            blocks.extend_from_slice(&camera_block(c, &g, tile_base, offset, options));
+            grid.0 = grid.0.max(g.tiles_x as u32);
+            grid.1 = grid.1.max(g.tiles_y as u32);
+            slots.push(Slot { grid: g, offset });
+            tile_base += g.tiles() as u32;
+            offset += PLANES * (g.width * g.height) as u64;
+        }
+        let tiles = tile_base;
+        let bits = u32::BITS - tiles.saturating_sub(1).leading_zeros();
+        let tile_passes = bits.div_ceil(8).clamp(1, TILE_SORT_PASSES);
+        gpu.queue
+            .write_buffer(&w.cameras, 0, bytemuck::cast_slice(&blocks));
+        let fixed = [
+            cameras.len() as u32 * self.chunks,
+            tile_passes % 2,
+            tiles,
+            0,
+        ];
+        gpu.queue
+            .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
@@ -679,97 +618,114 @@ impl GpuRenderer {
                 label: Some("render"),
                 timestamp_writes: None,
             });
-            for (i, s) in slots.iter().enumerate() {
-                let camera_offset = (i as u64 * CAMERA_BYTES) as u32;
-                let groups: [(&wgpu::BindGroup, &[u32]); 3] = [
-                    (scene_group, &[]),
-                    (&frame_group, &[s.offset as u32]),
-                    (&camera_group, &[camera_offset]),
-                ];
-                let all = threads_grid(n + 1);
-                k.project.run_grid(&mut pass, &groups, all);
-                k.scan.encode(&mut pass, &w.visible_scan);
-                k.compact.run_grid(&mut pass, &groups, all);
-                k.sort.encode(&mut pass, &k.scan, &w.depth_sort, 4);
-                k.count_tiles.run_grid(&mut pass, &groups, all);
-                k.scan.encode(&mut pass, &w.offsets_scan);
-                k.emit.run_grid(&mut pass, &groups, all);
-                k.sort
-                    .encode(&mut pass, &k.scan, &w.tile_sort, s.tile_passes as usize);
-                k.clear_ranges
-                    .run_grid(&mut pass, &groups, threads_grid(s.grid.tiles() as u32));
-                k.ranges
-                    .run_grid(&mut pass, &groups, threads_grid(w.capacity));
-                k.raster.run_grid(
-                    &mut pass,
-                    &groups,
-                    (s.grid.tiles_x as u32, s.grid.tiles_y as u32),
-                );
-                k.record.run_grid(&mut pass, &groups, (1, 1));
-            }
+            w.encode(
+                &self.kernels,
+                &state.scene_group,
+                &mut pass,
+                tiles,
+                tile_passes,
+                grid,
+            );
         }
-        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("read-back"),
-            size: image_bytes + counts_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
+        let image_bytes = offset * 4;
+        let live_bytes = self.kernels.live.buffer.size();
+        let size = image_bytes + live_bytes;
+        let staging = match state.staging.iter().position(|b| b.size() >= size) {
+            Some(i) => state.staging.swap_remove(i),
+            None => gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("read-back"),
+                size: size.next_power_of_two(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        };
+        encoder.copy_buffer_to_buffer(&self.kernels.live.buffer, 0, &staging, 0, live_bytes);
+        encoder.copy_buffer_to_buffer(&w.images, 0, &staging, live_bytes, image_bytes);
+        let submission = gpu.queue.submit([encoder.finish()]);
+        let (tx, mapped) = mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
         });
-        encoder.copy_buffer_to_buffer(&images, 0, &staging, 0, image_bytes);
-        encoder.copy_buffer_to_buffer(&counts, 0, &staging, image_bytes, counts_bytes);
-        gpu.queue.submit([encoder.finish()]);
-        let words = read_back(gpu, &staging)?;
-        let split = (image_bytes / 4) as usize;
-        Ok((words[..split].to_vec(), words[split..].to_vec()))
+        Ok(InFlight {
+            staging,
+            submission,
+            mapped,
+            slots,
+            image_words: offset,
+            caps: w.caps,
+            raw: w.raw,
+        })
+    }
+
+    /// Waits for `flight`'s read-back: its images, or the work space it needs when a count
+    /// found on the GPU passed what the buffers held.
+    fn finish(&self, state: &mut State, flight: InFlight) -> Result<Finished> {
+        let gpu = &*self.gpu;
+        let fault =
+            |e: &dyn std::fmt::Display| Error::invalid(format!("GPU {}: {e}", gpu.describe()));
+        gpu.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: Some(flight.submission),
+                timeout: None,
+            })
+            .map_err(|e| fault(&e))?;
+        gpu.check()?;
+        match flight.mapped.recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return Err(fault(&format!("read-back failed: {e}"))),
+            Err(_) => return Err(fault(&"the device was lost during the read-back")),
+        }
+        let live_words = (self.kernels.live.buffer.size() / 4) as usize;
+        let result = {
+            let view = flight.staging.get_mapped_range(..).map_err(|e| fault(&e))?;
+            let words: &[u32] = bytemuck::cast_slice(&view);
+            let raw = flight.raw.map(|slot| words[slot as usize]);
+            let caps = flight.caps;
+            let [entries, splats, tile_entries] = raw;
+            if splats > caps.splats || tile_entries > caps.tile_entries || entries > caps.entries {
+                let grow = |n: u32| n.saturating_add(n / 4);
+                Finished::Grow(Caps {
+                    entries: caps.entries.max(entries),
+                    splats: caps.splats.max(grow(splats)),
+                    tile_entries: caps.tile_entries.max(grow(tile_entries)),
+                    ..caps
+                })
+            } else {
+                let images = &words[live_words..live_words + flight.image_words as usize];
+                let outputs = flight.slots.par_iter().map(|s| unpack(images, s)).collect();
+                Finished::Images(
+                    outputs,
+                    GpuStats {
+                        cameras: flight.slots.len(),
+                        chunks: u64::from(entries),
+                        splats: u64::from(splats),
+                        tile_entries: u64::from(tile_entries),
+                        capacity: caps.tile_entries,
+                        regrown: 0,
+                        workspace_bytes: caps.bytes(),
+                    },
+                )
+            }
+        };
+        flight.staging.unmap();
+        state.staging.push(flight.staging);
+        Ok(result)
     }
 }
 
-/// Maps `staging` after the queue finished and copies it out.
-fn read_back(gpu: &Gpu, staging: &wgpu::Buffer) -> Result<Vec<u32>> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
-        let _ = tx.send(r);
-    });
-    gpu.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::invalid(format!("GPU {}: {e}", gpu.describe())))?;
-    gpu.check()?;
-    match rx.recv() {
-        Ok(Ok(())) => {}
-        Ok(Err(e)) => {
-            return Err(Error::invalid(format!(
-                "GPU {}: read-back failed: {e}",
-                gpu.describe()
-            )));
-        }
-        Err(_) => {
-            return Err(Error::invalid(format!(
-                "GPU {}: the device was lost during the read-back",
-                gpu.describe()
-            )));
-        }
-    }
-    let words = {
-        let view = staging
-            .get_mapped_range(..)
-            .map_err(|e| Error::invalid(format!("GPU {}: {e}", gpu.describe())))?;
-        bytemuck::cast_slice::<u8, u32>(&view).to_vec()
-    };
-    staging.unmap();
-    Ok(words)
-}
-
-/// The uniform block of one camera (`Camera` in `splat.wgsl`), padded to [`CAMERA_BYTES`].
+/// The block of one camera (`Camera` in `splat.wgsl`): its pose, intrinsics, clipping,
+/// background, culling planes, size and place in the batch.
 fn camera_block(
     c: &Camera,
-    s: &Slot,
-    n: u32,
-    capacity: u32,
-    index: u32,
+    g: &TileGrid,
+    tile_base: u32,
+    image_offset: u64,
     options: &RenderOptions,
-) -> [u32; CAMERA_BYTES as usize / 4] {
+) -> [u32; CAMERA_WORDS] {
     let k = c.intrinsics;
     let r = c.rotation;
-    let floats: [[f32; 4]; 7] = [
+    let [br, bg, bb] = options.background;
+    let mut floats: Vec<[f32; 4]> = vec![
         [r.x_axis.x, r.x_axis.y, r.x_axis.z, 0.0],
         [r.y_axis.x, r.y_axis.y, r.y_axis.z, 0.0],
         [r.z_axis.x, r.z_axis.y, r.z_axis.z, 0.0],
@@ -781,28 +737,24 @@ fn camera_block(
             1.3 * k.width as f32 * 0.5 / k.fx,
             1.3 * k.height as f32 * 0.5 / k.fy,
         ],
-        [
-            options.background[0],
-            options.background[1],
-            options.background[2],
-            0.0,
-        ],
+        [br, bg, bb, 0.0],
     ];
-    let mut block = [0u32; CAMERA_BYTES as usize / 4];
+    floats.extend(frustum_planes(c).map(|(n, d)| [n.x, n.y, n.z, d]));
+    let mut block = [0u32; CAMERA_WORDS];
     for (i, v) in floats.iter().flatten().enumerate() {
         block[i] = v.to_bits();
     }
     let words = [
-        s.grid.width as u32,
-        s.grid.height as u32,
-        s.grid.tiles_x as u32,
-        s.grid.tiles_y as u32,
-        n,
-        capacity,
-        s.tile_passes % 2,
-        index,
+        g.width as u32,
+        g.height as u32,
+        g.tiles_x as u32,
+        g.tiles_y as u32,
+        tile_base,
+        image_offset as u32,
+        0,
+        0,
     ];
-    block[28..36].copy_from_slice(&words);
+    block[52..60].copy_from_slice(&words);
     block
 }
 
@@ -810,7 +762,7 @@ fn camera_block(
 fn unpack(words: &[u32], s: &Slot) -> RenderOutput {
     let (width, height) = (s.grid.width, s.grid.height);
     let p = width * height;
-    let base = (s.offset / 4) as usize;
+    let base = s.offset as usize;
     let plane = |k: usize| &words[base + k * p..base + (k + 1) * p];
     let float = |k: usize| {
         plane(k)
@@ -818,8 +770,10 @@ fn unpack(words: &[u32], s: &Slot) -> RenderOutput {
             .map(|&w| f32::from_bits(w))
             .collect::<Vec<f32>>()
     };
-    let (r, g, b) = (float(0), float(1), float(2));
-    let rgb_f32: Vec<f32> = (0..p).flat_map(|i| [r[i], g[i], b[i]]).collect();
+    let (r, g, b) = (plane(0), plane(1), plane(2));
+    let rgb_f32: Vec<f32> = (0..p)
+        .flat_map(|i| [r[i], g[i], b[i]].map(f32::from_bits))
+        .collect();
     let rgb = rgb_f32
         .iter()
         .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)

@@ -1,14 +1,16 @@
-// Exclusive prefix sum of `data[0..n]` in place, 1024 elements per workgroup (256 threads × 4).
+// Exclusive prefix sum of `data[0..n]` in place, 1024 elements per workgroup (256 threads × 4),
+// n read on the GPU (`live[n_slot]`) and the workgroups dispatched indirectly from it.
 // `scan_blocks` scans each block and writes its total to `sums`; once `sums` is scanned the
 // same way (recursively), `add_sums` adds each block's offset back.
 
 struct Params {
-    n: u32,
+    n_slot: u32,
 }
 
 @group(0) @binding(0) var<storage, read_write> data: array<u32>;
 @group(0) @binding(1) var<storage, read_write> sums: array<u32>;
 @group(0) @binding(2) var<uniform> params: Params;
+@group(0) @binding(3) var<storage, read> live: array<u32>;
 
 var<workgroup> partial: array<u32, 256>;
 
@@ -19,7 +21,8 @@ fn scan_blocks(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let block = wid.x + wid.y * nwg.x;
-    if block * 1024u >= params.n {
+    let n = live[params.n_slot];
+    if block * 1024u >= n {
         return;
     }
     let base = block * 1024u + lid * 4u;
@@ -27,7 +30,7 @@ fn scan_blocks(
     var total = 0u;
     for (var k = 0u; k < 4u; k++) {
         local[k] = total;
-        if base + k < params.n {
+        if base + k < n {
             total += data[base + k];
         }
     }
@@ -45,7 +48,7 @@ fn scan_blocks(
     }
     let before = partial[lid] - total;
     for (var k = 0u; k < 4u; k++) {
-        if base + k < params.n {
+        if base + k < n {
             data[base + k] = before + local[k];
         }
     }
@@ -61,13 +64,14 @@ fn add_sums(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let block = wid.x + wid.y * nwg.x;
-    if block * 1024u >= params.n {
+    let n = live[params.n_slot];
+    if block * 1024u >= n {
         return;
     }
     let offset = sums[block];
     for (var k = 0u; k < 4u; k++) {
         let i = block * 1024u + lid * 4u + k;
-        if i < params.n {
+        if i < n {
             data[i] += offset;
         }
     }

@@ -1,9 +1,11 @@
 //! The two GPU primitives the binning needs: an exclusive prefix sum ([`Scan`]) and a stable
 //! radix sort of (key, value) pairs ([`RadixSort`]), each recorded into a compute pass over
-//! buffers of a fixed capacity, with the live count read on the GPU (`scan.wgsl`, `sort.wgsl`).
+//! buffers of a fixed capacity, with the live count read on the GPU and the workgroups
+//! dispatched indirectly from it (`scan.wgsl`, `sort.wgsl`, [`super::live`]).
 
 use super::Gpu;
 use super::kernel::{Kernel, bind, layout, storage, uniform, uniform_buffer};
+use super::live::{Count, Live, LiveBuilder, Size};
 
 /// Elements one workgroup of `scan_blocks` covers.
 const SCAN_BLOCK: u32 = 1024;
@@ -17,17 +19,17 @@ pub(crate) struct Scan {
     add_sums: Kernel,
 }
 
-/// One level of a scan: its bind group and how many blocks it has.
+/// One level of a scan: its bind group and where its workgroups are.
 struct ScanLevel {
     bind_group: wgpu::BindGroup,
-    blocks: u32,
+    args: u64,
 }
 
-/// A scan of one buffer of fixed length: the levels of block sums, bottom first.
+/// A scan of one buffer of up to a fixed length: the levels of block sums, bottom first.
 pub(crate) struct ScanPlan {
     levels: Vec<ScanLevel>,
-    /// Keeps the block-sum buffers alive.
-    _sums: Vec<wgpu::Buffer>,
+    /// Keeps the block-sum and parameter buffers alive.
+    _buffers: Vec<wgpu::Buffer>,
 }
 
 impl Scan {
@@ -41,7 +43,12 @@ impl Scan {
             });
         let layout = layout(
             gpu,
-            &[storage(0, false), storage(1, false), uniform(2, false)],
+            &[
+                storage(0, false),
+                storage(1, false),
+                uniform(2),
+                storage(3, true),
+            ],
         );
         Scan {
             scan_blocks: Kernel::new(gpu, &module, "scan_blocks", &[&layout]),
@@ -50,21 +57,37 @@ impl Scan {
         }
     }
 
-    /// A scan of the first `n` words of `data`, with the block-sum buffers it needs.
-    pub(crate) fn plan(&self, gpu: &Gpu, data: &wgpu::Buffer, n: u32) -> ScanPlan {
+    /// A scan of the first `live[n_slot]` (at most `capacity`) words of `data`, its sizes
+    /// derived in `builder`'s current stage.
+    pub(crate) fn plan(
+        &self,
+        gpu: &Gpu,
+        live: &Live,
+        builder: &mut LiveBuilder,
+        data: &wgpu::Buffer,
+        capacity: u32,
+        n_slot: u32,
+    ) -> ScanPlan {
         let mut levels = Vec::new();
-        let mut sums_buffers: Vec<wgpu::Buffer> = Vec::new();
-        let mut len = n.max(1);
+        let mut buffers: Vec<wgpu::Buffer> = Vec::new();
+        let mut cap = capacity.max(1);
+        let mut size = Size::of(Count::Live(n_slot), cap);
         loop {
-            let blocks = len.div_ceil(SCAN_BLOCK);
+            let derived = builder.derive(size.dispatched(SCAN_BLOCK));
+            let blocks = cap.div_ceil(SCAN_BLOCK);
             let sums = gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("scan sums"),
-                size: u64::from(blocks.max(1)) * 4,
+                size: u64::from(blocks) * 4,
                 usage: wgpu::BufferUsages::STORAGE,
                 mapped_at_creation: false,
             });
-            let params = uniform_buffer(gpu, &[len, 0, 0, 0]);
-            let input = sums_buffers.last().unwrap_or(data);
+            let params = uniform_buffer(gpu, &[derived.n, 0, 0, 0]);
+            // Level 0 scans the data; each level above scans the sums of the one below.
+            let input = if levels.is_empty() {
+                data
+            } else {
+                &buffers[buffers.len() - 2]
+            };
             let bind_group = bind(
                 gpu,
                 &self.layout,
@@ -72,29 +95,47 @@ impl Scan {
                     input.as_entire_binding(),
                     sums.as_entire_binding(),
                     params.as_entire_binding(),
+                    live.buffer.as_entire_binding(),
                 ],
             );
-            levels.push(ScanLevel { bind_group, blocks });
-            sums_buffers.push(sums);
+            levels.push(ScanLevel {
+                bind_group,
+                args: derived.args,
+            });
+            buffers.push(sums);
+            buffers.push(params);
             if blocks == 1 {
                 break;
             }
-            len = blocks;
+            size = Size {
+                div: SCAN_BLOCK,
+                ..Size::of(Count::Live(derived.n), cap)
+            };
+            cap = blocks;
         }
         ScanPlan {
             levels,
-            _sums: sums_buffers,
+            _buffers: buffers,
         }
     }
 
     /// Records `plan` into `pass`.
-    pub(crate) fn encode(&self, pass: &mut wgpu::ComputePass<'_>, plan: &ScanPlan) {
+    pub(crate) fn encode(&self, pass: &mut wgpu::ComputePass<'_>, live: &Live, plan: &ScanPlan) {
         for level in &plan.levels {
-            self.scan_blocks
-                .run(pass, &[&level.bind_group], level.blocks);
+            live.dispatch(
+                pass,
+                &self.scan_blocks,
+                &[(&level.bind_group, &[])],
+                level.args,
+            );
         }
         for level in plan.levels.iter().rev().skip(1) {
-            self.add_sums.run(pass, &[&level.bind_group], level.blocks);
+            live.dispatch(
+                pass,
+                &self.add_sums,
+                &[(&level.bind_group, &[])],
+                level.args,
+            );
         }
     }
 }
@@ -106,16 +147,12 @@ pub(crate) struct RadixSort {
     scatter: Kernel,
 }
 
-/// One 8-bit pass of a sort: its bind group (input, output, digits, count, digit shift).
-struct SortPass {
-    bind_group: wgpu::BindGroup,
-}
-
 /// A sort of up to `capacity` pairs between two pairs of buffers, ping-pong: pass `k` reads
 /// the first pair when `k` is even. After an odd number of passes the result is in the second.
 pub(crate) struct SortPlan {
-    passes: Vec<SortPass>,
-    blocks: u32,
+    /// Per 8-bit pass: input, output, digits, live sizes and the digit shift.
+    passes: Vec<wgpu::BindGroup>,
+    args: u64,
     digits_scan: ScanPlan,
     _buffers: Vec<wgpu::Buffer>,
 }
@@ -141,7 +178,7 @@ impl RadixSort {
                 storage(3, false),
                 storage(4, false),
                 storage(5, true),
-                uniform(6, false),
+                uniform(6),
             ],
         );
         RadixSort {
@@ -151,28 +188,39 @@ impl RadixSort {
         }
     }
 
-    /// A sort of up to `capacity` pairs in `first` (ping-pong with `second`) over `passes`
-    /// 8-bit digits from the lowest; the live count is word `count_at` of `counts`.
+    /// A sort of the first `live[count_slot]` (at most `capacity`) pairs in `first`
+    /// (ping-pong with `second`) over up to `passes` 8-bit digits from the lowest, its sizes
+    /// derived in `builder`'s current stage.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn plan(
         &self,
         gpu: &Gpu,
         scan: &Scan,
+        live: &Live,
+        builder: &mut LiveBuilder,
         first: Pairs<'_>,
         second: Pairs<'_>,
         capacity: u32,
-        counts: &wgpu::Buffer,
-        count_at: u32,
+        count_slot: u32,
         passes: u32,
     ) -> SortPlan {
-        let blocks = capacity.max(1).div_ceil(SORT_BLOCK);
+        let capacity = capacity.max(1);
+        let blocks = capacity.div_ceil(SORT_BLOCK);
+        let args = builder
+            .derive(Size::of(Count::Live(count_slot), capacity).dispatched(SORT_BLOCK))
+            .args;
+        let digit_count = builder.derive(Size {
+            div: SORT_BLOCK,
+            mul: 256,
+            ..Size::of(Count::Live(count_slot), capacity)
+        });
         let digits = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("radix digits"),
             size: u64::from(blocks) * 256 * 4,
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        let digits_scan = scan.plan(gpu, &digits, blocks * 256);
+        let digits_scan = scan.plan(gpu, live, builder, &digits, blocks * 256, digit_count.n);
         let mut buffers = Vec::new();
         let passes = (0..passes)
             .map(|k| {
@@ -181,7 +229,7 @@ impl RadixSort {
                 } else {
                     (second, first)
                 };
-                let params = uniform_buffer(gpu, &[8 * k, blocks, capacity, count_at]);
+                let params = uniform_buffer(gpu, &[8 * k, count_slot, 0, 0]);
                 let bind_group = bind(
                     gpu,
                     &self.layout,
@@ -191,18 +239,18 @@ impl RadixSort {
                         output.0.as_entire_binding(),
                         output.1.as_entire_binding(),
                         digits.as_entire_binding(),
-                        counts.as_entire_binding(),
+                        live.buffer.as_entire_binding(),
                         params.as_entire_binding(),
                     ],
                 );
                 buffers.push(params);
-                SortPass { bind_group }
+                bind_group
             })
             .collect();
         buffers.push(digits);
         SortPlan {
             passes,
-            blocks,
+            args,
             digits_scan,
             _buffers: buffers,
         }
@@ -213,13 +261,14 @@ impl RadixSort {
         &self,
         pass: &mut wgpu::ComputePass<'_>,
         scan: &Scan,
+        live: &Live,
         plan: &SortPlan,
         passes: usize,
     ) {
-        for p in &plan.passes[..passes] {
-            self.histogram.run(pass, &[&p.bind_group], plan.blocks);
-            scan.encode(pass, &plan.digits_scan);
-            self.scatter.run(pass, &[&p.bind_group], plan.blocks);
+        for group in &plan.passes[..passes] {
+            live.dispatch(pass, &self.histogram, &[(group, &[])], plan.args);
+            scan.encode(pass, live, &plan.digits_scan);
+            live.dispatch(pass, &self.scatter, &[(group, &[])], plan.args);
         }
     }
 }

@@ -1,16 +1,14 @@
 // One pass of a stable least-significant-digit radix sort of (key, value) pairs on the 8-bit
-// digit at `shift`. The number of pairs is read on the GPU (`counts[count_at]`, at most
-// `capacity`), so a frame's passes are recorded without knowing it. Blocks of 256 pairs:
-// `histogram` counts each block's digits into `block_digits[digit * blocks + block]`; after
-// an exclusive scan of that array (digit-major, so it holds every pair's first slot), `scatter`
-// writes each pair there plus its rank among the equal digits before it in its block, which
-// keeps equal keys in their input order.
+// digit at `shift`. The number of pairs is read on the GPU (`live[count_slot]`) and the
+// workgroups dispatched indirectly from it, so a frame's passes are recorded without knowing
+// it. Blocks of 256 pairs: `histogram` counts each block's digits into
+// `block_digits[digit * blocks + block]`; after an exclusive scan of that array (digit-major,
+// so it holds every pair's first slot), `scatter` writes each pair there plus its rank among
+// the equal digits before it in its block, which keeps equal keys in their input order.
 
 struct Params {
     shift: u32,
-    blocks: u32,
-    capacity: u32,
-    count_at: u32,
+    count_slot: u32,
 }
 
 @group(0) @binding(0) var<storage, read> keys_in: array<u32>;
@@ -18,15 +16,13 @@ struct Params {
 @group(0) @binding(2) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(3) var<storage, read_write> values_out: array<u32>;
 @group(0) @binding(4) var<storage, read_write> block_digits: array<u32>;
-@group(0) @binding(5) var<storage, read> counts: array<u32>;
+@group(0) @binding(5) var<storage, read> live: array<u32>;
 @group(0) @binding(6) var<uniform> params: Params;
 
 var<workgroup> histogram_of_block: array<atomic<u32>, 256>;
+// The block's digits, and per row of 32 pairs how many of each digit it holds.
 var<workgroup> digits: array<u32, 256>;
-
-fn pair_count() -> u32 {
-    return min(counts[params.count_at], params.capacity);
-}
+var<workgroup> row_digits: array<atomic<u32>, 2048>;
 
 @compute @workgroup_size(256)
 fn histogram(
@@ -35,17 +31,19 @@ fn histogram(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let block = wid.x + wid.y * nwg.x;
-    if block >= params.blocks {
+    let n = live[params.count_slot];
+    let blocks = (n + 255u) / 256u;
+    if block >= blocks {
         return;
     }
     atomicStore(&histogram_of_block[lid], 0u);
     workgroupBarrier();
     let i = block * 256u + lid;
-    if i < pair_count() {
+    if i < n {
         atomicAdd(&histogram_of_block[(keys_in[i] >> params.shift) & 255u], 1u);
     }
     workgroupBarrier();
-    block_digits[lid * params.blocks + block] = atomicLoad(&histogram_of_block[lid]);
+    block_digits[lid * blocks + block] = atomicLoad(&histogram_of_block[lid]);
 }
 
 @compute @workgroup_size(256)
@@ -55,11 +53,13 @@ fn scatter(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let block = wid.x + wid.y * nwg.x;
-    if block >= params.blocks {
+    let n = live[params.count_slot];
+    let blocks = (n + 255u) / 256u;
+    if block >= blocks {
         return;
     }
     let i = block * 256u + lid;
-    let valid = i < pair_count();
+    let valid = i < n;
     var key = 0u;
     // 256 marks a missing pair: no real digit equals it.
     var digit = 256u;
@@ -68,13 +68,26 @@ fn scatter(
         digit = (key >> params.shift) & 255u;
     }
     digits[lid] = digit;
+    for (var k = 0u; k < 8u; k++) {
+        atomicStore(&row_digits[k * 256u + lid], 0u);
+    }
+    workgroupBarrier();
+    // The rank among equal digits before this pair: those earlier in its row of 32, plus the
+    // counts of the rows above (a count, so the order of the additions does not matter).
+    let row = lid / 32u;
+    var rank = 0u;
+    for (var j = row * 32u; j < lid; j++) {
+        rank += select(0u, 1u, digits[j] == digit);
+    }
+    if valid {
+        atomicAdd(&row_digits[row * 256u + digit], 1u);
+    }
     workgroupBarrier();
     if valid {
-        var rank = 0u;
-        for (var j = 0u; j < lid; j++) {
-            rank += select(0u, 1u, digits[j] == digit);
+        for (var r = 0u; r < row; r++) {
+            rank += atomicLoad(&row_digits[r * 256u + digit]);
         }
-        let slot = block_digits[digit * params.blocks + block] + rank;
+        let slot = block_digits[digit * blocks + block] + rank;
         keys_out[slot] = key;
         values_out[slot] = values_in[i];
     }

@@ -1,11 +1,17 @@
-// The image formation of the CPU renderer (SPEC §3) as compute kernels; the constants come
-// from the Rust crate in a generated prelude (TILE, LOW_PASS, MIN_ALPHA, MAX_ALPHA,
-// MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST and SH_WORDS).
+// The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
+// cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
+// MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
+// SH_WORDS, GAUSSIANS, CHUNKS and the fixed live slots).
 //
-// Per camera: `project` (one thread per Gaussian) → scan of the visibility flags → `compact`
-// (visible splats' depth keys) → radix sort by depth → `count_tiles` (per splat in depth
-// order) → scan → `emit` (tile keys, depth order kept) → stable radix sort by tile →
-// `clear_ranges` + `ranges` → `raster` (one workgroup per tile) → `record` (counts for the host).
+// Every camera of the batch goes through the same dispatches, and every pass after the first
+// runs over what the one before found (`live`, dispatched indirectly):
+// `cull` (a thread per camera × chunk of 256 Gaussians, against the camera's frustum) → scan →
+// `list_chunks` (the visible (camera, chunk) entries) → `mark` (a workgroup per entry: which of
+// its Gaussians project into the image) → scan of the per-entry counts → `project` (writes the
+// visible splats, compacted, camera-major and in Gaussian order) → radix sort by depth →
+// `count_tiles` → scan → `emit` ((tile, splat) entries in depth order, the tile numbered over
+// the whole batch so the camera is in the key) → stable radix sort by tile → `clear_ranges` +
+// `ranges` → `raster` (a workgroup per tile of every camera).
 
 struct Camera {
     // Camera-to-world rotation columns (right, down, forward) and centre; w unused.
@@ -19,11 +25,21 @@ struct Camera {
     clip: vec4<f32>,
     // Colour behind everything (rgb).
     background: vec4<f32>,
+    // The frustum as inward planes (n, d): n·p ≥ d inside (the CPU renderer's culling planes).
+    planes: array<vec4<f32>, 6>,
     // width, height, tiles across, tiles down.
     size: vec4<u32>,
-    // Gaussians, tile-entry capacity, 1 when the tile sort's result is in the second buffers,
-    // the camera's index in the batch.
-    work: vec4<u32>,
+    // Its first tile in the batch's numbering, the first word of its images.
+    place: vec4<u32>,
+}
+
+// Live slots of this workspace's derived sizes: visible (camera, chunk) entries, visible
+// splats, (tile, splat) entries, each clamped to what the buffers hold.
+struct Slots {
+    entries: u32,
+    splats: u32,
+    tile_entries: u32,
+    _pad: u32,
 }
 
 // The scene, resident.
@@ -36,35 +52,47 @@ struct Camera {
 @group(0) @binding(3) var<storage, read> sh_codes: array<u32>;
 @group(0) @binding(4) var<storage, read> instances: array<u32>;
 @group(0) @binding(5) var<storage, read> categories: array<u32>;
+// Per chunk: (min, 1 when it holds anything) and (max, 0): what its Gaussians can touch.
+@group(0) @binding(6) var<storage, read> chunk_bounds: array<vec4<f32>>;
 
-// A frame's work space.
-// Four vec4 per Gaussian: (x, y, conic a, conic b), (conic c, opacity, depth, instance bits),
-// (r, g, b, cutoff), (extent x, extent y, -, -).
-@group(1) @binding(0) var<storage, read_write> splats: array<vec4<f32>>;
-// Visibility flags, then their exclusive scan (n + 1 entries: the last ends as the total).
-@group(1) @binding(1) var<storage, read_write> visible: array<u32>;
-// Depth-sort pairs: depth bits and Gaussian index (two buffers each, ping-pong).
-@group(1) @binding(2) var<storage, read_write> depth_keys: array<u32>;
-@group(1) @binding(3) var<storage, read_write> depth_values: array<u32>;
-// Tiles per depth-ordered splat, then their exclusive scan (n + 1 entries).
-@group(1) @binding(4) var<storage, read_write> tile_offsets: array<u32>;
-// Tile-sort pairs: tile index and Gaussian index, in the first and second buffers.
-@group(1) @binding(5) var<storage, read_write> tile_keys: array<u32>;
-@group(1) @binding(6) var<storage, read_write> tile_values: array<u32>;
-@group(1) @binding(7) var<storage, read_write> tile_keys_2: array<u32>;
-@group(1) @binding(8) var<storage, read_write> tile_values_2: array<u32>;
-// Per tile: first and one-past-last entry.
-@group(1) @binding(9) var<storage, read_write> tile_ranges: array<vec2<u32>>;
-// Per camera of the batch: visible splats and tile entries.
-@group(1) @binding(10) var<storage, read_write> work_counts: array<u32>;
-// The camera's images: 8 planes of width × height words (r, g, b, alpha, expected depth,
-// median depth as f32 bits; instance; category).
-@group(1) @binding(11) var<storage, read_write> images: array<u32>;
-
-@group(2) @binding(0) var<uniform> cam: Camera;
+// A batch's work space.
+@group(1) @binding(0) var<storage, read> cameras: array<Camera>;
+@group(1) @binding(1) var<storage, read> live: array<u32>;
+// Per camera × chunk (+1): visible, then its exclusive scan.
+@group(1) @binding(2) var<storage, read_write> chunk_flags: array<u32>;
+// The visible entries, camera × CHUNKS + chunk.
+@group(1) @binding(3) var<storage, read_write> chunk_list: array<u32>;
+// Per entry: 256 bits, the lanes whose Gaussian projects into the image.
+@group(1) @binding(4) var<storage, read_write> entry_masks: array<u32>;
+// Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
+@group(1) @binding(5) var<storage, read_write> entry_counts: array<u32>;
+// Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, instance
+// bits), (r, g, b, cutoff), (extent x, extent y, camera bits, -).
+@group(1) @binding(6) var<storage, read_write> splats: array<vec4<f32>>;
+// Depth-sort pairs: depth bits and splat; the sort ping-pongs with two more buffers and ends
+// in these.
+@group(1) @binding(7) var<storage, read_write> depth_keys: array<u32>;
+@group(1) @binding(8) var<storage, read_write> depth_values: array<u32>;
+// Tiles per depth-ordered splat (+1), then their exclusive scan.
+@group(1) @binding(9) var<storage, read_write> tile_counts: array<u32>;
+// Tile-sort pairs: tile (numbered over the batch) and splat, in the first and second buffers.
+@group(1) @binding(10) var<storage, read_write> tile_keys: array<u32>;
+@group(1) @binding(11) var<storage, read_write> tile_values: array<u32>;
+@group(1) @binding(12) var<storage, read_write> tile_keys_2: array<u32>;
+@group(1) @binding(13) var<storage, read_write> tile_values_2: array<u32>;
+// Per tile of the batch: first and one-past-last entry.
+@group(1) @binding(14) var<storage, read_write> tile_ranges: array<vec2<u32>>;
+// Per camera from its first word: 8 planes of width × height words (r, g, b, alpha, expected
+// depth, median depth as f32 bits; instance; category).
+@group(1) @binding(15) var<storage, read_write> images: array<u32>;
+@group(1) @binding(16) var<uniform> slots: Slots;
 
 fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.x + wid.y * nwg.x) * 256u + lid;
+}
+
+fn group_index(wid: vec3<u32>, nwg: vec3<u32>) -> u32 {
+    return wid.x + wid.y * nwg.x;
 }
 
 fn low_i16(w: u32) -> f32 {
@@ -120,42 +148,90 @@ fn sh_color(g: u32, d: vec3<f32>) -> vec3<f32> {
 }
 
 @compute @workgroup_size(256)
-fn project(
+fn cull(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let g = thread_index(wid, nwg, lid);
-    let n = cam.work.x;
-    if g > n {
+    let i = thread_index(wid, nwg, lid);
+    let count = live[LIVE_CAMERA_CHUNKS];
+    if i > count {
         return;
     }
-    // Entry n is the scan's total: zero before the scan.
-    visible[g] = 0u;
-    if g == n {
+    // Entry `count` is the scan's total: zero before the scan.
+    var visible = 0u;
+    if i < count {
+        let c = i / CHUNKS;
+        let k = i % CHUNKS;
+        let lo = chunk_bounds[2u * k];
+        let hi = chunk_bounds[2u * k + 1u].xyz;
+        visible = select(0u, 1u, lo.w > 0.0);
+        for (var p = 0u; p < 6u; p++) {
+            let plane = cameras[c].planes[p];
+            let far_corner = select(lo.xyz, hi, plane.xyz >= vec3<f32>(0.0));
+            if dot(plane.xyz, far_corner) < plane.w {
+                visible = 0u;
+            }
+        }
+    }
+    chunk_flags[i] = visible;
+}
+
+@compute @workgroup_size(256)
+fn list_chunks(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let i = thread_index(wid, nwg, lid);
+    if i >= live[LIVE_CAMERA_CHUNKS] {
         return;
     }
+    let slot = chunk_flags[i];
+    if chunk_flags[i + 1u] != slot && slot < arrayLength(&chunk_list) {
+        chunk_list[slot] = i;
+    }
+}
+
+// The screen footprint of Gaussian g seen by camera c (the CPU renderer's projection).
+struct Footprint {
+    visible: bool,
+    // Pixel position of the mean.
+    centre: vec2<f32>,
+    // The 2-D covariance (a, b; b, c), low-pass included.
+    cov: vec3<f32>,
+    opacity: f32,
+    depth: f32,
+    cutoff: f32,
+    extent: vec2<f32>,
+    // From the camera to the mean, in W.
+    ray: vec3<f32>,
+}
+
+fn footprint(c: u32, g: u32) -> Footprint {
+    var f: Footprint;
+    f.visible = false;
     let p = vec3<f32>(positions[3u * g], positions[3u * g + 1u], positions[3u * g + 2u]);
-    let rel = p - cam.position.xyz;
-    let right = cam.right.xyz;
-    let down = cam.down.xyz;
-    let forward = cam.forward.xyz;
+    let rel = p - cameras[c].position.xyz;
+    let right = cameras[c].right.xyz;
+    let down = cameras[c].down.xyz;
+    let forward = cameras[c].forward.xyz;
     let t = vec3<f32>(dot(right, rel), dot(down, rel), dot(forward, rel));
-    let near = cam.clip.x;
-    let far = cam.clip.y;
-    if !(t.z >= near && t.z <= far) {
-        return;
+    let clip = cameras[c].clip;
+    if !(t.z >= clip.x && t.z <= clip.y) {
+        return f;
     }
     let shape = shapes[g];
     let opacity = 1.0 / (1.0 + exp(-high_i16(shape.w) * OPACITY_LOGIT_STEP));
     if !(opacity >= MIN_ALPHA) {
-        return;
+        return f;
     }
-    let fx = cam.focal.x;
-    let fy = cam.focal.y;
+    let focal = cameras[c].focal;
+    let fx = focal.x;
+    let fy = focal.y;
     let inv_z = 1.0 / t.z;
-    let sx = clamp(t.x * inv_z, -cam.clip.z, cam.clip.z);
-    let sy = clamp(t.y * inv_z, -cam.clip.w, cam.clip.w);
+    let sx = clamp(t.x * inv_z, -clip.z, clip.z);
+    let sy = clamp(t.y * inv_z, -clip.w, clip.w);
     // Rows of J·W at the clamped mean.
     let r0 = (right - forward * sx) * (fx * inv_z);
     let r1 = (down - forward * sy) * (fy * inv_z);
@@ -185,110 +261,183 @@ fn project(
     let log_scale = vec3<f32>(low_i16(shape.z), high_i16(shape.z), low_i16(shape.w)) * LOG_SCALE_STEP;
     var a = LOW_PASS;
     var b = 0.0;
-    var c = LOW_PASS;
+    var cc = LOW_PASS;
     for (var k = 0u; k < 3u; k++) {
         let variance = exp(log_scale[k] + log_scale[k]);
         let d0 = dot(axes[k], r0);
         let d1 = dot(axes[k], r1);
         a += variance * d0 * d0;
         b += variance * d0 * d1;
-        c += variance * d1 * d1;
+        cc += variance * d1 * d1;
     }
-    let det = a * c - b * b;
+    let det = a * cc - b * b;
     let cutoff = 2.0 * log(255.0 * max(opacity, MIN_ALPHA)) + 1e-3;
-    let extent = vec2<f32>(sqrt(cutoff * a), sqrt(cutoff * c));
-    let px = fx * t.x * inv_z + cam.focal.z;
-    let py = fy * t.y * inv_z + cam.focal.w;
-    let width = f32(cam.size.x);
-    let height = f32(cam.size.y);
+    let extent = vec2<f32>(sqrt(cutoff * a), sqrt(cutoff * cc));
+    let px = fx * t.x * inv_z + focal.z;
+    let py = fy * t.y * inv_z + focal.w;
+    let width = f32(cameras[c].size.x);
+    let height = f32(cameras[c].size.y);
     if !(det > 0.0 && det < 3.4e38 && px + extent.x >= 0.0 && px - extent.x <= width
         && py + extent.y >= 0.0 && py - extent.y <= height) {
-        return;
+        return f;
     }
-    let inv_det = 1.0 / det;
-    let color = sh_color(g, normalize(rel));
-    splats[4u * g] = vec4<f32>(px, py, c * inv_det, -b * inv_det);
-    splats[4u * g + 1u] = vec4<f32>(a * inv_det, opacity, t.z, bitcast<f32>(instances[g]));
-    splats[4u * g + 2u] = vec4<f32>(color, cutoff);
-    splats[4u * g + 3u] = vec4<f32>(extent, 0.0, 0.0);
-    visible[g] = 1u;
+    f.visible = true;
+    f.centre = vec2<f32>(px, py);
+    f.cov = vec3<f32>(a, b, cc);
+    f.opacity = opacity;
+    f.depth = t.z;
+    f.cutoff = cutoff;
+    f.extent = extent;
+    f.ray = rel;
+    return f;
 }
 
+var<workgroup> lane_bits: array<atomic<u32>, 8>;
+
 @compute @workgroup_size(256)
-fn compact(
+fn mark(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let g = thread_index(wid, nwg, lid);
-    let n = cam.work.x;
-    if g >= n {
+    let entry = group_index(wid, nwg);
+    let entries = live[slots.entries];
+    if entry > entries {
         return;
     }
-    let slot = visible[g];
-    if visible[g + 1u] != slot {
-        // Depths are positive, so their bits sort like the values.
-        depth_keys[slot] = bitcast<u32>(splats[4u * g + 1u].z);
-        depth_values[slot] = g;
+    if entry == entries {
+        // The scan's total: zero before the scan.
+        if lid == 0u {
+            entry_counts[entries] = 0u;
+        }
+        return;
+    }
+    if lid < 8u {
+        atomicStore(&lane_bits[lid], 0u);
+    }
+    workgroupBarrier();
+    let flat = chunk_list[entry];
+    let g = (flat % CHUNKS) * 256u + lid;
+    if g < GAUSSIANS && footprint(flat / CHUNKS, g).visible {
+        atomicOr(&lane_bits[lid / 32u], 1u << (lid % 32u));
+    }
+    workgroupBarrier();
+    if lid < 8u {
+        entry_masks[8u * entry + lid] = atomicLoad(&lane_bits[lid]);
+    }
+    if lid == 0u {
+        var total = 0u;
+        for (var k = 0u; k < 8u; k++) {
+            total += countOneBits(atomicLoad(&lane_bits[k]));
+        }
+        entry_counts[entry] = total;
     }
 }
 
-// The tiles of splat g's box, as the CPU bins them: [x0, y0, x1, y1], inclusive.
-fn tile_box(g: u32) -> vec4<u32> {
-    let s = splats[4u * g];
-    let e = splats[4u * g + 3u].xy;
-    let w = f32(cam.size.x);
-    let h = f32(cam.size.y);
-    let last = cam.size.zw - vec2<u32>(1u);
-    let x0 = min(u32(max(s.x - e.x, 0.0) / f32(TILE)), last.x);
-    let y0 = min(u32(max(s.y - e.y, 0.0) / f32(TILE)), last.y);
-    let x1 = min(u32(max(min(s.x + e.x, w - 1.0), 0.0) / f32(TILE)), last.x);
-    let y1 = min(u32(max(min(s.y + e.y, h - 1.0), 0.0) / f32(TILE)), last.y);
+@compute @workgroup_size(256)
+fn project(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let entry = group_index(wid, nwg);
+    if entry >= live[slots.entries] {
+        return;
+    }
+    let word = lid / 32u;
+    let bit = 1u << (lid % 32u);
+    let mask = entry_masks[8u * entry + word];
+    if (mask & bit) == 0u {
+        return;
+    }
+    var slot = entry_counts[entry] + countOneBits(mask & (bit - 1u));
+    for (var k = 0u; k < word; k++) {
+        slot += countOneBits(entry_masks[8u * entry + k]);
+    }
+    if slot >= live[slots.splats] {
+        return;
+    }
+    let flat = chunk_list[entry];
+    let c = flat / CHUNKS;
+    let g = (flat % CHUNKS) * 256u + lid;
+    let f = footprint(c, g);
+    let inv_det = 1.0 / (f.cov.x * f.cov.z - f.cov.y * f.cov.y);
+    splats[4u * slot] = vec4<f32>(f.centre, f.cov.z * inv_det, -f.cov.y * inv_det);
+    splats[4u * slot + 1u] = vec4<f32>(f.cov.x * inv_det, f.opacity, f.depth, bitcast<f32>(instances[g]));
+    splats[4u * slot + 2u] = vec4<f32>(sh_color(g, normalize(f.ray)), f.cutoff);
+    splats[4u * slot + 3u] = vec4<f32>(f.extent, bitcast<f32>(c), 0.0);
+    // Depths are positive, so their bits sort like the values.
+    depth_keys[slot] = bitcast<u32>(f.depth);
+    depth_values[slot] = slot;
+}
+
+fn splat_camera(s: u32) -> u32 {
+    return bitcast<u32>(splats[4u * s + 3u].z);
+}
+
+// The tiles of splat s's box in its camera, as the CPU bins them: [x0, y0, x1, y1],
+// inclusive.
+fn tile_box(s: u32, c: u32) -> vec4<u32> {
+    let m = splats[4u * s];
+    let e = splats[4u * s + 3u].xy;
+    let size = cameras[c].size;
+    let w = f32(size.x);
+    let h = f32(size.y);
+    let last = size.zw - vec2<u32>(1u);
+    let x0 = min(u32(max(m.x - e.x, 0.0) / f32(TILE)), last.x);
+    let y0 = min(u32(max(m.y - e.y, 0.0) / f32(TILE)), last.y);
+    let x1 = min(u32(max(min(m.x + e.x, w - 1.0), 0.0) / f32(TILE)), last.x);
+    let y1 = min(u32(max(min(m.y + e.y, h - 1.0), 0.0) / f32(TILE)), last.y);
     return vec4<u32>(x0, y0, x1, y1);
 }
 
-// True when some pixel centre of tile (tx, ty) gets alpha ≥ 1/255 from splat g: the minimum
+// True when some pixel centre of tile (tx, ty) gets alpha ≥ 1/255 from splat s: the minimum
 // of the conic's quadratic form over the tile's pixel-centre rectangle against the cutoff.
-fn reaches_tile(g: u32, tx: u32, ty: u32) -> bool {
-    let s = splats[4u * g];
-    let a = s.z;
-    let b = s.w;
-    let c = splats[4u * g + 1u].x;
-    let cutoff = splats[4u * g + 2u].w;
+fn reaches_tile(s: u32, c: u32, tx: u32, ty: u32) -> bool {
+    let m = splats[4u * s];
+    let a = m.z;
+    let b = m.w;
+    let cc = splats[4u * s + 1u].x;
+    let cutoff = splats[4u * s + 2u].w;
+    let size = cameras[c].size;
     let x0 = f32(tx * TILE) + 0.5;
     let y0 = f32(ty * TILE) + 0.5;
-    let x1 = f32(min((tx + 1u) * TILE, cam.size.x)) - 0.5;
-    let y1 = f32(min((ty + 1u) * TILE, cam.size.y)) - 0.5;
-    if x0 <= s.x && s.x <= x1 && y0 <= s.y && s.y <= y1 {
+    let x1 = f32(min((tx + 1u) * TILE, size.x)) - 0.5;
+    let y1 = f32(min((ty + 1u) * TILE, size.y)) - 0.5;
+    if x0 <= m.x && m.x <= x1 && y0 <= m.y && m.y <= y1 {
         return true;
     }
-    let dx0 = x0 - s.x;
-    let dx1 = x1 - s.x;
-    let dy0 = y0 - s.y;
-    let dy1 = y1 - s.y;
-    let ya = clamp(-b * dx0 / c, dy0, dy1);
-    let yb = clamp(-b * dx1 / c, dy0, dy1);
+    let dx0 = x0 - m.x;
+    let dx1 = x1 - m.x;
+    let dy0 = y0 - m.y;
+    let dy1 = y1 - m.y;
+    let ya = clamp(-b * dx0 / cc, dy0, dy1);
+    let yb = clamp(-b * dx1 / cc, dy0, dy1);
     let xa = clamp(-b * dy0 / a, dx0, dx1);
     let xb = clamp(-b * dy1 / a, dx0, dx1);
-    let q0 = a * dx0 * dx0 + 2.0 * b * dx0 * ya + c * ya * ya;
-    let q1 = a * dx1 * dx1 + 2.0 * b * dx1 * yb + c * yb * yb;
-    let q2 = a * xa * xa + 2.0 * b * xa * dy0 + c * dy0 * dy0;
-    let q3 = a * xb * xb + 2.0 * b * xb * dy1 + c * dy1 * dy1;
+    let q0 = a * dx0 * dx0 + 2.0 * b * dx0 * ya + cc * ya * ya;
+    let q1 = a * dx1 * dx1 + 2.0 * b * dx1 * yb + cc * yb * yb;
+    let q2 = a * xa * xa + 2.0 * b * xa * dy0 + cc * dy0 * dy0;
+    let q3 = a * xb * xb + 2.0 * b * xb * dy1 + cc * dy1 * dy1;
     return min(min(q0, q1), min(q2, q3)) <= cutoff;
 }
 
-// Counts the tiles splat g reaches; with `write`, also records them as entries from `first`
-// on (those past the capacity are counted, not written: the host grows the buffers).
-fn bin(g: u32, first: u32, write: bool) -> u32 {
-    let r = tile_box(g);
+// Counts the tiles splat s reaches; with `write`, also records them as entries from `first`
+// on (those past the buffers are counted, not written: the host grows the buffers).
+fn bin(s: u32, first: u32, write: bool) -> u32 {
+    let c = splat_camera(s);
+    let r = tile_box(s, c);
     let single = r.x == r.z && r.y == r.w;
+    let base = cameras[c].place.x;
+    let across = cameras[c].size.z;
+    let room = live[slots.tile_entries];
     var slot = first;
     for (var ty = r.y; ty <= r.w; ty++) {
         for (var tx = r.x; tx <= r.z; tx++) {
-            if single || reaches_tile(g, tx, ty) {
-                if write && slot < cam.work.y {
-                    tile_keys[slot] = ty * cam.size.z + tx;
-                    tile_values[slot] = g;
+            if single || reaches_tile(s, c, tx, ty) {
+                if write && slot < room {
+                    tile_keys[slot] = base + ty * across + tx;
+                    tile_values[slot] = s;
                 }
                 slot += 1u;
             }
@@ -304,15 +453,15 @@ fn count_tiles(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let i = thread_index(wid, nwg, lid);
-    let n = cam.work.x;
+    let n = live[slots.splats];
     if i > n {
         return;
     }
     var count = 0u;
-    if i < visible[n] {
+    if i < n {
         count = bin(depth_values[i], 0u, false);
     }
-    tile_offsets[i] = count;
+    tile_counts[i] = count;
 }
 
 @compute @workgroup_size(256)
@@ -322,10 +471,10 @@ fn emit(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let i = thread_index(wid, nwg, lid);
-    if i >= visible[cam.work.x] {
+    if i >= live[slots.splats] {
         return;
     }
-    bin(depth_values[i], tile_offsets[i], true);
+    bin(depth_values[i], tile_counts[i], true);
 }
 
 @compute @workgroup_size(256)
@@ -335,27 +484,23 @@ fn clear_ranges(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let t = thread_index(wid, nwg, lid);
-    if t < cam.size.z * cam.size.w {
+    if t < live[LIVE_TILES] {
         tile_ranges[t] = vec2<u32>(0u);
     }
 }
 
 fn sorted_tile(i: u32) -> u32 {
-    if cam.work.z == 1u {
+    if live[LIVE_TILE_PARITY] == 1u {
         return tile_keys_2[i];
     }
     return tile_keys[i];
 }
 
 fn sorted_splat(i: u32) -> u32 {
-    if cam.work.z == 1u {
+    if live[LIVE_TILE_PARITY] == 1u {
         return tile_values_2[i];
     }
     return tile_values[i];
-}
-
-fn entry_count() -> u32 {
-    return min(tile_offsets[cam.work.x], cam.work.y);
 }
 
 @compute @workgroup_size(256)
@@ -365,7 +510,7 @@ fn ranges(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let i = thread_index(wid, nwg, lid);
-    let m = entry_count();
+    let m = live[slots.tile_entries];
     if i >= m {
         return;
     }
@@ -391,9 +536,15 @@ fn raster(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
 ) {
+    let c = wid.z;
+    let size = cameras[c].size;
+    if wid.x >= size.z || wid.y >= size.w {
+        // The batch's grid is that of its largest camera.
+        return;
+    }
     let px = wid.x * TILE + local.x;
     let py = wid.y * TILE + local.y;
-    let inside = px < cam.size.x && py < cam.size.y;
+    let inside = px < size.x && py < size.y;
     let centre = vec2<f32>(f32(px) + 0.5, f32(py) + 0.5);
     var transmittance = 1.0;
     var color = vec3<f32>(0.0);
@@ -404,7 +555,7 @@ fn raster(
     var done = !inside;
     if lid == 0u {
         atomicStore(&pixels_done, 0u);
-        tile_range = tile_ranges[wid.y * cam.size.z + wid.x];
+        tile_range = tile_ranges[cameras[c].place.x + wid.y * size.z + wid.x];
     }
     // Read through the workgroup so every thread sees the same (uniform) loop bounds.
     let range = workgroupUniformLoad(&tile_range);
@@ -460,9 +611,9 @@ fn raster(
     if !inside {
         return;
     }
-    let pixels = cam.size.x * cam.size.y;
-    let p = py * cam.size.x + px;
-    let rgb = color + transmittance * cam.background.xyz;
+    let pixels = size.x * size.y;
+    let p = cameras[c].place.y + py * size.x + px;
+    let rgb = color + transmittance * cameras[c].background.xyz;
     let hit = 1.0 - transmittance;
     var depth = 0.0;
     var category = 0u;
@@ -483,11 +634,4 @@ fn raster(
     images[5u * pixels + p] = bitcast<u32>(median);
     images[6u * pixels + p] = instance;
     images[7u * pixels + p] = category;
-}
-
-@compute @workgroup_size(1)
-fn record() {
-    let n = cam.work.x;
-    work_counts[2u * cam.work.w] = visible[n];
-    work_counts[2u * cam.work.w + 1u] = tile_offsets[n];
 }

@@ -1,0 +1,121 @@
+//! A scene resident on the GPU: the Gaussians as the store holds them (the same quantised
+//! values the CPU renderer reads) and the chunk bounds of the CPU renderer's spatial index,
+//! which the kernels cull against.
+
+use super::Gpu;
+use crate::index::SplatIndex;
+use sage_scene::Gaussians;
+use sage_scene::gaussians::sh_rest_count;
+use wgpu::util::DeviceExt;
+
+/// The scene's buffers.
+pub(crate) struct SceneBuffers {
+    pub(crate) positions: wgpu::Buffer,
+    pub(crate) shapes: wgpu::Buffer,
+    pub(crate) colors: wgpu::Buffer,
+    pub(crate) sh_codes: wgpu::Buffer,
+    pub(crate) instances: wgpu::Buffer,
+    pub(crate) chunk_bounds: wgpu::Buffer,
+    /// Chunks of [`crate::index::CHUNK`] Gaussians.
+    pub(crate) chunks: u32,
+    /// Bytes of all of them.
+    pub(crate) bytes: u64,
+}
+
+/// Words of packed i8 SH codes per Gaussian.
+pub(crate) fn sh_words(sh_rest: usize) -> usize {
+    (sh_rest * 3).div_ceil(4)
+}
+
+/// A storage buffer holding `contents` (one zero word when empty), writable by copies.
+pub(crate) fn init_buffer(gpu: &Gpu, label: &str, contents: &[u32]) -> wgpu::Buffer {
+    let one = [0u32];
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::cast_slice(if contents.is_empty() { &one } else { contents }),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        })
+}
+
+/// Two i16 in one word, low first.
+fn pair(lo: i16, hi: i16) -> u32 {
+    u32::from(lo as u16) | u32::from(hi as u16) << 16
+}
+
+impl SceneBuffers {
+    /// Uploads the store and its chunk bounds.
+    pub(crate) fn upload(gpu: &Gpu, g: &Gaussians) -> SceneBuffers {
+        let n = g.len();
+        let positions: Vec<u32> = g.positions.iter().flatten().map(|v| v.to_bits()).collect();
+        let shapes: Vec<u32> = (0..n)
+            .flat_map(|i| {
+                let [w, x, y, z] = g.rotations[i];
+                let [sx, sy, sz] = g.log_scales[i];
+                [
+                    pair(w, x),
+                    pair(y, z),
+                    pair(sx, sy),
+                    pair(sz, g.opacity_logits[i]),
+                ]
+            })
+            .collect();
+        let half =
+            |lo: half::f16, hi: half::f16| u32::from(lo.to_bits()) | u32::from(hi.to_bits()) << 16;
+        let rest = sh_rest_count(g.sh_degree());
+        let colors: Vec<u32> = (0..n)
+            .flat_map(|i| {
+                let [r, gr, b] = g.sh_dc[i];
+                let step = if rest > 0 {
+                    g.sh_steps[i]
+                } else {
+                    half::f16::ZERO
+                };
+                [half(r, gr), half(b, step)]
+            })
+            .collect();
+        let words = sh_words(rest);
+        let mut sh_codes = vec![0u32; n * words];
+        if rest > 0 {
+            for (i, codes) in g.sh_codes.chunks_exact(rest * 3).enumerate() {
+                for (j, &c) in codes.iter().enumerate() {
+                    sh_codes[i * words + j / 4] |= u32::from(c as u8) << (8 * (j % 4));
+                }
+            }
+        }
+        let index = SplatIndex::build(g);
+        let chunk_bounds: Vec<u32> = index
+            .bounds
+            .iter()
+            .flat_map(|b| {
+                // An empty chunk is flagged rather than given infinite corners.
+                let (held, lo, hi) = if b.is_empty() {
+                    (0.0, [0.0; 3], [0.0; 3])
+                } else {
+                    (1.0, b.min.to_array(), b.max.to_array())
+                };
+                [lo[0], lo[1], lo[2], held, hi[0], hi[1], hi[2], 0.0f32]
+            })
+            .map(f32::to_bits)
+            .collect();
+        let all = [
+            &positions,
+            &shapes,
+            &colors,
+            &sh_codes,
+            &g.instances,
+            &chunk_bounds,
+        ];
+        let bytes = all.iter().map(|v| 4 * v.len() as u64).sum();
+        SceneBuffers {
+            positions: init_buffer(gpu, "positions", &positions),
+            shapes: init_buffer(gpu, "shapes", &shapes),
+            colors: init_buffer(gpu, "colors", &colors),
+            sh_codes: init_buffer(gpu, "sh codes", &sh_codes),
+            instances: init_buffer(gpu, "instances", &g.instances),
+            chunk_bounds: init_buffer(gpu, "chunk bounds", &chunk_bounds),
+            chunks: index.bounds.len() as u32,
+            bytes,
+        }
+    }
+}

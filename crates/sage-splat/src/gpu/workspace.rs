@@ -1,0 +1,427 @@
+//! The buffers a batch of cameras renders in, kept from batch to batch and grown only when a
+//! batch needs more (no allocation on the per-frame path), with the scan and sort plans and
+//! the live-size programs built over them.
+
+use super::Gpu;
+use super::kernel::{Kernel, bind, layout, storage, uniform, uniform_buffer};
+use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
+use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
+
+/// Words of one camera's block (`Camera` in `splat.wgsl`: its array stride).
+pub(crate) const CAMERA_WORDS: usize = 60;
+/// Image planes per camera: r, g, b, alpha, expected depth, median depth, instance, category.
+pub(crate) const PLANES: u64 = 8;
+/// Words per projected splat (four vec4).
+const SPLAT_WORDS: u64 = 16;
+/// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
+/// sort's result, the batch's tiles.
+pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
+pub(crate) const LIVE_TILE_PARITY: u32 = 1;
+pub(crate) const LIVE_TILES: u32 = 2;
+const LIVE_FIXED: u32 = 4;
+/// Most 8-bit passes the tile sort takes (tiles of a batch below 2²⁴).
+pub(crate) const TILE_SORT_PASSES: u32 = 3;
+/// Depth keys are f32 bits: four 8-bit passes.
+const DEPTH_SORT_PASSES: u32 = 4;
+
+/// What a batch needs the buffers to hold (or what they hold).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Caps {
+    /// Cameras.
+    pub(crate) cameras: u32,
+    /// Cameras × chunks.
+    pub(crate) camera_chunks: u32,
+    /// Visible (camera, chunk) entries.
+    pub(crate) entries: u32,
+    /// Visible splats.
+    pub(crate) splats: u32,
+    /// (tile, splat) entries.
+    pub(crate) tile_entries: u32,
+    /// Tiles over the cameras.
+    pub(crate) tiles: u32,
+    /// Image words over the cameras.
+    pub(crate) image_words: u64,
+}
+
+impl Caps {
+    /// True when buffers of `self` hold a batch needing `need`.
+    pub(crate) fn holds(&self, need: &Caps) -> bool {
+        self.cameras >= need.cameras
+            && self.camera_chunks >= need.camera_chunks
+            && self.entries >= need.entries
+            && self.splats >= need.splats
+            && self.tile_entries >= need.tile_entries
+            && self.tiles >= need.tiles
+            && self.image_words >= need.image_words
+    }
+
+    /// The larger of each.
+    pub(crate) fn max(&self, o: &Caps) -> Caps {
+        Caps {
+            cameras: self.cameras.max(o.cameras),
+            camera_chunks: self.camera_chunks.max(o.camera_chunks),
+            entries: self.entries.max(o.entries),
+            splats: self.splats.max(o.splats),
+            tile_entries: self.tile_entries.max(o.tile_entries),
+            tiles: self.tiles.max(o.tiles),
+            image_words: self.image_words.max(o.image_words),
+        }
+    }
+
+    /// The largest single buffer these need, bytes (checked against what one binding sees).
+    pub(crate) fn largest_buffer(&self) -> u64 {
+        [
+            u64::from(self.splats) * SPLAT_WORDS * 4,
+            u64::from(self.entries) * 32,
+            u64::from(self.tile_entries) * 4,
+            u64::from(self.camera_chunks) * 4 + 4,
+            self.image_words * 4,
+            u64::from(self.cameras) * CAMERA_WORDS as u64 * 4,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0)
+    }
+
+    /// Device bytes of buffers of these capacities (the scan and sort scratch included).
+    pub(crate) fn bytes(&self) -> u64 {
+        let words = u64::from(self.cameras) * CAMERA_WORDS as u64
+            + 2 * u64::from(self.camera_chunks)
+            + 11 * u64::from(self.entries)
+            + u64::from(self.splats) * (SPLAT_WORDS + 6)
+            + 5 * u64::from(self.tile_entries)
+            + 2 * u64::from(self.tiles)
+            + self.image_words;
+        words * 4
+    }
+}
+
+/// The kernels of `splat.wgsl` and the layouts of their two bind groups.
+pub(crate) struct Kernels {
+    pub(crate) scene_layout: wgpu::BindGroupLayout,
+    frame_layout: wgpu::BindGroupLayout,
+    cull: Kernel,
+    list_chunks: Kernel,
+    mark: Kernel,
+    project: Kernel,
+    count_tiles: Kernel,
+    emit: Kernel,
+    clear_ranges: Kernel,
+    ranges: Kernel,
+    raster: Kernel,
+    scan: Scan,
+    sort: RadixSort,
+    pub(crate) live: Live,
+}
+
+impl Kernels {
+    /// Compiles `source` (the prelude and `splat.wgsl`) and the scan, sort and live kernels.
+    pub(crate) fn new(gpu: &Gpu, source: String) -> Kernels {
+        let module = gpu
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("splat"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+        let scene_layout = layout(gpu, &(0..7).map(|b| storage(b, true)).collect::<Vec<_>>());
+        let mut frame = vec![storage(0, true), storage(1, true)];
+        frame.extend((2..16).map(|b| storage(b, false)));
+        frame.push(uniform(16));
+        let frame_layout = layout(gpu, &frame);
+        let layouts = [&scene_layout, &frame_layout];
+        let kernel = |entry: &str| Kernel::new(gpu, &module, entry, &layouts);
+        Kernels {
+            cull: kernel("cull"),
+            list_chunks: kernel("list_chunks"),
+            mark: kernel("mark"),
+            project: kernel("project"),
+            count_tiles: kernel("count_tiles"),
+            emit: kernel("emit"),
+            clear_ranges: kernel("clear_ranges"),
+            ranges: kernel("ranges"),
+            raster: kernel("raster"),
+            scan: Scan::new(gpu),
+            sort: RadixSort::new(gpu),
+            live: Live::new(gpu),
+            scene_layout,
+            frame_layout,
+        }
+    }
+}
+
+/// Byte offsets of the indirect arguments of the passes over live sizes.
+struct Dispatches {
+    /// A thread per camera × chunk (+1).
+    camera_chunks: u64,
+    /// A workgroup per visible entry (+1).
+    entries: u64,
+    /// A thread per visible splat (+1).
+    splats: u64,
+    /// A thread per (tile, splat) entry.
+    tile_entries: u64,
+}
+
+/// A batch's buffers for up to [`Caps`], with what is recorded over them.
+pub(crate) struct Workspace {
+    pub(crate) caps: Caps,
+    pub(crate) cameras: wgpu::Buffer,
+    pub(crate) images: wgpu::Buffer,
+    frame_group: wgpu::BindGroup,
+    programs: LivePrograms,
+    dispatches: Dispatches,
+    flags_scan: ScanPlan,
+    entries_scan: ScanPlan,
+    tiles_scan: ScanPlan,
+    depth_sort: SortPlan,
+    tile_sort: SortPlan,
+    /// Live slots of the unclamped counts: entries, splats, tile entries.
+    pub(crate) raw: [u32; 3],
+    _buffers: Vec<wgpu::Buffer>,
+}
+
+/// A storage buffer of `words` u32 (at least one).
+fn words_buffer(gpu: &Gpu, label: &str, words: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: words.max(1) * 4,
+        usage: wgpu::BufferUsages::STORAGE | extra,
+        mapped_at_creation: false,
+    })
+}
+
+impl Workspace {
+    /// Buffers of `caps`, their plans and programs.
+    pub(crate) fn new(gpu: &Gpu, k: &Kernels, caps: Caps) -> Workspace {
+        let none = wgpu::BufferUsages::empty();
+        let buffer = |label: &str, words: u64| words_buffer(gpu, label, words, none);
+        let cameras = words_buffer(
+            gpu,
+            "cameras",
+            u64::from(caps.cameras) * CAMERA_WORDS as u64,
+            wgpu::BufferUsages::COPY_DST,
+        );
+        let flags = buffer("chunk flags", u64::from(caps.camera_chunks) + 1);
+        let chunk_list = buffer("chunk list", u64::from(caps.entries));
+        let masks = buffer("entry masks", 8 * u64::from(caps.entries));
+        let entry_counts = buffer("entry counts", u64::from(caps.entries) + 1);
+        let splats = buffer("splats", u64::from(caps.splats) * SPLAT_WORDS);
+        let depth = [
+            "depth keys",
+            "depth values",
+            "depth keys 2",
+            "depth values 2",
+        ]
+        .map(|l| buffer(l, u64::from(caps.splats)));
+        let tile_counts = buffer("tile counts", u64::from(caps.splats) + 1);
+        let tile_pairs = ["tile keys", "tile values", "tile keys 2", "tile values 2"]
+            .map(|l| buffer(l, u64::from(caps.tile_entries)));
+        let tile_ranges = buffer("tile ranges", 2 * u64::from(caps.tiles));
+        let images = words_buffer(
+            gpu,
+            "images",
+            caps.image_words,
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let live = &k.live;
+        let mut b = LiveBuilder::new(LIVE_FIXED);
+        // Stage 0, from the host's counts: the culling and the scan of its flags.
+        b.stage();
+        let flag_count = b.derive(
+            Size {
+                add: 1,
+                ..Size::of(Count::Live(LIVE_CAMERA_CHUNKS), caps.camera_chunks + 1)
+            }
+            .dispatched(256),
+        );
+        let flags_scan = k.scan.plan(
+            gpu,
+            live,
+            &mut b,
+            &flags,
+            caps.camera_chunks + 1,
+            flag_count.n,
+        );
+        // Stage 1, from the flags' total: the visible entries.
+        b.stage();
+        let entries = b.derive(Size {
+            keep_raw: true,
+            ..Size::of(Count::SourceAt(LIVE_CAMERA_CHUNKS), caps.entries)
+        });
+        let entry_groups = b.derive(
+            Size {
+                add: 1,
+                ..Size::of(Count::Live(entries.n), caps.entries + 1)
+            }
+            .dispatched(1),
+        );
+        let entries_scan = k.scan.plan(
+            gpu,
+            live,
+            &mut b,
+            &entry_counts,
+            caps.entries + 1,
+            entry_groups.n,
+        );
+        // Stage 2, from the entries' total: the visible splats, their sort and binning.
+        b.stage();
+        let splat_count = b.derive(Size {
+            keep_raw: true,
+            ..Size::of(Count::SourceAt(entries.n), caps.splats)
+        });
+        let splat_threads = b.derive(
+            Size {
+                add: 1,
+                ..Size::of(Count::Live(splat_count.n), caps.splats + 1)
+            }
+            .dispatched(256),
+        );
+        let [d0, d1, d2, d3] = &depth;
+        let depth_sort = k.sort.plan(
+            gpu,
+            &k.scan,
+            live,
+            &mut b,
+            (d0, d1),
+            (d2, d3),
+            caps.splats,
+            splat_count.n,
+            DEPTH_SORT_PASSES,
+        );
+        let tiles_scan = k.scan.plan(
+            gpu,
+            live,
+            &mut b,
+            &tile_counts,
+            caps.splats + 1,
+            splat_threads.n,
+        );
+        // Stage 3, from the tile counts' total: the (tile, splat) entries and their sort.
+        b.stage();
+        let tile_entries = b.derive(
+            Size {
+                keep_raw: true,
+                ..Size::of(Count::SourceAt(splat_count.n), caps.tile_entries)
+            }
+            .dispatched(256),
+        );
+        let [t0, t1, t2, t3] = &tile_pairs;
+        let tile_sort = k.sort.plan(
+            gpu,
+            &k.scan,
+            live,
+            &mut b,
+            (t0, t1),
+            (t2, t3),
+            caps.tile_entries,
+            tile_entries.n,
+            TILE_SORT_PASSES,
+        );
+        let programs = live.programs(gpu, &b, &[&flags, &flags, &entry_counts, &tile_counts]);
+        let slots = uniform_buffer(gpu, &[entries.n, splat_count.n, tile_entries.n, 0]);
+        let frame_group = bind(
+            gpu,
+            &k.frame_layout,
+            &[
+                cameras.as_entire_binding(),
+                live.buffer.as_entire_binding(),
+                flags.as_entire_binding(),
+                chunk_list.as_entire_binding(),
+                masks.as_entire_binding(),
+                entry_counts.as_entire_binding(),
+                splats.as_entire_binding(),
+                d0.as_entire_binding(),
+                d1.as_entire_binding(),
+                tile_counts.as_entire_binding(),
+                t0.as_entire_binding(),
+                t1.as_entire_binding(),
+                t2.as_entire_binding(),
+                t3.as_entire_binding(),
+                tile_ranges.as_entire_binding(),
+                images.as_entire_binding(),
+                slots.as_entire_binding(),
+            ],
+        );
+        let [d0, d1, d2, d3] = depth;
+        let [t0, t1, t2, t3] = tile_pairs;
+        Workspace {
+            caps,
+            raw: [entries.raw, splat_count.raw, tile_entries.raw],
+            dispatches: Dispatches {
+                camera_chunks: flag_count.args,
+                entries: entry_groups.args,
+                splats: splat_threads.args,
+                tile_entries: tile_entries.args,
+            },
+            cameras,
+            images,
+            frame_group,
+            programs,
+            flags_scan,
+            entries_scan,
+            tiles_scan,
+            depth_sort,
+            tile_sort,
+            _buffers: vec![
+                flags,
+                chunk_list,
+                masks,
+                entry_counts,
+                splats,
+                d0,
+                d1,
+                d2,
+                d3,
+                tile_counts,
+                t0,
+                t1,
+                t2,
+                t3,
+                tile_ranges,
+                slots,
+            ],
+        }
+    }
+
+    /// Records the whole batch into `pass`: `cameras` cameras, `tiles` tiles over them, the
+    /// tile sort over `tile_passes` digits, the blending over a grid of `grid` tiles.
+    pub(crate) fn encode(
+        &self,
+        k: &Kernels,
+        scene_group: &wgpu::BindGroup,
+        pass: &mut wgpu::ComputePass<'_>,
+        tiles: u32,
+        tile_passes: u32,
+        grid: (u32, u32, u32),
+    ) {
+        let live = &k.live;
+        let groups: [(&wgpu::BindGroup, &[u32]); 2] =
+            [(scene_group, &[]), (&self.frame_group, &[])];
+        let d = &self.dispatches;
+        live.encode(pass, &self.programs, 0);
+        live.dispatch(pass, &k.cull, &groups, d.camera_chunks);
+        k.scan.encode(pass, live, &self.flags_scan);
+        live.dispatch(pass, &k.list_chunks, &groups, d.camera_chunks);
+        live.encode(pass, &self.programs, 1);
+        live.dispatch(pass, &k.mark, &groups, d.entries);
+        k.scan.encode(pass, live, &self.entries_scan);
+        live.encode(pass, &self.programs, 2);
+        live.dispatch(pass, &k.project, &groups, d.entries);
+        k.sort.encode(
+            pass,
+            &k.scan,
+            live,
+            &self.depth_sort,
+            DEPTH_SORT_PASSES as usize,
+        );
+        live.dispatch(pass, &k.count_tiles, &groups, d.splats);
+        k.scan.encode(pass, live, &self.tiles_scan);
+        live.encode(pass, &self.programs, 3);
+        live.dispatch(pass, &k.emit, &groups, d.splats);
+        k.sort
+            .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
+        k.clear_ranges
+            .run_grid(pass, &groups, super::kernel::threads_grid(tiles));
+        live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
+        k.raster.run_grid(pass, &groups, grid);
+    }
+}
