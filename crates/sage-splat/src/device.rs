@@ -217,6 +217,16 @@ impl Backend {
         }
     }
 
+    /// Device memory the GPU renderer holds, bytes: the resident scene and the work space as
+    /// the last batch left it (`None` on the CPU).
+    pub fn device_bytes(&self) -> Option<u64> {
+        match &self.executor {
+            Executor::Cpu(_) => None,
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => Some(r.scene_bytes() + r.stats().workspace_bytes),
+        }
+    }
+
     /// True when the GPU renders.
     pub fn is_gpu(&self) -> bool {
         !matches!(self.executor, Executor::Cpu(_))

@@ -46,6 +46,16 @@ pub fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + exp_fast(-x))
 }
 
+/// The coefficients of 2^f for f in [−½, ½] after the leading 1 (degree 5): [`exp4`]'s, and the
+/// GPU renderer's (its prelude takes them from here).
+pub const EXP2_POLY: [f32; 5] = [
+    std::f32::consts::LN_2,
+    0.240_226_5,
+    0.055_504_11,
+    0.009_618_129,
+    0.001_333_355_8,
+];
+
 /// e^x, four lanes, for |x| up to about 87 (relative error below 5e-6): 2^(x log₂e) split
 /// at the nearest integer, the fraction in [−½, ½] by a degree-5 polynomial.
 #[inline]
@@ -58,9 +68,10 @@ pub fn exp4(x: f32x4) -> f32x4 {
     // Estrin's scheme: the same polynomial as Horner's, with half the dependent steps.
     let c = |v: f32| f32x4::splat(v);
     let f2 = f * f;
-    let low = f32x4::ONE + f * c(std::f32::consts::LN_2);
-    let mid = c(0.240_226_5) + f * c(0.055_504_11);
-    let high = c(0.009_618_129) + f * c(0.001_333_355_8);
+    let [c1, c2, c3, c4, c5] = EXP2_POLY;
+    let low = f32x4::ONE + f * c(c1);
+    let mid = c(c2) + f * c(c3);
+    let high = c(c4) + f * c(c5);
     let p = low + f2 * (mid + f2 * high);
     let scale: f32x4 = cast((n + i32x4::splat(127)) << 23);
     scale * p

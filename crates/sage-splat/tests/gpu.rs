@@ -186,6 +186,25 @@ fn a_batch_equals_its_cameras_rendered_alone_and_repeats_exactly() {
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
     assert_eq!(batch.len(), cameras.len());
+    // Inside one room, every camera culls most of the house's chunks on the GPU.
+    let stats = renderer.stats();
+    let chunks = g.len().div_ceil(sage_splat::index::CHUNK) as u64;
+    assert_eq!(stats.cameras, cameras.len());
+    assert!(
+        stats.chunks > 0 && stats.chunks < cameras.len() as u64 * chunks * 3 / 4,
+        "{stats:?} of {chunks} chunks per camera"
+    );
+    // Two batches in flight at once (the second submitted before the first is read back)
+    // give the same images.
+    let first = renderer
+        .submit(g, categories, &cameras[..3], &options)
+        .unwrap();
+    let second = renderer
+        .submit(g, categories, &cameras[3..], &options)
+        .unwrap();
+    let mut overlapped = first.wait().unwrap();
+    overlapped.extend(second.wait().unwrap());
+    assert_eq!(batch, overlapped);
     for (cam, from_batch) in cameras.iter().zip(&batch) {
         let alone = renderer.render(g, categories, cam, &options).unwrap();
         assert_eq!(&alone, from_batch);

@@ -19,6 +19,8 @@ use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
 use sage_scene::gaussians::{LOG_SCALE_STEP, OPACITY_LOGIT_STEP, sh_rest_count};
+use std::collections::VecDeque;
+use std::ops::Range;
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 
 /// Most cameras in one batch: the blending grid's third dimension.
@@ -42,6 +44,15 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
         sh::C1,
         sh_words(sh_rest).max(1),
     );
+    s += &format!(
+        "const LOG2_E: f32 = {:?};\nconst LN_2: f32 = {:?};\nconst SQRT_2: f32 = {:?};\n",
+        std::f32::consts::LOG2_E,
+        std::f32::consts::LN_2,
+        std::f32::consts::SQRT_2
+    );
+    for (k, c) in crate::fastmath::EXP2_POLY.iter().enumerate() {
+        s += &format!("const EXP2_POLY_{k}: f32 = {c:?};\n");
+    }
     for (k, c) in sh::C2.iter().enumerate() {
         s += &format!("const SH_C2_{k}: f32 = {c:?};\n");
     }
@@ -168,19 +179,20 @@ impl Submitted {
         };
         let r = &self.renderer;
         let mut state = r.lock();
-        // A render again after growing needs this batch's categories bound.
-        r.use_categories(&mut state, &self.categories);
-        let mut regrown = 0;
-        let (images, mut stats) = r.settle(
-            &mut state,
-            flight,
-            &self.cameras,
-            &self.options,
-            &mut regrown,
-        )?;
-        stats.regrown = regrown;
-        state.stats = stats;
-        Ok(images)
+        match r.finish(&mut state, flight)? {
+            Finished::Images(images, stats) => {
+                state.stats = stats;
+                Ok(images)
+            }
+            // Rendered again in a grown work space, with this batch's categories bound
+            // (another caller may have changed them since).
+            Finished::Grow(need) => {
+                if need.largest_buffer() <= r.gpu.largest_binding() {
+                    r.grow(&mut state, need);
+                }
+                r.render_held(&mut state, &self.categories, &self.cameras, &self.options)
+            }
+        }
     }
 }
 
@@ -468,8 +480,9 @@ impl GpuRenderer {
     }
 
     /// Renders `cameras` with the GPU held: in parts the adapter's buffers hold, each part's
-    /// read-back overlapping the next part's rendering, a part rendered again when the work
-    /// space had to grow.
+    /// read-back overlapping the next part's rendering. A part that found more on the GPU than
+    /// the work space held is rendered again after growing it, or in halves where the grown
+    /// buffers would pass what one binding sees.
     fn render_held(
         &self,
         state: &mut State,
@@ -478,67 +491,78 @@ impl GpuRenderer {
         options: &RenderOptions,
     ) -> Result<Vec<RenderOutput>> {
         self.use_categories(state, categories);
-        let parts = self.parts(state, cameras)?;
-        let mut out = Vec::with_capacity(cameras.len());
-        let mut regrown = 0;
+        let bound = self.gpu.largest_binding();
+        let mut queue: VecDeque<Range<usize>> = self.parts(state, cameras)?.into();
+        let mut out: Vec<Option<RenderOutput>> = cameras.iter().map(|_| None).collect();
         let mut total = GpuStats::default();
-        let mut previous: Option<(InFlight, &[Camera])> = None;
-        for part in parts.iter().map(|r| &cameras[r.clone()]).chain([&[][..]]) {
-            let next = if part.is_empty() {
-                None
-            } else {
-                let need = self.need(state, part);
-                Some((self.launch(state, part, options, need)?, part))
-            };
-            if let Some((flight, cams)) = previous.take() {
-                let (images, stats) = self.settle(state, flight, cams, options, &mut regrown)?;
-                out.extend(images);
-                total = GpuStats {
-                    chunks: total.chunks + stats.chunks,
-                    splats: total.splats + stats.splats,
-                    tile_entries: total.tile_entries + stats.tile_entries,
-                    ..stats
-                };
-            }
-            previous = next;
-        }
-        total.cameras = cameras.len();
-        total.regrown = regrown;
-        state.stats = total;
-        Ok(out)
-    }
-
-    /// The images of `flight`, rendering `cameras` again (after growing) until the work space
-    /// held them.
-    fn settle(
-        &self,
-        state: &mut State,
-        flight: InFlight,
-        cameras: &[Camera],
-        options: &RenderOptions,
-        regrown: &mut u32,
-    ) -> Result<(Vec<RenderOutput>, GpuStats)> {
-        let mut flight = flight;
+        let mut previous: Option<(InFlight, Range<usize>)> = None;
         loop {
-            match self.finish(state, flight)? {
-                Finished::Images(images, stats) => return Ok((images, stats)),
-                Finished::Grow(need) => {
-                    if need.largest_buffer() > self.gpu.largest_binding() {
+            let next = match queue.pop_front() {
+                Some(range) => {
+                    let part = &cameras[range.clone()];
+                    let need = self.need(state, part);
+                    Some((self.launch(state, part, options, need)?, range))
+                }
+                None => None,
+            };
+            if let Some((flight, range)) = previous.take() {
+                match self.finish(state, flight)? {
+                    Finished::Images(images, stats) => {
+                        for (slot, image) in out[range].iter_mut().zip(images) {
+                            *slot = Some(image);
+                        }
+                        total.chunks += stats.chunks;
+                        total.splats += stats.splats;
+                        total.tile_entries += stats.tile_entries;
+                        total.capacity = stats.capacity;
+                        total.workspace_bytes = stats.workspace_bytes;
+                    }
+                    Finished::Grow(need) if need.largest_buffer() <= bound => {
+                        total.regrown += 1;
+                        self.grow(state, need);
+                        queue.push_front(range);
+                    }
+                    Finished::Grow(_) if range.len() > 1 => {
+                        total.regrown += 1;
+                        let mid = range.start + range.len() / 2;
+                        queue.push_front(mid..range.end);
+                        queue.push_front(range.start..mid);
+                    }
+                    Finished::Grow(need) => {
                         return Err(Error::invalid(format!(
-                            "GPU {}: a frame needs {need:?} of work space, more than one of \
-                             the adapter's buffers holds (render smaller images)",
-                            self.gpu.describe()
+                            "GPU {}: a {}x{} frame needs {} MB of work space in one buffer;                              the adapter binds at most {} MB (render smaller images)",
+                            self.gpu.describe(),
+                            cameras[range.start].intrinsics.width,
+                            cameras[range.start].intrinsics.height,
+                            need.largest_buffer() >> 20,
+                            bound >> 20
                         )));
                     }
-                    *regrown += 1;
-                    flight = self.launch(state, cameras, options, need)?;
                 }
             }
+            previous = next;
+            if previous.is_none() && queue.is_empty() {
+                break;
+            }
         }
+        total.cameras = cameras.len();
+        state.stats = total;
+        Ok(out
+            .into_iter()
+            .map(|o| o.expect("every part was rendered"))
+            .collect())
+    }
+
+    /// Grows the work space to hold `need` (what a batch in flight holds stays alive until it
+    /// finished).
+    fn grow(&self, state: &mut State, need: Caps) {
+        let caps = state.workspace.as_ref().map_or(need, |w| w.caps.max(&need));
+        state.workspace = None;
+        state.workspace = Some(Workspace::new(&self.gpu, &self.kernels, caps));
     }
 
     /// Splits `cameras` into batches the adapter's buffers hold (whole cameras each).
-    fn parts(&self, state: &State, cameras: &[Camera]) -> Result<Vec<std::ops::Range<usize>>> {
+    fn parts(&self, state: &State, cameras: &[Camera]) -> Result<Vec<Range<usize>>> {
         let bound = self.gpu.largest_binding();
         let mut parts = Vec::new();
         let mut start = 0;

@@ -91,6 +91,35 @@ fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.x + wid.y * nwg.x) * 256u + lid;
 }
 
+// e^x as the CPU renderer computes it (`fastmath::exp4`): 2^(x log₂e) split at the nearest
+// integer, the fraction by the same polynomial, in the same order of operations.
+fn exp_fast(x: f32) -> f32 {
+    let y = clamp(x * LOG2_E, -126.0, 126.0);
+    let n = round(y);
+    let f = y - n;
+    let f2 = f * f;
+    let low = 1.0 + f * EXP2_POLY_0;
+    let mid = EXP2_POLY_1 + f * EXP2_POLY_2;
+    let high = EXP2_POLY_3 + f * EXP2_POLY_4;
+    let p = low + f2 * (mid + f2 * high);
+    return bitcast<f32>(u32(i32(n) + 127) << 23u) * p;
+}
+
+// ln x for positive normal x as the CPU renderer computes it (`fastmath::ln4`).
+fn ln_fast(x: f32) -> f32 {
+    let bits = bitcast<u32>(x);
+    var m = bitcast<f32>((bits & 0x007fffffu) | 0x3f800000u);
+    var e = f32(i32((bits >> 23u) & 0xffu) - 127);
+    if m > SQRT_2 {
+        m = m * 0.5;
+        e = e + 1.0;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = 1.0 + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0)));
+    return e * LN_2 + 2.0 * s * series;
+}
+
 fn group_index(wid: vec3<u32>, nwg: vec3<u32>) -> u32 {
     return wid.x + wid.y * nwg.x;
 }
@@ -263,7 +292,7 @@ fn footprint(c: u32, g: u32) -> Footprint {
     var b = 0.0;
     var cc = LOW_PASS;
     for (var k = 0u; k < 3u; k++) {
-        let variance = exp(log_scale[k] + log_scale[k]);
+        let variance = exp_fast(log_scale[k] + log_scale[k]);
         let d0 = dot(axes[k], r0);
         let d1 = dot(axes[k], r1);
         a += variance * d0 * d0;
@@ -271,7 +300,7 @@ fn footprint(c: u32, g: u32) -> Footprint {
         cc += variance * d1 * d1;
     }
     let det = a * cc - b * b;
-    let cutoff = 2.0 * log(255.0 * max(opacity, MIN_ALPHA)) + 1e-3;
+    let cutoff = 2.0 * ln_fast(255.0 * max(opacity, MIN_ALPHA)) + 1e-3;
     let extent = vec2<f32>(sqrt(cutoff * a), sqrt(cutoff * cc));
     let px = fx * t.x * inv_z + focal.z;
     let py = fy * t.y * inv_z + focal.w;
@@ -577,13 +606,18 @@ fn raster(
         if workgroupUniformLoad(&all_done) == 256u {
             break;
         }
+        // A loop every thread takes alike (a pixel that is done skips the body), so the
+        // splat reads are the same address for the whole workgroup.
         let n = min(256u, range.y - start);
-        for (var k = 0u; k < n && !done; k++) {
+        for (var k = 0u; k < n; k++) {
+            if done {
+                continue;
+            }
             let s = batch_a[k];
             let d = vec2<f32>(s.x, s.y) - centre;
             let sb = batch_b[k];
             let power = -0.5 * (s.z * d.x * d.x + sb.x * d.y * d.y) - s.w * d.x * d.y;
-            let alpha = min(sb.y * exp(power), MAX_ALPHA);
+            let alpha = min(sb.y * exp_fast(power), MAX_ALPHA);
             if power > 0.0 || !(alpha >= MIN_ALPHA) {
                 continue;
             }
@@ -591,7 +625,7 @@ fn raster(
             if next < MIN_TRANSMITTANCE {
                 done = true;
                 atomicAdd(&pixels_done, 1u);
-                break;
+                continue;
             }
             let weight = alpha * transmittance;
             color += weight * batch_c[k].xyz;
