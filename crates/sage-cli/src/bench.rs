@@ -168,7 +168,7 @@ pub struct RenderBenchArgs {
     device: crate::flags::DeviceFlag,
     /// Cameras per batch for the batched figures, measured when the GPU renders (headings
     /// spread over a full turn, all rendered in one submission).
-    #[arg(long, value_delimiter = ',', default_value = "1,16,64,256")]
+    #[arg(long, value_delimiter = ',', default_value = "1,16,64,256,1024")]
     batches: Vec<usize>,
     /// Resolution of the batched cameras as WxH.
     #[arg(long, default_value = "224x224")]
@@ -312,6 +312,12 @@ pub struct EnvBenchArgs {
     /// Hull cache folder.
     #[arg(long)]
     cache: Option<PathBuf>,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
+    /// Sub-environments of the vector environment stepped in lockstep with RGB + depth at the
+    /// first size (0: not measured); on the GPU each lockstep step renders them in one batch.
+    #[arg(long, default_value_t = EnvSettings::default().envs)]
+    envs: usize,
 }
 
 impl LoadArgs {
@@ -377,6 +383,8 @@ impl EnvBenchArgs {
             render_steps: self.render_steps,
             sizes: sizes(&self.sizes)?,
             cache: self.cache.clone(),
+            device: self.device.device,
+            envs: self.envs,
         })
     }
 }

@@ -2,11 +2,18 @@
 //! rendering and with RGB + depth at each resolution.
 
 use crate::machine;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Result};
 use sage_env::agents::{Agent, RandomAgent};
-use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
+use sage_env::pool::Order;
+use sage_env::{
+    Action, Env, EnvConfig, EnvEpisode, Pool, PoolEpisode, SceneContext, SensorConfig, VecEnv,
+};
+use sage_metrics::Mode;
 use sage_nav::{GridParams, TrajectoryParams};
 use sage_physics::{Decomposer, HullCache, SceneBodies};
+use sage_splat::Device;
 use serde::Serialize;
 use std::fmt;
 use std::path::PathBuf;
@@ -30,6 +37,11 @@ pub struct EnvSettings {
     pub sizes: Vec<(u32, u32)>,
     /// Hull cache folder (`None`: a folder in the system temp dir, so repeated runs reuse it).
     pub cache: Option<PathBuf>,
+    /// Where the images are rendered.
+    pub device: Device,
+    /// Sub-environments of the vector environment (0: not measured), stepped in lockstep
+    /// with RGB + depth at the first size: on the GPU one batch per step.
+    pub envs: usize,
 }
 
 impl Default for EnvSettings {
@@ -42,6 +54,8 @@ impl Default for EnvSettings {
             render_steps: 200,
             sizes: vec![(224, 224), (640, 480)],
             cache: None,
+            device: Device::Cpu,
+            envs: 16,
         }
     }
 }
@@ -71,6 +85,26 @@ pub struct EnvReport {
     pub render_steps: usize,
     /// One entry per resolution, in the order asked.
     pub rendered: Vec<SizedRate>,
+    /// The renderer ([`sage_splat::Backend::describe`]).
+    pub renderer: String,
+    /// The vector environment's rate, when measured.
+    pub vector: Option<VectorRate>,
+}
+
+/// A vector environment stepped in lockstep.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VectorRate {
+    /// Sub-environments.
+    pub envs: usize,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Lockstep steps timed (each steps every sub-environment).
+    pub batches: usize,
+    /// Sub-environment steps per second (physics, rendering, observations; resets of ended
+    /// episodes included).
+    pub steps_per_s: f64,
 }
 
 /// Steps and resets of one configuration.
@@ -118,6 +152,7 @@ impl fmt::Display for EnvReport {
             r.reset_ms,
             r.resets
         )?;
+        writeln!(f, "renderer         {}", self.renderer)?;
         for s in &self.rendered {
             writeln!(
                 f,
@@ -127,6 +162,13 @@ impl fmt::Display for EnvReport {
                 1e3 / s.rate.steps_per_s,
                 self.render_steps,
                 s.rate.reset_ms
+            )?;
+        }
+        if let Some(v) = &self.vector {
+            writeln!(
+                f,
+                "vector env       {} envs at {}x{} RGB + depth: {:.1} steps/s ({} lockstep steps)",
+                v.envs, v.width, v.height, v.steps_per_s, v.batches
             )?;
         }
         Ok(())
@@ -167,6 +209,54 @@ fn measure(
         resets,
         reset_ms: resetting.as_secs_f64() * 1e3 / resets as f64,
     })
+}
+
+/// Steps `envs` sub-environments of a [`VecEnv`] over `episodes` in lockstep for `batches`
+/// timed steps after a reset, each with a seeded random action (forward / left / right); a
+/// sub-environment whose episode ended starts the next episode in its place.
+fn measure_vector(
+    ctx: &Arc<SceneContext>,
+    config: EnvConfig,
+    episodes: &[EnvEpisode],
+    envs: usize,
+    batches: usize,
+    seed: u64,
+) -> Result<f64> {
+    let pool = Pool::new(
+        vec![ctx.clone()],
+        episodes
+            .iter()
+            .map(|e| PoolEpisode {
+                scene: 0,
+                scene_name: ctx.scene.name.clone(),
+                episode: e.clone(),
+            })
+            .collect(),
+    )?;
+    let mut vector = VecEnv::new(envs, Arc::new(pool), config, Mode::default())?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut next = 0;
+    let mut reset = || {
+        next += 1;
+        Order::Reset((next - 1) % episodes.len())
+    };
+    let mut transitions = vector.run((0..envs).map(|_| reset()).collect())?;
+    let actions = [Action::MoveForward, Action::TurnLeft, Action::TurnRight];
+    let start = Instant::now();
+    for _ in 0..batches {
+        let orders = transitions
+            .iter()
+            .map(|t| {
+                if t.terminated || t.truncated {
+                    reset()
+                } else {
+                    Order::Step(actions[rng.random_range(0..actions.len())])
+                }
+            })
+            .collect();
+        transitions = vector.run(orders)?;
+    }
+    Ok((envs * batches) as f64 / start.elapsed().as_secs_f64())
 }
 
 /// Runs `bench env`: a generated home with its collision bodies and 16 planned trajectories
@@ -230,6 +320,7 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
                 height,
                 ..SensorConfig::default()
             },
+            device: settings.device,
             ..EnvConfig::default()
         };
         let rate = measure(
@@ -245,7 +336,43 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
             rate,
         });
     }
+    let renderer = Env::new(
+        ctx.clone(),
+        EnvConfig {
+            device: settings.device,
+            ..EnvConfig::default()
+        },
+    )?
+    .render_device()
+    .unwrap_or("none")
+    .to_string();
+    let vector = match (settings.envs, settings.sizes.first()) {
+        (0, _) | (_, None) => None,
+        (envs, Some(&(width, height))) => {
+            let config = EnvConfig {
+                sensors: SensorConfig {
+                    width,
+                    height,
+                    ..SensorConfig::default()
+                },
+                device: settings.device,
+                ..EnvConfig::default()
+            };
+            let batches = settings.render_steps.div_ceil(envs).max(3);
+            let steps_per_s =
+                measure_vector(&ctx, config, &episodes, envs, batches, settings.seed)?;
+            Some(VectorRate {
+                envs,
+                width,
+                height,
+                batches,
+                steps_per_s,
+            })
+        }
+    };
     Ok(EnvReport {
+        renderer,
+        vector,
         machine,
         scene: name,
         objects,

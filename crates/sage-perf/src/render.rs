@@ -55,7 +55,7 @@ impl Default for RenderSettings {
             pitch: 0.0,
             sh3: false,
             device: Device::Cpu,
-            batches: vec![1, 16, 64, 256],
+            batches: vec![1, 16, 64, 256, 1024],
             batch_size: (224, 224),
         }
     }
@@ -94,6 +94,10 @@ pub struct RenderReport {
     /// Resident set of the whole process after rendering, bytes (where the OS tells it; GPU
     /// memory is not in it).
     pub resident_bytes: Option<u64>,
+    /// Device memory of the GPU renderer after the largest batch, bytes: the resident scene
+    /// and the work space (none on the CPU).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device_bytes: Option<u64>,
 }
 
 /// The frames of one resolution: medians over the frames unless said otherwise.
@@ -194,6 +198,13 @@ impl fmt::Display for RenderReport {
                 f,
                 "batch {:<4} {:>4}x{:<4} {:.1} ms per batch, {:.0} frames/s",
                 b.cameras, b.width, b.height, b.batch_ms, b.frames_per_s
+            )?;
+        }
+        if let Some(bytes) = self.device_bytes {
+            writeln!(
+                f,
+                "GPU memory       {:.0} MB: the resident scene and the work space of the last batch",
+                bytes as f64 / 1048576.0,
             )?;
         }
         if let Some(rss) = self.resident_bytes {
@@ -380,5 +391,6 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         sizes,
         batches,
         resident_bytes,
+        device_bytes: backend.device_bytes(),
     })
 }

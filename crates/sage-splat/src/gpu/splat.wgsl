@@ -91,10 +91,10 @@ fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.x + wid.y * nwg.x) * 256u + lid;
 }
 
-// e^x as the CPU renderer computes it (`fastmath::exp4`): 2^(x log₂e) split at the nearest
-// integer, the fraction by the same polynomial, in the same order of operations.
-fn exp_fast(x: f32) -> f32 {
-    let y = clamp(x * LOG2_E, -126.0, 126.0);
+// e^x as the CPU renderer computes it (`fastmath::exp4`), four lanes: 2^(x log₂e) split at
+// the nearest integer, the fraction by the same polynomial, in the same order of operations.
+fn exp_fast4(x: vec4<f32>) -> vec4<f32> {
+    let y = clamp(x * LOG2_E, vec4<f32>(-126.0), vec4<f32>(126.0));
     let n = round(y);
     let f = y - n;
     let f2 = f * f;
@@ -102,7 +102,11 @@ fn exp_fast(x: f32) -> f32 {
     let mid = EXP2_POLY_1 + f * EXP2_POLY_2;
     let high = EXP2_POLY_3 + f * EXP2_POLY_4;
     let p = low + f2 * (mid + f2 * high);
-    return bitcast<f32>(u32(i32(n) + 127) << 23u) * p;
+    return bitcast<vec4<f32>>(vec4<u32>(vec4<i32>(n) + 127) << vec4<u32>(23u)) * p;
+}
+
+fn exp_fast(x: f32) -> f32 {
+    return exp_fast4(vec4<f32>(x)).x;
 }
 
 // ln x for positive normal x as the CPU renderer computes it (`fastmath::ln4`).
@@ -555,13 +559,14 @@ fn ranges(
 var<workgroup> batch_a: array<vec4<f32>, 256>;
 var<workgroup> batch_b: array<vec4<f32>, 256>;
 var<workgroup> batch_c: array<vec4<f32>, 256>;
-var<workgroup> pixels_done: atomic<u32>;
+var<workgroup> threads_done: atomic<u32>;
 var<workgroup> all_done: u32;
 var<workgroup> tile_range: vec2<u32>;
 
-@compute @workgroup_size(16, 16)
+// A workgroup per tile of every camera; each of its 64 threads blends a column of four pixels
+// (the four as the lanes of a vec4), so a splat read from workgroup memory serves four pixels.
+@compute @workgroup_size(64)
 fn raster(
-    @builtin(local_invocation_id) local: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
 ) {
@@ -571,101 +576,120 @@ fn raster(
         // The batch's grid is that of its largest camera.
         return;
     }
-    let px = wid.x * TILE + local.x;
-    let py = wid.y * TILE + local.y;
-    let inside = px < size.x && py < size.y;
-    let centre = vec2<f32>(f32(px) + 0.5, f32(py) + 0.5);
-    var transmittance = 1.0;
-    var color = vec3<f32>(0.0);
-    var weighted_depth = 0.0;
-    var median = 0.0;
-    var best_weight = 0.0;
-    var instance = 0u;
-    var done = !inside;
+    let px = wid.x * TILE + lid % TILE;
+    let py = wid.y * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
+    let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
+    let cx = f32(px) + 0.5;
+    let cy = vec4<f32>(py) + 0.5;
+    var transmittance = vec4<f32>(1.0);
+    var red = vec4<f32>(0.0);
+    var green = vec4<f32>(0.0);
+    var blue = vec4<f32>(0.0);
+    var weighted_depth = vec4<f32>(0.0);
+    var median = vec4<f32>(0.0);
+    var best_weight = vec4<f32>(0.0);
+    var instance = vec4<u32>(0u);
+    var live = inside;
+    var counted = false;
     if lid == 0u {
-        atomicStore(&pixels_done, 0u);
+        atomicStore(&threads_done, 0u);
         tile_range = tile_ranges[cameras[c].place.x + wid.y * size.z + wid.x];
     }
     // Read through the workgroup so every thread sees the same (uniform) loop bounds.
     let range = workgroupUniformLoad(&tile_range);
-    if done {
-        atomicAdd(&pixels_done, 1u);
+    if !any(live) {
+        counted = true;
+        atomicAdd(&threads_done, 1u);
     }
     for (var start = range.x; start < range.y; start += 256u) {
         workgroupBarrier();
-        let e = start + lid;
-        if e < range.y {
-            let g = sorted_splat(e);
-            batch_a[lid] = splats[4u * g];
-            batch_b[lid] = splats[4u * g + 1u];
-            batch_c[lid] = splats[4u * g + 2u];
+        for (var j = 0u; j < 4u; j++) {
+            let e = start + lid + 64u * j;
+            if e < range.y {
+                let g = sorted_splat(e);
+                batch_a[lid + 64u * j] = splats[4u * g];
+                batch_b[lid + 64u * j] = splats[4u * g + 1u];
+                batch_c[lid + 64u * j] = splats[4u * g + 2u];
+            }
         }
         if lid == 0u {
-            all_done = atomicLoad(&pixels_done);
+            all_done = atomicLoad(&threads_done);
         }
-        if workgroupUniformLoad(&all_done) == 256u {
+        if workgroupUniformLoad(&all_done) == 64u {
             break;
         }
-        // A loop every thread takes alike (a pixel that is done skips the body), so the
-        // splat reads are the same address for the whole workgroup.
         let n = min(256u, range.y - start);
         for (var k = 0u; k < n; k++) {
-            if done {
+            if counted {
                 continue;
             }
             let s = batch_a[k];
-            let d = vec2<f32>(s.x, s.y) - centre;
             let sb = batch_b[k];
-            let power = -0.5 * (s.z * d.x * d.x + sb.x * d.y * d.y) - s.w * d.x * d.y;
-            let alpha = min(sb.y * exp_fast(power), MAX_ALPHA);
-            if power > 0.0 || !(alpha >= MIN_ALPHA) {
+            let dx = s.x - cx;
+            let dy = s.y - cy;
+            let power = -0.5 * (s.z * dx * dx + sb.x * dy * dy) - s.w * dx * dy;
+            let c = batch_c[k];
+            // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards): most
+            // splats of a tile miss most of its pixels, and skip the rest here.
+            if !any(live & (power >= vec4<f32>(-0.5 * c.w))) {
                 continue;
             }
+            // Below e^-40 alpha is far under 1/255 whatever it is: the clamp keeps the
+            // exponential out of subnormal numbers, which CPUs (lavapipe) compute slowly.
+            let alpha = min(sb.y * exp_fast4(max(power, vec4<f32>(-40.0))), vec4<f32>(MAX_ALPHA));
             let next = transmittance * (1.0 - alpha);
-            if next < MIN_TRANSMITTANCE {
-                done = true;
-                atomicAdd(&pixels_done, 1u);
-                continue;
-            }
+            let counts = live & (power <= vec4<f32>(0.0)) & (alpha >= vec4<f32>(MIN_ALPHA));
+            // A pixel whose transmittance would fall below the floor is finished without it.
+            let ends = counts & (next < vec4<f32>(MIN_TRANSMITTANCE));
+            let blend = counts & !ends;
             let weight = alpha * transmittance;
-            color += weight * batch_c[k].xyz;
-            weighted_depth += weight * sb.z;
+            let w = select(vec4<f32>(0.0), weight, blend);
+            red += w * c.x;
+            green += w * c.y;
+            blue += w * c.z;
+            weighted_depth += w * sb.z;
             // Transmittance only falls: the last splat blended while it was above 0.5 is the
             // one that crossed it (kept only if it ends at or below 0.5).
-            if transmittance > 0.5 {
-                median = sb.z;
+            median = select(median, vec4<f32>(sb.z), blend & (transmittance > vec4<f32>(0.5)));
+            let better = blend & (weight > best_weight);
+            best_weight = select(best_weight, weight, better);
+            instance = select(instance, vec4<u32>(bitcast<u32>(sb.w)), better);
+            transmittance = select(transmittance, next, blend);
+            live = live & !ends;
+            if !any(live) {
+                counted = true;
+                atomicAdd(&threads_done, 1u);
             }
-            if weight > best_weight {
-                best_weight = weight;
-                instance = bitcast<u32>(sb.w);
-            }
-            transmittance = next;
         }
-    }
-    if !inside {
-        return;
     }
     let pixels = size.x * size.y;
-    let p = cameras[c].place.y + py * size.x + px;
-    let rgb = color + transmittance * cameras[c].background.xyz;
-    let hit = 1.0 - transmittance;
-    var depth = 0.0;
-    var category = 0u;
-    if hit > 0.0 {
-        depth = weighted_depth / hit;
-        if instance < arrayLength(&categories) {
-            category = categories[instance];
+    let background = cameras[c].background.xyz;
+    for (var j = 0u; j < 4u; j++) {
+        if !inside[j] {
+            continue;
         }
+        let t = transmittance[j];
+        let p = cameras[c].place.y + py[j] * size.x + px;
+        let hit = 1.0 - t;
+        var depth = 0.0;
+        var category = 0u;
+        if hit > 0.0 {
+            depth = weighted_depth[j] / hit;
+            if instance[j] < arrayLength(&categories) {
+                category = categories[instance[j]];
+            }
+        }
+        var mid = median[j];
+        if t > 0.5 {
+            mid = 0.0;
+        }
+        images[p] = bitcast<u32>(red[j] + t * background.x);
+        images[pixels + p] = bitcast<u32>(green[j] + t * background.y);
+        images[2u * pixels + p] = bitcast<u32>(blue[j] + t * background.z);
+        images[3u * pixels + p] = bitcast<u32>(hit);
+        images[4u * pixels + p] = bitcast<u32>(depth);
+        images[5u * pixels + p] = bitcast<u32>(mid);
+        images[6u * pixels + p] = instance[j];
+        images[7u * pixels + p] = category;
     }
-    if transmittance > 0.5 {
-        median = 0.0;
-    }
-    images[p] = bitcast<u32>(rgb.x);
-    images[pixels + p] = bitcast<u32>(rgb.y);
-    images[2u * pixels + p] = bitcast<u32>(rgb.z);
-    images[3u * pixels + p] = bitcast<u32>(hit);
-    images[4u * pixels + p] = bitcast<u32>(depth);
-    images[5u * pixels + p] = bitcast<u32>(median);
-    images[6u * pixels + p] = instance;
-    images[7u * pixels + p] = category;
 }
