@@ -107,6 +107,8 @@ pub struct TrainDataBenchArgs {
     /// Action preset.
     #[arg(long, default_value_t = TrainDataSettings::default().preset)]
     preset: sage_traindata::PresetName,
+    #[command(flatten)]
+    device: crate::flags::DeviceFlag,
 }
 
 impl TrainDataBenchArgs {
@@ -118,6 +120,7 @@ impl TrainDataBenchArgs {
             trajectories: self.trajectories,
             sizes: sizes(&self.sizes)?,
             preset: self.preset,
+            device: self.device.device,
         })
     }
 }

@@ -10,7 +10,7 @@ use sage_core::{Error, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
 use sage_physics::{AgentBody, AgentProfile, Command, Touch, World};
-use sage_splat::{Backend, Camera, RenderOptions, RenderOutput};
+use sage_splat::{Backend, Camera, RenderOptions, RenderOutput, Rendering};
 use std::sync::Arc;
 
 /// Largest camera tilt reachable with look actions (degrees).
@@ -90,9 +90,11 @@ pub(crate) fn region_distance(region: Option<&Polygon2>, point: Vec2, at: Vec2) 
 
 /// A reset or step whose observation waits for its images: the cameras to render (none when
 /// no image is configured) and the bodies touched. [`Env::reset`] and [`Env::step`] render
-/// them at once; a vector environment gathers the cameras of all its environments over a scene
-/// into one batch first.
-pub(crate) struct Pending {
+/// them at once; a vector environment, or a training-data render walking many routes in
+/// lockstep, gathers the cameras of all its environments over a scene into one batch first
+/// ([`Env::reset_unrendered`], [`Env::step_unrendered`], [`Env::render`],
+/// [`Env::observation`]).
+pub struct Pending {
     contacts: Vec<Touch>,
     cameras: Vec<Camera>,
 }
@@ -100,7 +102,7 @@ pub(crate) struct Pending {
 impl Pending {
     /// The cameras to render, in order: the colour camera, then the depth camera when depth
     /// has a size of its own.
-    pub(crate) fn cameras(&self) -> &[Camera] {
+    pub fn cameras(&self) -> &[Camera] {
         &self.cameras
     }
 }
@@ -164,7 +166,7 @@ impl Env {
 
     /// True when the renderer is a handle on the scene's shared GPU upload, so the cameras of
     /// every environment over the scene can go to it in one batch.
-    pub(crate) fn shares_renderer(&self) -> bool {
+    pub fn shares_renderer(&self) -> bool {
         self.renderer.as_ref().is_some_and(Backend::is_gpu)
     }
 
@@ -179,7 +181,11 @@ impl Env {
     }
 
     /// [`Env::reset`] up to the rendering: the cameras of the first observation.
-    pub(crate) fn reset_unrendered(&mut self, episode: &EnvEpisode) -> Result<Pending> {
+    ///
+    /// # Errors
+    ///
+    /// As [`Env::reset`], rendering aside.
+    pub fn reset_unrendered(&mut self, episode: &EnvEpisode) -> Result<Pending> {
         let region = match (&episode.task, &episode.goal) {
             (Task::Vln, None) => {
                 return Err(Error::invalid(format!(
@@ -264,7 +270,11 @@ impl Env {
 
     /// [`Env::step`] up to the rendering: the step's record and the cameras of its
     /// observation.
-    pub(crate) fn step_unrendered(&mut self, action: Action) -> Result<(Pending, StepInfo)> {
+    ///
+    /// # Errors
+    ///
+    /// As [`Env::step`], rendering aside.
+    pub fn step_unrendered(&mut self, action: Action) -> Result<(Pending, StepInfo)> {
         if self.done() {
             return Err(Error::invalid(
                 "step called with no running episode (reset first, and not after the end)",
@@ -443,7 +453,7 @@ impl Env {
     /// # Errors
     ///
     /// A render error.
-    pub(crate) fn render(&mut self, cameras: &[Camera]) -> Result<Vec<RenderOutput>> {
+    pub fn render(&mut self, cameras: &[Camera]) -> Result<Vec<RenderOutput>> {
         match self.renderer.as_mut() {
             Some(renderer) if !cameras.is_empty() => {
                 let scene = &self.ctx.scene;
@@ -458,6 +468,29 @@ impl Env {
         }
     }
 
+    /// Starts rendering `cameras` as [`Env::render`] does and returns at once: on the GPU the
+    /// caller steps physics or encodes images while the batch renders, then waits. (Renders
+    /// submitted from several threads at once are not gathered into one batch as
+    /// [`Env::render`]'s are.)
+    ///
+    /// # Errors
+    ///
+    /// A render error.
+    pub fn submit(&mut self, cameras: &[Camera]) -> Result<Rendering> {
+        match self.renderer.as_mut() {
+            Some(renderer) if !cameras.is_empty() => {
+                let scene = &self.ctx.scene;
+                renderer.submit_batch(
+                    &scene.gaussians,
+                    &scene.instances.category_ids,
+                    cameras,
+                    &RenderOptions::default(),
+                )
+            }
+            _ => Ok(Rendering::Done(Vec::new())),
+        }
+    }
+
     /// Renders `pending`'s cameras and assembles the observation.
     fn finish(&mut self, pending: Pending) -> Result<Observation> {
         let outputs = self.render(pending.cameras())?;
@@ -469,11 +502,7 @@ impl Env {
     /// # Errors
     ///
     /// Not one render per camera.
-    pub(crate) fn observation(
-        &self,
-        pending: Pending,
-        outputs: Vec<RenderOutput>,
-    ) -> Result<Observation> {
+    pub fn observation(&self, pending: Pending, outputs: Vec<RenderOutput>) -> Result<Observation> {
         if outputs.len() != pending.cameras.len() {
             return Err(Error::invalid(format!(
                 "{} images rendered for {} cameras",

@@ -33,6 +33,6 @@ pub mod scoring;
 pub use action::Action;
 pub use config::{ActionSpace, EnvConfig, SensorConfig, TaskConfig};
 pub use context::SceneContext;
-pub use env::{Env, Images, Observation};
+pub use env::{Env, Images, Observation, Pending};
 pub use episode::{EnvEpisode, EnvGoal, EpisodeTrace, StepInfo, Termination};
 pub use pool::{Pool, PoolEpisode, PooledEnv, Transition, VecEnv};

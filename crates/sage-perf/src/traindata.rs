@@ -7,6 +7,7 @@ use crate::machine;
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, SceneParams};
 use sage_dataset::split::SplitParams;
+use sage_splat::Device;
 use sage_traindata::{Layout, PresetName, Progress, Settings};
 use serde::Serialize;
 use std::fmt;
@@ -32,6 +33,8 @@ pub struct TrainDataSettings {
     pub sizes: Vec<(u32, u32)>,
     /// The action preset.
     pub preset: PresetName,
+    /// Where the frames are rendered.
+    pub device: Device,
 }
 
 impl Default for TrainDataSettings {
@@ -43,6 +46,7 @@ impl Default for TrainDataSettings {
             trajectories: 40,
             sizes: vec![(224, 224), (384, 384), (640, 480)],
             preset: PresetName::default(),
+            device: Device::Cpu,
         }
     }
 }
@@ -77,6 +81,8 @@ pub struct SizedThroughput {
 pub struct TrainDataReport {
     /// The machine ([`machine::describe`]).
     pub machine: String,
+    /// The renderer ([`Device::probe`]).
+    pub renderer: String,
     /// Threads used.
     pub threads: usize,
     /// Gaussians in the home.
@@ -94,6 +100,7 @@ pub struct TrainDataReport {
 impl fmt::Display for TrainDataReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "machine          {}", self.machine)?;
+        writeln!(f, "renderer         {}", self.renderer)?;
         writeln!(
             f,
             "scene            generated home, {} Gaussians; {} episodes, preset {}, {:.1} frames per walk; {} threads",
@@ -173,6 +180,7 @@ fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<Tra
             preset: settings.preset.preset(),
             format: Layout::Navila,
             keep_failed: true,
+            device: settings.device,
             ..Settings::new(&dataset, &scratch.join("scenes"))?
         };
         eprintln!("rendering at {width}x{height} …");
@@ -211,6 +219,7 @@ fn run_in(settings: &TrainDataSettings, scratch: &std::path::Path) -> Result<Tra
         std::fs::remove_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     }
     Ok(TrainDataReport {
+        renderer: Device::probe(settings.device)?,
         machine: machine::describe(),
         threads,
         gaussians: settings.gaussians,

@@ -290,6 +290,59 @@ impl Backend {
             Executor::Gpu(r) => r.render_batch(gaussians, categories, cameras, options),
         }
     }
+
+    /// Starts rendering `cameras` and returns: on the GPU the batch renders and reads back
+    /// while the caller does its own work (encoding the last images, stepping physics) until
+    /// it [`Rendering::wait`]s; the CPU renders them now. The images equal
+    /// [`Backend::render_batch`]'s.
+    ///
+    /// # Errors
+    ///
+    /// As [`Backend::render_batch`] (a GPU fault under `auto` hands over to the CPU here; one
+    /// found while waiting is returned).
+    pub fn submit_batch(
+        &mut self,
+        gaussians: &Gaussians,
+        categories: &[u16],
+        cameras: &[Camera],
+        options: &RenderOptions,
+    ) -> Result<Rendering> {
+        #[cfg(feature = "gpu")]
+        if let Executor::Gpu(r) = &self.executor {
+            match r.submit(gaussians, categories, cameras, options) {
+                Ok(s) => return Ok(Rendering::Gpu(s)),
+                Err(e) if crate::gpu::is_fault(&e) => self.fall_back(gaussians, e)?,
+                Err(e) => return Err(e),
+            }
+        }
+        self.render_batch(gaussians, categories, cameras, options)
+            .map(Rendering::Done)
+    }
+}
+
+/// A batch handed to a [`Backend`] by [`Backend::submit_batch`]: on the GPU still rendering
+/// (the caller works meanwhile), on the CPU rendered already.
+pub enum Rendering {
+    /// The images.
+    Done(Vec<RenderOutput>),
+    /// On the GPU.
+    #[cfg(feature = "gpu")]
+    Gpu(crate::gpu::Submitted),
+}
+
+impl Rendering {
+    /// The images, in camera order.
+    ///
+    /// # Errors
+    ///
+    /// A GPU fault.
+    pub fn wait(self) -> Result<Vec<RenderOutput>> {
+        match self {
+            Rendering::Done(images) => Ok(images),
+            #[cfg(feature = "gpu")]
+            Rendering::Gpu(s) => s.wait(),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use crate::preset::ActionPreset;
 use sage_core::{Result, wrap_angle};
 use sage_dataset::Episode;
 use sage_env::agents::Agent;
-use sage_env::{Action, Env, Images};
+use sage_env::{Action, Env, Images, Observation, Pending};
 use serde::{Deserialize, Serialize};
 
 /// Episodes of one scene that share a start, a reference path and a goal, so one walk (one
@@ -112,54 +112,93 @@ pub fn turns_in_place(degrees: f32, preset: &ActionPreset) -> i32 {
     n * degrees.signum() as i32
 }
 
-/// Walks `route` in `env` (already set up with the preset's action space and the sensors):
-/// `on_frame(k, images)` gets the observation taken before action `k` (the frame a model
-/// sees when it chooses that action). The walk is the route's first episode's: its start,
-/// reference path and goal, which the route's episodes share. A route whose path is a single
-/// point rotates in place by what its episode's ground-truth actions turn, at
-/// `dataset_turn_deg` degrees a turn (the dataset's action space).
-///
-/// # Errors
-///
-/// The episode cannot be started (its goal object is missing from the scene, …), a step or
-/// render error, or an error of `on_frame`.
-pub fn walk(
-    env: &mut Env,
-    route: &Route,
-    preset: &ActionPreset,
-    dataset_turn_deg: f32,
-    mut on_frame: impl FnMut(usize, &Images) -> Result<()>,
-) -> Result<Walk> {
-    let first = &route.episodes[0];
-    let episode = first.env_episode();
-    let mut follower = PathFollower::new(preset);
-    if first.reference_path.len() == 1 {
-        let net = net_turns(first);
-        follower.rotate_in_place(turns_in_place(net as f32 * dataset_turn_deg, preset));
-    }
-    let mut obs = env.reset(&episode)?;
-    follower.reset(env, &episode)?;
-    let turn = preset.turn_deg.to_radians();
-    let mut steps = Vec::new();
-    loop {
-        if let Some(images) = &obs.images {
-            on_frame(steps.len(), images)?;
+/// A walk under way, advanced one action at a time: its follower, its steps so far and the
+/// observation the next action is chosen from. [`walk`] runs one to the end; a training-data
+/// render on the GPU advances many in lockstep, so each step renders every walk's frame in one
+/// batch.
+pub struct Walker {
+    follower: PathFollower,
+    step_m: f32,
+    turn: f32,
+    steps: Vec<WalkStep>,
+    obs: Option<Observation>,
+}
+
+impl Walker {
+    /// Starts `route` in `env` (already set up with the preset's action space and the
+    /// sensors) up to the rendering of its first frame. The walk is the route's first
+    /// episode's: its start, reference path and goal, which the route's episodes share. A
+    /// route whose path is a single point rotates in place by what its episode's ground-truth
+    /// actions turn, at `dataset_turn_deg` degrees a turn (the dataset's action space).
+    ///
+    /// # Errors
+    ///
+    /// The episode cannot be started (its goal object is missing from the scene, …).
+    pub fn start(
+        env: &mut Env,
+        route: &Route,
+        preset: &ActionPreset,
+        dataset_turn_deg: f32,
+    ) -> Result<(Walker, Pending)> {
+        let first = &route.episodes[0];
+        let episode = first.env_episode();
+        let mut follower = PathFollower::new(preset);
+        if first.reference_path.len() == 1 {
+            let net = net_turns(first);
+            follower.rotate_in_place(turns_in_place(net as f32 * dataset_turn_deg, preset));
         }
-        let action = follower.act(&obs)?;
+        let pending = env.reset_unrendered(&episode)?;
+        follower.reset(env, &episode)?;
+        let walker = Walker {
+            follower,
+            step_m: preset.step_m,
+            turn: preset.turn_deg.to_radians(),
+            steps: Vec::new(),
+            obs: None,
+        };
+        Ok((walker, pending))
+    }
+
+    /// Takes the observation of the frame last pending; returns the frame's index (the
+    /// action it is taken before).
+    pub fn observe(&mut self, obs: Observation) -> usize {
+        self.obs = Some(obs);
+        self.steps.len()
+    }
+
+    /// The images of the frame last observed.
+    pub fn images(&self) -> Option<&Images> {
+        self.obs.as_ref().and_then(|o| o.images.as_ref())
+    }
+
+    /// Chooses the next action from the frame last observed and applies it (physics, no
+    /// rendering): the next frame to render, or `None` once the walk called STOP (whose
+    /// frame nobody sees).
+    ///
+    /// # Errors
+    ///
+    /// Nothing observed since the last action, or a step error.
+    pub fn advance(&mut self, env: &mut Env) -> Result<Option<Pending>> {
+        let Some(obs) = &self.obs else {
+            return Err(sage_core::Error::invalid(
+                "a walk advanced without a frame observed",
+            ));
+        };
+        let action = self.follower.act(obs)?;
         let p = obs.pose;
         let pose = [p.position.x, p.position.y, p.yaw];
         let commanded = match action {
             Action::MoveForward => [
-                pose[0] + preset.step_m * p.yaw.cos(),
-                pose[1] + preset.step_m * p.yaw.sin(),
+                pose[0] + self.step_m * p.yaw.cos(),
+                pose[1] + self.step_m * p.yaw.sin(),
                 p.yaw,
             ],
-            Action::TurnLeft => [pose[0], pose[1], wrap_angle(p.yaw + turn)],
-            Action::TurnRight => [pose[0], pose[1], wrap_angle(p.yaw - turn)],
+            Action::TurnLeft => [pose[0], pose[1], wrap_angle(p.yaw + self.turn)],
+            Action::TurnRight => [pose[0], pose[1], wrap_angle(p.yaw - self.turn)],
             _ => pose,
         };
-        let (next, info) = env.step(action)?;
-        steps.push(WalkStep {
+        let (next, info) = env.step_unrendered(action)?;
+        self.steps.push(WalkStep {
             action: crate::preset::action_name(action).into(),
             pose,
             commanded,
@@ -167,40 +206,69 @@ pub fn walk(
             // STOP does not move: what it reports touching was touched by the step before.
             contact: action != Action::Stop && !info.touched.is_empty(),
         });
-        if action == Action::Stop {
-            break;
-        }
-        obs = next;
+        Ok((action != Action::Stop).then_some(next))
     }
-    let contact_steps = steps.iter().filter(|s| s.contact).count();
-    // The goal is the episode's goal position (where its reference path ends); the distance
-    // is straight-line, as the success radius is.
-    let end = steps.last().map_or(glam::Vec2::ZERO, |s| {
-        glam::Vec2::new(s.achieved[0], s.achieved[1])
-    });
-    let final_distance = route.episodes[0]
-        .goal
-        .as_ref()
-        .map(|g| end.distance(glam::Vec2::new(g.position[0], g.position[1])));
-    let verdict = if contact_steps > 0 {
-        Verdict::Collided
-    } else if final_distance.is_some_and(|d| d <= env.config().task.success_distance) {
-        Verdict::Clean
-    } else {
-        Verdict::FarFromGoal
-    };
-    Ok(Walk {
-        steps,
-        ending: match follower.ending() {
-            Some(Ending::Capped) => "capped",
-            Some(Ending::Blocked) => "blocked",
-            _ => "reached",
+
+    /// The walk so far, judged: the straight-line distance from where it ended to the
+    /// route's goal position, within the success distance of `env`'s task and without
+    /// contact for a clean verdict.
+    pub fn finish(&self, env: &Env, route: &Route) -> Walk {
+        let steps = self.steps.clone();
+        let contact_steps = steps.iter().filter(|s| s.contact).count();
+        let end = steps.last().map_or(glam::Vec2::ZERO, |s| {
+            glam::Vec2::new(s.achieved[0], s.achieved[1])
+        });
+        let final_distance = route.episodes[0]
+            .goal
+            .as_ref()
+            .map(|g| end.distance(glam::Vec2::new(g.position[0], g.position[1])));
+        let verdict = if contact_steps > 0 {
+            Verdict::Collided
+        } else if final_distance.is_some_and(|d| d <= env.config().task.success_distance) {
+            Verdict::Clean
+        } else {
+            Verdict::FarFromGoal
+        };
+        Walk {
+            steps,
+            ending: match self.follower.ending() {
+                Some(Ending::Capped) => "capped",
+                Some(Ending::Blocked) => "blocked",
+                _ => "reached",
+            }
+            .into(),
+            contact_steps,
+            final_distance,
+            verdict,
         }
-        .into(),
-        contact_steps,
-        final_distance,
-        verdict,
-    })
+    }
+}
+
+/// Walks `route` in `env` to the end ([`Walker`] alone): `on_frame(k, images)` gets the
+/// observation taken before action `k` (the frame a model sees when it chooses that action).
+///
+/// # Errors
+///
+/// The episode cannot be started, a step or render error, or an error of `on_frame`.
+pub fn walk(
+    env: &mut Env,
+    route: &Route,
+    preset: &ActionPreset,
+    dataset_turn_deg: f32,
+    mut on_frame: impl FnMut(usize, &Images) -> Result<()>,
+) -> Result<Walk> {
+    let (mut walker, mut pending) = Walker::start(env, route, preset, dataset_turn_deg)?;
+    loop {
+        let outputs = env.render(pending.cameras())?;
+        let k = walker.observe(env.observation(pending, outputs)?);
+        if let Some(images) = walker.images() {
+            on_frame(k, images)?;
+        }
+        match walker.advance(env)? {
+            Some(next) => pending = next,
+            None => return Ok(walker.finish(env, route)),
+        }
+    }
 }
 
 #[cfg(test)]

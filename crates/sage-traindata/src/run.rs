@@ -5,15 +5,15 @@
 use crate::encode::{self, RgbCodec};
 use crate::output::{self, Layout};
 use crate::preset::ActionPreset;
-use crate::replay::{self, Route, Verdict};
+use crate::replay::{self, Route, Verdict, Walk, Walker};
 use crate::sample::{self, EpisodeSample, IMAGES_DIR, ROUTE_FILE, RouteRecord};
 use rayon::prelude::*;
 use sage_core::{Error, Result, ResultExt, Task};
-use sage_env::{ActionSpace, Env, EnvConfig, SceneContext, SensorConfig};
+use sage_env::{ActionSpace, Env, EnvConfig, Pending, SceneContext, SensorConfig};
 use sage_io::files::{read_json, write_json};
 use sage_io::hash::fnv1a64_hex;
 use sage_io::lock::FolderLock;
-use sage_splat::Device;
+use sage_splat::{Device, RenderOutput, Rendering};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -468,60 +468,234 @@ pub fn render_scene(
             return Ok(pending.len());
         }
     };
+    // A fresh folder per route: a route rendered before is rendered again whole.
+    let begin = |route: &Route| -> Result<PathBuf> {
+        let dir = route_dir(out, route);
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        }
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        Ok(dir)
+    };
+    // The route's record (its walk, or why it has none) and its progress.
+    let end = |route: &Route, dir: &Path, walked: Result<Walk>| -> Result<()> {
+        let (frames, rec) = match walked {
+            Ok(walk) => (walk.steps.len(), record(route, Some(walk), None)),
+            Err(err) => (
+                0,
+                record(
+                    route,
+                    None,
+                    Some(
+                        err.within(format!("episode {}", route.episodes[0].episode_id))
+                            .to_string(),
+                    ),
+                ),
+            ),
+        };
+        write_json(&dir.join(ROUTE_FILE), &rec)?;
+        on_route(&RouteDone {
+            scene: scene.into(),
+            route: route.name.clone(),
+            frames,
+            of: plan.route_count(),
+            error: rec.error,
+        });
+        Ok(())
+    };
+    let first = Env::new(ctx.clone(), plan.env.clone())?;
+    if first.shares_renderer() {
+        return lockstep(plan, &ctx, &pending, first, &begin, &end).map(|()| pending.len());
+    }
     pending
         .par_iter()
         .map_init(
             || Env::new(ctx.clone(), plan.env.clone()),
             |env, route| {
                 let env = env.as_mut().map_err(|e| Error::invalid(e.to_string()))?;
-                let dir = route_dir(out, route);
-                if dir.exists() {
-                    std::fs::remove_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-                }
-                std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+                let dir = begin(route)?;
                 // A write error stops the run; an error of the walk itself is the route's.
                 let mut write_error = None;
                 let walked =
                     replay::walk(env, route, &s.preset, plan.dataset_turn_deg, |k, images| {
-                        for (suffix, bytes) in encode::encode(images, s.rgb_codec)? {
-                            let path = dir.join(format!("{k:04}.{suffix}"));
-                            if let Err(e) = std::fs::write(&path, bytes) {
-                                write_error = Some(Error::io(&path, e));
-                                return Err(Error::invalid("a frame could not be written"));
+                        match write_frame(&dir, k, images, s.rgb_codec)? {
+                            Ok(()) => Ok(()),
+                            Err(e) => {
+                                write_error = Some(e);
+                                Err(Error::invalid("a frame could not be written"))
                             }
                         }
-                        Ok(())
                     });
                 if let Some(err) = write_error {
                     return Err(err);
                 }
-                let (frames, rec) = match walked {
-                    Ok(walk) => (walk.steps.len(), record(route, Some(walk), None)),
-                    Err(err) => (
-                        0,
-                        record(
-                            route,
-                            None,
-                            Some(
-                                err.within(format!("episode {}", route.episodes[0].episode_id))
-                                    .to_string(),
-                            ),
-                        ),
-                    ),
-                };
-                write_json(&dir.join(ROUTE_FILE), &rec)?;
-                on_route(&RouteDone {
-                    scene: scene.into(),
-                    route: route.name.clone(),
-                    frames,
-                    of: plan.route_count(),
-                    error: rec.error,
-                });
-                Ok(())
+                end(route, &dir, walked)
             },
         )
         .collect::<Result<Vec<()>>>()?;
     Ok(pending.len())
+}
+
+/// Walks at once in a lockstep render: each step renders one frame of each in one batch.
+const LOCKSTEP_WALKS: usize = 128;
+
+/// Encodes frame `k` of a walk into `dir`: the encoding's error is the walk's (outer `Ok`), a
+/// file that cannot be written stops the run (inner `Err`).
+fn write_frame(
+    dir: &Path,
+    k: usize,
+    images: &sage_env::Images,
+    codec: RgbCodec,
+) -> Result<Result<()>> {
+    for (suffix, bytes) in encode::encode(images, codec)? {
+        let path = dir.join(format!("{k:04}.{suffix}"));
+        if let Err(e) = std::fs::write(&path, bytes) {
+            return Ok(Err(Error::io(&path, e)));
+        }
+    }
+    Ok(Ok(()))
+}
+
+/// Writes a route's record (its walk, or why it has none) into its folder and reports it.
+type EndRoute<'a> = dyn Fn(&Route, &Path, Result<Walk>) -> Result<()> + Sync + 'a;
+
+/// A walk of a lockstep render.
+struct Stepping<'r> {
+    route: &'r Route,
+    dir: PathBuf,
+    env: Env,
+    walker: Walker,
+    /// The frame to render in the next batch.
+    pending: Option<Pending>,
+    /// Its frame observed in the last batch is to be written.
+    observed: Option<usize>,
+    /// Why it stopped early.
+    failed: Option<Error>,
+}
+
+/// Renders `routes` on a GPU that every environment over the scene shares, up to
+/// [`LOCKSTEP_WALKS`] walks at once in lockstep: each step renders the next frame of every
+/// walk in one batch, and while the GPU renders it, the frames of the step before are
+/// encoded and written. Walks start as others end, in `routes` order; each walk's frames and
+/// record are those [`replay::walk`] gives it alone.
+fn lockstep(
+    plan: &Plan,
+    ctx: &Arc<SceneContext>,
+    routes: &[&Route],
+    first: Env,
+    begin: &(dyn Fn(&Route) -> Result<PathBuf> + Sync),
+    end: &EndRoute<'_>,
+) -> Result<()> {
+    let s = &plan.settings;
+    let mut queue = routes.iter();
+    let mut spare = vec![first];
+    let mut active: Vec<Stepping> = Vec::new();
+    let mut in_flight: Option<Rendering> = None;
+    loop {
+        // The last batch's frames: observed, then the next actions (physics, in parallel).
+        if let Some(rendering) = in_flight.take() {
+            let mut outputs = rendering.wait()?.into_iter();
+            let per_walk: Vec<Vec<RenderOutput>> = active
+                .iter()
+                .map(|w| {
+                    let n = w.pending.as_ref().map_or(0, |p| p.cameras().len());
+                    outputs.by_ref().take(n).collect()
+                })
+                .collect();
+            active.par_iter_mut().zip(per_walk).for_each(|(w, images)| {
+                let Some(pending) = w.pending.take() else {
+                    return;
+                };
+                if w.failed.is_some() {
+                    // Its frame could not be encoded: its images are not wanted.
+                    return;
+                }
+                let stepped = w
+                    .env
+                    .observation(pending, images)
+                    .map(|obs| w.walker.observe(obs))
+                    .and_then(|k| {
+                        w.observed = Some(k);
+                        w.walker.advance(&mut w.env)
+                    });
+                match stepped {
+                    Ok(next) => w.pending = next,
+                    Err(e) => w.failed = Some(e),
+                }
+            });
+        }
+        // New walks take the places of those that ended.
+        while active.iter().filter(|w| w.pending.is_some()).count() < LOCKSTEP_WALKS {
+            let Some(route) = queue.next() else { break };
+            let dir = begin(route)?;
+            let mut env = match spare.pop() {
+                Some(env) => env,
+                None => Env::new(ctx.clone(), plan.env.clone())?,
+            };
+            match Walker::start(&mut env, route, &s.preset, plan.dataset_turn_deg) {
+                Ok((walker, pending)) => active.push(Stepping {
+                    route,
+                    dir,
+                    env,
+                    walker,
+                    pending: Some(pending),
+                    observed: None,
+                    failed: None,
+                }),
+                Err(e) => {
+                    end(route, &dir, Err(e))?;
+                    spare.push(env);
+                }
+            }
+        }
+        // The next batch renders while this step's frames are written.
+        let cameras: Vec<_> = active
+            .iter()
+            .filter_map(|w| w.pending.as_ref())
+            .flat_map(|p| p.cameras().iter().copied())
+            .collect();
+        if let Some(lead) = active.iter_mut().find(|w| w.pending.is_some()) {
+            in_flight = Some(lead.env.submit(&cameras)?);
+        }
+        let failures: Vec<Result<()>> = active
+            .par_iter_mut()
+            .map(|w| {
+                let (Some(k), None) = (w.observed.take(), &w.failed) else {
+                    return Ok(());
+                };
+                let Some(images) = w.walker.images() else {
+                    return Ok(());
+                };
+                match write_frame(&w.dir, k, images, s.rgb_codec) {
+                    Ok(written) => written,
+                    Err(e) => {
+                        w.failed = Some(e);
+                        Ok(())
+                    }
+                }
+            })
+            .collect();
+        failures.into_iter().collect::<Result<Vec<()>>>()?;
+        // Walks that ended (STOP, or an error) get their records once no frame of theirs is
+        // in flight.
+        let mut k = 0;
+        while k < active.len() {
+            if active[k].pending.is_some() {
+                k += 1;
+                continue;
+            }
+            let w = active.remove(k);
+            let walked = match w.failed {
+                Some(e) => Err(e),
+                None => Ok(w.walker.finish(&w.env, w.route)),
+            };
+            end(w.route, &w.dir, walked)?;
+            spare.push(w.env);
+        }
+        if active.is_empty() && in_flight.is_none() && queue.len() == 0 {
+            return Ok(());
+        }
+    }
 }
 
 /// Counts of a finished render.

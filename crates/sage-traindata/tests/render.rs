@@ -360,3 +360,61 @@ fn episodes_of_a_missing_scene_are_skipped_with_the_reason_and_the_rest_rendered
     let first = std::fs::read_to_string(out.join("episodes.jsonl")).unwrap();
     assert!(first.contains(".png"));
 }
+
+#[test]
+fn a_gpu_render_walks_in_lockstep_and_each_walk_is_what_it_gives_alone() {
+    use sage_splat::Device;
+    use sage_traindata::replay::{self, Walk};
+    use sage_traindata::run::{Plan, route_dir};
+    let s = Settings {
+        device: Device::Gpu,
+        ..settings(Layout::Navila)
+    };
+    let out = tempfile::tempdir().unwrap();
+    let manifest = match sage_traindata::render(&s, out.path(), false, &|_| {}) {
+        Ok(m) => m,
+        Err(e) if std::env::var_os("SAGE3D_REQUIRE_GPU").is_none() => {
+            eprintln!("no GPU renderer here, GPU test not run: {e}");
+            return;
+        }
+        Err(e) => panic!("SAGE3D_REQUIRE_GPU is set and the GPU render failed: {e}"),
+    };
+    assert_eq!(manifest.counts.skipped, 0, "{:?}", manifest.counts);
+    // The walks are physics alone: the same as the CPU render's.
+    let cpu = tempfile::tempdir().unwrap();
+    let cpu_manifest = render_with_threads(&settings(Layout::Navila), cpu.path(), 2);
+    assert_eq!(manifest.counts, cpu_manifest.counts);
+    // Every route walked alone on the GPU writes the frames the lockstep render wrote.
+    let plan = Plan::new(&s).unwrap();
+    let mut frames = 0;
+    for (scene, routes) in &plan.routes {
+        let ctx = std::sync::Arc::new(
+            sage_env::SceneContext::load(&plan.scene_dirs[scene], None).unwrap(),
+        );
+        let mut env = sage_env::Env::new(ctx, plan.env.clone()).unwrap();
+        assert!(env.shares_renderer());
+        for route in routes {
+            let dir = route_dir(out.path(), route);
+            let walk = replay::walk(
+                &mut env,
+                route,
+                &s.preset,
+                plan.dataset_turn_deg,
+                |k, img| {
+                    for (suffix, bytes) in sage_traindata::encode::encode(img, s.rgb_codec)? {
+                        let written = std::fs::read(dir.join(format!("{k:04}.{suffix}"))).unwrap();
+                        assert!(written == bytes, "{}: frame {k} differs", route.name);
+                        frames += 1;
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+            let record: serde_json::Value =
+                sage_io::files::read_json(&dir.join(sage_traindata::sample::ROUTE_FILE)).unwrap();
+            let lockstep: Walk = serde_json::from_value(record["walk"].clone()).unwrap();
+            assert_eq!(lockstep, walk, "{}", route.name);
+        }
+    }
+    assert!(frames > 20, "{frames} frames compared");
+}
