@@ -135,7 +135,8 @@ pub struct Breakdown {
 }
 
 /// Batches of cameras rendered in one call ([`Backend::render_batch`]: on the GPU one
-/// submission and one read-back): medians over the timed batches.
+/// submission and one read-back) over the same headings for every batch size: medians over the
+/// timed batches.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BatchRate {
     /// Cameras per batch.
@@ -356,15 +357,20 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     if backend.is_gpu() {
         let (w, h) = settings.batch_size;
         let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
+        // Every batch size renders the same headings (at least 16, cycled to fill a batch), so
+        // the rates compare the same frames.
+        let headings = cameras(intrinsics, eye, settings.pitch, settings.frames.max(16));
         for &count in &settings.batches {
-            let cams = cameras(intrinsics, eye, settings.pitch, count);
-            backend.render_batch(gaussians, categories, &cams, &options)?;
-            // At least as many frames as a resolution row, and three batches for a median.
-            let repeats = settings.frames.div_ceil(count).max(3);
-            let mut times = Vec::with_capacity(repeats);
-            for _ in 0..repeats {
+            let cams: Vec<Camera> = (0..count.max(headings.len()))
+                .map(|i| headings[i % headings.len()])
+                .collect();
+            let parts: Vec<&[Camera]> = cams.chunks(count).collect();
+            backend.render_batch(gaussians, categories, parts[0], &options)?;
+            // Every part once, and at least three timed batches for a median.
+            let mut times = Vec::with_capacity(parts.len().max(3));
+            for part in parts.iter().cycle().take(parts.len().max(3)) {
                 let start = Instant::now();
-                backend.render_batch(gaussians, categories, &cams, &options)?;
+                backend.render_batch(gaussians, categories, part, &options)?;
                 times.push(start.elapsed().as_secs_f64() * 1e3);
             }
             let batch_ms = crate::median(&times);
