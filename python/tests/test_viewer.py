@@ -138,7 +138,7 @@ def test_python_view_serves_until_interrupted(world):
         with urllib.request.urlopen(url.rstrip("/") + "/api/info", timeout=60) as r:
             assert json.loads(r.read())["scenes"] == ["home1"]
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=20)
+        _, err = proc.communicate(timeout=60)
     finally:
         proc.kill()
     assert proc.returncode != 0 and "KeyboardInterrupt" in err

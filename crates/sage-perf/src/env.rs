@@ -211,6 +211,19 @@ fn measure(
     })
 }
 
+/// The default environment with RGB + depth of `width` × `height` rendered on `device`.
+fn rgbd(width: u32, height: u32, device: Device) -> EnvConfig {
+    EnvConfig {
+        sensors: SensorConfig {
+            width,
+            height,
+            ..SensorConfig::default()
+        },
+        device,
+        ..EnvConfig::default()
+    }
+}
+
 /// Steps `envs` sub-environments of a [`VecEnv`] over `episodes` in lockstep for `batches`
 /// timed steps after a reset, each with a seeded random action (forward / left / right); a
 /// sub-environment whose episode ended starts the next episode in its place.
@@ -314,18 +327,9 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
     let blind = measure(&ctx, blind, &episodes, settings.steps, settings.seed)?;
     let mut rendered = Vec::with_capacity(settings.sizes.len());
     for &(width, height) in &settings.sizes {
-        let config = EnvConfig {
-            sensors: SensorConfig {
-                width,
-                height,
-                ..SensorConfig::default()
-            },
-            device: settings.device,
-            ..EnvConfig::default()
-        };
         let rate = measure(
             &ctx,
-            config,
+            rgbd(width, height, settings.device),
             &episodes,
             settings.render_steps,
             settings.seed,
@@ -349,16 +353,8 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
     let vector = match (settings.envs, settings.sizes.first()) {
         (0, _) | (_, None) => None,
         (envs, Some(&(width, height))) => {
-            let config = EnvConfig {
-                sensors: SensorConfig {
-                    width,
-                    height,
-                    ..SensorConfig::default()
-                },
-                device: settings.device,
-                ..EnvConfig::default()
-            };
             let batches = settings.render_steps.div_ceil(envs).max(3);
+            let config = rgbd(width, height, settings.device);
             let steps_per_s =
                 measure_vector(&ctx, config, &episodes, envs, batches, settings.seed)?;
             Some(VectorRate {
