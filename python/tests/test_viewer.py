@@ -127,8 +127,12 @@ def test_episode_records_are_served_as_the_run_holds_them(world):
 
 def test_python_view_serves_until_interrupted(world):
     scenes = world[0]
+    # The child takes SIGINT as Python's KeyboardInterrupt whatever the test runner inherited
+    # (a job started in the background by a non-interactive shell ignores SIGINT, and so would
+    # the child).
     script = (
-        "import sys, sage3d\n"
+        "import signal, sys, sage3d\n"
+        "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
         f"sage3d.view({str(scenes)!r}, port=0, on_ready=lambda url: print(url, flush=True))\n"
     )
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -138,7 +142,7 @@ def test_python_view_serves_until_interrupted(world):
         with urllib.request.urlopen(url.rstrip("/") + "/api/info", timeout=60) as r:
             assert json.loads(r.read())["scenes"] == ["home1"]
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=20)
     finally:
         proc.kill()
     assert proc.returncode != 0 and "KeyboardInterrupt" in err
