@@ -529,14 +529,7 @@ impl GpuRenderer {
                         queue.push_front(range.start..mid);
                     }
                     Finished::Grow(need) => {
-                        return Err(Error::invalid(format!(
-                            "GPU {}: a {}x{} frame needs {} MB of work space in one buffer;                              the adapter binds at most {} MB (render smaller images)",
-                            self.gpu.describe(),
-                            cameras[range.start].intrinsics.width,
-                            cameras[range.start].intrinsics.height,
-                            need.largest_buffer() >> 20,
-                            bound >> 20
-                        )));
+                        return Err(self.too_large(&cameras[range.start], &need));
                     }
                 }
             }
@@ -561,6 +554,20 @@ impl GpuRenderer {
         state.workspace = Some(Workspace::new(&self.gpu, &self.kernels, caps));
     }
 
+    /// The error of a single `camera` whose work space `need` passes what one binding of the
+    /// adapter sees.
+    fn too_large(&self, camera: &Camera, need: &Caps) -> Error {
+        Error::invalid(format!(
+            "GPU {}: a {}x{} frame needs {} MB of work space in one buffer; the adapter binds \
+             at most {} MB (render smaller images)",
+            self.gpu.describe(),
+            camera.intrinsics.width,
+            camera.intrinsics.height,
+            need.largest_buffer() >> 20,
+            self.gpu.largest_binding() >> 20
+        ))
+    }
+
     /// Splits `cameras` into batches the adapter's buffers hold (whole cameras each).
     fn parts(&self, state: &State, cameras: &[Camera]) -> Result<Vec<Range<usize>>> {
         let bound = self.gpu.largest_binding();
@@ -568,16 +575,13 @@ impl GpuRenderer {
         let mut start = 0;
         while start < cameras.len() {
             let mut end = cameras.len().min(start + MAX_CAMERAS);
-            while self.need(state, &cameras[start..end]).largest_buffer() > bound {
+            loop {
+                let need = self.need(state, &cameras[start..end]);
+                if need.largest_buffer() <= bound {
+                    break;
+                }
                 if end - start == 1 {
-                    return Err(Error::invalid(format!(
-                        "GPU {}: a {}x{} frame needs more than one of the adapter's buffers \
-                         holds ({} MB)",
-                        self.gpu.describe(),
-                        cameras[start].intrinsics.width,
-                        cameras[start].intrinsics.height,
-                        bound >> 20
-                    )));
+                    return Err(self.too_large(&cameras[start], &need));
                 }
                 end = start + (end - start).div_ceil(2);
             }
