@@ -1,7 +1,11 @@
-// Exclusive prefix sum of `data[0..n]` in place, 1024 elements per workgroup (256 threads × 4),
-// n read on the GPU (`live[n_slot]`) and the workgroups dispatched indirectly from it.
-// `scan_blocks` scans each block and writes its total to `sums`; once `sums` is scanned the
-// same way (recursively), `add_sums` adds each block's offset back.
+// Exclusive prefix sum of `data[0..n]` in place, SCAN_BLOCK elements per workgroup (256
+// threads, each a run of SCAN_BLOCK / 256; the constant comes from the Rust side), n read on
+// the GPU (`live[n_slot]`) and the workgroups dispatched indirectly from it. `scan_blocks`
+// scans each block and writes its total to `sums`; once `sums` is scanned the same way
+// (recursively), `add_sums` adds each block's offset back.
+//
+// A block takes two barriers: a software driver (lavapipe) runs a workgroup's threads a vector
+// at a time and switches between them at every barrier, which costs more than the additions.
 
 struct Params {
     n_slot: u32,
@@ -12,7 +16,12 @@ struct Params {
 @group(0) @binding(2) var<uniform> params: Params;
 @group(0) @binding(3) var<storage, read> live: array<u32>;
 
+const RUN: u32 = SCAN_BLOCK / 256u;
+
+// Per thread, the total of its run; then its exclusive prefix within its row of 16 threads.
 var<workgroup> partial: array<u32, 256>;
+// Per row of 16 threads, its total.
+var<workgroup> row_total: array<u32, 16>;
 
 @compute @workgroup_size(256)
 fn scan_blocks(
@@ -22,38 +31,42 @@ fn scan_blocks(
 ) {
     let block = wid.x + wid.y * nwg.x;
     let n = live[params.n_slot];
-    if block * 1024u >= n {
+    if block * SCAN_BLOCK >= n {
         return;
     }
-    let base = block * 1024u + lid * 4u;
-    var local: array<u32, 4>;
+    let base = block * SCAN_BLOCK + lid * RUN;
+    let end = min(base + RUN, n);
     var total = 0u;
-    for (var k = 0u; k < 4u; k++) {
-        local[k] = total;
-        if base + k < n {
-            total += data[base + k];
-        }
+    for (var i = base; i < end; i++) {
+        total += data[i];
     }
     partial[lid] = total;
     workgroupBarrier();
-    // Hillis–Steele inclusive scan of the 256 thread totals.
-    for (var offset = 1u; offset < 256u; offset <<= 1u) {
-        var add = 0u;
-        if lid >= offset {
-            add = partial[lid - offset];
+    if lid < 16u {
+        var acc = 0u;
+        for (var k = 0u; k < 16u; k++) {
+            let v = partial[16u * lid + k];
+            partial[16u * lid + k] = acc;
+            acc += v;
         }
-        workgroupBarrier();
-        partial[lid] += add;
-        workgroupBarrier();
+        row_total[lid] = acc;
     }
-    let before = partial[lid] - total;
-    for (var k = 0u; k < 4u; k++) {
-        if base + k < n {
-            data[base + k] = before + local[k];
-        }
+    workgroupBarrier();
+    var before = partial[lid];
+    for (var r = 0u; r < lid / 16u; r++) {
+        before += row_total[r];
+    }
+    for (var i = base; i < end; i++) {
+        let v = data[i];
+        data[i] = before;
+        before += v;
     }
     if lid == 255u {
-        sums[block] = partial[255];
+        var all = 0u;
+        for (var r = 0u; r < 16u; r++) {
+            all += row_total[r];
+        }
+        sums[block] = all;
     }
 }
 
@@ -65,14 +78,12 @@ fn add_sums(
 ) {
     let block = wid.x + wid.y * nwg.x;
     let n = live[params.n_slot];
-    if block * 1024u >= n {
+    if block * SCAN_BLOCK >= n {
         return;
     }
     let offset = sums[block];
-    for (var k = 0u; k < 4u; k++) {
-        let i = block * 1024u + lid * 4u + k;
-        if i < n {
-            data[i] += offset;
-        }
+    let base = block * SCAN_BLOCK + lid * RUN;
+    for (var i = base; i < min(base + RUN, n); i++) {
+        data[i] += offset;
     }
 }

@@ -7,8 +7,8 @@ use super::Gpu;
 use super::kernel::{Kernel, bind, layout, storage, uniform, uniform_buffer};
 use super::live::{Count, Live, LiveBuilder, Size};
 
-/// Elements one workgroup of `scan_blocks` covers.
-const SCAN_BLOCK: u32 = 1024;
+/// Elements one workgroup of `scan_blocks` covers (256 threads, a run of 16 each).
+const SCAN_BLOCK: u32 = 4096;
 /// Pairs per radix-sort block (one per thread).
 const SORT_BLOCK: u32 = 256;
 
@@ -39,7 +39,13 @@ impl Scan {
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("scan"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("scan.wgsl").into()),
+                source: wgpu::ShaderSource::Wgsl(
+                    format!(
+                        "const SCAN_BLOCK: u32 = {SCAN_BLOCK}u;\n{}",
+                        include_str!("scan.wgsl")
+                    )
+                    .into(),
+                ),
             });
         let layout = layout(
             gpu,
@@ -269,6 +275,170 @@ impl RadixSort {
             live.dispatch(pass, &self.histogram, &[(group, &[])], plan.args);
             scan.encode(pass, live, &plan.digits_scan);
             live.dispatch(pass, &self.scatter, &[(group, &[])], plan.args);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The scan and the sort on the GPU against the standard library, at sizes on both sides
+    //! of their block edges and of several scan levels.
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    const SIZES: [u32; 9] = [1, 255, 256, 257, 4095, 4096, 4097, 70_000, 300_001];
+
+    fn gpu() -> Option<std::sync::Arc<Gpu>> {
+        match Gpu::shared(false) {
+            Ok(g) => Some(g),
+            Err(e) if std::env::var_os("SAGE3D_REQUIRE_GPU").is_some() => {
+                panic!("SAGE3D_REQUIRE_GPU is set and no GPU adapter opened: {e}")
+            }
+            Err(e) => {
+                eprintln!("no GPU adapter, GPU test not run: {e}");
+                None
+            }
+        }
+    }
+
+    fn words(gpu: &Gpu, data: &[u32]) -> wgpu::Buffer {
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: (data.len() * 4) as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        gpu.queue
+            .write_buffer(&buffer, 0, bytemuck::cast_slice(data));
+        buffer
+    }
+
+    /// Runs `record` in one compute pass after writing `n` to live slot 0, then reads back
+    /// each of `outputs`.
+    fn run(
+        gpu: &Gpu,
+        live: &Live,
+        n: u32,
+        record: impl FnOnce(&mut wgpu::ComputePass<'_>),
+        outputs: &[&wgpu::Buffer],
+    ) -> Vec<Vec<u32>> {
+        gpu.queue
+            .write_buffer(&live.buffer, 0, bytemuck::bytes_of(&n));
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            record(&mut pass);
+        }
+        let staging: Vec<wgpu::Buffer> = outputs
+            .iter()
+            .map(|b| {
+                let s = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: None,
+                    size: b.size(),
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                encoder.copy_buffer_to_buffer(b, 0, &s, 0, b.size());
+                s
+            })
+            .collect();
+        gpu.queue.submit([encoder.finish()]);
+        for s in &staging {
+            s.map_async(wgpu::MapMode::Read, .., |r| r.expect("mapped"));
+        }
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("GPU work finished");
+        staging
+            .iter()
+            .map(|s| {
+                let view = s.slice(..).get_mapped_range().expect("mapped");
+                bytemuck::cast_slice(&view).to_vec()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_scan_is_the_exclusive_prefix_sum() {
+        let Some(gpu) = gpu() else { return };
+        let live = Live::new(&gpu);
+        let scan = Scan::new(&gpu);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for n in SIZES {
+            // Room past the live count: the scan must leave it alone.
+            let data: Vec<u32> = (0..n + 300).map(|_| rng.random_range(0..9)).collect();
+            let buffer = words(&gpu, &data);
+            let mut builder = LiveBuilder::new(1);
+            builder.stage();
+            let plan = scan.plan(&gpu, &live, &mut builder, &buffer, n + 300, 0);
+            let programs = live.programs(&gpu, &builder, &[&buffer]);
+            let out = run(
+                &gpu,
+                &live,
+                n,
+                |pass| {
+                    live.encode(pass, &programs, 0);
+                    scan.encode(pass, &live, &plan);
+                },
+                &[&buffer],
+            );
+            let mut want = data.clone();
+            let mut total = 0;
+            for w in &mut want[..n as usize] {
+                (*w, total) = (total, total + *w);
+            }
+            assert_eq!(out[0], want, "{n} elements");
+        }
+    }
+
+    #[test]
+    fn the_sort_is_stable_by_key() {
+        let Some(gpu) = gpu() else { return };
+        let live = Live::new(&gpu);
+        let scan = Scan::new(&gpu);
+        let sort = RadixSort::new(&gpu);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+        for (i, n) in SIZES.into_iter().enumerate() {
+            // Every other size with few distinct keys, so stability is tested.
+            let keys: Vec<u32> = (0..n)
+                .map(|_| match i % 2 {
+                    0 => rng.random(),
+                    _ => rng.random_range(0..5) << 20,
+                })
+                .collect();
+            let values: Vec<u32> = (0..n).collect();
+            let (k1, v1) = (words(&gpu, &keys), words(&gpu, &values));
+            let (k2, v2) = (words(&gpu, &keys), words(&gpu, &values));
+            let mut builder = LiveBuilder::new(1);
+            builder.stage();
+            let plan = sort.plan(
+                &gpu,
+                &scan,
+                &live,
+                &mut builder,
+                (&k1, &v1),
+                (&k2, &v2),
+                n,
+                0,
+                4,
+            );
+            let programs = live.programs(&gpu, &builder, &[&k1]);
+            let out = run(
+                &gpu,
+                &live,
+                n,
+                |pass| {
+                    live.encode(pass, &programs, 0);
+                    sort.encode(pass, &scan, &live, &plan, 4);
+                },
+                &[&k1, &v1],
+            );
+            let mut want: Vec<(u32, u32)> = keys.into_iter().zip(values).collect();
+            want.sort_by_key(|p| p.0);
+            let got: Vec<(u32, u32)> = out[0].iter().copied().zip(out[1].clone()).collect();
+            assert!(got == want, "{n} pairs: not sorted stably by key");
         }
     }
 }

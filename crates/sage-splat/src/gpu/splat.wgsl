@@ -559,12 +559,39 @@ fn ranges(
 var<workgroup> batch_a: array<vec4<f32>, 256>;
 var<workgroup> batch_b: array<vec4<f32>, 256>;
 var<workgroup> batch_c: array<vec4<f32>, 256>;
+// Per splat of the batch, a bit per block of 8×4 pixels its box reaches; then, per block, a
+// bit per splat (8 words of 32).
+var<workgroup> batch_blocks: array<u32, 256>;
+var<workgroup> block_bits: array<u32, 64>;
 var<workgroup> threads_done: atomic<u32>;
 var<workgroup> all_done: u32;
 var<workgroup> tile_range: vec2<u32>;
 
+// The blocks of 8 columns × 4 rows of a tile (bit 2·row group + column half) that the box
+// `lo`…`hi` reaches at some pixel centre.
+fn box_blocks(lo: vec2<f32>, hi: vec2<f32>, tile: vec2<f32>) -> u32 {
+    var columns = 0u;
+    for (var h = 0u; h < 2u; h++) {
+        let x0 = tile.x + f32(8u * h) + 0.5;
+        if hi.x >= x0 && lo.x <= x0 + 7.0 {
+            columns |= 1u << h;
+        }
+    }
+    var blocks = 0u;
+    for (var r = 0u; r < 4u; r++) {
+        let y0 = tile.y + f32(4u * r) + 0.5;
+        if hi.y >= y0 && lo.y <= y0 + 3.0 {
+            blocks |= columns << (2u * r);
+        }
+    }
+    return blocks;
+}
+
 // A workgroup per tile of every camera; each of its 64 threads blends a column of four pixels
 // (the four as the lanes of a vec4), so a splat read from workgroup memory serves four pixels.
+// Eight neighbouring threads cover a block of 8×4 pixels and go through only the splats whose
+// box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
+// (lavapipe) runs such eight together and skips the rest; a GPU's wider warps, their union.
 @compute @workgroup_size(64)
 fn raster(
     @builtin(local_invocation_index) lid: u32,
@@ -578,6 +605,8 @@ fn raster(
     }
     let px = wid.x * TILE + lid % TILE;
     let py = wid.y * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
+    let tile = vec2<f32>(f32(wid.x * TILE), f32(wid.y * TILE));
+    let block = 2u * (lid / 16u) + (lid % 16u) / 8u;
     let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
     let cx = f32(px) + 0.5;
     let cy = vec4<f32>(py) + 0.5;
@@ -597,20 +626,26 @@ fn raster(
     }
     // Read through the workgroup so every thread sees the same (uniform) loop bounds.
     let range = workgroupUniformLoad(&tile_range);
-    if !any(live) {
-        counted = true;
-        atomicAdd(&threads_done, 1u);
-    }
     for (var start = range.x; start < range.y; start += 256u) {
+        if !any(live) && !counted {
+            counted = true;
+            atomicAdd(&threads_done, 1u);
+        }
         workgroupBarrier();
         for (var j = 0u; j < 4u; j++) {
-            let e = start + lid + 64u * j;
+            let k = lid + 64u * j;
+            let e = start + k;
+            var blocks = 0u;
             if e < range.y {
                 let g = sorted_splat(e);
-                batch_a[lid + 64u * j] = splats[4u * g];
-                batch_b[lid + 64u * j] = splats[4u * g + 1u];
-                batch_c[lid + 64u * j] = splats[4u * g + 2u];
+                let a = splats[4u * g];
+                batch_a[k] = a;
+                batch_b[k] = splats[4u * g + 1u];
+                batch_c[k] = splats[4u * g + 2u];
+                let extent = splats[4u * g + 3u].xy;
+                blocks = box_blocks(a.xy - extent, a.xy + extent, tile);
             }
+            batch_blocks[k] = blocks;
         }
         if lid == 0u {
             all_done = atomicLoad(&threads_done);
@@ -618,47 +653,53 @@ fn raster(
         if workgroupUniformLoad(&all_done) == 64u {
             break;
         }
-        let n = min(256u, range.y - start);
-        for (var k = 0u; k < n; k++) {
-            if counted {
-                continue;
-            }
-            let s = batch_a[k];
-            let sb = batch_b[k];
-            let dx = s.x - cx;
-            let dy = s.y - cy;
-            let power = -0.5 * (s.z * dx * dx + sb.x * dy * dy) - s.w * dx * dy;
-            let c = batch_c[k];
-            // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards): most
-            // splats of a tile miss most of its pixels, and skip the rest here.
-            if !any(live & (power >= vec4<f32>(-0.5 * c.w))) {
-                continue;
-            }
-            // Below e^-40 alpha is far under 1/255 whatever it is: the clamp keeps the
-            // exponential out of subnormal numbers, which CPUs (lavapipe) compute slowly.
-            let alpha = min(sb.y * exp_fast4(max(power, vec4<f32>(-40.0))), vec4<f32>(MAX_ALPHA));
-            let next = transmittance * (1.0 - alpha);
-            let counts = live & (power <= vec4<f32>(0.0)) & (alpha >= vec4<f32>(MIN_ALPHA));
-            // A pixel whose transmittance would fall below the floor is finished without it.
-            let ends = counts & (next < vec4<f32>(MIN_TRANSMITTANCE));
-            let blend = counts & !ends;
-            let weight = alpha * transmittance;
-            let w = select(vec4<f32>(0.0), weight, blend);
-            red += w * c.x;
-            green += w * c.y;
-            blue += w * c.z;
-            weighted_depth += w * sb.z;
-            // Transmittance only falls: the last splat blended while it was above 0.5 is the
-            // one that crossed it (kept only if it ends at or below 0.5).
-            median = select(median, vec4<f32>(sb.z), blend & (transmittance > vec4<f32>(0.5)));
-            let better = blend & (weight > best_weight);
-            best_weight = select(best_weight, weight, better);
-            instance = select(instance, vec4<u32>(bitcast<u32>(sb.w)), better);
-            transmittance = select(transmittance, next, blend);
-            live = live & !ends;
-            if !any(live) {
-                counted = true;
-                atomicAdd(&threads_done, 1u);
+        // Thread b·8 + w gathers word w of block b's bits.
+        var word = 0u;
+        for (var i = 0u; i < 32u; i++) {
+            word |= ((batch_blocks[32u * (lid % 8u) + i] >> (lid / 8u)) & 1u) << i;
+        }
+        block_bits[lid] = word;
+        workgroupBarrier();
+        for (var word_index = 0u; word_index < 8u; word_index++) {
+            var bits = block_bits[8u * block + word_index];
+            loop {
+                if bits == 0u || !any(live) {
+                    break;
+                }
+                let k = 32u * word_index + firstTrailingBit(bits);
+                bits &= bits - 1u;
+                let s = batch_a[k];
+                let sb = batch_b[k];
+                let dx = s.x - cx;
+                let dy = s.y - cy;
+                let power = -0.5 * (s.z * dx * dx + sb.x * dy * dy) - s.w * dx * dy;
+                let c = batch_c[k];
+                // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
+                if !any(live & (power >= vec4<f32>(-0.5 * c.w))) {
+                    continue;
+                }
+                // Below e^-40 alpha is far under 1/255 whatever it is: the clamp keeps the
+                // exponential out of subnormal numbers, which CPUs (lavapipe) compute slowly.
+                let alpha = min(sb.y * exp_fast4(max(power, vec4<f32>(-40.0))), vec4<f32>(MAX_ALPHA));
+                let next = transmittance * (1.0 - alpha);
+                let counts = live & (power <= vec4<f32>(0.0)) & (alpha >= vec4<f32>(MIN_ALPHA));
+                // A pixel whose transmittance would fall below the floor is finished without it.
+                let ends = counts & (next < vec4<f32>(MIN_TRANSMITTANCE));
+                let blend = counts & !ends;
+                let weight = alpha * transmittance;
+                let w = select(vec4<f32>(0.0), weight, blend);
+                red += w * c.x;
+                green += w * c.y;
+                blue += w * c.z;
+                weighted_depth += w * sb.z;
+                // Transmittance only falls: the last splat blended while it was above 0.5 is the
+                // one that crossed it (kept only if it ends at or below 0.5).
+                median = select(median, vec4<f32>(sb.z), blend & (transmittance > vec4<f32>(0.5)));
+                let better = blend & (weight > best_weight);
+                best_weight = select(best_weight, weight, better);
+                instance = select(instance, vec4<u32>(bitcast<u32>(sb.w)), better);
+                transmittance = select(transmittance, next, blend);
+                live = live & !ends;
             }
         }
     }
