@@ -20,8 +20,7 @@ struct Params {
 @group(0) @binding(6) var<uniform> params: Params;
 
 var<workgroup> histogram_of_block: array<atomic<u32>, 256>;
-// The block's digits, and per row of 32 pairs how many of each digit it holds.
-var<workgroup> digits: array<u32, 256>;
+// Per row of 32 pairs and digit, a bit per pair of the row holding that digit.
 var<workgroup> row_digits: array<atomic<u32>, 2048>;
 
 @compute @workgroup_size(256)
@@ -67,25 +66,22 @@ fn scatter(
         key = keys_in[i];
         digit = (key >> params.shift) & 255u;
     }
-    digits[lid] = digit;
     for (var k = 0u; k < 8u; k++) {
         atomicStore(&row_digits[k * 256u + lid], 0u);
     }
     workgroupBarrier();
-    // The rank among equal digits before this pair: those earlier in its row of 32, plus the
-    // counts of the rows above (a count, so the order of the additions does not matter).
     let row = lid / 32u;
-    var rank = 0u;
-    for (var j = row * 32u; j < lid; j++) {
-        rank += select(0u, 1u, digits[j] == digit);
-    }
+    let bit = 1u << (lid % 32u);
     if valid {
-        atomicAdd(&row_digits[row * 256u + digit], 1u);
+        atomicOr(&row_digits[row * 256u + digit], bit);
     }
     workgroupBarrier();
     if valid {
+        // The rank among equal digits before this pair: those earlier in its row (its bit's
+        // lower neighbours), plus every one of the rows above.
+        var rank = countOneBits(atomicLoad(&row_digits[row * 256u + digit]) & (bit - 1u));
         for (var r = 0u; r < row; r++) {
-            rank += atomicLoad(&row_digits[r * 256u + digit]);
+            rank += countOneBits(atomicLoad(&row_digits[r * 256u + digit]));
         }
         let slot = block_digits[digit * blocks + block] + rank;
         keys_out[slot] = key;
