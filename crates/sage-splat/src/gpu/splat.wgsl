@@ -591,7 +591,8 @@ fn box_blocks(lo: vec2<f32>, hi: vec2<f32>, tile: vec2<f32>) -> u32 {
 // (the four as the lanes of a vec4), so a splat read from workgroup memory serves four pixels.
 // Eight neighbouring threads cover a block of 8×4 pixels and go through only the splats whose
 // box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
-// (lavapipe) runs such eight together and skips the rest; a GPU's wider warps, their union.
+// (lavapipe) runs such eight together and skips the rest; on a GPU each thread steps through
+// its own block's list, so a warp takes as many steps as the longest list of its blocks.
 @compute @workgroup_size(64)
 fn raster(
     @builtin(local_invocation_index) lid: u32,
