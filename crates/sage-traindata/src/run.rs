@@ -17,7 +17,7 @@ use sage_splat::{Device, RenderOutput, Rendering};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// The file a finished render writes last.
 pub const MANIFEST: &str = "manifest.json";
@@ -507,10 +507,15 @@ pub fn render_scene(
     if first.shares_renderer() {
         return lockstep(plan, &ctx, &pending, first, &begin, &end).map(|()| pending.len());
     }
+    // One worker walks with the environment opened above; the others open their own.
+    let spare = Mutex::new(Some(first));
     pending
         .par_iter()
         .map_init(
-            || Env::new(ctx.clone(), plan.env.clone()),
+            || {
+                let env = spare.lock().ok().and_then(|mut e| e.take());
+                env.map_or_else(|| Env::new(ctx.clone(), plan.env.clone()), Ok)
+            },
             |env, route| {
                 let env = env.as_mut().map_err(|e| Error::invalid(e.to_string()))?;
                 let dir = begin(route)?;
