@@ -61,12 +61,9 @@ fn scan_blocks(
         data[i] = before;
         before += v;
     }
+    // After its run, the last thread's running sum is the block's total.
     if lid == 255u {
-        var all = 0u;
-        for (var r = 0u; r < 16u; r++) {
-            all += row_total[r];
-        }
-        sums[block] = all;
+        sums[block] = before;
     }
 }
 

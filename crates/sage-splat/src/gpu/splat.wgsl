@@ -607,7 +607,8 @@ fn raster(
     let px = wid.x * TILE + lid % TILE;
     let py = wid.y * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
     let tile = vec2<f32>(f32(wid.x * TILE), f32(wid.y * TILE));
-    let block = 2u * (lid / 16u) + (lid % 16u) / 8u;
+    // Threads 8b…8b+7 are block b: row group b / 2, column half b % 2 (as in `box_blocks`).
+    let block = lid / 8u;
     let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
     let cx = f32(px) + 0.5;
     let cy = vec4<f32>(py) + 0.5;
@@ -657,7 +658,7 @@ fn raster(
         // Thread b·8 + w gathers word w of block b's bits.
         var word = 0u;
         for (var i = 0u; i < 32u; i++) {
-            word |= ((batch_blocks[32u * (lid % 8u) + i] >> (lid / 8u)) & 1u) << i;
+            word |= ((batch_blocks[32u * (lid % 8u) + i] >> block) & 1u) << i;
         }
         block_bits[lid] = word;
         workgroupBarrier();
