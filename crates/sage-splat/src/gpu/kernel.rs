@@ -20,13 +20,22 @@ pub(crate) fn storage(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEnt
 
 /// A uniform buffer binding.
 pub(crate) fn uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    uniform_entry(binding, false)
+}
+
+/// A uniform buffer binding of 16 bytes whose offset is given at each dispatch.
+pub(crate) fn dynamic_uniform(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    uniform_entry(binding, true)
+}
+
+fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
+            has_dynamic_offset: dynamic,
+            min_binding_size: dynamic.then(|| wgpu::BufferSize::new(16)).flatten(),
         },
         count: None,
     }

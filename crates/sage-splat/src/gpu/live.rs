@@ -7,7 +7,7 @@ use super::Gpu;
 use super::kernel::{Kernel, bind, layout, storage, uniform, uniform_buffer};
 
 /// Words of the live buffer: every slot a workspace's plans allocate fits (a few hundred).
-const LIVE_WORDS: u32 = 1024;
+pub(crate) const LIVE_WORDS: u32 = 1024;
 /// A slot not written.
 const NONE: u32 = u32::MAX;
 
@@ -32,10 +32,11 @@ struct Derive {
     mul: u32,
     cap: u32,
     out: u32,
-    raw: u32,
+    peak: u32,
+    total: u32,
     args: u32,
     per_group: u32,
-    pad: [u32; 2],
+    pad: u32,
 }
 
 /// A size to derive: `ceil(min(count + add, cap) / div) * mul`, with the workgroups of
@@ -48,7 +49,8 @@ pub(crate) struct Size {
     pub(crate) mul: u32,
     pub(crate) cap: u32,
     pub(crate) per_group: Option<u32>,
-    /// Also keep the count itself, before clamping (the host checks it against the buffers).
+    /// Also keep the count itself, before clamping, as its largest and its sum over the
+    /// times the stage runs in a batch (the host checks the largest against the buffers).
     pub(crate) keep_raw: bool,
 }
 
@@ -78,8 +80,10 @@ impl Size {
 pub(crate) struct Derived {
     /// The size.
     pub(crate) n: u32,
-    /// The count before clamping (when kept).
-    pub(crate) raw: u32,
+    /// The largest count before clamping over the batch's runs of the stage (when kept).
+    pub(crate) peak: u32,
+    /// The sum of those counts (when kept).
+    pub(crate) total: u32,
     /// Byte offset of the indirect dispatch arguments (when dispatched).
     pub(crate) args: u64,
 }
@@ -236,7 +240,11 @@ impl LiveBuilder {
     pub(crate) fn derive(&mut self, size: Size) -> Derived {
         assert!(!self.stages.is_empty(), "derive records belong to a stage");
         let n = self.slot(1);
-        let raw = if size.keep_raw { self.slot(1) } else { NONE };
+        let (peak, total) = if size.keep_raw {
+            (self.slot(1), self.slot(1))
+        } else {
+            (NONE, NONE)
+        };
         let args = size.per_group.map_or(NONE, |_| self.slot(3));
         let (kind, src) = match size.count {
             Count::Live(s) => (0, s),
@@ -250,14 +258,16 @@ impl LiveBuilder {
             mul: size.mul.max(1),
             cap: size.cap,
             out: n,
-            raw,
+            peak,
+            total,
             args,
             per_group: size.per_group.unwrap_or(1).max(1),
-            pad: [0; 2],
+            pad: 0,
         });
         Derived {
             n,
-            raw,
+            peak,
+            total,
             args: u64::from(args) * 4,
         }
     }

@@ -12,14 +12,15 @@ struct Derive {
     div: u32,
     mul: u32,
     cap: u32,
-    // Slots of live (NONE: not written): n, the unclamped value, and the (x, y, 1) workgroups
-    // of ceil(n / per_group) folded into two dimensions.
+    // Slots of live (NONE: not written): n, the largest and the sum of the unclamped values
+    // over the batch (the host zeroes them), and the (x, y, 1) workgroups of
+    // ceil(n / per_group) folded into two dimensions.
     out: u32,
-    raw: u32,
+    peak: u32,
+    total: u32,
     args: u32,
     per_group: u32,
-    _pad0: u32,
-    _pad1: u32,
+    _pad: u32,
 }
 
 const NONE: u32 = 0xffffffffu;
@@ -39,8 +40,9 @@ fn derive() {
         if d.kind == 1u {
             value = source[value];
         }
-        if d.raw != NONE {
-            live[d.raw] = value;
+        if d.peak != NONE {
+            live[d.peak] = max(live[d.peak], value);
+            live[d.total] = live[d.total] + min(value, 0xffffffffu - live[d.total]);
         }
         var n = min(value, d.cap);
         n = min(n + d.add, d.cap);

@@ -4,10 +4,11 @@
 
 use super::Gpu;
 use super::kernel::bind;
+use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
-    CAMERA_WORDS, Caps, Kernels, LIVE_CAMERA_CHUNKS, LIVE_TILE_PARITY, LIVE_TILES, PLANES,
-    TILE_SORT_PASSES, Workspace,
+    CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_TILE_PARITY,
+    LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -39,7 +40,9 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
          const SH_REST: u32 = {sh_rest}u;\nconst SH_WORDS: u32 = {}u;\n\
          const GAUSSIANS: u32 = {gaussians}u;\nconst CHUNKS: u32 = {chunks}u;\n\
          const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
-         const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n",
+         const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n\
+         const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst SLABS: u32 = {SLABS}u;\n\
+         const DEPTH_BINS: u32 = {DEPTH_BINS}u;\n",
         sh::C0,
         sh::C1,
         sh_words(sh_rest).max(1),
@@ -67,12 +70,13 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
 pub struct GpuStats {
     /// Cameras in the batch.
     pub cameras: usize,
-    /// (camera, chunk of 256 Gaussians) pairs that passed frustum culling, of cameras ×
-    /// chunks.
+    /// (camera, chunk of 256 Gaussians) pairs projected, summed over the cameras and the depth
+    /// slabs: those in the view that reach a slab and some unfinished tile (a chunk spanning
+    /// several slabs counts in each).
     pub chunks: u64,
-    /// Splats that passed projection, summed over the cameras.
+    /// Splats projected (in the image, over some unfinished tile), summed over the cameras.
     pub splats: u64,
-    /// (splat, tile) pairs, summed over the cameras.
+    /// (splat, unfinished tile) pairs, summed over the cameras.
     pub tile_entries: u64,
     /// (splat, tile) pairs the work space holds.
     pub capacity: u32,
@@ -136,9 +140,11 @@ struct InFlight {
     mapped: mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
     slots: Vec<Slot>,
     image_words: u64,
-    /// What the work space held when it rendered, and the live slots of its unclamped counts.
+    /// What the work space held when it rendered, and the live slots of its unclamped counts
+    /// (largest and sum over the slabs).
     caps: Caps,
-    raw: [u32; 3],
+    peaks: [u32; 3],
+    totals: [u32; 3],
 }
 
 /// The outcome of a batch: its images, or the larger work space it needs.
@@ -613,16 +619,19 @@ impl GpuRenderer {
         let w = state.workspace.as_ref().expect("made above");
         let mut offset = 0;
         let mut tile_base = 0u32;
+        let mut table_base = 0u32;
         let mut blocks = Vec::with_capacity(cameras.len() * CAMERA_WORDS);
         let mut slots = Vec::with_capacity(cameras.len());
         let mut grid = (1, 1, cameras.len() as u32);
         for c in cameras {
             let g = TileGrid::new(c);
-            blocks.extend_from_slice(&camera_block(c, &g, tile_base, offset, options));
+            let place = [tile_base, offset as u32, table_base];
+            blocks.extend_from_slice(&camera_block(c, &g, place, options));
             grid.0 = grid.0.max(g.tiles_x as u32);
             grid.1 = grid.1.max(g.tiles_y as u32);
             slots.push(Slot { grid: g, offset });
             tile_base += g.tiles() as u32;
+            table_base += ((g.tiles_x + 1) * (g.tiles_y + 1)) as u32;
             offset += PLANES * (g.width * g.height) as u64;
         }
         let tiles = tile_base;
@@ -630,12 +639,12 @@ impl GpuRenderer {
         let tile_passes = bits.div_ceil(8).clamp(1, TILE_SORT_PASSES);
         gpu.queue
             .write_buffer(&w.cameras, 0, bytemuck::cast_slice(&blocks));
-        let fixed = [
-            cameras.len() as u32 * self.chunks,
-            tile_passes % 2,
-            tiles,
-            0,
-        ];
+        // The fixed slots, and zero where the slabs' largest and summed counts gather.
+        let mut fixed = vec![0u32; LIVE_WORDS as usize];
+        fixed[LIVE_CAMERA_CHUNKS as usize] = cameras.len() as u32 * self.chunks;
+        fixed[LIVE_TILE_PARITY as usize] = tile_passes % 2;
+        fixed[LIVE_TILES as usize] = tiles;
+        fixed[LIVE_CAMERAS as usize] = cameras.len() as u32;
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu
@@ -681,7 +690,8 @@ impl GpuRenderer {
             slots,
             image_words: offset,
             caps: w.caps,
-            raw: w.raw,
+            peaks: w.peaks,
+            totals: w.totals,
         })
     }
 
@@ -707,9 +717,9 @@ impl GpuRenderer {
         let result = {
             let view = flight.staging.get_mapped_range(..).map_err(|e| fault(&e))?;
             let words: &[u32] = bytemuck::cast_slice(&view);
-            let raw = flight.raw.map(|slot| words[slot as usize]);
             let caps = flight.caps;
-            let [entries, splats, tile_entries] = raw;
+            let [entries, splats, tile_entries] = flight.peaks.map(|slot| words[slot as usize]);
+            let totals = flight.totals.map(|slot| u64::from(words[slot as usize]));
             if splats > caps.splats || tile_entries > caps.tile_entries || entries > caps.entries {
                 let grow = |n: u32| n.saturating_add(n / 4);
                 Finished::Grow(Caps {
@@ -725,9 +735,9 @@ impl GpuRenderer {
                     outputs,
                     GpuStats {
                         cameras: flight.slots.len(),
-                        chunks: u64::from(entries),
-                        splats: u64::from(splats),
-                        tile_entries: u64::from(tile_entries),
+                        chunks: totals[0],
+                        splats: totals[1],
+                        tile_entries: totals[2],
                         capacity: caps.tile_entries,
                         regrown: 0,
                         workspace_bytes: caps.bytes(),
@@ -742,12 +752,12 @@ impl GpuRenderer {
 }
 
 /// The block of one camera (`Camera` in `splat.wgsl`): its pose, intrinsics, clipping,
-/// background, culling planes, size and place in the batch.
+/// background, culling planes, size and place in the batch (its first tile, image word and
+/// finished-tile table word).
 fn camera_block(
     c: &Camera,
     g: &TileGrid,
-    tile_base: u32,
-    image_offset: u64,
+    place: [u32; 3],
     options: &RenderOptions,
 ) -> [u32; CAMERA_WORDS] {
     let k = c.intrinsics;
@@ -777,9 +787,9 @@ fn camera_block(
         g.height as u32,
         g.tiles_x as u32,
         g.tiles_y as u32,
-        tile_base,
-        image_offset as u32,
-        0,
+        place[0],
+        place[1],
+        place[2],
         0,
     ];
     block[52..60].copy_from_slice(&words);

@@ -1,17 +1,27 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
 // cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
 // MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// SH_WORDS, GAUSSIANS, CHUNKS and the fixed live slots).
+// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first
-// runs over what the one before found (`live`, dispatched indirectly):
-// `cull` (a thread per camera × chunk of 256 Gaussians, against the camera's frustum) → scan →
-// `list_chunks` (the visible (camera, chunk) entries) → `mark` (a workgroup per entry: which of
-// its Gaussians project into the image) → scan of the per-entry counts → `project` (writes the
-// visible splats, compacted, camera-major and in Gaussian order) → radix sort by depth →
-// `count_tiles` → scan → `emit` ((tile, splat) entries in depth order, the tile numbered over
-// the whole batch so the camera is in the key) → stable radix sort by tile → `clear_ranges` +
-// `ranges` → `raster` (a workgroup per tile of every camera).
+// runs over what the one before found (`live`, dispatched indirectly). Once per batch:
+// `clear` → `cull` (a thread per camera × chunk of 256 Gaussians: against the camera's
+// frustum, then the chunk's depth range and screen rectangle, and a histogram of the chunks'
+// middle depths) → `cut_slabs` (per camera, SLABS depth slabs at quantiles of that
+// histogram). Then
+// per slab, front to back, as the CPU renderer does:
+// `finished_table` (per camera, a summed-area table of the tiles whose every pixel is finished)
+// → `select_chunks` (the chunks reaching the slab and some unfinished tile) → scan →
+// `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
+// of its Gaussians project into the image, with depth in the slab, over an unfinished tile) →
+// scan of the per-entry counts → `project` (writes the splats, compacted, camera-major and in
+// Gaussian order) → radix sort by depth → `count_tiles` → scan → `emit` ((unfinished tile,
+// splat) entries in depth order, the tile numbered over the whole batch so the camera is in
+// the key) → stable radix sort by tile → `clear_ranges` + `ranges` → `raster` (a workgroup per
+// tile of every camera, blending into the per-pixel state the slab before left). Last,
+// `compose` turns the state into the images. Slabs partition depth and each tile blends in
+// depth order, so the images are those of blending everything at once; what the slabs save is
+// the work behind finished tiles.
 
 struct Camera {
     // Camera-to-world rotation columns (right, down, forward) and centre; w unused.
@@ -29,7 +39,8 @@ struct Camera {
     planes: array<vec4<f32>, 6>,
     // width, height, tiles across, tiles down.
     size: vec4<u32>,
-    // Its first tile in the batch's numbering, the first word of its images.
+    // Its first tile in the batch's numbering, the first word of its images, the first word of
+    // its finished-tile table.
     place: vec4<u32>,
 }
 
@@ -82,10 +93,31 @@ struct Slots {
 @group(1) @binding(13) var<storage, read_write> tile_values_2: array<u32>;
 // Per tile of the batch: first and one-past-last entry.
 @group(1) @binding(14) var<storage, read_write> tile_ranges: array<vec2<u32>>;
-// Per camera from its first word: 8 planes of width × height words (r, g, b, alpha, expected
-// depth, median depth as f32 bits; instance; category).
+// Per camera from its first word: 8 planes of width × height words. While slabs blend, the
+// per-pixel state: r, g, b (background not added), transmittance (negative once the pixel is
+// finished), Σ weight × depth, median depth (f32 bits), instance, best weight (f32 bits).
+// After `compose`, the images: r, g, b, alpha, expected depth, median depth (f32 bits),
+// instance, category.
 @group(1) @binding(15) var<storage, read_write> images: array<u32>;
 @group(1) @binding(16) var<uniform> slots: Slots;
+// Per camera × chunk: nearest and farthest depth of its bounds (f32 bits; the nearest is
+// F32_MAX when culled) and its screen rectangle in tiles, grown by one tile as the CPU grows it
+// (x0 | y0 << 16, x1 | y1 << 16).
+@group(1) @binding(17) var<storage, read_write> chunk_views: array<vec4<u32>>;
+// Per camera: DEPTH_BINS counts of its visible chunks' middle depths (where their splats'
+// depths centre), in bins of equal depth ratio from its near to its far plane.
+@group(1) @binding(18) var<storage, read_write> depth_histogram: array<atomic<u32>>;
+// Per camera, SLABS + 1 depths: slab k holds the splats of depth in [cut k, cut k + 1).
+@group(1) @binding(19) var<storage, read_write> slab_cuts: array<f32>;
+// Per tile of the batch: 1 once every pixel of it is finished.
+@group(1) @binding(20) var<storage, read_write> tile_done: array<u32>;
+// Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
+// (tiles down + 1) words, row 0 and column 0 zero.
+@group(1) @binding(21) var<storage, read_write> finished_sum: array<u32>;
+// The slab being rendered (x).
+@group(1) @binding(22) var<uniform> slab: vec4<u32>;
+
+const F32_MAX: f32 = 3.4028235e38;
 
 fn thread_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
     return (wid.x + wid.y * nwg.x) * 256u + lid;
@@ -181,7 +213,206 @@ fn sh_color(g: u32, d: vec3<f32>) -> vec3<f32> {
 }
 
 @compute @workgroup_size(256)
+fn clear(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let i = thread_index(wid, nwg, lid);
+    if i < live[LIVE_TILES] {
+        tile_done[i] = 0u;
+    }
+    if i < live[LIVE_CAMERAS] * DEPTH_BINS {
+        atomicStore(&depth_histogram[i], 0u);
+    }
+}
+
+// The histogram bin of depth z in camera c (depths before the near plane in the first).
+fn depth_bin(c: u32, z: f32) -> u32 {
+    let clip = cameras[c].clip;
+    let b = log2(max(z, clip.x) / clip.x) / log2(clip.y / clip.x) * f32(DEPTH_BINS);
+    return u32(clamp(b, 0.0, f32(DEPTH_BINS - 1u)));
+}
+
+// The depth where bin b of camera c starts.
+fn bin_depth(c: u32, b: u32) -> f32 {
+    let clip = cameras[c].clip;
+    return clip.x * exp2(f32(b) / f32(DEPTH_BINS) * log2(clip.y / clip.x));
+}
+
+// Tile of pixel coordinate v, as the CPU renderer's chunk rectangle takes it: −1 before the
+// image, n past it.
+fn chunk_tile(v: f32, n: u32) -> i32 {
+    return i32(clamp(floor(v / f32(TILE)), -1.0, f32(n)));
+}
+
+// The depth range of chunk k's bounds seen by camera c and its screen rectangle in tiles, grown
+// by one tile (the CPU renderer's `chunk_view`): the whole image when a corner is near or
+// behind the camera.
+fn chunk_view(c: u32, lo: vec3<f32>, hi: vec3<f32>) -> vec4<u32> {
+    let cam = cameras[c];
+    var z_min = F32_MAX;
+    var z_max = -F32_MAX;
+    var u = vec2<f32>(F32_MAX);
+    var v = vec2<f32>(-F32_MAX);
+    var straddles = false;
+    for (var k = 0u; k < 8u; k++) {
+        let p = select(lo, hi, vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u));
+        let rel = p - cam.position.xyz;
+        let t = vec3<f32>(dot(cam.right.xyz, rel), dot(cam.down.xyz, rel), dot(cam.forward.xyz, rel));
+        z_min = min(z_min, t.z);
+        z_max = max(z_max, t.z);
+        if t.z < cam.clip.x * 0.5 {
+            straddles = true;
+            continue;
+        }
+        let screen = cam.focal.xy * t.xy / t.z + cam.focal.zw;
+        u = min(u, screen);
+        v = max(v, screen);
+    }
+    let last = vec2<i32>(cam.size.zw) - vec2<i32>(1);
+    var r = vec4<i32>(0, 0, last.x, last.y);
+    if !straddles {
+        let x0 = chunk_tile(u.x, cam.size.z) - 1;
+        let y0 = chunk_tile(u.y, cam.size.w) - 1;
+        let x1 = chunk_tile(v.x, cam.size.z) + 1;
+        let y1 = chunk_tile(v.y, cam.size.w) + 1;
+        r = clamp(vec4<i32>(x0, y0, x1, y1), vec4<i32>(0), vec4<i32>(last, last));
+    }
+    let q = vec4<u32>(r);
+    return vec4<u32>(bitcast<u32>(z_min), bitcast<u32>(z_max), q.x | (q.y << 16u), q.z | (q.w << 16u));
+}
+
+@compute @workgroup_size(256)
 fn cull(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let i = thread_index(wid, nwg, lid);
+    if i >= live[LIVE_CAMERA_CHUNKS] {
+        return;
+    }
+    let c = i / CHUNKS;
+    let k = i % CHUNKS;
+    let lo = chunk_bounds[2u * k];
+    let hi = chunk_bounds[2u * k + 1u].xyz;
+    var visible = lo.w > 0.0;
+    for (var p = 0u; p < 6u; p++) {
+        let plane = cameras[c].planes[p];
+        let far_corner = select(lo.xyz, hi, plane.xyz >= vec3<f32>(0.0));
+        if dot(plane.xyz, far_corner) < plane.w {
+            visible = false;
+        }
+    }
+    var view = vec4<u32>(bitcast<u32>(F32_MAX), 0u, 0u, 0u);
+    if visible {
+        view = chunk_view(c, lo.xyz, hi);
+        let middle = 0.5 * (bitcast<f32>(view.x) + bitcast<f32>(view.y));
+        atomicAdd(&depth_histogram[c * DEPTH_BINS + depth_bin(c, middle)], 1u);
+    }
+    chunk_views[i] = view;
+}
+
+// Per camera, the slabs' cuts at quantiles of its chunks' middle depths (rounded up to a bin's
+// end, so a slab holds at least its share): −F32_MAX, SLABS − 1 cuts, F32_MAX. A camera that
+// sees nothing has everything in its first slab.
+@compute @workgroup_size(256)
+fn cut_slabs(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let c = thread_index(wid, nwg, lid);
+    if c >= live[LIVE_CAMERAS] {
+        return;
+    }
+    let bins = c * DEPTH_BINS;
+    var total = 0u;
+    for (var b = 0u; b < DEPTH_BINS; b++) {
+        total += atomicLoad(&depth_histogram[bins + b]);
+    }
+    let base = c * (SLABS + 1u);
+    slab_cuts[base] = -F32_MAX;
+    slab_cuts[base + SLABS] = F32_MAX;
+    // Bins before `b` hold `below` chunks.
+    var b = 0u;
+    var below = 0u;
+    for (var k = 1u; k < SLABS; k++) {
+        let rank = k * total / SLABS;
+        loop {
+            if b >= DEPTH_BINS {
+                break;
+            }
+            let n = atomicLoad(&depth_histogram[bins + b]);
+            if below + n > rank {
+                break;
+            }
+            below += n;
+            b++;
+        }
+        var cut = F32_MAX;
+        if b + 1u < DEPTH_BINS {
+            cut = bin_depth(c, b + 1u);
+        }
+        slab_cuts[base + k] = cut;
+    }
+}
+
+// A workgroup per camera: its summed-area table of finished tiles, so "is this rectangle all
+// finished" costs four reads.
+@compute @workgroup_size(256)
+fn finished_table(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let c = group_index(wid, nwg);
+    if c >= live[LIVE_CAMERAS] {
+        return;
+    }
+    let size = cameras[c].size;
+    let base = cameras[c].place.z;
+    let tiles = cameras[c].place.x;
+    let w = size.z + 1u;
+    // Rows first (row y + 1 sums tile row y), then the columns of the rows' sums.
+    for (var y = lid; y <= size.w; y += 256u) {
+        var run = 0u;
+        finished_sum[base + y * w] = 0u;
+        for (var x = 0u; x < size.z; x++) {
+            if y > 0u {
+                run += tile_done[tiles + (y - 1u) * size.z + x];
+            }
+            finished_sum[base + y * w + x + 1u] = run;
+        }
+    }
+    storageBarrier();
+    for (var x = lid; x < w; x += 256u) {
+        var run = 0u;
+        for (var y = 0u; y <= size.w; y++) {
+            run += finished_sum[base + y * w + x];
+            finished_sum[base + y * w + x] = run;
+        }
+    }
+}
+
+// True when every tile of camera c in r = [x0, y0, x1, y1] (inclusive) is finished.
+fn rect_finished(c: u32, r: vec4<u32>) -> bool {
+    let w = cameras[c].size.z + 1u;
+    let base = cameras[c].place.z;
+    let total = finished_sum[base + (r.w + 1u) * w + r.z + 1u] + finished_sum[base + r.y * w + r.x]
+        - finished_sum[base + r.y * w + r.z + 1u] - finished_sum[base + (r.w + 1u) * w + r.x];
+    return total == (r.z - r.x + 1u) * (r.w - r.y + 1u);
+}
+
+// Depths [lo, hi) of this slab in camera c.
+fn slab_range(c: u32) -> vec2<f32> {
+    let base = c * (SLABS + 1u) + slab.x;
+    return vec2<f32>(slab_cuts[base], slab_cuts[base + 1u]);
+}
+
+@compute @workgroup_size(256)
+fn select_chunks(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
@@ -192,22 +423,17 @@ fn cull(
         return;
     }
     // Entry `count` is the scan's total: zero before the scan.
-    var visible = 0u;
+    var selected = 0u;
     if i < count {
         let c = i / CHUNKS;
-        let k = i % CHUNKS;
-        let lo = chunk_bounds[2u * k];
-        let hi = chunk_bounds[2u * k + 1u].xyz;
-        visible = select(0u, 1u, lo.w > 0.0);
-        for (var p = 0u; p < 6u; p++) {
-            let plane = cameras[c].planes[p];
-            let far_corner = select(lo.xyz, hi, plane.xyz >= vec3<f32>(0.0));
-            if dot(plane.xyz, far_corner) < plane.w {
-                visible = 0u;
-            }
+        let v = chunk_views[i];
+        let range = slab_range(c);
+        let rect = vec4<u32>(v.z & 0xffffu, v.z >> 16u, v.w & 0xffffu, v.w >> 16u);
+        if bitcast<f32>(v.x) < range.y && bitcast<f32>(v.y) >= range.x && !rect_finished(c, rect) {
+            selected = 1u;
         }
     }
-    chunk_flags[i] = visible;
+    chunk_flags[i] = selected;
 }
 
 @compute @workgroup_size(256)
@@ -325,6 +551,15 @@ fn footprint(c: u32, g: u32) -> Footprint {
     return f;
 }
 
+// True when Gaussian g projects into camera c's image with its depth in this slab and its
+// box over some unfinished tile.
+fn in_slab(c: u32, g: u32) -> bool {
+    let f = footprint(c, g);
+    let range = slab_range(c);
+    return f.visible && f.depth >= range.x && f.depth < range.y
+        && !rect_finished(c, tile_box(f.centre, f.extent, c));
+}
+
 var<workgroup> lane_bits: array<atomic<u32>, 8>;
 
 @compute @workgroup_size(256)
@@ -351,7 +586,7 @@ fn mark(
     workgroupBarrier();
     let flat = chunk_list[entry];
     let g = (flat % CHUNKS) * 256u + lid;
-    if g < GAUSSIANS && footprint(flat / CHUNKS, g).visible {
+    if g < GAUSSIANS && in_slab(flat / CHUNKS, g) {
         atomicOr(&lane_bits[lid / 32u], 1u << (lid % 32u));
     }
     workgroupBarrier();
@@ -408,11 +643,9 @@ fn splat_camera(s: u32) -> u32 {
     return bitcast<u32>(splats[4u * s + 3u].z);
 }
 
-// The tiles of splat s's box in its camera, as the CPU bins them: [x0, y0, x1, y1],
+// The tiles of the box `m` ± `e` in camera c, as the CPU bins them: [x0, y0, x1, y1],
 // inclusive.
-fn tile_box(s: u32, c: u32) -> vec4<u32> {
-    let m = splats[4u * s];
-    let e = splats[4u * s + 3u].xy;
+fn tile_box(m: vec2<f32>, e: vec2<f32>, c: u32) -> vec4<u32> {
     let size = cameras[c].size;
     let w = f32(size.x);
     let h = f32(size.y);
@@ -455,11 +688,11 @@ fn reaches_tile(s: u32, c: u32, tx: u32, ty: u32) -> bool {
     return min(min(q0, q1), min(q2, q3)) <= cutoff;
 }
 
-// Counts the tiles splat s reaches; with `write`, also records them as entries from `first`
+// Counts the unfinished tiles splat s reaches; with `write`, also records them as entries from `first`
 // on (those past the buffers are counted, not written: the host grows the buffers).
 fn bin(s: u32, first: u32, write: bool) -> u32 {
     let c = splat_camera(s);
-    let r = tile_box(s, c);
+    let r = tile_box(splats[4u * s].xy, splats[4u * s + 3u].xy, c);
     let single = r.x == r.z && r.y == r.w;
     let base = cameras[c].place.x;
     let across = cameras[c].size.z;
@@ -467,9 +700,10 @@ fn bin(s: u32, first: u32, write: bool) -> u32 {
     var slot = first;
     for (var ty = r.y; ty <= r.w; ty++) {
         for (var tx = r.x; tx <= r.z; tx++) {
-            if single || reaches_tile(s, c, tx, ty) {
+            let tile = base + ty * across + tx;
+            if tile_done[tile] == 0u && (single || reaches_tile(s, c, tx, ty)) {
                 if write && slot < room {
-                    tile_keys[slot] = base + ty * across + tx;
+                    tile_keys[slot] = tile;
                     tile_values[slot] = s;
                 }
                 slot += 1u;
@@ -593,6 +827,8 @@ fn box_blocks(lo: vec2<f32>, hi: vec2<f32>, tile: vec2<f32>) -> u32 {
 // box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
 // (lavapipe) runs such eight together and skips the rest; on a GPU each thread steps through
 // its own block's list, so a warp takes as many steps as the longest list of its blocks.
+// The pixels' state comes from the slab before (the first slab starts it) and goes back to
+// `images`; the tile is marked done once every pixel of it is finished.
 @compute @workgroup_size(64)
 fn raster(
     @builtin(local_invocation_index) lid: u32,
@@ -604,6 +840,18 @@ fn raster(
         // The batch's grid is that of its largest camera.
         return;
     }
+    let tile_index = cameras[c].place.x + wid.y * size.z + wid.x;
+    if lid == 0u {
+        atomicStore(&threads_done, 0u);
+        tile_range = tile_ranges[tile_index];
+    }
+    // Read through the workgroup so every thread sees the same (uniform) loop bounds.
+    let range = workgroupUniformLoad(&tile_range);
+    let first = slab.x == 0u;
+    if range.x >= range.y && !first {
+        // Nothing in this slab: the state stays as it is.
+        return;
+    }
     let px = wid.x * TILE + lid % TILE;
     let py = wid.y * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
     let tile = vec2<f32>(f32(wid.x * TILE), f32(wid.y * TILE));
@@ -612,6 +860,8 @@ fn raster(
     let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
     let cx = f32(px) + 0.5;
     let cy = vec4<f32>(py) + 0.5;
+    let pixels = size.x * size.y;
+    let p = cameras[c].place.y + py * size.x + px;
     var transmittance = vec4<f32>(1.0);
     var red = vec4<f32>(0.0);
     var green = vec4<f32>(0.0);
@@ -620,14 +870,24 @@ fn raster(
     var median = vec4<f32>(0.0);
     var best_weight = vec4<f32>(0.0);
     var instance = vec4<u32>(0u);
-    var live = inside;
-    var counted = false;
-    if lid == 0u {
-        atomicStore(&threads_done, 0u);
-        tile_range = tile_ranges[cameras[c].place.x + wid.y * size.z + wid.x];
+    if !first {
+        for (var j = 0u; j < 4u; j++) {
+            if inside[j] {
+                red[j] = bitcast<f32>(images[p[j]]);
+                green[j] = bitcast<f32>(images[pixels + p[j]]);
+                blue[j] = bitcast<f32>(images[2u * pixels + p[j]]);
+                transmittance[j] = bitcast<f32>(images[3u * pixels + p[j]]);
+                weighted_depth[j] = bitcast<f32>(images[4u * pixels + p[j]]);
+                median[j] = bitcast<f32>(images[5u * pixels + p[j]]);
+                instance[j] = images[6u * pixels + p[j]];
+                best_weight[j] = bitcast<f32>(images[7u * pixels + p[j]]);
+            }
+        }
     }
-    // Read through the workgroup so every thread sees the same (uniform) loop bounds.
-    let range = workgroupUniformLoad(&tile_range);
+    // A finished pixel keeps its transmittance negated.
+    var live = inside & (transmittance > vec4<f32>(0.0));
+    transmittance = abs(transmittance);
+    var counted = false;
     for (var start = range.x; start < range.y; start += 256u) {
         if !any(live) && !counted {
             counted = true;
@@ -705,34 +965,69 @@ fn raster(
             }
         }
     }
-    let pixels = size.x * size.y;
-    let background = cameras[c].background.xyz;
-    for (var j = 0u; j < 4u; j++) {
-        if !inside[j] {
-            continue;
-        }
-        let t = transmittance[j];
-        let p = cameras[c].place.y + py[j] * size.x + px;
-        let hit = 1.0 - t;
-        var depth = 0.0;
-        var category = 0u;
-        if hit > 0.0 {
-            depth = weighted_depth[j] / hit;
-            if instance[j] < arrayLength(&categories) {
-                category = categories[instance[j]];
-            }
-        }
-        var mid = median[j];
-        if t > 0.5 {
-            mid = 0.0;
-        }
-        images[p] = bitcast<u32>(red[j] + t * background.x);
-        images[pixels + p] = bitcast<u32>(green[j] + t * background.y);
-        images[2u * pixels + p] = bitcast<u32>(blue[j] + t * background.z);
-        images[3u * pixels + p] = bitcast<u32>(hit);
-        images[4u * pixels + p] = bitcast<u32>(depth);
-        images[5u * pixels + p] = bitcast<u32>(mid);
-        images[6u * pixels + p] = instance[j];
-        images[7u * pixels + p] = category;
+    workgroupBarrier();
+    if lid == 0u {
+        atomicStore(&threads_done, 0u);
     }
+    workgroupBarrier();
+    if !any(live) {
+        atomicAdd(&threads_done, 1u);
+    }
+    let kept = select(transmittance, -transmittance, !live);
+    for (var j = 0u; j < 4u; j++) {
+        if inside[j] {
+            images[p[j]] = bitcast<u32>(red[j]);
+            images[pixels + p[j]] = bitcast<u32>(green[j]);
+            images[2u * pixels + p[j]] = bitcast<u32>(blue[j]);
+            images[3u * pixels + p[j]] = bitcast<u32>(kept[j]);
+            images[4u * pixels + p[j]] = bitcast<u32>(weighted_depth[j]);
+            images[5u * pixels + p[j]] = bitcast<u32>(median[j]);
+            images[6u * pixels + p[j]] = instance[j];
+            images[7u * pixels + p[j]] = bitcast<u32>(best_weight[j]);
+        }
+    }
+    workgroupBarrier();
+    if lid == 0u {
+        tile_done[tile_index] = select(0u, 1u, atomicLoad(&threads_done) == 64u);
+    }
+}
+
+// A thread per pixel of every camera's tiles: the images from the blended state (the
+// background behind what remains transparent, depths normalised, the category of the
+// instance).
+@compute @workgroup_size(256)
+fn compose(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+) {
+    let c = wid.z;
+    let size = cameras[c].size;
+    let px = wid.x * TILE + lid % TILE;
+    let py = wid.y * TILE + lid / TILE;
+    if px >= size.x || py >= size.y {
+        return;
+    }
+    let pixels = size.x * size.y;
+    let p = cameras[c].place.y + py * size.x + px;
+    let t = abs(bitcast<f32>(images[3u * pixels + p]));
+    let hit = 1.0 - t;
+    let instance = images[6u * pixels + p];
+    var depth = 0.0;
+    var category = 0u;
+    if hit > 0.0 {
+        depth = bitcast<f32>(images[4u * pixels + p]) / hit;
+        if instance < arrayLength(&categories) {
+            category = categories[instance];
+        }
+    }
+    if t > 0.5 {
+        images[5u * pixels + p] = 0u;
+    }
+    let background = cameras[c].background.xyz;
+    images[p] = bitcast<u32>(bitcast<f32>(images[p]) + t * background.x);
+    images[pixels + p] = bitcast<u32>(bitcast<f32>(images[pixels + p]) + t * background.y);
+    images[2u * pixels + p] = bitcast<u32>(bitcast<f32>(images[2u * pixels + p]) + t * background.z);
+    images[3u * pixels + p] = bitcast<u32>(hit);
+    images[4u * pixels + p] = bitcast<u32>(depth);
+    images[7u * pixels + p] = category;
 }

@@ -3,10 +3,17 @@
 //! the live-size programs built over them.
 
 use super::Gpu;
-use super::kernel::{Kernel, bind, layout, storage, uniform, uniform_buffer};
+use super::kernel::{
+    Kernel, bind, dynamic_uniform, layout, storage, threads_grid, uniform, uniform_buffer,
+};
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
 
+/// Depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each slab
+/// costs a round of dispatches, so fewer).
+pub(crate) const SLABS: u32 = 4;
+/// Bins of the per-camera histogram of chunk depths the slabs are cut from.
+pub(crate) const DEPTH_BINS: u32 = 128;
 /// Words of one camera's block (`Camera` in `splat.wgsl`: its array stride).
 pub(crate) const CAMERA_WORDS: usize = 60;
 /// Image planes per camera: r, g, b, alpha, expected depth, median depth, instance, category.
@@ -14,10 +21,11 @@ pub(crate) const PLANES: u64 = 8;
 /// Words per projected splat (four vec4).
 const SPLAT_WORDS: u64 = 16;
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
-/// sort's result, the batch's tiles.
+/// sort's result, the batch's tiles, its cameras.
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
 pub(crate) const LIVE_TILE_PARITY: u32 = 1;
 pub(crate) const LIVE_TILES: u32 = 2;
+pub(crate) const LIVE_CAMERAS: u32 = 3;
 const LIVE_FIXED: u32 = 4;
 /// Most 8-bit passes the tile sort takes (tiles of a batch below 2²⁴).
 pub(crate) const TILE_SORT_PASSES: u32 = 3;
@@ -74,7 +82,7 @@ impl Caps {
             u64::from(self.splats) * SPLAT_WORDS * 4,
             u64::from(self.entries) * 32,
             u64::from(self.tile_entries) * 4,
-            u64::from(self.camera_chunks) * 4 + 4,
+            u64::from(self.camera_chunks) * 16 + 4,
             self.image_words * 4,
             u64::from(self.cameras) * CAMERA_WORDS as u64 * 4,
         ]
@@ -85,12 +93,13 @@ impl Caps {
 
     /// Device bytes of buffers of these capacities (the scan and sort scratch included).
     pub(crate) fn bytes(&self) -> u64 {
-        let words = u64::from(self.cameras) * CAMERA_WORDS as u64
-            + 2 * u64::from(self.camera_chunks)
+        let words = u64::from(self.cameras)
+            * (CAMERA_WORDS as u64 + u64::from(DEPTH_BINS + SLABS + 1))
+            + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
             + u64::from(self.splats) * (SPLAT_WORDS + 6)
             + 5 * u64::from(self.tile_entries)
-            + 2 * u64::from(self.tiles)
+            + 7 * u64::from(self.tiles)
             + self.image_words;
         words * 4
     }
@@ -100,7 +109,11 @@ impl Caps {
 pub(crate) struct Kernels {
     pub(crate) scene_layout: wgpu::BindGroupLayout,
     frame_layout: wgpu::BindGroupLayout,
+    clear: Kernel,
     cull: Kernel,
+    cut_slabs: Kernel,
+    finished_table: Kernel,
+    select_chunks: Kernel,
     list_chunks: Kernel,
     mark: Kernel,
     project: Kernel,
@@ -109,6 +122,7 @@ pub(crate) struct Kernels {
     clear_ranges: Kernel,
     ranges: Kernel,
     raster: Kernel,
+    compose: Kernel,
     scan: Scan,
     sort: RadixSort,
     pub(crate) live: Live,
@@ -127,11 +141,17 @@ impl Kernels {
         let mut frame = vec![storage(0, true), storage(1, true)];
         frame.extend((2..16).map(|b| storage(b, false)));
         frame.push(uniform(16));
+        frame.extend((17..22).map(|b| storage(b, false)));
+        frame.push(dynamic_uniform(22));
         let frame_layout = layout(gpu, &frame);
         let layouts = [&scene_layout, &frame_layout];
         let kernel = |entry: &str| Kernel::new(gpu, &module, entry, &layouts);
         Kernels {
+            clear: kernel("clear"),
             cull: kernel("cull"),
+            cut_slabs: kernel("cut_slabs"),
+            finished_table: kernel("finished_table"),
+            select_chunks: kernel("select_chunks"),
             list_chunks: kernel("list_chunks"),
             mark: kernel("mark"),
             project: kernel("project"),
@@ -140,6 +160,7 @@ impl Kernels {
             clear_ranges: kernel("clear_ranges"),
             ranges: kernel("ranges"),
             raster: kernel("raster"),
+            compose: kernel("compose"),
             scan: Scan::new(gpu),
             sort: RadixSort::new(gpu),
             live: Live::new(gpu),
@@ -174,8 +195,12 @@ pub(crate) struct Workspace {
     tiles_scan: ScanPlan,
     depth_sort: SortPlan,
     tile_sort: SortPlan,
-    /// Live slots of the unclamped counts: entries, splats, tile entries.
-    pub(crate) raw: [u32; 3],
+    /// Live slots of the unclamped counts over the slabs, largest then sum: entries, splats,
+    /// tile entries.
+    pub(crate) peaks: [u32; 3],
+    pub(crate) totals: [u32; 3],
+    /// Bytes between the slabs' indices in the slab buffer.
+    slab_stride: u32,
     _buffers: Vec<wgpu::Buffer>,
 }
 
@@ -216,6 +241,25 @@ impl Workspace {
         let tile_pairs = ["tile keys", "tile values", "tile keys 2", "tile values 2"]
             .map(|l| buffer(l, u64::from(caps.tile_entries)));
         let tile_ranges = buffer("tile ranges", 2 * u64::from(caps.tiles));
+        let chunk_views = buffer("chunk views", 4 * u64::from(caps.camera_chunks));
+        let histogram = buffer("depth histogram", u64::from(caps.cameras * DEPTH_BINS));
+        let cuts = buffer("slab cuts", u64::from(caps.cameras * (SLABS + 1)));
+        let tile_done = buffer("finished tiles", u64::from(caps.tiles));
+        // (tiles across + 1)(tiles down + 1) ≤ 4 × tiles per camera.
+        let finished_sum = buffer("finished-tile tables", 4 * u64::from(caps.tiles));
+        let slab_stride = gpu
+            .device
+            .limits()
+            .min_uniform_buffer_offset_alignment
+            .max(16);
+        let slab_words: Vec<u32> = (0..SLABS)
+            .flat_map(|k| {
+                let mut entry = vec![0; slab_stride as usize / 4];
+                entry[0] = k;
+                entry
+            })
+            .collect();
+        let slab_indices = uniform_buffer(gpu, &slab_words);
         let images = words_buffer(
             gpu,
             "images",
@@ -339,13 +383,25 @@ impl Workspace {
                 tile_ranges.as_entire_binding(),
                 images.as_entire_binding(),
                 slots.as_entire_binding(),
+                chunk_views.as_entire_binding(),
+                histogram.as_entire_binding(),
+                cuts.as_entire_binding(),
+                tile_done.as_entire_binding(),
+                finished_sum.as_entire_binding(),
+                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &slab_indices,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(16),
+                }),
             ],
         );
         let [d0, d1, d2, d3] = depth;
         let [t0, t1, t2, t3] = tile_pairs;
         Workspace {
             caps,
-            raw: [entries.raw, splat_count.raw, tile_entries.raw],
+            peaks: [entries.peak, splat_count.peak, tile_entries.peak],
+            totals: [entries.total, splat_count.total, tile_entries.total],
+            slab_stride,
             dispatches: Dispatches {
                 camera_chunks: flag_count.args,
                 entries: entry_groups.args,
@@ -378,12 +434,18 @@ impl Workspace {
                 t3,
                 tile_ranges,
                 slots,
+                chunk_views,
+                histogram,
+                cuts,
+                tile_done,
+                finished_sum,
+                slab_indices,
             ],
         }
     }
 
-    /// Records the whole batch into `pass`: `cameras` cameras, `tiles` tiles over them, the
-    /// tile sort over `tile_passes` digits, the blending over a grid of `grid` tiles.
+    /// Records the whole batch into `pass`: `tiles` tiles over the cameras, the tile sort over
+    /// `tile_passes` digits, the blending over a grid of `grid` tiles (× cameras).
     pub(crate) fn encode(
         &self,
         k: &Kernels,
@@ -394,34 +456,47 @@ impl Workspace {
         grid: (u32, u32, u32),
     ) {
         let live = &k.live;
-        let groups: [(&wgpu::BindGroup, &[u32]); 2] =
-            [(scene_group, &[]), (&self.frame_group, &[])];
+        let cameras = grid.2;
         let d = &self.dispatches;
+        let first = [0];
+        let groups: [(&wgpu::BindGroup, &[u32]); 2] =
+            [(scene_group, &[]), (&self.frame_group, &first)];
+        k.clear
+            .run_grid(pass, &groups, threads_grid(tiles.max(cameras * DEPTH_BINS)));
         live.encode(pass, &self.programs, 0);
         live.dispatch(pass, &k.cull, &groups, d.camera_chunks);
-        k.scan.encode(pass, live, &self.flags_scan);
-        live.dispatch(pass, &k.list_chunks, &groups, d.camera_chunks);
-        live.encode(pass, &self.programs, 1);
-        live.dispatch(pass, &k.mark, &groups, d.entries);
-        k.scan.encode(pass, live, &self.entries_scan);
-        live.encode(pass, &self.programs, 2);
-        live.dispatch(pass, &k.project, &groups, d.entries);
-        k.sort.encode(
-            pass,
-            &k.scan,
-            live,
-            &self.depth_sort,
-            DEPTH_SORT_PASSES as usize,
-        );
-        live.dispatch(pass, &k.count_tiles, &groups, d.splats);
-        k.scan.encode(pass, live, &self.tiles_scan);
-        live.encode(pass, &self.programs, 3);
-        live.dispatch(pass, &k.emit, &groups, d.splats);
-        k.sort
-            .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
-        k.clear_ranges
-            .run_grid(pass, &groups, super::kernel::threads_grid(tiles));
-        live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
-        k.raster.run_grid(pass, &groups, grid);
+        k.cut_slabs.run_grid(pass, &groups, threads_grid(cameras));
+        for slab in 0..SLABS {
+            let offset = [slab * self.slab_stride];
+            let groups: [(&wgpu::BindGroup, &[u32]); 2] =
+                [(scene_group, &[]), (&self.frame_group, &offset)];
+            k.finished_table
+                .run_grid(pass, &groups, threads_grid(cameras * 256));
+            live.dispatch(pass, &k.select_chunks, &groups, d.camera_chunks);
+            k.scan.encode(pass, live, &self.flags_scan);
+            live.dispatch(pass, &k.list_chunks, &groups, d.camera_chunks);
+            live.encode(pass, &self.programs, 1);
+            live.dispatch(pass, &k.mark, &groups, d.entries);
+            k.scan.encode(pass, live, &self.entries_scan);
+            live.encode(pass, &self.programs, 2);
+            live.dispatch(pass, &k.project, &groups, d.entries);
+            k.sort.encode(
+                pass,
+                &k.scan,
+                live,
+                &self.depth_sort,
+                DEPTH_SORT_PASSES as usize,
+            );
+            live.dispatch(pass, &k.count_tiles, &groups, d.splats);
+            k.scan.encode(pass, live, &self.tiles_scan);
+            live.encode(pass, &self.programs, 3);
+            live.dispatch(pass, &k.emit, &groups, d.splats);
+            k.sort
+                .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
+            k.clear_ranges.run_grid(pass, &groups, threads_grid(tiles));
+            live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
+            k.raster.run_grid(pass, &groups, grid);
+        }
+        k.compose.run_grid(pass, &groups, grid);
     }
 }
