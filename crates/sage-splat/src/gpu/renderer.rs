@@ -42,7 +42,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
          const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
          const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n\
          const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst SLABS: u32 = {SLABS}u;\n\
-         const DEPTH_BINS: u32 = {DEPTH_BINS}u;\n",
+         const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n",
         sh::C0,
         sh::C1,
         sh_words(sh_rest).max(1),
@@ -659,7 +659,6 @@ impl GpuRenderer {
                 &self.kernels,
                 &state.scene_group,
                 &mut pass,
-                tiles,
                 tile_passes,
                 grid,
             );

@@ -1,15 +1,14 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
 // cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
 // MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS and the fixed live slots).
+// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first
 // runs over what the one before found (`live`, dispatched indirectly). Once per batch:
-// `clear` → `cull` (a thread per camera × chunk of 256 Gaussians: against the camera's
-// frustum, then the chunk's depth range and screen rectangle, and a histogram of the chunks'
-// middle depths) → `cut_slabs` (per camera, SLABS depth slabs at quantiles of that
-// histogram). Then
-// per slab, front to back, as the CPU renderer does:
+// `clear` → `start_pixels` → `cull` (a thread per camera × chunk of 256 Gaussians: against the
+// camera's frustum, then the chunk's depth range and screen rectangle, and a histogram of the
+// chunks' middle depths) → `cut_slabs` (per camera, SLABS depth slabs at quantiles of that
+// histogram). Then per slab, front to back, as the CPU renderer does:
 // `finished_table` (per camera, a summed-area table of the tiles whose every pixel is finished)
 // → `select_chunks` (the chunks reaching the slab and some unfinished tile) → scan →
 // `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
@@ -17,11 +16,11 @@
 // scan of the per-entry counts → `project` (writes the splats, compacted, camera-major and in
 // Gaussian order) → radix sort by depth → `count_tiles` → scan → `emit` ((unfinished tile,
 // splat) entries in depth order, the tile numbered over the whole batch so the camera is in
-// the key) → stable radix sort by tile → `clear_ranges` + `ranges` → `raster` (a workgroup per
-// tile of every camera, blending into the per-pixel state the slab before left). Last,
-// `compose` turns the state into the images. Slabs partition depth and each tile blends in
-// depth order, so the images are those of blending everything at once; what the slabs save is
-// the work behind finished tiles.
+// the key) → stable radix sort by tile → `ranges` (each tile's entries, and the list of tiles
+// with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
+// slab before left). Last, `compose` turns the state into the images. Slabs partition depth
+// and each tile blends in depth order, so the images are those of blending everything at
+// once; what the slabs save is the work behind finished tiles.
 
 struct Camera {
     // Camera-to-world rotation columns (right, down, forward) and centre; w unused.
@@ -45,12 +44,12 @@ struct Camera {
 }
 
 // Live slots of this workspace's derived sizes: visible (camera, chunk) entries, visible
-// splats, (tile, splat) entries, each clamped to what the buffers hold.
+// splats, (tile, splat) entries, tiles with entries, each clamped to what the buffers hold.
 struct Slots {
     entries: u32,
     splats: u32,
     tile_entries: u32,
-    _pad: u32,
+    listed_tiles: u32,
 }
 
 // The scene, resident.
@@ -109,13 +108,17 @@ struct Slots {
 @group(1) @binding(18) var<storage, read_write> depth_histogram: array<atomic<u32>>;
 // Per camera, SLABS + 1 depths: slab k holds the splats of depth in [cut k, cut k + 1).
 @group(1) @binding(19) var<storage, read_write> slab_cuts: array<f32>;
-// Per tile of the batch: 1 once every pixel of it is finished.
-@group(1) @binding(20) var<storage, read_write> tile_done: array<u32>;
+// Per tile of the batch: its columns of four pixels (raster threads) that are finished or
+// outside the image; 64 once the whole tile is finished.
+@group(1) @binding(20) var<storage, read_write> tile_done: array<atomic<u32>>;
 // Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
 // (tiles down + 1) words, row 0 and column 0 zero.
 @group(1) @binding(21) var<storage, read_write> finished_sum: array<u32>;
 // The slab being rendered (x).
 @group(1) @binding(22) var<uniform> slab: vec4<u32>;
+// The tiles of the batch with entries in this slab, in no particular order (each is blended
+// on its own), and their count after the list's capacity (at live[LIVE_TILES]).
+@group(1) @binding(23) var<storage, read_write> tile_list: array<atomic<u32>>;
 
 const F32_MAX: f32 = 3.4028235e38;
 
@@ -219,9 +222,6 @@ fn clear(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let i = thread_index(wid, nwg, lid);
-    if i < live[LIVE_TILES] {
-        tile_done[i] = 0u;
-    }
     if i < live[LIVE_CAMERAS] * DEPTH_BINS {
         atomicStore(&depth_histogram[i], 0u);
     }
@@ -381,7 +381,7 @@ fn finished_table(
         finished_sum[base + y * w] = 0u;
         for (var x = 0u; x < size.z; x++) {
             if y > 0u {
-                run += tile_done[tiles + (y - 1u) * size.z + x];
+                run += select(0u, 1u, atomicLoad(&tile_done[tiles + (y - 1u) * size.z + x]) == 64u);
             }
             finished_sum[base + y * w + x + 1u] = run;
         }
@@ -701,7 +701,7 @@ fn bin(s: u32, first: u32, write: bool) -> u32 {
     for (var ty = r.y; ty <= r.w; ty++) {
         for (var tx = r.x; tx <= r.z; tx++) {
             let tile = base + ty * across + tx;
-            if tile_done[tile] == 0u && (single || reaches_tile(s, c, tx, ty)) {
+            if atomicLoad(&tile_done[tile]) < 64u && (single || reaches_tile(s, c, tx, ty)) {
                 if write && slot < room {
                     tile_keys[slot] = tile;
                     tile_values[slot] = s;
@@ -744,18 +744,6 @@ fn emit(
     bin(depth_values[i], tile_counts[i], true);
 }
 
-@compute @workgroup_size(256)
-fn clear_ranges(
-    @builtin(local_invocation_index) lid: u32,
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) nwg: vec3<u32>,
-) {
-    let t = thread_index(wid, nwg, lid);
-    if t < live[LIVE_TILES] {
-        tile_ranges[t] = vec2<u32>(0u);
-    }
-}
-
 fn sorted_tile(i: u32) -> u32 {
     if live[LIVE_TILE_PARITY] == 1u {
         return tile_keys_2[i];
@@ -784,10 +772,67 @@ fn ranges(
     let t = sorted_tile(i);
     if i == 0u || sorted_tile(i - 1u) != t {
         tile_ranges[t].x = i;
+        atomicStore(&tile_list[atomicAdd(&tile_list[live[LIVE_TILES]], 1u)], t);
     }
     if i + 1u == m || sorted_tile(i + 1u) != t {
         tile_ranges[t].y = i + 1u;
     }
+}
+
+// The camera whose tiles hold batch tile t: the last whose first tile is at or before it.
+fn tile_camera(t: u32) -> u32 {
+    var lo = 0u;
+    var hi = live[LIVE_CAMERAS];
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if cameras[mid].place.x <= t {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// The columns of four pixels (raster threads) of tile (tx, ty) of a camera of `size` that
+// hold no pixel of the image.
+fn outside_columns(size: vec4<u32>, tx: u32, ty: u32) -> u32 {
+    let columns = min(TILE, size.x - tx * TILE);
+    let rows = (min(TILE, size.y - ty * TILE) + 3u) / 4u;
+    return 64u - columns * rows;
+}
+
+// A thread per pixel of every camera's tiles: nothing blended yet (and per tile, its columns
+// outside the image counted as finished, no entries, and the list of tiles to blend empty).
+@compute @workgroup_size(256)
+fn start_pixels(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+) {
+    let c = wid.z;
+    let size = cameras[c].size;
+    if wid.x >= size.z || wid.y >= size.w {
+        return;
+    }
+    if lid == 0u {
+        let t = cameras[c].place.x + wid.y * size.z + wid.x;
+        atomicStore(&tile_done[t], outside_columns(size, wid.x, wid.y));
+        tile_ranges[t] = vec2<u32>(0u);
+        if t == 0u {
+            atomicStore(&tile_list[live[LIVE_TILES]], 0u);
+        }
+    }
+    let px = wid.x * TILE + lid % TILE;
+    let py = wid.y * TILE + lid / TILE;
+    if px >= size.x || py >= size.y {
+        return;
+    }
+    let pixels = size.x * size.y;
+    let p = cameras[c].place.y + py * size.x + px;
+    for (var k = 0u; k < PLANES; k++) {
+        images[k * pixels + p] = 0u;
+    }
+    images[3u * pixels + p] = bitcast<u32>(1.0);
 }
 
 var<workgroup> batch_a: array<vec4<f32>, 256>;
@@ -799,7 +844,8 @@ var<workgroup> batch_blocks: array<u32, 256>;
 var<workgroup> block_bits: array<u32, 64>;
 var<workgroup> threads_done: atomic<u32>;
 var<workgroup> all_done: u32;
-var<workgroup> tile_range: vec2<u32>;
+// The tile a raster workgroup blends and its range of entries.
+var<workgroup> raster_tile: vec3<u32>;
 
 // The blocks of 8 columns × 4 rows of a tile (bit 2·row group + column half) that the box
 // `lo`…`hi` reaches at some pixel centre.
@@ -827,34 +873,41 @@ fn box_blocks(lo: vec2<f32>, hi: vec2<f32>, tile: vec2<f32>) -> u32 {
 // box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
 // (lavapipe) runs such eight together and skips the rest; on a GPU each thread steps through
 // its own block's list, so a warp takes as many steps as the longest list of its blocks.
-// The pixels' state comes from the slab before (the first slab starts it) and goes back to
-// `images`; the tile is marked done once every pixel of it is finished.
+// A workgroup per tile with entries in this slab (`tile_list`); the pixels' state comes from
+// the slab before and goes back to `images`, and a column that finishes here is counted in
+// `tile_done`.
 @compute @workgroup_size(64)
 fn raster(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let c = wid.z;
-    let size = cameras[c].size;
-    if wid.x >= size.z || wid.y >= size.w {
-        // The batch's grid is that of its largest camera.
+    let listed = group_index(wid, nwg);
+    if listed >= live[slots.listed_tiles] {
         return;
     }
-    let tile_index = cameras[c].place.x + wid.y * size.z + wid.x;
     if lid == 0u {
         atomicStore(&threads_done, 0u);
-        tile_range = tile_ranges[tile_index];
+        let t = atomicLoad(&tile_list[listed]);
+        raster_tile = vec3<u32>(t, tile_ranges[t]);
+        // Empty again for the next slab (the list's count was read before this dispatch).
+        tile_ranges[t] = vec2<u32>(0u);
+        if listed == 0u {
+            atomicStore(&tile_list[live[LIVE_TILES]], 0u);
+        }
     }
-    // Read through the workgroup so every thread sees the same (uniform) loop bounds.
-    let range = workgroupUniformLoad(&tile_range);
-    let first = slab.x == 0u;
-    if range.x >= range.y && !first {
-        // Nothing in this slab: the state stays as it is.
-        return;
-    }
-    let px = wid.x * TILE + lid % TILE;
-    let py = wid.y * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
-    let tile = vec2<f32>(f32(wid.x * TILE), f32(wid.y * TILE));
+    // Read through the workgroup so every thread sees the same (uniform) tile and loop bounds.
+    let job = workgroupUniformLoad(&raster_tile);
+    let tile_index = job.x;
+    let range = job.yz;
+    let c = tile_camera(tile_index);
+    let size = cameras[c].size;
+    let local = tile_index - cameras[c].place.x;
+    let tx = local % size.z;
+    let ty = local / size.z;
+    let px = tx * TILE + lid % TILE;
+    let py = ty * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
+    let tile = vec2<f32>(f32(tx * TILE), f32(ty * TILE));
     // Threads 8b…8b+7 are block b: row group b / 2, column half b % 2 (as in `box_blocks`).
     let block = lid / 8u;
     let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
@@ -870,22 +923,21 @@ fn raster(
     var median = vec4<f32>(0.0);
     var best_weight = vec4<f32>(0.0);
     var instance = vec4<u32>(0u);
-    if !first {
-        for (var j = 0u; j < 4u; j++) {
-            if inside[j] {
-                red[j] = bitcast<f32>(images[p[j]]);
-                green[j] = bitcast<f32>(images[pixels + p[j]]);
-                blue[j] = bitcast<f32>(images[2u * pixels + p[j]]);
-                transmittance[j] = bitcast<f32>(images[3u * pixels + p[j]]);
-                weighted_depth[j] = bitcast<f32>(images[4u * pixels + p[j]]);
-                median[j] = bitcast<f32>(images[5u * pixels + p[j]]);
-                instance[j] = images[6u * pixels + p[j]];
-                best_weight[j] = bitcast<f32>(images[7u * pixels + p[j]]);
-            }
+    for (var j = 0u; j < 4u; j++) {
+        if inside[j] {
+            red[j] = bitcast<f32>(images[p[j]]);
+            green[j] = bitcast<f32>(images[pixels + p[j]]);
+            blue[j] = bitcast<f32>(images[2u * pixels + p[j]]);
+            transmittance[j] = bitcast<f32>(images[3u * pixels + p[j]]);
+            weighted_depth[j] = bitcast<f32>(images[4u * pixels + p[j]]);
+            median[j] = bitcast<f32>(images[5u * pixels + p[j]]);
+            instance[j] = images[6u * pixels + p[j]];
+            best_weight[j] = bitcast<f32>(images[7u * pixels + p[j]]);
         }
     }
     // A finished pixel keeps its transmittance negated.
     var live = inside & (transmittance > vec4<f32>(0.0));
+    let was_live = any(live);
     transmittance = abs(transmittance);
     var counted = false;
     for (var start = range.x; start < range.y; start += 256u) {
@@ -965,13 +1017,8 @@ fn raster(
             }
         }
     }
-    workgroupBarrier();
-    if lid == 0u {
-        atomicStore(&threads_done, 0u);
-    }
-    workgroupBarrier();
-    if !any(live) {
-        atomicAdd(&threads_done, 1u);
+    if was_live && !any(live) {
+        atomicAdd(&tile_done[tile_index], 1u);
     }
     let kept = select(transmittance, -transmittance, !live);
     for (var j = 0u; j < 4u; j++) {
@@ -985,10 +1032,6 @@ fn raster(
             images[6u * pixels + p[j]] = instance[j];
             images[7u * pixels + p[j]] = bitcast<u32>(best_weight[j]);
         }
-    }
-    workgroupBarrier();
-    if lid == 0u {
-        tile_done[tile_index] = select(0u, 1u, atomicLoad(&threads_done) == 64u);
     }
 }
 

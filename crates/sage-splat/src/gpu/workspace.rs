@@ -99,7 +99,7 @@ impl Caps {
             + 11 * u64::from(self.entries)
             + u64::from(self.splats) * (SPLAT_WORDS + 6)
             + 5 * u64::from(self.tile_entries)
-            + 7 * u64::from(self.tiles)
+            + 8 * u64::from(self.tiles)
             + self.image_words;
         words * 4
     }
@@ -119,8 +119,8 @@ pub(crate) struct Kernels {
     project: Kernel,
     count_tiles: Kernel,
     emit: Kernel,
-    clear_ranges: Kernel,
     ranges: Kernel,
+    start_pixels: Kernel,
     raster: Kernel,
     compose: Kernel,
     scan: Scan,
@@ -143,6 +143,7 @@ impl Kernels {
         frame.push(uniform(16));
         frame.extend((17..22).map(|b| storage(b, false)));
         frame.push(dynamic_uniform(22));
+        frame.push(storage(23, false));
         let frame_layout = layout(gpu, &frame);
         let layouts = [&scene_layout, &frame_layout];
         let kernel = |entry: &str| Kernel::new(gpu, &module, entry, &layouts);
@@ -157,8 +158,8 @@ impl Kernels {
             project: kernel("project"),
             count_tiles: kernel("count_tiles"),
             emit: kernel("emit"),
-            clear_ranges: kernel("clear_ranges"),
             ranges: kernel("ranges"),
+            start_pixels: kernel("start_pixels"),
             raster: kernel("raster"),
             compose: kernel("compose"),
             scan: Scan::new(gpu),
@@ -180,6 +181,8 @@ struct Dispatches {
     splats: u64,
     /// A thread per (tile, splat) entry.
     tile_entries: u64,
+    /// A workgroup per tile with entries.
+    listed_tiles: u64,
 }
 
 /// A batch's buffers for up to [`Caps`], with what is recorded over them.
@@ -247,6 +250,7 @@ impl Workspace {
         let tile_done = buffer("finished tiles", u64::from(caps.tiles));
         // (tiles across + 1)(tiles down + 1) ≤ 4 × tiles per camera.
         let finished_sum = buffer("finished-tile tables", 4 * u64::from(caps.tiles));
+        let tile_list = buffer("listed tiles", u64::from(caps.tiles) + 1);
         let slab_stride = gpu
             .device
             .limits()
@@ -360,8 +364,19 @@ impl Workspace {
             tile_entries.n,
             TILE_SORT_PASSES,
         );
-        let programs = live.programs(gpu, &b, &[&flags, &flags, &entry_counts, &tile_counts]);
-        let slots = uniform_buffer(gpu, &[entries.n, splat_count.n, tile_entries.n, 0]);
+        // Stage 4, from the count the binning's ranges left after the list: the tiles to blend.
+        b.stage();
+        let listed_tiles =
+            b.derive(Size::of(Count::SourceAt(LIVE_TILES), caps.tiles).dispatched(1));
+        let programs = live.programs(
+            gpu,
+            &b,
+            &[&flags, &flags, &entry_counts, &tile_counts, &tile_list],
+        );
+        let slots = uniform_buffer(
+            gpu,
+            &[entries.n, splat_count.n, tile_entries.n, listed_tiles.n],
+        );
         let frame_group = bind(
             gpu,
             &k.frame_layout,
@@ -393,6 +408,7 @@ impl Workspace {
                     offset: 0,
                     size: wgpu::BufferSize::new(16),
                 }),
+                tile_list.as_entire_binding(),
             ],
         );
         let [d0, d1, d2, d3] = depth;
@@ -407,6 +423,7 @@ impl Workspace {
                 entries: entry_groups.args,
                 splats: splat_threads.args,
                 tile_entries: tile_entries.args,
+                listed_tiles: listed_tiles.args,
             },
             cameras,
             images,
@@ -440,18 +457,18 @@ impl Workspace {
                 tile_done,
                 finished_sum,
                 slab_indices,
+                tile_list,
             ],
         }
     }
 
-    /// Records the whole batch into `pass`: `tiles` tiles over the cameras, the tile sort over
-    /// `tile_passes` digits, the blending over a grid of `grid` tiles (× cameras).
+    /// Records the whole batch into `pass`: the tile sort over `tile_passes` digits, the
+    /// per-pixel passes over a grid of `grid` tiles (× cameras).
     pub(crate) fn encode(
         &self,
         k: &Kernels,
         scene_group: &wgpu::BindGroup,
         pass: &mut wgpu::ComputePass<'_>,
-        tiles: u32,
         tile_passes: u32,
         grid: (u32, u32, u32),
     ) {
@@ -462,7 +479,8 @@ impl Workspace {
         let groups: [(&wgpu::BindGroup, &[u32]); 2] =
             [(scene_group, &[]), (&self.frame_group, &first)];
         k.clear
-            .run_grid(pass, &groups, threads_grid(tiles.max(cameras * DEPTH_BINS)));
+            .run_grid(pass, &groups, threads_grid(cameras * DEPTH_BINS));
+        k.start_pixels.run_grid(pass, &groups, grid);
         live.encode(pass, &self.programs, 0);
         live.dispatch(pass, &k.cull, &groups, d.camera_chunks);
         k.cut_slabs.run_grid(pass, &groups, threads_grid(cameras));
@@ -493,9 +511,9 @@ impl Workspace {
             live.dispatch(pass, &k.emit, &groups, d.splats);
             k.sort
                 .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
-            k.clear_ranges.run_grid(pass, &groups, threads_grid(tiles));
             live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
-            k.raster.run_grid(pass, &groups, grid);
+            live.encode(pass, &self.programs, 4);
+            live.dispatch(pass, &k.raster, &groups, d.listed_tiles);
         }
         k.compose.run_grid(pass, &groups, grid);
     }
