@@ -7,8 +7,8 @@ use super::kernel::bind;
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
-    CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_TILE_PARITY,
-    LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace,
+    CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_SLABS,
+    LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace, slabs_after,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -41,7 +41,8 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
          const GAUSSIANS: u32 = {gaussians}u;\nconst CHUNKS: u32 = {chunks}u;\n\
          const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
          const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n\
-         const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst SLABS: u32 = {SLABS}u;\n\
+         const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst LIVE_SLABS: u32 = {LIVE_SLABS}u;\n\
+         const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n",
         sh::C0,
         sh::C1,
@@ -104,6 +105,8 @@ fn lost() -> Error {
 /// What the frames of one renderer share, behind its lock.
 struct State {
     stats: GpuStats,
+    /// Depth slabs the next batch renders in (from the work of the last).
+    slabs: u32,
     categories: Vec<u16>,
     scene_group: wgpu::BindGroup,
     categories_buffer: wgpu::Buffer,
@@ -187,6 +190,7 @@ impl Submitted {
         let mut state = r.lock();
         match r.finish(&mut state, flight)? {
             Finished::Images(images, stats) => {
+                state.slabs = slabs_after(&stats);
                 state.stats = stats;
                 Ok(images)
             }
@@ -236,6 +240,7 @@ impl GpuRenderer {
             scene,
             state: Mutex::new(State {
                 stats: GpuStats::default(),
+                slabs: SLABS,
                 categories: Vec::new(),
                 scene_group,
                 categories_buffer,
@@ -545,6 +550,7 @@ impl GpuRenderer {
             }
         }
         total.cameras = cameras.len();
+        state.slabs = slabs_after(&total);
         state.stats = total;
         Ok(out
             .into_iter()
@@ -645,6 +651,7 @@ impl GpuRenderer {
         fixed[LIVE_TILE_PARITY as usize] = tile_passes % 2;
         fixed[LIVE_TILES as usize] = tiles;
         fixed[LIVE_CAMERAS as usize] = cameras.len() as u32;
+        fixed[LIVE_SLABS as usize] = state.slabs;
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu
@@ -660,6 +667,7 @@ impl GpuRenderer {
                 &state.scene_group,
                 &mut pass,
                 tile_passes,
+                state.slabs,
                 grid,
             );
         }

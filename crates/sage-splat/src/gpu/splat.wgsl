@@ -314,9 +314,9 @@ fn cull(
     chunk_views[i] = view;
 }
 
-// Per camera, the slabs' cuts at quantiles of its chunks' middle depths (rounded up to a bin's
-// end, so a slab holds at least its share): −F32_MAX, SLABS − 1 cuts, F32_MAX. A camera that
-// sees nothing has everything in its first slab.
+// Per camera, the cuts of the batch's live[LIVE_SLABS] slabs at quantiles of its chunks'
+// middle depths (rounded up to a bin's end, so a slab holds at least its share): −F32_MAX, the
+// cuts, then F32_MAX up to SLABS. A camera that sees nothing has everything in its first slab.
 @compute @workgroup_size(256)
 fn cut_slabs(
     @builtin(local_invocation_index) lid: u32,
@@ -338,8 +338,9 @@ fn cut_slabs(
     // Bins before `b` hold `below` chunks.
     var b = 0u;
     var below = 0u;
+    let slabs = clamp(live[LIVE_SLABS], 1u, SLABS);
     for (var k = 1u; k < SLABS; k++) {
-        let rank = k * total / SLABS;
+        let rank = k * total / slabs;
         loop {
             if b >= DEPTH_BINS {
                 break;
@@ -352,7 +353,7 @@ fn cut_slabs(
             b++;
         }
         var cut = F32_MAX;
-        if b + 1u < DEPTH_BINS {
+        if k < slabs && b + 1u < DEPTH_BINS {
             cut = bin_depth(c, b + 1u);
         }
         slab_cuts[base + k] = cut;

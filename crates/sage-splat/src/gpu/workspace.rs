@@ -2,16 +2,30 @@
 //! batch needs more (no allocation on the per-frame path), with the scan and sort plans and
 //! the live-size programs built over them.
 
-use super::Gpu;
 use super::kernel::{
     Kernel, bind, dynamic_uniform, layout, storage, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
+use super::{Gpu, GpuStats};
 
-/// Depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each slab
-/// costs a round of dispatches, so fewer).
+/// Most depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each
+/// slab costs a round of dispatches, so fewer).
 pub(crate) const SLABS: u32 = 4;
+/// Chunks per camera, summed over the slabs, below which a batch saves too little behind
+/// finished tiles to pay for more than one slab's dispatches (256 chunks: 64k Gaussians).
+const FEW_CHUNKS: u64 = 256;
+
+/// The slabs of the next batch after one that did the work of `stats`: one where each camera
+/// saw little, else [`SLABS`]. A renderer's frames follow each other (a walk, a turn), so the
+/// last batch's work predicts the next; the images are the same whatever the slabs.
+pub(crate) fn slabs_after(stats: &GpuStats) -> u32 {
+    if stats.chunks < FEW_CHUNKS * stats.cameras as u64 {
+        1
+    } else {
+        SLABS
+    }
+}
 /// Bins of the per-camera histogram of chunk depths the slabs are cut from.
 pub(crate) const DEPTH_BINS: u32 = 128;
 /// Words of one camera's block (`Camera` in `splat.wgsl`: its array stride).
@@ -21,12 +35,13 @@ pub(crate) const PLANES: u64 = 8;
 /// Words per projected splat (four vec4).
 const SPLAT_WORDS: u64 = 16;
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
-/// sort's result, the batch's tiles, its cameras.
+/// sort's result, the batch's tiles, its cameras, its depth slabs.
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
 pub(crate) const LIVE_TILE_PARITY: u32 = 1;
 pub(crate) const LIVE_TILES: u32 = 2;
 pub(crate) const LIVE_CAMERAS: u32 = 3;
-const LIVE_FIXED: u32 = 4;
+pub(crate) const LIVE_SLABS: u32 = 4;
+const LIVE_FIXED: u32 = 5;
 /// Most 8-bit passes the tile sort takes (tiles of a batch below 2²⁴).
 pub(crate) const TILE_SORT_PASSES: u32 = 3;
 /// Depth keys are f32 bits: four 8-bit passes.
@@ -462,14 +477,15 @@ impl Workspace {
         }
     }
 
-    /// Records the whole batch into `pass`: the tile sort over `tile_passes` digits, the
-    /// per-pixel passes over a grid of `grid` tiles (× cameras).
+    /// Records the whole batch into `pass`: the tile sort over `tile_passes` digits, `slabs`
+    /// depth slabs, the per-pixel passes over a grid of `grid` tiles (× cameras).
     pub(crate) fn encode(
         &self,
         k: &Kernels,
         scene_group: &wgpu::BindGroup,
         pass: &mut wgpu::ComputePass<'_>,
         tile_passes: u32,
+        slabs: u32,
         grid: (u32, u32, u32),
     ) {
         let live = &k.live;
@@ -484,7 +500,7 @@ impl Workspace {
         live.encode(pass, &self.programs, 0);
         live.dispatch(pass, &k.cull, &groups, d.camera_chunks);
         k.cut_slabs.run_grid(pass, &groups, threads_grid(cameras));
-        for slab in 0..SLABS {
+        for slab in 0..slabs.clamp(1, SLABS) {
             let offset = [slab * self.slab_stride];
             let groups: [(&wgpu::BindGroup, &[u32]); 2] =
                 [(scene_group, &[]), (&self.frame_group, &offset)];
