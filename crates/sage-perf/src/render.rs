@@ -6,7 +6,7 @@ use crate::machine;
 use sage_core::Result;
 use sage_scene::Scene;
 use sage_scene::ply::SplatLayout;
-use sage_splat::{Backend, Camera, Device, Intrinsics, RenderOptions, Renderer};
+use sage_splat::{Backend, Camera, Device, Intrinsics, PassTimes, RenderOptions, Renderer};
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -115,6 +115,10 @@ pub struct FrameTimes {
     /// included).
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
     pub breakdown: Option<Breakdown>,
+    /// Where the GPU renderer's time went on the device, medians of each stage (where the
+    /// device writes timestamps).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gpu_passes: Option<PassTimes>,
 }
 
 /// The CPU renderer's stages and work, medians over the frames.
@@ -191,7 +195,16 @@ impl fmt::Display for RenderReport {
                     "; cull {:.2} + project {:.1} + sort {:.1} + raster {:.1} ms; {:.0} Gaussians examined, {:.0} splats",
                     b.cull_ms, b.project_ms, b.sort_ms, b.raster_ms, b.examined, b.splats
                 )?,
-                None => writeln!(f, ", one camera per call, read-back included")?,
+                None => write!(f, ", one camera per call, read-back included")?,
+            }
+            match &t.gpu_passes {
+                Some(p) => writeln!(
+                    f,
+                    "; on the GPU: set-up {:.1} + project {:.1} + depth sort {:.1} + bin {:.1} + raster {:.1} + compose {:.1} ms",
+                    p.setup_ms, p.project_ms, p.depth_sort_ms, p.bin_ms, p.raster_ms, p.compose_ms
+                )?,
+                None if t.breakdown.is_none() => writeln!(f)?,
+                None => {}
             }
         }
         for b in &self.batches {
@@ -320,13 +333,16 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             settings.pitch,
             frames,
         );
+        let timed = backend.time_passes(true);
         backend.render(gaussians, categories, &cams[0], &options)?;
         let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames);
+        let mut passes: Vec<PassTimes> = Vec::with_capacity(frames);
         for cam in &cams {
             let start = Instant::now();
             backend.render(gaussians, categories, cam, &options)?;
             let total = start.elapsed().as_secs_f64() * 1e3;
             let s = backend.as_cpu().map(Renderer::stats).unwrap_or_default();
+            passes.extend(backend.pass_times());
             rows.push([
                 total,
                 s.cull_ms,
@@ -351,7 +367,21 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 examined: col(5),
                 splats: col(6),
             }),
+            gpu_passes: timed.then(|| {
+                let stage = |f: fn(&PassTimes) -> f64| {
+                    crate::median(&passes.iter().map(f).collect::<Vec<_>>())
+                };
+                PassTimes {
+                    setup_ms: stage(|p| p.setup_ms),
+                    project_ms: stage(|p| p.project_ms),
+                    depth_sort_ms: stage(|p| p.depth_sort_ms),
+                    bin_ms: stage(|p| p.bin_ms),
+                    raster_ms: stage(|p| p.raster_ms),
+                    compose_ms: stage(|p| p.compose_ms),
+                }
+            }),
         });
+        backend.time_passes(false);
     }
     let mut batches = Vec::new();
     if backend.is_gpu() {

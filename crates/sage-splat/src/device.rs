@@ -12,6 +12,24 @@ use std::str::FromStr;
 #[cfg(feature = "gpu")]
 use std::sync::Arc;
 
+/// GPU milliseconds of a batch's stages on the GPU renderer, summed over its depth slabs (from
+/// timestamps the device writes between dispatches: [`Backend::time_passes`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct PassTimes {
+    /// Clearing, culling the chunks and cutting the slabs.
+    pub setup_ms: f64,
+    /// Selecting the chunks, marking and projecting the splats.
+    pub project_ms: f64,
+    /// The radix sort by depth.
+    pub depth_sort_ms: f64,
+    /// Binning into tiles, the sort by tile and the tiles' ranges.
+    pub bin_ms: f64,
+    /// Blending.
+    pub raster_ms: f64,
+    /// Composing the images.
+    pub compose_ms: f64,
+}
+
 /// Where images are rendered: `cpu`, `gpu`, or `auto` (a hardware GPU when there is one,
 /// else the CPU).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -224,6 +242,26 @@ impl Backend {
             Executor::Cpu(_) => None,
             #[cfg(feature = "gpu")]
             Executor::Gpu(r) => Some(r.scene_bytes() + r.stats().workspace_bytes),
+        }
+    }
+
+    /// Times the GPU renderer's stages from now on (or stops); false, timing nothing, on the
+    /// CPU or on a device that cannot write timestamps between dispatches.
+    #[cfg_attr(not(feature = "gpu"), expect(unused_variables))]
+    pub fn time_passes(&self, on: bool) -> bool {
+        match &self.executor {
+            Executor::Cpu(_) => false,
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => r.time_passes(on),
+        }
+    }
+
+    /// The GPU time of each stage of the last batch, while timing ([`Backend::time_passes`]).
+    pub fn pass_times(&self) -> Option<PassTimes> {
+        match &self.executor {
+            Executor::Cpu(_) => None,
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => r.stats().passes,
         }
     }
 

@@ -31,5 +31,5 @@ pub mod sh;
 pub mod tile;
 
 pub use camera::{Camera, CameraSpec, Intrinsics};
-pub use device::{Backend, Device, Rendering};
+pub use device::{Backend, Device, PassTimes, Rendering};
 pub use render::{RenderOptions, RenderOutput, RenderStats, Renderer};

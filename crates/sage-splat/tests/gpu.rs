@@ -347,3 +347,38 @@ fn renders_from_many_threads_at_once_equal_renders_alone() {
     });
     assert_eq!(alone, together);
 }
+
+#[test]
+fn passes_are_timed_on_request_and_timing_changes_no_byte() {
+    let Some(gpu) = gpu() else { return };
+    let g = testdata("random_3k_sh0.ply");
+    let b = g.bounds();
+    let (centre, size) = ((b.min + b.max) * 0.5, (b.max - b.min).max_element());
+    let cam = camera(64, 48, centre - Vec3::X * size, 0.0, 0.0);
+    let options = RenderOptions::default();
+    let renderer = GpuRenderer::new(&gpu, &g).unwrap();
+    let plain = renderer.render(&g, &[], &cam, &options).unwrap();
+    assert!(renderer.stats().passes.is_none());
+    let timed = renderer.time_passes(true);
+    assert_eq!(timed, gpu.has_timestamps());
+    let image = renderer.render(&g, &[], &cam, &options).unwrap();
+    assert_eq!(image, plain);
+    match renderer.stats().passes {
+        Some(p) => {
+            let stages = [
+                p.setup_ms,
+                p.project_ms,
+                p.depth_sort_ms,
+                p.bin_ms,
+                p.raster_ms,
+                p.compose_ms,
+            ];
+            assert!(stages.iter().all(|t| t.is_finite() && *t >= 0.0), "{p:?}");
+            assert!(stages.iter().sum::<f64>() > 0.0, "{p:?}");
+        }
+        None => assert!(!timed),
+    }
+    renderer.time_passes(false);
+    renderer.render(&g, &[], &cam, &options).unwrap();
+    assert!(renderer.stats().passes.is_none());
+}

@@ -12,6 +12,10 @@ pub struct Gpu {
     fault: Arc<Mutex<Option<String>>>,
 }
 
+/// The features that time the passes of a batch (`GpuRenderer::time_passes`).
+const TIMESTAMPS: wgpu::Features =
+    wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES);
+
 /// Names a user may set to pick an adapter by (part of) its name on a machine with several.
 pub const ADAPTER_VARIABLE: &str = "SAGE3D_GPU_ADAPTER";
 
@@ -86,7 +90,8 @@ impl Gpu {
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("sage3d"),
-            required_features: wgpu::Features::empty(),
+            // Timestamps inside passes, where the adapter has them, time the passes on request.
+            required_features: adapter.features() & TIMESTAMPS,
             required_limits: limits,
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
@@ -122,6 +127,11 @@ impl Gpu {
     /// True for a software rasteriser (lavapipe, WARP).
     pub fn is_software(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// True when the device writes timestamps between dispatches (to time the passes).
+    pub fn has_timestamps(&self) -> bool {
+        self.device.features().contains(TIMESTAMPS)
     }
 
     /// The device's limits.

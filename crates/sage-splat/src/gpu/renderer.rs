@@ -7,10 +7,12 @@ use super::kernel::bind;
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
-    CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_SLABS,
-    LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace, slabs_after,
+    BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS,
+    LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace,
+    slabs_after,
 };
 use crate::camera::Camera;
+use crate::device::PassTimes;
 use crate::index::frustum_planes;
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
 use crate::render::{RenderOptions, RenderOutput};
@@ -67,7 +69,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
 }
 
 /// The work of the last batch a [`GpuRenderer`] rendered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct GpuStats {
     /// Cameras in the batch.
     pub cameras: usize,
@@ -85,6 +87,9 @@ pub struct GpuStats {
     pub regrown: u32,
     /// Device bytes of the work space (the scene's upload not included).
     pub workspace_bytes: u64,
+    /// GPU time of each stage, when the renderer times its passes
+    /// ([`GpuRenderer::time_passes`]).
+    pub passes: Option<PassTimes>,
 }
 
 /// A render one caller asked for, queued until whoever holds the GPU takes it: callers on
@@ -113,6 +118,8 @@ struct State {
     workspace: Option<Workspace>,
     /// Read-back buffers not in flight.
     staging: Vec<wgpu::Buffer>,
+    /// The timestamps of the passes and the buffer they resolve into, while timing.
+    timing: Option<(wgpu::QuerySet, wgpu::Buffer)>,
 }
 
 /// One scene's Gaussians resident on a [`Gpu`], and the buffers its frames reuse. Shared by
@@ -143,6 +150,8 @@ struct InFlight {
     mapped: mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
     slots: Vec<Slot>,
     image_words: u64,
+    /// Timestamps after the images in the read-back (0 when not timed).
+    stamps: u32,
     /// What the work space held when it rendered, and the live slots of its unclamped counts
     /// (largest and sum over the slabs).
     caps: Caps,
@@ -246,6 +255,7 @@ impl GpuRenderer {
                 categories_buffer,
                 workspace: None,
                 staging: Vec::new(),
+                timing: None,
             }),
             pending: Mutex::new(Vec::new()),
         }))
@@ -294,6 +304,32 @@ impl GpuRenderer {
     /// The GPU it renders on.
     pub fn gpu(&self) -> &Gpu {
         &self.gpu
+    }
+
+    /// Times the stages of every batch from now on (or stops): [`GpuStats::passes`]. Returns
+    /// false, timing nothing, when the device cannot write timestamps between dispatches.
+    pub fn time_passes(&self, on: bool) -> bool {
+        let mut state = self.lock();
+        if !on || !self.gpu.has_timestamps() {
+            state.timing = None;
+            return false;
+        }
+        if state.timing.is_none() {
+            let count = PassTimes::stamps(SLABS);
+            let queries = self.gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pass timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            });
+            let resolved = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("resolved timestamps"),
+                size: u64::from(count) * 8,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            state.timing = Some((queries, resolved));
+        }
+        true
     }
 
     /// Renders one camera (see [`GpuRenderer::render_batch`]).
@@ -526,6 +562,10 @@ impl GpuRenderer {
                         total.splats += stats.splats;
                         total.tile_entries += stats.tile_entries;
                         total.capacity = stats.capacity;
+                        total.passes = match (total.passes, stats.passes) {
+                            (Some(a), Some(b)) => Some(a.add(&b)),
+                            (a, b) => a.or(b),
+                        };
                         total.workspace_bytes = stats.workspace_bytes;
                     }
                     Finished::Grow(need) if need.largest_buffer() <= bound => {
@@ -666,14 +706,21 @@ impl GpuRenderer {
                 &self.kernels,
                 &state.scene_group,
                 &mut pass,
-                tile_passes,
-                state.slabs,
-                grid,
+                &BatchPlan {
+                    tile_passes,
+                    slabs: state.slabs,
+                    grid,
+                    stamps: state.timing.as_ref().map(|(q, _)| q),
+                },
             );
         }
         let image_bytes = offset * 4;
         let live_bytes = self.kernels.live.buffer.size();
-        let size = image_bytes + live_bytes;
+        let stamps = state
+            .timing
+            .as_ref()
+            .map_or(0, |_| PassTimes::stamps(state.slabs.clamp(1, SLABS)));
+        let size = image_bytes + live_bytes + u64::from(stamps) * 8;
         let staging = match state.staging.iter().position(|b| b.size() >= size) {
             Some(i) => state.staging.swap_remove(i),
             None => gpu.device.create_buffer(&wgpu::BufferDescriptor {
@@ -685,6 +732,11 @@ impl GpuRenderer {
         };
         encoder.copy_buffer_to_buffer(&self.kernels.live.buffer, 0, &staging, 0, live_bytes);
         encoder.copy_buffer_to_buffer(&w.images, 0, &staging, live_bytes, image_bytes);
+        if let Some((queries, resolved)) = &state.timing {
+            encoder.resolve_query_set(queries, 0..stamps, resolved, 0);
+            let at = live_bytes + image_bytes;
+            encoder.copy_buffer_to_buffer(resolved, 0, &staging, at, u64::from(stamps) * 8);
+        }
         let submission = gpu.queue.submit([encoder.finish()]);
         let (tx, mapped) = mpsc::channel();
         staging.map_async(wgpu::MapMode::Read, .., move |r| {
@@ -696,6 +748,7 @@ impl GpuRenderer {
             mapped,
             slots,
             image_words: offset,
+            stamps,
             caps: w.caps,
             peaks: w.peaks,
             totals: w.totals,
@@ -736,7 +789,15 @@ impl GpuRenderer {
                     ..caps
                 })
             } else {
-                let images = &words[live_words..live_words + flight.image_words as usize];
+                let end = live_words + flight.image_words as usize;
+                let images = &words[live_words..end];
+                let passes = (flight.stamps > 0).then(|| {
+                    let ticks: Vec<u64> = words[end..end + 2 * flight.stamps as usize]
+                        .chunks_exact(2)
+                        .map(|w| u64::from(w[0]) | u64::from(w[1]) << 32)
+                        .collect();
+                    PassTimes::from_stamps(&ticks, gpu.queue.get_timestamp_period())
+                });
                 let outputs = flight.slots.par_iter().map(|s| unpack(images, s)).collect();
                 Finished::Images(
                     outputs,
@@ -748,6 +809,7 @@ impl GpuRenderer {
                         capacity: caps.tile_entries,
                         regrown: 0,
                         workspace_bytes: caps.bytes(),
+                        passes,
                     },
                 )
             }

@@ -8,6 +8,7 @@ use super::kernel::{
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
 use super::{Gpu, GpuStats};
+use crate::device::PassTimes;
 
 /// Most depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each
 /// slab costs a round of dispatches, so fewer).
@@ -26,6 +27,47 @@ pub(crate) fn slabs_after(stats: &GpuStats) -> u32 {
         SLABS
     }
 }
+
+impl PassTimes {
+    /// Timestamps a batch of `slabs` slabs writes (see [`Workspace::encode`]).
+    pub(crate) fn stamps(slabs: u32) -> u32 {
+        3 + 4 * slabs
+    }
+
+    /// The stages' times from the timestamps of one batch, `period` nanoseconds per tick.
+    pub(crate) fn from_stamps(ticks: &[u64], period: f32) -> PassTimes {
+        let mut t = PassTimes::default();
+        let last = ticks.len().saturating_sub(1);
+        for i in 1..ticks.len() {
+            let ms = ticks[i].saturating_sub(ticks[i - 1]) as f64 * f64::from(period) * 1e-6;
+            let stage = match i {
+                1 => &mut t.setup_ms,
+                i if i == last => &mut t.compose_ms,
+                i => match (i - 2) % 4 {
+                    0 => &mut t.project_ms,
+                    1 => &mut t.depth_sort_ms,
+                    2 => &mut t.bin_ms,
+                    _ => &mut t.raster_ms,
+                },
+            };
+            *stage += ms;
+        }
+        t
+    }
+
+    /// The sum of each stage.
+    pub(crate) fn add(&self, o: &PassTimes) -> PassTimes {
+        PassTimes {
+            setup_ms: self.setup_ms + o.setup_ms,
+            project_ms: self.project_ms + o.project_ms,
+            depth_sort_ms: self.depth_sort_ms + o.depth_sort_ms,
+            bin_ms: self.bin_ms + o.bin_ms,
+            raster_ms: self.raster_ms + o.raster_ms,
+            compose_ms: self.compose_ms + o.compose_ms,
+        }
+    }
+}
+
 /// Bins of the per-camera histogram of chunk depths the slabs are cut from.
 pub(crate) const DEPTH_BINS: u32 = 128;
 /// Words of one camera's block (`Camera` in `splat.wgsl`: its array stride).
@@ -184,6 +226,19 @@ impl Kernels {
             frame_layout,
         }
     }
+}
+
+/// How one batch is recorded.
+pub(crate) struct BatchPlan<'a> {
+    /// 8-bit passes of the tile sort.
+    pub(crate) tile_passes: u32,
+    /// Depth slabs.
+    pub(crate) slabs: u32,
+    /// The per-pixel passes' grid: the largest camera's tiles across and down × cameras.
+    pub(crate) grid: (u32, u32, u32),
+    /// Where a timestamp goes before and after each stage ([`PassTimes::from_stamps`] reads
+    /// them), when timing.
+    pub(crate) stamps: Option<&'a wgpu::QuerySet>,
 }
 
 /// Byte offsets of the indirect arguments of the passes over live sizes.
@@ -477,17 +532,28 @@ impl Workspace {
         }
     }
 
-    /// Records the whole batch into `pass`: the tile sort over `tile_passes` digits, `slabs`
-    /// depth slabs, the per-pixel passes over a grid of `grid` tiles (× cameras).
+    /// Records the whole batch `b` into `pass`.
     pub(crate) fn encode(
         &self,
         k: &Kernels,
         scene_group: &wgpu::BindGroup,
         pass: &mut wgpu::ComputePass<'_>,
-        tile_passes: u32,
-        slabs: u32,
-        grid: (u32, u32, u32),
+        b: &BatchPlan<'_>,
     ) {
+        let BatchPlan {
+            tile_passes,
+            slabs,
+            grid,
+            stamps,
+        } = *b;
+        let mut next_stamp = 0;
+        let mut stamp = |pass: &mut wgpu::ComputePass<'_>| {
+            if let Some(q) = stamps {
+                pass.write_timestamp(q, next_stamp);
+                next_stamp += 1;
+            }
+        };
+        stamp(pass);
         let live = &k.live;
         let cameras = grid.2;
         let d = &self.dispatches;
@@ -500,6 +566,7 @@ impl Workspace {
         live.encode(pass, &self.programs, 0);
         live.dispatch(pass, &k.cull, &groups, d.camera_chunks);
         k.cut_slabs.run_grid(pass, &groups, threads_grid(cameras));
+        stamp(pass);
         for slab in 0..slabs.clamp(1, SLABS) {
             let offset = [slab * self.slab_stride];
             let groups: [(&wgpu::BindGroup, &[u32]); 2] =
@@ -514,6 +581,7 @@ impl Workspace {
             k.scan.encode(pass, live, &self.entries_scan);
             live.encode(pass, &self.programs, 2);
             live.dispatch(pass, &k.project, &groups, d.entries);
+            stamp(pass);
             k.sort.encode(
                 pass,
                 &k.scan,
@@ -521,6 +589,7 @@ impl Workspace {
                 &self.depth_sort,
                 DEPTH_SORT_PASSES as usize,
             );
+            stamp(pass);
             live.dispatch(pass, &k.count_tiles, &groups, d.splats);
             k.scan.encode(pass, live, &self.tiles_scan);
             live.encode(pass, &self.programs, 3);
@@ -528,9 +597,12 @@ impl Workspace {
             k.sort
                 .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
             live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
+            stamp(pass);
             live.encode(pass, &self.programs, 4);
             live.dispatch(pass, &k.raster, &groups, d.listed_tiles);
+            stamp(pass);
         }
         k.compose.run_grid(pass, &groups, grid);
+        stamp(pass);
     }
 }
