@@ -13,8 +13,8 @@
 // → `select_chunks` (the chunks reaching the slab and some unfinished tile) → scan →
 // `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
 // of its Gaussians project into the image, with depth in the slab, over an unfinished tile) →
-// scan of the per-entry counts → `project` (writes the splats, compacted, camera-major and in
-// Gaussian order) → radix sort by depth → `count_tiles` → scan → `emit` ((unfinished tile,
+// scan of the per-entry counts → `project` (a thread per splat: writes the splats, compacted,
+// camera-major and in Gaussian order) → radix sort by depth → `count_tiles` → scan → `emit` ((unfinished tile,
 // splat) entries in depth order, the tile numbered over the whole batch so the camera is in
 // the key) → stable radix sort by tile → `ranges` (each tile's entries, and the list of tiles
 // with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
@@ -603,32 +603,53 @@ fn mark(
     }
 }
 
+// Bit `n` (from 0) among the set bits of `w` (which has more than n).
+fn nth_set_bit(w: u32, n: u32) -> u32 {
+    var bits = w;
+    for (var k = 0u; k < n; k++) {
+        bits &= bits - 1u;
+    }
+    return firstTrailingBit(bits);
+}
+
+// A thread per splat (so the work follows what is visible, not the lanes of the marked
+// chunks): its entry is the last whose first slot is at or before it, its Gaussian the entry's
+// lane of that rank among the marked ones.
 @compute @workgroup_size(256)
 fn project(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let entry = group_index(wid, nwg);
-    if entry >= live[slots.entries] {
-        return;
-    }
-    let word = lid / 32u;
-    let bit = 1u << (lid % 32u);
-    let mask = entry_masks[8u * entry + word];
-    if (mask & bit) == 0u {
-        return;
-    }
-    var slot = entry_counts[entry] + countOneBits(mask & (bit - 1u));
-    for (var k = 0u; k < word; k++) {
-        slot += countOneBits(entry_masks[8u * entry + k]);
-    }
+    let slot = thread_index(wid, nwg, lid);
     if slot >= live[slots.splats] {
         return;
     }
+    var lo = 0u;
+    var hi = live[slots.entries];
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if entry_counts[mid] <= slot {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let entry = lo;
+    var rank = slot - entry_counts[entry];
+    var lane = 0u;
+    for (var word = 0u; word < 8u; word++) {
+        let mask = entry_masks[8u * entry + word];
+        let n = countOneBits(mask);
+        if rank < n {
+            lane = 32u * word + nth_set_bit(mask, rank);
+            break;
+        }
+        rank -= n;
+    }
     let flat = chunk_list[entry];
     let c = flat / CHUNKS;
-    let g = (flat % CHUNKS) * 256u + lid;
+    let g = (flat % CHUNKS) * 256u + lane;
     let f = footprint(c, g);
     let inv_det = 1.0 / (f.cov.x * f.cov.z - f.cov.y * f.cov.y);
     splats[4u * slot] = vec4<f32>(f.centre, f.cov.z * inv_det, -f.cov.y * inv_det);

@@ -580,7 +580,7 @@ impl Workspace {
             live.dispatch(pass, &k.mark, &groups, d.entries);
             k.scan.encode(pass, live, &self.entries_scan);
             live.encode(pass, &self.programs, 2);
-            live.dispatch(pass, &k.project, &groups, d.entries);
+            live.dispatch(pass, &k.project, &groups, d.splats);
             stamp(pass);
             k.sort.encode(
                 pass,
