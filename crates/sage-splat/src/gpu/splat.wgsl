@@ -90,7 +90,8 @@ struct Slots {
 @group(1) @binding(11) var<storage, read_write> tile_values: array<u32>;
 @group(1) @binding(12) var<storage, read_write> tile_keys_2: array<u32>;
 @group(1) @binding(13) var<storage, read_write> tile_values_2: array<u32>;
-// Per tile of the batch: first and one-past-last entry.
+// Per tile of the batch: first and one-past-last entry of this slab (zero where none; each
+// raster workgroup zeroes its own after reading it).
 @group(1) @binding(14) var<storage, read_write> tile_ranges: array<vec2<u32>>;
 // Per camera from its first word: 8 planes of width × height words. While slabs blend, the
 // per-pixel state: r, g, b (background not added), transmittance (negative once the pixel is
