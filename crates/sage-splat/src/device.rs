@@ -3,6 +3,7 @@
 //! [`Backend`] is what commands and environments hold, whichever was chosen.
 
 use crate::camera::Camera;
+use crate::passes::PassTimes;
 use crate::render::{RenderOptions, RenderOutput, Renderer};
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
@@ -11,24 +12,6 @@ use std::fmt;
 use std::str::FromStr;
 #[cfg(feature = "gpu")]
 use std::sync::Arc;
-
-/// GPU milliseconds of a batch's stages on the GPU renderer, summed over its depth slabs (from
-/// timestamps the device writes between dispatches: [`Backend::time_passes`]).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct PassTimes {
-    /// Clearing, culling the chunks and cutting the slabs.
-    pub setup_ms: f64,
-    /// Selecting the chunks, marking and projecting the splats.
-    pub project_ms: f64,
-    /// The radix sort by depth.
-    pub depth_sort_ms: f64,
-    /// Binning into tiles, the sort by tile and the tiles' ranges.
-    pub bin_ms: f64,
-    /// Blending.
-    pub raster_ms: f64,
-    /// Composing the images.
-    pub compose_ms: f64,
-}
 
 /// Where images are rendered: `cpu`, `gpu`, or `auto` (a hardware GPU when there is one,
 /// else the CPU).

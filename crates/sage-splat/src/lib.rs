@@ -25,11 +25,13 @@ pub mod fastmath;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod index;
+pub mod passes;
 pub mod project;
 pub mod render;
 pub mod sh;
 pub mod tile;
 
 pub use camera::{Camera, CameraSpec, Intrinsics};
-pub use device::{Backend, Device, PassTimes, Rendering};
+pub use device::{Backend, Device, Rendering};
+pub use passes::PassTimes;
 pub use render::{RenderOptions, RenderOutput, RenderStats, Renderer};

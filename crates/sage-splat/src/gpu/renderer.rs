@@ -9,11 +9,10 @@ use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS,
     LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace,
-    slabs_after,
 };
 use crate::camera::Camera;
-use crate::device::PassTimes;
 use crate::index::frustum_planes;
+use crate::passes::PassTimes;
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
 use crate::render::{RenderOptions, RenderOutput};
 use crate::sh;
@@ -66,6 +65,21 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
         s += &format!("const SH_C3_{k}: f32 = {c:?};\n");
     }
     s
+}
+
+/// Chunks per camera, summed over the slabs, below which a batch saves too little behind
+/// finished tiles to pay for more than one slab's dispatches (256 chunks: 64k Gaussians).
+const FEW_CHUNKS: u64 = 256;
+
+/// The slabs of the next batch after one that did the work of `stats`: one where each camera
+/// saw little, else [`SLABS`]. A renderer's frames follow each other (a walk, a turn), so the
+/// last batch's work predicts the next; the images are the same whatever the slabs.
+fn slabs_after(stats: &GpuStats) -> u32 {
+    if stats.chunks < FEW_CHUNKS * stats.cameras as u64 {
+        1
+    } else {
+        SLABS
+    }
 }
 
 /// The work of the last batch a [`GpuRenderer`] rendered.

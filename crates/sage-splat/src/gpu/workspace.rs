@@ -2,32 +2,17 @@
 //! batch needs more (no allocation on the per-frame path), with the scan and sort plans and
 //! the live-size programs built over them.
 
+use super::Gpu;
 use super::kernel::{
     Kernel, bind, dynamic_uniform, layout, storage, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
-use super::{Gpu, GpuStats};
-use crate::device::PassTimes;
+use crate::passes::PassTimes;
 
 /// Most depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each
 /// slab costs a round of dispatches, so fewer).
 pub(crate) const SLABS: u32 = 4;
-/// Chunks per camera, summed over the slabs, below which a batch saves too little behind
-/// finished tiles to pay for more than one slab's dispatches (256 chunks: 64k Gaussians).
-const FEW_CHUNKS: u64 = 256;
-
-/// The slabs of the next batch after one that did the work of `stats`: one where each camera
-/// saw little, else [`SLABS`]. A renderer's frames follow each other (a walk, a turn), so the
-/// last batch's work predicts the next; the images are the same whatever the slabs.
-pub(crate) fn slabs_after(stats: &GpuStats) -> u32 {
-    if stats.chunks < FEW_CHUNKS * stats.cameras as u64 {
-        1
-    } else {
-        SLABS
-    }
-}
-
 impl PassTimes {
     /// Timestamps a batch of `slabs` slabs writes (see [`Workspace::encode`]).
     pub(crate) fn stamps(slabs: u32) -> u32 {
