@@ -733,7 +733,7 @@ impl GpuRenderer {
         let stamps = state
             .timing
             .as_ref()
-            .map_or(0, |_| PassTimes::stamps(state.slabs.clamp(1, SLABS)));
+            .map_or(0, |_| PassTimes::stamps(state.slabs));
         let size = image_bytes + live_bytes + u64::from(stamps) * 8;
         let staging = match state.staging.iter().position(|b| b.size() >= size) {
             Some(i) => state.staging.swap_remove(i),

@@ -13,45 +13,6 @@ use crate::passes::PassTimes;
 /// Most depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each
 /// slab costs a round of dispatches, so fewer).
 pub(crate) const SLABS: u32 = 4;
-impl PassTimes {
-    /// Timestamps a batch of `slabs` slabs writes (see [`Workspace::encode`]).
-    pub(crate) fn stamps(slabs: u32) -> u32 {
-        3 + 4 * slabs
-    }
-
-    /// The stages' times from the timestamps of one batch, `period` nanoseconds per tick.
-    pub(crate) fn from_stamps(ticks: &[u64], period: f32) -> PassTimes {
-        let mut t = PassTimes::default();
-        let last = ticks.len().saturating_sub(1);
-        for i in 1..ticks.len() {
-            let ms = ticks[i].saturating_sub(ticks[i - 1]) as f64 * f64::from(period) * 1e-6;
-            let stage = match i {
-                1 => &mut t.setup_ms,
-                i if i == last => &mut t.compose_ms,
-                i => match (i - 2) % 4 {
-                    0 => &mut t.project_ms,
-                    1 => &mut t.depth_sort_ms,
-                    2 => &mut t.bin_ms,
-                    _ => &mut t.raster_ms,
-                },
-            };
-            *stage += ms;
-        }
-        t
-    }
-
-    /// The sum of each stage.
-    pub(crate) fn add(&self, o: &PassTimes) -> PassTimes {
-        PassTimes {
-            setup_ms: self.setup_ms + o.setup_ms,
-            project_ms: self.project_ms + o.project_ms,
-            depth_sort_ms: self.depth_sort_ms + o.depth_sort_ms,
-            bin_ms: self.bin_ms + o.bin_ms,
-            raster_ms: self.raster_ms + o.raster_ms,
-            compose_ms: self.compose_ms + o.compose_ms,
-        }
-    }
-}
 
 /// Bins of the per-camera histogram of chunk depths the slabs are cut from.
 pub(crate) const DEPTH_BINS: u32 = 128;
@@ -224,6 +185,46 @@ pub(crate) struct BatchPlan<'a> {
     /// Where a timestamp goes before and after each stage ([`PassTimes::from_stamps`] reads
     /// them), when timing.
     pub(crate) stamps: Option<&'a wgpu::QuerySet>,
+}
+
+impl PassTimes {
+    /// Timestamps a batch of `slabs` slabs writes (see [`Workspace::encode`]).
+    pub(crate) fn stamps(slabs: u32) -> u32 {
+        3 + 4 * slabs
+    }
+
+    /// The stages' times from the timestamps of one batch, `period` nanoseconds per tick.
+    pub(crate) fn from_stamps(ticks: &[u64], period: f32) -> PassTimes {
+        let mut t = PassTimes::default();
+        let last = ticks.len().saturating_sub(1);
+        for i in 1..ticks.len() {
+            let ms = ticks[i].saturating_sub(ticks[i - 1]) as f64 * f64::from(period) * 1e-6;
+            let stage = match i {
+                1 => &mut t.setup_ms,
+                i if i == last => &mut t.compose_ms,
+                i => match (i - 2) % 4 {
+                    0 => &mut t.project_ms,
+                    1 => &mut t.depth_sort_ms,
+                    2 => &mut t.bin_ms,
+                    _ => &mut t.raster_ms,
+                },
+            };
+            *stage += ms;
+        }
+        t
+    }
+
+    /// The sum of each stage.
+    pub(crate) fn add(&self, o: &PassTimes) -> PassTimes {
+        PassTimes {
+            setup_ms: self.setup_ms + o.setup_ms,
+            project_ms: self.project_ms + o.project_ms,
+            depth_sort_ms: self.depth_sort_ms + o.depth_sort_ms,
+            bin_ms: self.bin_ms + o.bin_ms,
+            raster_ms: self.raster_ms + o.raster_ms,
+            compose_ms: self.compose_ms + o.compose_ms,
+        }
+    }
 }
 
 /// Byte offsets of the indirect arguments of the passes over live sizes.
@@ -552,7 +553,7 @@ impl Workspace {
         live.dispatch(pass, &k.cull, &groups, d.camera_chunks);
         k.cut_slabs.run_grid(pass, &groups, threads_grid(cameras));
         stamp(pass);
-        for slab in 0..slabs.clamp(1, SLABS) {
+        for slab in 0..slabs {
             let offset = [slab * self.slab_stride];
             let groups: [(&wgpu::BindGroup, &[u32]); 2] =
                 [(scene_group, &[]), (&self.frame_group, &offset)];
