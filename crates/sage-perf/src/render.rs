@@ -153,6 +153,10 @@ pub struct BatchRate {
     pub batch_ms: f64,
     /// Frames per second: cameras over the batch's time.
     pub frames_per_s: f64,
+    /// Where the batch's time went on the device, medians of each stage (where the device
+    /// writes timestamps).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gpu_passes: Option<PassTimes>,
 }
 
 impl fmt::Display for RenderReport {
@@ -198,21 +202,21 @@ impl fmt::Display for RenderReport {
                 None => write!(f, ", one camera per call, read-back included")?,
             }
             match &t.gpu_passes {
-                Some(p) => writeln!(
-                    f,
-                    "; on the GPU: set-up {:.1} + project {:.1} + depth sort {:.1} + bin {:.1} + raster {:.1} + compose {:.1} ms",
-                    p.setup_ms, p.project_ms, p.depth_sort_ms, p.bin_ms, p.raster_ms, p.compose_ms
-                )?,
+                Some(p) => writeln!(f, "; on the GPU: {p}")?,
                 None if t.breakdown.is_none() => writeln!(f)?,
                 None => {}
             }
         }
         for b in &self.batches {
-            writeln!(
+            write!(
                 f,
                 "batch {:<4} {:>4}x{:<4} {:.1} ms per batch, {:.0} frames/s",
                 b.cameras, b.width, b.height, b.batch_ms, b.frames_per_s
             )?;
+            match &b.gpu_passes {
+                Some(p) => writeln!(f, "; on the GPU: {p}")?,
+                None => writeln!(f)?,
+            }
         }
         if let Some(bytes) = self.device_bytes {
             writeln!(
@@ -295,6 +299,19 @@ pub fn run(
 }
 
 /// The cameras of the benchmark: `count` headings spread over a full turn at `eye`.
+/// The median of each stage over `passes`.
+fn median_passes(passes: &[PassTimes]) -> PassTimes {
+    let stage = |f: fn(&PassTimes) -> f64| crate::median(&passes.iter().map(f).collect::<Vec<_>>());
+    PassTimes {
+        setup_ms: stage(|p| p.setup_ms),
+        project_ms: stage(|p| p.project_ms),
+        depth_sort_ms: stage(|p| p.depth_sort_ms),
+        bin_ms: stage(|p| p.bin_ms),
+        raster_ms: stage(|p| p.raster_ms),
+        compose_ms: stage(|p| p.compose_ms),
+    }
+}
+
 fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize) -> Vec<Camera> {
     (0..count)
         .map(|f| {
@@ -325,6 +342,8 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         (None, false) => CPU_SIZES.to_vec(),
     };
     let mut sizes = Vec::with_capacity(asked.len());
+    // Timestamps between the stages, where the device writes them (the CPU renderer: never).
+    let timed = backend.time_passes(true);
     for (w, h) in asked {
         let frames = settings.frames.max(1);
         let cams = cameras(
@@ -333,7 +352,6 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             settings.pitch,
             frames,
         );
-        let timed = backend.time_passes(true);
         backend.render(gaussians, categories, &cams[0], &options)?;
         let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames);
         let mut passes: Vec<PassTimes> = Vec::with_capacity(frames);
@@ -367,21 +385,8 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 examined: col(5),
                 splats: col(6),
             }),
-            gpu_passes: timed.then(|| {
-                let stage = |f: fn(&PassTimes) -> f64| {
-                    crate::median(&passes.iter().map(f).collect::<Vec<_>>())
-                };
-                PassTimes {
-                    setup_ms: stage(|p| p.setup_ms),
-                    project_ms: stage(|p| p.project_ms),
-                    depth_sort_ms: stage(|p| p.depth_sort_ms),
-                    bin_ms: stage(|p| p.bin_ms),
-                    raster_ms: stage(|p| p.raster_ms),
-                    compose_ms: stage(|p| p.compose_ms),
-                }
-            }),
+            gpu_passes: timed.then(|| median_passes(&passes)),
         });
-        backend.time_passes(false);
     }
     let mut batches = Vec::new();
     if backend.is_gpu() {
@@ -398,10 +403,12 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             backend.render_batch(gaussians, categories, parts[0], &options)?;
             // Every part once, and at least three timed batches for a median.
             let mut times = Vec::with_capacity(parts.len().max(3));
+            let mut passes = Vec::with_capacity(times.capacity());
             for part in parts.iter().cycle().take(parts.len().max(3)) {
                 let start = Instant::now();
                 backend.render_batch(gaussians, categories, part, &options)?;
                 times.push(start.elapsed().as_secs_f64() * 1e3);
+                passes.extend(backend.pass_times());
             }
             let batch_ms = crate::median(&times);
             batches.push(BatchRate {
@@ -410,9 +417,11 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 height: h,
                 batch_ms,
                 frames_per_s: count as f64 * 1e3 / batch_ms,
+                gpu_passes: timed.then(|| median_passes(&passes)),
             });
         }
     }
+    backend.time_passes(false);
     let resident_bytes = machine::resident_bytes();
     Ok(RenderReport {
         machine,

@@ -20,3 +20,18 @@ pub struct PassTimes {
     /// Composing the images.
     pub compose_ms: f64,
 }
+
+impl std::fmt::Display for PassTimes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "set-up {:.1} + project {:.1} + depth sort {:.1} + bin {:.1} + raster {:.1} + compose {:.1} ms",
+            self.setup_ms,
+            self.project_ms,
+            self.depth_sort_ms,
+            self.bin_ms,
+            self.raster_ms,
+            self.compose_ms
+        )
+    }
+}

@@ -239,15 +239,54 @@ fn a_batch_equals_its_cameras_rendered_alone_and_repeats_exactly() {
         .unwrap();
     let mut overlapped = first.wait().unwrap();
     overlapped.extend(second.wait().unwrap());
-    assert_eq!(batch, overlapped);
-    for (cam, from_batch) in cameras.iter().zip(&batch) {
+    assert!(
+        batch == overlapped,
+        "overlapped batches differ from one batch"
+    );
+    for (k, (cam, from_batch)) in cameras.iter().zip(&batch).enumerate() {
         let alone = renderer.render(g, categories, cam, &options).unwrap();
-        assert_eq!(&alone, from_batch);
+        assert!(&alone == from_batch, "camera {k} differs alone");
     }
     let again = renderer
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
-    assert_eq!(batch, again);
+    assert!(batch == again, "the same batch rendered twice differs");
+}
+
+#[test]
+fn a_batch_of_more_cameras_than_a_sort_key_holds_is_rendered_in_parts_alike() {
+    // A batch's sort keys hold its camera in one byte: 300 cameras go in two submissions, and
+    // each camera's images still equal those it gets alone.
+    let Some(gpu) = gpu() else { return };
+    let scene = generate(&SynthConfig {
+        seed: 4,
+        rooms: 2,
+        objects: 8,
+        gaussians: 8_000,
+        ..SynthConfig::default()
+    })
+    .unwrap();
+    let (g, categories) = (&scene.gaussians, &scene.instances.category_ids);
+    let c = scene.floorplan.rooms[0].profile.centroid();
+    let cameras: Vec<Camera> = (0..300)
+        .map(|k| camera(16, 12, Vec3::new(c.x, c.y, 1.1), 0.021 * k as f32, 0.0))
+        .collect();
+    let renderer = GpuRenderer::new(&gpu, g).unwrap();
+    let options = RenderOptions::default();
+    let batch = renderer
+        .render_batch(g, categories, &cameras, &options)
+        .unwrap();
+    assert_eq!(renderer.stats().cameras, cameras.len());
+    for k in [0, 1, 137, 255, 256, 299] {
+        let alone = renderer
+            .render(g, categories, &cameras[k], &options)
+            .unwrap();
+        assert!(alone == batch[k], "camera {k} of the batch differs alone");
+        assert!(
+            alone.alpha.iter().any(|&a| a > 0.5),
+            "camera {k} sees nothing"
+        );
+    }
 }
 
 #[test]

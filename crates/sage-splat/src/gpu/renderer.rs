@@ -7,8 +7,9 @@ use super::kernel::bind;
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
-    BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, Kernels, LIVE_CAMERA_CHUNKS, LIVE_CAMERAS,
-    LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES, Workspace,
+    BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
+    LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS,
+    TILE_SORT_PASSES, Workspace,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -25,8 +26,8 @@ use std::collections::VecDeque;
 use std::ops::Range;
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 
-/// Most cameras in one batch: the blending grid's third dimension.
-const MAX_CAMERAS: usize = 65_535;
+/// Most cameras in one batch: the byte above the sort keys' [`DEPTH_KEY_BITS`].
+const MAX_CAMERAS: usize = 1 << (32 - DEPTH_KEY_BITS);
 
 /// The WGSL constants shared with the CPU renderer, so both executors form images with the
 /// same numbers, and the scene's sizes.
@@ -43,6 +44,8 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
          const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
          const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n\
          const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst LIVE_SLABS: u32 = {LIVE_SLABS}u;\n\
+         const LIVE_DEPTH_PARITY: u32 = {LIVE_DEPTH_PARITY}u;\n\
+         const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n",
         sh::C0,
@@ -683,6 +686,7 @@ impl GpuRenderer {
         let mut blocks = Vec::with_capacity(cameras.len() * CAMERA_WORDS);
         let mut slots = Vec::with_capacity(cameras.len());
         let mut grid = (1, 1, cameras.len() as u32);
+        let mut camera_tiles = 1;
         for c in cameras {
             let g = TileGrid::new(c);
             let place = [tile_base, offset as u32, table_base];
@@ -691,12 +695,17 @@ impl GpuRenderer {
             grid.1 = grid.1.max(g.tiles_y as u32);
             slots.push(Slot { grid: g, offset });
             tile_base += g.tiles() as u32;
+            camera_tiles = camera_tiles.max(g.tiles() as u32);
             table_base += ((g.tiles_x + 1) * (g.tiles_y + 1)) as u32;
             offset += PLANES * (g.width * g.height) as u64;
         }
         let tiles = tile_base;
-        let bits = u32::BITS - tiles.saturating_sub(1).leading_zeros();
+        // The tile sort takes the tiles of the largest camera (the camera sits above them in
+        // the key, and the entries arrive camera-major); the depth sort takes the camera's byte
+        // only when the batch has more than one.
+        let bits = u32::BITS - (camera_tiles - 1).leading_zeros();
         let tile_passes = bits.div_ceil(8).clamp(1, TILE_SORT_PASSES);
+        let depth_passes = DEPTH_KEY_BITS / 8 + u32::from(cameras.len() > 1);
         gpu.queue
             .write_buffer(&w.cameras, 0, bytemuck::cast_slice(&blocks));
         // The fixed slots, and zero where the slabs' largest and summed counts gather.
@@ -706,6 +715,7 @@ impl GpuRenderer {
         fixed[LIVE_TILES as usize] = tiles;
         fixed[LIVE_CAMERAS as usize] = cameras.len() as u32;
         fixed[LIVE_SLABS as usize] = state.slabs;
+        fixed[LIVE_DEPTH_PARITY as usize] = depth_passes % 2;
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu
@@ -721,6 +731,7 @@ impl GpuRenderer {
                 &state.scene_group,
                 &mut pass,
                 &BatchPlan {
+                    depth_passes,
                     tile_passes,
                     slabs: state.slabs,
                     grid,

@@ -14,10 +14,9 @@
 // `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
 // of its Gaussians project into the image, with depth in the slab, over an unfinished tile) →
 // scan of the per-entry counts → `project` (a thread per splat: writes the splats, compacted,
-// camera-major and in Gaussian order) → radix sort by depth → `count_tiles` → scan → `emit` ((unfinished tile,
-// splat) entries in depth order, the tile numbered over the whole batch so the camera is in
-// the key) → stable radix sort by tile → `ranges` (each tile's entries, and the list of tiles
-// with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
+// camera-major and in Gaussian order) → radix sort by camera and depth → `count_tiles` → scan
+// → `emit` ((unfinished tile, splat) entries in that order) → stable radix sort by the tile
+// within its camera → `ranges` (each tile's entries, and the list of tiles with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
 // slab before left). Last, `compose` turns the state into the images. Slabs partition depth
 // and each tile blends in depth order, so the images are those of blending everything at
 // once; what the slabs save is the work behind finished tiles.
@@ -79,13 +78,13 @@ struct Slots {
 // Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, instance
 // bits), (r, g, b, cutoff), (extent x, extent y, camera bits, -).
 @group(1) @binding(6) var<storage, read_write> splats: array<vec4<f32>>;
-// Depth-sort pairs: depth bits and splat; the sort ping-pongs with two more buffers and ends
-// in these.
+// Depth-sort pairs: camera and depth key (`depth_key`) and splat; the sort ping-pongs with two
+// more buffers and ends in these or in the second (`depth_values_2`, at odd parity).
 @group(1) @binding(7) var<storage, read_write> depth_keys: array<u32>;
 @group(1) @binding(8) var<storage, read_write> depth_values: array<u32>;
 // Tiles per depth-ordered splat (+1), then their exclusive scan.
 @group(1) @binding(9) var<storage, read_write> tile_counts: array<u32>;
-// Tile-sort pairs: tile (numbered over the batch) and splat, in the first and second buffers.
+// Tile-sort pairs: camera and tile (`tile_key`) and splat, in the first and second buffers.
 @group(1) @binding(10) var<storage, read_write> tile_keys: array<u32>;
 @group(1) @binding(11) var<storage, read_write> tile_values: array<u32>;
 @group(1) @binding(12) var<storage, read_write> tile_keys_2: array<u32>;
@@ -120,6 +119,8 @@ struct Slots {
 // The tiles of the batch with entries in this slab, in no particular order (each is blended
 // on its own), and their count after the list's capacity (at live[LIVE_TILES]).
 @group(1) @binding(23) var<storage, read_write> tile_list: array<atomic<u32>>;
+// The second buffer of the depth sort's splats, where an odd number of passes ends.
+@group(1) @binding(24) var<storage, read_write> depth_values_2: array<u32>;
 
 const F32_MAX: f32 = 3.4028235e38;
 
@@ -469,7 +470,9 @@ struct Footprint {
     ray: vec3<f32>,
 }
 
-fn footprint(c: u32, g: u32) -> Footprint {
+// Only a mean at depth in `depths` = [near, far) is visible: the slab's, tested before the
+// rest, so the Gaussians of a chunk outside the slab cost a dot product.
+fn footprint(c: u32, g: u32, depths: vec2<f32>) -> Footprint {
     var f: Footprint;
     f.visible = false;
     let p = vec3<f32>(positions[3u * g], positions[3u * g + 1u], positions[3u * g + 2u]);
@@ -479,7 +482,7 @@ fn footprint(c: u32, g: u32) -> Footprint {
     let forward = cameras[c].forward.xyz;
     let t = vec3<f32>(dot(right, rel), dot(down, rel), dot(forward, rel));
     let clip = cameras[c].clip;
-    if !(t.z >= clip.x && t.z <= clip.y) {
+    if !(t.z >= clip.x && t.z <= clip.y && t.z >= depths.x && t.z < depths.y) {
         return f;
     }
     let shape = shapes[g];
@@ -556,10 +559,8 @@ fn footprint(c: u32, g: u32) -> Footprint {
 // True when Gaussian g projects into camera c's image with its depth in this slab and its
 // box over some unfinished tile.
 fn in_slab(c: u32, g: u32) -> bool {
-    let f = footprint(c, g);
-    let range = slab_range(c);
-    return f.visible && f.depth >= range.x && f.depth < range.y
-        && !rect_finished(c, tile_box(f.centre, f.extent, c));
+    let f = footprint(c, g, slab_range(c));
+    return f.visible && !rect_finished(c, tile_box(f.centre, f.extent, c));
 }
 
 var<workgroup> lane_bits: array<atomic<u32>, 8>;
@@ -651,15 +652,37 @@ fn project(
     let flat = chunk_list[entry];
     let c = flat / CHUNKS;
     let g = (flat % CHUNKS) * 256u + lane;
-    let f = footprint(c, g);
+    let f = footprint(c, g, slab_range(c));
     let inv_det = 1.0 / (f.cov.x * f.cov.z - f.cov.y * f.cov.y);
     splats[4u * slot] = vec4<f32>(f.centre, f.cov.z * inv_det, -f.cov.y * inv_det);
     splats[4u * slot + 1u] = vec4<f32>(f.cov.x * inv_det, f.opacity, f.depth, bitcast<f32>(instances[g]));
     splats[4u * slot + 2u] = vec4<f32>(sh_color(g, normalize(f.ray)), f.cutoff);
     splats[4u * slot + 3u] = vec4<f32>(f.extent, bitcast<f32>(c), 0.0);
-    // Depths are positive, so their bits sort like the values.
-    depth_keys[slot] = bitcast<u32>(f.depth);
+    depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;
+}
+
+// The depth-sort key of a splat at depth z in camera c: the camera in the top byte, so the
+// batch sorts camera-major and its tile sort needs only the tiles of one camera; below, z's
+// place between the near and far planes in DEPTH_KEY_BITS (24) bits. Positive floats order as
+// their bits, so the key is z's bits less the near plane's, shifted right just enough to fit:
+// every float apart where the planes are up to two octaves apart, and each doubling beyond
+// costs a bit (depths 2^-20 apart still ordered up to 16 octaves, e.g. 0.1 to 100 m: a
+// micrometre at a metre). It depends on the camera alone, not on the slab or the batch.
+fn depth_key(c: u32, z: f32) -> u32 {
+    let clip = cameras[c].clip;
+    let near = bitcast<u32>(clip.x);
+    let span = bitcast<u32>(clip.y) - near;
+    let shift = max(32u - countLeadingZeros(span), DEPTH_KEY_BITS) - DEPTH_KEY_BITS;
+    return (c << DEPTH_KEY_BITS) | ((bitcast<u32>(z) - near) >> shift);
+}
+
+// The splat at place i of the depth order (the sort's result is where its parity says).
+fn sorted_depth_value(i: u32) -> u32 {
+    if live[LIVE_DEPTH_PARITY] == 1u {
+        return depth_values_2[i];
+    }
+    return depth_values[i];
 }
 
 fn splat_camera(s: u32) -> u32 {
@@ -723,10 +746,10 @@ fn bin(s: u32, first: u32, write: bool) -> u32 {
     var slot = first;
     for (var ty = r.y; ty <= r.w; ty++) {
         for (var tx = r.x; tx <= r.z; tx++) {
-            let tile = base + ty * across + tx;
-            if atomicLoad(&tile_done[tile]) < 64u && (single || reaches_tile(s, c, tx, ty)) {
+            let tile = ty * across + tx;
+            if atomicLoad(&tile_done[base + tile]) < 64u && (single || reaches_tile(s, c, tx, ty)) {
                 if write && slot < room {
-                    tile_keys[slot] = tile;
+                    tile_keys[slot] = tile_key(c, tile);
                     tile_values[slot] = s;
                 }
                 slot += 1u;
@@ -749,7 +772,7 @@ fn count_tiles(
     }
     var count = 0u;
     if i < n {
-        count = bin(depth_values[i], 0u, false);
+        count = bin(sorted_depth_value(i), 0u, false);
     }
     tile_counts[i] = count;
 }
@@ -764,7 +787,14 @@ fn emit(
     if i >= live[slots.splats] {
         return;
     }
-    bin(depth_values[i], tile_counts[i], true);
+    bin(sorted_depth_value(i), tile_counts[i], true);
+}
+
+// The tile-sort key of tile t of camera c: the camera in the top byte, above the tile bits
+// the sort takes. The entries come camera-major out of the depth order, so the stable sort by
+// tile keeps each camera's entries of a tile together, in depth order.
+fn tile_key(c: u32, t: u32) -> u32 {
+    return (c << DEPTH_KEY_BITS) | t;
 }
 
 fn sorted_tile(i: u32) -> u32 {
@@ -792,12 +822,14 @@ fn ranges(
     if i >= m {
         return;
     }
-    let t = sorted_tile(i);
-    if i == 0u || sorted_tile(i - 1u) != t {
+    let key = sorted_tile(i);
+    // The tile numbered over the batch.
+    let t = cameras[key >> DEPTH_KEY_BITS].place.x + (key & ((1u << DEPTH_KEY_BITS) - 1u));
+    if i == 0u || sorted_tile(i - 1u) != key {
         tile_ranges[t].x = i;
         atomicStore(&tile_list[atomicAdd(&tile_list[live[LIVE_TILES]], 1u)], t);
     }
-    if i + 1u == m || sorted_tile(i + 1u) != t {
+    if i + 1u == m || sorted_tile(i + 1u) != key {
         tile_ranges[t].y = i + 1u;
     }
 }

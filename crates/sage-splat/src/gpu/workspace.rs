@@ -23,16 +23,21 @@ pub(crate) const PLANES: u64 = 8;
 /// Words per projected splat (four vec4).
 const SPLAT_WORDS: u64 = 16;
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
-/// sort's result, the batch's tiles, its cameras, its depth slabs.
+/// sort's result, the batch's tiles, its cameras, its depth slabs, the parity of the depth
+/// sort's result.
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
 pub(crate) const LIVE_TILE_PARITY: u32 = 1;
 pub(crate) const LIVE_TILES: u32 = 2;
 pub(crate) const LIVE_CAMERAS: u32 = 3;
 pub(crate) const LIVE_SLABS: u32 = 4;
-const LIVE_FIXED: u32 = 5;
-/// Most 8-bit passes the tile sort takes (tiles of a batch below 2²⁴).
-pub(crate) const TILE_SORT_PASSES: u32 = 3;
-/// Depth keys are f32 bits: four 8-bit passes.
+pub(crate) const LIVE_DEPTH_PARITY: u32 = 5;
+const LIVE_FIXED: u32 = 6;
+/// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
+/// of the batch takes the byte above, so a batch holds at most 256 cameras.
+pub(crate) const DEPTH_KEY_BITS: u32 = 24;
+/// Most 8-bit passes the tile sort takes (a camera's tiles below 2²⁴).
+pub(crate) const TILE_SORT_PASSES: u32 = DEPTH_KEY_BITS / 8;
+/// Most 8-bit passes the depth sort takes: the depth key and, in a batch, the camera.
 const DEPTH_SORT_PASSES: u32 = 4;
 
 /// What a batch needs the buffers to hold (or what they hold).
@@ -147,6 +152,7 @@ impl Kernels {
         frame.extend((17..22).map(|b| storage(b, false)));
         frame.push(dynamic_uniform(22));
         frame.push(storage(23, false));
+        frame.push(storage(24, false));
         let frame_layout = layout(gpu, &frame);
         let layouts = [&scene_layout, &frame_layout];
         let kernel = |entry: &str| Kernel::new(gpu, &module, entry, &layouts);
@@ -176,6 +182,8 @@ impl Kernels {
 
 /// How one batch is recorded.
 pub(crate) struct BatchPlan<'a> {
+    /// 8-bit passes of the depth sort.
+    pub(crate) depth_passes: u32,
     /// 8-bit passes of the tile sort.
     pub(crate) tile_passes: u32,
     /// Depth slabs.
@@ -465,6 +473,7 @@ impl Workspace {
                     size: wgpu::BufferSize::new(16),
                 }),
                 tile_list.as_entire_binding(),
+                d3.as_entire_binding(),
             ],
         );
         let [d0, d1, d2, d3] = depth;
@@ -527,6 +536,7 @@ impl Workspace {
         b: &BatchPlan<'_>,
     ) {
         let BatchPlan {
+            depth_passes,
             tile_passes,
             slabs,
             grid,
@@ -568,13 +578,8 @@ impl Workspace {
             live.encode(pass, &self.programs, 2);
             live.dispatch(pass, &k.project, &groups, d.splats);
             stamp(pass);
-            k.sort.encode(
-                pass,
-                &k.scan,
-                live,
-                &self.depth_sort,
-                DEPTH_SORT_PASSES as usize,
-            );
+            k.sort
+                .encode(pass, &k.scan, live, &self.depth_sort, depth_passes as usize);
             stamp(pass);
             live.dispatch(pass, &k.count_tiles, &groups, d.splats);
             k.scan.encode(pass, live, &self.tiles_scan);
