@@ -14,8 +14,9 @@
 // `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
 // of its Gaussians project into the image, with depth in the slab, over an unfinished tile) →
 // scan of the per-entry counts → `project` (a thread per splat: writes the splats, compacted,
-// camera-major and in Gaussian order) → radix sort by camera and depth → `count_tiles` → scan
-// → `emit` ((unfinished tile, splat) entries in that order) → stable radix sort by the tile
+// camera-major and in Gaussian order, each with the unfinished tiles it reaches) → radix sort
+// by camera and depth → `count_tiles` (those counts in that order) → scan → `emit` ((unfinished
+// tile, splat) entries in that order) → stable radix sort by the tile
 // within its camera → `ranges` (each tile's entries, and the list of tiles with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
 // slab before left). Last, `compose` turns the state into the images. Slabs partition depth
 // and each tile blends in depth order, so the images are those of blending everything at
@@ -76,7 +77,8 @@ struct Slots {
 // Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
 @group(1) @binding(5) var<storage, read_write> entry_counts: array<u32>;
 // Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, instance
-// bits), (r, g, b, cutoff), (extent x, extent y, camera bits, -).
+// bits), (r, g, b, cutoff), (extent x, extent y, camera | tiles reached << 8 bits, reached
+// bits: where its tile box holds at most 32 tiles, a bit per tile of the box, row-major).
 @group(1) @binding(6) var<storage, read_write> splats: array<vec4<f32>>;
 // Depth-sort pairs: camera and depth key (`depth_key`) and splat; the sort ping-pongs with two
 // more buffers and ends in these or in the second (`depth_values_2`, at odd parity).
@@ -654,10 +656,14 @@ fn project(
     let g = (flat % CHUNKS) * 256u + lane;
     let f = footprint(c, g, slab_range(c));
     let inv_det = 1.0 / (f.cov.x * f.cov.z - f.cov.y * f.cov.y);
-    splats[4u * slot] = vec4<f32>(f.centre, f.cov.z * inv_det, -f.cov.y * inv_det);
-    splats[4u * slot + 1u] = vec4<f32>(f.cov.x * inv_det, f.opacity, f.depth, bitcast<f32>(instances[g]));
+    let conic = vec3<f32>(f.cov.z * inv_det, -f.cov.y * inv_det, f.cov.x * inv_det);
+    // The unfinished tiles it reaches, counted and (for a small box) marked here, where the
+    // splat is at hand, rather than found in `count_tiles` and again in `emit`.
+    let tiles = walk_tiles(f.centre, conic, f.cutoff, c, tile_box(f.centre, f.extent, c), slot, 0u, false);
+    splats[4u * slot] = vec4<f32>(f.centre, conic.xy);
+    splats[4u * slot + 1u] = vec4<f32>(conic.z, f.opacity, f.depth, bitcast<f32>(instances[g]));
     splats[4u * slot + 2u] = vec4<f32>(sh_color(g, normalize(f.ray)), f.cutoff);
-    splats[4u * slot + 3u] = vec4<f32>(f.extent, bitcast<f32>(c), 0.0);
+    splats[4u * slot + 3u] = vec4<f32>(f.extent, bitcast<f32>(c | (tiles.x << 8u)), bitcast<f32>(tiles.y));
     depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;
 }
@@ -686,7 +692,12 @@ fn sorted_depth_value(i: u32) -> u32 {
 }
 
 fn splat_camera(s: u32) -> u32 {
-    return bitcast<u32>(splats[4u * s + 3u].z);
+    return bitcast<u32>(splats[4u * s + 3u].z) & 255u;
+}
+
+// The unfinished tiles splat s reaches (found by `project`).
+fn splat_tiles(s: u32) -> u32 {
+    return bitcast<u32>(splats[4u * s + 3u].z) >> 8u;
 }
 
 // The tiles of the box `m` ± `e` in camera c, as the CPU bins them: [x0, y0, x1, y1],
@@ -703,14 +714,13 @@ fn tile_box(m: vec2<f32>, e: vec2<f32>, c: u32) -> vec4<u32> {
     return vec4<u32>(x0, y0, x1, y1);
 }
 
-// True when some pixel centre of tile (tx, ty) gets alpha ≥ 1/255 from splat s: the minimum
-// of the conic's quadratic form over the tile's pixel-centre rectangle against the cutoff.
-fn reaches_tile(s: u32, c: u32, tx: u32, ty: u32) -> bool {
-    let m = splats[4u * s];
-    let a = m.z;
-    let b = m.w;
-    let cc = splats[4u * s + 1u].x;
-    let cutoff = splats[4u * s + 2u].w;
+// True when some pixel centre of tile (tx, ty) of camera c gets alpha ≥ 1/255 from a splat
+// at `m` with `conic` (a, b, c) and `cutoff`: the minimum of the conic's quadratic form over the
+// tile's pixel-centre rectangle against the cutoff.
+fn reaches_tile(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, tx: u32, ty: u32) -> bool {
+    let a = conic.x;
+    let b = conic.y;
+    let cc = conic.z;
     let size = cameras[c].size;
     let x0 = f32(tx * TILE) + 0.5;
     let y0 = f32(ty * TILE) + 0.5;
@@ -734,29 +744,42 @@ fn reaches_tile(s: u32, c: u32, tx: u32, ty: u32) -> bool {
     return min(min(q0, q1), min(q2, q3)) <= cutoff;
 }
 
-// Counts the unfinished tiles splat s reaches; with `write`, also records them as entries from `first`
-// on (those past the buffers are counted, not written: the host grows the buffers).
-fn bin(s: u32, first: u32, write: bool) -> u32 {
-    let c = splat_camera(s);
-    let r = tile_box(splats[4u * s].xy, splats[4u * s + 3u].xy, c);
+// Writes entry `slot`: tile t (within camera c) and splat s; one past the buffers is counted by
+// the caller, not written (the host grows the buffers).
+fn write_entry(slot: u32, c: u32, t: u32, s: u32) {
+    if slot < live[slots.tile_entries] {
+        tile_keys[slot] = tile_key(c, t);
+        tile_values[slot] = s;
+    }
+}
+
+// Walks the tiles of box r in camera c, row-major, that are unfinished and that a splat at `m`
+// with `conic` and `cutoff` reaches: their count and, where the box holds at most 32 tiles, a
+// bit per tile of the box. With `write`, also writes them as the entries of splat s from
+// `first` on.
+fn walk_tiles(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, r: vec4<u32>, s: u32, first: u32, write: bool) -> vec2<u32> {
+    let box_width = r.z - r.x + 1u;
+    let small = box_width * (r.w - r.y + 1u) <= 32u;
     let single = r.x == r.z && r.y == r.w;
     let base = cameras[c].place.x;
     let across = cameras[c].size.z;
-    let room = live[slots.tile_entries];
-    var slot = first;
+    var count = 0u;
+    var bits = 0u;
     for (var ty = r.y; ty <= r.w; ty++) {
         for (var tx = r.x; tx <= r.z; tx++) {
-            let tile = ty * across + tx;
-            if atomicLoad(&tile_done[base + tile]) < 64u && (single || reaches_tile(s, c, tx, ty)) {
-                if write && slot < room {
-                    tile_keys[slot] = tile_key(c, tile);
-                    tile_values[slot] = s;
+            let t = ty * across + tx;
+            if atomicLoad(&tile_done[base + t]) < 64u && (single || reaches_tile(m, conic, cutoff, c, tx, ty)) {
+                if write {
+                    write_entry(first + count, c, t, s);
                 }
-                slot += 1u;
+                if small {
+                    bits |= 1u << ((ty - r.y) * box_width + tx - r.x);
+                }
+                count += 1u;
             }
         }
     }
-    return slot - first;
+    return vec2<u32>(count, bits);
 }
 
 @compute @workgroup_size(256)
@@ -772,11 +795,13 @@ fn count_tiles(
     }
     var count = 0u;
     if i < n {
-        count = bin(sorted_depth_value(i), 0u, false);
+        count = splat_tiles(sorted_depth_value(i));
     }
     tile_counts[i] = count;
 }
 
+// The entries of each splat in depth order, from its first slot: from the bits `project` left
+// where its box is small, else by walking the box again.
 @compute @workgroup_size(256)
 fn emit(
     @builtin(local_invocation_index) lid: u32,
@@ -787,7 +812,27 @@ fn emit(
     if i >= live[slots.splats] {
         return;
     }
-    bin(sorted_depth_value(i), tile_counts[i], true);
+    let s = sorted_depth_value(i);
+    let first = tile_counts[i];
+    let c = splat_camera(s);
+    let m = splats[4u * s];
+    let e = splats[4u * s + 3u];
+    let r = tile_box(m.xy, e.xy, c);
+    let box_width = r.z - r.x + 1u;
+    if box_width * (r.w - r.y + 1u) > 32u {
+        let conic = vec3<f32>(m.zw, splats[4u * s + 1u].x);
+        walk_tiles(m.xy, conic, splats[4u * s + 2u].w, c, r, s, first, true);
+        return;
+    }
+    var bits = bitcast<u32>(e.w);
+    var slot = first;
+    let across = cameras[c].size.z;
+    while bits != 0u {
+        let k = firstTrailingBit(bits);
+        bits &= bits - 1u;
+        write_entry(slot, c, (r.y + k / box_width) * across + r.x + k % box_width, s);
+        slot += 1u;
+    }
 }
 
 // The tile-sort key of tile t of camera c: the camera in the top byte, above the tile bits
