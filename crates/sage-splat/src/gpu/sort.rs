@@ -11,6 +11,9 @@ use super::live::{Count, Live, LiveBuilder, Size};
 const SCAN_BLOCK: u32 = 4096;
 /// Pairs per radix-sort block (one per thread).
 const SORT_BLOCK: u32 = 256;
+/// Blocks one workgroup of the radix sort's `histogram` counts (fewer workgroups and barriers
+/// for the same counting: a third less time under lavapipe than one block each).
+const HISTOGRAM_BLOCKS: u32 = 4;
 
 /// The exclusive prefix sum kernels.
 pub(crate) struct Scan {
@@ -158,7 +161,9 @@ pub(crate) struct RadixSort {
 pub(crate) struct SortPlan {
     /// Per 8-bit pass: input, output, digits, live sizes and the digit shift.
     passes: Vec<wgpu::BindGroup>,
-    args: u64,
+    /// Where the workgroups of `histogram` and of `scatter` are.
+    histogram_args: u64,
+    scatter_args: u64,
     digits_scan: ScanPlan,
     _buffers: Vec<wgpu::Buffer>,
 }
@@ -173,7 +178,13 @@ impl RadixSort {
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("radix sort"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("sort.wgsl").into()),
+                source: wgpu::ShaderSource::Wgsl(
+                    format!(
+                        "const HISTOGRAM_BLOCKS: u32 = {HISTOGRAM_BLOCKS}u;\n{}",
+                        include_str!("sort.wgsl")
+                    )
+                    .into(),
+                ),
             });
         let layout = layout(
             gpu,
@@ -212,9 +223,11 @@ impl RadixSort {
     ) -> SortPlan {
         let capacity = capacity.max(1);
         let blocks = capacity.div_ceil(SORT_BLOCK);
-        let args = builder
-            .derive(Size::of(Count::Live(count_slot), capacity).dispatched(SORT_BLOCK))
+        let pairs = Size::of(Count::Live(count_slot), capacity);
+        let histogram_args = builder
+            .derive(pairs.dispatched(SORT_BLOCK * HISTOGRAM_BLOCKS))
             .args;
+        let scatter_args = builder.derive(pairs.dispatched(SORT_BLOCK)).args;
         let digit_count = builder.derive(Size {
             div: SORT_BLOCK,
             mul: 256,
@@ -256,7 +269,8 @@ impl RadixSort {
         buffers.push(digits);
         SortPlan {
             passes,
-            args,
+            histogram_args,
+            scatter_args,
             digits_scan,
             _buffers: buffers,
         }
@@ -272,9 +286,9 @@ impl RadixSort {
         passes: usize,
     ) {
         for group in &plan.passes[..passes] {
-            live.dispatch(pass, &self.histogram, &[(group, &[])], plan.args);
+            live.dispatch(pass, &self.histogram, &[(group, &[])], plan.histogram_args);
             scan.encode(pass, live, &plan.digits_scan);
-            live.dispatch(pass, &self.scatter, &[(group, &[])], plan.args);
+            live.dispatch(pass, &self.scatter, &[(group, &[])], plan.scatter_args);
         }
     }
 }
@@ -286,7 +300,7 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
-    const SIZES: [u32; 9] = [1, 255, 256, 257, 4095, 4096, 4097, 70_000, 300_001];
+    const SIZES: [u32; 10] = [1, 255, 256, 257, 1025, 4095, 4096, 4097, 70_000, 300_001];
 
     fn gpu() -> Option<std::sync::Arc<Gpu>> {
         match Gpu::shared(false) {

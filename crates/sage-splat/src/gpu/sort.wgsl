@@ -5,6 +5,8 @@
 // `block_digits[digit * blocks + block]`; after an exclusive scan of that array (digit-major,
 // so it holds every pair's first slot), `scatter` writes each pair there plus its rank among
 // the equal digits before it in its block, which keeps equal keys in their input order.
+// A workgroup of `histogram` counts HISTOGRAM_BLOCKS blocks (the constant comes from the Rust
+// side), a pair of each per thread, between the same two barriers.
 
 struct Params {
     shift: u32,
@@ -19,7 +21,8 @@ struct Params {
 @group(0) @binding(5) var<storage, read> live: array<u32>;
 @group(0) @binding(6) var<uniform> params: Params;
 
-var<workgroup> histogram_of_block: array<atomic<u32>, 256>;
+// Per block of the workgroup and digit, its pairs.
+var<workgroup> histogram_of_block: array<atomic<u32>, HISTOGRAM_BLOCKS * 256>;
 // Per row of 32 pairs and digit, a bit per pair of the row holding that digit.
 var<workgroup> row_digits: array<atomic<u32>, 2048>;
 
@@ -29,20 +32,28 @@ fn histogram(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let block = wid.x + wid.y * nwg.x;
+    let first = (wid.x + wid.y * nwg.x) * HISTOGRAM_BLOCKS;
     let n = live[params.count_slot];
     let blocks = (n + 255u) / 256u;
-    if block >= blocks {
+    if first >= blocks {
         return;
     }
-    atomicStore(&histogram_of_block[lid], 0u);
-    workgroupBarrier();
-    let i = block * 256u + lid;
-    if i < n {
-        atomicAdd(&histogram_of_block[(keys_in[i] >> params.shift) & 255u], 1u);
+    for (var k = 0u; k < HISTOGRAM_BLOCKS; k++) {
+        atomicStore(&histogram_of_block[k * 256u + lid], 0u);
     }
     workgroupBarrier();
-    block_digits[lid * blocks + block] = atomicLoad(&histogram_of_block[lid]);
+    for (var k = 0u; k < HISTOGRAM_BLOCKS; k++) {
+        let i = (first + k) * 256u + lid;
+        if i < n {
+            atomicAdd(&histogram_of_block[k * 256u + ((keys_in[i] >> params.shift) & 255u)], 1u);
+        }
+    }
+    workgroupBarrier();
+    for (var k = 0u; k < HISTOGRAM_BLOCKS; k++) {
+        if first + k < blocks {
+            block_digits[lid * blocks + first + k] = atomicLoad(&histogram_of_block[k * 256u + lid]);
+        }
+    }
 }
 
 @compute @workgroup_size(256)
