@@ -380,7 +380,8 @@ mod tests {
         let live = Live::new(&gpu);
         let scan = Scan::new(&gpu);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        for n in SIZES {
+        // And past SCAN_BLOCK² elements: three levels.
+        for n in SIZES.into_iter().chain([SCAN_BLOCK * SCAN_BLOCK + 1]) {
             // Room past the live count: the scan must leave it alone.
             let data: Vec<u32> = (0..n + 300).map(|_| rng.random_range(0..9)).collect();
             let buffer = words(&gpu, &data);
