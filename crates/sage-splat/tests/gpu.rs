@@ -30,6 +30,18 @@ fn gpu() -> Option<Arc<Gpu>> {
     }
 }
 
+/// A generated home of `rooms` rooms, `objects` objects and `gaussians` Gaussians.
+fn home(seed: u64, rooms: usize, objects: usize, gaussians: usize) -> sage_scene::scene::Scene {
+    generate(&SynthConfig {
+        seed,
+        rooms,
+        objects,
+        gaussians,
+        ..SynthConfig::default()
+    })
+    .unwrap()
+}
+
 fn testdata(name: &str) -> Gaussians {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../testdata/splats")
@@ -139,14 +151,7 @@ fn every_sh_degree_matches_the_cpu_renderer() {
 
 #[test]
 fn generated_rooms_match_the_cpu_renderer() {
-    let scene = generate(&SynthConfig {
-        seed: 4,
-        rooms: 2,
-        objects: 16,
-        gaussians: 40_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(4, 2, 16, 40_000);
     let c = scene.floorplan.rooms[0].profile.centroid();
     let cameras: Vec<Camera> = [(0.3f32, 64, 48), (2.0, 160, 120), (-2.4, 100, 37)]
         .iter()
@@ -197,14 +202,7 @@ fn what_lies_behind_an_opaque_wall_is_not_projected() {
 #[test]
 fn a_batch_equals_its_cameras_rendered_alone_and_repeats_exactly() {
     let Some(gpu) = gpu() else { return };
-    let scene = generate(&SynthConfig {
-        seed: 9,
-        rooms: 3,
-        objects: 20,
-        gaussians: 30_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(9, 3, 20, 30_000);
     let g = &scene.gaussians;
     let categories = &scene.instances.category_ids;
     let c = scene.floorplan.rooms[1].profile.centroid();
@@ -258,14 +256,7 @@ fn a_batch_of_more_cameras_than_a_sort_key_holds_is_rendered_in_parts_alike() {
     // A batch's sort keys hold its camera in one byte: 300 cameras go in two submissions, and
     // each camera's images still equal those it gets alone.
     let Some(gpu) = gpu() else { return };
-    let scene = generate(&SynthConfig {
-        seed: 4,
-        rooms: 2,
-        objects: 8,
-        gaussians: 8_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(4, 2, 8, 8_000);
     let (g, categories) = (&scene.gaussians, &scene.instances.category_ids);
     let c = scene.floorplan.rooms[0].profile.centroid();
     let cameras: Vec<Camera> = (0..300)
