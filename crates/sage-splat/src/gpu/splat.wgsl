@@ -672,8 +672,8 @@ fn project(
 // batch sorts camera-major and its tile sort needs only the tiles of one camera; below, z's
 // place between the near and far planes in DEPTH_KEY_BITS (24) bits. Positive floats order as
 // their bits, so the key is z's bits less the near plane's, shifted right just enough to fit:
-// every float apart where the planes are up to two octaves apart, and each doubling beyond
-// costs a bit (depths 2^-20 apart still ordered up to 16 octaves, e.g. 0.1 to 100 m: a
+// every float apart while the far plane is under four times the near, and each doubling
+// beyond costs a bit (depths 2^-20 apart still ordered under 16 octaves, e.g. 0.1 to 100 m: a
 // micrometre at a metre). It depends on the camera alone, not on the slab or the batch.
 fn depth_key(c: u32, z: f32) -> u32 {
     let clip = cameras[c].clip;
