@@ -298,7 +298,6 @@ pub fn run(
     result
 }
 
-/// The cameras of the benchmark: `count` headings spread over a full turn at `eye`.
 /// The median of each stage over `passes`.
 fn median_passes(passes: &[PassTimes]) -> PassTimes {
     let stage = |f: fn(&PassTimes) -> f64| crate::median(&passes.iter().map(f).collect::<Vec<_>>());
@@ -312,6 +311,7 @@ fn median_passes(passes: &[PassTimes]) -> PassTimes {
     }
 }
 
+/// The cameras of the benchmark: `count` headings spread over a full turn at `eye`.
 fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize) -> Vec<Camera> {
     (0..count)
         .map(|f| {

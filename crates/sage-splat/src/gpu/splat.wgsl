@@ -16,9 +16,9 @@
 // scan of the per-entry counts → `project` (a thread per splat: writes the splats, compacted,
 // camera-major and in Gaussian order, each with the unfinished tiles it reaches) → radix sort
 // by camera and depth → `count_tiles` (those counts in that order) → scan → `emit` ((unfinished
-// tile, splat) entries in that order) → stable radix sort by the tile
-// within its camera → `ranges` (each tile's entries, and the list of tiles with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
-// slab before left). Last, `compose` turns the state into the images. Slabs partition depth
+// tile, splat) entries in that order) → stable radix sort by the tile within its camera →
+// `ranges` (each tile's entries, and the list of tiles with any) → `raster` (a workgroup per
+// listed tile, blending into the per-pixel state the slab before left). Last, `compose` turns the state into the images. Slabs partition depth
 // and each tile blends in depth order, so the images are those of blending everything at
 // once; what the slabs save is the work behind finished tiles.
 
@@ -753,13 +753,19 @@ fn write_entry(slot: u32, c: u32, t: u32, s: u32) {
     }
 }
 
+// True when tile box r is small enough for a bit per tile (32), which `project` keeps and
+// `emit` walks.
+fn box_has_bits(r: vec4<u32>) -> bool {
+    return (r.z - r.x + 1u) * (r.w - r.y + 1u) <= 32u;
+}
+
 // Walks the tiles of box r in camera c, row-major, that are unfinished and that a splat at `m`
 // with `conic` and `cutoff` reaches: their count and, where the box holds at most 32 tiles, a
 // bit per tile of the box. With `write`, also writes them as the entries of splat s from
 // `first` on.
 fn walk_tiles(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, r: vec4<u32>, s: u32, first: u32, write: bool) -> vec2<u32> {
     let box_width = r.z - r.x + 1u;
-    let small = box_width * (r.w - r.y + 1u) <= 32u;
+    let small = box_has_bits(r);
     let single = r.x == r.z && r.y == r.w;
     let base = cameras[c].place.x;
     let across = cameras[c].size.z;
@@ -818,8 +824,7 @@ fn emit(
     let m = splats[4u * s];
     let e = splats[4u * s + 3u];
     let r = tile_box(m.xy, e.xy, c);
-    let box_width = r.z - r.x + 1u;
-    if box_width * (r.w - r.y + 1u) > 32u {
+    if !box_has_bits(r) {
         let conic = vec3<f32>(m.zw, splats[4u * s + 1u].x);
         walk_tiles(m.xy, conic, splats[4u * s + 2u].w, c, r, s, first, true);
         return;
@@ -827,6 +832,7 @@ fn emit(
     var bits = bitcast<u32>(e.w);
     var slot = first;
     let across = cameras[c].size.z;
+    let box_width = r.z - r.x + 1u;
     while bits != 0u {
         let k = firstTrailingBit(bits);
         bits &= bits - 1u;
