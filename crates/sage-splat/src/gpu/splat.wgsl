@@ -73,9 +73,9 @@ struct Slots {
 // The visible entries, camera × CHUNKS + chunk.
 @group(1) @binding(3) var<storage, read_write> chunk_list: array<u32>;
 // Per entry: 256 bits, the lanes whose Gaussian projects into the image.
-@group(1) @binding(4) var<storage, read_write> entry_masks: array<u32>;
+@group(1) @binding(4) var<storage, read_write> entry_masks: array<atomic<u32>>;
 // Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
-@group(1) @binding(5) var<storage, read_write> entry_counts: array<u32>;
+@group(1) @binding(5) var<storage, read_write> entry_counts: array<atomic<u32>>;
 // Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, instance
 // bits), (r, g, b, cutoff), (extent x, extent y, camera | tiles reached << 8 bits, reached
 // bits: where its tile box holds at most 32 tiles, a bit per tile of the box, row-major).
@@ -452,8 +452,18 @@ fn list_chunks(
         return;
     }
     let slot = chunk_flags[i];
-    if chunk_flags[i + 1u] != slot && slot < arrayLength(&chunk_list) {
+    let entries = arrayLength(&chunk_list);
+    if chunk_flags[i + 1u] != slot && slot < entries {
         chunk_list[slot] = i;
+        // Empty for `mark`, which only sets bits and counts.
+        for (var word = 0u; word < 8u; word++) {
+            atomicStore(&entry_masks[8u * slot + word], 0u);
+        }
+        atomicStore(&entry_counts[slot], 0u);
+    }
+    if i + 1u == live[LIVE_CAMERA_CHUNKS] {
+        // The scan's total: zero before the scan.
+        atomicStore(&entry_counts[min(chunk_flags[i + 1u], entries)], 0u);
     }
 }
 
@@ -565,8 +575,6 @@ fn in_slab(c: u32, g: u32) -> bool {
     return f.visible && !rect_finished(c, tile_box(f.centre, f.extent, c));
 }
 
-var<workgroup> lane_bits: array<atomic<u32>, 8>;
-
 @compute @workgroup_size(256)
 fn mark(
     @builtin(local_invocation_index) lid: u32,
@@ -574,36 +582,14 @@ fn mark(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let entry = group_index(wid, nwg);
-    let entries = live[slots.entries];
-    if entry > entries {
+    if entry >= live[slots.entries] {
         return;
     }
-    if entry == entries {
-        // The scan's total: zero before the scan.
-        if lid == 0u {
-            entry_counts[entries] = 0u;
-        }
-        return;
-    }
-    if lid < 8u {
-        atomicStore(&lane_bits[lid], 0u);
-    }
-    workgroupBarrier();
     let flat = chunk_list[entry];
     let g = (flat % CHUNKS) * 256u + lid;
     if g < GAUSSIANS && in_slab(flat / CHUNKS, g) {
-        atomicOr(&lane_bits[lid / 32u], 1u << (lid % 32u));
-    }
-    workgroupBarrier();
-    if lid < 8u {
-        entry_masks[8u * entry + lid] = atomicLoad(&lane_bits[lid]);
-    }
-    if lid == 0u {
-        var total = 0u;
-        for (var k = 0u; k < 8u; k++) {
-            total += countOneBits(atomicLoad(&lane_bits[k]));
-        }
-        entry_counts[entry] = total;
+        atomicOr(&entry_masks[8u * entry + lid / 32u], 1u << (lid % 32u));
+        atomicAdd(&entry_counts[entry], 1u);
     }
 }
 
@@ -633,17 +619,17 @@ fn project(
     var hi = live[slots.entries];
     while hi - lo > 1u {
         let mid = (lo + hi) / 2u;
-        if entry_counts[mid] <= slot {
+        if atomicLoad(&entry_counts[mid]) <= slot {
             lo = mid;
         } else {
             hi = mid;
         }
     }
     let entry = lo;
-    var rank = slot - entry_counts[entry];
+    var rank = slot - atomicLoad(&entry_counts[entry]);
     var lane = 0u;
     for (var word = 0u; word < 8u; word++) {
-        let mask = entry_masks[8u * entry + word];
+        let mask = atomicLoad(&entry_masks[8u * entry + word]);
         let n = countOneBits(mask);
         if rank < n {
             lane = 32u * word + nth_set_bit(mask, rank);
