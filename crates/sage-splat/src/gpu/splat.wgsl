@@ -110,8 +110,8 @@ struct Slots {
 @group(1) @binding(18) var<storage, read_write> depth_histogram: array<atomic<u32>>;
 // Per camera, SLABS + 1 depths: slab k holds the splats of depth in [cut k, cut k + 1).
 @group(1) @binding(19) var<storage, read_write> slab_cuts: array<f32>;
-// Per tile of the batch: its columns of four pixels (raster threads) that are finished or
-// outside the image; 64 once the whole tile is finished.
+// Per tile of the batch: its columns of four pixels (half a raster thread's) that are finished
+// or outside the image; 64 once the whole tile is finished.
 @group(1) @binding(20) var<storage, read_write> tile_done: array<atomic<u32>>;
 // Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
 // (tiles down + 1) words, row 0 and column 0 zero.
@@ -886,7 +886,7 @@ fn tile_camera(t: u32) -> u32 {
     return lo;
 }
 
-// The columns of four pixels (raster threads) of tile (tx, ty) of a camera of `size` that
+// The columns of four pixels (half a raster thread's) of tile (tx, ty) of a camera of `size` that
 // hold no pixel of the image.
 fn outside_columns(size: vec4<u32>, tx: u32, ty: u32) -> u32 {
     let columns = min(TILE, size.x - tx * TILE);
@@ -930,45 +930,122 @@ fn start_pixels(
 var<workgroup> batch_a: array<vec4<f32>, 256>;
 var<workgroup> batch_b: array<vec4<f32>, 256>;
 var<workgroup> batch_c: array<vec4<f32>, 256>;
-// Per splat of the batch, a bit per block of 8×4 pixels its box reaches; then, per block, a
+// Per splat of the batch, a bit per block of 8×8 pixels its box reaches; then, per block, a
 // bit per splat (8 words of 32).
 var<workgroup> batch_blocks: array<u32, 256>;
-var<workgroup> block_bits: array<u32, 64>;
+var<workgroup> block_bits: array<u32, 32>;
 var<workgroup> threads_done: atomic<u32>;
 var<workgroup> all_done: u32;
 // The tile a raster workgroup blends and its range of entries.
 var<workgroup> raster_tile: vec3<u32>;
 
-// The blocks of 8 columns × 4 rows of a tile (bit 2·row group + column half) that the box
+// The blocks of 8 columns × 8 rows of a tile (bit 2·row half + column half) that the box
 // `lo`…`hi` reaches at some pixel centre.
 fn box_blocks(lo: vec2<f32>, hi: vec2<f32>, tile: vec2<f32>) -> u32 {
-    var columns = 0u;
+    var blocks = 0u;
     for (var h = 0u; h < 2u; h++) {
         let x0 = tile.x + f32(8u * h) + 0.5;
+        let y0 = tile.y + f32(8u * h) + 0.5;
         if hi.x >= x0 && lo.x <= x0 + 7.0 {
-            columns |= 1u << h;
+            blocks |= 5u << h;
         }
-    }
-    var blocks = 0u;
-    for (var r = 0u; r < 4u; r++) {
-        let y0 = tile.y + f32(4u * r) + 0.5;
-        if hi.y >= y0 && lo.y <= y0 + 3.0 {
-            blocks |= columns << (2u * r);
+        if !(hi.y >= y0 && lo.y <= y0 + 7.0) {
+            blocks &= ~(3u << (2u * h));
         }
     }
     return blocks;
 }
 
-// A workgroup per tile of every camera; each of its 64 threads blends a column of four pixels
-// (the four as the lanes of a vec4), so a splat read from workgroup memory serves four pixels.
-// Eight neighbouring threads cover a block of 8×4 pixels and go through only the splats whose
+// The blending state of four pixels of a column (the lanes of each vector).
+struct Pixels {
+    red: vec4<f32>,
+    green: vec4<f32>,
+    blue: vec4<f32>,
+    transmittance: vec4<f32>,
+    weighted_depth: vec4<f32>,
+    median: vec4<f32>,
+    best_weight: vec4<f32>,
+    instance: vec4<u32>,
+    // Inside the image and not finished.
+    live: vec4<bool>,
+}
+
+// The state the slab before left at pixels `p` (those `inside` the image of `pixels` pixels);
+// a finished pixel keeps its transmittance negated.
+fn load_pixels(p: vec4<u32>, inside: vec4<bool>, pixels: u32) -> Pixels {
+    var q: Pixels;
+    q.transmittance = vec4<f32>(1.0);
+    for (var j = 0u; j < 4u; j++) {
+        if inside[j] {
+            q.red[j] = bitcast<f32>(images[p[j]]);
+            q.green[j] = bitcast<f32>(images[pixels + p[j]]);
+            q.blue[j] = bitcast<f32>(images[2u * pixels + p[j]]);
+            q.transmittance[j] = bitcast<f32>(images[3u * pixels + p[j]]);
+            q.weighted_depth[j] = bitcast<f32>(images[4u * pixels + p[j]]);
+            q.median[j] = bitcast<f32>(images[5u * pixels + p[j]]);
+            q.instance[j] = images[6u * pixels + p[j]];
+            q.best_weight[j] = bitcast<f32>(images[7u * pixels + p[j]]);
+        }
+    }
+    q.live = inside & (q.transmittance > vec4<f32>(0.0));
+    q.transmittance = abs(q.transmittance);
+    return q;
+}
+
+fn store_pixels(q: ptr<function, Pixels>, p: vec4<u32>, inside: vec4<bool>, pixels: u32) {
+    let kept = select((*q).transmittance, -(*q).transmittance, !(*q).live);
+    for (var j = 0u; j < 4u; j++) {
+        if inside[j] {
+            images[p[j]] = bitcast<u32>((*q).red[j]);
+            images[pixels + p[j]] = bitcast<u32>((*q).green[j]);
+            images[2u * pixels + p[j]] = bitcast<u32>((*q).blue[j]);
+            images[3u * pixels + p[j]] = bitcast<u32>(kept[j]);
+            images[4u * pixels + p[j]] = bitcast<u32>((*q).weighted_depth[j]);
+            images[5u * pixels + p[j]] = bitcast<u32>((*q).median[j]);
+            images[6u * pixels + p[j]] = (*q).instance[j];
+            images[7u * pixels + p[j]] = bitcast<u32>((*q).best_weight[j]);
+        }
+    }
+}
+
+// Blends splat (sb: conic c, opacity, depth, instance; c: r, g, b) at `power` into the pixels,
+// with the CPU renderer's rules.
+fn blend(q: ptr<function, Pixels>, power: vec4<f32>, sb: vec4<f32>, c: vec4<f32>) {
+    // Below e^-40 alpha is far under 1/255 whatever it is: the clamp keeps the exponential out
+    // of subnormal numbers, which CPUs (lavapipe) compute slowly.
+    let alpha = min(sb.y * exp_fast4(max(power, vec4<f32>(-40.0))), vec4<f32>(MAX_ALPHA));
+    let transmittance = (*q).transmittance;
+    let next = transmittance * (1.0 - alpha);
+    let counts = (*q).live & (power <= vec4<f32>(0.0)) & (alpha >= vec4<f32>(MIN_ALPHA));
+    // A pixel whose transmittance would fall below the floor is finished without it.
+    let ends = counts & (next < vec4<f32>(MIN_TRANSMITTANCE));
+    let blend = counts & !ends;
+    let weight = alpha * transmittance;
+    let w = select(vec4<f32>(0.0), weight, blend);
+    (*q).red += w * c.x;
+    (*q).green += w * c.y;
+    (*q).blue += w * c.z;
+    (*q).weighted_depth += w * sb.z;
+    // Transmittance only falls: the last splat blended while it was above 0.5 is the one that
+    // crossed it (kept only if it ends at or below 0.5).
+    (*q).median = select((*q).median, vec4<f32>(sb.z), blend & (transmittance > vec4<f32>(0.5)));
+    let better = blend & (weight > (*q).best_weight);
+    (*q).best_weight = select((*q).best_weight, weight, better);
+    (*q).instance = select((*q).instance, vec4<u32>(bitcast<u32>(sb.w)), better);
+    (*q).transmittance = select(transmittance, next, blend);
+    (*q).live = (*q).live & !ends;
+}
+
+// A workgroup per tile of every camera; each of its 32 threads blends a column of eight pixels
+// (as two vectors of four lanes), so a splat read from workgroup memory serves eight pixels.
+// Eight neighbouring threads cover a block of 8×8 pixels and go through only the splats whose
 // box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
 // (lavapipe) runs such eight together and skips the rest; on a GPU each thread steps through
 // its own block's list, so a warp takes as many steps as the longest list of its blocks.
 // A workgroup per tile with entries in this slab (`tile_list`); the pixels' state comes from
-// the slab before and goes back to `images`, and a column that finishes here is counted in
-// `tile_done`.
-@compute @workgroup_size(64)
+// the slab before and goes back to `images`, and a column of four that finishes here is
+// counted in `tile_done`.
+@compute @workgroup_size(32)
 fn raster(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -998,48 +1075,31 @@ fn raster(
     let tx = local % size.z;
     let ty = local / size.z;
     let px = tx * TILE + lid % TILE;
-    let py = ty * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
+    let py_upper = ty * TILE + (lid / TILE) * 8u + vec4<u32>(0u, 1u, 2u, 3u);
+    let py_lower = py_upper + 4u;
     let tile = vec2<f32>(f32(tx * TILE), f32(ty * TILE));
-    // Threads 8b…8b+7 are block b: row group b / 2, column half b % 2 (as in `box_blocks`).
+    // Threads 8b…8b+7 are block b: row half b / 2, column half b % 2 (as in `box_blocks`).
     let block = lid / 8u;
-    let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
+    let inside_upper = vec4<bool>(px < size.x) & (py_upper < vec4<u32>(size.y));
+    let inside_lower = vec4<bool>(px < size.x) & (py_lower < vec4<u32>(size.y));
     let cx = f32(px) + 0.5;
-    let cy = vec4<f32>(py) + 0.5;
+    let cy_upper = vec4<f32>(py_upper) + 0.5;
+    let cy_lower = vec4<f32>(py_lower) + 0.5;
     let pixels = size.x * size.y;
-    let p = cameras[c].place.y + py * size.x + px;
-    var transmittance = vec4<f32>(1.0);
-    var red = vec4<f32>(0.0);
-    var green = vec4<f32>(0.0);
-    var blue = vec4<f32>(0.0);
-    var weighted_depth = vec4<f32>(0.0);
-    var median = vec4<f32>(0.0);
-    var best_weight = vec4<f32>(0.0);
-    var instance = vec4<u32>(0u);
-    for (var j = 0u; j < 4u; j++) {
-        if inside[j] {
-            red[j] = bitcast<f32>(images[p[j]]);
-            green[j] = bitcast<f32>(images[pixels + p[j]]);
-            blue[j] = bitcast<f32>(images[2u * pixels + p[j]]);
-            transmittance[j] = bitcast<f32>(images[3u * pixels + p[j]]);
-            weighted_depth[j] = bitcast<f32>(images[4u * pixels + p[j]]);
-            median[j] = bitcast<f32>(images[5u * pixels + p[j]]);
-            instance[j] = images[6u * pixels + p[j]];
-            best_weight[j] = bitcast<f32>(images[7u * pixels + p[j]]);
-        }
-    }
-    // A finished pixel keeps its transmittance negated.
-    var live = inside & (transmittance > vec4<f32>(0.0));
-    let was_live = any(live);
-    transmittance = abs(transmittance);
+    let p_upper = cameras[c].place.y + py_upper * size.x + px;
+    let p_lower = cameras[c].place.y + py_lower * size.x + px;
+    var upper = load_pixels(p_upper, inside_upper, pixels);
+    var lower = load_pixels(p_lower, inside_lower, pixels);
+    let was_live = vec2<bool>(any(upper.live), any(lower.live));
     var counted = false;
     for (var start = range.x; start < range.y; start += 256u) {
-        if !any(live) && !counted {
+        if !any(upper.live) && !any(lower.live) && !counted {
             counted = true;
             atomicAdd(&threads_done, 1u);
         }
         workgroupBarrier();
-        for (var j = 0u; j < 4u; j++) {
-            let k = lid + 64u * j;
+        for (var j = 0u; j < 8u; j++) {
+            let k = lid + 32u * j;
             let e = start + k;
             var blocks = 0u;
             if e < range.y {
@@ -1056,7 +1116,7 @@ fn raster(
         if lid == 0u {
             all_done = atomicLoad(&threads_done);
         }
-        if workgroupUniformLoad(&all_done) == 64u {
+        if workgroupUniformLoad(&all_done) == 32u {
             break;
         }
         // Thread b·8 + w gathers word w of block b's bits.
@@ -1069,7 +1129,7 @@ fn raster(
         for (var word_index = 0u; word_index < 8u; word_index++) {
             var bits = block_bits[8u * block + word_index];
             loop {
-                if bits == 0u || !any(live) {
+                if bits == 0u || !(any(upper.live) || any(lower.live)) {
                     break;
                 }
                 let k = 32u * word_index + firstTrailingBit(bits);
@@ -1077,54 +1137,29 @@ fn raster(
                 let s = batch_a[k];
                 let sb = batch_b[k];
                 let dx = s.x - cx;
-                let dy = s.y - cy;
-                let power = -0.5 * (s.z * dx * dx + sb.x * dy * dy) - s.w * dx * dy;
+                let dy_upper = s.y - cy_upper;
+                let dy_lower = s.y - cy_lower;
+                let across = s.z * dx * dx;
+                let power_upper = -0.5 * (across + sb.x * dy_upper * dy_upper) - s.w * dx * dy_upper;
+                let power_lower = -0.5 * (across + sb.x * dy_lower * dy_lower) - s.w * dx * dy_lower;
                 let c = batch_c[k];
                 // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
-                if !any(live & (power >= vec4<f32>(-0.5 * c.w))) {
-                    continue;
+                let reach = vec4<f32>(-0.5 * c.w);
+                if any(upper.live & (power_upper >= reach)) {
+                    blend(&upper, power_upper, sb, c);
                 }
-                // Below e^-40 alpha is far under 1/255 whatever it is: the clamp keeps the
-                // exponential out of subnormal numbers, which CPUs (lavapipe) compute slowly.
-                let alpha = min(sb.y * exp_fast4(max(power, vec4<f32>(-40.0))), vec4<f32>(MAX_ALPHA));
-                let next = transmittance * (1.0 - alpha);
-                let counts = live & (power <= vec4<f32>(0.0)) & (alpha >= vec4<f32>(MIN_ALPHA));
-                // A pixel whose transmittance would fall below the floor is finished without it.
-                let ends = counts & (next < vec4<f32>(MIN_TRANSMITTANCE));
-                let blend = counts & !ends;
-                let weight = alpha * transmittance;
-                let w = select(vec4<f32>(0.0), weight, blend);
-                red += w * c.x;
-                green += w * c.y;
-                blue += w * c.z;
-                weighted_depth += w * sb.z;
-                // Transmittance only falls: the last splat blended while it was above 0.5 is the
-                // one that crossed it (kept only if it ends at or below 0.5).
-                median = select(median, vec4<f32>(sb.z), blend & (transmittance > vec4<f32>(0.5)));
-                let better = blend & (weight > best_weight);
-                best_weight = select(best_weight, weight, better);
-                instance = select(instance, vec4<u32>(bitcast<u32>(sb.w)), better);
-                transmittance = select(transmittance, next, blend);
-                live = live & !ends;
+                if any(lower.live & (power_lower >= reach)) {
+                    blend(&lower, power_lower, sb, c);
+                }
             }
         }
     }
-    if was_live && !any(live) {
-        atomicAdd(&tile_done[tile_index], 1u);
+    let finished = select(0u, 1u, was_live.x && !any(upper.live)) + select(0u, 1u, was_live.y && !any(lower.live));
+    if finished > 0u {
+        atomicAdd(&tile_done[tile_index], finished);
     }
-    let kept = select(transmittance, -transmittance, !live);
-    for (var j = 0u; j < 4u; j++) {
-        if inside[j] {
-            images[p[j]] = bitcast<u32>(red[j]);
-            images[pixels + p[j]] = bitcast<u32>(green[j]);
-            images[2u * pixels + p[j]] = bitcast<u32>(blue[j]);
-            images[3u * pixels + p[j]] = bitcast<u32>(kept[j]);
-            images[4u * pixels + p[j]] = bitcast<u32>(weighted_depth[j]);
-            images[5u * pixels + p[j]] = bitcast<u32>(median[j]);
-            images[6u * pixels + p[j]] = instance[j];
-            images[7u * pixels + p[j]] = bitcast<u32>(best_weight[j]);
-        }
-    }
+    store_pixels(&upper, p_upper, inside_upper, pixels);
+    store_pixels(&lower, p_lower, inside_lower, pixels);
 }
 
 // A thread per pixel of every camera's tiles: the images from the blended state (the
