@@ -28,11 +28,32 @@ struct ScanLevel {
     args: u64,
 }
 
+/// Where a scan leaves the offsets of its blocks of `SCAN_BLOCK` words.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Finish {
+    /// Added back into the data: every word ends as its exclusive prefix.
+    InPlace,
+    /// Kept apart ([`ScanPlan::block_offsets`]): every word ends as its prefix within its
+    /// block, and a reader adds its block's offset. One dispatch fewer, for a reader that
+    /// reads each word once (the radix sort's `scatter`).
+    Apart,
+}
+
 /// A scan of one buffer of up to a fixed length: the levels of block sums, bottom first.
 pub(crate) struct ScanPlan {
     levels: Vec<ScanLevel>,
-    /// Keeps the block-sum and parameter buffers alive.
-    _buffers: Vec<wgpu::Buffer>,
+    finish: Finish,
+    /// The block-sum buffer of each level (the first: the blocks' offsets once scanned), and
+    /// the parameter buffers, kept alive.
+    buffers: Vec<wgpu::Buffer>,
+}
+
+impl ScanPlan {
+    /// Per block of `SCAN_BLOCK` words, its offset: what a reader of a scan finished
+    /// [`Finish::Apart`] adds to each word of the block.
+    pub(crate) fn block_offsets(&self) -> &wgpu::Buffer {
+        &self.buffers[0]
+    }
 }
 
 impl Scan {
@@ -68,6 +89,7 @@ impl Scan {
 
     /// A scan of the first `live[n_slot]` (at most `capacity`) words of `data`, its sizes
     /// derived in `builder`'s current stage.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn plan(
         &self,
         gpu: &Gpu,
@@ -76,6 +98,7 @@ impl Scan {
         data: &wgpu::Buffer,
         capacity: u32,
         n_slot: u32,
+        finish: Finish,
     ) -> ScanPlan {
         let mut levels = Vec::new();
         let mut buffers: Vec<wgpu::Buffer> = Vec::new();
@@ -87,7 +110,8 @@ impl Scan {
             let sums = gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("scan sums"),
                 size: u64::from(blocks) * 4,
-                usage: wgpu::BufferUsages::STORAGE,
+                // Copied out only by the tests.
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             });
             let params = uniform_buffer(gpu, &[derived.n, 0, 0, 0]);
@@ -113,7 +137,9 @@ impl Scan {
             });
             buffers.push(sums);
             buffers.push(params);
-            if blocks == 1 {
+            // Offsets kept apart are the first level's sums scanned: a level above it even
+            // where one block holds everything.
+            if blocks == 1 && (levels.len() > 1 || finish == Finish::InPlace) {
                 break;
             }
             size = Size {
@@ -124,7 +150,8 @@ impl Scan {
         }
         ScanPlan {
             levels,
-            _buffers: buffers,
+            finish,
+            buffers,
         }
     }
 
@@ -138,7 +165,13 @@ impl Scan {
                 level.args,
             );
         }
-        for level in plan.levels.iter().rev().skip(1) {
+        // Each level's offsets go back into the level below, down to the data or, where
+        // they are kept apart, to the first level's sums.
+        let lowest = match plan.finish {
+            Finish::InPlace => 0,
+            Finish::Apart => 1,
+        };
+        for level in plan.levels[lowest..].iter().rev().skip(1) {
             live.dispatch(
                 pass,
                 &self.add_sums,
@@ -180,7 +213,8 @@ impl RadixSort {
                 label: Some("radix sort"),
                 source: wgpu::ShaderSource::Wgsl(
                     format!(
-                        "const HISTOGRAM_BLOCKS: u32 = {HISTOGRAM_BLOCKS}u;\n{}",
+                        "const HISTOGRAM_BLOCKS: u32 = {HISTOGRAM_BLOCKS}u;\n\
+                         const SCAN_BLOCK: u32 = {SCAN_BLOCK}u;\n{}",
                         include_str!("sort.wgsl")
                     )
                     .into(),
@@ -196,6 +230,7 @@ impl RadixSort {
                 storage(4, false),
                 storage(5, true),
                 uniform(6),
+                storage(7, true),
             ],
         );
         RadixSort {
@@ -239,7 +274,15 @@ impl RadixSort {
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
-        let digits_scan = scan.plan(gpu, live, builder, &digits, blocks * 256, digit_count.n);
+        let digits_scan = scan.plan(
+            gpu,
+            live,
+            builder,
+            &digits,
+            blocks * 256,
+            digit_count.n,
+            Finish::Apart,
+        );
         let mut buffers = Vec::new();
         let passes = (0..passes)
             .map(|k| {
@@ -260,6 +303,7 @@ impl RadixSort {
                         digits.as_entire_binding(),
                         live.buffer.as_entire_binding(),
                         params.as_entire_binding(),
+                        digits_scan.block_offsets().as_entire_binding(),
                     ],
                 );
                 buffers.push(params);
@@ -375,7 +419,7 @@ mod tests {
     }
 
     #[test]
-    fn the_scan_is_the_exclusive_prefix_sum() {
+    fn the_scan_is_the_exclusive_prefix_sum_in_place_or_with_its_block_offsets_apart() {
         let Some(gpu) = gpu() else { return };
         let live = Live::new(&gpu);
         let scan = Scan::new(&gpu);
@@ -384,27 +428,35 @@ mod tests {
         for n in SIZES.into_iter().chain([SCAN_BLOCK * SCAN_BLOCK + 1]) {
             // Room past the live count: the scan must leave it alone.
             let data: Vec<u32> = (0..n + 300).map(|_| rng.random_range(0..9)).collect();
-            let buffer = words(&gpu, &data);
-            let mut builder = LiveBuilder::new(1);
-            builder.stage();
-            let plan = scan.plan(&gpu, &live, &mut builder, &buffer, n + 300, 0);
-            let programs = live.programs(&gpu, &builder, &[&buffer]);
-            let out = run(
-                &gpu,
-                &live,
-                n,
-                |pass| {
-                    live.encode(pass, &programs, 0);
-                    scan.encode(pass, &live, &plan);
-                },
-                &[&buffer],
-            );
             let mut want = data.clone();
             let mut total = 0;
             for w in &mut want[..n as usize] {
                 (*w, total) = (total, total + *w);
             }
-            assert_eq!(out[0], want, "{n} elements");
+            for finish in [Finish::InPlace, Finish::Apart] {
+                let buffer = words(&gpu, &data);
+                let mut builder = LiveBuilder::new(1);
+                builder.stage();
+                let plan = scan.plan(&gpu, &live, &mut builder, &buffer, n + 300, 0, finish);
+                let programs = live.programs(&gpu, &builder, &[&buffer]);
+                let mut out = run(
+                    &gpu,
+                    &live,
+                    n,
+                    |pass| {
+                        live.encode(pass, &programs, 0);
+                        scan.encode(pass, &live, &plan);
+                    },
+                    &[&buffer, plan.block_offsets()],
+                );
+                if finish == Finish::Apart {
+                    let offsets = out.pop().unwrap();
+                    for (i, w) in out[0][..n as usize].iter_mut().enumerate() {
+                        *w += offsets[i / SCAN_BLOCK as usize];
+                    }
+                }
+                assert_eq!(out[0], want, "{n} elements, {finish:?}");
+            }
         }
     }
 
@@ -415,7 +467,10 @@ mod tests {
         let scan = Scan::new(&gpu);
         let sort = RadixSort::new(&gpu);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
-        for (i, n) in SIZES.into_iter().enumerate() {
+        // And one pass over more than SCAN_BLOCK² digits (as many pairs): three levels of the
+        // digits' scan, its block offsets apart.
+        let cases = SIZES.map(|n| (n, 4)).into_iter();
+        for (i, (n, passes)) in cases.chain([(SCAN_BLOCK * SCAN_BLOCK + 1, 1)]).enumerate() {
             // Every other size with few distinct keys, so stability is tested.
             let keys: Vec<u32> = (0..n)
                 .map(|_| match i % 2 {
@@ -437,7 +492,7 @@ mod tests {
                 (&k2, &v2),
                 n,
                 0,
-                4,
+                passes,
             );
             let programs = live.programs(&gpu, &builder, &[&k1]);
             let out = run(
@@ -446,12 +501,18 @@ mod tests {
                 n,
                 |pass| {
                     live.encode(pass, &programs, 0);
-                    sort.encode(pass, &scan, &live, &plan, 4);
+                    sort.encode(pass, &scan, &live, &plan, passes as usize);
                 },
-                &[&k1, &v1],
+                &[&k1, &v1, &k2, &v2],
             );
+            let out = if passes % 2 == 0 {
+                &out[..2]
+            } else {
+                &out[2..]
+            };
+            let digits = (1u64 << (8 * passes)) - 1;
             let mut want: Vec<(u32, u32)> = keys.into_iter().zip(values).collect();
-            want.sort_by_key(|p| p.0);
+            want.sort_by_key(|p| u64::from(p.0) & digits);
             let got: Vec<(u32, u32)> = out[0].iter().copied().zip(out[1].clone()).collect();
             assert!(got == want, "{n} pairs: not sorted stably by key");
         }

@@ -3,8 +3,10 @@
 // workgroups dispatched indirectly from it, so a frame's passes are recorded without knowing
 // it. Blocks of 256 pairs: `histogram` counts each block's digits into
 // `block_digits[digit * blocks + block]`; after an exclusive scan of that array (digit-major,
-// so it holds every pair's first slot), `scatter` writes each pair there plus its rank among
-// the equal digits before it in its block, which keeps equal keys in their input order.
+// so it holds every pair's first slot; the scan leaves each word's prefix within its block of
+// SCAN_BLOCK words and the blocks' offsets in `block_offsets`), `scatter` writes each pair
+// there plus its rank among the equal digits before it in its block, which keeps equal keys
+// in their input order.
 // A workgroup of `histogram` counts HISTOGRAM_BLOCKS blocks (the constant comes from the Rust
 // side), a pair of each per thread, between the same two barriers.
 
@@ -20,6 +22,7 @@ struct Params {
 @group(0) @binding(4) var<storage, read_write> block_digits: array<u32>;
 @group(0) @binding(5) var<storage, read> live: array<u32>;
 @group(0) @binding(6) var<uniform> params: Params;
+@group(0) @binding(7) var<storage, read> block_offsets: array<u32>;
 
 // Per block of the workgroup and digit, its pairs.
 var<workgroup> histogram_of_block: array<atomic<u32>, HISTOGRAM_BLOCKS * 256>;
@@ -94,7 +97,8 @@ fn scatter(
         for (var r = 0u; r < row; r++) {
             rank += countOneBits(atomicLoad(&row_digits[r * 256u + digit]));
         }
-        let slot = block_digits[digit * blocks + block] + rank;
+        let first = digit * blocks + block;
+        let slot = block_offsets[first / SCAN_BLOCK] + block_digits[first] + rank;
         keys_out[slot] = key;
         values_out[slot] = values_in[i];
     }

@@ -7,7 +7,7 @@ use super::kernel::{
     Kernel, bind, dynamic_uniform, layout, storage, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
-use super::sort::{RadixSort, Scan, ScanPlan, SortPlan};
+use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
 use crate::passes::PassTimes;
 
 /// Most depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each
@@ -352,6 +352,7 @@ impl Workspace {
             &flags,
             caps.camera_chunks + 1,
             flag_count.n,
+            Finish::InPlace,
         );
         // Stage 1, from the flags' total: the visible entries.
         b.stage();
@@ -373,6 +374,7 @@ impl Workspace {
             &entry_counts,
             caps.entries + 1,
             entry_groups.n,
+            Finish::InPlace,
         );
         // Stage 2, from the entries' total: the visible splats, their sort and binning.
         b.stage();
@@ -406,6 +408,7 @@ impl Workspace {
             &tile_counts,
             caps.splats + 1,
             splat_threads.n,
+            Finish::InPlace,
         );
         // Stage 3, from the tile counts' total: the (tile, splat) entries and their sort.
         b.stage();
