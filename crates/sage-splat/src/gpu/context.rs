@@ -46,11 +46,29 @@ impl Gpu {
     ///
     /// No adapter (naming what to install), or a device the adapter would not create.
     pub fn open(hardware_only: bool) -> Result<Gpu> {
-        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
-        desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::METAL | wgpu::Backends::DX12;
-        let instance = wgpu::Instance::new(desc);
+        // The workgroup counts of every indirect dispatch come from `derive` (`live.wgsl`),
+        // which keeps each under the least per-dimension limit a device may have, so wgpu's
+        // own check of them (a dispatch of its own before each one, doubling a frame's
+        // dispatches) is left out; not on DX12, where `num_workgroups` in the kernels needs it.
+        let checked = wgpu::InstanceFlags::default();
+        let instances = [
+            (
+                wgpu::Backends::VULKAN | wgpu::Backends::METAL,
+                checked - wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL,
+            ),
+            (wgpu::Backends::DX12, checked),
+        ]
+        .map(|(backends, flags)| {
+            let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+            desc.backends = backends;
+            desc.flags = flags;
+            wgpu::Instance::new(desc)
+        });
         let wanted = std::env::var(ADAPTER_VARIABLE).ok();
-        let all = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let all: Vec<wgpu::Adapter> = instances
+            .iter()
+            .flat_map(|i| pollster::block_on(i.enumerate_adapters(wgpu::Backends::all())))
+            .collect();
         let seen: Vec<String> = all
             .iter()
             .map(|a| {
