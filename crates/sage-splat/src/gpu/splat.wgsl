@@ -942,15 +942,18 @@ var<workgroup> raster_tile: vec3<u32>;
 // The blocks of 8 columns × 8 rows of a tile (bit 2·row half + column half) that the box
 // `lo`…`hi` reaches at some pixel centre.
 fn box_blocks(lo: vec2<f32>, hi: vec2<f32>, tile: vec2<f32>) -> u32 {
-    var blocks = 0u;
+    var columns = 0u;
     for (var h = 0u; h < 2u; h++) {
         let x0 = tile.x + f32(8u * h) + 0.5;
-        let y0 = tile.y + f32(8u * h) + 0.5;
         if hi.x >= x0 && lo.x <= x0 + 7.0 {
-            blocks |= 5u << h;
+            columns |= 1u << h;
         }
-        if !(hi.y >= y0 && lo.y <= y0 + 7.0) {
-            blocks &= ~(3u << (2u * h));
+    }
+    var blocks = 0u;
+    for (var r = 0u; r < 2u; r++) {
+        let y0 = tile.y + f32(8u * r) + 0.5;
+        if hi.y >= y0 && lo.y <= y0 + 7.0 {
+            blocks |= columns << (2u * r);
         }
     }
     return blocks;
@@ -992,6 +995,7 @@ fn load_pixels(p: vec4<u32>, inside: vec4<bool>, pixels: u32) -> Pixels {
     return q;
 }
 
+// Gives the pixels' state back for the next slab (a finished pixel's transmittance negated).
 fn store_pixels(q: ptr<function, Pixels>, p: vec4<u32>, inside: vec4<bool>, pixels: u32) {
     let kept = select((*q).transmittance, -(*q).transmittance, !(*q).live);
     for (var j = 0u; j < 4u; j++) {
@@ -1154,7 +1158,8 @@ fn raster(
             }
         }
     }
-    let finished = select(0u, 1u, was_live.x && !any(upper.live)) + select(0u, 1u, was_live.y && !any(lower.live));
+    let finished = select(0u, 1u, was_live.x && !any(upper.live))
+        + select(0u, 1u, was_live.y && !any(lower.live));
     if finished > 0u {
         atomicAdd(&tile_done[tile_index], finished);
     }
