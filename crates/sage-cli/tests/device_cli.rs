@@ -235,6 +235,11 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
     let sizes = report["sizes"].as_array().unwrap();
     assert_eq!(sizes.len(), 1);
     assert!(sizes[0]["median_ms"].as_f64().unwrap() > 0.0 && sizes[0].get("cull_ms").is_none());
+    // The CPU renderer on the same headings in the same run, for the ratio.
+    assert!(
+        sizes[0]["cpu_median_ms"].as_f64().unwrap() > 0.0,
+        "{report}"
+    );
     let batches = report["batches"].as_array().unwrap();
     let cameras: Vec<u64> = batches
         .iter()

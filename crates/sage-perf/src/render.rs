@@ -111,6 +111,11 @@ pub struct FrameTimes {
     pub median_ms: f64,
     /// The slowest frame, milliseconds.
     pub worst_ms: f64,
+    /// When the GPU renders: the CPU renderer's median on the same headings, in rounds with
+    /// the GPU's (each renderer's pass over the headings, then the other's, three times), so
+    /// both medians come from the same minutes and their ratio is that of the renderers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cpu_median_ms: Option<f64>,
     /// Where the CPU renderer's time went (the GPU's frames are timed whole, read-back
     /// included).
     #[serde(flatten, default, skip_serializing_if = "Option::is_none")]
@@ -201,6 +206,13 @@ impl fmt::Display for RenderReport {
                 )?,
                 None => write!(f, ", one camera per call, read-back included")?,
             }
+            if let Some(cpu) = t.cpu_median_ms {
+                write!(
+                    f,
+                    "; CPU renderer {cpu:.1} ms on the same headings, in the same rounds ({:.2}×)",
+                    t.median_ms / cpu
+                )?;
+            }
             match &t.gpu_passes {
                 Some(p) => writeln!(f, "; on the GPU: {p}")?,
                 None if t.breakdown.is_none() => writeln!(f)?,
@@ -213,6 +225,13 @@ impl fmt::Display for RenderReport {
                 "batch {:<4} {:>4}x{:<4} {:.1} ms per batch, {:.0} frames/s",
                 b.cameras, b.width, b.height, b.batch_ms, b.frames_per_s
             )?;
+            let single = self
+                .sizes
+                .iter()
+                .find(|t| (t.width, t.height) == (b.width, b.height));
+            if let Some(single) = single {
+                write!(f, " ({:.1}× a single frame)", b.batch_ms / single.median_ms)?;
+            }
             match &b.gpu_passes {
                 Some(p) => writeln!(f, "; on the GPU: {p}")?,
                 None => writeln!(f)?,
@@ -325,8 +344,15 @@ fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize
         .collect()
 }
 
+/// Rounds over the headings when the GPU renders: its frames, then the CPU renderer's, three
+/// times, so that both renderers' medians come from the same minutes of a machine whose speed
+/// drifts, and each renders its headings one after another as it would alone (a CPU frame
+/// right after each GPU frame would find its caches cold).
+const ROUNDS: usize = 3;
+
 /// Renders `frames` headings at every size after one warm-up frame, which sizes the reusable
-/// buffers; on the GPU then the batches, each after a warm-up batch.
+/// buffers (on the GPU in [`ROUNDS`] with the CPU renderer); on the GPU then the batches, each
+/// after a warm-up batch.
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
@@ -342,6 +368,12 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         (None, false) => CPU_SIZES.to_vec(),
     };
     let mut sizes = Vec::with_capacity(asked.len());
+    // On the GPU, the CPU renderer too, in rounds after the GPU's ([`ROUNDS`]): the ratio asked
+    // of the GPU renderer is to the CPU's time in the same run.
+    let mut cpu = match backend.is_gpu() {
+        true => Some(Backend::open(Device::Cpu, gaussians)?),
+        false => None,
+    };
     // Timestamps between the stages, where the device writes them (the CPU renderer: never).
     let timed = backend.time_passes(true);
     for (w, h) in asked {
@@ -353,23 +385,37 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             frames,
         );
         backend.render(gaussians, categories, &cams[0], &options)?;
-        let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames);
-        let mut passes: Vec<PassTimes> = Vec::with_capacity(frames);
-        for cam in &cams {
-            let start = Instant::now();
-            backend.render(gaussians, categories, cam, &options)?;
-            let total = start.elapsed().as_secs_f64() * 1e3;
-            let s = backend.as_cpu().map(Renderer::stats).unwrap_or_default();
-            passes.extend(backend.pass_times());
-            rows.push([
-                total,
-                s.cull_ms,
-                s.project_ms,
-                s.sort_ms,
-                s.raster_ms,
-                s.examined as f64,
-                s.splats as f64,
-            ]);
+        if let Some(cpu) = &mut cpu {
+            cpu.render(gaussians, categories, &cams[0], &options)?;
+        }
+        let rounds = if cpu.is_some() { ROUNDS } else { 1 };
+        let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames * rounds);
+        let mut cpu_ms = Vec::with_capacity(frames * rounds);
+        let mut passes: Vec<PassTimes> = Vec::with_capacity(frames * rounds);
+        for _ in 0..rounds {
+            for cam in &cams {
+                let start = Instant::now();
+                backend.render(gaussians, categories, cam, &options)?;
+                let total = start.elapsed().as_secs_f64() * 1e3;
+                let s = backend.as_cpu().map(Renderer::stats).unwrap_or_default();
+                passes.extend(backend.pass_times());
+                rows.push([
+                    total,
+                    s.cull_ms,
+                    s.project_ms,
+                    s.sort_ms,
+                    s.raster_ms,
+                    s.examined as f64,
+                    s.splats as f64,
+                ]);
+            }
+            if let Some(cpu) = &mut cpu {
+                for cam in &cams {
+                    let start = Instant::now();
+                    cpu.render(gaussians, categories, cam, &options)?;
+                    cpu_ms.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+            }
         }
         let col = |k: usize| crate::median(&rows.iter().map(|r| r[k]).collect::<Vec<_>>());
         sizes.push(FrameTimes {
@@ -377,6 +423,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             height: h,
             median_ms: col(0),
             worst_ms: rows.iter().map(|r| r[0]).fold(0.0, f64::max),
+            cpu_median_ms: cpu.is_some().then(|| crate::median(&cpu_ms)),
             breakdown: (!backend.is_gpu()).then(|| Breakdown {
                 cull_ms: col(1),
                 project_ms: col(2),
@@ -388,6 +435,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             gpu_passes: timed.then(|| median_passes(&passes)),
         });
     }
+    drop(cpu);
     let mut batches = Vec::new();
     if backend.is_gpu() {
         let (w, h) = settings.batch_size;

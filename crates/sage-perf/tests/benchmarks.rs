@@ -78,6 +78,8 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
         assert!(size.get(key).is_some(), "{key}: {size}");
     }
     assert!(json["index_bytes"].is_u64() && json.get("batches").is_none());
+    // No CPU renderer beside the CPU renderer.
+    assert!(size.get("cpu_median_ms").is_none() && !text.contains("in the same rounds"));
     let back: render::RenderReport = serde_json::from_value(json).unwrap();
     assert_eq!(back, report);
 }
