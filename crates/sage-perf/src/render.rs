@@ -370,9 +370,10 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let mut sizes = Vec::with_capacity(asked.len());
     // On the GPU, the CPU renderer too, in rounds after the GPU's ([`ROUNDS`]): the ratio asked
     // of the GPU renderer is to the CPU's time in the same run.
-    let mut cpu = match backend.is_gpu() {
-        true => Some(Backend::open(Device::Cpu, gaussians)?),
-        false => None,
+    let mut cpu = if backend.is_gpu() {
+        Some(Backend::open(Device::Cpu, gaussians)?)
+    } else {
+        None
     };
     // Timestamps between the stages, where the device writes them (the CPU renderer: never).
     let timed = backend.time_passes(true);
@@ -435,6 +436,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             gpu_passes: timed.then(|| median_passes(&passes)),
         });
     }
+    // The batches are the GPU renderer's alone: the CPU renderer's frame buffers go first.
     drop(cpu);
     let mut batches = Vec::new();
     if backend.is_gpu() {
