@@ -252,6 +252,11 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
             (Some(32), Some(32))
         );
         assert!(b["batch_ms"].as_f64().unwrap() > 0.0 && b["frames_per_s"].as_f64().unwrap() > 0.0);
+        // The same batches streamed, the next in flight while one is read back.
+        assert!(
+            b["streamed_frames_per_s"].as_f64().unwrap() > 0.0,
+            "{report}"
+        );
     }
 }
 

@@ -6,12 +6,14 @@ use crate::machine;
 use sage_core::Result;
 use sage_scene::Scene;
 use sage_scene::ply::SplatLayout;
-use sage_splat::{Backend, Camera, Device, Intrinsics, PassTimes, RenderOptions, Renderer};
+use sage_splat::{
+    Backend, Camera, Device, Intrinsics, PassTimes, RenderOptions, Renderer, Rendering,
+};
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// What `bench render` renders.
 #[derive(Clone, Debug, PartialEq)]
@@ -158,6 +160,11 @@ pub struct BatchRate {
     pub batch_ms: f64,
     /// Frames per second: cameras over the batch's time.
     pub frames_per_s: f64,
+    /// Frames per second of batches rendered back to back, each submitted before the images
+    /// of the one before are waited for ([`Backend::submit_batch`]): the read-back and
+    /// unpacking of one overlap the rendering of the next, as in a training-data render.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub streamed_frames_per_s: Option<f64>,
     /// Where the batch's time went on the device, medians of each stage (where the device
     /// writes timestamps).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -231,6 +238,12 @@ impl fmt::Display for RenderReport {
                 .find(|t| (t.width, t.height) == (b.width, b.height));
             if let Some(single) = single {
                 write!(f, " ({:.1}× a single frame)", b.batch_ms / single.median_ms)?;
+            }
+            if let Some(rate) = b.streamed_frames_per_s {
+                write!(
+                    f,
+                    "; streamed, the next batch in flight: {rate:.0} frames/s"
+                )?;
             }
             match &b.gpu_passes {
                 Some(p) => writeln!(f, "; on the GPU: {p}")?,
@@ -350,9 +363,65 @@ fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize
 /// right after each GPU frame would find its caches cold).
 const ROUNDS: usize = 3;
 
-/// Renders `frames` headings at every size after one warm-up frame, which sizes the reusable
-/// buffers (on the GPU in [`ROUNDS`] with the CPU renderer); on the GPU then the batches, each
-/// after a warm-up batch.
+/// How long the GPU renders before each timed pass: a GPU left idle (while the CPU renderer
+/// takes its round, or between sizes) lowers its clocks, and frames timed before they are up
+/// again would measure the clock governor rather than the renderer.
+const WARM_UP: Duration = Duration::from_millis(500);
+
+/// Renders `batches` in turn, at least once, until [`WARM_UP`] has passed.
+fn warm_up(
+    backend: &mut Backend,
+    scene: &Scene,
+    batches: &[&[Camera]],
+    options: &RenderOptions,
+) -> Result<()> {
+    let start = Instant::now();
+    for batch in batches.iter().cycle() {
+        backend.render_batch(
+            &scene.gaussians,
+            &scene.instances.category_ids,
+            batch,
+            options,
+        )?;
+        if start.elapsed() >= WARM_UP {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Frames per second of `batches` rendered back to back, each submitted before the one
+/// before is waited for, so that one batch's read-back overlaps the next one's rendering.
+fn streamed(
+    backend: &mut Backend,
+    scene: &Scene,
+    batches: &[&[Camera]],
+    options: &RenderOptions,
+) -> Result<f64> {
+    let start = Instant::now();
+    let mut frames = 0;
+    let mut in_flight: Option<Rendering> = None;
+    for batch in batches {
+        let next = backend.submit_batch(
+            &scene.gaussians,
+            &scene.instances.category_ids,
+            batch,
+            options,
+        )?;
+        if let Some(last) = in_flight.replace(next) {
+            frames += last.wait()?.len();
+        }
+    }
+    if let Some(last) = in_flight {
+        frames += last.wait()?.len();
+    }
+    Ok(frames as f64 / start.elapsed().as_secs_f64())
+}
+
+/// Renders `frames` headings at every size, each pass over them after [`WARM_UP`] of rendering
+/// them (which also sizes the reusable buffers; on the GPU in [`ROUNDS`] with the CPU
+/// renderer); on the GPU then the batches, each size after a warm-up, timed one at a time and
+/// then streamed.
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
@@ -385,7 +454,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             settings.pitch,
             frames,
         );
-        backend.render(gaussians, categories, &cams[0], &options)?;
+        let singles: Vec<&[Camera]> = cams.chunks(1).collect();
         if let Some(cpu) = &mut cpu {
             cpu.render(gaussians, categories, &cams[0], &options)?;
         }
@@ -394,6 +463,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         let mut cpu_ms = Vec::with_capacity(frames * rounds);
         let mut passes: Vec<PassTimes> = Vec::with_capacity(frames * rounds);
         for _ in 0..rounds {
+            warm_up(&mut backend, scene, &singles, &options)?;
             for cam in &cams {
                 let start = Instant::now();
                 backend.render(gaussians, categories, cam, &options)?;
@@ -450,7 +520,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 .map(|i| headings[i % headings.len()])
                 .collect();
             let parts: Vec<&[Camera]> = cams.chunks(count).collect();
-            backend.render_batch(gaussians, categories, parts[0], &options)?;
+            warm_up(&mut backend, scene, &parts, &options)?;
             // Every part once, and at least three timed batches for a median.
             let mut times = Vec::with_capacity(parts.len().max(3));
             let mut passes = Vec::with_capacity(times.capacity());
@@ -460,6 +530,14 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 times.push(start.elapsed().as_secs_f64() * 1e3);
                 passes.extend(backend.pass_times());
             }
+            // Twice the timed batches again, streamed.
+            let stream: Vec<&[Camera]> = parts
+                .iter()
+                .cycle()
+                .take(2 * times.len())
+                .copied()
+                .collect();
+            let streamed_frames_per_s = Some(streamed(&mut backend, scene, &stream, &options)?);
             let batch_ms = crate::median(&times);
             batches.push(BatchRate {
                 cameras: count,
@@ -467,6 +545,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 height: h,
                 batch_ms,
                 frames_per_s: count as f64 * 1e3 / batch_ms,
+                streamed_frames_per_s,
                 gpu_passes: timed.then(|| median_passes(&passes)),
             });
         }
