@@ -363,9 +363,10 @@ fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize
 /// right after each GPU frame would find its caches cold).
 const ROUNDS: usize = 3;
 
-/// How long the GPU renders before each timed pass: a GPU left idle (while the CPU renderer
-/// takes its round, or between sizes) lowers its clocks, and frames timed before they are up
-/// again would measure the clock governor rather than the renderer.
+/// How long the measured renderer renders before each timed pass: a GPU left idle (while the
+/// CPU renderer takes its round, or between sizes) lowers its clocks, and frames timed before
+/// they are up again would measure the clock governor rather than the renderer (seen on an
+/// H200: a batch of one at four to five times a single frame's GPU time).
 const WARM_UP: Duration = Duration::from_millis(500);
 
 /// Renders `batches` in turn, at least once, until [`WARM_UP`] has passed.
