@@ -63,6 +63,15 @@ pub struct RenderOutput {
     pub semantic: Vec<u16>,
 }
 
+/// A blended colour channel as the 8-bit value of [`RenderOutput::rgb`]: clamped to 0–1,
+/// scaled to 255 and rounded half away from zero, as `f32::round` does. Both executors
+/// quantise through here. Adding the half in `f64`, where the sum of any `f32` and 0.5 is
+/// exact, and truncating gives that rounding without a call to `roundf`, which the baseline
+/// x86-64 target has no instruction for.
+pub(crate) fn to_byte(v: f32) -> u8 {
+    (f64::from(v.clamp(0.0, 1.0) * 255.0) + 0.5) as u8
+}
+
 /// Where the time of the last render went (milliseconds) and how much work there was.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct RenderStats {
@@ -488,7 +497,7 @@ impl Renderer {
                                 for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
                                     let v = lane(sum, l) + t_final * options.background[c];
                                     rgb_f32[p * 3 + c] = v;
-                                    rgb[p * 3 + c] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                                    rgb[p * 3 + c] = to_byte(v);
                                 }
                                 alpha[p] = 1.0 - t_final;
                                 // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
@@ -685,4 +694,36 @@ fn slab_bounds(views: &[ChunkView]) -> Vec<(f32, f32)> {
     }
     cuts.push(f32::INFINITY);
     cuts.windows(2).map(|w| (w[0], w[1])).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::to_byte;
+
+    /// `to_byte` gives `f32::round`'s bytes on every float within 4,096 ulps of a rounding
+    /// boundary (k + ½) / 255, where adding a half in `f32` would round up, on a stride through
+    /// 0–1, and outside 0–1.
+    #[test]
+    fn to_byte_rounds_as_f32_round() {
+        let round = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        let mut values = vec![
+            f32::NAN,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::MAX,
+            -0.0,
+            -1.0,
+            1.0,
+            2.0,
+        ];
+        for k in 0..255 {
+            let bits = ((f64::from(k) + 0.5) / 255.0) as f32;
+            let bits = bits.to_bits();
+            values.extend((bits - 4096..=bits + 4096).map(f32::from_bits));
+        }
+        values.extend((0..=1f32.to_bits()).step_by(9_973).map(f32::from_bits));
+        for v in values {
+            assert_eq!(to_byte(v), round(v), "{v:e}");
+        }
+    }
 }

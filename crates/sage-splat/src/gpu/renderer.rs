@@ -15,7 +15,7 @@ use crate::camera::Camera;
 use crate::index::frustum_planes;
 use crate::passes::PassTimes;
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
-use crate::render::{RenderOptions, RenderOutput};
+use crate::render::{RenderOptions, RenderOutput, to_byte};
 use crate::sh;
 use crate::tile::{MIN_TRANSMITTANCE, TILE, TileGrid};
 use rayon::prelude::*;
@@ -906,10 +906,7 @@ fn unpack(words: &[u32], s: &Slot) -> RenderOutput {
     let rgb_f32: Vec<f32> = (0..p)
         .flat_map(|i| [r[i], g[i], b[i]].map(f32::from_bits))
         .collect();
-    let rgb = rgb_f32
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
+    let rgb = rgb_f32.iter().copied().map(to_byte).collect();
     RenderOutput {
         width,
         height,
