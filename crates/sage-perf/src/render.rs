@@ -163,8 +163,7 @@ pub struct BatchRate {
     /// Frames per second of batches rendered back to back, each submitted before the images
     /// of the one before are waited for ([`Backend::submit_batch`]): the read-back and
     /// unpacking of one overlap the rendering of the next, as in a training-data render.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub streamed_frames_per_s: Option<f64>,
+    pub streamed_frames_per_s: f64,
     /// Where the batch's time went on the device, medians of each stage (where the device
     /// writes timestamps).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -239,12 +238,11 @@ impl fmt::Display for RenderReport {
             if let Some(single) = single {
                 write!(f, " ({:.1}× a single frame)", b.batch_ms / single.median_ms)?;
             }
-            if let Some(rate) = b.streamed_frames_per_s {
-                write!(
-                    f,
-                    "; streamed, the next batch in flight: {rate:.0} frames/s"
-                )?;
-            }
+            write!(
+                f,
+                "; streamed, the next batch in flight: {:.0} frames/s",
+                b.streamed_frames_per_s
+            )?;
             match &b.gpu_passes {
                 Some(p) => writeln!(f, "; on the GPU: {p}")?,
                 None => writeln!(f)?,
@@ -538,7 +536,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 .take(2 * times.len())
                 .copied()
                 .collect();
-            let streamed_frames_per_s = Some(streamed(&mut backend, scene, &stream, &options)?);
+            let streamed_frames_per_s = streamed(&mut backend, scene, &stream, &options)?;
             let batch_ms = crate::median(&times);
             batches.push(BatchRate {
                 cameras: count,

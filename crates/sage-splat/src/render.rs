@@ -717,8 +717,8 @@ mod tests {
             2.0,
         ];
         for k in 0..255 {
-            let bits = ((f64::from(k) + 0.5) / 255.0) as f32;
-            let bits = bits.to_bits();
+            let boundary = ((f64::from(k) + 0.5) / 255.0) as f32;
+            let bits = boundary.to_bits();
             values.extend((bits - 4096..=bits + 4096).map(f32::from_bits));
         }
         values.extend((0..=1f32.to_bits()).step_by(9_973).map(f32::from_bits));
