@@ -176,6 +176,11 @@ pub struct RenderBenchArgs {
     /// Resolution of the batched cameras as WxH.
     #[arg(long, default_value = "224x224")]
     batch_size: String,
+    /// The images each frame renders out, as `RenderOutput` fields: all, or some of rgb,
+    /// rgb_f32, alpha, depth_expected, depth_median, instance, semantic (on the GPU only
+    /// these are read back; an RGB-D agent's sensors are rgb,depth_median).
+    #[arg(long, default_value = "all")]
+    channels: String,
     /// Print the report as JSON: how the measuring process hands it back.
     #[arg(long, hide = true)]
     json: bool,
@@ -347,6 +352,7 @@ impl RenderBenchArgs {
             device: self.device.device,
             batches: self.batches.clone(),
             batch_size: parse_size(&self.batch_size)?,
+            channels: self.channels.parse()?,
         })
     }
 }
@@ -442,6 +448,8 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
                     batches.join(",").into(),
                     "--batch-size".into(),
                     format!("{bw}x{bh}").into(),
+                    "--channels".into(),
+                    s.channels.to_string().into(),
                 ];
                 if let Some(sizes) = &s.sizes {
                     let sizes: Vec<String> =

@@ -10,7 +10,7 @@ use sage_core::{Error, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
 use sage_physics::{AgentBody, AgentProfile, Command, Touch, World};
-use sage_splat::{Backend, Camera, RenderOptions, RenderOutput, Rendering};
+use sage_splat::{Backend, Camera, Channels, RenderOptions, RenderOutput, Rendering};
 use std::sync::Arc;
 
 /// Largest camera tilt reachable with look actions (degrees).
@@ -447,6 +447,22 @@ impl Env {
         Ok(Pending { contacts, cameras })
     }
 
+    /// The images a render of this environment's cameras asks for: its sensors' (the GPU
+    /// reads back only those).
+    fn render_options(&self) -> RenderOptions {
+        let sensors = &self.config.sensors;
+        RenderOptions {
+            channels: Channels {
+                rgb: sensors.rgb,
+                depth_median: sensors.depth,
+                semantic: sensors.semantic,
+                instance: sensors.instance,
+                ..Channels::NONE
+            },
+            ..RenderOptions::default()
+        }
+    }
+
     /// Renders `cameras` (of this environment's or another's [`Pending`] over the same scene)
     /// with this environment's renderer, in one batch.
     ///
@@ -454,6 +470,7 @@ impl Env {
     ///
     /// A render error.
     pub fn render(&mut self, cameras: &[Camera]) -> Result<Vec<RenderOutput>> {
+        let options = self.render_options();
         match self.renderer.as_mut() {
             Some(renderer) if !cameras.is_empty() => {
                 let scene = &self.ctx.scene;
@@ -461,7 +478,7 @@ impl Env {
                     &scene.gaussians,
                     &scene.instances.category_ids,
                     cameras,
-                    &RenderOptions::default(),
+                    &options,
                 )
             }
             _ => Ok(Vec::new()),
@@ -477,6 +494,7 @@ impl Env {
     ///
     /// A render error.
     pub fn submit(&mut self, cameras: &[Camera]) -> Result<Rendering> {
+        let options = self.render_options();
         match self.renderer.as_mut() {
             Some(renderer) if !cameras.is_empty() => {
                 let scene = &self.ctx.scene;
@@ -484,7 +502,7 @@ impl Env {
                     &scene.gaussians,
                     &scene.instances.category_ids,
                     cameras,
-                    &RenderOptions::default(),
+                    &options,
                 )
             }
             _ => Ok(Rendering::Done(Vec::new())),

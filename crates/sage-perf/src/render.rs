@@ -7,7 +7,7 @@ use sage_core::Result;
 use sage_scene::Scene;
 use sage_scene::ply::SplatLayout;
 use sage_splat::{
-    Backend, Camera, Device, Intrinsics, PassTimes, RenderOptions, Renderer, Rendering,
+    Backend, Camera, Channels, Device, Intrinsics, PassTimes, RenderOptions, Renderer, Rendering,
 };
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
@@ -38,6 +38,8 @@ pub struct RenderSettings {
     pub batches: Vec<usize>,
     /// Resolution of the batched cameras, (width, height).
     pub batch_size: (u32, u32),
+    /// The images each frame renders out (on the GPU, the ones read back).
+    pub channels: Channels,
 }
 
 /// The resolutions measured on the CPU unless asked otherwise.
@@ -59,6 +61,7 @@ impl Default for RenderSettings {
             device: Device::Cpu,
             batches: vec![1, 16, 64, 256, 1024],
             batch_size: (224, 224),
+            channels: Channels::ALL,
         }
     }
 }
@@ -80,6 +83,9 @@ pub struct RenderReport {
     pub eye: [f32; 3],
     /// Camera pitch, degrees.
     pub pitch: f32,
+    /// The images each frame rendered out ([`Channels`]' list).
+    #[serde(default = "all_images")]
+    pub channels: String,
     /// Milliseconds to set the renderer up: the CPU's spatial index, or the GPU's device (on
     /// first use) and the upload of the scene.
     pub index_ms: f64,
@@ -170,6 +176,11 @@ pub struct BatchRate {
     pub gpu_passes: Option<PassTimes>,
 }
 
+/// The images of a report from before the images could be chosen: all of them.
+fn all_images() -> String {
+    Channels::ALL.to_string()
+}
+
 impl fmt::Display for RenderReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let n = self.gaussians.max(1) as f64;
@@ -181,6 +192,7 @@ impl fmt::Display for RenderReport {
             "scene            {} Gaussians (SH degree {}), camera at ({x:.2}, {y:.2}, {z:.2}) in the largest room, pitch {}°, HFOV 90°",
             self.gaussians, self.sh_degree, self.pitch
         )?;
+        writeln!(f, "images           {}", self.channels)?;
         match self.index_bytes {
             Some(bytes) => writeln!(
                 f,
@@ -428,7 +440,10 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     eprintln!("renderer: {}", backend.describe());
     let eye = sage_splat::camera::default_eye(scene);
     let machine = machine::describe();
-    let options = RenderOptions::default();
+    let options = RenderOptions {
+        channels: settings.channels,
+        ..RenderOptions::default()
+    };
     let (gaussians, categories) = (&scene.gaussians, &scene.instances.category_ids);
     let asked = match (&settings.sizes, backend.is_gpu()) {
         (Some(sizes), _) => sizes.clone(),
@@ -558,6 +573,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         sh_degree: scene.gaussians.sh_degree(),
         eye: eye.to_array(),
         pitch: settings.pitch,
+        channels: settings.channels.to_string(),
         index_ms,
         index_bytes: backend.as_cpu().map(|r| r.index().heap_bytes()),
         store_bytes: scene.gaussians.heap_bytes(),

@@ -7,7 +7,7 @@ use sage_eval::EvalRecord;
 use sage_eval::report;
 use sage_nav::{NavGrid, SemanticMap, TrajectoryParams};
 use sage_scene::Scene;
-use sage_splat::{Camera, Intrinsics, RenderOptions, Renderer};
+use sage_splat::{Camera, Channels, Intrinsics, RenderOptions, Renderer};
 use std::path::Path;
 
 /// The longest successful VLN episode of a run (ties by id), else its first VLN episode.
@@ -65,7 +65,10 @@ pub fn write(scenes: &Path, run: &Path, out: &Path) -> Result<()> {
         &scene.gaussians,
         &scene.instances.category_ids,
         &camera,
-        &RenderOptions::default(),
+        &RenderOptions {
+            channels: Channels::RGB,
+            ..RenderOptions::default()
+        },
     )?;
     let total = width + map.width;
     let mut rgb = vec![255u8; total * height * 3];

@@ -9,7 +9,8 @@ use sage_io::gif::GifWriter;
 use sage_scene::{InstanceKind, Scene};
 use sage_splat::camera::default_eye;
 use sage_splat::{
-    Backend, Camera, CameraSpec, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
+    Backend, Camera, CameraSpec, Channels, Device, Intrinsics, RenderOptions, RenderOutput,
+    Renderer,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -245,6 +246,7 @@ pub fn render_to_folder(
     let camera = settings.camera.camera(&scene)?;
     let options = RenderOptions {
         background: settings.background,
+        ..RenderOptions::default()
     };
     let _lock = sage_io::run::claim_folder(out, &[RENDER_COMMAND], &OUTPUTS, force)?;
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
@@ -435,13 +437,17 @@ fn write_turntable(
     let folder = dir.join(TURNTABLE_DIR);
     std::fs::create_dir_all(&folder).map_err(|e| Error::io(&folder, e))?;
     let cameras = turntable_cameras(camera, frames);
+    let options = RenderOptions {
+        channels: Channels::RGB,
+        ..*options
+    };
     let mut images = Vec::with_capacity(frames);
     for batch in cameras.chunks(TURNTABLE_BATCH) {
         let rendered = backend.render_batch(
             &scene.gaussians,
             &scene.instances.category_ids,
             batch,
-            options,
+            &options,
         )?;
         for image in rendered {
             write_rgb_png(

@@ -34,4 +34,4 @@ pub mod tile;
 pub use camera::{Camera, CameraSpec, Intrinsics};
 pub use device::{Backend, Device, Rendering};
 pub use passes::PassTimes;
-pub use render::{RenderOptions, RenderOutput, RenderStats, Renderer};
+pub use render::{Channels, RenderOptions, RenderOutput, RenderStats, Renderer};

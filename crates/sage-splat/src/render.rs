@@ -37,9 +37,139 @@ const SLABS: usize = 8;
 pub struct RenderOptions {
     /// Colour behind everything (linear 0–1); black by default.
     pub background: [f32; 3],
+    /// The images to return (every one by default); the others come back empty.
+    pub channels: Channels,
 }
 
-/// The images of one render, row-major, `height × width` (RGB: × 3).
+/// Which images of a [`RenderOutput`] a render fills, as a simulator's sensors are chosen:
+/// an image not asked for comes back as an empty vector. The image formation is the same
+/// whatever is asked for; asking for less saves the host the images' memory and, on the GPU,
+/// the read-back (RGB and median depth are 8 bytes per pixel, every image 32).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Channels {
+    /// [`RenderOutput::rgb`].
+    pub rgb: bool,
+    /// [`RenderOutput::rgb_f32`].
+    pub rgb_f32: bool,
+    /// [`RenderOutput::alpha`].
+    pub alpha: bool,
+    /// [`RenderOutput::depth_expected`].
+    pub depth_expected: bool,
+    /// [`RenderOutput::depth_median`].
+    pub depth_median: bool,
+    /// [`RenderOutput::instance`].
+    pub instance: bool,
+    /// [`RenderOutput::semantic`].
+    pub semantic: bool,
+}
+
+impl Channels {
+    /// Every image.
+    pub const ALL: Channels = Channels {
+        rgb: true,
+        rgb_f32: true,
+        alpha: true,
+        depth_expected: true,
+        depth_median: true,
+        instance: true,
+        semantic: true,
+    };
+
+    /// No image (set the ones wanted: `Channels { rgb: true, ..Channels::NONE }`).
+    pub const NONE: Channels = Channels {
+        rgb: false,
+        rgb_f32: false,
+        alpha: false,
+        depth_expected: false,
+        depth_median: false,
+        instance: false,
+        semantic: false,
+    };
+
+    /// 8-bit colour only.
+    pub const RGB: Channels = Channels {
+        rgb: true,
+        ..Channels::NONE
+    };
+}
+
+impl Default for Channels {
+    fn default() -> Channels {
+        Channels::ALL
+    }
+}
+
+impl Channels {
+    /// Each image's name (its [`RenderOutput`] field) and whether it is asked for.
+    fn named(&self) -> [(&'static str, bool); 7] {
+        [
+            ("rgb", self.rgb),
+            ("rgb_f32", self.rgb_f32),
+            ("alpha", self.alpha),
+            ("depth_expected", self.depth_expected),
+            ("depth_median", self.depth_median),
+            ("instance", self.instance),
+            ("semantic", self.semantic),
+        ]
+    }
+}
+
+impl std::str::FromStr for Channels {
+    type Err = Error;
+
+    /// A comma-separated list of [`RenderOutput`] field names (`rgb,depth_median`), `all` or
+    /// `none`.
+    fn from_str(s: &str) -> Result<Channels> {
+        let mut out = Channels::NONE;
+        for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            let flag = match name {
+                "all" => {
+                    out = Channels::ALL;
+                    continue;
+                }
+                "none" => continue,
+                "rgb" => &mut out.rgb,
+                "rgb_f32" => &mut out.rgb_f32,
+                "alpha" => &mut out.alpha,
+                "depth_expected" => &mut out.depth_expected,
+                "depth_median" => &mut out.depth_median,
+                "instance" => &mut out.instance,
+                "semantic" => &mut out.semantic,
+                other => {
+                    let names: Vec<&str> = Channels::ALL.named().map(|(n, _)| n).to_vec();
+                    return Err(Error::invalid(format!(
+                        "unknown image {other:?}: expected all, none or some of {}",
+                        names.join(", ")
+                    )));
+                }
+            };
+            *flag = true;
+        }
+        Ok(out)
+    }
+}
+
+impl std::fmt::Display for Channels {
+    /// `all`, or the names of the images asked for, comma-separated (`none` for none).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if *self == Channels::ALL {
+            return f.write_str("all");
+        }
+        let names: Vec<&str> = self
+            .named()
+            .into_iter()
+            .filter_map(|(n, on)| on.then_some(n))
+            .collect();
+        if names.is_empty() {
+            f.write_str("none")
+        } else {
+            f.write_str(&names.join(","))
+        }
+    }
+}
+
+/// The images of one render, row-major, `height × width` (RGB: × 3); an image not in the
+/// render's [`Channels`] is empty.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderOutput {
     /// Width in pixels.
@@ -63,9 +193,29 @@ pub struct RenderOutput {
     pub semantic: Vec<u16>,
 }
 
+impl RenderOutput {
+    /// Images of `width × height` filled with zeros, the ones not in `channels` empty.
+    pub(crate) fn sized(width: usize, height: usize, channels: &Channels) -> RenderOutput {
+        let n = width * height;
+        let image = |on: bool, len: usize| if on { len } else { 0 };
+        RenderOutput {
+            width,
+            height,
+            rgb: vec![0; image(channels.rgb, n * 3)],
+            rgb_f32: vec![0.0; image(channels.rgb_f32, n * 3)],
+            alpha: vec![0.0; image(channels.alpha, n)],
+            depth_expected: vec![0.0; image(channels.depth_expected, n)],
+            depth_median: vec![0.0; image(channels.depth_median, n)],
+            instance: vec![0; image(channels.instance, n)],
+            semantic: vec![0; image(channels.semantic, n)],
+        }
+    }
+}
+
 /// A blended colour channel as the 8-bit value of [`RenderOutput::rgb`]: clamped to 0–1,
 /// scaled to 255 and rounded half away from zero, as `f32::round` does. Both executors
-/// quantise through here. Adding the half in `f64`, where the sum of any `f32` and 0.5 is
+/// quantise through here (the GPU, when it packs the bytes itself, through `to_byte` of
+/// `splat.wgsl`, the same rounding: a GPU test holds the two to the same bytes). Adding the half in `f64`, where the sum of any `f32` and 0.5 is
 /// exact, and truncating gives that rounding without a call to `roundf`, which the baseline
 /// x86-64 target has no instruction for.
 pub(crate) fn to_byte(v: f32) -> u8 {
@@ -459,28 +609,19 @@ impl Renderer {
         options: &RenderOptions,
     ) -> RenderOutput {
         let (width, height) = (grid.width, grid.height);
-        let n = width * height;
-        let mut out = RenderOutput {
-            width,
-            height,
-            rgb: vec![0; n * 3],
-            rgb_f32: vec![0.0; n * 3],
-            alpha: vec![0.0; n],
-            depth_expected: vec![0.0; n],
-            depth_median: vec![0.0; n],
-            instance: vec![0; n],
-            semantic: vec![0; n],
-        };
-        // One tile row (16 image rows) per task: each owns a contiguous band of every image.
+        let mut out = RenderOutput::sized(width, height, &options.channels);
+        // One tile row (16 image rows) per task: each owns a contiguous band of every image
+        // asked for (an empty band of the others).
         let band = TILE * width;
+        let rows = grid.tiles_y;
         (
-            out.rgb.par_chunks_mut(band * 3),
-            out.rgb_f32.par_chunks_mut(band * 3),
-            out.alpha.par_chunks_mut(band),
-            out.depth_expected.par_chunks_mut(band),
-            out.depth_median.par_chunks_mut(band),
-            out.instance.par_chunks_mut(band),
-            out.semantic.par_chunks_mut(band),
+            bands(&mut out.rgb, band * 3, rows),
+            bands(&mut out.rgb_f32, band * 3, rows),
+            bands(&mut out.alpha, band, rows),
+            bands(&mut out.depth_expected, band, rows),
+            bands(&mut out.depth_median, band, rows),
+            bands(&mut out.instance, band, rows),
+            bands(&mut out.semantic, band, rows),
         )
             .into_par_iter()
             .enumerate()
@@ -496,32 +637,50 @@ impl Renderer {
                                 let t_final = lane(&s.t, l).abs();
                                 for (c, sum) in [&s.r, &s.g, &s.b].into_iter().enumerate() {
                                     let v = lane(sum, l) + t_final * options.background[c];
-                                    rgb_f32[p * 3 + c] = v;
-                                    rgb[p * 3 + c] = to_byte(v);
+                                    put(rgb_f32, p * 3 + c, v);
+                                    put(rgb, p * 3 + c, to_byte(v));
                                 }
-                                alpha[p] = 1.0 - t_final;
+                                put(alpha, p, 1.0 - t_final);
                                 // Σ wᵢ = Σ αᵢ Tᵢ telescopes to 1 − T: no separate weight sum is kept.
                                 let w = 1.0 - t_final;
                                 let hit = w > 0.0;
-                                depth[p] = if hit { lane(&s.wz, l) / w } else { 0.0 };
-                                median[p] = if t_final <= 0.5 {
+                                put(depth, p, if hit { lane(&s.wz, l) / w } else { 0.0 });
+                                let m = if t_final <= 0.5 {
                                     lane(&s.median, l)
                                 } else {
                                     0.0
                                 };
+                                put(median, p, m);
                                 let id = lane(&s.instance, l).to_bits();
-                                instance[p] = id;
-                                semantic[p] = if hit {
+                                put(instance, p, id);
+                                let category = if hit {
                                     categories.get(id as usize).copied().unwrap_or(0)
                                 } else {
                                     0
                                 };
+                                put(semantic, p, category);
                             }
                         }
                     }
                 },
             );
         out
+    }
+}
+
+/// `v` cut into `rows` bands of `len`, or `rows` empty bands when `v` is an image not asked for.
+fn bands<T>(v: &mut [T], len: usize, rows: usize) -> Vec<&mut [T]> {
+    if v.is_empty() {
+        (0..rows).map(|_| <&mut [T]>::default()).collect()
+    } else {
+        v.chunks_mut(len).collect()
+    }
+}
+
+/// Writes `v` at `i` of a band of an image asked for (a band of one not asked for is empty).
+fn put<T>(band: &mut [T], i: usize, v: T) {
+    if let Some(slot) = band.get_mut(i) {
+        *slot = v;
     }
 }
 
@@ -698,7 +857,37 @@ fn slab_bounds(views: &[ChunkView]) -> Vec<(f32, f32)> {
 
 #[cfg(test)]
 mod tests {
-    use super::to_byte;
+    use super::{Channels, to_byte};
+
+    /// Every set of images prints as a list that parses back to it; unknown names are refused.
+    #[test]
+    fn channels_print_and_parse_back() {
+        for bits in 0..128u32 {
+            let on = |k: u32| bits & (1 << k) != 0;
+            let c = Channels {
+                rgb: on(0),
+                rgb_f32: on(1),
+                alpha: on(2),
+                depth_expected: on(3),
+                depth_median: on(4),
+                instance: on(5),
+                semantic: on(6),
+            };
+            let text = c.to_string();
+            assert_eq!(text.parse::<Channels>().unwrap(), c, "{text}");
+        }
+        assert_eq!("all".parse::<Channels>().unwrap(), Channels::ALL);
+        assert_eq!(
+            " rgb , depth_median".parse::<Channels>().unwrap(),
+            Channels {
+                rgb: true,
+                depth_median: true,
+                ..Channels::NONE
+            }
+        );
+        let e = "rgb,depth".parse::<Channels>().unwrap_err().to_string();
+        assert!(e.contains("\"depth\"") && e.contains("depth_median"), "{e}");
+    }
 
     /// `to_byte` gives `f32::round`'s bytes on every float within 4,096 ulps of a rounding
     /// boundary (k + ½) / 255, where adding a half in `f32` would round up, on a stride through

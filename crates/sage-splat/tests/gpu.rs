@@ -11,7 +11,9 @@ use glam::Vec3;
 use sage_scene::ply::read_splats_file;
 use sage_scene::{Gaussian, Gaussians};
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
-use sage_splat::{Backend, Camera, Device, Intrinsics, RenderOptions, RenderOutput, Renderer};
+use sage_splat::{
+    Backend, Camera, Channels, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
+};
 use sage_synth::{SynthConfig, generate};
 use sage_testkit::splats::{psnr, random_gaussians};
 use std::path::PathBuf;
@@ -109,6 +111,7 @@ fn compare(g: &Gaussians, categories: &[u16], cameras: &[Camera], what: &str) ->
     let gpu = gpu()?;
     let options = RenderOptions {
         background: [0.1, 0.2, 0.3],
+        ..RenderOptions::default()
     };
     let renderer = GpuRenderer::new(&gpu, g).unwrap();
     let mut cpu = Renderer::new(g);
@@ -251,6 +254,192 @@ fn a_batch_equals_its_cameras_rendered_alone_and_repeats_exactly() {
     assert!(batch == again, "the same batch rendered twice differs");
 }
 
+/// Sets of images a caller may ask for: each alone, the sensors of an RGB-D agent, the 8-bit
+/// colour with its floats, and none.
+fn channel_sets() -> Vec<Channels> {
+    let none = Channels::NONE;
+    vec![
+        Channels::RGB,
+        Channels {
+            rgb_f32: true,
+            ..none
+        },
+        Channels {
+            rgb: true,
+            rgb_f32: true,
+            ..none
+        },
+        Channels {
+            alpha: true,
+            ..none
+        },
+        Channels {
+            depth_expected: true,
+            ..none
+        },
+        Channels {
+            rgb: true,
+            depth_median: true,
+            ..none
+        },
+        Channels {
+            instance: true,
+            semantic: true,
+            ..none
+        },
+        Channels {
+            semantic: true,
+            ..none
+        },
+        none,
+    ]
+}
+
+/// `part` holds exactly the images of `channels`, each equal to `full`'s.
+fn same_images_asked_for(
+    full: &RenderOutput,
+    part: &RenderOutput,
+    channels: &Channels,
+    what: &str,
+) {
+    assert_eq!(
+        (part.width, part.height),
+        (full.width, full.height),
+        "{what}"
+    );
+    fn check<T: PartialEq>(on: bool, full: &[T], part: &[T], name: &str, what: &str) {
+        if on {
+            assert!(
+                full == part,
+                "{what}: {name} differs from the full render's"
+            );
+        } else {
+            assert!(part.is_empty(), "{what}: {name} was not asked for");
+        }
+    }
+    check(channels.rgb, &full.rgb, &part.rgb, "rgb", what);
+    check(
+        channels.rgb_f32,
+        &full.rgb_f32,
+        &part.rgb_f32,
+        "rgb_f32",
+        what,
+    );
+    check(channels.alpha, &full.alpha, &part.alpha, "alpha", what);
+    let (e, m) = (channels.depth_expected, channels.depth_median);
+    check(
+        e,
+        &full.depth_expected,
+        &part.depth_expected,
+        "expected depth",
+        what,
+    );
+    check(
+        m,
+        &full.depth_median,
+        &part.depth_median,
+        "median depth",
+        what,
+    );
+    check(
+        channels.instance,
+        &full.instance,
+        &part.instance,
+        "instance",
+        what,
+    );
+    check(
+        channels.semantic,
+        &full.semantic,
+        &part.semantic,
+        "semantic",
+        what,
+    );
+}
+
+#[test]
+fn the_images_asked_for_equal_the_full_render_and_the_rest_are_empty() {
+    let Some(gpu) = gpu() else { return };
+    let scene = home(4, 3, 20, 30_000);
+    let g = &scene.gaussians;
+    let categories = &scene.instances.category_ids;
+    let c = scene.floorplan.rooms[0].profile.centroid();
+    let cameras: Vec<Camera> = (0..4)
+        .map(|k| {
+            let (w, h) = if k % 2 == 0 { (48, 40) } else { (70, 33) };
+            camera(w, h, Vec3::new(c.x, c.y, 1.2), 1.5 * k as f32, -0.1)
+        })
+        .collect();
+    let renderer = GpuRenderer::new(&gpu, g).unwrap();
+    let mut cpu = Renderer::new(g);
+    let full = RenderOptions {
+        background: [0.2, 0.1, 0.4],
+        ..RenderOptions::default()
+    };
+    let gpu_full = renderer
+        .render_batch(g, categories, &cameras, &full)
+        .unwrap();
+    let cpu_full: Vec<RenderOutput> = cameras
+        .iter()
+        .map(|cam| cpu.render(g, categories, cam, &full).unwrap())
+        .collect();
+    for channels in channel_sets() {
+        let options = RenderOptions { channels, ..full };
+        let part = renderer
+            .render_batch(g, categories, &cameras, &options)
+            .unwrap();
+        for (k, cam) in cameras.iter().enumerate() {
+            let what = format!("{channels:?}, camera {k}");
+            same_images_asked_for(&gpu_full[k], &part[k], &channels, &format!("GPU, {what}"));
+            let alone = cpu.render(g, categories, cam, &options).unwrap();
+            same_images_asked_for(&cpu_full[k], &alone, &channels, &format!("CPU, {what}"));
+        }
+    }
+}
+
+#[test]
+fn the_gpu_rounds_colours_to_bytes_as_the_host_does() {
+    let Some(gpu) = gpu() else { return };
+    // Nothing in view: every pixel is the background, so the 8-bit colour the GPU packs is
+    // its rounding of the background's channels, at and beside every rounding boundary.
+    let g = random_gaussians(5, 200, 0, 1.0);
+    let cam = camera(8, 8, Vec3::new(0.0, 0.0, 1.2), std::f32::consts::PI, 0.0);
+    let renderer = GpuRenderer::new(&gpu, &g).unwrap();
+    let mut cpu = Renderer::new(&g);
+    let mut values: Vec<f32> = vec![0.0, -0.0, -0.5, 1.0, 1.5, f32::INFINITY, f32::NAN];
+    for k in 0..256 {
+        let tie = (k as f32 + 0.5) / 255.0;
+        values.extend([tie.next_down(), tie, tie.next_up(), k as f32 / 255.0]);
+    }
+    for background in values.chunks(3) {
+        let mut bg = [0.0; 3];
+        bg[..background.len()].copy_from_slice(background);
+        let packed = RenderOptions {
+            background: bg,
+            channels: Channels::RGB,
+        };
+        let from_floats = RenderOptions {
+            channels: Channels::ALL,
+            ..packed
+        };
+        let a = renderer.render(&g, &[], &cam, &packed).unwrap();
+        let b = renderer.render(&g, &[], &cam, &from_floats).unwrap();
+        let c = cpu.render(&g, &[], &cam, &packed).unwrap();
+        assert!(
+            b.rgb_f32.chunks(3).all(|p| p
+                .iter()
+                .zip(bg)
+                .all(|(v, x)| *v == x || v.is_nan() && x.is_nan())),
+            "background {bg:?}: the pixels are not the background"
+        );
+        assert_eq!(
+            a.rgb, b.rgb,
+            "background {bg:?}: packed on the GPU and rounded on the host"
+        );
+        assert_eq!(a.rgb, c.rgb, "background {bg:?}: GPU and CPU renderer");
+    }
+}
+
 #[test]
 fn a_batch_of_more_cameras_than_a_sort_key_holds_is_rendered_in_parts_alike() {
     // A batch's sort keys hold its camera in one byte: 300 cameras go in two submissions, and
@@ -359,6 +548,7 @@ fn renders_from_many_threads_at_once_equal_renders_alone() {
             let eye = centre - Vec3::new(yaw.cos(), yaw.sin(), 0.0) * size;
             let options = RenderOptions {
                 background: [0.1 * (k % 2) as f32, 0.2, 0.3],
+                ..RenderOptions::default()
             };
             (camera(48 + 8 * k, 40, eye, yaw, 0.0), options)
         })

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_scene::gaussians::sh_rest_count;
 use sage_scene::{Gaussian, Gaussians};
-use sage_splat::{Camera, Intrinsics, RenderOptions, RenderOutput, Renderer, sh};
+use sage_splat::{Camera, Channels, Intrinsics, RenderOptions, RenderOutput, Renderer, sh};
 use sage_synth::{SynthConfig, generate};
 use sage_testkit::splats::{psnr, random_gaussians};
 
@@ -258,7 +258,15 @@ fn reference_render(gs: &Gaussians, cam: &Camera, bg: [f32; 3]) -> Reference {
 fn compare(gs: &Gaussians, cam: &Camera, what: &str) -> f64 {
     let bg = [0.1, 0.2, 0.3];
     let fast = Renderer::new(gs)
-        .render(gs, &[], cam, &RenderOptions { background: bg })
+        .render(
+            gs,
+            &[],
+            cam,
+            &RenderOptions {
+                background: bg,
+                ..RenderOptions::default()
+            },
+        )
         .unwrap();
     let slow = reference_render(gs, cam, bg);
     let p = psnr(&fast.rgb_f32, &slow.rgb);
@@ -479,4 +487,76 @@ fn semantic_ids_follow_the_instance_table() {
     // Looking down from 1.2 m, most of the picture is floor, walls or objects, never "none".
     assert!(out.instance.iter().filter(|&&i| i != 0).count() > out.instance.len() * 9 / 10);
     let _ = Mat3::IDENTITY;
+}
+
+#[test]
+fn each_image_asked_for_alone_equals_the_full_render() {
+    let scene = generate(&SynthConfig {
+        seed: 3,
+        rooms: 2,
+        objects: 12,
+        gaussians: 20_000,
+        ..SynthConfig::default()
+    })
+    .unwrap();
+    let c = scene.floorplan.rooms[0].profile.centroid();
+    // A width that is not a whole number of tiles: the last band of each image is short.
+    let cam = camera(50, 37, Vec3::new(c.x, c.y, 1.2), 2.0, -0.2);
+    let mut renderer = Renderer::new(&scene.gaussians);
+    let mut render = |channels: Channels| {
+        let options = RenderOptions {
+            channels,
+            ..RenderOptions::default()
+        };
+        let categories = &scene.instances.category_ids;
+        renderer
+            .render(&scene.gaussians, categories, &cam, &options)
+            .unwrap()
+    };
+    let full = render(Channels::ALL);
+    let none = Channels::NONE;
+    let empty = render(none);
+    assert_eq!((empty.width, empty.height), (50, 37));
+    assert!(
+        empty
+            == RenderOutput {
+                width: 50,
+                height: 37,
+                ..empty.clone()
+            }
+    );
+    assert!(empty.rgb.is_empty() && empty.depth_median.is_empty() && empty.semantic.is_empty());
+    let rgb = render(Channels::RGB);
+    assert!(rgb.rgb == full.rgb && rgb.rgb_f32.is_empty() && rgb.alpha.is_empty());
+    let f = render(Channels {
+        rgb_f32: true,
+        ..none
+    });
+    assert!(f.rgb_f32 == full.rgb_f32 && f.rgb.is_empty());
+    let a = render(Channels {
+        alpha: true,
+        ..none
+    });
+    assert!(a.alpha == full.alpha && a.depth_expected.is_empty());
+    let e = render(Channels {
+        depth_expected: true,
+        ..none
+    });
+    assert!(e.depth_expected == full.depth_expected && e.depth_median.is_empty());
+    let m = render(Channels {
+        depth_median: true,
+        ..none
+    });
+    assert!(m.depth_median == full.depth_median && m.instance.is_empty());
+    let i = render(Channels {
+        instance: true,
+        ..none
+    });
+    assert!(i.instance == full.instance && i.semantic.is_empty());
+    let s = render(Channels {
+        semantic: true,
+        ..none
+    });
+    assert!(s.semantic == full.semantic && s.rgb.is_empty());
+    assert!(s.semantic.iter().any(|&c| c != 0));
 }

@@ -56,7 +56,11 @@ proptest! {
         let params = Params::from_gaussians(&store, degree).unwrap();
         let ours = forward(&params, &camera, background);
         let theirs = Renderer::new(&store)
-            .render(&store, &[], &camera, &RenderOptions { background })
+            .render(&store, &[], &camera, &RenderOptions {
+                    background,
+                    ..RenderOptions::default()
+                },
+            )
             .unwrap();
         let target: Vec<f32> = theirs.rgb_f32.iter().map(|v| v.clamp(0.0, 1.0)).collect();
         let p = psnr(&ours.rgb, &target);

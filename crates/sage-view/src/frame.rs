@@ -13,7 +13,7 @@ use sage_env::EnvConfig;
 use sage_io::image::{encode_jpeg, encode_rgb_png};
 use sage_io::palette::id_color;
 use sage_physics::AgentProfile;
-use sage_splat::RenderOptions;
+use sage_splat::{Channels, RenderOptions};
 use serde::Deserialize;
 
 /// Largest frame side the viewer renders, pixels.
@@ -143,6 +143,27 @@ pub fn render(
 ) -> Result<Vec<u8>> {
     req.validate()?;
     let camera = config.camera(profile, req.pose(), req.pitch, req.width, req.height)?;
+    // Only the layer shown is rendered out (on the GPU, only it is read back).
+    let none = Channels::NONE;
+    let channels = match req.layer {
+        Layer::Rgb => Channels::RGB,
+        Layer::Depth => Channels {
+            depth_median: true,
+            ..none
+        },
+        Layer::Semantic => Channels {
+            semantic: true,
+            ..none
+        },
+        Layer::Instance => Channels {
+            instance: true,
+            ..none
+        },
+    };
+    let options = RenderOptions {
+        channels,
+        ..RenderOptions::default()
+    };
     let out = {
         let mut renderer = scene
             .renderer
@@ -151,7 +172,7 @@ pub fn render(
         let gaussians = &scene.ctx.scene.gaussians;
         let categories = &scene.ctx.scene.instances.category_ids;
         renderer
-            .render_batch(gaussians, categories, &[camera], &RenderOptions::default())?
+            .render_batch(gaussians, categories, &[camera], &options)?
             .pop()
             .ok_or_else(|| Error::invalid("the renderer returned no image"))?
     };

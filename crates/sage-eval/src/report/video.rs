@@ -25,7 +25,7 @@ use sage_io::marks::pose_marker;
 use sage_io::palette::AGENT_PATH;
 use sage_metrics::{EpisodeRecord, StepRecord};
 use sage_nav::{NavGrid, SemanticMap};
-use sage_splat::RenderOptions;
+use sage_splat::{Channels, RenderOptions};
 
 /// The folder of the videos, under the report folder.
 pub const VIDEOS_DIR: &str = "videos";
@@ -293,7 +293,10 @@ fn for_each_frame(
             &ctx.scene.gaussians,
             &ctx.scene.instances.category_ids,
             batch,
-            &RenderOptions::default(),
+            &RenderOptions {
+                channels: Channels::RGB,
+                ..RenderOptions::default()
+            },
         )?;
         for (i, view) in views.into_iter().enumerate() {
             let k = b * RENDER_BATCH + i;

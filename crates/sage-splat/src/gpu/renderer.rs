@@ -8,14 +8,14 @@ use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
-    LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES, PLANES, SLABS,
-    TILE_SORT_PASSES, Workspace,
+    LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES,
+    PLANES, SLABS, TILE_SORT_PASSES, Workspace,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
 use crate::passes::PassTimes;
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
-use crate::render::{RenderOptions, RenderOutput, to_byte};
+use crate::render::{Channels, RenderOptions, RenderOutput, to_byte};
 use crate::sh;
 use crate::tile::{MIN_TRANSMITTANCE, TILE, TileGrid};
 use rayon::prelude::*;
@@ -45,6 +45,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
          const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n\
          const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst LIVE_SLABS: u32 = {LIVE_SLABS}u;\n\
          const LIVE_DEPTH_PARITY: u32 = {LIVE_DEPTH_PARITY}u;\n\
+         const LIVE_OUT_PLANES: u32 = {LIVE_OUT_PLANES}u;\n\
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n",
@@ -58,6 +59,9 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
         std::f32::consts::LN_2,
         std::f32::consts::SQRT_2
     );
+    for (name, bit) in OUT_BITS {
+        s += &format!("const {name}: u32 = {bit}u;\n");
+    }
     for (k, c) in crate::fastmath::EXP2_POLY.iter().enumerate() {
         s += &format!("const EXP2_POLY_{k}: f32 = {c:?};\n");
     }
@@ -68,6 +72,40 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
         s += &format!("const SH_C3_{k}: f32 = {c:?};\n");
     }
     s
+}
+
+/// The images `compose` writes out, as `live[LIVE_OUT_PLANES]`'s bits, in the order their
+/// planes follow each other.
+const OUT_BITS: [(&str, u32); 7] = [
+    ("OUT_RGB8", 1),
+    ("OUT_RGB_F32", 2),
+    ("OUT_ALPHA", 4),
+    ("OUT_DEPTH_EXPECTED", 8),
+    ("OUT_DEPTH_MEDIAN", 16),
+    ("OUT_INSTANCE", 32),
+    ("OUT_SEMANTIC", 64),
+];
+
+/// What the GPU writes out and reads back for the images of `channels`: the `OUT_*` bits and
+/// the words per pixel. The 8-bit colour comes packed, a word per pixel, unless the float
+/// colour is asked for too: then the host rounds the floats, as the CPU renderer does.
+fn out_planes(channels: &Channels) -> (u32, u64) {
+    let planes = [
+        (channels.rgb && !channels.rgb_f32, 1),
+        (channels.rgb_f32, 3),
+        (channels.alpha, 1),
+        (channels.depth_expected, 1),
+        (channels.depth_median, 1),
+        (channels.instance, 1),
+        (channels.semantic, 1),
+    ];
+    planes
+        .iter()
+        .zip(OUT_BITS)
+        .filter(|((on, _), _)| *on)
+        .fold((0, 0), |(bits, words), ((_, w), (_, bit))| {
+            (bits | bit, words + w)
+        })
 }
 
 /// Chunks per camera, summed over the slabs, below which a batch saves too little behind
@@ -153,10 +191,10 @@ pub struct GpuRenderer {
     pending: Mutex<Vec<Request>>,
 }
 
-/// A camera's place in a batch.
+/// A camera's place in a batch's read-back.
 struct Slot {
     grid: TileGrid,
-    /// First word of its images in the images buffer.
+    /// First word of its images after the read-back's live words.
     offset: u64,
 }
 
@@ -166,6 +204,8 @@ struct InFlight {
     submission: wgpu::SubmissionIndex,
     mapped: mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
     slots: Vec<Slot>,
+    /// The images asked for, and their words read back.
+    channels: Channels,
     image_words: u64,
     /// Timestamps after the images in the read-back (0 when not timed).
     stamps: u32,
@@ -195,7 +235,7 @@ pub struct Submitted {
 /// Where a submitted batch is.
 enum Flight {
     /// On the GPU.
-    Out(InFlight),
+    Out(Box<InFlight>),
     /// Rendered already (a batch too large for one submission is rendered in parts at once).
     Done(Vec<RenderOutput>),
 }
@@ -210,7 +250,7 @@ impl Submitted {
     pub fn wait(self) -> Result<Vec<RenderOutput>> {
         let flight = match self.flight {
             Flight::Done(images) => return Ok(images),
-            Flight::Out(flight) => flight,
+            Flight::Out(flight) => *flight,
         };
         let r = &self.renderer;
         let mut state = r.lock();
@@ -447,7 +487,7 @@ impl GpuRenderer {
         self.check(gaussians, cameras)?;
         let mut state = self.lock();
         self.use_categories(&mut state, categories);
-        let need = self.need(&state, cameras);
+        let need = self.need(&state, cameras, &options.channels);
         let flight = if cameras.is_empty() {
             Flight::Done(Vec::new())
         } else if need.largest_buffer() > self.gpu.largest_binding() || cameras.len() > MAX_CAMERAS
@@ -455,7 +495,7 @@ impl GpuRenderer {
             // Too large for one submission: rendered in parts now.
             Flight::Done(self.render_held(&mut state, categories, cameras, options)?)
         } else {
-            Flight::Out(self.launch(&mut state, cameras, options, need)?)
+            Flight::Out(Box::new(self.launch(&mut state, cameras, options, need)?))
         };
         Ok(Submitted {
             renderer: self.clone(),
@@ -469,11 +509,15 @@ impl GpuRenderer {
     /// Renders queued requests — those with the same categories and options in one
     /// submission — and sends each its images.
     fn serve(&self, state: &mut State, mut requests: Vec<Request>) {
-        while let Some(first) = requests.first() {
+        while !requests.is_empty() {
+            let first = requests.remove(0);
             let (categories, options) = (first.categories.clone(), first.options);
-            let (group, rest): (Vec<Request>, Vec<Request>) = requests
+            // The first request is always served (options with a NaN equal nothing, not even
+            // themselves).
+            let (mut group, rest): (Vec<Request>, Vec<Request>) = requests
                 .into_iter()
                 .partition(|r| r.categories == categories && r.options == options);
+            group.insert(0, first);
             requests = rest;
             let cameras: Vec<Camera> = group.iter().flat_map(|r| r.cameras.clone()).collect();
             match self.render_held(state, &categories, &cameras, &options) {
@@ -509,17 +553,18 @@ impl GpuRenderer {
         }
     }
 
-    /// What a batch of `cameras` needs the work space to hold: its cameras, tiles and images
-    /// exactly; the counts found on the GPU as the work space holds them now, or a first
-    /// guess (grown after the batch when short).
-    fn need(&self, state: &State, cameras: &[Camera]) -> Caps {
+    /// What a batch of `cameras` needs the work space to hold: its cameras, tiles, blending
+    /// state and images of `channels` exactly; the counts found on the GPU as the work space
+    /// holds them now, or a first guess (grown after the batch when short).
+    fn need(&self, state: &State, cameras: &[Camera], channels: &Channels) -> Caps {
         let c = cameras.len() as u32;
         let camera_chunks = c.saturating_mul(self.chunks);
+        let out_words = out_planes(channels).1;
         let (tiles, image_words) = cameras.iter().fold((0u32, 0u64), |(t, w), cam| {
             let grid = TileGrid::new(cam);
             (
                 t.saturating_add(grid.tiles() as u32),
-                w + PLANES * (grid.width * grid.height) as u64,
+                w + (PLANES + out_words) * (grid.width * grid.height) as u64,
             )
         });
         let splats = c.saturating_mul(self.count.min(1 << 18) as u32);
@@ -556,7 +601,8 @@ impl GpuRenderer {
     ) -> Result<Vec<RenderOutput>> {
         self.use_categories(state, categories);
         let bound = self.gpu.largest_binding();
-        let mut queue: VecDeque<Range<usize>> = self.parts(state, cameras)?.into();
+        let mut queue: VecDeque<Range<usize>> =
+            self.parts(state, cameras, &options.channels)?.into();
         let mut out: Vec<Option<RenderOutput>> = cameras.iter().map(|_| None).collect();
         let mut total = GpuStats::default();
         let mut previous: Option<(InFlight, Range<usize>)> = None;
@@ -564,7 +610,7 @@ impl GpuRenderer {
             let next = match queue.pop_front() {
                 Some(range) => {
                     let part = &cameras[range.clone()];
-                    let need = self.need(state, part);
+                    let need = self.need(state, part, &options.channels);
                     Some((self.launch(state, part, options, need)?, range))
                 }
                 None => None,
@@ -637,15 +683,21 @@ impl GpuRenderer {
         ))
     }
 
-    /// Splits `cameras` into batches the adapter's buffers hold (whole cameras each).
-    fn parts(&self, state: &State, cameras: &[Camera]) -> Result<Vec<Range<usize>>> {
+    /// Splits `cameras` into batches the adapter's buffers hold (whole cameras each) with the
+    /// images of `channels`.
+    fn parts(
+        &self,
+        state: &State,
+        cameras: &[Camera],
+        channels: &Channels,
+    ) -> Result<Vec<Range<usize>>> {
         let bound = self.gpu.largest_binding();
         let mut parts = Vec::new();
         let mut start = 0;
         while start < cameras.len() {
             let mut end = cameras.len().min(start + MAX_CAMERAS);
             loop {
-                let need = self.need(state, &cameras[start..end]);
+                let need = self.need(state, &cameras[start..end], channels);
                 if need.largest_buffer() <= bound {
                     break;
                 }
@@ -680,24 +732,40 @@ impl GpuRenderer {
             state.workspace = Some(Workspace::new(gpu, &self.kernels, caps));
         }
         let w = state.workspace.as_ref().expect("made above");
+        let (out_bits, out_words) = out_planes(&options.channels);
+        let grids: Vec<TileGrid> = cameras.iter().map(TileGrid::new).collect();
+        // The images written out follow every camera's blending state.
+        let state_words: u64 = grids
+            .iter()
+            .map(|g| PLANES * (g.width * g.height) as u64)
+            .sum();
         let mut offset = 0;
+        let mut out_offset = 0;
         let mut tile_base = 0u32;
         let mut table_base = 0u32;
         let mut blocks = Vec::with_capacity(cameras.len() * CAMERA_WORDS);
         let mut slots = Vec::with_capacity(cameras.len());
         let mut grid = (1, 1, cameras.len() as u32);
         let mut camera_tiles = 1;
-        for c in cameras {
-            let g = TileGrid::new(c);
-            let place = [tile_base, offset as u32, table_base];
+        for (c, g) in cameras.iter().zip(grids) {
+            let place = [
+                tile_base,
+                offset as u32,
+                table_base,
+                (state_words + out_offset) as u32,
+            ];
             blocks.extend_from_slice(&camera_block(c, &g, place, options));
             grid.0 = grid.0.max(g.tiles_x as u32);
             grid.1 = grid.1.max(g.tiles_y as u32);
-            slots.push(Slot { grid: g, offset });
+            slots.push(Slot {
+                grid: g,
+                offset: out_offset,
+            });
             tile_base += g.tiles() as u32;
             camera_tiles = camera_tiles.max(g.tiles() as u32);
             table_base += ((g.tiles_x + 1) * (g.tiles_y + 1)) as u32;
             offset += PLANES * (g.width * g.height) as u64;
+            out_offset += out_words * (g.width * g.height) as u64;
         }
         let tiles = tile_base;
         // The tile sort takes the tiles of the largest camera (the camera sits above them in
@@ -716,6 +784,7 @@ impl GpuRenderer {
         fixed[LIVE_CAMERAS as usize] = cameras.len() as u32;
         fixed[LIVE_SLABS as usize] = state.slabs;
         fixed[LIVE_DEPTH_PARITY as usize] = depth_passes % 2;
+        fixed[LIVE_OUT_PLANES as usize] = out_bits;
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu
@@ -739,7 +808,7 @@ impl GpuRenderer {
                 },
             );
         }
-        let image_bytes = offset * 4;
+        let image_bytes = out_offset * 4;
         let live_bytes = self.kernels.live.buffer.size();
         let stamps = state
             .timing
@@ -756,7 +825,13 @@ impl GpuRenderer {
             }),
         };
         encoder.copy_buffer_to_buffer(&self.kernels.live.buffer, 0, &staging, 0, live_bytes);
-        encoder.copy_buffer_to_buffer(&w.images, 0, &staging, live_bytes, image_bytes);
+        encoder.copy_buffer_to_buffer(
+            &w.images,
+            state_words * 4,
+            &staging,
+            live_bytes,
+            image_bytes,
+        );
         if let Some((queries, resolved)) = &state.timing {
             encoder.resolve_query_set(queries, 0..stamps, resolved, 0);
             let at = live_bytes + image_bytes;
@@ -772,7 +847,8 @@ impl GpuRenderer {
             submission,
             mapped,
             slots,
-            image_words: offset,
+            channels: options.channels,
+            image_words: out_offset,
             stamps,
             caps: w.caps,
             peaks: w.peaks,
@@ -823,7 +899,11 @@ impl GpuRenderer {
                         .collect();
                     PassTimes::from_stamps(&ticks, gpu.queue.get_timestamp_period())
                 });
-                let outputs = flight.slots.par_iter().map(|s| unpack(images, s)).collect();
+                let outputs = flight
+                    .slots
+                    .par_iter()
+                    .map(|s| unpack(images, s, &flight.channels))
+                    .collect();
                 Finished::Images(
                     outputs,
                     GpuStats {
@@ -846,12 +926,12 @@ impl GpuRenderer {
 }
 
 /// The block of one camera (`Camera` in `splat.wgsl`): its pose, intrinsics, clipping,
-/// background, culling planes, size and place in the batch (its first tile, image word and
-/// finished-tile table word).
+/// background, culling planes, size and place in the batch (its first tile, state word,
+/// finished-tile table word and written-out image word).
 fn camera_block(
     c: &Camera,
     g: &TileGrid,
-    place: [u32; 3],
+    place: [u32; 4],
     options: &RenderOptions,
 ) -> [u32; CAMERA_WORDS] {
     let k = c.intrinsics;
@@ -884,38 +964,55 @@ fn camera_block(
         place[0],
         place[1],
         place[2],
-        0,
+        place[3],
     ];
     block[52..60].copy_from_slice(&words);
     block
 }
 
-/// One camera's images from the read-back words.
-fn unpack(words: &[u32], s: &Slot) -> RenderOutput {
+/// One camera's images from the read-back words: the planes of `channels` in `compose`'s
+/// order.
+fn unpack(words: &[u32], s: &Slot, channels: &Channels) -> RenderOutput {
     let (width, height) = (s.grid.width, s.grid.height);
     let p = width * height;
-    let base = s.offset as usize;
-    let plane = |k: usize| &words[base + k * p..base + (k + 1) * p];
-    let float = |k: usize| {
-        plane(k)
-            .iter()
-            .map(|&w| f32::from_bits(w))
-            .collect::<Vec<f32>>()
+    let mut next = s.offset as usize;
+    let mut plane = || {
+        next += p;
+        &words[next - p..next]
     };
-    let (r, g, b) = (plane(0), plane(1), plane(2));
-    let rgb_f32: Vec<f32> = (0..p)
-        .flat_map(|i| [r[i], g[i], b[i]].map(f32::from_bits))
-        .collect();
-    let rgb = rgb_f32.iter().copied().map(to_byte).collect();
-    RenderOutput {
-        width,
-        height,
-        rgb,
-        rgb_f32,
-        alpha: float(3),
-        depth_expected: float(4),
-        depth_median: float(5),
-        instance: plane(6).to_vec(),
-        semantic: plane(7).iter().map(|&c| c as u16).collect(),
+    let float = |v: &[u32]| v.iter().map(|&w| f32::from_bits(w)).collect::<Vec<f32>>();
+    let mut out = RenderOutput::sized(width, height, &Channels::NONE);
+    if channels.rgb_f32 {
+        let (r, g, b) = (plane(), plane(), plane());
+        out.rgb_f32 = (0..p)
+            .flat_map(|i| [r[i], g[i], b[i]].map(f32::from_bits))
+            .collect();
+        if channels.rgb {
+            out.rgb = out.rgb_f32.iter().copied().map(to_byte).collect();
+        }
+    } else if channels.rgb {
+        out.rgb = plane()
+            .iter()
+            .flat_map(|w| {
+                let [r, g, b, _] = w.to_le_bytes();
+                [r, g, b]
+            })
+            .collect();
     }
+    if channels.alpha {
+        out.alpha = float(plane());
+    }
+    if channels.depth_expected {
+        out.depth_expected = float(plane());
+    }
+    if channels.depth_median {
+        out.depth_median = float(plane());
+    }
+    if channels.instance {
+        out.instance = plane().to_vec();
+    }
+    if channels.semantic {
+        out.semantic = plane().iter().map(|&c| c as u16).collect();
+    }
+    out
 }

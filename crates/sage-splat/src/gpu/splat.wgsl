@@ -38,8 +38,8 @@ struct Camera {
     planes: array<vec4<f32>, 6>,
     // width, height, tiles across, tiles down.
     size: vec4<u32>,
-    // Its first tile in the batch's numbering, the first word of its images, the first word of
-    // its finished-tile table.
+    // Its first tile in the batch's numbering, the first word of its blending state, the first
+    // word of its finished-tile table, the first word of its images written out.
     place: vec4<u32>,
 }
 
@@ -94,11 +94,12 @@ struct Slots {
 // Per tile of the batch: first and one-past-last entry of this slab (zero where none; each
 // raster workgroup zeroes its own after reading it).
 @group(1) @binding(14) var<storage, read_write> tile_ranges: array<vec2<u32>>;
-// Per camera from its first word: 8 planes of width × height words. While slabs blend, the
-// per-pixel state: r, g, b (background not added), transmittance (negative once the pixel is
-// finished), Σ weight × depth, median depth (f32 bits), instance, best weight (f32 bits).
-// After `compose`, the images: r, g, b, alpha, expected depth, median depth (f32 bits),
-// instance, category.
+// Per camera from its first word: 8 planes of width × height words, the per-pixel state
+// while slabs blend: r, g, b (background not added), transmittance (negative once the pixel
+// is finished), Σ weight × depth, median depth (f32 bits), instance, best weight (f32 bits).
+// After every camera's state, the images `compose` writes out (the only words read back):
+// per camera from its `place.w`, a plane of width × height words per image asked for
+// (`live[LIVE_OUT_PLANES]`), in the order of the `OUT_*` bits.
 @group(1) @binding(15) var<storage, read_write> images: array<u32>;
 @group(1) @binding(16) var<uniform> slots: Slots;
 // Per camera × chunk: nearest and farthest depth of its bounds (f32 bits; the nearest is
@@ -1167,9 +1168,18 @@ fn raster(
     store_pixels(&lower, p_lower, inside_lower, pixels);
 }
 
-// A thread per pixel of every camera's tiles: the images from the blended state (the
-// background behind what remains transparent, depths normalised, the category of the
-// instance).
+// A colour channel as the CPU renderer's `to_byte` rounds it: clamped to 0–1 (NaN to 0),
+// scaled to 255, rounded half up. The half is compared against rather than subtracted, so no
+// compiler can fuse the scaling into the rounding: the same bytes as the host's.
+fn to_byte(v: f32) -> u32 {
+    let x = select(0.0, min(v, 1.0), v > 0.0) * 255.0;
+    let f = floor(x);
+    return u32(f) + select(0u, 1u, x >= f + 0.5);
+}
+
+// A thread per pixel of every camera's tiles: the images asked for from the blended state
+// (the background behind what remains transparent, depths normalised, the category of the
+// instance), written out after the state.
 @compute @workgroup_size(256)
 fn compose(
     @builtin(local_invocation_index) lid: u32,
@@ -1195,14 +1205,40 @@ fn compose(
             category = categories[instance];
         }
     }
-    if t > 0.5 {
-        images[5u * pixels + p] = 0u;
-    }
+    let median = select(images[5u * pixels + p], 0u, t > 0.5);
     let background = cameras[c].background.xyz;
-    images[p] = bitcast<u32>(bitcast<f32>(images[p]) + t * background.x);
-    images[pixels + p] = bitcast<u32>(bitcast<f32>(images[pixels + p]) + t * background.y);
-    images[2u * pixels + p] = bitcast<u32>(bitcast<f32>(images[2u * pixels + p]) + t * background.z);
-    images[3u * pixels + p] = bitcast<u32>(hit);
-    images[4u * pixels + p] = bitcast<u32>(depth);
-    images[7u * pixels + p] = category;
+    let red = bitcast<f32>(images[p]) + t * background.x;
+    let green = bitcast<f32>(images[pixels + p]) + t * background.y;
+    let blue = bitcast<f32>(images[2u * pixels + p]) + t * background.z;
+    let planes = live[LIVE_OUT_PLANES];
+    var o = cameras[c].place.w + py * size.x + px;
+    if (planes & OUT_RGB8) != 0u {
+        images[o] = to_byte(red) | to_byte(green) << 8u | to_byte(blue) << 16u;
+        o += pixels;
+    }
+    if (planes & OUT_RGB_F32) != 0u {
+        images[o] = bitcast<u32>(red);
+        images[o + pixels] = bitcast<u32>(green);
+        images[o + 2u * pixels] = bitcast<u32>(blue);
+        o += 3u * pixels;
+    }
+    if (planes & OUT_ALPHA) != 0u {
+        images[o] = bitcast<u32>(hit);
+        o += pixels;
+    }
+    if (planes & OUT_DEPTH_EXPECTED) != 0u {
+        images[o] = bitcast<u32>(depth);
+        o += pixels;
+    }
+    if (planes & OUT_DEPTH_MEDIAN) != 0u {
+        images[o] = median;
+        o += pixels;
+    }
+    if (planes & OUT_INSTANCE) != 0u {
+        images[o] = instance;
+        o += pixels;
+    }
+    if (planes & OUT_SEMANTIC) != 0u {
+        images[o] = category;
+    }
 }

@@ -18,20 +18,22 @@ pub(crate) const SLABS: u32 = 4;
 pub(crate) const DEPTH_BINS: u32 = 128;
 /// Words of one camera's block (`Camera` in `splat.wgsl`: its array stride).
 pub(crate) const CAMERA_WORDS: usize = 60;
-/// Image planes per camera: r, g, b, alpha, expected depth, median depth, instance, category.
+/// Planes of the blending state per camera (its pixels' words): r, g, b, transmittance,
+/// weighted depth, median depth, instance, best weight.
 pub(crate) const PLANES: u64 = 8;
 /// Words per projected splat (four vec4).
 const SPLAT_WORDS: u64 = 16;
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
 /// sort's result, the batch's tiles, its cameras, its depth slabs, the parity of the depth
-/// sort's result.
+/// sort's result, the planes `compose` writes out (`OUT_*` bits).
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
 pub(crate) const LIVE_TILE_PARITY: u32 = 1;
 pub(crate) const LIVE_TILES: u32 = 2;
 pub(crate) const LIVE_CAMERAS: u32 = 3;
 pub(crate) const LIVE_SLABS: u32 = 4;
 pub(crate) const LIVE_DEPTH_PARITY: u32 = 5;
-const LIVE_FIXED: u32 = 6;
+pub(crate) const LIVE_OUT_PLANES: u32 = 6;
+const LIVE_FIXED: u32 = 7;
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
 pub(crate) const DEPTH_KEY_BITS: u32 = 24;
@@ -55,7 +57,7 @@ pub(crate) struct Caps {
     pub(crate) tile_entries: u32,
     /// Tiles over the cameras.
     pub(crate) tiles: u32,
-    /// Image words over the cameras.
+    /// Words of the cameras' blending state and of the images written out.
     pub(crate) image_words: u64,
 }
 
