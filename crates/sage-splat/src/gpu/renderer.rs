@@ -171,6 +171,10 @@ struct State {
     scene_group: wgpu::BindGroup,
     categories_buffer: wgpu::Buffer,
     workspace: Option<Workspace>,
+    /// The most splats and (tile, splat) entries a camera needed, from batches that found more
+    /// than the work space held: a batch of as many cameras is sized for them before it renders
+    /// (or split, where one binding would not hold them) rather than rendered in vain again.
+    per_camera: [u32; 2],
     /// Read-back buffers not in flight.
     staging: Vec<wgpu::Buffer>,
     /// The timestamps of the passes and the buffer they resolve into, while timing.
@@ -311,6 +315,7 @@ impl GpuRenderer {
                 scene_group,
                 categories_buffer,
                 workspace: None,
+                per_camera: [0; 2],
                 staging: Vec::new(),
                 timing: None,
             }),
@@ -555,7 +560,8 @@ impl GpuRenderer {
 
     /// What a batch of `cameras` needs the work space to hold: its cameras, tiles, blending
     /// state and images of `channels` exactly; the counts found on the GPU as the work space
-    /// holds them now, or a first guess (grown after the batch when short).
+    /// holds them now, or a first guess, and at least what a camera needed before (grown after
+    /// the batch when short).
     fn need(&self, state: &State, cameras: &[Camera], channels: &Channels) -> Caps {
         let c = cameras.len() as u32;
         let camera_chunks = c.saturating_mul(self.chunks);
@@ -568,23 +574,19 @@ impl GpuRenderer {
             )
         });
         let splats = c.saturating_mul(self.count.min(1 << 18) as u32);
-        let guess = Caps {
+        let (splats, tile_entries) = match &state.workspace {
+            Some(w) => (w.caps.splats, w.caps.tile_entries),
+            None => (splats, splats.saturating_mul(2).saturating_add(65_536)),
+        };
+        let [per_splats, per_entries] = state.per_camera;
+        Caps {
             cameras: c,
             camera_chunks,
             entries: camera_chunks,
-            splats,
-            tile_entries: splats.saturating_mul(2).saturating_add(65_536),
+            splats: splats.max(c.saturating_mul(per_splats)),
+            tile_entries: tile_entries.max(c.saturating_mul(per_entries)),
             tiles,
             image_words,
-        };
-        match &state.workspace {
-            Some(w) => Caps {
-                entries: camera_chunks,
-                splats: w.caps.splats,
-                tile_entries: w.caps.tile_entries,
-                ..guess
-            },
-            None => guess,
         }
     }
 
@@ -883,6 +885,11 @@ impl GpuRenderer {
             let totals = flight.totals.map(|slot| u64::from(words[slot as usize]));
             if splats > caps.splats || tile_entries > caps.tile_entries || entries > caps.entries {
                 let grow = |n: u32| n.saturating_add(n / 4);
+                let cameras = flight.slots.len() as u32;
+                let per_camera = [grow(splats), grow(tile_entries)].map(|n| n.div_ceil(cameras));
+                for (most, n) in state.per_camera.iter_mut().zip(per_camera) {
+                    *most = (*most).max(n);
+                }
                 Finished::Grow(Caps {
                     entries: caps.entries.max(entries),
                     splats: caps.splats.max(grow(splats)),
