@@ -194,6 +194,24 @@ pub struct RenderOutput {
 }
 
 impl RenderOutput {
+    /// These images with those not in `channels` emptied: what a render asking for `channels`
+    /// returns.
+    pub fn keep(mut self, channels: &Channels) -> RenderOutput {
+        fn keep<T>(image: &mut Vec<T>, on: bool) {
+            if !on {
+                *image = Vec::new();
+            }
+        }
+        keep(&mut self.rgb, channels.rgb);
+        keep(&mut self.rgb_f32, channels.rgb_f32);
+        keep(&mut self.alpha, channels.alpha);
+        keep(&mut self.depth_expected, channels.depth_expected);
+        keep(&mut self.depth_median, channels.depth_median);
+        keep(&mut self.instance, channels.instance);
+        keep(&mut self.semantic, channels.semantic);
+        self
+    }
+
     /// Images of `width × height` filled with zeros, the ones not in `channels` empty.
     pub(crate) fn sized(width: usize, height: usize, channels: &Channels) -> RenderOutput {
         let n = width * height;
