@@ -208,8 +208,9 @@ struct InFlight {
     submission: wgpu::SubmissionIndex,
     mapped: mpsc::Receiver<std::result::Result<(), wgpu::BufferAsyncError>>,
     slots: Vec<Slot>,
-    /// The images asked for, and their words read back.
+    /// The images asked for.
     channels: Channels,
+    /// Their words in the read-back.
     image_words: u64,
     /// Timestamps after the images in the read-back (0 when not timed).
     stamps: u32,
