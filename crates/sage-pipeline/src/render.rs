@@ -136,8 +136,15 @@ impl RenderSettings {
     ///
     /// # Errors
     ///
-    /// A turntable of no frames or of more than [`MAX_TURNTABLE_FRAMES`], naming the field.
+    /// A background channel outside 0–1 (NaN included), or a turntable of no frames or of more
+    /// than [`MAX_TURNTABLE_FRAMES`], naming the field.
     pub fn validate(&self) -> Result<()> {
+        if let Some(v) = self.background.iter().find(|v| !(0.0..=1.0).contains(*v)) {
+            return Err(Error::invalid(format!(
+                "each of r,g,b must be a linear colour in 0-1, got {v}"
+            ))
+            .within("background"));
+        }
         match self.turntable {
             Some(n) if n == 0 || n > MAX_TURNTABLE_FRAMES => Err(Error::invalid(format!(
                 "must be 1-{MAX_TURNTABLE_FRAMES} frames, got {n}"
@@ -582,6 +589,26 @@ mod tests {
         assert_eq!((s.background, s.turntable), ([0.0; 3], None));
         assert_eq!(s.device, Device::Cpu);
         assert!(s.validate().is_ok());
+        for (v, ok) in [
+            (0.0, true),
+            (1.0, true),
+            (1.5, false),
+            (-0.1, false),
+            (f32::NAN, false),
+        ] {
+            let s = RenderSettings {
+                background: [0.5, v, 0.5],
+                ..RenderSettings::new("scene")
+            };
+            let r = s.validate();
+            assert_eq!(r.is_ok(), ok, "{v}");
+            if let Err(e) = r {
+                assert!(
+                    e.to_string().starts_with("background: each of r,g,b"),
+                    "{e}"
+                );
+            }
+        }
         for (n, ok) in [
             (1, true),
             (MAX_TURNTABLE_FRAMES, true),
