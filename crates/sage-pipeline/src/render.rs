@@ -589,43 +589,32 @@ mod tests {
         assert_eq!((s.background, s.turntable), ([0.0; 3], None));
         assert_eq!(s.device, Device::Cpu);
         assert!(s.validate().is_ok());
-        for (v, ok) in [
-            (0.0, true),
-            (1.0, true),
-            (1.5, false),
-            (-0.1, false),
-            (f32::NAN, false),
-        ] {
-            let s = RenderSettings {
-                background: [0.5, v, 0.5],
-                ..RenderSettings::new("scene")
-            };
-            let r = s.validate();
-            assert_eq!(r.is_ok(), ok, "{v}");
-            if let Err(e) = r {
-                assert!(
-                    e.to_string().starts_with("background: each of r,g,b"),
-                    "{e}"
-                );
-            }
-        }
-        for (n, ok) in [
-            (1, true),
-            (MAX_TURNTABLE_FRAMES, true),
-            (0, false),
-            (3601, false),
-        ] {
-            let s = RenderSettings {
-                turntable: Some(n),
-                ..RenderSettings::new("scene")
-            };
-            let r = s.validate();
-            assert_eq!(r.is_ok(), ok, "{n}");
-            if let Err(e) = r {
-                assert!(
-                    e.to_string().starts_with("turntable: must be 1-3600"),
-                    "{e}"
-                );
+        let background = |v: f32| RenderSettings {
+            background: [0.5, v, 0.5],
+            ..RenderSettings::new("scene")
+        };
+        let turntable = |n: usize| RenderSettings {
+            turntable: Some(n),
+            ..RenderSettings::new("scene")
+        };
+        let colour_error = Some("background: each of r,g,b");
+        let frames_error = Some("turntable: must be 1-3600");
+        let cases = [
+            (background(0.0), None),
+            (background(1.0), None),
+            (background(1.5), colour_error),
+            (background(-0.1), colour_error),
+            (background(f32::NAN), colour_error),
+            (turntable(1), None),
+            (turntable(MAX_TURNTABLE_FRAMES), None),
+            (turntable(0), frames_error),
+            (turntable(3601), frames_error),
+        ];
+        for (s, error) in cases {
+            match (s.validate(), error) {
+                (Ok(()), None) => {}
+                (Err(e), Some(start)) => assert!(e.to_string().starts_with(start), "{e}"),
+                (r, _) => panic!("{:?} / {:?}: {r:?}", s.background, s.turntable),
             }
         }
     }

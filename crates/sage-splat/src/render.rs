@@ -91,26 +91,35 @@ impl Channels {
         rgb: true,
         ..Channels::NONE
     };
+
+    /// Each image's name: its [`RenderOutput`] field, in the order of [`Channels::flags`].
+    const NAMES: [&'static str; 7] = [
+        "rgb",
+        "rgb_f32",
+        "alpha",
+        "depth_expected",
+        "depth_median",
+        "instance",
+        "semantic",
+    ];
+
+    /// Each image's flag, in the order of [`Channels::NAMES`].
+    fn flags(&mut self) -> [&mut bool; 7] {
+        [
+            &mut self.rgb,
+            &mut self.rgb_f32,
+            &mut self.alpha,
+            &mut self.depth_expected,
+            &mut self.depth_median,
+            &mut self.instance,
+            &mut self.semantic,
+        ]
+    }
 }
 
 impl Default for Channels {
     fn default() -> Channels {
         Channels::ALL
-    }
-}
-
-impl Channels {
-    /// Each image's name (its [`RenderOutput`] field) and whether it is asked for.
-    fn named(&self) -> [(&'static str, bool); 7] {
-        [
-            ("rgb", self.rgb),
-            ("rgb_f32", self.rgb_f32),
-            ("alpha", self.alpha),
-            ("depth_expected", self.depth_expected),
-            ("depth_median", self.depth_median),
-            ("instance", self.instance),
-            ("semantic", self.semantic),
-        ]
     }
 }
 
@@ -122,28 +131,17 @@ impl std::str::FromStr for Channels {
     fn from_str(s: &str) -> Result<Channels> {
         let mut out = Channels::NONE;
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-            let flag = match name {
-                "all" => {
-                    out = Channels::ALL;
-                    continue;
-                }
-                "none" => continue,
-                "rgb" => &mut out.rgb,
-                "rgb_f32" => &mut out.rgb_f32,
-                "alpha" => &mut out.alpha,
-                "depth_expected" => &mut out.depth_expected,
-                "depth_median" => &mut out.depth_median,
-                "instance" => &mut out.instance,
-                "semantic" => &mut out.semantic,
-                other => {
-                    let names: Vec<&str> = Channels::ALL.named().map(|(n, _)| n).to_vec();
+            match (name, Channels::NAMES.iter().position(|n| *n == name)) {
+                ("all", _) => out = Channels::ALL,
+                ("none", _) => {}
+                (_, Some(k)) => *out.flags()[k] = true,
+                (other, None) => {
                     return Err(Error::invalid(format!(
                         "unknown image {other:?}: expected all, none or some of {}",
-                        names.join(", ")
+                        Channels::NAMES.join(", ")
                     )));
                 }
-            };
-            *flag = true;
+            }
         }
         Ok(out)
     }
@@ -155,9 +153,10 @@ impl std::fmt::Display for Channels {
         if *self == Channels::ALL {
             return f.write_str("all");
         }
-        let names: Vec<&str> = self
-            .named()
+        let mut flags = *self;
+        let names: Vec<&str> = Channels::NAMES
             .into_iter()
+            .zip(flags.flags())
             .filter_map(|(n, on)| on.then_some(n))
             .collect();
         if names.is_empty() {
@@ -233,9 +232,10 @@ impl RenderOutput {
 /// A blended colour channel as the 8-bit value of [`RenderOutput::rgb`]: clamped to 0–1,
 /// scaled to 255 and rounded half away from zero, as `f32::round` does. Both executors
 /// quantise through here (the GPU, when it packs the bytes itself, through `to_byte` of
-/// `splat.wgsl`, the same rounding: a GPU test holds the two to the same bytes). Adding the half in `f64`, where the sum of any `f32` and 0.5 is
-/// exact, and truncating gives that rounding without a call to `roundf`, which the baseline
-/// x86-64 target has no instruction for.
+/// `splat.wgsl`, the same rounding: a GPU test holds the two to the same bytes). Adding the
+/// half in `f64`, where the sum of any `f32` and 0.5 is exact, and truncating gives that
+/// rounding without a call to `roundf`, which the baseline x86-64 target has no instruction
+/// for.
 pub(crate) fn to_byte(v: f32) -> u8 {
     (f64::from(v.clamp(0.0, 1.0) * 255.0) + 0.5) as u8
 }

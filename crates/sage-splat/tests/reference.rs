@@ -307,6 +307,18 @@ fn compare(gs: &Gaussians, cam: &Camera, what: &str) -> f64 {
     p
 }
 
+/// A generated home of `rooms` rooms, `objects` objects and `gaussians` Gaussians.
+fn home(seed: u64, rooms: usize, objects: usize, gaussians: usize) -> sage_scene::scene::Scene {
+    generate(&SynthConfig {
+        seed,
+        rooms,
+        objects,
+        gaussians,
+        ..SynthConfig::default()
+    })
+    .unwrap()
+}
+
 fn camera(w: u32, h: u32, position: Vec3, yaw: f32, pitch: f32) -> Camera {
     Camera::from_yaw_pitch(
         Intrinsics::from_hfov(w, h, 90.0).unwrap(),
@@ -362,14 +374,7 @@ fn random_scenes_match_the_reference() {
 
 #[test]
 fn a_synthetic_room_matches_the_reference() {
-    let scene = generate(&SynthConfig {
-        seed: 4,
-        rooms: 2,
-        objects: 16,
-        gaussians: 25_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(4, 2, 16, 25_000);
     let room = &scene.floorplan.rooms[0].profile;
     let c = room.centroid();
     for yaw in [0.3f32, 2.0, -2.4] {
@@ -429,14 +434,7 @@ fn edge_cases_match_the_reference() {
 
 #[test]
 fn same_image_for_any_thread_count() {
-    let scene = generate(&SynthConfig {
-        seed: 8,
-        rooms: 3,
-        objects: 20,
-        gaussians: 40_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(8, 3, 20, 40_000);
     let c = scene.floorplan.rooms[1].profile.centroid();
     let cam = camera(96, 80, Vec3::new(c.x, c.y, 1.2), 1.0, 0.0);
     let render = |threads: usize| -> RenderOutput {
@@ -463,14 +461,7 @@ fn same_image_for_any_thread_count() {
 
 #[test]
 fn semantic_ids_follow_the_instance_table() {
-    let scene = generate(&SynthConfig {
-        seed: 2,
-        rooms: 2,
-        objects: 12,
-        gaussians: 20_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(2, 2, 12, 20_000);
     let c = scene.floorplan.rooms[0].profile.centroid();
     let cam = camera(48, 48, Vec3::new(c.x, c.y, 1.2), 0.5, -0.3);
     let out = Renderer::new(&scene.gaussians)
@@ -491,14 +482,7 @@ fn semantic_ids_follow_the_instance_table() {
 
 #[test]
 fn each_image_asked_for_alone_equals_the_full_render() {
-    let scene = generate(&SynthConfig {
-        seed: 3,
-        rooms: 2,
-        objects: 12,
-        gaussians: 20_000,
-        ..SynthConfig::default()
-    })
-    .unwrap();
+    let scene = home(3, 2, 12, 20_000);
     let c = scene.floorplan.rooms[0].profile.centroid();
     // A width that is not a whole number of tiles: the last band of each image is short.
     let cam = camera(50, 37, Vec3::new(c.x, c.y, 1.2), 2.0, -0.2);
