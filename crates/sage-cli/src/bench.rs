@@ -181,6 +181,11 @@ pub struct RenderBenchArgs {
     /// these are read back; an RGB-D agent's sensors are rgb,depth_median).
     #[arg(long, default_value = "all")]
     channels: String,
+    /// Render every GPU batch in this many depth slabs, 1 to 4 (default: as many as the last
+    /// batch's work calls for). The images do not change; the work skipped behind finished
+    /// tiles and the dispatches of each slab do.
+    #[arg(long)]
+    slabs: Option<u32>,
     /// Print the report as JSON: how the measuring process hands it back.
     #[arg(long, hide = true)]
     json: bool,
@@ -353,6 +358,7 @@ impl RenderBenchArgs {
             batches: self.batches.clone(),
             batch_size: parse_size(&self.batch_size)?,
             channels: self.channels.parse()?,
+            slabs: self.slabs,
         })
     }
 }
@@ -458,6 +464,9 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
                 }
                 if let Some(scene) = &s.scene {
                     args.extend(["--scene".into(), scene.into()]);
+                }
+                if let Some(slabs) = s.slabs {
+                    args.extend(["--slabs".into(), slabs.to_string().into()]);
                 }
                 in_fresh_process(args)
             })?;

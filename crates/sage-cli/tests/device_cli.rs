@@ -204,6 +204,30 @@ fn rgb(path: &Path) -> Vec<u8> {
     buf
 }
 
+/// The fixed depth slabs a JSON bench report names.
+fn report_slabs(out: &std::process::Output) -> Option<u64> {
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    report.get("slabs").and_then(serde_json::Value::as_u64)
+}
+
+#[test]
+fn bench_render_fixes_slabs_only_on_the_gpu_and_only_to_counts_it_renders_in() {
+    // Refused before the scene is generated.
+    let cpu = sage3d(&["bench", "render", "--slabs", "2"]);
+    assert!(!cpu.status.success());
+    assert!(stderr(&cpu).contains("--device gpu"), "{}", stderr(&cpu));
+    let out = sage3d(&["bench", "render", "--device", "gpu", "--slabs", "5"]);
+    if no_adapter(&out) {
+        return;
+    }
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("1 to 4 depth slabs, got 5"),
+        "{}",
+        stderr(&out)
+    );
+}
+
 #[test]
 fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
     let out = sage3d(&[
@@ -221,12 +245,15 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
         "1,4",
         "--batch-size",
         "32x32",
+        "--slabs",
+        "2",
         "--json",
     ]);
     if no_adapter(&out) {
         return;
     }
     assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(report_slabs(&out), Some(2));
     // The measuring process says once which renderer it measures.
     let line = renderer_line(&out);
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -257,6 +284,14 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
             b["streamed_frames_per_s"].as_f64().unwrap() > 0.0,
             "{report}"
         );
+        // Where the device writes timestamps: its stages, its copy of the images and the
+        // host's unpacking of them.
+        if let Some(p) = b.get("gpu_passes") {
+            let raster = p["raster_ms"].as_f64().unwrap();
+            let unpack = p["unpack_ms"].as_f64().unwrap();
+            assert!(raster > 0.0 && unpack > 0.0, "{report}");
+            assert!(p["read_back_ms"].as_f64().unwrap() >= 0.0, "{report}");
+        }
     }
 }
 

@@ -40,6 +40,8 @@ pub struct RenderSettings {
     pub batch_size: (u32, u32),
     /// The images each frame renders out (on the GPU, the ones read back).
     pub channels: Channels,
+    /// Depth slabs of every GPU batch, fixed (`None`: chosen from the last batch's work).
+    pub slabs: Option<u32>,
 }
 
 /// The resolutions measured on the CPU unless asked otherwise.
@@ -62,6 +64,7 @@ impl Default for RenderSettings {
             batches: vec![1, 16, 64, 256, 1024],
             batch_size: (224, 224),
             channels: Channels::ALL,
+            slabs: None,
         }
     }
 }
@@ -86,6 +89,10 @@ pub struct RenderReport {
     /// The images each frame rendered out ([`Channels`]' list).
     #[serde(default = "all_images")]
     pub channels: String,
+    /// Depth slabs of every GPU batch when they were fixed (`None`: chosen from the last
+    /// batch's work).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slabs: Option<u32>,
     /// Milliseconds to set the renderer up: the CPU's spatial index, or the GPU's device (on
     /// first use) and the upload of the scene.
     pub index_ms: f64,
@@ -193,6 +200,9 @@ impl fmt::Display for RenderReport {
             self.gaussians, self.sh_degree, self.pitch
         )?;
         writeln!(f, "images           {}", self.channels)?;
+        if let Some(slabs) = self.slabs {
+            writeln!(f, "depth slabs      {slabs} in every batch (fixed)")?;
+        }
         match self.index_bytes {
             Some(bytes) => writeln!(
                 f,
@@ -307,6 +317,7 @@ pub fn run(
             "batches: a batch needs at least 1 camera",
         ));
     }
+    settings.device.check_slabs(settings.slabs)?;
     if let (Some(dir), false) = (&settings.scene, settings.sh3) {
         return measure(&Scene::load(dir)?.0, settings);
     }
@@ -350,6 +361,8 @@ fn median_passes(passes: &[PassTimes]) -> PassTimes {
         bin_ms: stage(|p| p.bin_ms),
         raster_ms: stage(|p| p.raster_ms),
         compose_ms: stage(|p| p.compose_ms),
+        read_back_ms: stage(|p| p.read_back_ms),
+        unpack_ms: stage(|p| p.unpack_ms),
     }
 }
 
@@ -437,6 +450,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
     let index_ms = start.elapsed().as_secs_f64() * 1e3;
+    backend.set_slabs(settings.slabs)?;
     eprintln!("renderer: {}", backend.describe());
     let eye = sage_splat::camera::default_eye(scene);
     let machine = machine::describe();
@@ -574,6 +588,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         eye: eye.to_array(),
         pitch: settings.pitch,
         channels: settings.channels.to_string(),
+        slabs: settings.slabs,
         index_ms,
         index_bytes: backend.as_cpu().map(|r| r.index().heap_bytes()),
         store_bytes: scene.gaussians.heap_bytes(),

@@ -3,7 +3,7 @@
 //! [`Backend`] is what commands and environments hold, whichever was chosen.
 
 use crate::camera::Camera;
-use crate::passes::PassTimes;
+use crate::passes::{GPU_SLABS, PassTimes};
 use crate::render::{RenderOptions, RenderOutput, Renderer};
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
@@ -45,6 +45,26 @@ impl Device {
             Device::Gpu => gpu_description(false),
             Device::Auto => Ok(gpu_description(true)
                 .unwrap_or_else(|e| format!("{} (auto: {})", cpu_description(), e.message()))),
+        }
+    }
+
+    /// Checks a fixed count of the GPU renderer's depth slabs before any work: 1 to
+    /// [`GPU_SLABS`], on the GPU only (the CPU renderer's slabs are its own; `auto` may
+    /// render on either).
+    ///
+    /// # Errors
+    ///
+    /// A fixed count outside 1 to [`GPU_SLABS`], or one for another device than `gpu`.
+    pub fn check_slabs(self, slabs: Option<u32>) -> Result<()> {
+        match slabs {
+            None => Ok(()),
+            Some(_) if self != Device::Gpu => Err(Error::invalid(
+                "slabs: only the GPU renderer's depth slabs can be fixed (--device gpu)",
+            )),
+            Some(n) if !(1..=GPU_SLABS).contains(&n) => Err(Error::invalid(format!(
+                "slabs: the GPU renderer renders in 1 to {GPU_SLABS} depth slabs, got {n}"
+            ))),
+            Some(_) => Ok(()),
         }
     }
 }
@@ -239,6 +259,21 @@ impl Backend {
         }
     }
 
+    /// Fixes the depth slabs of the GPU renderer's batches (`None`: chosen from the last
+    /// batch's work; see [`crate::gpu::GpuRenderer::set_slabs`]).
+    ///
+    /// # Errors
+    ///
+    /// As [`Device::check_slabs`] for the executor that renders.
+    #[cfg_attr(not(feature = "gpu"), expect(unused_variables))]
+    pub fn set_slabs(&self, slabs: Option<u32>) -> Result<()> {
+        match &self.executor {
+            Executor::Cpu(_) => Device::Cpu.check_slabs(slabs),
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => r.set_slabs(slabs),
+        }
+    }
+
     /// The GPU time of each stage of the last batch, while timing ([`Backend::time_passes`]).
     pub fn pass_times(&self) -> Option<PassTimes> {
         match &self.executor {
@@ -379,5 +414,26 @@ mod tests {
         }
         let e = "tpu".parse::<Device>().unwrap_err();
         assert!(e.message().contains("cpu, gpu, auto"), "{e}");
+    }
+
+    #[test]
+    fn only_the_gpu_fixes_its_slabs_and_only_to_counts_it_renders_in() {
+        for d in [Device::Cpu, Device::Gpu, Device::Auto] {
+            assert!(d.check_slabs(None).is_ok());
+        }
+        for n in 1..=GPU_SLABS {
+            assert!(Device::Gpu.check_slabs(Some(n)).is_ok());
+            for d in [Device::Cpu, Device::Auto] {
+                let e = d.check_slabs(Some(n)).unwrap_err();
+                assert!(e.message().contains("--device gpu"), "{e}");
+            }
+        }
+        for n in [0, GPU_SLABS + 1, u32::MAX] {
+            let e = Device::Gpu.check_slabs(Some(n)).unwrap_err();
+            assert!(e.message().contains(&format!("got {n}")), "{e}");
+        }
+        let cpu = Backend::cpu(&Gaussians::default());
+        assert!(cpu.set_slabs(None).is_ok());
+        assert!(cpu.set_slabs(Some(1)).is_err());
     }
 }

@@ -11,6 +11,7 @@ use glam::Vec3;
 use sage_scene::ply::read_splats_file;
 use sage_scene::{Gaussian, Gaussians};
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
+use sage_splat::passes::GPU_SLABS;
 use sage_splat::{
     Backend, Camera, Channels, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
 };
@@ -252,6 +253,51 @@ fn a_batch_equals_its_cameras_rendered_alone_and_repeats_exactly() {
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
     assert!(batch == again, "the same batch rendered twice differs");
+}
+
+#[test]
+fn the_images_are_the_same_in_any_number_of_depth_slabs() {
+    let Some(gpu) = gpu() else { return };
+    let scene = home(11, 3, 20, 30_000);
+    let g = &scene.gaussians;
+    let categories = &scene.instances.category_ids;
+    let c = scene.floorplan.rooms[0].profile.centroid();
+    // Headings all round a room: some face a near wall (tiles finished in the first slab),
+    // some look down the house.
+    let cameras: Vec<Camera> = (0..5)
+        .map(|k| camera(72, 56, Vec3::new(c.x, c.y, 1.1), 1.3 * k as f32, 0.0))
+        .collect();
+    let renderer = GpuRenderer::new(&gpu, g).unwrap();
+    let options = RenderOptions::default();
+    let mut renders = Vec::new();
+    for slabs in 1..=GPU_SLABS {
+        renderer.set_slabs(Some(slabs)).unwrap();
+        renders.push(
+            renderer
+                .render_batch(g, categories, &cameras, &options)
+                .unwrap(),
+        );
+        assert_eq!(renderer.stats().slabs, slabs);
+        // A fixed count holds whatever the batch's work was.
+        let alone = renderer
+            .render(g, categories, &cameras[0], &options)
+            .unwrap();
+        assert!(
+            alone == renders[renders.len() - 1][0],
+            "{slabs} slabs alone"
+        );
+        assert_eq!(renderer.stats().slabs, slabs);
+    }
+    for (k, r) in renders.iter().enumerate().skip(1) {
+        assert!(*r == renders[0], "{} slabs differ from one", k + 1);
+    }
+    let e = renderer.set_slabs(Some(GPU_SLABS + 1)).unwrap_err();
+    assert!(e.message().contains("1 to 4"), "{e}");
+    renderer.set_slabs(None).unwrap();
+    let chosen = renderer
+        .render_batch(g, categories, &cameras, &options)
+        .unwrap();
+    assert!(chosen == renders[0], "slabs chosen from the work differ");
 }
 
 /// Sets of images a caller may ask for: each alone, the sensors of an RGB-D agent, the 8-bit
@@ -501,9 +547,13 @@ fn passes_are_timed_on_request_and_timing_changes_no_byte() {
                 p.bin_ms,
                 p.raster_ms,
                 p.compose_ms,
+                p.read_back_ms,
+                p.unpack_ms,
             ];
             assert!(stages.iter().all(|t| t.is_finite() && *t >= 0.0), "{p:?}");
-            assert!(stages.iter().sum::<f64>() > 0.0, "{p:?}");
+            assert!(stages[..6].iter().sum::<f64>() > 0.0, "{p:?}");
+            // The copy is timed exactly where the device writes timestamps between passes.
+            assert_eq!(p.read_back_ms > 0.0, gpu.has_encoder_timestamps(), "{p:?}");
         }
         None => assert!(!timed),
     }

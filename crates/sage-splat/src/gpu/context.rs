@@ -16,6 +16,9 @@ pub struct Gpu {
 const TIMESTAMPS: wgpu::Features =
     wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES);
 
+/// The feature that times the read-back copy too, between passes.
+const ENCODER_TIMESTAMPS: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
+
 /// Names a user may set to pick an adapter by (part of) its name on a machine with several.
 pub const ADAPTER_VARIABLE: &str = "SAGE3D_GPU_ADAPTER";
 
@@ -108,8 +111,9 @@ impl Gpu {
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("sage3d"),
-            // Timestamps inside passes, where the adapter has them, time the passes on request.
-            required_features: adapter.features() & TIMESTAMPS,
+            // Timestamps inside passes (and between them), where the adapter has them, time the
+            // passes (and the read-back copy) on request.
+            required_features: adapter.features() & TIMESTAMPS.union(ENCODER_TIMESTAMPS),
             required_limits: limits,
             experimental_features: wgpu::ExperimentalFeatures::disabled(),
             memory_hints: wgpu::MemoryHints::Performance,
@@ -150,6 +154,11 @@ impl Gpu {
     /// True when the device writes timestamps between dispatches (to time the passes).
     pub fn has_timestamps(&self) -> bool {
         self.device.features().contains(TIMESTAMPS)
+    }
+
+    /// True when the device also writes timestamps between passes (to time the read-back copy).
+    pub fn has_encoder_timestamps(&self) -> bool {
+        self.has_timestamps() && self.device.features().contains(ENCODER_TIMESTAMPS)
     }
 
     /// The device's limits.

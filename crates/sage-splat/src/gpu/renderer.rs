@@ -128,6 +128,8 @@ fn slabs_after(stats: &GpuStats) -> u32 {
 pub struct GpuStats {
     /// Cameras in the batch.
     pub cameras: usize,
+    /// Depth slabs it rendered in (its last part's, when rendered in parts).
+    pub slabs: u32,
     /// (camera, chunk of 256 Gaussians) pairs projected, summed over the cameras and the depth
     /// slabs: those in the view that reach a slab and some unfinished tile (a chunk spanning
     /// several slabs counts in each).
@@ -165,8 +167,10 @@ fn lost() -> Error {
 /// What the frames of one renderer share, behind its lock.
 struct State {
     stats: GpuStats,
-    /// Depth slabs the next batch renders in (from the work of the last).
+    /// Depth slabs the next batch renders in (from the work of the last, unless fixed).
     slabs: u32,
+    /// Depth slabs every batch renders in, when fixed ([`GpuRenderer::set_slabs`]).
+    fixed_slabs: Option<u32>,
     categories: Vec<u16>,
     scene_group: wgpu::BindGroup,
     categories_buffer: wgpu::Buffer,
@@ -179,6 +183,15 @@ struct State {
     staging: Vec<wgpu::Buffer>,
     /// The timestamps of the passes and the buffer they resolve into, while timing.
     timing: Option<(wgpu::QuerySet, wgpu::Buffer)>,
+}
+
+impl State {
+    /// Keeps the work of the batch just rendered, and chooses the next batch's slabs from it
+    /// unless they are fixed.
+    fn rendered(&mut self, stats: GpuStats) {
+        self.slabs = self.fixed_slabs.unwrap_or_else(|| slabs_after(&stats));
+        self.stats = stats;
+    }
 }
 
 /// One scene's Gaussians resident on a [`Gpu`], and the buffers its frames reuse. Shared by
@@ -214,6 +227,8 @@ struct InFlight {
     image_words: u64,
     /// Timestamps after the images in the read-back (0 when not timed).
     stamps: u32,
+    /// Depth slabs it rendered in.
+    slabs: u32,
     /// What the work space held when it rendered, and the live slots of its unclamped counts
     /// (largest and sum over the slabs).
     caps: Caps,
@@ -261,8 +276,7 @@ impl Submitted {
         let mut state = r.lock();
         match r.finish(&mut state, flight)? {
             Finished::Images(images, stats) => {
-                state.slabs = slabs_after(&stats);
-                state.stats = stats;
+                state.rendered(stats);
                 Ok(images)
             }
             // Rendered again in a grown work space, with this batch's categories bound
@@ -312,6 +326,7 @@ impl GpuRenderer {
             state: Mutex::new(State {
                 stats: GpuStats::default(),
                 slabs: SLABS,
+                fixed_slabs: None,
                 categories: Vec::new(),
                 scene_group,
                 categories_buffer,
@@ -378,7 +393,7 @@ impl GpuRenderer {
             return false;
         }
         if state.timing.is_none() {
-            let count = PassTimes::stamps(SLABS);
+            let count = PassTimes::stamps(SLABS) + 1;
             let queries = self.gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass timestamps"),
                 ty: wgpu::QueryType::Timestamp,
@@ -393,6 +408,25 @@ impl GpuRenderer {
             state.timing = Some((queries, resolved));
         }
         true
+    }
+
+    /// Renders every batch from now on in `slabs` depth slabs (1 to
+    /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), or, with `None` (the default), in as many as the last
+    /// batch's work calls for. The images are the same whatever the slabs: what changes is the
+    /// work skipped behind finished tiles against the dispatches each slab costs, which weigh
+    /// differently on each device (`sage3d bench render --slabs` measures them).
+    ///
+    /// # Errors
+    ///
+    /// A count outside 1 to [`GPU_SLABS`](crate::passes::GPU_SLABS).
+    pub fn set_slabs(&self, slabs: Option<u32>) -> Result<()> {
+        crate::Device::Gpu.check_slabs(slabs)?;
+        let mut state = self.lock();
+        state.fixed_slabs = slabs;
+        if let Some(n) = slabs {
+            state.slabs = n;
+        }
+        Ok(())
     }
 
     /// Renders one camera (see [`GpuRenderer::render_batch`]).
@@ -628,6 +662,7 @@ impl GpuRenderer {
                         total.splats += stats.splats;
                         total.tile_entries += stats.tile_entries;
                         total.capacity = stats.capacity;
+                        total.slabs = stats.slabs;
                         total.passes = match (total.passes, stats.passes) {
                             (Some(a), Some(b)) => Some(a.add(&b)),
                             (a, b) => a.or(b),
@@ -656,8 +691,7 @@ impl GpuRenderer {
             }
         }
         total.cameras = cameras.len();
-        state.slabs = slabs_after(&total);
-        state.stats = total;
+        state.rendered(total);
         Ok(out
             .into_iter()
             .map(|o| o.expect("every part was rendered"))
@@ -813,10 +847,13 @@ impl GpuRenderer {
         }
         let image_bytes = out_offset * 4;
         let live_bytes = self.kernels.live.buffer.size();
+        // The stages' timestamps, and one after the read-back copy where the device writes
+        // timestamps between passes.
+        let copy_stamp = u32::from(gpu.has_encoder_timestamps());
         let stamps = state
             .timing
             .as_ref()
-            .map_or(0, |_| PassTimes::stamps(state.slabs));
+            .map_or(0, |_| PassTimes::stamps(state.slabs) + copy_stamp);
         let size = image_bytes + live_bytes + u64::from(stamps) * 8;
         let staging = match state.staging.iter().position(|b| b.size() >= size) {
             Some(i) => state.staging.swap_remove(i),
@@ -836,6 +873,9 @@ impl GpuRenderer {
             image_bytes,
         );
         if let Some((queries, resolved)) = &state.timing {
+            if copy_stamp == 1 {
+                encoder.write_timestamp(queries, stamps - 1);
+            }
             encoder.resolve_query_set(queries, 0..stamps, resolved, 0);
             let at = live_bytes + image_bytes;
             encoder.copy_buffer_to_buffer(resolved, 0, &staging, at, u64::from(stamps) * 8);
@@ -853,6 +893,7 @@ impl GpuRenderer {
             channels: options.channels,
             image_words: out_offset,
             stamps,
+            slabs: state.slabs,
             caps: w.caps,
             peaks: w.peaks,
             totals: w.totals,
@@ -900,22 +941,32 @@ impl GpuRenderer {
             } else {
                 let end = live_words + flight.image_words as usize;
                 let images = &words[live_words..end];
-                let passes = (flight.stamps > 0).then(|| {
-                    let ticks: Vec<u64> = words[end..end + 2 * flight.stamps as usize]
-                        .chunks_exact(2)
-                        .map(|w| u64::from(w[0]) | u64::from(w[1]) << 32)
-                        .collect();
-                    PassTimes::from_stamps(&ticks, gpu.queue.get_timestamp_period())
-                });
+                let unpacking = std::time::Instant::now();
                 let outputs = flight
                     .slots
                     .par_iter()
                     .map(|s| unpack(images, s, &flight.channels))
                     .collect();
+                let unpack_ms = unpacking.elapsed().as_secs_f64() * 1e3;
+                let passes = (flight.stamps > 0).then(|| {
+                    let ticks: Vec<u64> = words[end..end + 2 * flight.stamps as usize]
+                        .chunks_exact(2)
+                        .map(|w| u64::from(w[0]) | u64::from(w[1]) << 32)
+                        .collect();
+                    PassTimes {
+                        unpack_ms,
+                        ..PassTimes::from_stamps(
+                            &ticks,
+                            flight.slabs,
+                            gpu.queue.get_timestamp_period(),
+                        )
+                    }
+                });
                 Finished::Images(
                     outputs,
                     GpuStats {
                         cameras: flight.slots.len(),
+                        slabs: flight.slabs,
                         chunks: totals[0],
                         splats: totals[1],
                         tile_entries: totals[2],

@@ -8,11 +8,10 @@ use super::kernel::{
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
-use crate::passes::PassTimes;
+use crate::passes::{GPU_SLABS, PassTimes};
 
-/// Most depth slabs a batch renders in, front to back (the CPU renderer takes 8; on a GPU each
-/// slab costs a round of dispatches, so fewer).
-pub(crate) const SLABS: u32 = 4;
+/// Most depth slabs a batch renders in ([`GPU_SLABS`]).
+pub(crate) const SLABS: u32 = GPU_SLABS;
 
 /// Bins of the per-camera histogram of chunk depths the slabs are cut from.
 pub(crate) const DEPTH_BINS: u32 = 128;
@@ -203,12 +202,17 @@ impl PassTimes {
         3 + 4 * slabs
     }
 
-    /// The stages' times from the timestamps of one batch, `period` nanoseconds per tick.
-    pub(crate) fn from_stamps(ticks: &[u64], period: f32) -> PassTimes {
+    /// The stages' times from the timestamps of one batch of `slabs` slabs, `period`
+    /// nanoseconds per tick; a timestamp after those of the stages is the read-back copy's end.
+    pub(crate) fn from_stamps(ticks: &[u64], slabs: u32, period: f32) -> PassTimes {
         let mut t = PassTimes::default();
-        let last = ticks.len().saturating_sub(1);
-        for i in 1..ticks.len() {
-            let ms = ticks[i].saturating_sub(ticks[i - 1]) as f64 * f64::from(period) * 1e-6;
+        let ms = |i: usize| ticks[i].saturating_sub(ticks[i - 1]) as f64 * f64::from(period) * 1e-6;
+        let stages = (Self::stamps(slabs) as usize).min(ticks.len());
+        if ticks.len() > stages {
+            t.read_back_ms = ms(stages);
+        }
+        let last = stages.saturating_sub(1);
+        for i in 1..stages {
             let stage = match i {
                 1 => &mut t.setup_ms,
                 i if i == last => &mut t.compose_ms,
@@ -219,7 +223,7 @@ impl PassTimes {
                     _ => &mut t.raster_ms,
                 },
             };
-            *stage += ms;
+            *stage += ms(i);
         }
         t
     }
@@ -233,6 +237,8 @@ impl PassTimes {
             bin_ms: self.bin_ms + o.bin_ms,
             raster_ms: self.raster_ms + o.raster_ms,
             compose_ms: self.compose_ms + o.compose_ms,
+            read_back_ms: self.read_back_ms + o.read_back_ms,
+            unpack_ms: self.unpack_ms + o.unpack_ms,
         }
     }
 }
