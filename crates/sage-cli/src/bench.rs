@@ -186,6 +186,11 @@ pub struct RenderBenchArgs {
     /// tiles and the dispatches of each slab do.
     #[arg(long)]
     slabs: Option<u32>,
+    /// The GPU renderer's blending kernel: blocks (shaped for CPU drivers such as lavapipe: 32
+    /// threads per tile, each a column of eight pixels) or columns (shaped for hardware GPUs:
+    /// 64 threads per tile, each a column of four). The images do not change.
+    #[arg(long, default_value = "blocks")]
+    blending: String,
     /// Print the report as JSON: how the measuring process hands it back.
     #[arg(long, hide = true)]
     json: bool,
@@ -359,6 +364,7 @@ impl RenderBenchArgs {
             batch_size: parse_size(&self.batch_size)?,
             channels: self.channels.parse()?,
             slabs: self.slabs,
+            blending: self.blending.parse()?,
         })
     }
 }
@@ -468,6 +474,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
                 if let Some(slabs) = s.slabs {
                     args.extend(["--slabs".into(), slabs.to_string().into()]);
                 }
+                args.extend(["--blending".into(), s.blending.to_string().into()]);
                 in_fresh_process(args)
             })?;
             print_report(&report, a.json)

@@ -211,11 +211,20 @@ fn report_slabs(out: &std::process::Output) -> Option<u64> {
 }
 
 #[test]
-fn bench_render_fixes_slabs_only_on_the_gpu_and_only_to_counts_it_renders_in() {
+fn bench_render_tunes_only_the_gpu_and_only_to_settings_it_has() {
     // Refused before the scene is generated.
-    let cpu = sage3d(&["bench", "render", "--slabs", "2"]);
-    assert!(!cpu.status.success());
-    assert!(stderr(&cpu).contains("--device gpu"), "{}", stderr(&cpu));
+    for flags in [["--slabs", "2"], ["--blending", "columns"]] {
+        let cpu = sage3d(&[&["bench", "render"], &flags[..]].concat());
+        assert!(!cpu.status.success());
+        assert!(stderr(&cpu).contains("--device gpu"), "{}", stderr(&cpu));
+    }
+    let unknown = sage3d(&["bench", "render", "--blending", "pixels"]);
+    assert!(!unknown.status.success());
+    assert!(
+        stderr(&unknown).contains("blocks, columns"),
+        "{}",
+        stderr(&unknown)
+    );
     let out = sage3d(&["bench", "render", "--device", "gpu", "--slabs", "5"]);
     if no_adapter(&out) {
         return;
@@ -247,6 +256,8 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
         "32x32",
         "--slabs",
         "2",
+        "--blending",
+        "columns",
         "--json",
     ]);
     if no_adapter(&out) {
@@ -254,6 +265,8 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
     }
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(report_slabs(&out), Some(2));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["blending"], "columns", "{report}");
     // The measuring process says once which renderer it measures.
     let line = renderer_line(&out);
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

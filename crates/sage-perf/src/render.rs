@@ -7,7 +7,8 @@ use sage_core::Result;
 use sage_scene::Scene;
 use sage_scene::ply::SplatLayout;
 use sage_splat::{
-    Backend, Camera, Channels, Device, Intrinsics, PassTimes, RenderOptions, Renderer, Rendering,
+    Backend, Blending, Camera, Channels, Device, Intrinsics, PassTimes, RenderOptions, Renderer,
+    Rendering,
 };
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
@@ -42,6 +43,8 @@ pub struct RenderSettings {
     pub channels: Channels,
     /// Depth slabs of every GPU batch, fixed (`None`: chosen from the last batch's work).
     pub slabs: Option<u32>,
+    /// The GPU renderer's blending kernel.
+    pub blending: Blending,
 }
 
 /// The resolutions measured on the CPU unless asked otherwise.
@@ -65,6 +68,7 @@ impl Default for RenderSettings {
             batch_size: (224, 224),
             channels: Channels::ALL,
             slabs: None,
+            blending: Blending::default(),
         }
     }
 }
@@ -93,6 +97,9 @@ pub struct RenderReport {
     /// batch's work).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slabs: Option<u32>,
+    /// The GPU renderer's blending kernel, when the GPU rendered.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blending: Option<Blending>,
     /// Milliseconds to set the renderer up: the CPU's spatial index, or the GPU's device (on
     /// first use) and the upload of the scene.
     pub index_ms: f64,
@@ -202,6 +209,9 @@ impl fmt::Display for RenderReport {
         writeln!(f, "images           {}", self.channels)?;
         if let Some(slabs) = self.slabs {
             writeln!(f, "depth slabs      {slabs} in every batch (fixed)")?;
+        }
+        if let Some(blending) = self.blending {
+            writeln!(f, "blending         {blending}")?;
         }
         match self.index_bytes {
             Some(bytes) => writeln!(
@@ -318,6 +328,7 @@ pub fn run(
         ));
     }
     settings.device.check_slabs(settings.slabs)?;
+    settings.device.check_blending(settings.blending)?;
     if let (Some(dir), false) = (&settings.scene, settings.sh3) {
         return measure(&Scene::load(dir)?.0, settings);
     }
@@ -451,6 +462,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
     let index_ms = start.elapsed().as_secs_f64() * 1e3;
     backend.set_slabs(settings.slabs)?;
+    backend.set_blending(settings.blending)?;
     eprintln!("renderer: {}", backend.describe());
     let eye = sage_splat::camera::default_eye(scene);
     let machine = machine::describe();
@@ -589,6 +601,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         pitch: settings.pitch,
         channels: settings.channels.to_string(),
         slabs: settings.slabs,
+        blending: backend.is_gpu().then_some(settings.blending),
         index_ms,
         index_bytes: backend.as_cpu().map(|r| r.index().heap_bytes()),
         store_bytes: scene.gaussians.heap_bytes(),

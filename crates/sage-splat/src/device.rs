@@ -3,7 +3,7 @@
 //! [`Backend`] is what commands and environments hold, whichever was chosen.
 
 use crate::camera::Camera;
-use crate::passes::{GPU_SLABS, PassTimes};
+use crate::passes::{Blending, GPU_SLABS, PassTimes};
 use crate::render::{RenderOptions, RenderOutput, Renderer};
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
@@ -66,6 +66,21 @@ impl Device {
             ))),
             Some(_) => Ok(()),
         }
+    }
+
+    /// Checks a choice of the GPU renderer's blending kernel before any work: another kernel
+    /// than the default on the GPU only.
+    ///
+    /// # Errors
+    ///
+    /// [`Blending::Columns`] for another device than `gpu`.
+    pub fn check_blending(self, blending: Blending) -> Result<()> {
+        if blending != Blending::default() && self != Device::Gpu {
+            return Err(Error::invalid(format!(
+                "blending: only the GPU renderer's kernel can be chosen (--device gpu), got {blending}"
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -274,6 +289,24 @@ impl Backend {
         }
     }
 
+    /// Chooses the GPU renderer's blending kernel (see
+    /// [`crate::gpu::GpuRenderer::set_blending`]).
+    ///
+    /// # Errors
+    ///
+    /// Another kernel than the default on the CPU renderer, which blends its own way.
+    #[cfg_attr(not(feature = "gpu"), expect(unused_variables))]
+    pub fn set_blending(&self, blending: Blending) -> Result<()> {
+        match &self.executor {
+            Executor::Cpu(_) => Device::Cpu.check_blending(blending),
+            #[cfg(feature = "gpu")]
+            Executor::Gpu(r) => {
+                r.set_blending(blending);
+                Ok(())
+            }
+        }
+    }
+
     /// The GPU time of each stage of the last batch, while timing ([`Backend::time_passes`]).
     pub fn pass_times(&self) -> Option<PassTimes> {
         match &self.executor {
@@ -417,7 +450,7 @@ mod tests {
     }
 
     #[test]
-    fn only_the_gpu_fixes_its_slabs_and_only_to_counts_it_renders_in() {
+    fn only_the_gpu_is_tuned_and_only_to_settings_it_has() {
         for d in [Device::Cpu, Device::Gpu, Device::Auto] {
             assert!(d.check_slabs(None).is_ok());
         }
@@ -435,5 +468,16 @@ mod tests {
         let cpu = Backend::cpu(&Gaussians::default());
         assert!(cpu.set_slabs(None).is_ok());
         assert!(cpu.set_slabs(Some(1)).is_err());
+        // Likewise the blending kernel: the default anywhere, another on the GPU only.
+        for d in [Device::Cpu, Device::Gpu, Device::Auto] {
+            assert!(d.check_blending(Blending::Blocks).is_ok());
+        }
+        assert!(Device::Gpu.check_blending(Blending::Columns).is_ok());
+        for d in [Device::Cpu, Device::Auto] {
+            let e = d.check_blending(Blending::Columns).unwrap_err();
+            assert!(e.message().contains("--device gpu"), "{e}");
+        }
+        assert!(cpu.set_blending(Blending::Blocks).is_ok());
+        assert!(cpu.set_blending(Blending::Columns).is_err());
     }
 }

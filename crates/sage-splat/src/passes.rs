@@ -2,11 +2,71 @@
 //! host reads, and the host's unpacking of them — as plain data: [`Backend`](crate::Backend)
 //! hands it out whichever executor was built in.
 
+use sage_core::{Error, Result};
 use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
 
 /// Most depth slabs a GPU batch renders in, front to back (the CPU renderer takes 8; on a GPU
 /// each slab costs a round of dispatches, so fewer).
 pub const GPU_SLABS: u32 = 4;
+
+/// The GPU renderer's blending kernel. Both blend every pixel by the same rules in the same
+/// order and form the same bytes (a GPU test holds them to it); they differ in how threads share
+/// a tile, which suits CPU drivers and hardware GPUs differently.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum Blending {
+    /// Shaped for CPU drivers (lavapipe): 32 threads per tile, each blending a column of eight
+    /// pixels, eight threads per block of 8×8 stepping through only the splats whose box
+    /// reaches their block, so a splat read from workgroup memory serves eight pixels.
+    #[default]
+    Blocks,
+    /// Shaped for hardware GPUs: 64 threads per tile, each blending a column of four pixels,
+    /// all stepping through the tile's whole list together, with a quarter of the workgroup
+    /// memory for twice the threads.
+    Columns,
+}
+
+impl Blending {
+    /// The names accepted by [`Blending::from_str`], in the order of the variants.
+    pub const NAMES: [&'static str; 2] = ["blocks", "columns"];
+}
+
+impl fmt::Display for Blending {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(Self::NAMES[*self as usize])
+    }
+}
+
+impl FromStr for Blending {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "blocks" => Ok(Blending::Blocks),
+            "columns" => Ok(Blending::Columns),
+            _ => Err(Error::invalid(format!(
+                "blending: unknown kernel {s:?} (expected one of {})",
+                Self::NAMES.join(", ")
+            ))),
+        }
+    }
+}
+
+impl TryFrom<String> for Blending {
+    type Error = Error;
+
+    fn try_from(s: String) -> Result<Self> {
+        s.parse()
+    }
+}
+
+impl From<Blending> for String {
+    fn from(b: Blending) -> String {
+        b.to_string()
+    }
+}
 
 /// Milliseconds of a batch on the GPU renderer: its stages on the device, summed over its depth
 /// slabs (from timestamps the device writes between dispatches: [`Backend::time_passes`]), the
@@ -49,5 +109,24 @@ impl std::fmt::Display for PassTimes {
             self.read_back_ms,
             self.unpack_ms
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blending_names_round_trip_and_unknown_ones_are_refused() {
+        for (name, b) in Blending::NAMES
+            .iter()
+            .zip([Blending::Blocks, Blending::Columns])
+        {
+            assert_eq!(name.parse::<Blending>().unwrap(), b);
+            assert_eq!(b.to_string(), *name);
+            assert_eq!(serde_json::to_string(&b).unwrap(), format!("\"{name}\""));
+        }
+        let e = "pixels".parse::<Blending>().unwrap_err();
+        assert!(e.message().contains("blocks, columns"), "{e}");
     }
 }

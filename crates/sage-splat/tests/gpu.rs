@@ -13,7 +13,7 @@ use sage_scene::{Gaussian, Gaussians};
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
 use sage_splat::passes::GPU_SLABS;
 use sage_splat::{
-    Backend, Camera, Channels, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
+    Backend, Blending, Camera, Channels, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
 };
 use sage_synth::{SynthConfig, generate};
 use sage_testkit::splats::{psnr, random_gaussians};
@@ -256,40 +256,43 @@ fn a_batch_equals_its_cameras_rendered_alone_and_repeats_exactly() {
 }
 
 #[test]
-fn the_images_are_the_same_in_any_number_of_depth_slabs() {
+fn the_images_are_the_same_in_any_number_of_depth_slabs_with_either_blending_kernel() {
     let Some(gpu) = gpu() else { return };
     let scene = home(11, 3, 20, 30_000);
     let g = &scene.gaussians;
     let categories = &scene.instances.category_ids;
     let c = scene.floorplan.rooms[0].profile.centroid();
     // Headings all round a room: some face a near wall (tiles finished in the first slab),
-    // some look down the house.
+    // some look down the house; two sizes, one not a whole number of tiles.
     let cameras: Vec<Camera> = (0..5)
-        .map(|k| camera(72, 56, Vec3::new(c.x, c.y, 1.1), 1.3 * k as f32, 0.0))
+        .map(|k| {
+            let (w, h) = if k % 2 == 0 { (72, 56) } else { (64, 48) };
+            camera(w, h, Vec3::new(c.x, c.y, 1.1), 1.3 * k as f32, 0.0)
+        })
         .collect();
     let renderer = GpuRenderer::new(&gpu, g).unwrap();
     let options = RenderOptions::default();
     let mut renders = Vec::new();
-    for slabs in 1..=GPU_SLABS {
-        renderer.set_slabs(Some(slabs)).unwrap();
-        renders.push(
-            renderer
+    for blending in [Blending::Blocks, Blending::Columns] {
+        renderer.set_blending(blending);
+        for slabs in 1..=GPU_SLABS {
+            renderer.set_slabs(Some(slabs)).unwrap();
+            let batch = renderer
                 .render_batch(g, categories, &cameras, &options)
-                .unwrap(),
-        );
-        assert_eq!(renderer.stats().slabs, slabs);
-        // A fixed count holds whatever the batch's work was.
-        let alone = renderer
-            .render(g, categories, &cameras[0], &options)
-            .unwrap();
-        assert!(
-            alone == renders[renders.len() - 1][0],
-            "{slabs} slabs alone"
-        );
-        assert_eq!(renderer.stats().slabs, slabs);
+                .unwrap();
+            assert_eq!(renderer.stats().slabs, slabs);
+            // A fixed count holds whatever the batch's work was.
+            let alone = renderer
+                .render(g, categories, &cameras[1], &options)
+                .unwrap();
+            assert!(alone == batch[1], "{blending}, {slabs} slabs: alone");
+            assert_eq!(renderer.stats().slabs, slabs);
+            renders.push((format!("{blending}, {slabs} slabs"), batch));
+        }
     }
-    for (k, r) in renders.iter().enumerate().skip(1) {
-        assert!(*r == renders[0], "{} slabs differ from one", k + 1);
+    let (_, first) = &renders[0];
+    for (what, r) in &renders[1..] {
+        assert!(r == first, "{what} differ from blocks in one slab");
     }
     let e = renderer.set_slabs(Some(GPU_SLABS + 1)).unwrap_err();
     assert!(e.message().contains("1 to 4"), "{e}");
@@ -297,7 +300,7 @@ fn the_images_are_the_same_in_any_number_of_depth_slabs() {
     let chosen = renderer
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
-    assert!(chosen == renders[0], "slabs chosen from the work differ");
+    assert!(chosen == *first, "slabs chosen from the work differ");
 }
 
 /// Sets of images a caller may ask for: each alone, the sensors of an RGB-D agent, the 8-bit

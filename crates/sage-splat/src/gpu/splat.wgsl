@@ -1041,6 +1041,30 @@ fn blend(q: ptr<function, Pixels>, power: vec4<f32>, sb: vec4<f32>, c: vec4<f32>
     (*q).live = (*q).live & !ends;
 }
 
+// The tile a raster workgroup blends and its range of entries (first, one past the last),
+// taken from the list by thread 0 and read by every thread through the workgroup, so the tile
+// and the loop bounds are uniform; the range is emptied for the next slab (the list's count
+// was read before this dispatch).
+fn raster_job(lid: u32, listed: u32) -> vec3<u32> {
+    if lid == 0u {
+        atomicStore(&threads_done, 0u);
+        let t = atomicLoad(&tile_list[listed]);
+        raster_tile = vec3<u32>(t, tile_ranges[t]);
+        tile_ranges[t] = vec2<u32>(0u);
+        if listed == 0u {
+            atomicStore(&tile_list[live[LIVE_TILES]], 0u);
+        }
+    }
+    return workgroupUniformLoad(&raster_tile);
+}
+
+// The Gaussian's exponent at a column of four pixel centres `dx` across and `dy` down from
+// splat (s: x, y, conic a, conic b; sb: conic c, …), `across` = a·dx² shared by the column's
+// vectors: one formula, so both blending kernels form the same bytes.
+fn splat_power(s: vec4<f32>, sb: vec4<f32>, dx: f32, across: f32, dy: vec4<f32>) -> vec4<f32> {
+    return -0.5 * (across + sb.x * dy * dy) - s.w * dx * dy;
+}
+
 // A workgroup per tile of every camera; each of its 32 threads blends a column of eight pixels
 // (as two vectors of four lanes), so a splat read from workgroup memory serves eight pixels.
 // Eight neighbouring threads cover a block of 8×8 pixels and go through only the splats whose
@@ -1060,18 +1084,7 @@ fn raster(
     if listed >= live[slots.listed_tiles] {
         return;
     }
-    if lid == 0u {
-        atomicStore(&threads_done, 0u);
-        let t = atomicLoad(&tile_list[listed]);
-        raster_tile = vec3<u32>(t, tile_ranges[t]);
-        // Empty again for the next slab (the list's count was read before this dispatch).
-        tile_ranges[t] = vec2<u32>(0u);
-        if listed == 0u {
-            atomicStore(&tile_list[live[LIVE_TILES]], 0u);
-        }
-    }
-    // Read through the workgroup so every thread sees the same (uniform) tile and loop bounds.
-    let job = workgroupUniformLoad(&raster_tile);
+    let job = raster_job(lid, listed);
     let tile_index = job.x;
     let range = job.yz;
     let c = tile_camera(tile_index);
@@ -1142,11 +1155,9 @@ fn raster(
                 let s = batch_a[k];
                 let sb = batch_b[k];
                 let dx = s.x - cx;
-                let dy_upper = s.y - cy_upper;
-                let dy_lower = s.y - cy_lower;
                 let across = s.z * dx * dx;
-                let power_upper = -0.5 * (across + sb.x * dy_upper * dy_upper) - s.w * dx * dy_upper;
-                let power_lower = -0.5 * (across + sb.x * dy_lower * dy_lower) - s.w * dx * dy_lower;
+                let power_upper = splat_power(s, sb, dx, across, s.y - cy_upper);
+                let power_lower = splat_power(s, sb, dx, across, s.y - cy_lower);
                 let c = batch_c[k];
                 // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
                 let reach = vec4<f32>(-0.5 * c.w);
@@ -1166,6 +1177,85 @@ fn raster(
     }
     store_pixels(&upper, p_upper, inside_upper, pixels);
     store_pixels(&lower, p_lower, inside_lower, pixels);
+}
+
+var<workgroup> column_a: array<vec4<f32>, 64>;
+var<workgroup> column_b: array<vec4<f32>, 64>;
+var<workgroup> column_c: array<vec4<f32>, 64>;
+
+// The blending kernel for hardware GPUs (`Blending::Columns`): a workgroup of 64 threads per
+// listed tile, each blending a column of four pixels (one vector), all stepping through the
+// tile's whole list together in batches of 64 splats read into workgroup memory at once. A warp
+// runs in step over the same splat (no per-block lists to diverge on), and a workgroup holds 3
+// KB of workgroup memory for two warps where `raster` holds 13.5 KB for one. The same rules
+// and the same bytes as `raster`; a column of four that finishes here counts in `tile_done`.
+@compute @workgroup_size(64)
+fn raster_columns(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let listed = group_index(wid, nwg);
+    if listed >= live[slots.listed_tiles] {
+        return;
+    }
+    let job = raster_job(lid, listed);
+    let tile_index = job.x;
+    let range = job.yz;
+    let c = tile_camera(tile_index);
+    let size = cameras[c].size;
+    let local = tile_index - cameras[c].place.x;
+    let tx = local % size.z;
+    let ty = local / size.z;
+    let px = tx * TILE + lid % TILE;
+    let py = ty * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
+    let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
+    let cx = f32(px) + 0.5;
+    let cy = vec4<f32>(py) + 0.5;
+    let pixels = size.x * size.y;
+    let p = cameras[c].place.y + py * size.x + px;
+    var q = load_pixels(p, inside, pixels);
+    let was_live = any(q.live);
+    var counted = false;
+    for (var start = range.x; start < range.y; start += 64u) {
+        if !any(q.live) && !counted {
+            counted = true;
+            atomicAdd(&threads_done, 1u);
+        }
+        workgroupBarrier();
+        let e = start + lid;
+        if e < range.y {
+            let g = sorted_splat(e);
+            column_a[lid] = splats[4u * g];
+            column_b[lid] = splats[4u * g + 1u];
+            column_c[lid] = splats[4u * g + 2u];
+        }
+        if lid == 0u {
+            all_done = atomicLoad(&threads_done);
+        }
+        if workgroupUniformLoad(&all_done) == 64u {
+            break;
+        }
+        let n = min(64u, range.y - start);
+        for (var k = 0u; k < n; k++) {
+            if !any(q.live) {
+                break;
+            }
+            let s = column_a[k];
+            let sb = column_b[k];
+            let dx = s.x - cx;
+            let power = splat_power(s, sb, dx, s.z * dx * dx, s.y - cy);
+            let col = column_c[k];
+            // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
+            if any(q.live & (power >= vec4<f32>(-0.5 * col.w))) {
+                blend(&q, power, sb, col);
+            }
+        }
+    }
+    if was_live && !any(q.live) {
+        atomicAdd(&tile_done[tile_index], 1u);
+    }
+    store_pixels(&q, p, inside, pixels);
 }
 
 // A colour channel as the CPU renderer's `to_byte` rounds it: clamped to 0–1 (NaN to 0),

@@ -8,7 +8,7 @@ use super::kernel::{
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
-use crate::passes::{GPU_SLABS, PassTimes};
+use crate::passes::{Blending, GPU_SLABS, PassTimes};
 
 /// Most depth slabs a batch renders in ([`GPU_SLABS`]).
 pub(crate) const SLABS: u32 = GPU_SLABS;
@@ -131,6 +131,7 @@ pub(crate) struct Kernels {
     ranges: Kernel,
     start_pixels: Kernel,
     raster: Kernel,
+    raster_columns: Kernel,
     compose: Kernel,
     scan: Scan,
     sort: RadixSort,
@@ -171,6 +172,7 @@ impl Kernels {
             ranges: kernel("ranges"),
             start_pixels: kernel("start_pixels"),
             raster: kernel("raster"),
+            raster_columns: kernel("raster_columns"),
             compose: kernel("compose"),
             scan: Scan::new(gpu),
             sort: RadixSort::new(gpu),
@@ -189,6 +191,8 @@ pub(crate) struct BatchPlan<'a> {
     pub(crate) tile_passes: u32,
     /// Depth slabs.
     pub(crate) slabs: u32,
+    /// The blending kernel.
+    pub(crate) blending: Blending,
     /// The per-pixel passes' grid: the largest camera's tiles across and down × cameras.
     pub(crate) grid: (u32, u32, u32),
     /// Where a timestamp goes before and after each stage ([`PassTimes::from_stamps`] reads
@@ -550,6 +554,7 @@ impl Workspace {
             depth_passes,
             tile_passes,
             slabs,
+            blending,
             grid,
             stamps,
         } = *b;
@@ -601,7 +606,11 @@ impl Workspace {
             live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
             stamp(pass);
             live.encode(pass, &self.programs, 4);
-            live.dispatch(pass, &k.raster, &groups, d.listed_tiles);
+            let raster = match blending {
+                Blending::Blocks => &k.raster,
+                Blending::Columns => &k.raster_columns,
+            };
+            live.dispatch(pass, raster, &groups, d.listed_tiles);
             stamp(pass);
         }
         k.compose.run_grid(pass, &groups, grid);
