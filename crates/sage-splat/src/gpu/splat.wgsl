@@ -1041,11 +1041,20 @@ fn blend(q: ptr<function, Pixels>, power: vec4<f32>, sb: vec4<f32>, c: vec4<f32>
     (*q).live = (*q).live & !ends;
 }
 
-// The tile a raster workgroup blends and its range of entries (first, one past the last),
-// taken from the list by thread 0 and read by every thread through the workgroup, so the tile
-// and the loop bounds are uniform; the range is emptied for the next slab (the list's count
-// was read before this dispatch).
-fn raster_job(lid: u32, listed: u32) -> vec3<u32> {
+// What a raster workgroup blends: a tile of the batch, its entries of this slab (first, one
+// past the last), its camera and the camera's size, and the tile's first pixel.
+struct RasterJob {
+    tile: u32,
+    range: vec2<u32>,
+    camera: u32,
+    size: vec4<u32>,
+    origin: vec2<u32>,
+}
+
+// The job of the workgroup of listed tile `listed`: thread 0 takes the tile from the list and
+// every thread reads it through the workgroup, so the tile and the loop bounds are uniform; the
+// tile's range is emptied for the next slab (the list's count was read before this dispatch).
+fn raster_job(lid: u32, listed: u32) -> RasterJob {
     if lid == 0u {
         atomicStore(&threads_done, 0u);
         let t = atomicLoad(&tile_list[listed]);
@@ -1055,7 +1064,11 @@ fn raster_job(lid: u32, listed: u32) -> vec3<u32> {
             atomicStore(&tile_list[live[LIVE_TILES]], 0u);
         }
     }
-    return workgroupUniformLoad(&raster_tile);
+    let job = workgroupUniformLoad(&raster_tile);
+    let c = tile_camera(job.x);
+    let size = cameras[c].size;
+    let local = job.x - cameras[c].place.x;
+    return RasterJob(job.x, job.yz, c, size, vec2<u32>(local % size.z, local / size.z) * TILE);
 }
 
 // The Gaussian's exponent at a column of four pixel centres `dx` across and `dy` down from
@@ -1085,17 +1098,13 @@ fn raster(
         return;
     }
     let job = raster_job(lid, listed);
-    let tile_index = job.x;
-    let range = job.yz;
-    let c = tile_camera(tile_index);
-    let size = cameras[c].size;
-    let local = tile_index - cameras[c].place.x;
-    let tx = local % size.z;
-    let ty = local / size.z;
-    let px = tx * TILE + lid % TILE;
-    let py_upper = ty * TILE + (lid / TILE) * 8u + vec4<u32>(0u, 1u, 2u, 3u);
+    let range = job.range;
+    let c = job.camera;
+    let size = job.size;
+    let px = job.origin.x + lid % TILE;
+    let py_upper = job.origin.y + (lid / TILE) * 8u + vec4<u32>(0u, 1u, 2u, 3u);
     let py_lower = py_upper + 4u;
-    let tile = vec2<f32>(f32(tx * TILE), f32(ty * TILE));
+    let tile = vec2<f32>(job.origin);
     // Threads 8b…8b+7 are block b: row half b / 2, column half b % 2 (as in `box_blocks`).
     let block = lid / 8u;
     let inside_upper = vec4<bool>(px < size.x) & (py_upper < vec4<u32>(size.y));
@@ -1173,7 +1182,7 @@ fn raster(
     let finished = select(0u, 1u, was_live.x && !any(upper.live))
         + select(0u, 1u, was_live.y && !any(lower.live));
     if finished > 0u {
-        atomicAdd(&tile_done[tile_index], finished);
+        atomicAdd(&tile_done[job.tile], finished);
     }
     store_pixels(&upper, p_upper, inside_upper, pixels);
     store_pixels(&lower, p_lower, inside_lower, pixels);
@@ -1200,15 +1209,11 @@ fn raster_columns(
         return;
     }
     let job = raster_job(lid, listed);
-    let tile_index = job.x;
-    let range = job.yz;
-    let c = tile_camera(tile_index);
-    let size = cameras[c].size;
-    let local = tile_index - cameras[c].place.x;
-    let tx = local % size.z;
-    let ty = local / size.z;
-    let px = tx * TILE + lid % TILE;
-    let py = ty * TILE + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
+    let range = job.range;
+    let c = job.camera;
+    let size = job.size;
+    let px = job.origin.x + lid % TILE;
+    let py = job.origin.y + (lid / TILE) * 4u + vec4<u32>(0u, 1u, 2u, 3u);
     let inside = vec4<bool>(px < size.x) & (py < vec4<u32>(size.y));
     let cx = f32(px) + 0.5;
     let cy = vec4<f32>(py) + 0.5;
@@ -1253,7 +1258,7 @@ fn raster_columns(
         }
     }
     if was_live && !any(q.live) {
-        atomicAdd(&tile_done[tile_index], 1u);
+        atomicAdd(&tile_done[job.tile], 1u);
     }
     store_pixels(&q, p, inside, pixels);
 }
