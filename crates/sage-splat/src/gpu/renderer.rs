@@ -414,10 +414,11 @@ impl GpuRenderer {
     }
 
     /// Renders every batch from now on in `slabs` depth slabs (1 to
-    /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), or, with `None` (the default), in as many as the last
-    /// batch's work calls for. The images are the same whatever the slabs: what changes is the
-    /// work skipped behind finished tiles against the dispatches each slab costs, which weigh
-    /// differently on each device (`sage3d bench render --slabs` measures them).
+    /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), or, with `None` (the default), in as many as
+    /// the last batch's work calls for. The images are the same whatever the slabs: what
+    /// changes is the work skipped behind finished tiles against the dispatches each slab
+    /// costs, which weigh differently on each device (`sage3d bench render --slabs` measures
+    /// them).
     ///
     /// # Errors
     ///
