@@ -13,12 +13,14 @@ use sage_scene::{Gaussian, Gaussians};
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
 use sage_splat::passes::GPU_SLABS;
 use sage_splat::{
-    Backend, Blending, Camera, Channels, Device, Intrinsics, RenderOptions, RenderOutput, Renderer,
+    Backend, Blending, Camera, Channels, Device, RenderOptions, RenderOutput, Renderer,
 };
-use sage_synth::{SynthConfig, generate};
 use sage_testkit::splats::{psnr, random_gaussians};
 use std::path::PathBuf;
 use std::sync::Arc;
+
+mod common;
+use common::{camera, home};
 
 fn gpu() -> Option<Arc<Gpu>> {
     match Gpu::shared(false) {
@@ -33,32 +35,11 @@ fn gpu() -> Option<Arc<Gpu>> {
     }
 }
 
-/// A generated home of `rooms` rooms, `objects` objects and `gaussians` Gaussians.
-fn home(seed: u64, rooms: usize, objects: usize, gaussians: usize) -> sage_scene::scene::Scene {
-    generate(&SynthConfig {
-        seed,
-        rooms,
-        objects,
-        gaussians,
-        ..SynthConfig::default()
-    })
-    .unwrap()
-}
-
 fn testdata(name: &str) -> Gaussians {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../testdata/splats")
         .join(name);
     read_splats_file(&path).unwrap().0
-}
-
-fn camera(w: u32, h: u32, position: Vec3, yaw: f32, pitch: f32) -> Camera {
-    Camera::from_yaw_pitch(
-        Intrinsics::from_hfov(w, h, 90.0).unwrap(),
-        position,
-        yaw,
-        pitch,
-    )
 }
 
 /// Checks the GPU image against the CPU image within the bounds; returns the PSNR.

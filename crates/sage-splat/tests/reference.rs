@@ -8,9 +8,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_scene::gaussians::sh_rest_count;
 use sage_scene::{Gaussian, Gaussians};
-use sage_splat::{Camera, Channels, Intrinsics, RenderOptions, RenderOutput, Renderer, sh};
-use sage_synth::{SynthConfig, generate};
+use sage_splat::{Camera, Channels, RenderOptions, RenderOutput, Renderer, sh};
 use sage_testkit::splats::{psnr, random_gaussians};
+
+mod common;
+use common::{camera, home};
 
 /// One projected Gaussian of the reference.
 struct RefSplat {
@@ -305,27 +307,6 @@ fn compare(gs: &Gaussians, cam: &Camera, what: &str) -> f64 {
         "{what}: nothing opaque to compare"
     );
     p
-}
-
-/// A generated home of `rooms` rooms, `objects` objects and `gaussians` Gaussians.
-fn home(seed: u64, rooms: usize, objects: usize, gaussians: usize) -> sage_scene::scene::Scene {
-    generate(&SynthConfig {
-        seed,
-        rooms,
-        objects,
-        gaussians,
-        ..SynthConfig::default()
-    })
-    .unwrap()
-}
-
-fn camera(w: u32, h: u32, position: Vec3, yaw: f32, pitch: f32) -> Camera {
-    Camera::from_yaw_pitch(
-        Intrinsics::from_hfov(w, h, 90.0).unwrap(),
-        position,
-        yaw,
-        pitch,
-    )
 }
 
 #[test]
