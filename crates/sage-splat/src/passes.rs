@@ -29,6 +29,9 @@ pub enum Blending {
 }
 
 impl Blending {
+    /// Every kernel, in the order of [`Blending::NAMES`].
+    pub const ALL: [Blending; 2] = [Blending::Blocks, Blending::Columns];
+
     /// The names accepted by [`Blending::from_str`], in the order of the variants.
     pub const NAMES: [&'static str; 2] = ["blocks", "columns"];
 }
@@ -43,14 +46,17 @@ impl FromStr for Blending {
     type Err = Error;
 
     fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "blocks" => Ok(Blending::Blocks),
-            "columns" => Ok(Blending::Columns),
-            _ => Err(Error::invalid(format!(
-                "blending: unknown kernel {s:?} (expected one of {})",
-                Self::NAMES.join(", ")
-            ))),
-        }
+        // One list of names for parsing and printing.
+        Self::NAMES
+            .iter()
+            .zip(Self::ALL)
+            .find_map(|(name, b)| (*name == s).then_some(b))
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "blending: unknown kernel {s:?} (expected one of {})",
+                    Self::NAMES.join(", ")
+                ))
+            })
     }
 }
 
@@ -118,10 +124,7 @@ mod tests {
 
     #[test]
     fn blending_names_round_trip_and_unknown_ones_are_refused() {
-        for (name, b) in Blending::NAMES
-            .iter()
-            .zip([Blending::Blocks, Blending::Columns])
-        {
+        for (name, b) in Blending::NAMES.iter().zip(Blending::ALL) {
             assert_eq!(name.parse::<Blending>().unwrap(), b);
             assert_eq!(b.to_string(), *name);
             assert_eq!(serde_json::to_string(&b).unwrap(), format!("\"{name}\""));
