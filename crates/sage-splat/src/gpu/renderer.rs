@@ -9,7 +9,7 @@ use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
     LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES,
-    PLANES, SLABS, TILE_SORT_PASSES, Workspace,
+    PLANES, SLABS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -26,12 +26,9 @@ use std::collections::VecDeque;
 use std::ops::Range;
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
 
-/// Most cameras in one batch: the byte above the sort keys' [`DEPTH_KEY_BITS`].
-const MAX_CAMERAS: usize = 1 << (32 - DEPTH_KEY_BITS);
-
 /// The WGSL constants shared with the CPU renderer, so both executors form images with the
 /// same numbers, and the scene's sizes.
-fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
+fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> String {
     let mut s = format!(
         "const TILE: u32 = {TILE}u;\nconst LOW_PASS: f32 = {LOW_PASS:?};\n\
          const MIN_ALPHA: f32 = {MIN_ALPHA:?};\nconst MAX_ALPHA: f32 = {MAX_ALPHA:?};\n\
@@ -48,7 +45,8 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32) -> String {
          const LIVE_OUT_PLANES: u32 = {LIVE_OUT_PLANES}u;\n\
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SLABS: u32 = {SLABS}u;\n\
-         const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n",
+         const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n\
+         const CAMERA_SLOTS: u32 = {camera_slots}u;\n",
         sh::C0,
         sh::C1,
         sh_words(sh_rest).max(1),
@@ -312,9 +310,14 @@ impl GpuRenderer {
             )));
         }
         let scene = SceneBuffers::upload(gpu, gaussians);
-        let source = prelude(sh_rest_count(gaussians.sh_degree()), n as u32, scene.chunks)
-            + include_str!("splat.wgsl");
-        let kernels = Kernels::new(gpu, source);
+        let slots = camera_slots(gpu);
+        let source = prelude(
+            sh_rest_count(gaussians.sh_degree()),
+            n as u32,
+            scene.chunks,
+            slots,
+        ) + include_str!("splat.wgsl");
+        let kernels = Kernels::new(gpu, source, slots);
         let categories_buffer = init_buffer(gpu, "categories", &[]);
         let scene_group = Self::scene_group(gpu, &kernels, &scene, &categories_buffer);
         gpu.check()?;
@@ -541,7 +544,8 @@ impl GpuRenderer {
         let need = self.need(&state, cameras, &options.channels);
         let flight = if cameras.is_empty() {
             Flight::Done(Vec::new())
-        } else if need.largest_buffer() > self.gpu.largest_binding() || cameras.len() > MAX_CAMERAS
+        } else if need.largest_buffer() > self.gpu.largest_binding()
+            || cameras.len() > self.kernels.camera_slots as usize
         {
             // Too large for one submission: rendered in parts now.
             Flight::Done(self.render_held(&mut state, categories, cameras, options)?)
@@ -743,7 +747,9 @@ impl GpuRenderer {
         let mut parts = Vec::new();
         let mut start = 0;
         while start < cameras.len() {
-            let mut end = cameras.len().min(start + MAX_CAMERAS);
+            let mut end = cameras
+                .len()
+                .min(start + self.kernels.camera_slots as usize);
             loop {
                 let need = self.need(state, &cameras[start..end], channels);
                 if need.largest_buffer() <= bound {
@@ -984,7 +990,8 @@ impl GpuRenderer {
                         tile_entries: totals[2],
                         capacity: caps.tile_entries,
                         regrown: 0,
-                        workspace_bytes: caps.bytes(),
+                        workspace_bytes: caps.bytes()
+                            + camera_block_bytes(self.kernels.camera_slots),
                         passes,
                     },
                 )

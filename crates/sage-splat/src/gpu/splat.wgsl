@@ -66,7 +66,10 @@ struct Slots {
 @group(0) @binding(6) var<storage, read> chunk_bounds: array<vec4<f32>>;
 
 // A batch's work space.
-@group(1) @binding(0) var<storage, read> cameras: array<Camera>;
+// A uniform buffer, not storage: lavapipe (Mesa 22) reads a storage array at an index it cannot
+// prove uniform lane by lane behind a branch each, a uniform array as one gather, which halves
+// `mark`; a GPU's constant cache serves the camera a workgroup shares.
+@group(1) @binding(0) var<uniform> cameras: array<Camera, CAMERA_SLOTS>;
 @group(1) @binding(1) var<storage, read> live: array<u32>;
 // Per camera × chunk (+1): visible, then its exclusive scan.
 @group(1) @binding(2) var<storage, read_write> chunk_flags: array<u32>;

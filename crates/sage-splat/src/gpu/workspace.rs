@@ -17,6 +17,23 @@ pub(crate) const SLABS: u32 = GPU_SLABS;
 pub(crate) const DEPTH_BINS: u32 = 128;
 /// Words of one camera's block (`Camera` in `splat.wgsl`: its array stride).
 pub(crate) const CAMERA_WORDS: usize = 60;
+
+/// Most cameras in one batch: the byte above the sort keys' [`DEPTH_KEY_BITS`].
+pub(crate) const MAX_CAMERAS: u32 = 1 << (32 - DEPTH_KEY_BITS);
+
+/// The cameras one batch holds on `gpu`: their blocks sit in one uniform buffer
+/// (`cameras` in `splat.wgsl`), so [`MAX_CAMERAS`] (60 KB, within the 64 KB every WebGPU
+/// adapter binds), or fewer where an adapter binds less.
+pub(crate) fn camera_slots(gpu: &Gpu) -> u32 {
+    let bytes = gpu.limits().max_uniform_buffer_binding_size;
+    (bytes / camera_block_bytes(1)).min(u64::from(MAX_CAMERAS)) as u32
+}
+
+/// Bytes of the uniform buffer holding `slots` camera blocks.
+pub(crate) fn camera_block_bytes(slots: u32) -> u64 {
+    u64::from(slots) * CAMERA_WORDS as u64 * 4
+}
+
 /// Planes of the blending state per camera (its pixels' words): r, g, b, transmittance,
 /// weighted depth, median depth, instance, best weight.
 pub(crate) const PLANES: u64 = 8;
@@ -93,17 +110,16 @@ impl Caps {
             u64::from(self.tile_entries) * 4,
             u64::from(self.camera_chunks) * 16 + 4,
             self.image_words * 4,
-            u64::from(self.cameras) * CAMERA_WORDS as u64 * 4,
         ]
         .into_iter()
         .max()
         .unwrap_or(0)
     }
 
-    /// Device bytes of buffers of these capacities (the scan and sort scratch included).
+    /// Device bytes of buffers of these capacities (the scan and sort scratch included; the
+    /// camera blocks, sized by the adapter, not).
     pub(crate) fn bytes(&self) -> u64 {
-        let words = u64::from(self.cameras)
-            * (CAMERA_WORDS as u64 + u64::from(DEPTH_BINS + SLABS + 1))
+        let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
             + u64::from(self.splats) * (SPLAT_WORDS + 6)
@@ -136,11 +152,14 @@ pub(crate) struct Kernels {
     scan: Scan,
     sort: RadixSort,
     pub(crate) live: Live,
+    /// The camera blocks `source` was compiled for ([`camera_slots`]).
+    pub(crate) camera_slots: u32,
 }
 
 impl Kernels {
-    /// Compiles `source` (the prelude and `splat.wgsl`) and the scan, sort and live kernels.
-    pub(crate) fn new(gpu: &Gpu, source: String) -> Kernels {
+    /// Compiles `source` (the prelude and `splat.wgsl`, with cameras in blocks of
+    /// `camera_slots`) and the scan, sort and live kernels.
+    pub(crate) fn new(gpu: &Gpu, source: String, camera_slots: u32) -> Kernels {
         let module = gpu
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -148,7 +167,7 @@ impl Kernels {
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
         let scene_layout = layout(gpu, &(0..7).map(|b| storage(b, true)).collect::<Vec<_>>());
-        let mut frame = vec![storage(0, true), storage(1, true)];
+        let mut frame = vec![uniform(0), storage(1, true)];
         frame.extend((2..16).map(|b| storage(b, false)));
         frame.push(uniform(16));
         frame.extend((17..22).map(|b| storage(b, false)));
@@ -179,6 +198,7 @@ impl Kernels {
             live: Live::new(gpu),
             scene_layout,
             frame_layout,
+            camera_slots,
         }
     }
 }
@@ -298,12 +318,12 @@ impl Workspace {
     pub(crate) fn new(gpu: &Gpu, k: &Kernels, caps: Caps) -> Workspace {
         let none = wgpu::BufferUsages::empty();
         let buffer = |label: &str, words: u64| words_buffer(gpu, label, words, none);
-        let cameras = words_buffer(
-            gpu,
-            "cameras",
-            u64::from(caps.cameras) * CAMERA_WORDS as u64,
-            wgpu::BufferUsages::COPY_DST,
-        );
+        let cameras = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("cameras"),
+            size: camera_block_bytes(k.camera_slots),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let flags = buffer("chunk flags", u64::from(caps.camera_chunks) + 1);
         let chunk_list = buffer("chunk list", u64::from(caps.entries));
         let masks = buffer("entry masks", 8 * u64::from(caps.entries));
