@@ -79,9 +79,11 @@ struct Slots {
 @group(1) @binding(4) var<storage, read_write> entry_masks: array<atomic<u32>>;
 // Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
 @group(1) @binding(5) var<storage, read_write> entry_counts: array<atomic<u32>>;
-// Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, instance
-// bits), (r, g, b, cutoff), (extent x, extent y, camera | tiles reached << 8 bits, reached
-// bits: where its tile box holds at most 32 tiles, a bit per tile of the box, row-major).
+// Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, cutoff),
+// (r, g, b, instance bits), (extent x, extent y, camera | tiles reached << 8 bits, reached
+// bits: where its tile box holds at most 32 tiles, a bit per tile of the box, row-major). The
+// blending kernels test a splat's reach with the first two and read the third only where it
+// reaches a pixel.
 @group(1) @binding(6) var<storage, read_write> splats: array<vec4<f32>>;
 // Depth-sort pairs: camera and depth key (`depth_key`) and splat; the sort ping-pongs with two
 // more buffers and ends in these or in the second (`depth_values_2`, at odd parity).
@@ -651,8 +653,8 @@ fn project(
     // splat is at hand, rather than found in `count_tiles` and again in `emit`.
     let tiles = walk_tiles(f.centre, conic, f.cutoff, c, tile_box(f.centre, f.extent, c), slot, 0u, false);
     splats[4u * slot] = vec4<f32>(f.centre, conic.xy);
-    splats[4u * slot + 1u] = vec4<f32>(conic.z, f.opacity, f.depth, bitcast<f32>(instances[g]));
-    splats[4u * slot + 2u] = vec4<f32>(sh_color(g, normalize(f.ray)), f.cutoff);
+    splats[4u * slot + 1u] = vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff);
+    splats[4u * slot + 2u] = vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g]));
     splats[4u * slot + 3u] = vec4<f32>(f.extent, bitcast<f32>(c | (tiles.x << 8u)), bitcast<f32>(tiles.y));
     depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;
@@ -815,8 +817,8 @@ fn emit(
     let e = splats[4u * s + 3u];
     let r = tile_box(m.xy, e.xy, c);
     if !box_has_bits(r) {
-        let conic = vec3<f32>(m.zw, splats[4u * s + 1u].x);
-        walk_tiles(m.xy, conic, splats[4u * s + 2u].w, c, r, s, first, true);
+        let sb = splats[4u * s + 1u];
+        walk_tiles(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, s, first, true);
         return;
     }
     var bits = bitcast<u32>(e.w);
@@ -1016,8 +1018,8 @@ fn store_pixels(q: ptr<function, Pixels>, p: vec4<u32>, inside: vec4<bool>, pixe
     }
 }
 
-// Blends splat (sb: conic c, opacity, depth, instance; c: r, g, b) at `power` into the pixels,
-// with the CPU renderer's rules.
+// Blends splat (sb: conic c, opacity, depth, cutoff; c: r, g, b, instance) at `power` into the
+// pixels, with the CPU renderer's rules.
 fn blend(q: ptr<function, Pixels>, power: vec4<f32>, sb: vec4<f32>, c: vec4<f32>) {
     // Below e^-40 alpha is far under 1/255 whatever it is: the clamp keeps the exponential out
     // of subnormal numbers, which CPUs (lavapipe) compute slowly.
@@ -1039,7 +1041,7 @@ fn blend(q: ptr<function, Pixels>, power: vec4<f32>, sb: vec4<f32>, c: vec4<f32>
     (*q).median = select((*q).median, vec4<f32>(sb.z), blend & (transmittance > vec4<f32>(0.5)));
     let better = blend & (weight > (*q).best_weight);
     (*q).best_weight = select((*q).best_weight, weight, better);
-    (*q).instance = select((*q).instance, vec4<u32>(bitcast<u32>(sb.w)), better);
+    (*q).instance = select((*q).instance, vec4<u32>(bitcast<u32>(c.w)), better);
     (*q).transmittance = select(transmittance, next, blend);
     (*q).live = (*q).live & !ends;
 }
@@ -1170,14 +1172,20 @@ fn raster(
                 let across = s.z * dx * dx;
                 let power_upper = splat_power(s, sb, dx, across, s.y - cy_upper);
                 let power_lower = splat_power(s, sb, dx, across, s.y - cy_lower);
-                let c = batch_c[k];
                 // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
-                let reach = vec4<f32>(-0.5 * c.w);
-                if any(upper.live & (power_upper >= reach)) {
-                    blend(&upper, power_upper, sb, c);
-                }
-                if any(lower.live & (power_lower >= reach)) {
-                    blend(&lower, power_lower, sb, c);
+                let reach = vec4<f32>(-0.5 * sb.w);
+                let reaches_upper = any(upper.live & (power_upper >= reach));
+                let reaches_lower = any(lower.live & (power_lower >= reach));
+                // The colour is read only where the splat reaches a pixel: under lavapipe each
+                // lane's read is its own load.
+                if reaches_upper || reaches_lower {
+                    let c = batch_c[k];
+                    if reaches_upper {
+                        blend(&upper, power_upper, sb, c);
+                    }
+                    if reaches_lower {
+                        blend(&lower, power_lower, sb, c);
+                    }
                 }
             }
         }
@@ -1253,10 +1261,9 @@ fn raster_columns(
             let sb = column_b[k];
             let dx = s.x - cx;
             let power = splat_power(s, sb, dx, s.z * dx * dx, s.y - cy);
-            let col = column_c[k];
             // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
-            if any(q.live & (power >= vec4<f32>(-0.5 * col.w))) {
-                blend(&q, power, sb, col);
+            if any(q.live & (power >= vec4<f32>(-0.5 * sb.w))) {
+                blend(&q, power, sb, column_c[k]);
             }
         }
     }
