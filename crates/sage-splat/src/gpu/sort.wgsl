@@ -41,10 +41,7 @@ fn histogram(
     if first >= blocks {
         return;
     }
-    for (var k = 0u; k < HISTOGRAM_BLOCKS; k++) {
-        atomicStore(&histogram_of_block[k * 256u + lid], 0u);
-    }
-    workgroupBarrier();
+    // Workgroup memory starts zeroed (WGSL's rule), so the counts need no clearing here.
     for (var k = 0u; k < HISTOGRAM_BLOCKS; k++) {
         let i = (first + k) * 256u + lid;
         if i < n {
@@ -80,10 +77,7 @@ fn scatter(
         key = keys_in[i];
         digit = (key >> params.shift) & 255u;
     }
-    for (var k = 0u; k < 8u; k++) {
-        atomicStore(&row_digits[k * 256u + lid], 0u);
-    }
-    workgroupBarrier();
+    // The bits start zeroed (workgroup memory, WGSL's rule).
     let row = lid / 32u;
     let bit = 1u << (lid % 32u);
     if valid {
