@@ -25,7 +25,11 @@ pub(crate) const MAX_CAMERAS: u32 = 1 << (32 - DEPTH_KEY_BITS);
 /// (`cameras` in `splat.wgsl`), so [`MAX_CAMERAS`] (60 KB, within the 64 KB every WebGPU
 /// adapter binds), or fewer where an adapter binds less.
 pub(crate) fn camera_slots(gpu: &Gpu) -> u32 {
-    let bytes = gpu.limits().max_uniform_buffer_binding_size;
+    camera_slots_within(gpu.limits().max_uniform_buffer_binding_size)
+}
+
+/// The camera blocks a uniform binding of `bytes` holds, at most [`MAX_CAMERAS`].
+fn camera_slots_within(bytes: u64) -> u32 {
     (bytes / camera_block_bytes(1)).min(u64::from(MAX_CAMERAS)) as u32
 }
 
@@ -635,5 +639,20 @@ impl Workspace {
         }
         k.compose.run_grid(pass, &groups, grid);
         stamp(pass);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_batch_holds_every_camera_a_sort_key_names_where_the_uniform_binding_allows() {
+        assert_eq!(camera_slots_within(64 << 10), MAX_CAMERAS);
+        let all = camera_block_bytes(MAX_CAMERAS);
+        assert_eq!(camera_slots_within(all), MAX_CAMERAS);
+        assert_eq!(camera_slots_within(all - 1), MAX_CAMERAS - 1);
+        // The least a WebGL2-class adapter binds.
+        assert_eq!(camera_slots_within(16 << 10), 68);
     }
 }
