@@ -1083,6 +1083,12 @@ fn splat_power(s: vec4<f32>, sb: vec4<f32>, dx: f32, across: f32, dy: vec4<f32>)
     return -0.5 * (across + sb.x * dy * dy) - s.w * dx * dy;
 }
 
+// True when splat (sb: conic c, opacity, depth, cutoff) at `power` may blend into some `live`
+// pixel: past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
+fn reaches(live: vec4<bool>, power: vec4<f32>, sb: vec4<f32>) -> bool {
+    return any(live & (power >= vec4<f32>(-0.5 * sb.w)));
+}
+
 // A workgroup per tile of every camera; each of its 32 threads blends a column of eight pixels
 // (as two vectors of four lanes), so a splat read from workgroup memory serves eight pixels.
 // Eight neighbouring threads cover a block of 8×8 pixels and go through only the splats whose
@@ -1172,10 +1178,8 @@ fn raster(
                 let across = s.z * dx * dx;
                 let power_upper = splat_power(s, sb, dx, across, s.y - cy_upper);
                 let power_lower = splat_power(s, sb, dx, across, s.y - cy_lower);
-                // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
-                let reach = vec4<f32>(-0.5 * sb.w);
-                let reaches_upper = any(upper.live & (power_upper >= reach));
-                let reaches_lower = any(lower.live & (power_lower >= reach));
+                let reaches_upper = reaches(upper.live, power_upper, sb);
+                let reaches_lower = reaches(lower.live, power_lower, sb);
                 // The colour is read only where the splat reaches a pixel: under lavapipe each
                 // lane's read is its own load.
                 if reaches_upper || reaches_lower {
@@ -1261,8 +1265,7 @@ fn raster_columns(
             let sb = column_b[k];
             let dx = s.x - cx;
             let power = splat_power(s, sb, dx, s.z * dx * dx, s.y - cy);
-            // Past half the cutoff alpha is below 1/255 (the cutoff errs outwards).
-            if any(q.live & (power >= vec4<f32>(-0.5 * sb.w))) {
+            if reaches(q.live, power, sb) {
                 blend(&q, power, sb, column_c[k]);
             }
         }
