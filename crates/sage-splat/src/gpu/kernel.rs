@@ -41,6 +41,57 @@ fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// A write-only storage texture binding of four floats per texel.
+pub(crate) fn texels_out(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::StorageTexture {
+            access: wgpu::StorageTextureAccess::WriteOnly,
+            format: TEXELS,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
+    }
+}
+
+/// A texture binding of four floats per texel, read with `textureLoad` (never filtered).
+pub(crate) fn texels_in(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// The texel format of [`texels_out`] and [`texels_in`]: every WebGPU adapter stores it from
+/// a compute kernel.
+const TEXELS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// A 2-D texture of `width` × `height` texels of four floats, written by kernels and read by
+/// later ones.
+pub(crate) fn texels(gpu: &Gpu, label: &str, width: u32, height: u32) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: TEXELS,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    })
+}
+
 /// A bind group layout of `entries`.
 pub(crate) fn layout(gpu: &Gpu, entries: &[wgpu::BindGroupLayoutEntry]) -> wgpu::BindGroupLayout {
     gpu.device
@@ -56,11 +107,21 @@ pub(crate) fn bind(
     layout: &wgpu::BindGroupLayout,
     resources: &[wgpu::BindingResource<'_>],
 ) -> wgpu::BindGroup {
+    bind_from(gpu, layout, 0, resources)
+}
+
+/// A bind group of `layout` with `resources` at bindings `first`, `first` + 1, …
+pub(crate) fn bind_from(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    first: u32,
+    resources: &[wgpu::BindingResource<'_>],
+) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry<'_>> = resources
         .iter()
         .enumerate()
         .map(|(i, r)| wgpu::BindGroupEntry {
-            binding: i as u32,
+            binding: first + i as u32,
             resource: r.clone(),
         })
         .collect();

@@ -9,7 +9,8 @@ use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
     LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES,
-    PLANES, SLABS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
+    PLANES, SLABS, SPLAT_TEXELS_ACROSS, TILE_SORT_PASSES, Workspace, camera_block_bytes,
+    camera_slots,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -46,7 +47,8 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n\
-         const CAMERA_SLOTS: u32 = {camera_slots}u;\n",
+         const CAMERA_SLOTS: u32 = {camera_slots}u;\n\
+         const SPLAT_TEXELS_ACROSS: u32 = {SPLAT_TEXELS_ACROSS}u;\n",
         sh::C0,
         sh::C1,
         sh_words(sh_rest).max(1),
@@ -282,7 +284,7 @@ impl Submitted {
             // Rendered again in a grown work space, with this batch's categories bound
             // (another caller may have changed them since).
             Finished::Grow(need) => {
-                if need.largest_buffer() <= r.gpu.largest_binding() {
+                if need.fit(&r.gpu) {
                     r.grow(&mut state, need);
                 }
                 r.render_held(&mut state, &self.categories, &self.cameras, &self.options)
@@ -544,9 +546,7 @@ impl GpuRenderer {
         let need = self.need(&state, cameras, &options.channels);
         let flight = if cameras.is_empty() {
             Flight::Done(Vec::new())
-        } else if need.largest_buffer() > self.gpu.largest_binding()
-            || cameras.len() > self.kernels.camera_slots as usize
-        {
+        } else if !need.fit(&self.gpu) || cameras.len() > self.kernels.camera_slots as usize {
             // Too large for one submission: rendered in parts now.
             Flight::Done(self.render_held(&mut state, categories, cameras, options)?)
         } else {
@@ -652,7 +652,6 @@ impl GpuRenderer {
         options: &RenderOptions,
     ) -> Result<Vec<RenderOutput>> {
         self.use_categories(state, categories);
-        let bound = self.gpu.largest_binding();
         let mut queue: VecDeque<Range<usize>> =
             self.parts(state, cameras, &options.channels)?.into();
         let mut out: Vec<Option<RenderOutput>> = cameras.iter().map(|_| None).collect();
@@ -684,7 +683,7 @@ impl GpuRenderer {
                         };
                         total.workspace_bytes = stats.workspace_bytes;
                     }
-                    Finished::Grow(need) if need.largest_buffer() <= bound => {
+                    Finished::Grow(need) if need.fit(&self.gpu) => {
                         total.regrown += 1;
                         self.grow(state, need);
                         queue.push_front(range);
@@ -724,15 +723,23 @@ impl GpuRenderer {
     /// The error of a single `camera` whose work space `need` passes what one binding of the
     /// adapter sees.
     fn too_large(&self, camera: &Camera, need: &Caps) -> Error {
-        Error::invalid(format!(
-            "GPU {}: a {}x{} frame needs {} MB of work space in one buffer; the adapter binds \
-             at most {} MB (render smaller images)",
-            self.gpu.describe(),
-            camera.intrinsics.width,
-            camera.intrinsics.height,
-            need.largest_buffer() >> 20,
-            self.gpu.largest_binding() >> 20
-        ))
+        let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
+        let adapter = self.gpu.describe();
+        let (largest, bound) = (need.largest_buffer(), self.gpu.largest_binding());
+        Error::invalid(if largest > bound {
+            format!(
+                "GPU {adapter}: a {w}x{h} frame needs {} MB of work space in one buffer; the \
+                 adapter binds at most {} MB (render smaller images)",
+                largest >> 20,
+                bound >> 20
+            )
+        } else {
+            format!(
+                "GPU {adapter}: a {w}x{h} frame projects {} splats, more than the adapter's \
+                 largest textures hold (render smaller images)",
+                need.splats
+            )
+        })
     }
 
     /// Splits `cameras` into batches the adapter's buffers hold (whole cameras each) with the
@@ -743,7 +750,6 @@ impl GpuRenderer {
         cameras: &[Camera],
         channels: &Channels,
     ) -> Result<Vec<Range<usize>>> {
-        let bound = self.gpu.largest_binding();
         let mut parts = Vec::new();
         let mut start = 0;
         while start < cameras.len() {
@@ -752,7 +758,7 @@ impl GpuRenderer {
                 .min(start + self.kernels.camera_slots as usize);
             loop {
                 let need = self.need(state, &cameras[start..end], channels);
-                if need.largest_buffer() <= bound {
+                if need.fit(&self.gpu) {
                     break;
                 }
                 if end - start == 1 {

@@ -1,7 +1,8 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
 // cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
 // MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES and the fixed live slots).
+// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, SPLAT_TEXELS_ACROSS
+// and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first
 // runs over what the one before found (`live`, dispatched indirectly). Once per batch:
@@ -79,12 +80,10 @@ struct Slots {
 @group(1) @binding(4) var<storage, read_write> entry_masks: array<atomic<u32>>;
 // Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
 @group(1) @binding(5) var<storage, read_write> entry_counts: array<atomic<u32>>;
-// Four vec4 per visible splat: (x, y, conic a, conic b), (conic c, opacity, depth, cutoff),
-// (r, g, b, instance bits), (extent x, extent y, camera | tiles reached << 8 bits, reached
+// Per visible splat, its box: (extent x, extent y, camera | tiles reached << 8 bits, reached
 // bits: where its tile box holds at most 32 tiles, a bit per tile of the box, row-major). The
-// blending kernels test a splat's reach with the first two and read the third only where it
-// reaches a pixel.
-@group(1) @binding(6) var<storage, read_write> splats: array<vec4<f32>>;
+// rest of the splat sits in the splat textures (group 2).
+@group(1) @binding(6) var<storage, read_write> splat_boxes: array<vec4<f32>>;
 // Depth-sort pairs: camera and depth key (`depth_key`) and splat; the sort ping-pongs with two
 // more buffers and ends in these or in the second (`depth_values_2`, at odd parity).
 @group(1) @binding(7) var<storage, read_write> depth_keys: array<u32>;
@@ -129,6 +128,37 @@ struct Slots {
 @group(1) @binding(23) var<storage, read_write> tile_list: array<atomic<u32>>;
 // The second buffer of the depth sort's splats, where an odd number of passes ends.
 @group(1) @binding(24) var<storage, read_write> depth_values_2: array<u32>;
+
+// The visible splats, a texel each (`splat_texel`) of three textures: shapes (x, y, conic a,
+// conic b), weights (conic c, opacity, depth, cutoff), colours (r, g, b, instance bits).
+// Textures, not storage: lavapipe (Mesa 22) reads a storage array, and workgroup memory, at an
+// index it cannot prove uniform lane by lane behind a branch each, a texel as one gather, and
+// the blending kernels read a splat per pixel vector. They test a splat's reach with the first
+// two and read the colour only where it reaches a pixel. `project` writes them (bindings 0–2,
+// its own bind group); `emit` and the blending kernels read them (bindings 3–5).
+@group(2) @binding(0) var shapes_out: texture_storage_2d<rgba32float, write>;
+@group(2) @binding(1) var weights_out: texture_storage_2d<rgba32float, write>;
+@group(2) @binding(2) var colours_out: texture_storage_2d<rgba32float, write>;
+@group(2) @binding(3) var splat_shapes: texture_2d<f32>;
+@group(2) @binding(4) var splat_weights: texture_2d<f32>;
+@group(2) @binding(5) var splat_colours: texture_2d<f32>;
+
+// Splat s's texel: rows of SPLAT_TEXELS_ACROSS.
+fn splat_texel(s: u32) -> vec2<u32> {
+    return vec2<u32>(s % SPLAT_TEXELS_ACROSS, s / SPLAT_TEXELS_ACROSS);
+}
+
+fn splat_shape(s: u32) -> vec4<f32> {
+    return textureLoad(splat_shapes, splat_texel(s), 0);
+}
+
+fn splat_weight(s: u32) -> vec4<f32> {
+    return textureLoad(splat_weights, splat_texel(s), 0);
+}
+
+fn splat_colour(s: u32) -> vec4<f32> {
+    return textureLoad(splat_colours, splat_texel(s), 0);
+}
 
 const F32_MAX: f32 = 3.4028235e38;
 
@@ -652,10 +682,11 @@ fn project(
     // The unfinished tiles it reaches, counted and (for a small box) marked here, where the
     // splat is at hand, rather than found in `count_tiles` and again in `emit`.
     let tiles = walk_tiles(f.centre, conic, f.cutoff, c, tile_box(f.centre, f.extent, c), slot, 0u, false);
-    splats[4u * slot] = vec4<f32>(f.centre, conic.xy);
-    splats[4u * slot + 1u] = vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff);
-    splats[4u * slot + 2u] = vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g]));
-    splats[4u * slot + 3u] = vec4<f32>(f.extent, bitcast<f32>(c | (tiles.x << 8u)), bitcast<f32>(tiles.y));
+    let texel = splat_texel(slot);
+    textureStore(shapes_out, texel, vec4<f32>(f.centre, conic.xy));
+    textureStore(weights_out, texel, vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff));
+    textureStore(colours_out, texel, vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g])));
+    splat_boxes[slot] = vec4<f32>(f.extent, bitcast<f32>(c | (tiles.x << 8u)), bitcast<f32>(tiles.y));
     depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;
 }
@@ -684,12 +715,12 @@ fn sorted_depth_value(i: u32) -> u32 {
 }
 
 fn splat_camera(s: u32) -> u32 {
-    return bitcast<u32>(splats[4u * s + 3u].z) & 255u;
+    return bitcast<u32>(splat_boxes[s].z) & 255u;
 }
 
 // The unfinished tiles splat s reaches (found by `project`).
 fn splat_tiles(s: u32) -> u32 {
-    return bitcast<u32>(splats[4u * s + 3u].z) >> 8u;
+    return bitcast<u32>(splat_boxes[s].z) >> 8u;
 }
 
 // The tiles of the box `m` ± `e` in camera c, as the CPU bins them: [x0, y0, x1, y1],
@@ -813,11 +844,11 @@ fn emit(
     let s = sorted_depth_value(i);
     let first = tile_counts[i];
     let c = splat_camera(s);
-    let m = splats[4u * s];
-    let e = splats[4u * s + 3u];
+    let m = splat_shape(s);
+    let e = splat_boxes[s];
     let r = tile_box(m.xy, e.xy, c);
     if !box_has_bits(r) {
-        let sb = splats[4u * s + 1u];
+        let sb = splat_weight(s);
         walk_tiles(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, s, first, true);
         return;
     }
@@ -933,9 +964,8 @@ fn start_pixels(
     images[3u * pixels + p] = bitcast<u32>(1.0);
 }
 
-var<workgroup> batch_a: array<vec4<f32>, 256>;
-var<workgroup> batch_b: array<vec4<f32>, 256>;
-var<workgroup> batch_c: array<vec4<f32>, 256>;
+// The splats of the batch being blended.
+var<workgroup> batch_splats: array<u32, 256>;
 // Per splat of the batch, a bit per block of 8×8 pixels its box reaches; then, per block, a
 // bit per splat (8 words of 32).
 var<workgroup> batch_blocks: array<u32, 256>;
@@ -1090,7 +1120,8 @@ fn reaches(live: vec4<bool>, power: vec4<f32>, sb: vec4<f32>) -> bool {
 }
 
 // A workgroup per tile of every camera; each of its 32 threads blends a column of eight pixels
-// (as two vectors of four lanes), so a splat read from workgroup memory serves eight pixels.
+// (as two vectors of four lanes), so a splat read (its index from workgroup memory, the splat
+// from the textures) serves eight pixels.
 // Eight neighbouring threads cover a block of 8×8 pixels and go through only the splats whose
 // box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
 // (lavapipe) runs such eight together and skips the rest; on a GPU each thread steps through
@@ -1142,11 +1173,9 @@ fn raster(
             var blocks = 0u;
             if e < range.y {
                 let g = sorted_splat(e);
-                let a = splats[4u * g];
-                batch_a[k] = a;
-                batch_b[k] = splats[4u * g + 1u];
-                batch_c[k] = splats[4u * g + 2u];
-                let extent = splats[4u * g + 3u].xy;
+                let a = splat_shape(g);
+                batch_splats[k] = g;
+                let extent = splat_boxes[g].xy;
                 blocks = box_blocks(a.xy - extent, a.xy + extent, tile);
             }
             batch_blocks[k] = blocks;
@@ -1172,8 +1201,9 @@ fn raster(
                 }
                 let k = 32u * word_index + firstTrailingBit(bits);
                 bits &= bits - 1u;
-                let s = batch_a[k];
-                let sb = batch_b[k];
+                let g = batch_splats[k];
+                let s = splat_shape(g);
+                let sb = splat_weight(g);
                 let dx = s.x - cx;
                 let across = s.z * dx * dx;
                 let power_upper = splat_power(s, sb, dx, across, s.y - cy_upper);
@@ -1181,9 +1211,9 @@ fn raster(
                 let reaches_upper = reaches(upper.live, power_upper, sb);
                 let reaches_lower = reaches(lower.live, power_lower, sb);
                 // The colour is read only where the splat reaches a pixel: under lavapipe each
-                // lane's read is its own load.
+                // read is a gather of a texel per lane.
                 if reaches_upper || reaches_lower {
-                    let c = batch_c[k];
+                    let c = splat_colour(g);
                     if reaches_upper {
                         blend(&upper, power_upper, sb, c);
                     }
@@ -1211,7 +1241,7 @@ var<workgroup> column_c: array<vec4<f32>, 64>;
 // listed tile, each blending a column of four pixels (one vector), all stepping through the
 // tile's whole list together in batches of 64 splats read into workgroup memory at once. A warp
 // runs in step over the same splat (no per-block lists to diverge on), and a workgroup holds 3
-// KB of workgroup memory for two warps where `raster` holds 13.5 KB for one. The same rules
+// KB of workgroup memory for two warps where `raster` holds 2.2 KB for one. The same rules
 // and the same bytes as `raster`; a column of four that finishes here counts in `tile_done`.
 @compute @workgroup_size(64)
 fn raster_columns(
@@ -1246,9 +1276,9 @@ fn raster_columns(
         let e = start + lid;
         if e < range.y {
             let g = sorted_splat(e);
-            column_a[lid] = splats[4u * g];
-            column_b[lid] = splats[4u * g + 1u];
-            column_c[lid] = splats[4u * g + 2u];
+            column_a[lid] = splat_shape(g);
+            column_b[lid] = splat_weight(g);
+            column_c[lid] = splat_colour(g);
         }
         if lid == 0u {
             all_done = atomicLoad(&threads_done);

@@ -4,7 +4,8 @@
 
 use super::Gpu;
 use super::kernel::{
-    Kernel, bind, dynamic_uniform, layout, storage, threads_grid, uniform, uniform_buffer,
+    Kernel, bind, bind_from, dynamic_uniform, layout, storage, texels, texels_in, texels_out,
+    threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
@@ -41,8 +42,19 @@ pub(crate) fn camera_block_bytes(slots: u32) -> u64 {
 /// Planes of the blending state per camera (its pixels' words): r, g, b, transmittance,
 /// weighted depth, median depth, instance, best weight.
 pub(crate) const PLANES: u64 = 8;
-/// Words per projected splat (four vec4).
-const SPLAT_WORDS: u64 = 16;
+/// Words per projected splat in the buffer of their boxes (a vec4: `splat_boxes` in
+/// `splat.wgsl`); the rest of a splat sits in [`SPLAT_TEXTURES`] texels of four words.
+const SPLAT_BOX_WORDS: u64 = 4;
+/// The splat textures (shapes, weights, colours), a texel per splat in each.
+const SPLAT_TEXTURES: u64 = 3;
+/// Texels across a row of the splat textures (`SPLAT_TEXELS_ACROSS` in `splat.wgsl`): rows of
+/// 64 KB, and at least 8,192 rows (33.5 million splats) on every WebGPU adapter.
+pub(crate) const SPLAT_TEXELS_ACROSS: u32 = 4096;
+
+/// Rows of the splat textures holding `splats` splats.
+fn splat_rows(splats: u32) -> u32 {
+    splats.div_ceil(SPLAT_TEXELS_ACROSS).max(1)
+}
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
 /// sort's result, the batch's tiles, its cameras, its depth slabs, the parity of the depth
 /// sort's result, the planes `compose` writes out (`OUT_*` bits).
@@ -106,10 +118,16 @@ impl Caps {
         }
     }
 
+    /// True when `gpu` binds buffers and textures of these capacities.
+    pub(crate) fn fit(&self, gpu: &Gpu) -> bool {
+        self.largest_buffer() <= gpu.largest_binding()
+            && splat_rows(self.splats) <= gpu.limits().max_texture_dimension_2d
+    }
+
     /// The largest single buffer these need, bytes (checked against what one binding sees).
     pub(crate) fn largest_buffer(&self) -> u64 {
         [
-            u64::from(self.splats) * SPLAT_WORDS * 4,
+            u64::from(self.splats) * SPLAT_BOX_WORDS * 4,
             u64::from(self.entries) * 32,
             u64::from(self.tile_entries) * 4,
             u64::from(self.camera_chunks) * 16 + 4,
@@ -120,13 +138,15 @@ impl Caps {
         .unwrap_or(0)
     }
 
-    /// Device bytes of buffers of these capacities (the scan and sort scratch included; the
-    /// camera blocks, sized by the adapter, not).
+    /// Device bytes of buffers and textures of these capacities (the scan and sort scratch
+    /// included; the camera blocks, sized by the adapter, not).
     pub(crate) fn bytes(&self) -> u64 {
+        let texels = u64::from(splat_rows(self.splats)) * u64::from(SPLAT_TEXELS_ACROSS);
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
-            + u64::from(self.splats) * (SPLAT_WORDS + 6)
+            + u64::from(self.splats) * (SPLAT_BOX_WORDS + 6)
+            + SPLAT_TEXTURES * texels * 4
             + 5 * u64::from(self.tile_entries)
             + 8 * u64::from(self.tiles)
             + self.image_words;
@@ -134,10 +154,13 @@ impl Caps {
     }
 }
 
-/// The kernels of `splat.wgsl` and the layouts of their two bind groups.
+/// The kernels of `splat.wgsl` and the layouts of their bind groups.
 pub(crate) struct Kernels {
     pub(crate) scene_layout: wgpu::BindGroupLayout,
     frame_layout: wgpu::BindGroupLayout,
+    /// The splat textures as `project` writes them and as later kernels read them.
+    splats_out_layout: wgpu::BindGroupLayout,
+    splats_in_layout: wgpu::BindGroupLayout,
     clear: Kernel,
     cull: Kernel,
     cut_slabs: Kernel,
@@ -179,8 +202,14 @@ impl Kernels {
         frame.push(storage(23, false));
         frame.push(storage(24, false));
         let frame_layout = layout(gpu, &frame);
-        let layouts = [&scene_layout, &frame_layout];
-        let kernel = |entry: &str| Kernel::new(gpu, &module, entry, &layouts);
+        let splats_out_layout = layout(gpu, &(0..3).map(texels_out).collect::<Vec<_>>());
+        let splats_in_layout = layout(gpu, &(3..6).map(texels_in).collect::<Vec<_>>());
+        let kernel =
+            |entry: &str| Kernel::new(gpu, &module, entry, &[&scene_layout, &frame_layout]);
+        // Kernels over the splat textures, written or read.
+        let over = |entry: &str, splats: &wgpu::BindGroupLayout| {
+            Kernel::new(gpu, &module, entry, &[&scene_layout, &frame_layout, splats])
+        };
         Kernels {
             clear: kernel("clear"),
             cull: kernel("cull"),
@@ -189,19 +218,21 @@ impl Kernels {
             select_chunks: kernel("select_chunks"),
             list_chunks: kernel("list_chunks"),
             mark: kernel("mark"),
-            project: kernel("project"),
+            project: over("project", &splats_out_layout),
             count_tiles: kernel("count_tiles"),
-            emit: kernel("emit"),
+            emit: over("emit", &splats_in_layout),
             ranges: kernel("ranges"),
             start_pixels: kernel("start_pixels"),
-            raster: kernel("raster"),
-            raster_columns: kernel("raster_columns"),
+            raster: over("raster", &splats_in_layout),
+            raster_columns: over("raster_columns", &splats_in_layout),
             compose: kernel("compose"),
             scan: Scan::new(gpu),
             sort: RadixSort::new(gpu),
             live: Live::new(gpu),
             scene_layout,
             frame_layout,
+            splats_out_layout,
+            splats_in_layout,
             camera_slots,
         }
     }
@@ -291,6 +322,10 @@ pub(crate) struct Workspace {
     pub(crate) cameras: wgpu::Buffer,
     pub(crate) images: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
+    /// The splat textures to write (`project`) and to read (`emit`, blending).
+    splats_out: wgpu::BindGroup,
+    splats_in: wgpu::BindGroup,
+    _splat_textures: [wgpu::Texture; 3],
     programs: LivePrograms,
     dispatches: Dispatches,
     flags_scan: ScanPlan,
@@ -332,7 +367,19 @@ impl Workspace {
         let chunk_list = buffer("chunk list", u64::from(caps.entries));
         let masks = buffer("entry masks", 8 * u64::from(caps.entries));
         let entry_counts = buffer("entry counts", u64::from(caps.entries) + 1);
-        let splats = buffer("splats", u64::from(caps.splats) * SPLAT_WORDS);
+        let boxes = buffer("splat boxes", u64::from(caps.splats) * SPLAT_BOX_WORDS);
+        let rows = splat_rows(caps.splats);
+        let splat_textures = ["splat shapes", "splat weights", "splat colours"]
+            .map(|l| texels(gpu, l, SPLAT_TEXELS_ACROSS, rows));
+        let views = splat_textures
+            .each_ref()
+            .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
+        let views: Vec<_> = views
+            .iter()
+            .map(wgpu::BindingResource::TextureView)
+            .collect();
+        let splats_out = bind(gpu, &k.splats_out_layout, &views);
+        let splats_in = bind_from(gpu, &k.splats_in_layout, 3, &views);
         let depth = [
             "depth keys",
             "depth values",
@@ -490,7 +537,7 @@ impl Workspace {
                 chunk_list.as_entire_binding(),
                 masks.as_entire_binding(),
                 entry_counts.as_entire_binding(),
-                splats.as_entire_binding(),
+                boxes.as_entire_binding(),
                 d0.as_entire_binding(),
                 d1.as_entire_binding(),
                 tile_counts.as_entire_binding(),
@@ -532,6 +579,9 @@ impl Workspace {
             cameras,
             images,
             frame_group,
+            splats_out,
+            splats_in,
+            _splat_textures: splat_textures,
             programs,
             flags_scan,
             entries_scan,
@@ -543,7 +593,7 @@ impl Workspace {
                 chunk_list,
                 masks,
                 entry_counts,
-                splats,
+                boxes,
                 d0,
                 d1,
                 d2,
@@ -616,7 +666,10 @@ impl Workspace {
             live.dispatch(pass, &k.mark, &groups, d.entries);
             k.scan.encode(pass, live, &self.entries_scan);
             live.encode(pass, &self.programs, 2);
-            live.dispatch(pass, &k.project, &groups, d.splats);
+            let [scene, frame] = groups;
+            let splats_out = [scene, frame, (&self.splats_out, &[][..])];
+            let splats_in = [scene, frame, (&self.splats_in, &[][..])];
+            live.dispatch(pass, &k.project, &splats_out, d.splats);
             stamp(pass);
             k.sort
                 .encode(pass, &k.scan, live, &self.depth_sort, depth_passes as usize);
@@ -624,7 +677,7 @@ impl Workspace {
             live.dispatch(pass, &k.count_tiles, &groups, d.splats);
             k.scan.encode(pass, live, &self.tiles_scan);
             live.encode(pass, &self.programs, 3);
-            live.dispatch(pass, &k.emit, &groups, d.splats);
+            live.dispatch(pass, &k.emit, &splats_in, d.splats);
             k.sort
                 .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
             live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
@@ -634,7 +687,7 @@ impl Workspace {
                 Blending::Blocks => &k.raster,
                 Blending::Columns => &k.raster_columns,
             };
-            live.dispatch(pass, raster, &groups, d.listed_tiles);
+            live.dispatch(pass, raster, &splats_in, d.listed_tiles);
             stamp(pass);
         }
         k.compose.run_grid(pass, &groups, grid);
@@ -654,5 +707,33 @@ mod tests {
         assert_eq!(camera_slots_within(all - 1), MAX_CAMERAS - 1);
         // The least a WebGL2-class adapter binds.
         assert_eq!(camera_slots_within(16 << 10), 68);
+    }
+
+    #[test]
+    fn the_splat_textures_hold_every_splat_in_whole_rows_counted_in_the_work_space() {
+        assert_eq!(splat_rows(0), 1);
+        assert_eq!(splat_rows(SPLAT_TEXELS_ACROSS), 1);
+        assert_eq!(splat_rows(SPLAT_TEXELS_ACROSS + 1), 2);
+        // The least every WebGPU adapter allows a texture's side.
+        assert!(splat_rows(33_554_432) <= 8192);
+        let one = Caps {
+            splats: 1,
+            ..Caps::default()
+        };
+        let row = Caps {
+            splats: SPLAT_TEXELS_ACROSS,
+            ..Caps::default()
+        };
+        // A row of texels is allocated whole: the textures' bytes differ by the boxes and the
+        // sort's words of the splats alone.
+        let per_splat = (SPLAT_BOX_WORDS + 6) * 4;
+        assert_eq!(
+            row.bytes() - one.bytes(),
+            u64::from(SPLAT_TEXELS_ACROSS - 1) * per_splat
+        );
+        assert_eq!(
+            one.bytes(),
+            per_splat + SPLAT_TEXTURES * u64::from(SPLAT_TEXELS_ACROSS) * 16
+        );
     }
 }
