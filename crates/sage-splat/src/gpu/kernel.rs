@@ -41,6 +41,16 @@ fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// Texels across a row of every texture the kernels index by a flat number (`TEXELS_ACROSS`
+/// and `texel` in `splat.wgsl`): rows of 64 KB, and at least 8,192 rows (33.5 million texels)
+/// on every WebGPU adapter.
+pub(crate) const TEXELS_ACROSS: u32 = 4096;
+
+/// Rows of a texture of `n` texels in rows of [`TEXELS_ACROSS`] (at least one).
+pub(crate) fn texel_rows(n: u32) -> u32 {
+    n.div_ceil(TEXELS_ACROSS).max(1)
+}
+
 /// A write-only storage texture binding of four floats per texel.
 pub(crate) fn texels_out(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -57,11 +67,22 @@ pub(crate) fn texels_out(binding: u32) -> wgpu::BindGroupLayoutEntry {
 
 /// A texture binding of four floats per texel, read with `textureLoad` (never filtered).
 pub(crate) fn texels_in(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    texture_in(
+        binding,
+        wgpu::TextureSampleType::Float { filterable: false },
+    )
+}
+
+/// A texture binding read with `textureLoad` as `sample_type`.
+pub(crate) fn texture_in(
+    binding: u32,
+    sample_type: wgpu::TextureSampleType,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            sample_type,
             view_dimension: wgpu::TextureViewDimension::D2,
             multisampled: false,
         },

@@ -3,14 +3,13 @@
 //! rendering (`splat.wgsl` holds the kernels, [`super::workspace`] the buffers).
 
 use super::Gpu;
-use super::kernel::bind;
+use super::kernel::{TEXELS_ACROSS, bind};
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
     LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES,
-    PLANES, SLABS, SPLAT_TEXELS_ACROSS, TILE_SORT_PASSES, Workspace, camera_block_bytes,
-    camera_slots,
+    PLANES, SLABS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -48,7 +47,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n\
          const CAMERA_SLOTS: u32 = {camera_slots}u;\n\
-         const SPLAT_TEXELS_ACROSS: u32 = {SPLAT_TEXELS_ACROSS}u;\n",
+         const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n",
         sh::C0,
         sh::C1,
         sh_words(sh_rest).max(1),
@@ -298,14 +297,19 @@ impl GpuRenderer {
     ///
     /// # Errors
     ///
-    /// A scene larger than the adapter's buffers, or a GPU fault.
+    /// A scene larger than the adapter's buffers or textures, or a GPU fault.
     pub fn new(gpu: &Arc<Gpu>, gaussians: &Gaussians) -> Result<Arc<GpuRenderer>> {
         let n = gaussians.len();
-        let largest = n as u64 * 16;
+        // The largest scene buffer: the SH codes, or the colours (two words a Gaussian).
+        let words = sh_words(sh_rest_count(gaussians.sh_degree())).max(2);
+        let largest = n as u64 * words as u64 * 4;
         let bound = gpu.largest_binding();
-        if largest > bound || n >= u32::MAX as usize / 2 {
+        let rows = n.div_ceil(TEXELS_ACROSS as usize);
+        let most_rows = gpu.limits().max_texture_dimension_2d as usize;
+        if largest > bound || rows > most_rows || n >= u32::MAX as usize / 2 {
             return Err(Error::invalid(format!(
-                "GPU {}: a scene of {n} Gaussians needs {} MB buffers; the adapter binds at most {} MB",
+                "GPU {}: a scene of {n} Gaussians needs {} MB buffers and textures of {rows} \
+                 rows; the adapter binds at most {} MB and {most_rows} rows",
                 gpu.describe(),
                 largest >> 20,
                 bound >> 20
@@ -357,8 +361,8 @@ impl GpuRenderer {
             gpu,
             &k.scene_layout,
             &[
-                s.positions.as_entire_binding(),
-                s.shapes.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&s.positions),
+                wgpu::BindingResource::TextureView(&s.shapes),
                 s.colors.as_entire_binding(),
                 s.sh_codes.as_entire_binding(),
                 s.instances.as_entire_binding(),

@@ -3,15 +3,18 @@
 //! which the kernels cull against.
 
 use super::Gpu;
+use super::kernel::{TEXELS_ACROSS, texel_rows};
 use crate::index::SplatIndex;
 use sage_scene::Gaussians;
 use sage_scene::gaussians::sh_rest_count;
 use wgpu::util::DeviceExt;
 
-/// The scene's buffers.
+/// The scene's buffers and textures.
 pub(crate) struct SceneBuffers {
-    pub(crate) positions: wgpu::Buffer,
-    pub(crate) shapes: wgpu::Buffer,
+    /// A texel per Gaussian (x, y, z, 0), in rows of [`TEXELS_ACROSS`].
+    pub(crate) positions: wgpu::TextureView,
+    /// A texel per Gaussian: rotation, log-scales and opacity logit as i16 pairs.
+    pub(crate) shapes: wgpu::TextureView,
     pub(crate) colors: wgpu::Buffer,
     pub(crate) sh_codes: wgpu::Buffer,
     pub(crate) instances: wgpu::Buffer,
@@ -38,6 +41,39 @@ pub(crate) fn init_buffer(gpu: &Gpu, label: &str, contents: &[u32]) -> wgpu::Buf
         })
 }
 
+/// A texture of a texel of four words per Gaussian (`words`, four per Gaussian, in rows of
+/// [`TEXELS_ACROSS`], the last row padded with zeros), read by `textureLoad`.
+fn texel_texture(
+    gpu: &Gpu,
+    label: &str,
+    format: wgpu::TextureFormat,
+    words: &[u32],
+) -> wgpu::TextureView {
+    let rows = texel_rows((words.len() / 4) as u32);
+    let mut padded = words.to_vec();
+    padded.resize(rows as usize * TEXELS_ACROSS as usize * 4, 0);
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: TEXELS_ACROSS,
+                height: rows,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        bytemuck::cast_slice(&padded),
+    );
+    texture.create_view(&wgpu::TextureViewDescriptor::default())
+}
+
 /// Two i16 in one word, low first.
 fn pair(lo: i16, hi: i16) -> u32 {
     u32::from(lo as u16) | u32::from(hi as u16) << 16
@@ -47,7 +83,12 @@ impl SceneBuffers {
     /// Uploads the store and its chunk bounds.
     pub(crate) fn upload(gpu: &Gpu, g: &Gaussians) -> SceneBuffers {
         let n = g.len();
-        let positions: Vec<u32> = g.positions.iter().flatten().map(|v| v.to_bits()).collect();
+        let positions: Vec<u32> = g
+            .positions
+            .iter()
+            .flat_map(|&[x, y, z]| [x, y, z, 0.0])
+            .map(f32::to_bits)
+            .collect();
         let shapes: Vec<u32> = (0..n)
             .flat_map(|i| {
                 let [w, x, y, z] = g.rotations[i];
@@ -98,18 +139,17 @@ impl SceneBuffers {
             })
             .map(f32::to_bits)
             .collect();
-        let all = [
-            &positions,
-            &shapes,
-            &colors,
-            &sh_codes,
-            &g.instances,
-            &chunk_bounds,
-        ];
-        let bytes = all.iter().map(|v| 4 * v.len() as u64).sum();
+        let buffers = [&colors, &sh_codes, &g.instances, &chunk_bounds];
+        let texture_bytes = 2 * u64::from(texel_rows(n as u32)) * u64::from(TEXELS_ACROSS) * 16;
+        let bytes = texture_bytes + buffers.iter().map(|v| 4 * v.len() as u64).sum::<u64>();
         SceneBuffers {
-            positions: init_buffer(gpu, "positions", &positions),
-            shapes: init_buffer(gpu, "shapes", &shapes),
+            positions: texel_texture(
+                gpu,
+                "positions",
+                wgpu::TextureFormat::Rgba32Float,
+                &positions,
+            ),
+            shapes: texel_texture(gpu, "shapes", wgpu::TextureFormat::Rgba32Uint, &shapes),
             colors: init_buffer(gpu, "colors", &colors),
             sh_codes: init_buffer(gpu, "sh codes", &sh_codes),
             instances: init_buffer(gpu, "instances", &g.instances),

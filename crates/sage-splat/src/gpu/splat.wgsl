@@ -1,7 +1,7 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
 // cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
 // MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, SPLAT_TEXELS_ACROSS
+// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, TEXELS_ACROSS
 // and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first
@@ -53,10 +53,12 @@ struct Slots {
     listed_tiles: u32,
 }
 
-// The scene, resident.
-@group(0) @binding(0) var<storage, read> positions: array<f32>;
-// Rotation (w, x | y, z as snorm16 pairs), log-scales x, y | z and opacity logit (i16 pairs).
-@group(0) @binding(1) var<storage, read> shapes: array<vec4<u32>>;
+// The scene, resident. Positions (x, y, z, 0) and shapes, a texel per Gaussian (`texel`): a
+// texel is one gather under lavapipe (see the splat textures), and `mark` reads a position per
+// Gaussian of every visible chunk. Shapes: rotation (w, x | y, z as snorm16 pairs), log-scales
+// x, y | z and opacity logit (i16 pairs).
+@group(0) @binding(0) var positions: texture_2d<f32>;
+@group(0) @binding(1) var shapes: texture_2d<u32>;
 // SH degree 0 (r, g | b, step of the higher-order codes as f16 pairs).
 @group(0) @binding(2) var<storage, read> colors: array<vec2<u32>>;
 // Higher-order SH codes, i8, SH_WORDS words per Gaussian.
@@ -129,7 +131,7 @@ struct Slots {
 // The second buffer of the depth sort's splats, where an odd number of passes ends.
 @group(1) @binding(24) var<storage, read_write> depth_values_2: array<u32>;
 
-// The visible splats, a texel each (`splat_texel`) of three textures: shapes (x, y, conic a,
+// The visible splats, a texel each (`texel`) of three textures: shapes (x, y, conic a,
 // conic b), weights (conic c, opacity, depth, cutoff), colours (r, g, b, instance bits).
 // Textures, not storage: lavapipe (Mesa 22) reads a storage array, and workgroup memory, at an
 // index it cannot prove uniform lane by lane behind a branch each, a texel as one gather, and
@@ -143,21 +145,21 @@ struct Slots {
 @group(2) @binding(4) var splat_weights: texture_2d<f32>;
 @group(2) @binding(5) var splat_colours: texture_2d<f32>;
 
-// Splat s's texel: rows of SPLAT_TEXELS_ACROSS.
-fn splat_texel(s: u32) -> vec2<u32> {
-    return vec2<u32>(s % SPLAT_TEXELS_ACROSS, s / SPLAT_TEXELS_ACROSS);
+// Texel i of a texture indexed by a flat number (splats, Gaussians): rows of TEXELS_ACROSS.
+fn texel(i: u32) -> vec2<u32> {
+    return vec2<u32>(i % TEXELS_ACROSS, i / TEXELS_ACROSS);
 }
 
 fn splat_shape(s: u32) -> vec4<f32> {
-    return textureLoad(splat_shapes, splat_texel(s), 0);
+    return textureLoad(splat_shapes, texel(s), 0);
 }
 
 fn splat_weight(s: u32) -> vec4<f32> {
-    return textureLoad(splat_weights, splat_texel(s), 0);
+    return textureLoad(splat_weights, texel(s), 0);
 }
 
 fn splat_colour(s: u32) -> vec4<f32> {
-    return textureLoad(splat_colours, splat_texel(s), 0);
+    return textureLoad(splat_colours, texel(s), 0);
 }
 
 const F32_MAX: f32 = 3.4028235e38;
@@ -523,7 +525,7 @@ struct Footprint {
 fn footprint(c: u32, g: u32, depths: vec2<f32>) -> Footprint {
     var f: Footprint;
     f.visible = false;
-    let p = vec3<f32>(positions[3u * g], positions[3u * g + 1u], positions[3u * g + 2u]);
+    let p = textureLoad(positions, texel(g), 0).xyz;
     let rel = p - cameras[c].position.xyz;
     let right = cameras[c].right.xyz;
     let down = cameras[c].down.xyz;
@@ -533,7 +535,7 @@ fn footprint(c: u32, g: u32, depths: vec2<f32>) -> Footprint {
     if !(t.z >= clip.x && t.z <= clip.y && t.z >= depths.x && t.z < depths.y) {
         return f;
     }
-    let shape = shapes[g];
+    let shape = textureLoad(shapes, texel(g), 0);
     let opacity = 1.0 / (1.0 + exp(-high_i16(shape.w) * OPACITY_LOGIT_STEP));
     if !(opacity >= MIN_ALPHA) {
         return f;
@@ -682,10 +684,10 @@ fn project(
     // The unfinished tiles it reaches, counted and (for a small box) marked here, where the
     // splat is at hand, rather than found in `count_tiles` and again in `emit`.
     let tiles = walk_tiles(f.centre, conic, f.cutoff, c, tile_box(f.centre, f.extent, c), slot, 0u, false);
-    let texel = splat_texel(slot);
-    textureStore(shapes_out, texel, vec4<f32>(f.centre, conic.xy));
-    textureStore(weights_out, texel, vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff));
-    textureStore(colours_out, texel, vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g])));
+    let at = texel(slot);
+    textureStore(shapes_out, at, vec4<f32>(f.centre, conic.xy));
+    textureStore(weights_out, at, vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff));
+    textureStore(colours_out, at, vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g])));
     splat_boxes[slot] = vec4<f32>(f.extent, bitcast<f32>(c | (tiles.x << 8u)), bitcast<f32>(tiles.y));
     depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;

@@ -4,8 +4,8 @@
 
 use super::Gpu;
 use super::kernel::{
-    Kernel, bind, bind_from, dynamic_uniform, layout, storage, texels, texels_in, texels_out,
-    threads_grid, uniform, uniform_buffer,
+    Kernel, TEXELS_ACROSS, bind, bind_from, dynamic_uniform, layout, storage, texel_rows, texels,
+    texels_in, texels_out, texture_in, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
@@ -47,14 +47,6 @@ pub(crate) const PLANES: u64 = 8;
 const SPLAT_BOX_WORDS: u64 = 4;
 /// The splat textures (shapes, weights, colours), a texel per splat in each.
 const SPLAT_TEXTURES: u64 = 3;
-/// Texels across a row of the splat textures (`SPLAT_TEXELS_ACROSS` in `splat.wgsl`): rows of
-/// 64 KB, and at least 8,192 rows (33.5 million splats) on every WebGPU adapter.
-pub(crate) const SPLAT_TEXELS_ACROSS: u32 = 4096;
-
-/// Rows of the splat textures holding `splats` splats.
-fn splat_rows(splats: u32) -> u32 {
-    splats.div_ceil(SPLAT_TEXELS_ACROSS).max(1)
-}
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
 /// sort's result, the batch's tiles, its cameras, its depth slabs, the parity of the depth
 /// sort's result, the planes `compose` writes out (`OUT_*` bits).
@@ -121,7 +113,7 @@ impl Caps {
     /// True when `gpu` binds buffers and textures of these capacities.
     pub(crate) fn fit(&self, gpu: &Gpu) -> bool {
         self.largest_buffer() <= gpu.largest_binding()
-            && splat_rows(self.splats) <= gpu.limits().max_texture_dimension_2d
+            && texel_rows(self.splats) <= gpu.limits().max_texture_dimension_2d
     }
 
     /// The largest single buffer these need, bytes (checked against what one binding sees).
@@ -141,7 +133,7 @@ impl Caps {
     /// Device bytes of buffers and textures of these capacities (the scan and sort scratch
     /// included; the camera blocks, sized by the adapter, not).
     pub(crate) fn bytes(&self) -> u64 {
-        let texels = u64::from(splat_rows(self.splats)) * u64::from(SPLAT_TEXELS_ACROSS);
+        let texels = u64::from(texel_rows(self.splats)) * u64::from(TEXELS_ACROSS);
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
@@ -193,7 +185,9 @@ impl Kernels {
                 label: Some("splat"),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
-        let scene_layout = layout(gpu, &(0..7).map(|b| storage(b, true)).collect::<Vec<_>>());
+        let mut scene = vec![texels_in(0), texture_in(1, wgpu::TextureSampleType::Uint)];
+        scene.extend((2..7).map(|b| storage(b, true)));
+        let scene_layout = layout(gpu, &scene);
         let mut frame = vec![uniform(0), storage(1, true)];
         frame.extend((2..16).map(|b| storage(b, false)));
         frame.push(uniform(16));
@@ -368,9 +362,9 @@ impl Workspace {
         let masks = buffer("entry masks", 8 * u64::from(caps.entries));
         let entry_counts = buffer("entry counts", u64::from(caps.entries) + 1);
         let boxes = buffer("splat boxes", u64::from(caps.splats) * SPLAT_BOX_WORDS);
-        let rows = splat_rows(caps.splats);
+        let rows = texel_rows(caps.splats);
         let splat_textures = ["splat shapes", "splat weights", "splat colours"]
-            .map(|l| texels(gpu, l, SPLAT_TEXELS_ACROSS, rows));
+            .map(|l| texels(gpu, l, TEXELS_ACROSS, rows));
         let views = splat_textures
             .each_ref()
             .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
@@ -711,17 +705,17 @@ mod tests {
 
     #[test]
     fn the_splat_textures_hold_every_splat_in_whole_rows_counted_in_the_work_space() {
-        assert_eq!(splat_rows(0), 1);
-        assert_eq!(splat_rows(SPLAT_TEXELS_ACROSS), 1);
-        assert_eq!(splat_rows(SPLAT_TEXELS_ACROSS + 1), 2);
+        assert_eq!(texel_rows(0), 1);
+        assert_eq!(texel_rows(TEXELS_ACROSS), 1);
+        assert_eq!(texel_rows(TEXELS_ACROSS + 1), 2);
         // The least every WebGPU adapter allows a texture's side.
-        assert!(splat_rows(33_554_432) <= 8192);
+        assert!(texel_rows(33_554_432) <= 8192);
         let one = Caps {
             splats: 1,
             ..Caps::default()
         };
         let row = Caps {
-            splats: SPLAT_TEXELS_ACROSS,
+            splats: TEXELS_ACROSS,
             ..Caps::default()
         };
         // A row of texels is allocated whole: the textures' bytes differ by the boxes and the
@@ -729,11 +723,11 @@ mod tests {
         let per_splat = (SPLAT_BOX_WORDS + 6) * 4;
         assert_eq!(
             row.bytes() - one.bytes(),
-            u64::from(SPLAT_TEXELS_ACROSS - 1) * per_splat
+            u64::from(TEXELS_ACROSS - 1) * per_splat
         );
         assert_eq!(
             one.bytes(),
-            per_splat + SPLAT_TEXTURES * u64::from(SPLAT_TEXELS_ACROSS) * 16
+            per_splat + SPLAT_TEXTURES * u64::from(TEXELS_ACROSS) * 16
         );
     }
 }
