@@ -51,33 +51,34 @@ pub(crate) fn texel_rows(n: u32) -> u32 {
     n.div_ceil(TEXELS_ACROSS).max(1)
 }
 
-/// A write-only storage texture binding of four floats per texel.
-pub(crate) fn texels_out(binding: u32) -> wgpu::BindGroupLayoutEntry {
+/// Four floats a texel.
+pub(crate) const FLOATS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+/// Four words a texel.
+pub(crate) const WORDS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
+
+/// A write-only storage texture binding of `format` ([`FLOATS`] or [`WORDS`]: every WebGPU
+/// adapter stores either from a compute kernel).
+pub(crate) fn texels_out(binding: u32, format: wgpu::TextureFormat) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::StorageTexture {
             access: wgpu::StorageTextureAccess::WriteOnly,
-            format: TEXELS,
+            format,
             view_dimension: wgpu::TextureViewDimension::D2,
         },
         count: None,
     }
 }
 
-/// A texture binding of four floats per texel, read with `textureLoad` (never filtered).
-pub(crate) fn texels_in(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    texture_in(
-        binding,
-        wgpu::TextureSampleType::Float { filterable: false },
-    )
-}
-
-/// A texture binding read with `textureLoad` as `sample_type`.
-pub(crate) fn texture_in(
-    binding: u32,
-    sample_type: wgpu::TextureSampleType,
-) -> wgpu::BindGroupLayoutEntry {
+/// A texture binding of `format` ([`FLOATS`] or [`WORDS`]), read with `textureLoad` (never
+/// filtered).
+pub(crate) fn texels_in(binding: u32, format: wgpu::TextureFormat) -> wgpu::BindGroupLayoutEntry {
+    let sample_type = if format == WORDS {
+        wgpu::TextureSampleType::Uint
+    } else {
+        wgpu::TextureSampleType::Float { filterable: false }
+    };
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -90,27 +91,42 @@ pub(crate) fn texture_in(
     }
 }
 
-/// The texel format of [`texels_out`] and [`texels_in`]: every WebGPU adapter stores it from
-/// a compute kernel.
-const TEXELS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
-
-/// A 2-D texture of `width` × `height` texels of four floats, written by kernels and read by
-/// later ones.
-pub(crate) fn texels(gpu: &Gpu, label: &str, width: u32, height: u32) -> wgpu::Texture {
-    gpu.device.create_texture(&wgpu::TextureDescriptor {
+/// A texture of `rows` rows of [`TEXELS_ACROSS`] texels of `format`, for `usage`.
+pub(crate) fn texel_rows_texture<'a>(
+    label: &'a str,
+    format: wgpu::TextureFormat,
+    rows: u32,
+    usage: wgpu::TextureUsages,
+) -> wgpu::TextureDescriptor<'a> {
+    wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d {
-            width,
-            height,
+            width: TEXELS_ACROSS,
+            height: rows,
             depth_or_array_layers: 1,
         },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: TEXELS,
-        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+        format,
+        usage,
         view_formats: &[],
-    })
+    }
+}
+
+/// A texture of `rows` rows of texels of `format` that kernels write and later ones read.
+pub(crate) fn texels(
+    gpu: &Gpu,
+    label: &str,
+    format: wgpu::TextureFormat,
+    rows: u32,
+) -> wgpu::Texture {
+    gpu.device.create_texture(&texel_rows_texture(
+        label,
+        format,
+        rows,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::TEXTURE_BINDING,
+    ))
 }
 
 /// A bind group layout of `entries`.

@@ -3,7 +3,7 @@
 //! which the kernels cull against.
 
 use super::Gpu;
-use super::kernel::{TEXELS_ACROSS, texel_rows};
+use super::kernel::{FLOATS, TEXELS_ACROSS, WORDS, texel_rows, texel_rows_texture};
 use crate::index::SplatIndex;
 use sage_scene::Gaussians;
 use sage_scene::gaussians::sh_rest_count;
@@ -54,20 +54,7 @@ fn texel_texture(
     padded.resize(rows as usize * TEXELS_ACROSS as usize * 4, 0);
     let texture = gpu.device.create_texture_with_data(
         &gpu.queue,
-        &wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: TEXELS_ACROSS,
-                height: rows,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
+        &texel_rows_texture(label, format, rows, wgpu::TextureUsages::TEXTURE_BINDING),
         wgpu::util::TextureDataOrder::LayerMajor,
         bytemuck::cast_slice(&padded),
     );
@@ -143,13 +130,8 @@ impl SceneBuffers {
         let texture_bytes = 2 * u64::from(texel_rows(n as u32)) * u64::from(TEXELS_ACROSS) * 16;
         let bytes = texture_bytes + buffers.iter().map(|v| 4 * v.len() as u64).sum::<u64>();
         SceneBuffers {
-            positions: texel_texture(
-                gpu,
-                "positions",
-                wgpu::TextureFormat::Rgba32Float,
-                &positions,
-            ),
-            shapes: texel_texture(gpu, "shapes", wgpu::TextureFormat::Rgba32Uint, &shapes),
+            positions: texel_texture(gpu, "positions", FLOATS, &positions),
+            shapes: texel_texture(gpu, "shapes", WORDS, &shapes),
             colors: init_buffer(gpu, "colors", &colors),
             sh_codes: init_buffer(gpu, "sh codes", &sh_codes),
             instances: init_buffer(gpu, "instances", &g.instances),

@@ -82,68 +82,69 @@ struct Slots {
 @group(1) @binding(4) var<storage, read_write> entry_masks: array<atomic<u32>>;
 // Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
 @group(1) @binding(5) var<storage, read_write> entry_counts: array<atomic<u32>>;
-// Per visible splat, its box: (extent x, extent y, camera | tiles reached << 8 bits, reached
-// bits: where its tile box holds at most 32 tiles, a bit per tile of the box, row-major). The
-// rest of the splat sits in the splat textures (group 2).
-@group(1) @binding(6) var<storage, read_write> splat_boxes: array<vec4<f32>>;
 // Depth-sort pairs: camera and depth key (`depth_key`) and splat; the sort ping-pongs with two
 // more buffers and ends in these or in the second (`depth_values_2`, at odd parity).
-@group(1) @binding(7) var<storage, read_write> depth_keys: array<u32>;
-@group(1) @binding(8) var<storage, read_write> depth_values: array<u32>;
+@group(1) @binding(6) var<storage, read_write> depth_keys: array<u32>;
+@group(1) @binding(7) var<storage, read_write> depth_values: array<u32>;
 // Tiles per depth-ordered splat (+1), then their exclusive scan.
-@group(1) @binding(9) var<storage, read_write> tile_counts: array<u32>;
+@group(1) @binding(8) var<storage, read_write> tile_counts: array<u32>;
 // Tile-sort pairs: camera and tile (`tile_key`) and splat, in the first and second buffers.
-@group(1) @binding(10) var<storage, read_write> tile_keys: array<u32>;
-@group(1) @binding(11) var<storage, read_write> tile_values: array<u32>;
-@group(1) @binding(12) var<storage, read_write> tile_keys_2: array<u32>;
-@group(1) @binding(13) var<storage, read_write> tile_values_2: array<u32>;
+@group(1) @binding(9) var<storage, read_write> tile_keys: array<u32>;
+@group(1) @binding(10) var<storage, read_write> tile_values: array<u32>;
+@group(1) @binding(11) var<storage, read_write> tile_keys_2: array<u32>;
+@group(1) @binding(12) var<storage, read_write> tile_values_2: array<u32>;
 // Per tile of the batch: first and one-past-last entry of this slab (zero where none; each
 // raster workgroup zeroes its own after reading it).
-@group(1) @binding(14) var<storage, read_write> tile_ranges: array<vec2<u32>>;
+@group(1) @binding(13) var<storage, read_write> tile_ranges: array<vec2<u32>>;
 // Per camera from its first word: 8 planes of width × height words, the per-pixel state
 // while slabs blend: r, g, b (background not added), transmittance (negative once the pixel
 // is finished), Σ weight × depth, median depth (f32 bits), instance, best weight (f32 bits).
 // After every camera's state, the images `compose` writes out (the only words read back):
 // per camera from its `place.w`, a plane of width × height words per image asked for
 // (`live[LIVE_OUT_PLANES]`), in the order of the `OUT_*` bits.
-@group(1) @binding(15) var<storage, read_write> images: array<u32>;
-@group(1) @binding(16) var<uniform> slots: Slots;
+@group(1) @binding(14) var<storage, read_write> images: array<u32>;
+@group(1) @binding(15) var<uniform> slots: Slots;
 // Per camera × chunk: nearest and farthest depth of its bounds (f32 bits; the nearest is
 // F32_MAX when culled) and its screen rectangle in tiles, grown by one tile as the CPU grows it
 // (x0 | y0 << 16, x1 | y1 << 16).
-@group(1) @binding(17) var<storage, read_write> chunk_views: array<vec4<u32>>;
+@group(1) @binding(16) var<storage, read_write> chunk_views: array<vec4<u32>>;
 // Per camera: DEPTH_BINS counts of its visible chunks' middle depths (where their splats'
 // depths centre), in bins of equal depth ratio from its near to its far plane.
-@group(1) @binding(18) var<storage, read_write> depth_histogram: array<atomic<u32>>;
+@group(1) @binding(17) var<storage, read_write> depth_histogram: array<atomic<u32>>;
 // Per camera, SLABS + 1 depths: slab k holds the splats of depth in [cut k, cut k + 1).
-@group(1) @binding(19) var<storage, read_write> slab_cuts: array<f32>;
+@group(1) @binding(18) var<storage, read_write> slab_cuts: array<f32>;
 // Per tile of the batch: its columns of four pixels (half a raster thread's) that are finished
 // or outside the image; 64 once the whole tile is finished.
-@group(1) @binding(20) var<storage, read_write> tile_done: array<atomic<u32>>;
+@group(1) @binding(19) var<storage, read_write> tile_done: array<atomic<u32>>;
 // Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
 // (tiles down + 1) words, row 0 and column 0 zero.
-@group(1) @binding(21) var<storage, read_write> finished_sum: array<u32>;
+@group(1) @binding(20) var<storage, read_write> finished_sum: array<u32>;
 // The slab being rendered (x).
-@group(1) @binding(22) var<uniform> slab: vec4<u32>;
+@group(1) @binding(21) var<uniform> slab: vec4<u32>;
 // The tiles of the batch with entries in this slab, in no particular order (each is blended
 // on its own), and their count after the list's capacity (at live[LIVE_TILES]).
-@group(1) @binding(23) var<storage, read_write> tile_list: array<atomic<u32>>;
+@group(1) @binding(22) var<storage, read_write> tile_list: array<atomic<u32>>;
 // The second buffer of the depth sort's splats, where an odd number of passes ends.
-@group(1) @binding(24) var<storage, read_write> depth_values_2: array<u32>;
+@group(1) @binding(23) var<storage, read_write> depth_values_2: array<u32>;
 
-// The visible splats, a texel each (`texel`) of three textures: shapes (x, y, conic a,
-// conic b), weights (conic c, opacity, depth, cutoff), colours (r, g, b, instance bits).
+// The visible splats, a texel each (`texel`) of four textures: shapes (x, y, conic a, conic b),
+// weights (conic c, opacity, depth, cutoff), colours (r, g, b, instance bits), boxes (extent x,
+// extent y as f32 bits, camera | tiles reached << 8, reached bits: where its tile box holds at
+// most 32 tiles, a bit per tile of the box, row-major).
 // Textures, not storage: lavapipe (Mesa 22) reads a storage array, and workgroup memory, at an
-// index it cannot prove uniform lane by lane behind a branch each, a texel as one gather, and
-// the blending kernels read a splat per pixel vector. They test a splat's reach with the first
-// two and read the colour only where it reaches a pixel. `project` writes them (bindings 0–2,
-// its own bind group); `emit` and the blending kernels read them (bindings 3–5).
+// index it cannot prove uniform lane by lane behind a branch each, component by component, a
+// texel as one gather, and the blending kernels read a splat per pixel vector; it also stores a
+// texel per lane where a storage vector takes a store per component. The blending kernels test
+// a splat's reach with the first two and read the colour only where it reaches a pixel.
+// `project` writes them (bindings 0–3, its own bind group); later kernels read them (4–7).
 @group(2) @binding(0) var shapes_out: texture_storage_2d<rgba32float, write>;
 @group(2) @binding(1) var weights_out: texture_storage_2d<rgba32float, write>;
 @group(2) @binding(2) var colours_out: texture_storage_2d<rgba32float, write>;
-@group(2) @binding(3) var splat_shapes: texture_2d<f32>;
-@group(2) @binding(4) var splat_weights: texture_2d<f32>;
-@group(2) @binding(5) var splat_colours: texture_2d<f32>;
+@group(2) @binding(3) var boxes_out: texture_storage_2d<rgba32uint, write>;
+@group(2) @binding(4) var splat_shapes: texture_2d<f32>;
+@group(2) @binding(5) var splat_weights: texture_2d<f32>;
+@group(2) @binding(6) var splat_colours: texture_2d<f32>;
+@group(2) @binding(7) var splat_boxes: texture_2d<u32>;
 
 // Texel i of a texture indexed by a flat number (splats, Gaussians): rows of TEXELS_ACROSS.
 fn texel(i: u32) -> vec2<u32> {
@@ -160,6 +161,10 @@ fn splat_weight(s: u32) -> vec4<f32> {
 
 fn splat_colour(s: u32) -> vec4<f32> {
     return textureLoad(splat_colours, texel(s), 0);
+}
+
+fn splat_box(s: u32) -> vec4<u32> {
+    return textureLoad(splat_boxes, texel(s), 0);
 }
 
 const F32_MAX: f32 = 3.4028235e38;
@@ -688,7 +693,7 @@ fn project(
     textureStore(shapes_out, at, vec4<f32>(f.centre, conic.xy));
     textureStore(weights_out, at, vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff));
     textureStore(colours_out, at, vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g])));
-    splat_boxes[slot] = vec4<f32>(f.extent, bitcast<f32>(c | (tiles.x << 8u)), bitcast<f32>(tiles.y));
+    textureStore(boxes_out, at, vec4<u32>(bitcast<vec2<u32>>(f.extent), c | (tiles.x << 8u), tiles.y));
     depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;
 }
@@ -716,13 +721,10 @@ fn sorted_depth_value(i: u32) -> u32 {
     return depth_values[i];
 }
 
-fn splat_camera(s: u32) -> u32 {
-    return bitcast<u32>(splat_boxes[s].z) & 255u;
-}
 
 // The unfinished tiles splat s reaches (found by `project`).
 fn splat_tiles(s: u32) -> u32 {
-    return bitcast<u32>(splat_boxes[s].z) >> 8u;
+    return splat_box(s).z >> 8u;
 }
 
 // The tiles of the box `m` ± `e` in camera c, as the CPU bins them: [x0, y0, x1, y1],
@@ -845,16 +847,16 @@ fn emit(
     }
     let s = sorted_depth_value(i);
     let first = tile_counts[i];
-    let c = splat_camera(s);
     let m = splat_shape(s);
-    let e = splat_boxes[s];
-    let r = tile_box(m.xy, e.xy, c);
+    let e = splat_box(s);
+    let c = e.z & 255u;
+    let r = tile_box(m.xy, bitcast<vec2<f32>>(e.xy), c);
     if !box_has_bits(r) {
         let sb = splat_weight(s);
         walk_tiles(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, s, first, true);
         return;
     }
-    var bits = bitcast<u32>(e.w);
+    var bits = e.w;
     var slot = first;
     let across = cameras[c].size.z;
     let box_width = r.z - r.x + 1u;
@@ -1177,7 +1179,7 @@ fn raster(
                 let g = sorted_splat(e);
                 let a = splat_shape(g);
                 batch_splats[k] = g;
-                let extent = splat_boxes[g].xy;
+                let extent = bitcast<vec2<f32>>(splat_box(g).xy);
                 blocks = box_blocks(a.xy - extent, a.xy + extent, tile);
             }
             batch_blocks[k] = blocks;

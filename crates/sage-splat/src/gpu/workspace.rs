@@ -4,8 +4,8 @@
 
 use super::Gpu;
 use super::kernel::{
-    Kernel, TEXELS_ACROSS, bind, bind_from, dynamic_uniform, layout, storage, texel_rows, texels,
-    texels_in, texels_out, texture_in, threads_grid, uniform, uniform_buffer,
+    FLOATS, Kernel, TEXELS_ACROSS, WORDS, bind, bind_from, dynamic_uniform, layout, storage,
+    texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
 use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
@@ -42,11 +42,14 @@ pub(crate) fn camera_block_bytes(slots: u32) -> u64 {
 /// Planes of the blending state per camera (its pixels' words): r, g, b, transmittance,
 /// weighted depth, median depth, instance, best weight.
 pub(crate) const PLANES: u64 = 8;
-/// Words per projected splat in the buffer of their boxes (a vec4: `splat_boxes` in
-/// `splat.wgsl`); the rest of a splat sits in [`SPLAT_TEXTURES`] texels of four words.
-const SPLAT_BOX_WORDS: u64 = 4;
-/// The splat textures (shapes, weights, colours), a texel per splat in each.
-const SPLAT_TEXTURES: u64 = 3;
+/// The splat textures (`splat.wgsl`), a texel of four words per projected splat in each, and
+/// their formats: shapes, weights and colours (floats), boxes (words).
+const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
+    ("splat shapes", FLOATS),
+    ("splat weights", FLOATS),
+    ("splat colours", FLOATS),
+    ("splat boxes", WORDS),
+];
 /// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
 /// sort's result, the batch's tiles, its cameras, its depth slabs, the parity of the depth
 /// sort's result, the planes `compose` writes out (`OUT_*` bits).
@@ -119,7 +122,8 @@ impl Caps {
     /// The largest single buffer these need, bytes (checked against what one binding sees).
     pub(crate) fn largest_buffer(&self) -> u64 {
         [
-            u64::from(self.splats) * SPLAT_BOX_WORDS * 4,
+            // The tile counts (a word per splat and the total).
+            (u64::from(self.splats) + 1) * 4,
             u64::from(self.entries) * 32,
             u64::from(self.tile_entries) * 4,
             u64::from(self.camera_chunks) * 16 + 4,
@@ -137,8 +141,8 @@ impl Caps {
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
-            + u64::from(self.splats) * (SPLAT_BOX_WORDS + 6)
-            + SPLAT_TEXTURES * texels * 4
+            + u64::from(self.splats) * 6
+            + SPLAT_TEXTURES.len() as u64 * texels * 4
             + 5 * u64::from(self.tile_entries)
             + 8 * u64::from(self.tiles)
             + self.image_words;
@@ -185,19 +189,26 @@ impl Kernels {
                 label: Some("splat"),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
-        let mut scene = vec![texels_in(0), texture_in(1, wgpu::TextureSampleType::Uint)];
+        let mut scene = vec![texels_in(0, FLOATS), texels_in(1, WORDS)];
         scene.extend((2..7).map(|b| storage(b, true)));
         let scene_layout = layout(gpu, &scene);
         let mut frame = vec![uniform(0), storage(1, true)];
-        frame.extend((2..16).map(|b| storage(b, false)));
-        frame.push(uniform(16));
-        frame.extend((17..22).map(|b| storage(b, false)));
-        frame.push(dynamic_uniform(22));
+        frame.extend((2..15).map(|b| storage(b, false)));
+        frame.push(uniform(15));
+        frame.extend((16..21).map(|b| storage(b, false)));
+        frame.push(dynamic_uniform(21));
+        frame.push(storage(22, false));
         frame.push(storage(23, false));
-        frame.push(storage(24, false));
         let frame_layout = layout(gpu, &frame);
-        let splats_out_layout = layout(gpu, &(0..3).map(texels_out).collect::<Vec<_>>());
-        let splats_in_layout = layout(gpu, &(3..6).map(texels_in).collect::<Vec<_>>());
+        let splat_bindings = |first: u32, entry: fn(u32, wgpu::TextureFormat) -> _| {
+            let entries: Vec<_> = (first..)
+                .zip(SPLAT_TEXTURES)
+                .map(|(b, (_, format))| entry(b, format))
+                .collect();
+            layout(gpu, &entries)
+        };
+        let splats_out_layout = splat_bindings(0, texels_out);
+        let splats_in_layout = splat_bindings(SPLAT_TEXTURES.len() as u32, texels_in);
         let kernel =
             |entry: &str| Kernel::new(gpu, &module, entry, &[&scene_layout, &frame_layout]);
         // Kernels over the splat textures, written or read.
@@ -213,7 +224,7 @@ impl Kernels {
             list_chunks: kernel("list_chunks"),
             mark: kernel("mark"),
             project: over("project", &splats_out_layout),
-            count_tiles: kernel("count_tiles"),
+            count_tiles: over("count_tiles", &splats_in_layout),
             emit: over("emit", &splats_in_layout),
             ranges: kernel("ranges"),
             start_pixels: kernel("start_pixels"),
@@ -319,7 +330,7 @@ pub(crate) struct Workspace {
     /// The splat textures to write (`project`) and to read (`emit`, blending).
     splats_out: wgpu::BindGroup,
     splats_in: wgpu::BindGroup,
-    _splat_textures: [wgpu::Texture; 3],
+    _splat_textures: [wgpu::Texture; 4],
     programs: LivePrograms,
     dispatches: Dispatches,
     flags_scan: ScanPlan,
@@ -361,10 +372,8 @@ impl Workspace {
         let chunk_list = buffer("chunk list", u64::from(caps.entries));
         let masks = buffer("entry masks", 8 * u64::from(caps.entries));
         let entry_counts = buffer("entry counts", u64::from(caps.entries) + 1);
-        let boxes = buffer("splat boxes", u64::from(caps.splats) * SPLAT_BOX_WORDS);
         let rows = texel_rows(caps.splats);
-        let splat_textures = ["splat shapes", "splat weights", "splat colours"]
-            .map(|l| texels(gpu, l, TEXELS_ACROSS, rows));
+        let splat_textures = SPLAT_TEXTURES.map(|(label, format)| texels(gpu, label, format, rows));
         let views = splat_textures
             .each_ref()
             .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
@@ -373,7 +382,12 @@ impl Workspace {
             .map(wgpu::BindingResource::TextureView)
             .collect();
         let splats_out = bind(gpu, &k.splats_out_layout, &views);
-        let splats_in = bind_from(gpu, &k.splats_in_layout, 3, &views);
+        let splats_in = bind_from(
+            gpu,
+            &k.splats_in_layout,
+            SPLAT_TEXTURES.len() as u32,
+            &views,
+        );
         let depth = [
             "depth keys",
             "depth values",
@@ -531,7 +545,6 @@ impl Workspace {
                 chunk_list.as_entire_binding(),
                 masks.as_entire_binding(),
                 entry_counts.as_entire_binding(),
-                boxes.as_entire_binding(),
                 d0.as_entire_binding(),
                 d1.as_entire_binding(),
                 tile_counts.as_entire_binding(),
@@ -587,7 +600,6 @@ impl Workspace {
                 chunk_list,
                 masks,
                 entry_counts,
-                boxes,
                 d0,
                 d1,
                 d2,
@@ -668,7 +680,7 @@ impl Workspace {
             k.sort
                 .encode(pass, &k.scan, live, &self.depth_sort, depth_passes as usize);
             stamp(pass);
-            live.dispatch(pass, &k.count_tiles, &groups, d.splats);
+            live.dispatch(pass, &k.count_tiles, &splats_in, d.splats);
             k.scan.encode(pass, live, &self.tiles_scan);
             live.encode(pass, &self.programs, 3);
             live.dispatch(pass, &k.emit, &splats_in, d.splats);
@@ -718,16 +730,16 @@ mod tests {
             splats: TEXELS_ACROSS,
             ..Caps::default()
         };
-        // A row of texels is allocated whole: the textures' bytes differ by the boxes and the
-        // sort's words of the splats alone.
-        let per_splat = (SPLAT_BOX_WORDS + 6) * 4;
+        // A row of texels is allocated whole: the bytes differ by the sort's words of the
+        // splats alone.
+        let per_splat = 6 * 4;
         assert_eq!(
             row.bytes() - one.bytes(),
             u64::from(TEXELS_ACROSS - 1) * per_splat
         );
         assert_eq!(
             one.bytes(),
-            per_splat + SPLAT_TEXTURES * u64::from(TEXELS_ACROSS) * 16
+            per_splat + SPLAT_TEXTURES.len() as u64 * u64::from(TEXELS_ACROSS) * 16
         );
     }
 }
