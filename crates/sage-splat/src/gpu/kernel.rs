@@ -91,7 +91,8 @@ pub(crate) fn texels_in(binding: u32, format: wgpu::TextureFormat) -> wgpu::Bind
     }
 }
 
-/// A texture of `rows` rows of [`TEXELS_ACROSS`] texels of `format`, for `usage`.
+/// The descriptor of a texture of `rows` rows of [`TEXELS_ACROSS`] texels of `format`, for
+/// `usage`.
 pub(crate) fn texel_rows_texture<'a>(
     label: &'a str,
     format: wgpu::TextureFormat,
