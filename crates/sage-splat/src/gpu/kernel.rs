@@ -51,6 +51,11 @@ pub(crate) fn texel_rows(n: u32) -> u32 {
     n.div_ceil(TEXELS_ACROSS).max(1)
 }
 
+/// Bytes of a texture of `n` texels of four words in whole rows of [`TEXELS_ACROSS`].
+pub(crate) fn texel_bytes(n: u32) -> u64 {
+    u64::from(texel_rows(n)) * u64::from(TEXELS_ACROSS) * 16
+}
+
 /// Four floats a texel.
 pub(crate) const FLOATS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Four words a texel.

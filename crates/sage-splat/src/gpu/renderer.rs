@@ -3,7 +3,7 @@
 //! rendering (`splat.wgsl` holds the kernels, [`super::workspace`] the buffers).
 
 use super::Gpu;
-use super::kernel::{TEXELS_ACROSS, bind};
+use super::kernel::{TEXELS_ACROSS, bind, texel_rows};
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
@@ -304,8 +304,8 @@ impl GpuRenderer {
         let words = sh_words(sh_rest_count(gaussians.sh_degree())).max(2);
         let largest = n as u64 * words as u64 * 4;
         let bound = gpu.largest_binding();
-        let rows = n.div_ceil(TEXELS_ACROSS as usize);
-        let most_rows = gpu.limits().max_texture_dimension_2d as usize;
+        let rows = texel_rows(u32::try_from(n).unwrap_or(u32::MAX));
+        let most_rows = gpu.limits().max_texture_dimension_2d;
         if largest > bound || rows > most_rows || n >= u32::MAX as usize / 2 {
             return Err(Error::invalid(format!(
                 "GPU {}: a scene of {n} Gaussians needs {} MB buffers and textures of {rows} \

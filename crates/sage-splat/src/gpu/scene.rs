@@ -3,7 +3,7 @@
 //! which the kernels cull against.
 
 use super::Gpu;
-use super::kernel::{FLOATS, TEXELS_ACROSS, WORDS, texel_rows, texel_rows_texture};
+use super::kernel::{FLOATS, TEXELS_ACROSS, WORDS, texel_bytes, texel_rows, texel_rows_texture};
 use crate::index::SplatIndex;
 use sage_scene::Gaussians;
 use sage_scene::gaussians::sh_rest_count;
@@ -127,7 +127,7 @@ impl SceneBuffers {
             .map(f32::to_bits)
             .collect();
         let buffers = [&colors, &sh_codes, &g.instances, &chunk_bounds];
-        let texture_bytes = 2 * u64::from(texel_rows(n as u32)) * u64::from(TEXELS_ACROSS) * 16;
+        let texture_bytes = 2 * texel_bytes(n as u32);
         let bytes = texture_bytes + buffers.iter().map(|v| 4 * v.len() as u64).sum::<u64>();
         SceneBuffers {
             positions: texel_texture(gpu, "positions", FLOATS, &positions),

@@ -721,7 +721,6 @@ fn sorted_depth_value(i: u32) -> u32 {
     return depth_values[i];
 }
 
-
 // The unfinished tiles splat s reaches (found by `project`).
 fn splat_tiles(s: u32) -> u32 {
     return splat_box(s).z >> 8u;

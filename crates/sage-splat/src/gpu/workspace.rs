@@ -4,7 +4,7 @@
 
 use super::Gpu;
 use super::kernel::{
-    FLOATS, Kernel, TEXELS_ACROSS, WORDS, bind, bind_from, dynamic_uniform, layout, storage,
+    FLOATS, Kernel, WORDS, bind, bind_from, dynamic_uniform, layout, storage, texel_bytes,
     texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
@@ -137,16 +137,14 @@ impl Caps {
     /// Device bytes of buffers and textures of these capacities (the scan and sort scratch
     /// included; the camera blocks, sized by the adapter, not).
     pub(crate) fn bytes(&self) -> u64 {
-        let texels = u64::from(texel_rows(self.splats)) * u64::from(TEXELS_ACROSS);
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
             + u64::from(self.splats) * 6
-            + SPLAT_TEXTURES.len() as u64 * texels * 4
             + 5 * u64::from(self.tile_entries)
             + 8 * u64::from(self.tiles)
             + self.image_words;
-        words * 4
+        words * 4 + SPLAT_TEXTURES.len() as u64 * texel_bytes(self.splats)
     }
 }
 
@@ -703,6 +701,7 @@ impl Workspace {
 
 #[cfg(test)]
 mod tests {
+    use super::super::kernel::TEXELS_ACROSS;
     use super::*;
 
     #[test]
