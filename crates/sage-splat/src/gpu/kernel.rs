@@ -51,9 +51,10 @@ pub(crate) fn texel_rows(n: u32) -> u32 {
     n.div_ceil(TEXELS_ACROSS).max(1)
 }
 
-/// Bytes of a texture of `n` texels of four words in whole rows of [`TEXELS_ACROSS`].
-pub(crate) fn texel_bytes(n: u32) -> u64 {
-    u64::from(texel_rows(n)) * u64::from(TEXELS_ACROSS) * 16
+/// Bytes of a texture of `n` texels of `format` in whole rows of [`TEXELS_ACROSS`].
+pub(crate) fn texel_bytes(n: u32, format: wgpu::TextureFormat) -> u64 {
+    let texel = format.block_copy_size(None).unwrap_or(16);
+    u64::from(texel_rows(n)) * u64::from(TEXELS_ACROSS) * u64::from(texel)
 }
 
 /// Four floats a texel.
@@ -61,8 +62,11 @@ pub(crate) const FLOATS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 /// Four words a texel.
 pub(crate) const WORDS: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Uint;
 
-/// A write-only storage texture binding of `format` ([`FLOATS`] or [`WORDS`]: every WebGPU
-/// adapter stores either from a compute kernel).
+/// Two words a texel: a (key, value) pair of the radix sort.
+pub(crate) const PAIRS: wgpu::TextureFormat = wgpu::TextureFormat::Rg32Uint;
+
+/// A write-only storage texture binding of `format` ([`FLOATS`], [`WORDS`] or [`PAIRS`]:
+/// every WebGPU adapter stores each from a compute kernel).
 pub(crate) fn texels_out(binding: u32, format: wgpu::TextureFormat) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
@@ -76,13 +80,13 @@ pub(crate) fn texels_out(binding: u32, format: wgpu::TextureFormat) -> wgpu::Bin
     }
 }
 
-/// A texture binding of `format` ([`FLOATS`] or [`WORDS`]), read with `textureLoad` (never
-/// filtered).
+/// A texture binding of `format` ([`FLOATS`], [`WORDS`] or [`PAIRS`]), read with
+/// `textureLoad` (never filtered).
 pub(crate) fn texels_in(binding: u32, format: wgpu::TextureFormat) -> wgpu::BindGroupLayoutEntry {
-    let sample_type = if format == WORDS {
-        wgpu::TextureSampleType::Uint
-    } else {
+    let sample_type = if format == FLOATS {
         wgpu::TextureSampleType::Float { filterable: false }
+    } else {
+        wgpu::TextureSampleType::Uint
     };
     wgpu::BindGroupLayoutEntry {
         binding,

@@ -8,8 +8,8 @@ use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
-    LIVE_CAMERAS, LIVE_DEPTH_PARITY, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILE_PARITY, LIVE_TILES,
-    PLANES, SLABS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
+    LIVE_CAMERAS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES, PLANES, SLABS, TILE_SORT_PASSES,
+    Workspace, camera_block_bytes, camera_slots,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -39,9 +39,8 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const SH_REST: u32 = {sh_rest}u;\nconst SH_WORDS: u32 = {}u;\n\
          const GAUSSIANS: u32 = {gaussians}u;\nconst CHUNKS: u32 = {chunks}u;\n\
          const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
-         const LIVE_TILE_PARITY: u32 = {LIVE_TILE_PARITY}u;\nconst LIVE_TILES: u32 = {LIVE_TILES}u;\n\
+         const LIVE_TILES: u32 = {LIVE_TILES}u;\n\
          const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst LIVE_SLABS: u32 = {LIVE_SLABS}u;\n\
-         const LIVE_DEPTH_PARITY: u32 = {LIVE_DEPTH_PARITY}u;\n\
          const LIVE_OUT_PLANES: u32 = {LIVE_OUT_PLANES}u;\n\
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SLABS: u32 = {SLABS}u;\n\
@@ -322,7 +321,8 @@ impl GpuRenderer {
             n as u32,
             scene.chunks,
             slots,
-        ) + include_str!("splat.wgsl");
+        ) + include_str!("texel.wgsl")
+            + include_str!("splat.wgsl");
         let kernels = Kernels::new(gpu, source, slots);
         let categories_buffer = init_buffer(gpu, "categories", &[]);
         let scene_group = Self::scene_group(gpu, &kernels, &scene, &categories_buffer);
@@ -843,11 +843,9 @@ impl GpuRenderer {
         // The fixed slots, and zero where the slabs' largest and summed counts gather.
         let mut fixed = vec![0u32; LIVE_WORDS as usize];
         fixed[LIVE_CAMERA_CHUNKS as usize] = cameras.len() as u32 * self.chunks;
-        fixed[LIVE_TILE_PARITY as usize] = tile_passes % 2;
         fixed[LIVE_TILES as usize] = tiles;
         fixed[LIVE_CAMERAS as usize] = cameras.len() as u32;
         fixed[LIVE_SLABS as usize] = state.slabs;
-        fixed[LIVE_DEPTH_PARITY as usize] = depth_passes % 2;
         fixed[LIVE_OUT_PLANES as usize] = out_bits;
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));

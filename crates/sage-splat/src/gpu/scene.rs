@@ -127,7 +127,7 @@ impl SceneBuffers {
             .map(f32::to_bits)
             .collect();
         let buffers = [&colors, &sh_codes, &g.instances, &chunk_bounds];
-        let texture_bytes = 2 * texel_bytes(n as u32);
+        let texture_bytes = texel_bytes(n as u32, FLOATS) + texel_bytes(n as u32, WORDS);
         let bytes = texture_bytes + buffers.iter().map(|v| 4 * v.len() as u64).sum::<u64>();
         SceneBuffers {
             positions: texel_texture(gpu, "positions", FLOATS, &positions),

@@ -1,10 +1,14 @@
 //! The two GPU primitives the binning needs: an exclusive prefix sum ([`Scan`]) and a stable
-//! radix sort of (key, value) pairs ([`RadixSort`]), each recorded into a compute pass over
-//! buffers of a fixed capacity, with the live count read on the GPU and the workgroups
-//! dispatched indirectly from it (`scan.wgsl`, `sort.wgsl`, [`super::live`]).
+//! radix sort of (key, value) pairs ([`RadixSort`]) from two buffers into a texture of pairs,
+//! each recorded into a compute pass over storage of a fixed capacity, with the live count
+//! read on the GPU and the workgroups dispatched indirectly from it (`scan.wgsl`,
+//! `sort.wgsl`, [`super::live`]).
 
 use super::Gpu;
-use super::kernel::{Kernel, bind, layout, storage, uniform, uniform_buffer};
+use super::kernel::{
+    Kernel, PAIRS, TEXELS_ACROSS, bind, bind_from, layout, storage, texels_in, texels_out, uniform,
+    uniform_buffer,
+};
 use super::live::{Count, Live, LiveBuilder, Size};
 
 /// Elements one workgroup of `scan_blocks` covers (256 threads, a run of 16 each).
@@ -182,17 +186,67 @@ impl Scan {
     }
 }
 
-/// The radix-sort kernels.
+/// The radix-sort kernels: a pass reading a pair of buffers (the first) and one reading the
+/// texture the pass before wrote (`sort_buffers.wgsl`, `sort_texture.wgsl`).
 pub(crate) struct RadixSort {
+    from_buffers: SortKernels,
+    from_texture: SortKernels,
+}
+
+/// The two kernels of a pass over one kind of input, and their layout.
+struct SortKernels {
     layout: wgpu::BindGroupLayout,
     histogram: Kernel,
     scatter: Kernel,
 }
 
-/// A sort of up to `capacity` pairs between two pairs of buffers, ping-pong: pass `k` reads
-/// the first pair when `k` is even. After an odd number of passes the result is in the second.
+impl SortKernels {
+    /// Compiles `sort.wgsl` after `input` (the prelude of `key_in` and `pair_in`) over
+    /// `input_bindings` (below 2).
+    fn new(
+        gpu: &Gpu,
+        label: &str,
+        input: &str,
+        input_bindings: &[wgpu::BindGroupLayoutEntry],
+    ) -> SortKernels {
+        let module = gpu
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(
+                    format!(
+                        "const HISTOGRAM_BLOCKS: u32 = {HISTOGRAM_BLOCKS}u;\n\
+                         const SCAN_BLOCK: u32 = {SCAN_BLOCK}u;\n\
+                         const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n{}{input}{}",
+                        include_str!("texel.wgsl"),
+                        include_str!("sort.wgsl")
+                    )
+                    .into(),
+                ),
+            });
+        let mut entries = input_bindings.to_vec();
+        entries.extend([
+            texels_out(2, PAIRS),
+            storage(3, false),
+            storage(4, true),
+            uniform(5),
+            storage(6, true),
+        ]);
+        let layout = layout(gpu, &entries);
+        SortKernels {
+            histogram: Kernel::new(gpu, &module, "histogram", &[&layout]),
+            scatter: Kernel::new(gpu, &module, "scatter", &[&layout]),
+            layout,
+        }
+    }
+}
+
+/// A sort of up to `capacity` pairs from a pair of buffers into two textures of (key, value)
+/// texels, ping-pong: pass 0 reads the buffers and writes the first texture, pass `k` reads
+/// texture `(k − 1) % 2` and writes texture `k % 2` ([`SortPlan::result`]).
 pub(crate) struct SortPlan {
-    /// Per 8-bit pass: input, output, digits, live sizes and the digit shift.
+    /// Per 8-bit pass: its kernels' bind group (input, output, digits, live sizes and the
+    /// digit shift).
     passes: Vec<wgpu::BindGroup>,
     /// Where the workgroups of `histogram` and of `scatter` are.
     histogram_args: u64,
@@ -201,48 +255,38 @@ pub(crate) struct SortPlan {
     _buffers: Vec<wgpu::Buffer>,
 }
 
+impl SortPlan {
+    /// Which of the two textures holds the pairs sorted by `passes` passes.
+    pub(crate) fn result(passes: u32) -> usize {
+        (passes as usize + 1) % 2
+    }
+}
+
 /// Two (keys, values) buffers.
 pub(crate) type Pairs<'a> = (&'a wgpu::Buffer, &'a wgpu::Buffer);
 
 impl RadixSort {
     /// Compiles the sort kernels.
     pub(crate) fn new(gpu: &Gpu) -> RadixSort {
-        let module = gpu
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("radix sort"),
-                source: wgpu::ShaderSource::Wgsl(
-                    format!(
-                        "const HISTOGRAM_BLOCKS: u32 = {HISTOGRAM_BLOCKS}u;\n\
-                         const SCAN_BLOCK: u32 = {SCAN_BLOCK}u;\n{}",
-                        include_str!("sort.wgsl")
-                    )
-                    .into(),
-                ),
-            });
-        let layout = layout(
-            gpu,
-            &[
-                storage(0, true),
-                storage(1, true),
-                storage(2, false),
-                storage(3, false),
-                storage(4, false),
-                storage(5, true),
-                uniform(6),
-                storage(7, true),
-            ],
-        );
         RadixSort {
-            histogram: Kernel::new(gpu, &module, "histogram", &[&layout]),
-            scatter: Kernel::new(gpu, &module, "scatter", &[&layout]),
-            layout,
+            from_buffers: SortKernels::new(
+                gpu,
+                "radix sort from buffers",
+                include_str!("sort_buffers.wgsl"),
+                &[storage(0, true), storage(1, true)],
+            ),
+            from_texture: SortKernels::new(
+                gpu,
+                "radix sort from a texture",
+                include_str!("sort_texture.wgsl"),
+                &[texels_in(1, PAIRS)],
+            ),
         }
     }
 
-    /// A sort of the first `live[count_slot]` (at most `capacity`) pairs in `first`
-    /// (ping-pong with `second`) over up to `passes` 8-bit digits from the lowest, its sizes
-    /// derived in `builder`'s current stage.
+    /// A sort of the first `live[count_slot]` (at most `capacity`) pairs in `input` into
+    /// `textures` (rows of [`PAIRS`] texels holding `capacity`) over up to `passes` 8-bit digits
+    /// from the lowest, its sizes derived in `builder`'s current stage.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn plan(
         &self,
@@ -250,8 +294,8 @@ impl RadixSort {
         scan: &Scan,
         live: &Live,
         builder: &mut LiveBuilder,
-        first: Pairs<'_>,
-        second: Pairs<'_>,
+        input: Pairs<'_>,
+        textures: [&wgpu::Texture; 2],
         capacity: u32,
         count_slot: u32,
         passes: u32,
@@ -283,29 +327,29 @@ impl RadixSort {
             digit_count.n,
             Finish::Apart,
         );
+        let views = textures.map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()));
         let mut buffers = Vec::new();
-        let passes = (0..passes)
+        let passes = (0..passes as usize)
             .map(|k| {
-                let (input, output) = if k % 2 == 0 {
-                    (first, second)
+                let params = uniform_buffer(gpu, &[8 * k as u32, count_slot, 0, 0]);
+                let rest = [
+                    wgpu::BindingResource::TextureView(&views[k % 2]),
+                    digits.as_entire_binding(),
+                    live.buffer.as_entire_binding(),
+                    params.as_entire_binding(),
+                    digits_scan.block_offsets().as_entire_binding(),
+                ];
+                let bind_group = if k == 0 {
+                    let mut resources =
+                        vec![input.0.as_entire_binding(), input.1.as_entire_binding()];
+                    resources.extend(rest);
+                    bind(gpu, &self.from_buffers.layout, &resources)
                 } else {
-                    (second, first)
+                    let mut resources =
+                        vec![wgpu::BindingResource::TextureView(&views[(k + 1) % 2])];
+                    resources.extend(rest);
+                    bind_from(gpu, &self.from_texture.layout, 1, &resources)
                 };
-                let params = uniform_buffer(gpu, &[8 * k, count_slot, 0, 0]);
-                let bind_group = bind(
-                    gpu,
-                    &self.layout,
-                    &[
-                        input.0.as_entire_binding(),
-                        input.1.as_entire_binding(),
-                        output.0.as_entire_binding(),
-                        output.1.as_entire_binding(),
-                        digits.as_entire_binding(),
-                        live.buffer.as_entire_binding(),
-                        params.as_entire_binding(),
-                        digits_scan.block_offsets().as_entire_binding(),
-                    ],
-                );
                 buffers.push(params);
                 bind_group
             })
@@ -329,10 +373,20 @@ impl RadixSort {
         plan: &SortPlan,
         passes: usize,
     ) {
-        for group in &plan.passes[..passes] {
-            live.dispatch(pass, &self.histogram, &[(group, &[])], plan.histogram_args);
+        for (k, group) in plan.passes[..passes].iter().enumerate() {
+            let kernels = if k == 0 {
+                &self.from_buffers
+            } else {
+                &self.from_texture
+            };
+            live.dispatch(
+                pass,
+                &kernels.histogram,
+                &[(group, &[])],
+                plan.histogram_args,
+            );
             scan.encode(pass, live, &plan.digits_scan);
-            live.dispatch(pass, &self.scatter, &[(group, &[])], plan.scatter_args);
+            live.dispatch(pass, &kernels.scatter, &[(group, &[])], plan.scatter_args);
         }
     }
 }
@@ -341,6 +395,7 @@ impl RadixSort {
 mod tests {
     //! The scan and the sort on the GPU against the standard library, at sizes on both sides
     //! of their block edges and of several scan levels.
+    use super::super::kernel::{texel_rows, texel_rows_texture};
     use super::*;
     use rand::{Rng, SeedableRng};
 
@@ -460,27 +515,74 @@ mod tests {
         }
     }
 
+    /// The first `n` texels of `texture` (of [`PAIRS`]), copied out.
+    fn pairs_of(gpu: &Gpu, texture: &wgpu::Texture, n: u32) -> Vec<(u32, u32)> {
+        let size = texture.size();
+        let row_bytes = size.width * 8;
+        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size: u64::from(row_bytes * size.height),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row_bytes),
+                    rows_per_image: None,
+                },
+            },
+            size,
+        );
+        gpu.queue.submit([encoder.finish()]);
+        staging.map_async(wgpu::MapMode::Read, .., |r| r.expect("mapped"));
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("GPU work finished");
+        let view = staging.slice(..).get_mapped_range().expect("mapped");
+        let words: &[u32] = bytemuck::cast_slice(&view);
+        words
+            .chunks_exact(2)
+            .take(n as usize)
+            .map(|p| (p[0], p[1]))
+            .collect()
+    }
+
     #[test]
-    fn the_sort_is_stable_by_key() {
+    fn the_sort_is_stable_by_key_with_every_pass_count() {
         let Some(gpu) = gpu() else { return };
         let live = Live::new(&gpu);
         let scan = Scan::new(&gpu);
         let sort = RadixSort::new(&gpu);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
-        // And one pass over more than SCAN_BLOCK² digits (as many pairs): three levels of the
-        // digits' scan, its block offsets apart.
-        let cases = SIZES.map(|n| (n, 4)).into_iter();
+        // Every pass count (ending in either texture), and one pass over more than
+        // SCAN_BLOCK² digits (as many pairs): three levels of the digits' scan, its block
+        // offsets apart.
+        let cases = SIZES.into_iter().zip([4, 1, 2, 3].into_iter().cycle());
         for (i, (n, passes)) in cases.chain([(SCAN_BLOCK * SCAN_BLOCK + 1, 1)]).enumerate() {
             // Every other size with few distinct keys, so stability is tested.
             let keys: Vec<u32> = (0..n)
                 .map(|_| match i % 2 {
                     0 => rng.random(),
-                    _ => rng.random_range(0..5) << 20,
+                    _ => rng.random_range(0..5) << (8 * passes - 4),
                 })
                 .collect();
             let values: Vec<u32> = (0..n).collect();
-            let (k1, v1) = (words(&gpu, &keys), words(&gpu, &values));
-            let (k2, v2) = (words(&gpu, &keys), words(&gpu, &values));
+            let (k, v) = (words(&gpu, &keys), words(&gpu, &values));
+            let textures = ["pairs", "pairs 2"].map(|l| {
+                gpu.device.create_texture(&texel_rows_texture(
+                    l,
+                    PAIRS,
+                    texel_rows(n),
+                    wgpu::TextureUsages::STORAGE_BINDING
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                ))
+            });
             let mut builder = LiveBuilder::new(1);
             builder.stage();
             let plan = sort.plan(
@@ -488,14 +590,14 @@ mod tests {
                 &scan,
                 &live,
                 &mut builder,
-                (&k1, &v1),
-                (&k2, &v2),
+                (&k, &v),
+                textures.each_ref(),
                 n,
                 0,
                 passes,
             );
-            let programs = live.programs(&gpu, &builder, &[&k1]);
-            let out = run(
+            let programs = live.programs(&gpu, &builder, &[&k]);
+            run(
                 &gpu,
                 &live,
                 n,
@@ -503,18 +605,16 @@ mod tests {
                     live.encode(pass, &programs, 0);
                     sort.encode(pass, &scan, &live, &plan, passes as usize);
                 },
-                &[&k1, &v1, &k2, &v2],
+                &[],
             );
-            let out = if passes % 2 == 0 {
-                &out[..2]
-            } else {
-                &out[2..]
-            };
+            let got = pairs_of(&gpu, &textures[SortPlan::result(passes)], n);
             let digits = (1u64 << (8 * passes)) - 1;
             let mut want: Vec<(u32, u32)> = keys.into_iter().zip(values).collect();
             want.sort_by_key(|p| u64::from(p.0) & digits);
-            let got: Vec<(u32, u32)> = out[0].iter().copied().zip(out[1].clone()).collect();
-            assert!(got == want, "{n} pairs: not sorted stably by key");
+            assert!(
+                got == want,
+                "{n} pairs, {passes} passes: not sorted stably by key"
+            );
         }
     }
 }

@@ -9,20 +9,22 @@
 // in their input order.
 // A workgroup of `histogram` counts HISTOGRAM_BLOCKS blocks (the constant comes from the Rust
 // side), a pair of each per thread, between the same two barriers.
+// The pairs come in through `key_in` and `pair_in`, from one of two preludes: a pair of
+// buffers (the first pass, over what a kernel wrote) or a texture (`pairs_in`, the passes
+// after). They go out as a texel each of `pairs_out` (`texel`): under lavapipe (Mesa 22) a
+// texel is one gather, where a storage array read at an index it cannot prove uniform is a
+// read per lane behind a branch; and one store per lane for the pair, not one per word.
 
 struct Params {
     shift: u32,
     count_slot: u32,
 }
 
-@group(0) @binding(0) var<storage, read> keys_in: array<u32>;
-@group(0) @binding(1) var<storage, read> values_in: array<u32>;
-@group(0) @binding(2) var<storage, read_write> keys_out: array<u32>;
-@group(0) @binding(3) var<storage, read_write> values_out: array<u32>;
-@group(0) @binding(4) var<storage, read_write> block_digits: array<u32>;
-@group(0) @binding(5) var<storage, read> live: array<u32>;
-@group(0) @binding(6) var<uniform> params: Params;
-@group(0) @binding(7) var<storage, read> block_offsets: array<u32>;
+@group(0) @binding(2) var pairs_out: texture_storage_2d<rg32uint, write>;
+@group(0) @binding(3) var<storage, read_write> block_digits: array<u32>;
+@group(0) @binding(4) var<storage, read> live: array<u32>;
+@group(0) @binding(5) var<uniform> params: Params;
+@group(0) @binding(6) var<storage, read> block_offsets: array<u32>;
 
 // Per block of the workgroup and digit, its pairs.
 var<workgroup> histogram_of_block: array<atomic<u32>, HISTOGRAM_BLOCKS * 256>;
@@ -45,7 +47,7 @@ fn histogram(
     for (var k = 0u; k < HISTOGRAM_BLOCKS; k++) {
         let i = (first + k) * 256u + lid;
         if i < n {
-            atomicAdd(&histogram_of_block[k * 256u + ((keys_in[i] >> params.shift) & 255u)], 1u);
+            atomicAdd(&histogram_of_block[k * 256u + ((key_in(i) >> params.shift) & 255u)], 1u);
         }
     }
     workgroupBarrier();
@@ -70,12 +72,12 @@ fn scatter(
     }
     let i = block * 256u + lid;
     let valid = i < n;
-    var key = 0u;
+    var pair = vec2<u32>(0u);
     // 256 marks a missing pair: no real digit equals it.
     var digit = 256u;
     if valid {
-        key = keys_in[i];
-        digit = (key >> params.shift) & 255u;
+        pair = pair_in(i);
+        digit = (pair.x >> params.shift) & 255u;
     }
     // The bits start zeroed (workgroup memory, WGSL's rule).
     let row = lid / 32u;
@@ -93,7 +95,6 @@ fn scatter(
         }
         let first = digit * blocks + block;
         let slot = block_offsets[first / SCAN_BLOCK] + block_digits[first] + rank;
-        keys_out[slot] = key;
-        values_out[slot] = values_in[i];
+        textureStore(pairs_out, texel(slot), vec4<u32>(pair, 0u, 0u));
     }
 }

@@ -82,50 +82,47 @@ struct Slots {
 @group(1) @binding(4) var<storage, read_write> entry_masks: array<atomic<u32>>;
 // Per entry (+1): visible Gaussians, then their exclusive scan (each entry's first splat).
 @group(1) @binding(5) var<storage, read_write> entry_counts: array<atomic<u32>>;
-// Depth-sort pairs: camera and depth key (`depth_key`) and splat; the sort ping-pongs with two
-// more buffers and ends in these or in the second (`depth_values_2`, at odd parity).
+// Depth-sort pairs as `project` writes them: camera and depth key (`depth_key`) and splat; the
+// sort ends in a texture (`depth_sorted`).
 @group(1) @binding(6) var<storage, read_write> depth_keys: array<u32>;
 @group(1) @binding(7) var<storage, read_write> depth_values: array<u32>;
 // Tiles per depth-ordered splat (+1), then their exclusive scan.
 @group(1) @binding(8) var<storage, read_write> tile_counts: array<u32>;
-// Tile-sort pairs: camera and tile (`tile_key`) and splat, in the first and second buffers.
+// Tile-sort pairs as `emit` writes them: camera and tile (`tile_key`) and splat; the sort ends
+// in a texture (`tiles_sorted`).
 @group(1) @binding(9) var<storage, read_write> tile_keys: array<u32>;
 @group(1) @binding(10) var<storage, read_write> tile_values: array<u32>;
-@group(1) @binding(11) var<storage, read_write> tile_keys_2: array<u32>;
-@group(1) @binding(12) var<storage, read_write> tile_values_2: array<u32>;
 // Per tile of the batch: first and one-past-last entry of this slab (zero where none; each
 // raster workgroup zeroes its own after reading it).
-@group(1) @binding(13) var<storage, read_write> tile_ranges: array<vec2<u32>>;
+@group(1) @binding(11) var<storage, read_write> tile_ranges: array<vec2<u32>>;
 // Per camera from its first word: 8 planes of width × height words, the per-pixel state
 // while slabs blend: r, g, b (background not added), transmittance (negative once the pixel
 // is finished), Σ weight × depth, median depth (f32 bits), instance, best weight (f32 bits).
 // After every camera's state, the images `compose` writes out (the only words read back):
 // per camera from its `place.w`, a plane of width × height words per image asked for
 // (`live[LIVE_OUT_PLANES]`), in the order of the `OUT_*` bits.
-@group(1) @binding(14) var<storage, read_write> images: array<u32>;
-@group(1) @binding(15) var<uniform> slots: Slots;
+@group(1) @binding(12) var<storage, read_write> images: array<u32>;
+@group(1) @binding(13) var<uniform> slots: Slots;
 // Per camera × chunk: nearest and farthest depth of its bounds (f32 bits; the nearest is
 // F32_MAX when culled) and its screen rectangle in tiles, grown by one tile as the CPU grows it
 // (x0 | y0 << 16, x1 | y1 << 16).
-@group(1) @binding(16) var<storage, read_write> chunk_views: array<vec4<u32>>;
+@group(1) @binding(14) var<storage, read_write> chunk_views: array<vec4<u32>>;
 // Per camera: DEPTH_BINS counts of its visible chunks' middle depths (where their splats'
 // depths centre), in bins of equal depth ratio from its near to its far plane.
-@group(1) @binding(17) var<storage, read_write> depth_histogram: array<atomic<u32>>;
+@group(1) @binding(15) var<storage, read_write> depth_histogram: array<atomic<u32>>;
 // Per camera, SLABS + 1 depths: slab k holds the splats of depth in [cut k, cut k + 1).
-@group(1) @binding(18) var<storage, read_write> slab_cuts: array<f32>;
+@group(1) @binding(16) var<storage, read_write> slab_cuts: array<f32>;
 // Per tile of the batch: its columns of four pixels (half a raster thread's) that are finished
 // or outside the image; 64 once the whole tile is finished.
-@group(1) @binding(19) var<storage, read_write> tile_done: array<atomic<u32>>;
+@group(1) @binding(17) var<storage, read_write> tile_done: array<atomic<u32>>;
 // Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
 // (tiles down + 1) words, row 0 and column 0 zero.
-@group(1) @binding(20) var<storage, read_write> finished_sum: array<u32>;
+@group(1) @binding(18) var<storage, read_write> finished_sum: array<u32>;
 // The slab being rendered (x).
-@group(1) @binding(21) var<uniform> slab: vec4<u32>;
+@group(1) @binding(19) var<uniform> slab: vec4<u32>;
 // The tiles of the batch with entries in this slab, in no particular order (each is blended
 // on its own), and their count after the list's capacity (at live[LIVE_TILES]).
-@group(1) @binding(22) var<storage, read_write> tile_list: array<atomic<u32>>;
-// The second buffer of the depth sort's splats, where an odd number of passes ends.
-@group(1) @binding(23) var<storage, read_write> depth_values_2: array<u32>;
+@group(1) @binding(20) var<storage, read_write> tile_list: array<atomic<u32>>;
 
 // The visible splats, a texel each (`texel`) of four textures: shapes (x, y, conic a, conic b),
 // weights (conic c, opacity, depth, cutoff), colours (r, g, b, instance bits), boxes (extent x,
@@ -136,7 +133,9 @@ struct Slots {
 // texel as one gather, and the blending kernels read a splat per pixel vector; it also stores a
 // texel per lane where a storage vector takes a store per component. The blending kernels test
 // a splat's reach with the first two and read the colour only where it reaches a pixel.
-// `project` writes them (bindings 0–3, its own bind group); later kernels read them (4–7).
+// `project` writes them (bindings 0–3, its own bind group); later kernels read them (4–7),
+// with the sorts' results: (camera and depth key, splat) in depth order and (camera and tile,
+// splat) in tile order, a texel each (8, 9; as the sorts leave them, `sort.wgsl`).
 @group(2) @binding(0) var shapes_out: texture_storage_2d<rgba32float, write>;
 @group(2) @binding(1) var weights_out: texture_storage_2d<rgba32float, write>;
 @group(2) @binding(2) var colours_out: texture_storage_2d<rgba32float, write>;
@@ -145,11 +144,8 @@ struct Slots {
 @group(2) @binding(5) var splat_weights: texture_2d<f32>;
 @group(2) @binding(6) var splat_colours: texture_2d<f32>;
 @group(2) @binding(7) var splat_boxes: texture_2d<u32>;
-
-// Texel i of a texture indexed by a flat number (splats, Gaussians): rows of TEXELS_ACROSS.
-fn texel(i: u32) -> vec2<u32> {
-    return vec2<u32>(i % TEXELS_ACROSS, i / TEXELS_ACROSS);
-}
+@group(2) @binding(8) var depth_sorted: texture_2d<u32>;
+@group(2) @binding(9) var tiles_sorted: texture_2d<u32>;
 
 fn splat_shape(s: u32) -> vec4<f32> {
     return textureLoad(splat_shapes, texel(s), 0);
@@ -713,12 +709,9 @@ fn depth_key(c: u32, z: f32) -> u32 {
     return (c << DEPTH_KEY_BITS) | ((bitcast<u32>(z) - near) >> shift);
 }
 
-// The splat at place i of the depth order (the sort's result is where its parity says).
+// The splat at place i of the depth order.
 fn sorted_depth_value(i: u32) -> u32 {
-    if live[LIVE_DEPTH_PARITY] == 1u {
-        return depth_values_2[i];
-    }
-    return depth_values[i];
+    return textureLoad(depth_sorted, texel(i), 0).y;
 }
 
 // The unfinished tiles splat s reaches (found by `project`).
@@ -874,18 +867,14 @@ fn tile_key(c: u32, t: u32) -> u32 {
     return (c << DEPTH_KEY_BITS) | t;
 }
 
+// The key (camera and tile) at place i of the tile order.
 fn sorted_tile(i: u32) -> u32 {
-    if live[LIVE_TILE_PARITY] == 1u {
-        return tile_keys_2[i];
-    }
-    return tile_keys[i];
+    return textureLoad(tiles_sorted, texel(i), 0).x;
 }
 
+// The splat at place i of the tile order.
 fn sorted_splat(i: u32) -> u32 {
-    if live[LIVE_TILE_PARITY] == 1u {
-        return tile_values_2[i];
-    }
-    return tile_values[i];
+    return textureLoad(tiles_sorted, texel(i), 0).y;
 }
 
 @compute @workgroup_size(256)

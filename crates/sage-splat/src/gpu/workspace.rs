@@ -4,7 +4,7 @@
 
 use super::Gpu;
 use super::kernel::{
-    FLOATS, Kernel, WORDS, bind, bind_from, dynamic_uniform, layout, storage, texel_bytes,
+    FLOATS, Kernel, PAIRS, WORDS, bind, bind_from, dynamic_uniform, layout, storage, texel_bytes,
     texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
@@ -50,17 +50,14 @@ const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
     ("splat colours", FLOATS),
     ("splat boxes", WORDS),
 ];
-/// Live slots the host writes before each batch: cameras × chunks, the parity of the tile
-/// sort's result, the batch's tiles, its cameras, its depth slabs, the parity of the depth
-/// sort's result, the planes `compose` writes out (`OUT_*` bits).
+/// Live slots the host writes before each batch: cameras × chunks, the batch's tiles, its
+/// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits).
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
-pub(crate) const LIVE_TILE_PARITY: u32 = 1;
-pub(crate) const LIVE_TILES: u32 = 2;
-pub(crate) const LIVE_CAMERAS: u32 = 3;
-pub(crate) const LIVE_SLABS: u32 = 4;
-pub(crate) const LIVE_DEPTH_PARITY: u32 = 5;
-pub(crate) const LIVE_OUT_PLANES: u32 = 6;
-const LIVE_FIXED: u32 = 7;
+pub(crate) const LIVE_TILES: u32 = 1;
+pub(crate) const LIVE_CAMERAS: u32 = 2;
+pub(crate) const LIVE_SLABS: u32 = 3;
+pub(crate) const LIVE_OUT_PLANES: u32 = 4;
+const LIVE_FIXED: u32 = 5;
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
 pub(crate) const DEPTH_KEY_BITS: u32 = 24;
@@ -115,8 +112,10 @@ impl Caps {
 
     /// True when `gpu` binds buffers and textures of these capacities.
     pub(crate) fn fit(&self, gpu: &Gpu) -> bool {
+        let most_rows = gpu.limits().max_texture_dimension_2d;
         self.largest_buffer() <= gpu.largest_binding()
-            && texel_rows(self.splats) <= gpu.limits().max_texture_dimension_2d
+            && texel_rows(self.splats) <= most_rows
+            && texel_rows(self.tile_entries) <= most_rows
     }
 
     /// The largest single buffer these need, bytes (checked against what one binding sees).
@@ -140,11 +139,17 @@ impl Caps {
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
-            + u64::from(self.splats) * 6
-            + 5 * u64::from(self.tile_entries)
+            + u64::from(self.splats) * 4
+            + 3 * u64::from(self.tile_entries)
             + 8 * u64::from(self.tiles)
             + self.image_words;
-        words * 4 + SPLAT_TEXTURES.len() as u64 * texel_bytes(self.splats)
+        let splat_textures: u64 = SPLAT_TEXTURES
+            .iter()
+            .map(|&(_, format)| texel_bytes(self.splats, format))
+            .sum();
+        // Each sort's result and the texture it ping-pongs with.
+        let sorted = 2 * (texel_bytes(self.splats, PAIRS) + texel_bytes(self.tile_entries, PAIRS));
+        words * 4 + splat_textures + sorted
     }
 }
 
@@ -191,22 +196,23 @@ impl Kernels {
         scene.extend((2..7).map(|b| storage(b, true)));
         let scene_layout = layout(gpu, &scene);
         let mut frame = vec![uniform(0), storage(1, true)];
-        frame.extend((2..15).map(|b| storage(b, false)));
-        frame.push(uniform(15));
-        frame.extend((16..21).map(|b| storage(b, false)));
-        frame.push(dynamic_uniform(21));
-        frame.push(storage(22, false));
-        frame.push(storage(23, false));
+        frame.extend((2..13).map(|b| storage(b, false)));
+        frame.push(uniform(13));
+        frame.extend((14..19).map(|b| storage(b, false)));
+        frame.push(dynamic_uniform(19));
+        frame.push(storage(20, false));
         let frame_layout = layout(gpu, &frame);
         let splat_bindings = |first: u32, entry: fn(u32, wgpu::TextureFormat) -> _| {
-            let entries: Vec<_> = (first..)
+            (first..)
                 .zip(SPLAT_TEXTURES)
                 .map(|(b, (_, format))| entry(b, format))
-                .collect();
-            layout(gpu, &entries)
+                .collect::<Vec<_>>()
         };
-        let splats_out_layout = splat_bindings(0, texels_out);
-        let splats_in_layout = splat_bindings(SPLAT_TEXTURES.len() as u32, texels_in);
+        let splats_out_layout = layout(gpu, &splat_bindings(0, texels_out));
+        // The splats, then the depth order and the tile order (`depth_sorted`, `tiles_sorted`).
+        let mut splats_in = splat_bindings(SPLAT_TEXTURES.len() as u32, texels_in);
+        splats_in.extend([texels_in(8, PAIRS), texels_in(9, PAIRS)]);
+        let splats_in_layout = layout(gpu, &splats_in);
         let kernel =
             |entry: &str| Kernel::new(gpu, &module, entry, &[&scene_layout, &frame_layout]);
         // Kernels over the splat textures, written or read.
@@ -224,7 +230,7 @@ impl Kernels {
             project: over("project", &splats_out_layout),
             count_tiles: over("count_tiles", &splats_in_layout),
             emit: over("emit", &splats_in_layout),
-            ranges: kernel("ranges"),
+            ranges: over("ranges", &splats_in_layout),
             start_pixels: kernel("start_pixels"),
             raster: over("raster", &splats_in_layout),
             raster_columns: over("raster_columns", &splats_in_layout),
@@ -325,10 +331,13 @@ pub(crate) struct Workspace {
     pub(crate) cameras: wgpu::Buffer,
     pub(crate) images: wgpu::Buffer,
     frame_group: wgpu::BindGroup,
-    /// The splat textures to write (`project`) and to read (`emit`, blending).
+    /// The splat textures to write (`project`) and to read with the sorts' results (`emit`,
+    /// `ranges`, blending): one group for each texture the depth sort and the tile sort end
+    /// in ([`SortPlan::result`]), indexed by both.
     splats_out: wgpu::BindGroup,
-    splats_in: wgpu::BindGroup,
-    _splat_textures: [wgpu::Texture; 4],
+    splats_in: [[wgpu::BindGroup; 2]; 2],
+    /// The splat textures, then the depth sort's two textures of pairs and the tile sort's.
+    _textures: [wgpu::Texture; 8],
     programs: LivePrograms,
     dispatches: Dispatches,
     flags_scan: ScanPlan,
@@ -380,22 +389,32 @@ impl Workspace {
             .map(wgpu::BindingResource::TextureView)
             .collect();
         let splats_out = bind(gpu, &k.splats_out_layout, &views);
-        let splats_in = bind_from(
-            gpu,
-            &k.splats_in_layout,
-            SPLAT_TEXTURES.len() as u32,
-            &views,
-        );
-        let depth = [
-            "depth keys",
-            "depth values",
-            "depth keys 2",
-            "depth values 2",
-        ]
-        .map(|l| buffer(l, u64::from(caps.splats)));
+        let depth = ["depth keys", "depth values"].map(|l| buffer(l, u64::from(caps.splats)));
+        let depth_sorted = ["depth order", "depth order 2"]
+            .map(|l| texels(gpu, l, PAIRS, texel_rows(caps.splats)));
         let tile_counts = buffer("tile counts", u64::from(caps.splats) + 1);
-        let tile_pairs = ["tile keys", "tile values", "tile keys 2", "tile values 2"]
-            .map(|l| buffer(l, u64::from(caps.tile_entries)));
+        let tile_pairs =
+            ["tile keys", "tile values"].map(|l| buffer(l, u64::from(caps.tile_entries)));
+        let tiles_sorted = ["tile order", "tile order 2"]
+            .map(|l| texels(gpu, l, PAIRS, texel_rows(caps.tile_entries)));
+        let view = |t: &wgpu::Texture| t.create_view(&wgpu::TextureViewDescriptor::default());
+        let (depth_views, tile_views) = (
+            depth_sorted.each_ref().map(view),
+            tiles_sorted.each_ref().map(view),
+        );
+        let splats_in = [0, 1].map(|d| {
+            [0, 1].map(|t| {
+                let mut resources = views.clone();
+                resources.push(wgpu::BindingResource::TextureView(&depth_views[d]));
+                resources.push(wgpu::BindingResource::TextureView(&tile_views[t]));
+                bind_from(
+                    gpu,
+                    &k.splats_in_layout,
+                    SPLAT_TEXTURES.len() as u32,
+                    &resources,
+                )
+            })
+        });
         let tile_ranges = buffer("tile ranges", 2 * u64::from(caps.tiles));
         let chunk_views = buffer("chunk views", 4 * u64::from(caps.camera_chunks));
         let histogram = buffer("depth histogram", u64::from(caps.cameras * DEPTH_BINS));
@@ -478,14 +497,14 @@ impl Workspace {
             }
             .dispatched(256),
         );
-        let [d0, d1, d2, d3] = &depth;
+        let [d0, d1] = &depth;
         let depth_sort = k.sort.plan(
             gpu,
             &k.scan,
             live,
             &mut b,
             (d0, d1),
-            (d2, d3),
+            depth_sorted.each_ref(),
             caps.splats,
             splat_count.n,
             DEPTH_SORT_PASSES,
@@ -508,14 +527,14 @@ impl Workspace {
             }
             .dispatched(256),
         );
-        let [t0, t1, t2, t3] = &tile_pairs;
+        let [t0, t1] = &tile_pairs;
         let tile_sort = k.sort.plan(
             gpu,
             &k.scan,
             live,
             &mut b,
             (t0, t1),
-            (t2, t3),
+            tiles_sorted.each_ref(),
             caps.tile_entries,
             tile_entries.n,
             TILE_SORT_PASSES,
@@ -548,8 +567,6 @@ impl Workspace {
                 tile_counts.as_entire_binding(),
                 t0.as_entire_binding(),
                 t1.as_entire_binding(),
-                t2.as_entire_binding(),
-                t3.as_entire_binding(),
                 tile_ranges.as_entire_binding(),
                 images.as_entire_binding(),
                 slots.as_entire_binding(),
@@ -564,11 +581,13 @@ impl Workspace {
                     size: wgpu::BufferSize::new(16),
                 }),
                 tile_list.as_entire_binding(),
-                d3.as_entire_binding(),
             ],
         );
-        let [d0, d1, d2, d3] = depth;
-        let [t0, t1, t2, t3] = tile_pairs;
+        let [d0, d1] = depth;
+        let [t0, t1] = tile_pairs;
+        let [s0, s1, s2, s3] = splat_textures;
+        let [o0, o1] = depth_sorted;
+        let [o2, o3] = tiles_sorted;
         Workspace {
             caps,
             peaks: [entries.peak, splat_count.peak, tile_entries.peak],
@@ -586,7 +605,7 @@ impl Workspace {
             frame_group,
             splats_out,
             splats_in,
-            _splat_textures: splat_textures,
+            _textures: [s0, s1, s2, s3, o0, o1, o2, o3],
             programs,
             flags_scan,
             entries_scan,
@@ -600,13 +619,9 @@ impl Workspace {
                 entry_counts,
                 d0,
                 d1,
-                d2,
-                d3,
                 tile_counts,
                 t0,
                 t1,
-                t2,
-                t3,
                 tile_ranges,
                 slots,
                 chunk_views,
@@ -672,7 +687,9 @@ impl Workspace {
             live.encode(pass, &self.programs, 2);
             let [scene, frame] = groups;
             let splats_out = [scene, frame, (&self.splats_out, &[][..])];
-            let splats_in = [scene, frame, (&self.splats_in, &[][..])];
+            let sorted =
+                &self.splats_in[SortPlan::result(depth_passes)][SortPlan::result(tile_passes)];
+            let splats_in = [scene, frame, (sorted, &[][..])];
             live.dispatch(pass, &k.project, &splats_out, d.splats);
             stamp(pass);
             k.sort
@@ -684,7 +701,7 @@ impl Workspace {
             live.dispatch(pass, &k.emit, &splats_in, d.splats);
             k.sort
                 .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
-            live.dispatch(pass, &k.ranges, &groups, d.tile_entries);
+            live.dispatch(pass, &k.ranges, &splats_in, d.tile_entries);
             stamp(pass);
             live.encode(pass, &self.programs, 4);
             let raster = match blending {
@@ -730,15 +747,18 @@ mod tests {
             ..Caps::default()
         };
         // A row of texels is allocated whole: the bytes differ by the sort's words of the
-        // splats alone.
-        let per_splat = 6 * 4;
+        // splats alone (depth keys and values, tile counts, radix digits).
+        let per_splat = 4 * 4;
         assert_eq!(
             row.bytes() - one.bytes(),
             u64::from(TEXELS_ACROSS - 1) * per_splat
         );
+        // A row of each splat texture (16 bytes a texel), and of the two textures of each
+        // sort's pairs (8 bytes a texel).
+        let row_of = |bytes: u64| u64::from(TEXELS_ACROSS) * bytes;
         assert_eq!(
             one.bytes(),
-            per_splat + SPLAT_TEXTURES.len() as u64 * u64::from(TEXELS_ACROSS) * 16
+            per_splat + SPLAT_TEXTURES.len() as u64 * row_of(16) + 4 * row_of(8)
         );
     }
 }
