@@ -241,13 +241,15 @@ impl SortKernels {
     }
 }
 
-/// A sort of up to `capacity` pairs from a pair of buffers into two textures of (key, value)
-/// texels, ping-pong: pass 0 reads the buffers and writes the first texture, pass `k` reads
-/// texture `(k − 1) % 2` and writes texture `k % 2` ([`SortPlan::result`]).
+/// A sort of up to `capacity` pairs into two textures of (key, value) texels, ping-pong: pass
+/// `k` reads texture `(k + 1) % 2` (pass 0 the buffers instead, where it starts from buffers)
+/// and writes texture `k % 2` ([`SortPlan::result`]).
 pub(crate) struct SortPlan {
     /// Per 8-bit pass: its kernels' bind group (input, output, digits, live sizes and the
     /// digit shift).
     passes: Vec<wgpu::BindGroup>,
+    /// Whether pass 0 reads buffers.
+    from_buffers: bool,
     /// Where the workgroups of `histogram` and of `scatter` are.
     histogram_args: u64,
     scatter_args: u64,
@@ -262,8 +264,14 @@ impl SortPlan {
     }
 }
 
-/// Two (keys, values) buffers.
-pub(crate) type Pairs<'a> = (&'a wgpu::Buffer, &'a wgpu::Buffer);
+/// Where a sort's pairs start.
+#[derive(Clone, Copy)]
+pub(crate) enum SortInput<'a> {
+    /// Two buffers, keys and values.
+    Buffers(&'a wgpu::Buffer, &'a wgpu::Buffer),
+    /// The second of the sort's textures, a (key, value) texel each.
+    Texture,
+}
 
 impl RadixSort {
     /// Compiles the sort kernels.
@@ -294,7 +302,7 @@ impl RadixSort {
         scan: &Scan,
         live: &Live,
         builder: &mut LiveBuilder,
-        input: Pairs<'_>,
+        input: SortInput<'_>,
         textures: [&wgpu::Texture; 2],
         capacity: u32,
         count_slot: u32,
@@ -339,16 +347,19 @@ impl RadixSort {
                     params.as_entire_binding(),
                     digits_scan.block_offsets().as_entire_binding(),
                 ];
-                let bind_group = if k == 0 {
-                    let mut resources =
-                        vec![input.0.as_entire_binding(), input.1.as_entire_binding()];
-                    resources.extend(rest);
-                    bind(gpu, &self.from_buffers.layout, &resources)
-                } else {
-                    let mut resources =
-                        vec![wgpu::BindingResource::TextureView(&views[(k + 1) % 2])];
-                    resources.extend(rest);
-                    bind_from(gpu, &self.from_texture.layout, 1, &resources)
+                let bind_group = match input {
+                    SortInput::Buffers(keys, values) if k == 0 => {
+                        let mut resources =
+                            vec![keys.as_entire_binding(), values.as_entire_binding()];
+                        resources.extend(rest);
+                        bind(gpu, &self.from_buffers.layout, &resources)
+                    }
+                    _ => {
+                        let mut resources =
+                            vec![wgpu::BindingResource::TextureView(&views[(k + 1) % 2])];
+                        resources.extend(rest);
+                        bind_from(gpu, &self.from_texture.layout, 1, &resources)
+                    }
                 };
                 buffers.push(params);
                 bind_group
@@ -357,6 +368,7 @@ impl RadixSort {
         buffers.push(digits);
         SortPlan {
             passes,
+            from_buffers: matches!(input, SortInput::Buffers(..)),
             histogram_args,
             scatter_args,
             digits_scan,
@@ -374,7 +386,7 @@ impl RadixSort {
         passes: usize,
     ) {
         for (k, group) in plan.passes[..passes].iter().enumerate() {
-            let kernels = if k == 0 {
+            let kernels = if k == 0 && plan.from_buffers {
                 &self.from_buffers
             } else {
                 &self.from_texture
@@ -559,9 +571,9 @@ mod tests {
         let scan = Scan::new(&gpu);
         let sort = RadixSort::new(&gpu);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
-        // Every pass count (ending in either texture), and one pass over more than
-        // SCAN_BLOCK² digits (as many pairs): three levels of the digits' scan, its block
-        // offsets apart.
+        // Every pass count (ending in either texture), from buffers and from the second
+        // texture, and one pass over more than SCAN_BLOCK² digits (as many pairs): three
+        // levels of the digits' scan, its block offsets apart.
         let cases = SIZES.into_iter().zip([4, 1, 2, 3].into_iter().cycle());
         for (i, (n, passes)) in cases.chain([(SCAN_BLOCK * SCAN_BLOCK + 1, 1)]).enumerate() {
             // Every other size with few distinct keys, so stability is tested.
@@ -580,9 +592,36 @@ mod tests {
                     texel_rows(n),
                     wgpu::TextureUsages::STORAGE_BINDING
                         | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
+                        | wgpu::TextureUsages::COPY_SRC
+                        | wgpu::TextureUsages::COPY_DST,
                 ))
             });
+            // Every third size starts from the second texture, as the tile sort does.
+            let input = if i % 3 == 1 {
+                let texels: Vec<u32> = keys
+                    .iter()
+                    .zip(&values)
+                    .flat_map(|(&k, &v)| [k, v])
+                    .collect();
+                let mut bytes: Vec<u8> = bytemuck::cast_slice(&texels).to_vec();
+                bytes.resize(
+                    textures[1].size().height as usize * TEXELS_ACROSS as usize * 8,
+                    0,
+                );
+                gpu.queue.write_texture(
+                    textures[1].as_image_copy(),
+                    &bytes,
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(TEXELS_ACROSS * 8),
+                        rows_per_image: None,
+                    },
+                    textures[1].size(),
+                );
+                SortInput::Texture
+            } else {
+                SortInput::Buffers(&k, &v)
+            };
             let mut builder = LiveBuilder::new(1);
             builder.stage();
             let plan = sort.plan(
@@ -590,7 +629,7 @@ mod tests {
                 &scan,
                 &live,
                 &mut builder,
-                (&k, &v),
+                input,
                 textures.each_ref(),
                 n,
                 0,

@@ -88,41 +88,37 @@ struct Slots {
 @group(1) @binding(7) var<storage, read_write> depth_values: array<u32>;
 // Tiles per depth-ordered splat (+1), then their exclusive scan.
 @group(1) @binding(8) var<storage, read_write> tile_counts: array<u32>;
-// Tile-sort pairs as `emit` writes them: camera and tile (`tile_key`) and splat; the sort ends
-// in a texture (`tiles_sorted`).
-@group(1) @binding(9) var<storage, read_write> tile_keys: array<u32>;
-@group(1) @binding(10) var<storage, read_write> tile_values: array<u32>;
 // Per tile of the batch: first and one-past-last entry of this slab (zero where none; each
 // raster workgroup zeroes its own after reading it).
-@group(1) @binding(11) var<storage, read_write> tile_ranges: array<vec2<u32>>;
+@group(1) @binding(9) var<storage, read_write> tile_ranges: array<vec2<u32>>;
 // Per camera from its first word: 8 planes of width × height words, the per-pixel state
 // while slabs blend: r, g, b (background not added), transmittance (negative once the pixel
 // is finished), Σ weight × depth, median depth (f32 bits), instance, best weight (f32 bits).
 // After every camera's state, the images `compose` writes out (the only words read back):
 // per camera from its `place.w`, a plane of width × height words per image asked for
 // (`live[LIVE_OUT_PLANES]`), in the order of the `OUT_*` bits.
-@group(1) @binding(12) var<storage, read_write> images: array<u32>;
-@group(1) @binding(13) var<uniform> slots: Slots;
+@group(1) @binding(10) var<storage, read_write> images: array<u32>;
+@group(1) @binding(11) var<uniform> slots: Slots;
 // Per camera × chunk: nearest and farthest depth of its bounds (f32 bits; the nearest is
 // F32_MAX when culled) and its screen rectangle in tiles, grown by one tile as the CPU grows it
 // (x0 | y0 << 16, x1 | y1 << 16).
-@group(1) @binding(14) var<storage, read_write> chunk_views: array<vec4<u32>>;
+@group(1) @binding(12) var<storage, read_write> chunk_views: array<vec4<u32>>;
 // Per camera: DEPTH_BINS counts of its visible chunks' middle depths (where their splats'
 // depths centre), in bins of equal depth ratio from its near to its far plane.
-@group(1) @binding(15) var<storage, read_write> depth_histogram: array<atomic<u32>>;
+@group(1) @binding(13) var<storage, read_write> depth_histogram: array<atomic<u32>>;
 // Per camera, SLABS + 1 depths: slab k holds the splats of depth in [cut k, cut k + 1).
-@group(1) @binding(16) var<storage, read_write> slab_cuts: array<f32>;
+@group(1) @binding(14) var<storage, read_write> slab_cuts: array<f32>;
 // Per tile of the batch: its columns of four pixels (half a raster thread's) that are finished
 // or outside the image; 64 once the whole tile is finished.
-@group(1) @binding(17) var<storage, read_write> tile_done: array<atomic<u32>>;
+@group(1) @binding(15) var<storage, read_write> tile_done: array<atomic<u32>>;
 // Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
 // (tiles down + 1) words, row 0 and column 0 zero.
-@group(1) @binding(18) var<storage, read_write> finished_sum: array<u32>;
+@group(1) @binding(16) var<storage, read_write> finished_sum: array<u32>;
 // The slab being rendered (x).
-@group(1) @binding(19) var<uniform> slab: vec4<u32>;
+@group(1) @binding(17) var<uniform> slab: vec4<u32>;
 // The tiles of the batch with entries in this slab, in no particular order (each is blended
 // on its own), and their count after the list's capacity (at live[LIVE_TILES]).
-@group(1) @binding(20) var<storage, read_write> tile_list: array<atomic<u32>>;
+@group(1) @binding(18) var<storage, read_write> tile_list: array<atomic<u32>>;
 
 // The visible splats, a texel each (`texel`) of four textures: shapes (x, y, conic a, conic b),
 // weights (conic c, opacity, depth, cutoff), colours (r, g, b, instance bits), boxes (extent x,
@@ -146,6 +142,9 @@ struct Slots {
 @group(2) @binding(7) var splat_boxes: texture_2d<u32>;
 @group(2) @binding(8) var depth_sorted: texture_2d<u32>;
 @group(2) @binding(9) var tiles_sorted: texture_2d<u32>;
+// Where `emit` writes the (camera and tile, splat) entries, a texel each: the texture the tile
+// sort starts from (its own bind group, as the sort's second texture is also `tiles_sorted`).
+@group(3) @binding(0) var tile_pairs_out: texture_storage_2d<rg32uint, write>;
 
 fn splat_shape(s: u32) -> vec4<f32> {
     return textureLoad(splat_shapes, texel(s), 0);
@@ -684,7 +683,7 @@ fn project(
     let conic = vec3<f32>(f.cov.z * inv_det, -f.cov.y * inv_det, f.cov.x * inv_det);
     // The unfinished tiles it reaches, counted and (for a small box) marked here, where the
     // splat is at hand, rather than found in `count_tiles` and again in `emit`.
-    let tiles = walk_tiles(f.centre, conic, f.cutoff, c, tile_box(f.centre, f.extent, c), slot, 0u, false);
+    let tiles = walk_tiles(f.centre, conic, f.cutoff, c, tile_box(f.centre, f.extent, c));
     let at = texel(slot);
     textureStore(shapes_out, at, vec4<f32>(f.centre, conic.xy));
     textureStore(weights_out, at, vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff));
@@ -763,12 +762,11 @@ fn reaches_tile(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, tx: u32, ty
     return min(min(q0, q1), min(q2, q3)) <= cutoff;
 }
 
-// Writes entry `slot`: tile t (within camera c) and splat s; one past the buffers is counted by
-// the caller, not written (the host grows the buffers).
+// Writes entry `slot`: tile t (within camera c) and splat s; one past the texture is counted
+// by the caller, not written (the host grows the work space).
 fn write_entry(slot: u32, c: u32, t: u32, s: u32) {
     if slot < live[slots.tile_entries] {
-        tile_keys[slot] = tile_key(c, t);
-        tile_values[slot] = s;
+        textureStore(tile_pairs_out, texel(slot), vec4<u32>(tile_key(c, t), s, 0u, 0u));
     }
 }
 
@@ -778,25 +776,25 @@ fn box_has_bits(r: vec4<u32>) -> bool {
     return (r.z - r.x + 1u) * (r.w - r.y + 1u) <= 32u;
 }
 
-// Walks the tiles of box r in camera c, row-major, that are unfinished and that a splat at `m`
-// with `conic` and `cutoff` reaches: their count and, where the box holds at most 32 tiles, a
-// bit per tile of the box. With `write`, also writes them as the entries of splat s from
-// `first` on.
-fn walk_tiles(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, r: vec4<u32>, s: u32, first: u32, write: bool) -> vec2<u32> {
+// True when tile (tx, ty) of box r in camera c is unfinished and a splat at `m` with `conic`
+// and `cutoff` reaches it (a box of one tile is reached: the splat's box passed the culling).
+fn tile_reached(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, r: vec4<u32>, tx: u32, ty: u32) -> bool {
+    let single = r.x == r.z && r.y == r.w;
+    let t = cameras[c].place.x + ty * cameras[c].size.z + tx;
+    return atomicLoad(&tile_done[t]) < 64u && (single || reaches_tile(m, conic, cutoff, c, tx, ty));
+}
+
+// Walks the tiles of box r in camera c, row-major, that a splat at `m` with `conic` and `cutoff`
+// reaches (`tile_reached`): their count and, where the box holds at most 32 tiles, a bit per
+// tile of the box.
+fn walk_tiles(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, r: vec4<u32>) -> vec2<u32> {
     let box_width = r.z - r.x + 1u;
     let small = box_has_bits(r);
-    let single = r.x == r.z && r.y == r.w;
-    let base = cameras[c].place.x;
-    let across = cameras[c].size.z;
     var count = 0u;
     var bits = 0u;
     for (var ty = r.y; ty <= r.w; ty++) {
         for (var tx = r.x; tx <= r.z; tx++) {
-            let t = ty * across + tx;
-            if atomicLoad(&tile_done[base + t]) < 64u && (single || reaches_tile(m, conic, cutoff, c, tx, ty)) {
-                if write {
-                    write_entry(first + count, c, t, s);
-                }
+            if tile_reached(m, conic, cutoff, c, r, tx, ty) {
                 if small {
                     bits |= 1u << ((ty - r.y) * box_width + tx - r.x);
                 }
@@ -826,7 +824,8 @@ fn count_tiles(
 }
 
 // The entries of each splat in depth order, from its first slot: from the bits `project` left
-// where its box is small, else by walking the box again.
+// where its box is small, else by walking the box again. They go to the texture the tile
+// sort starts from (`tile_pairs_out`, a texel each as the sort's passes read them).
 @compute @workgroup_size(256)
 fn emit(
     @builtin(local_invocation_index) lid: u32,
@@ -843,14 +842,21 @@ fn emit(
     let e = splat_box(s);
     let c = e.z & 255u;
     let r = tile_box(m.xy, bitcast<vec2<f32>>(e.xy), c);
+    let across = cameras[c].size.z;
+    var slot = first;
     if !box_has_bits(r) {
         let sb = splat_weight(s);
-        walk_tiles(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, s, first, true);
+        for (var ty = r.y; ty <= r.w; ty++) {
+            for (var tx = r.x; tx <= r.z; tx++) {
+                if tile_reached(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, tx, ty) {
+                    write_entry(slot, c, ty * across + tx, s);
+                    slot += 1u;
+                }
+            }
+        }
         return;
     }
     var bits = e.w;
-    var slot = first;
-    let across = cameras[c].size.z;
     let box_width = r.z - r.x + 1u;
     while bits != 0u {
         let k = firstTrailingBit(bits);

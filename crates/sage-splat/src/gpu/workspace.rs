@@ -8,7 +8,7 @@ use super::kernel::{
     texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
-use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortPlan};
+use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan};
 use crate::passes::{Blending, GPU_SLABS, PassTimes};
 
 /// Most depth slabs a batch renders in ([`GPU_SLABS`]).
@@ -124,6 +124,7 @@ impl Caps {
             // The tile counts (a word per splat and the total).
             (u64::from(self.splats) + 1) * 4,
             u64::from(self.entries) * 32,
+            // The tile sort's digit counts (256 per block of 256 entries).
             u64::from(self.tile_entries) * 4,
             u64::from(self.camera_chunks) * 16 + 4,
             self.image_words * 4,
@@ -140,7 +141,7 @@ impl Caps {
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
             + u64::from(self.splats) * 4
-            + 3 * u64::from(self.tile_entries)
+            + u64::from(self.tile_entries)
             + 8 * u64::from(self.tiles)
             + self.image_words;
         let splat_textures: u64 = SPLAT_TEXTURES
@@ -160,6 +161,8 @@ pub(crate) struct Kernels {
     /// The splat textures as `project` writes them and as later kernels read them.
     splats_out_layout: wgpu::BindGroupLayout,
     splats_in_layout: wgpu::BindGroupLayout,
+    /// The texture `emit` writes the (tile, splat) entries to.
+    tiles_out_layout: wgpu::BindGroupLayout,
     clear: Kernel,
     cull: Kernel,
     cut_slabs: Kernel,
@@ -196,11 +199,11 @@ impl Kernels {
         scene.extend((2..7).map(|b| storage(b, true)));
         let scene_layout = layout(gpu, &scene);
         let mut frame = vec![uniform(0), storage(1, true)];
-        frame.extend((2..13).map(|b| storage(b, false)));
-        frame.push(uniform(13));
-        frame.extend((14..19).map(|b| storage(b, false)));
-        frame.push(dynamic_uniform(19));
-        frame.push(storage(20, false));
+        frame.extend((2..11).map(|b| storage(b, false)));
+        frame.push(uniform(11));
+        frame.extend((12..17).map(|b| storage(b, false)));
+        frame.push(dynamic_uniform(17));
+        frame.push(storage(18, false));
         let frame_layout = layout(gpu, &frame);
         let splat_bindings = |first: u32, entry: fn(u32, wgpu::TextureFormat) -> _| {
             (first..)
@@ -213,6 +216,7 @@ impl Kernels {
         let mut splats_in = splat_bindings(SPLAT_TEXTURES.len() as u32, texels_in);
         splats_in.extend([texels_in(8, PAIRS), texels_in(9, PAIRS)]);
         let splats_in_layout = layout(gpu, &splats_in);
+        let tiles_out_layout = layout(gpu, &[texels_out(0, PAIRS)]);
         let kernel =
             |entry: &str| Kernel::new(gpu, &module, entry, &[&scene_layout, &frame_layout]);
         // Kernels over the splat textures, written or read.
@@ -229,7 +233,17 @@ impl Kernels {
             mark: kernel("mark"),
             project: over("project", &splats_out_layout),
             count_tiles: over("count_tiles", &splats_in_layout),
-            emit: over("emit", &splats_in_layout),
+            emit: Kernel::new(
+                gpu,
+                &module,
+                "emit",
+                &[
+                    &scene_layout,
+                    &frame_layout,
+                    &splats_in_layout,
+                    &tiles_out_layout,
+                ],
+            ),
             ranges: over("ranges", &splats_in_layout),
             start_pixels: kernel("start_pixels"),
             raster: over("raster", &splats_in_layout),
@@ -242,6 +256,7 @@ impl Kernels {
             frame_layout,
             splats_out_layout,
             splats_in_layout,
+            tiles_out_layout,
             camera_slots,
         }
     }
@@ -336,6 +351,8 @@ pub(crate) struct Workspace {
     /// in ([`SortPlan::result`]), indexed by both.
     splats_out: wgpu::BindGroup,
     splats_in: [[wgpu::BindGroup; 2]; 2],
+    /// Where `emit` writes: the tile sort's second texture, where its first pass starts.
+    tiles_out: wgpu::BindGroup,
     /// The splat textures, then the depth sort's two textures of pairs and the tile sort's.
     _textures: [wgpu::Texture; 8],
     programs: LivePrograms,
@@ -393,8 +410,6 @@ impl Workspace {
         let depth_sorted = ["depth order", "depth order 2"]
             .map(|l| texels(gpu, l, PAIRS, texel_rows(caps.splats)));
         let tile_counts = buffer("tile counts", u64::from(caps.splats) + 1);
-        let tile_pairs =
-            ["tile keys", "tile values"].map(|l| buffer(l, u64::from(caps.tile_entries)));
         let tiles_sorted = ["tile order", "tile order 2"]
             .map(|l| texels(gpu, l, PAIRS, texel_rows(caps.tile_entries)));
         let view = |t: &wgpu::Texture| t.create_view(&wgpu::TextureViewDescriptor::default());
@@ -415,6 +430,11 @@ impl Workspace {
                 )
             })
         });
+        let tiles_out = bind(
+            gpu,
+            &k.tiles_out_layout,
+            &[wgpu::BindingResource::TextureView(&tile_views[1])],
+        );
         let tile_ranges = buffer("tile ranges", 2 * u64::from(caps.tiles));
         let chunk_views = buffer("chunk views", 4 * u64::from(caps.camera_chunks));
         let histogram = buffer("depth histogram", u64::from(caps.cameras * DEPTH_BINS));
@@ -503,7 +523,7 @@ impl Workspace {
             &k.scan,
             live,
             &mut b,
-            (d0, d1),
+            SortInput::Buffers(d0, d1),
             depth_sorted.each_ref(),
             caps.splats,
             splat_count.n,
@@ -527,13 +547,12 @@ impl Workspace {
             }
             .dispatched(256),
         );
-        let [t0, t1] = &tile_pairs;
         let tile_sort = k.sort.plan(
             gpu,
             &k.scan,
             live,
             &mut b,
-            (t0, t1),
+            SortInput::Texture,
             tiles_sorted.each_ref(),
             caps.tile_entries,
             tile_entries.n,
@@ -565,8 +584,6 @@ impl Workspace {
                 d0.as_entire_binding(),
                 d1.as_entire_binding(),
                 tile_counts.as_entire_binding(),
-                t0.as_entire_binding(),
-                t1.as_entire_binding(),
                 tile_ranges.as_entire_binding(),
                 images.as_entire_binding(),
                 slots.as_entire_binding(),
@@ -584,7 +601,6 @@ impl Workspace {
             ],
         );
         let [d0, d1] = depth;
-        let [t0, t1] = tile_pairs;
         let [s0, s1, s2, s3] = splat_textures;
         let [o0, o1] = depth_sorted;
         let [o2, o3] = tiles_sorted;
@@ -605,6 +621,7 @@ impl Workspace {
             frame_group,
             splats_out,
             splats_in,
+            tiles_out,
             _textures: [s0, s1, s2, s3, o0, o1, o2, o3],
             programs,
             flags_scan,
@@ -620,8 +637,6 @@ impl Workspace {
                 d0,
                 d1,
                 tile_counts,
-                t0,
-                t1,
                 tile_ranges,
                 slots,
                 chunk_views,
@@ -698,7 +713,15 @@ impl Workspace {
             live.dispatch(pass, &k.count_tiles, &splats_in, d.splats);
             k.scan.encode(pass, live, &self.tiles_scan);
             live.encode(pass, &self.programs, 3);
-            live.dispatch(pass, &k.emit, &splats_in, d.splats);
+            // Its splats group binds the tile sort's first texture where the tile order goes,
+            // since `emit` writes the second.
+            let emit = [
+                scene,
+                frame,
+                (&self.splats_in[SortPlan::result(depth_passes)][0], &[][..]),
+                (&self.tiles_out, &[][..]),
+            ];
+            live.dispatch(pass, &k.emit, &emit, d.splats);
             k.sort
                 .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
             live.dispatch(pass, &k.ranges, &splats_in, d.tile_entries);
