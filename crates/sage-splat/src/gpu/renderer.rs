@@ -739,9 +739,9 @@ impl GpuRenderer {
             )
         } else {
             format!(
-                "GPU {adapter}: a {w}x{h} frame projects {} splats, more than the adapter's \
-                 largest textures hold (render smaller images)",
-                need.splats
+                "GPU {adapter}: a {w}x{h} frame projects {} splats into {} (tile, splat) \
+                 entries, more than the adapter's largest textures hold (render smaller images)",
+                need.splats, need.tile_entries
             )
         })
     }
