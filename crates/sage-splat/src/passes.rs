@@ -19,7 +19,7 @@ pub const GPU_SLABS: u32 = 4;
 pub enum Blending {
     /// Shaped for CPU drivers (lavapipe): 32 threads per tile, each blending a column of eight
     /// pixels, eight threads per block of 8×8 stepping through only the splats whose box
-    /// reaches their block, so a splat read from workgroup memory serves eight pixels.
+    /// reaches their block, so a splat read from the textures serves eight pixels.
     #[default]
     Blocks,
     /// Shaped for hardware GPUs: 64 threads per tile, each blending a column of four pixels,

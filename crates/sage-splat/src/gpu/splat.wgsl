@@ -14,7 +14,8 @@
 // → `select_chunks` (the chunks reaching the slab and some unfinished tile) → scan →
 // `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
 // of its Gaussians project into the image, with depth in the slab, over an unfinished tile) →
-// scan of the per-entry counts → `project` (a thread per splat: writes the splats, compacted,
+// scan of the per-entry counts → `index_entries` (the entry table) → `project` (a thread per
+// splat: writes the splats, compacted,
 // camera-major and in Gaussian order, each with the unfinished tiles it reaches) → radix sort
 // by camera and depth → `count_tiles` (those counts in that order) → scan → `emit` ((unfinished
 // tile, splat) entries in that order) → stable radix sort by the tile within its camera →
@@ -145,6 +146,12 @@ struct Slots {
 // Where `emit` writes the (camera and tile, splat) entries, a texel each: the texture the tile
 // sort starts from (its own bind group, as the sort's second texture is also `tiles_sorted`).
 @group(3) @binding(0) var tile_pairs_out: texture_storage_2d<rg32uint, write>;
+// Per visible entry, three texels: its first splat (the scan of its count) and its camera ×
+// CHUNKS + chunk; its mask words 0–3; words 4–7. `index_entries` writes them once the counts
+// are scanned (binding 10 of its own group), so `project` finds its entry by a binary search
+// of gathers (binding 1 of its own group) where lavapipe read the storage arrays lane by lane.
+@group(2) @binding(10) var entry_table_out: texture_storage_2d<rgba32uint, write>;
+@group(3) @binding(1) var entry_table: texture_2d<u32>;
 
 fn splat_shape(s: u32) -> vec4<f32> {
     return textureLoad(splat_shapes, texel(s), 0);
@@ -640,6 +647,38 @@ fn nth_set_bit(w: u32, n: u32) -> u32 {
     return firstTrailingBit(bits);
 }
 
+// A thread per visible entry, once the counts are scanned: its texels of the entry table.
+@compute @workgroup_size(256)
+fn index_entries(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let e = thread_index(wid, nwg, lid);
+    if e >= live[slots.entries] {
+        return;
+    }
+    let m = 8u * e;
+    textureStore(entry_table_out, texel(3u * e), vec4<u32>(atomicLoad(&entry_counts[e]), chunk_list[e], 0u, 0u));
+    textureStore(entry_table_out, texel(3u * e + 1u), vec4<u32>(
+        atomicLoad(&entry_masks[m]),
+        atomicLoad(&entry_masks[m + 1u]),
+        atomicLoad(&entry_masks[m + 2u]),
+        atomicLoad(&entry_masks[m + 3u]),
+    ));
+    textureStore(entry_table_out, texel(3u * e + 2u), vec4<u32>(
+        atomicLoad(&entry_masks[m + 4u]),
+        atomicLoad(&entry_masks[m + 5u]),
+        atomicLoad(&entry_masks[m + 6u]),
+        atomicLoad(&entry_masks[m + 7u]),
+    ));
+}
+
+// Texel k of entry e's three in the entry table.
+fn entry_texel(e: u32, k: u32) -> vec4<u32> {
+    return textureLoad(entry_table, texel(3u * e + k), 0);
+}
+
 // A thread per splat (so the work follows what is visible, not the lanes of the marked
 // chunks): its entry is the last whose first slot is at or before it, its Gaussian the entry's
 // lane of that rank among the marked ones.
@@ -657,17 +696,20 @@ fn project(
     var hi = live[slots.entries];
     while hi - lo > 1u {
         let mid = (lo + hi) / 2u;
-        if atomicLoad(&entry_counts[mid]) <= slot {
+        if entry_texel(mid, 0u).x <= slot {
             lo = mid;
         } else {
             hi = mid;
         }
     }
-    let entry = lo;
-    var rank = slot - atomicLoad(&entry_counts[entry]);
+    let head = entry_texel(lo, 0u);
+    let low = entry_texel(lo, 1u);
+    let high = entry_texel(lo, 2u);
+    let masks = array<u32, 8>(low.x, low.y, low.z, low.w, high.x, high.y, high.z, high.w);
+    var rank = slot - head.x;
     var lane = 0u;
     for (var word = 0u; word < 8u; word++) {
-        let mask = atomicLoad(&entry_masks[8u * entry + word]);
+        let mask = masks[word];
         let n = countOneBits(mask);
         if rank < n {
             lane = 32u * word + nth_set_bit(mask, rank);
@@ -675,7 +717,7 @@ fn project(
         }
         rank -= n;
     }
-    let flat = chunk_list[entry];
+    let flat = head.y;
     let c = flat / CHUNKS;
     let g = (flat % CHUNKS) * 256u + lane;
     let f = footprint(c, g, slab_range(c));
@@ -962,11 +1004,8 @@ fn start_pixels(
     images[3u * pixels + p] = bitcast<u32>(1.0);
 }
 
-// The splats of the batch being blended.
-var<workgroup> batch_splats: array<u32, 256>;
-// Per splat of the batch, a bit per block of 8×8 pixels its box reaches; then, per block, a
-// bit per splat (8 words of 32).
-var<workgroup> batch_blocks: array<u32, 256>;
+// Per block of 8×8 pixels, a bit per splat of the batch of 256 being blended whose box reaches
+// it (8 words of 32).
 var<workgroup> block_bits: array<u32, 32>;
 var<workgroup> threads_done: atomic<u32>;
 var<workgroup> all_done: u32;
@@ -1118,8 +1157,8 @@ fn reaches(live: vec4<bool>, power: vec4<f32>, sb: vec4<f32>) -> bool {
 }
 
 // A workgroup per tile of every camera; each of its 32 threads blends a column of eight pixels
-// (as two vectors of four lanes), so a splat read (its index from workgroup memory, the splat
-// from the textures) serves eight pixels.
+// (as two vectors of four lanes), so a splat read (its index and the splat, from the textures)
+// serves eight pixels.
 // Eight neighbouring threads cover a block of 8×8 pixels and go through only the splats whose
 // box reaches their block, stopping once their pixels are finished: a vector unit of a CPU
 // (lavapipe) runs such eight together and skips the rest; on a GPU each thread steps through
@@ -1165,29 +1204,25 @@ fn raster(
             atomicAdd(&threads_done, 1u);
         }
         workgroupBarrier();
-        for (var j = 0u; j < 8u; j++) {
-            let k = lid + 32u * j;
-            let e = start + k;
-            var blocks = 0u;
-            if e < range.y {
-                let g = sorted_splat(e);
-                let a = splat_shape(g);
-                batch_splats[k] = g;
-                let extent = bitcast<vec2<f32>>(splat_box(g).xy);
-                blocks = box_blocks(a.xy - extent, a.xy + extent, tile);
-            }
-            batch_blocks[k] = blocks;
-        }
         if lid == 0u {
             all_done = atomicLoad(&threads_done);
         }
         if workgroupUniformLoad(&all_done) == 32u {
             break;
         }
-        // Thread b·8 + w gathers word w of block b's bits.
+        // Thread b·8 + w finds word w of block b's bits: which of the batch's splats 32w to
+        // 32w + 31 reach its block. Each thread reads its own run of splats (texel gathers),
+        // and no thread reads what another wrote but the words: under lavapipe a read of
+        // workgroup memory is a read per lane.
         var word = 0u;
         for (var i = 0u; i < 32u; i++) {
-            word |= ((batch_blocks[32u * (lid % 8u) + i] >> block) & 1u) << i;
+            let e = start + 32u * (lid % 8u) + i;
+            if e < range.y {
+                let g = sorted_splat(e);
+                let a = splat_shape(g);
+                let extent = bitcast<vec2<f32>>(splat_box(g).xy);
+                word |= ((box_blocks(a.xy - extent, a.xy + extent, tile) >> block) & 1u) << i;
+            }
         }
         block_bits[lid] = word;
         workgroupBarrier();
@@ -1199,7 +1234,7 @@ fn raster(
                 }
                 let k = 32u * word_index + firstTrailingBit(bits);
                 bits &= bits - 1u;
-                let g = batch_splats[k];
+                let g = sorted_splat(start + k);
                 let s = splat_shape(g);
                 let sb = splat_weight(g);
                 let dx = s.x - cx;
@@ -1238,9 +1273,9 @@ var<workgroup> column_c: array<vec4<f32>, 64>;
 // The blending kernel for hardware GPUs (`Blending::Columns`): a workgroup of 64 threads per
 // listed tile, each blending a column of four pixels (one vector), all stepping through the
 // tile's whole list together in batches of 64 splats read into workgroup memory at once. A warp
-// runs in step over the same splat (no per-block lists to diverge on), and a workgroup holds 3
-// KB of workgroup memory for two warps where `raster` holds 2.2 KB for one. The same rules
-// and the same bytes as `raster`; a column of four that finishes here counts in `tile_done`.
+// runs in step over the same splat (no per-block lists to diverge on), with 3 KB of workgroup
+// memory for two warps where `raster` holds 140 bytes for one. The same rules and the same
+// bytes as `raster`; a column of four that finishes here counts in `tile_done`.
 @compute @workgroup_size(64)
 fn raster_columns(
     @builtin(local_invocation_index) lid: u32,

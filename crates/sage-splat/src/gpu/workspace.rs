@@ -116,6 +116,7 @@ impl Caps {
         self.largest_buffer() <= gpu.largest_binding()
             && texel_rows(self.splats) <= most_rows
             && texel_rows(self.tile_entries) <= most_rows
+            && texel_rows(self.entries.saturating_mul(3)) <= most_rows
     }
 
     /// The largest single buffer these need, bytes (checked against what one binding sees).
@@ -150,7 +151,9 @@ impl Caps {
             .sum();
         // Each sort's result and the texture it ping-pongs with.
         let sorted = 2 * (texel_bytes(self.splats, PAIRS) + texel_bytes(self.tile_entries, PAIRS));
-        words * 4 + splat_textures + sorted
+        // The entry table: three texels an entry.
+        let entry_table = texel_bytes(self.entries.saturating_mul(3), WORDS);
+        words * 4 + splat_textures + sorted + entry_table
     }
 }
 
@@ -163,6 +166,9 @@ pub(crate) struct Kernels {
     splats_in_layout: wgpu::BindGroupLayout,
     /// The texture `emit` writes the (tile, splat) entries to.
     tiles_out_layout: wgpu::BindGroupLayout,
+    /// The entry table as `index_entries` writes it and as `project` reads it.
+    entries_out_layout: wgpu::BindGroupLayout,
+    entries_in_layout: wgpu::BindGroupLayout,
     clear: Kernel,
     cull: Kernel,
     cut_slabs: Kernel,
@@ -170,6 +176,7 @@ pub(crate) struct Kernels {
     select_chunks: Kernel,
     list_chunks: Kernel,
     mark: Kernel,
+    index_entries: Kernel,
     project: Kernel,
     count_tiles: Kernel,
     emit: Kernel,
@@ -217,6 +224,8 @@ impl Kernels {
         splats_in.extend([texels_in(8, PAIRS), texels_in(9, PAIRS)]);
         let splats_in_layout = layout(gpu, &splats_in);
         let tiles_out_layout = layout(gpu, &[texels_out(0, PAIRS)]);
+        let entries_out_layout = layout(gpu, &[texels_out(10, WORDS)]);
+        let entries_in_layout = layout(gpu, &[texels_in(1, WORDS)]);
         let kernel =
             |entry: &str| Kernel::new(gpu, &module, entry, &[&scene_layout, &frame_layout]);
         // Kernels over the splat textures, written or read.
@@ -231,7 +240,18 @@ impl Kernels {
             select_chunks: kernel("select_chunks"),
             list_chunks: kernel("list_chunks"),
             mark: kernel("mark"),
-            project: over("project", &splats_out_layout),
+            index_entries: over("index_entries", &entries_out_layout),
+            project: Kernel::new(
+                gpu,
+                &module,
+                "project",
+                &[
+                    &scene_layout,
+                    &frame_layout,
+                    &splats_out_layout,
+                    &entries_in_layout,
+                ],
+            ),
             count_tiles: over("count_tiles", &splats_in_layout),
             emit: Kernel::new(
                 gpu,
@@ -257,6 +277,8 @@ impl Kernels {
             splats_out_layout,
             splats_in_layout,
             tiles_out_layout,
+            entries_out_layout,
+            entries_in_layout,
             camera_slots,
         }
     }
@@ -332,6 +354,8 @@ struct Dispatches {
     camera_chunks: u64,
     /// A workgroup per visible entry (+1).
     entries: u64,
+    /// A thread per visible entry.
+    entry_threads: u64,
     /// A thread per visible splat (+1).
     splats: u64,
     /// A thread per (tile, splat) entry.
@@ -353,8 +377,12 @@ pub(crate) struct Workspace {
     splats_in: [[wgpu::BindGroup; 2]; 2],
     /// Where `emit` writes: the tile sort's second texture, where its first pass starts.
     tiles_out: wgpu::BindGroup,
-    /// The splat textures, then the depth sort's two textures of pairs and the tile sort's.
-    _textures: [wgpu::Texture; 8],
+    /// The entry table, to write (`index_entries`) and to read (`project`).
+    entries_out: wgpu::BindGroup,
+    entries_in: wgpu::BindGroup,
+    /// The splat textures, then the depth sort's two textures of pairs and the tile sort's,
+    /// then the entry table.
+    _textures: [wgpu::Texture; 9],
     programs: LivePrograms,
     dispatches: Dispatches,
     flags_scan: ScanPlan,
@@ -430,6 +458,16 @@ impl Workspace {
                 )
             })
         });
+        let entry_table = texels(
+            gpu,
+            "entry table",
+            WORDS,
+            texel_rows(caps.entries.saturating_mul(3)),
+        );
+        let entry_view = entry_table.create_view(&wgpu::TextureViewDescriptor::default());
+        let entry_view = [wgpu::BindingResource::TextureView(&entry_view)];
+        let entries_out = bind_from(gpu, &k.entries_out_layout, 10, &entry_view);
+        let entries_in = bind_from(gpu, &k.entries_in_layout, 1, &entry_view);
         let tiles_out = bind(
             gpu,
             &k.tiles_out_layout,
@@ -495,6 +533,8 @@ impl Workspace {
             }
             .dispatched(1),
         );
+        let entry_threads =
+            b.derive(Size::of(Count::Live(entries.n), caps.entries).dispatched(256));
         let entries_scan = k.scan.plan(
             gpu,
             live,
@@ -612,6 +652,7 @@ impl Workspace {
             dispatches: Dispatches {
                 camera_chunks: flag_count.args,
                 entries: entry_groups.args,
+                entry_threads: entry_threads.args,
                 splats: splat_threads.args,
                 tile_entries: tile_entries.args,
                 listed_tiles: listed_tiles.args,
@@ -622,7 +663,9 @@ impl Workspace {
             splats_out,
             splats_in,
             tiles_out,
-            _textures: [s0, s1, s2, s3, o0, o1, o2, o3],
+            entries_out,
+            entries_in,
+            _textures: [s0, s1, s2, s3, o0, o1, o2, o3, entry_table],
             programs,
             flags_scan,
             entries_scan,
@@ -699,9 +742,16 @@ impl Workspace {
             live.encode(pass, &self.programs, 1);
             live.dispatch(pass, &k.mark, &groups, d.entries);
             k.scan.encode(pass, live, &self.entries_scan);
-            live.encode(pass, &self.programs, 2);
             let [scene, frame] = groups;
-            let splats_out = [scene, frame, (&self.splats_out, &[][..])];
+            let entries_out = [scene, frame, (&self.entries_out, &[][..])];
+            live.dispatch(pass, &k.index_entries, &entries_out, d.entry_threads);
+            live.encode(pass, &self.programs, 2);
+            let splats_out = [
+                scene,
+                frame,
+                (&self.splats_out, &[][..]),
+                (&self.entries_in, &[][..]),
+            ];
             let sorted =
                 &self.splats_in[SortPlan::result(depth_passes)][SortPlan::result(tile_passes)];
             let splats_in = [scene, frame, (sorted, &[][..])];
@@ -776,12 +826,12 @@ mod tests {
             row.bytes() - one.bytes(),
             u64::from(TEXELS_ACROSS - 1) * per_splat
         );
-        // A row of each splat texture (16 bytes a texel), and of the two textures of each
-        // sort's pairs (8 bytes a texel).
+        // A row of each splat texture and of the entry table (16 bytes a texel), and of the
+        // two textures of each sort's pairs (8 bytes a texel).
         let row_of = |bytes: u64| u64::from(TEXELS_ACROSS) * bytes;
         assert_eq!(
             one.bytes(),
-            per_splat + SPLAT_TEXTURES.len() as u64 * row_of(16) + 4 * row_of(8)
+            per_splat + (SPLAT_TEXTURES.len() as u64 + 1) * row_of(16) + 4 * row_of(8)
         );
     }
 }
