@@ -1274,8 +1274,8 @@ var<workgroup> column_c: array<vec4<f32>, 64>;
 // listed tile, each blending a column of four pixels (one vector), all stepping through the
 // tile's whole list together in batches of 64 splats read into workgroup memory at once. A warp
 // runs in step over the same splat (no per-block lists to diverge on), with 3 KB of workgroup
-// memory for two warps where `raster` holds 140 bytes for one. The same rules and the same
-// bytes as `raster`; a column of four that finishes here counts in `tile_done`.
+// memory for two warps where `raster` holds about 150 bytes for one. The same rules and the
+// same bytes as `raster`; a column of four that finishes here counts in `tile_done`.
 @compute @workgroup_size(64)
 fn raster_columns(
     @builtin(local_invocation_index) lid: u32,
