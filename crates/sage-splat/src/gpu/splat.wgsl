@@ -4,25 +4,24 @@
 // SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, TEXELS_ACROSS
 // and the fixed live slots).
 //
-// Every camera of the batch goes through the same dispatches, and every pass after the first
-// runs over what the one before found (`live`, dispatched indirectly). Once per batch:
-// `clear` → `start_pixels` → `cull` (a thread per camera × chunk of 256 Gaussians: against the
-// camera's frustum, then the chunk's depth range and screen rectangle, and a histogram of the
-// chunks' middle depths) → `cut_slabs` (per camera, SLABS depth slabs at quantiles of that
-// histogram). Then per slab, front to back, as the CPU renderer does:
-// `finished_table` (per camera, a summed-area table of the tiles whose every pixel is finished)
-// → `select_chunks` (the chunks reaching the slab and some unfinished tile) → scan →
-// `list_chunks` (the selected (camera, chunk) entries) → `mark` (a workgroup per entry: which
-// of its Gaussians project into the image, with depth in the slab, over an unfinished tile) →
-// scan of the per-entry counts → `index_entries` (the entry table) → `project` (a thread per
-// splat: writes the splats, compacted,
-// camera-major and in Gaussian order, each with the unfinished tiles it reaches) → radix sort
-// by camera and depth → `count_tiles` (those counts in that order) → scan → `emit` ((unfinished
-// tile, splat) entries in that order) → stable radix sort by the tile within its camera →
-// `ranges` (each tile's entries, and the list of tiles with any) → `raster` (a workgroup per
-// listed tile, blending into the per-pixel state the slab before left). Last, `compose` turns the state into the images. Slabs partition depth
-// and each tile blends in depth order, so the images are those of blending everything at
-// once; what the slabs save is the work behind finished tiles.
+// Every camera of the batch goes through the same dispatches, and every pass after the first runs
+// over what the one before found (`live`, dispatched indirectly). Once per batch: `clear` →
+// `start_pixels` → `cull` (a thread per camera × chunk of 256 Gaussians: against the camera's
+// frustum, then the chunk's depth range and screen rectangle, and a histogram of the chunks' middle
+// depths) → `cut_slabs` (per camera, SLABS depth slabs at quantiles of that histogram). Then per
+// slab, front to back, as the CPU renderer does: `finished_table` (per camera, a summed-area table
+// of the tiles whose every pixel is finished) → `select_chunks` (the chunks reaching the slab and
+// some unfinished tile) → scan → `list_chunks` (the selected (camera, chunk) entries) → `mark` (a
+// workgroup per entry: which of its Gaussians project into the image, with depth in the slab, over
+// an unfinished tile) → scan of the per-entry counts → `index_entries` (the entry table) →
+// `project` (a thread per splat: writes the splats, compacted, camera-major and in Gaussian order,
+// each with the unfinished tiles it reaches) → radix sort by camera and depth → `count_tiles`
+// (those counts in that order) → scan → `emit` ((unfinished tile, splat) entries in that order) →
+// stable radix sort by the tile within its camera → `ranges` (each tile's entries, and the list of
+// tiles with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
+// slab before left). Last, `compose` turns the state into the images. Slabs partition depth and
+// each tile blends in depth order, so the images are those of blending everything at once; what the
+// slabs save is the work behind finished tiles.
 
 struct Camera {
     // Camera-to-world rotation columns (right, down, forward) and centre; w unused.
@@ -658,20 +657,19 @@ fn index_entries(
     if e >= live[slots.entries] {
         return;
     }
-    let m = 8u * e;
     textureStore(entry_table_out, texel(3u * e), vec4<u32>(atomicLoad(&entry_counts[e]), chunk_list[e], 0u, 0u));
-    textureStore(entry_table_out, texel(3u * e + 1u), vec4<u32>(
+    textureStore(entry_table_out, texel(3u * e + 1u), mask_words(8u * e));
+    textureStore(entry_table_out, texel(3u * e + 2u), mask_words(8u * e + 4u));
+}
+
+// Words m to m + 3 of the entries' masks.
+fn mask_words(m: u32) -> vec4<u32> {
+    return vec4<u32>(
         atomicLoad(&entry_masks[m]),
         atomicLoad(&entry_masks[m + 1u]),
         atomicLoad(&entry_masks[m + 2u]),
         atomicLoad(&entry_masks[m + 3u]),
-    ));
-    textureStore(entry_table_out, texel(3u * e + 2u), vec4<u32>(
-        atomicLoad(&entry_masks[m + 4u]),
-        atomicLoad(&entry_masks[m + 5u]),
-        atomicLoad(&entry_masks[m + 6u]),
-        atomicLoad(&entry_masks[m + 7u]),
-    ));
+    );
 }
 
 // Texel k of entry e's three in the entry table.
