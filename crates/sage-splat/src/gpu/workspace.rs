@@ -50,6 +50,9 @@ const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
     ("splat colours", FLOATS),
     ("splat boxes", WORDS),
 ];
+/// Texels of the entry table per visible entry (`index_entries` in `splat.wgsl`): its first
+/// splat and chunk, then its mask in two.
+const ENTRY_TEXELS: u32 = 3;
 /// Live slots the host writes before each batch: cameras × chunks, the batch's tiles, its
 /// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits).
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
@@ -116,7 +119,7 @@ impl Caps {
         self.largest_buffer() <= gpu.largest_binding()
             && texel_rows(self.splats) <= most_rows
             && texel_rows(self.tile_entries) <= most_rows
-            && texel_rows(self.entries.saturating_mul(3)) <= most_rows
+            && texel_rows(self.entries.saturating_mul(ENTRY_TEXELS)) <= most_rows
     }
 
     /// The largest single buffer these need, bytes (checked against what one binding sees).
@@ -151,8 +154,7 @@ impl Caps {
             .sum();
         // Each sort's result and the texture it ping-pongs with.
         let sorted = 2 * (texel_bytes(self.splats, PAIRS) + texel_bytes(self.tile_entries, PAIRS));
-        // The entry table: three texels an entry.
-        let entry_table = texel_bytes(self.entries.saturating_mul(3), WORDS);
+        let entry_table = texel_bytes(self.entries.saturating_mul(ENTRY_TEXELS), WORDS);
         words * 4 + splat_textures + sorted + entry_table
     }
 }
@@ -462,9 +464,9 @@ impl Workspace {
             gpu,
             "entry table",
             WORDS,
-            texel_rows(caps.entries.saturating_mul(3)),
+            texel_rows(caps.entries.saturating_mul(ENTRY_TEXELS)),
         );
-        let entry_view = entry_table.create_view(&wgpu::TextureViewDescriptor::default());
+        let entry_view = view(&entry_table);
         let entry_view = [wgpu::BindingResource::TextureView(&entry_view)];
         let entries_out = bind_from(gpu, &k.entries_out_layout, 10, &entry_view);
         let entries_in = bind_from(gpu, &k.entries_in_layout, 1, &entry_view);
