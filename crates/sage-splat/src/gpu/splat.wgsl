@@ -802,11 +802,16 @@ fn reaches_tile(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, tx: u32, ty
     return min(min(q0, q1), min(q2, q3)) <= cutoff;
 }
 
-// Writes entry `slot`: tile t (within camera c) and splat s; one past the texture is counted
-// by the caller, not written (the host grows the work space).
-fn write_entry(slot: u32, c: u32, t: u32, s: u32) {
+// Writes entry `slot`: tile t (within camera c) and splat s, whose box `lo`–`hi` reaches the
+// tile's blocks `box_blocks` names (kept above the splat's index, so the blending kernels take
+// a splat's blocks with its index); one past the texture is counted by the caller, not
+// written (the host grows the work space).
+fn write_entry(slot: u32, c: u32, t: u32, s: u32, lo: vec2<f32>, hi: vec2<f32>) {
     if slot < live[slots.tile_entries] {
-        textureStore(tile_pairs_out, texel(slot), vec4<u32>(tile_key(c, t), s, 0u, 0u));
+        let across = cameras[c].size.z;
+        let tile = vec2<f32>(vec2<u32>(t % across, t / across) * TILE);
+        let value = (box_blocks(lo, hi, tile) << SPLAT_INDEX_BITS) | s;
+        textureStore(tile_pairs_out, texel(slot), vec4<u32>(tile_key(c, t), value, 0u, 0u));
     }
 }
 
@@ -881,7 +886,10 @@ fn emit(
     let m = splat_shape(s);
     let e = splat_box(s);
     let c = e.z & 255u;
-    let r = tile_box(m.xy, bitcast<vec2<f32>>(e.xy), c);
+    let extent = bitcast<vec2<f32>>(e.xy);
+    let r = tile_box(m.xy, extent, c);
+    let lo = m.xy - extent;
+    let hi = m.xy + extent;
     let across = cameras[c].size.z;
     var slot = first;
     if !box_has_bits(r) {
@@ -889,7 +897,7 @@ fn emit(
         for (var ty = r.y; ty <= r.w; ty++) {
             for (var tx = r.x; tx <= r.z; tx++) {
                 if tile_reached(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, tx, ty) {
-                    write_entry(slot, c, ty * across + tx, s);
+                    write_entry(slot, c, ty * across + tx, s, lo, hi);
                     slot += 1u;
                 }
             }
@@ -901,7 +909,7 @@ fn emit(
     while bits != 0u {
         let k = firstTrailingBit(bits);
         bits &= bits - 1u;
-        write_entry(slot, c, (r.y + k / box_width) * across + r.x + k % box_width, s);
+        write_entry(slot, c, (r.y + k / box_width) * across + r.x + k % box_width, s, lo, hi);
         slot += 1u;
     }
 }
@@ -920,7 +928,12 @@ fn sorted_tile(i: u32) -> u32 {
 
 // The splat at place i of the tile order.
 fn sorted_splat(i: u32) -> u32 {
-    return textureLoad(tiles_sorted, texel(i), 0).y;
+    return textureLoad(tiles_sorted, texel(i), 0).y & ((1u << SPLAT_INDEX_BITS) - 1u);
+}
+
+// The blocks of its tile (`box_blocks`) that the splat at place i of the tile order reaches.
+fn sorted_blocks(i: u32) -> u32 {
+    return textureLoad(tiles_sorted, texel(i), 0).y >> SPLAT_INDEX_BITS;
 }
 
 @compute @workgroup_size(256)
@@ -1181,7 +1194,6 @@ fn raster(
     let px = job.origin.x + lid % TILE;
     let py_upper = job.origin.y + (lid / TILE) * 8u + vec4<u32>(0u, 1u, 2u, 3u);
     let py_lower = py_upper + 4u;
-    let tile = vec2<f32>(job.origin);
     // Threads 8b…8b+7 are block b: row half b / 2, column half b % 2 (as in `box_blocks`).
     let block = lid / 8u;
     let inside_upper = vec4<bool>(px < size.x) & (py_upper < vec4<u32>(size.y));
@@ -1209,17 +1221,14 @@ fn raster(
             break;
         }
         // Thread b·8 + w finds word w of block b's bits: which of the batch's splats 32w to
-        // 32w + 31 reach its block. Each thread reads its own run of splats (texel gathers),
-        // and no thread reads what another wrote but the words: under lavapipe a read of
-        // workgroup memory is a read per lane.
+        // 32w + 31 reach its block, from the blocks `emit` kept with each entry. Each thread
+        // reads its own run of entries (texel gathers), and no thread reads what another wrote
+        // but the words: under lavapipe a read of workgroup memory is a read per lane.
         var word = 0u;
         for (var i = 0u; i < 32u; i++) {
             let e = start + 32u * (lid % 8u) + i;
             if e < range.y {
-                let g = sorted_splat(e);
-                let a = splat_shape(g);
-                let extent = bitcast<vec2<f32>>(splat_box(g).xy);
-                word |= ((box_blocks(a.xy - extent, a.xy + extent, tile) >> block) & 1u) << i;
+                word |= ((sorted_blocks(e) >> block) & 1u) << i;
             }
         }
         block_bits[lid] = word;

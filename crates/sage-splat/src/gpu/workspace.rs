@@ -64,6 +64,10 @@ const LIVE_FIXED: u32 = 5;
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
 pub(crate) const DEPTH_KEY_BITS: u32 = 24;
+/// Bits of a (tile, splat) entry's value that hold the splat's place in the depth order; the
+/// four above them say which 8×8 blocks of the tile the splat's box reaches (`emit` writes
+/// them, the blending kernels read them with the splat).
+pub(crate) const SPLAT_INDEX_BITS: u32 = 28;
 /// Most 8-bit passes the tile sort takes (a camera's tiles below 2²⁴).
 pub(crate) const TILE_SORT_PASSES: u32 = DEPTH_KEY_BITS / 8;
 /// Most 8-bit passes the depth sort takes: the depth key and, in a batch, the camera.
@@ -117,6 +121,7 @@ impl Caps {
     pub(crate) fn fit(&self, gpu: &Gpu) -> bool {
         let most_rows = gpu.limits().max_texture_dimension_2d;
         self.largest_buffer() <= gpu.largest_binding()
+            && self.splats <= 1 << SPLAT_INDEX_BITS
             && texel_rows(self.splats) <= most_rows
             && texel_rows(self.tile_entries) <= most_rows
             && texel_rows(self.entries.saturating_mul(ENTRY_TEXELS)) <= most_rows
