@@ -133,6 +133,11 @@ pub struct FrameTimes {
     pub median_ms: f64,
     /// The slowest frame, milliseconds.
     pub worst_ms: f64,
+    /// The mean frame, milliseconds: what a batch of these headings would cost rendered one
+    /// camera at a time, per camera (headings differ in their work, so the mean can lie well
+    /// above the median).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mean_ms: Option<f64>,
     /// When the GPU renders: the CPU renderer's median on the same headings, in rounds with
     /// the GPU's (each renderer's pass over the headings, then the other's, three times), so
     /// both medians come from the same minutes and their ratio is that of the renderers.
@@ -268,7 +273,15 @@ impl fmt::Display for RenderReport {
                 .iter()
                 .find(|t| (t.width, t.height) == (b.width, b.height));
             if let Some(single) = single {
-                write!(f, " ({:.1}× a single frame)", b.batch_ms / single.median_ms)?;
+                write!(f, " ({:.1}× a single frame", b.batch_ms / single.median_ms)?;
+                if let Some(mean) = single.mean_ms {
+                    write!(
+                        f,
+                        ", {:.2}× its cameras one at a time",
+                        b.batch_ms / (mean * b.cameras as f64)
+                    )?;
+                }
+                write!(f, ")")?;
             }
             write!(
                 f,
@@ -534,6 +547,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             height: h,
             median_ms: col(0),
             worst_ms: rows.iter().map(|r| r[0]).fold(0.0, f64::max),
+            mean_ms: Some(rows.iter().map(|r| r[0]).sum::<f64>() / rows.len() as f64),
             cpu_median_ms: cpu.is_some().then(|| crate::median(&cpu_ms)),
             breakdown: (!backend.is_gpu()).then(|| Breakdown {
                 cull_ms: col(1),
@@ -552,11 +566,11 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     if backend.is_gpu() {
         let (w, h) = settings.batch_size;
         let intrinsics = Intrinsics::from_hfov(w, h, 90.0)?;
-        // Every batch size renders the same headings (at least 16, cycled to fill a batch), so
-        // the rates compare the same frames.
-        let headings = cameras(intrinsics, eye, settings.pitch, settings.frames.max(16));
+        // Every batch size renders the headings of the single frames, cycled to fill whole
+        // batches, so the rates compare the same frames.
+        let headings = cameras(intrinsics, eye, settings.pitch, settings.frames.max(1));
         for &count in &settings.batches {
-            let cams: Vec<Camera> = (0..count.max(headings.len()))
+            let cams: Vec<Camera> = (0..headings.len().div_ceil(count) * count)
                 .map(|i| headings[i % headings.len()])
                 .collect();
             let parts: Vec<&[Camera]> = cams.chunks(count).collect();

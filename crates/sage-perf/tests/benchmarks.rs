@@ -74,7 +74,14 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
     assert!(report.index_bytes.is_some() && report.batches.is_empty());
     let json = serde_json::to_value(&report).unwrap();
     let size = &json["sizes"][0];
-    for key in ["median_ms", "worst_ms", "cull_ms", "raster_ms", "splats"] {
+    for key in [
+        "median_ms",
+        "worst_ms",
+        "mean_ms",
+        "cull_ms",
+        "raster_ms",
+        "splats",
+    ] {
         assert!(size.get(key).is_some(), "{key}: {size}");
     }
     assert!(json["index_bytes"].is_u64() && json.get("batches").is_none());
