@@ -1,8 +1,8 @@
 //! The two GPU primitives the binning needs: an exclusive prefix sum ([`Scan`]) and a stable
 //! radix sort of (key, value) pairs ([`RadixSort`]) from two buffers or a texture into
-//! textures of pairs, each recorded into a compute pass over storage of a fixed capacity, with the live count
-//! read on the GPU and the workgroups dispatched indirectly from it (`scan.wgsl`,
-//! `sort.wgsl`, [`super::live`]).
+//! textures of pairs, each recorded into a compute pass over storage of a fixed capacity,
+//! with the live count read on the GPU and the workgroups dispatched indirectly from it
+//! (`scan.wgsl`, `sort.wgsl`, [`super::live`]).
 
 use super::Gpu;
 use super::kernel::{
