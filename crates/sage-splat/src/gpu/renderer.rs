@@ -7,9 +7,9 @@ use super::kernel::{TEXELS_ACROSS, bind, texel_rows};
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
-    BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, Kernels, LIVE_CAMERA_CHUNKS,
-    LIVE_CAMERAS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES, PLANES, SLABS, SPLAT_INDEX_BITS,
-    TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
+    BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, ENTRY_TEXELS, Kernels,
+    LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES, PLANES, SLABS,
+    SPLAT_INDEX_BITS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
@@ -44,6 +44,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const LIVE_OUT_PLANES: u32 = {LIVE_OUT_PLANES}u;\n\
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SPLAT_INDEX_BITS: u32 = {SPLAT_INDEX_BITS}u;\n\
+         const ENTRY_TEXELS: u32 = {ENTRY_TEXELS}u;\n\
          const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n\
          const CAMERA_SLOTS: u32 = {camera_slots}u;\n\

@@ -657,9 +657,9 @@ fn index_entries(
     if e >= live[slots.entries] {
         return;
     }
-    textureStore(entry_table_out, texel(3u * e), vec4<u32>(atomicLoad(&entry_counts[e]), chunk_list[e], 0u, 0u));
-    textureStore(entry_table_out, texel(3u * e + 1u), mask_words(8u * e));
-    textureStore(entry_table_out, texel(3u * e + 2u), mask_words(8u * e + 4u));
+    textureStore(entry_table_out, entry_place(e, 0u), vec4<u32>(atomicLoad(&entry_counts[e]), chunk_list[e], 0u, 0u));
+    textureStore(entry_table_out, entry_place(e, 1u), mask_words(8u * e));
+    textureStore(entry_table_out, entry_place(e, 2u), mask_words(8u * e + 4u));
 }
 
 // Words m to m + 3 of the entries' masks.
@@ -672,9 +672,14 @@ fn mask_words(m: u32) -> vec4<u32> {
     );
 }
 
-// Texel k of entry e's three in the entry table.
+// Where texel k of entry e's ENTRY_TEXELS lies in the entry table.
+fn entry_place(e: u32, k: u32) -> vec2<u32> {
+    return texel(ENTRY_TEXELS * e + k);
+}
+
+// Texel k of entry e's ENTRY_TEXELS in the entry table.
 fn entry_texel(e: u32, k: u32) -> vec4<u32> {
-    return textureLoad(entry_table, texel(3u * e + k), 0);
+    return textureLoad(entry_table, entry_place(e, k), 0);
 }
 
 // A thread per splat (so the work follows what is visible, not the lanes of the marked
@@ -802,15 +807,14 @@ fn reaches_tile(m: vec2<f32>, conic: vec3<f32>, cutoff: f32, c: u32, tx: u32, ty
     return min(min(q0, q1), min(q2, q3)) <= cutoff;
 }
 
-// Writes entry `slot`: tile t (within camera c) and splat s, whose box `lo`–`hi` reaches the
+// Writes entry `slot`: tile (tx, ty) of camera c and splat s, whose box `lo`–`hi` reaches the
 // tile's blocks `box_blocks` names (kept above the splat's index, so the blending kernels take
 // a splat's blocks with its index); one past the texture is counted by the caller, not
 // written (the host grows the work space).
-fn write_entry(slot: u32, c: u32, t: u32, s: u32, lo: vec2<f32>, hi: vec2<f32>) {
+fn write_entry(slot: u32, c: u32, tx: u32, ty: u32, s: u32, lo: vec2<f32>, hi: vec2<f32>) {
     if slot < live[slots.tile_entries] {
-        let across = cameras[c].size.z;
-        let tile = vec2<f32>(vec2<u32>(t % across, t / across) * TILE);
-        let value = (box_blocks(lo, hi, tile) << SPLAT_INDEX_BITS) | s;
+        let t = ty * cameras[c].size.z + tx;
+        let value = (box_blocks(lo, hi, vec2<f32>(vec2<u32>(tx, ty) * TILE)) << SPLAT_INDEX_BITS) | s;
         textureStore(tile_pairs_out, texel(slot), vec4<u32>(tile_key(c, t), value, 0u, 0u));
     }
 }
@@ -890,14 +894,13 @@ fn emit(
     let r = tile_box(m.xy, extent, c);
     let lo = m.xy - extent;
     let hi = m.xy + extent;
-    let across = cameras[c].size.z;
     var slot = first;
     if !box_has_bits(r) {
         let sb = splat_weight(s);
         for (var ty = r.y; ty <= r.w; ty++) {
             for (var tx = r.x; tx <= r.z; tx++) {
                 if tile_reached(m.xy, vec3<f32>(m.zw, sb.x), sb.w, c, r, tx, ty) {
-                    write_entry(slot, c, ty * across + tx, s, lo, hi);
+                    write_entry(slot, c, tx, ty, s, lo, hi);
                     slot += 1u;
                 }
             }
@@ -909,7 +912,7 @@ fn emit(
     while bits != 0u {
         let k = firstTrailingBit(bits);
         bits &= bits - 1u;
-        write_entry(slot, c, (r.y + k / box_width) * across + r.x + k % box_width, s, lo, hi);
+        write_entry(slot, c, r.x + k % box_width, r.y + k / box_width, s, lo, hi);
         slot += 1u;
     }
 }

@@ -52,7 +52,7 @@ const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
 ];
 /// Texels of the entry table per visible entry (`index_entries` in `splat.wgsl`): its first
 /// splat and chunk, then its mask in two.
-const ENTRY_TEXELS: u32 = 3;
+pub(crate) const ENTRY_TEXELS: u32 = 3;
 /// Live slots the host writes before each batch: cameras × chunks, the batch's tiles, its
 /// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits).
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
