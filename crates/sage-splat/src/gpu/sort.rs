@@ -2,7 +2,8 @@
 //! radix sort of (key, value) pairs ([`RadixSort`]) from two buffers or a texture into
 //! textures of pairs, each recorded into a compute pass over storage of a fixed capacity,
 //! with the live count read on the GPU and the workgroups dispatched indirectly from it
-//! (`scan.wgsl`, `sort.wgsl`, [`super::live`]).
+//! (`scan.wgsl`, `sort.wgsl`, [`super::live`]). The sort's kernels come in two shapes
+//! ([`SortShape`]), one for hardware GPUs and one for CPU drivers; both leave the same bytes.
 
 use super::Gpu;
 use super::kernel::{
@@ -13,11 +14,60 @@ use super::live::{Count, Live, LiveBuilder, Size};
 
 /// Elements one workgroup of `scan_blocks` covers (256 threads, a run of 16 each).
 const SCAN_BLOCK: u32 = 4096;
-/// Pairs per radix-sort block (one per thread).
-const SORT_BLOCK: u32 = 256;
-/// Blocks one workgroup of the radix sort's `histogram` counts (fewer workgroups and barriers
+/// Blocks one workgroup of the lanes-shaped `histogram` counts (fewer workgroups and barriers
 /// for the same counting: a third less time under lavapipe than one block each).
 const HISTOGRAM_BLOCKS: u32 = 4;
+/// Threads per workgroup of the runs-shaped kernels: a vector of lanes under lavapipe on
+/// AVX2, so few pairs still make several workgroups for its threads to share.
+const RUN_GROUP: u32 = 8;
+
+/// How the radix sort's kernels share a pass's pairs between threads. The sorted pairs are the
+/// same bytes either way (a stable sort has one result); what differs is the time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum SortShape {
+    /// For hardware GPUs: a thread per pair, blocks of 256 ranked from bit masks in workgroup
+    /// memory (`sort_lanes.wgsl`).
+    Lanes,
+    /// For CPU drivers (lavapipe): a thread per block of 1,024 pairs, counted and placed one
+    /// at a time (`sort_runs.wgsl`). Under lavapipe on two cores a 24-bit sort of 13,000
+    /// pairs takes half the time of [`SortShape::Lanes`], of 100,000 a third.
+    Runs,
+}
+
+impl SortShape {
+    /// The shape for `gpu`'s adapter.
+    pub(crate) fn of(gpu: &Gpu) -> SortShape {
+        if gpu.is_software() {
+            SortShape::Runs
+        } else {
+            SortShape::Lanes
+        }
+    }
+
+    /// Pairs per block: a column of the digit counts.
+    fn block(self) -> u32 {
+        match self {
+            SortShape::Lanes => 256,
+            SortShape::Runs => 1024,
+        }
+    }
+
+    /// Pairs one workgroup of `histogram` and one of `scatter` take.
+    fn pairs_per_group(self) -> (u32, u32) {
+        match self {
+            SortShape::Lanes => (self.block() * HISTOGRAM_BLOCKS, self.block()),
+            SortShape::Runs => (self.block() * RUN_GROUP, self.block() * RUN_GROUP),
+        }
+    }
+
+    /// The kernels' source.
+    fn source(self) -> &'static str {
+        match self {
+            SortShape::Lanes => include_str!("sort_lanes.wgsl"),
+            SortShape::Runs => include_str!("sort_runs.wgsl"),
+        }
+    }
+}
 
 /// The exclusive prefix sum kernels.
 pub(crate) struct Scan {
@@ -186,9 +236,10 @@ impl Scan {
     }
 }
 
-/// The radix-sort kernels: a pass reading a pair of buffers (the first) and one reading the
-/// texture the pass before wrote (`sort_buffers.wgsl`, `sort_texture.wgsl`).
+/// The radix-sort kernels of one shape: a pass reading a pair of buffers (the first) and one
+/// reading the texture the pass before wrote (`sort_buffers.wgsl`, `sort_texture.wgsl`).
 pub(crate) struct RadixSort {
+    shape: SortShape,
     from_buffers: SortKernels,
     from_texture: SortKernels,
 }
@@ -201,10 +252,11 @@ struct SortKernels {
 }
 
 impl SortKernels {
-    /// Compiles `sort.wgsl` after `input` (the prelude of `key_in` and `pair_in`) over
-    /// `input_bindings` (below 2).
+    /// Compiles `sort.wgsl` and `shape`'s kernels after `input` (the prelude of `key_in` and
+    /// `pair_in`) over `input_bindings` (below 2).
     fn new(
         gpu: &Gpu,
+        shape: SortShape,
         label: &str,
         input: &str,
         input_bindings: &[wgpu::BindGroupLayoutEntry],
@@ -216,10 +268,14 @@ impl SortKernels {
                 source: wgpu::ShaderSource::Wgsl(
                     format!(
                         "const HISTOGRAM_BLOCKS: u32 = {HISTOGRAM_BLOCKS}u;\n\
+                         const RUN_GROUP: u32 = {RUN_GROUP}u;\n\
+                         const SORT_BLOCK: u32 = {}u;\n\
                          const SCAN_BLOCK: u32 = {SCAN_BLOCK}u;\n\
-                         const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n{}{input}{}",
+                         const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n{}{input}{}{}",
+                        shape.block(),
                         include_str!("texel.wgsl"),
-                        include_str!("sort.wgsl")
+                        include_str!("sort.wgsl"),
+                        shape.source()
                     )
                     .into(),
                 ),
@@ -274,17 +330,20 @@ pub(crate) enum SortInput<'a> {
 }
 
 impl RadixSort {
-    /// Compiles the sort kernels.
-    pub(crate) fn new(gpu: &Gpu) -> RadixSort {
+    /// Compiles the sort kernels of `shape`.
+    pub(crate) fn new(gpu: &Gpu, shape: SortShape) -> RadixSort {
         RadixSort {
+            shape,
             from_buffers: SortKernels::new(
                 gpu,
+                shape,
                 "radix sort from buffers",
                 include_str!("sort_buffers.wgsl"),
                 &[storage(0, true), storage(1, true)],
             ),
             from_texture: SortKernels::new(
                 gpu,
+                shape,
                 "radix sort from a texture",
                 include_str!("sort_texture.wgsl"),
                 &[texels_in(1, PAIRS)],
@@ -309,14 +368,14 @@ impl RadixSort {
         passes: u32,
     ) -> SortPlan {
         let capacity = capacity.max(1);
-        let blocks = capacity.div_ceil(SORT_BLOCK);
+        let block = self.shape.block();
+        let blocks = capacity.div_ceil(block);
         let pairs = Size::of(Count::Live(count_slot), capacity);
-        let histogram_args = builder
-            .derive(pairs.dispatched(SORT_BLOCK * HISTOGRAM_BLOCKS))
-            .args;
-        let scatter_args = builder.derive(pairs.dispatched(SORT_BLOCK)).args;
+        let (histogram_pairs, scatter_pairs) = self.shape.pairs_per_group();
+        let histogram_args = builder.derive(pairs.dispatched(histogram_pairs)).args;
+        let scatter_args = builder.derive(pairs.dispatched(scatter_pairs)).args;
         let digit_count = builder.derive(Size {
-            div: SORT_BLOCK,
+            div: block,
             mul: 256,
             ..Size::of(Count::Live(count_slot), capacity)
         });
@@ -565,15 +624,27 @@ mod tests {
     }
 
     #[test]
-    fn the_sort_is_stable_by_key_with_every_pass_count() {
+    fn the_sort_shaped_for_hardware_is_stable_by_key_with_every_pass_count() {
+        sorts_stably_by_key(SortShape::Lanes);
+    }
+
+    #[test]
+    fn the_sort_shaped_for_cpu_drivers_is_stable_by_key_with_every_pass_count() {
+        sorts_stably_by_key(SortShape::Runs);
+    }
+
+    /// Sorts with `shape`'s kernels, from either input, and checks against the standard
+    /// library's stable sort.
+    fn sorts_stably_by_key(shape: SortShape) {
         let Some(gpu) = gpu() else { return };
         let live = Live::new(&gpu);
         let scan = Scan::new(&gpu);
-        let sort = RadixSort::new(&gpu);
+        let sort = RadixSort::new(&gpu, shape);
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8);
         // Every pass count (ending in either texture), from buffers and from the second
-        // texture, and one pass over more than SCAN_BLOCK² digits (as many pairs): three
-        // levels of the digits' scan, its block offsets apart.
+        // texture, and one pass over SCAN_BLOCK² + 1 pairs: as many digits in blocks of 256
+        // (three levels of the digits' scan, its block offsets apart), a quarter in blocks
+        // of 1,024 (two).
         let cases = SIZES.into_iter().zip([4, 1, 2, 3].into_iter().cycle());
         for (i, (n, passes)) in cases.chain([(SCAN_BLOCK * SCAN_BLOCK + 1, 1)]).enumerate() {
             // Every other size with few distinct keys, so stability is tested.

@@ -8,7 +8,7 @@ use super::kernel::{
     texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
-use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan};
+use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan, SortShape};
 use crate::passes::{Blending, GPU_SLABS, PassTimes};
 
 /// Most depth slabs a batch renders in ([`GPU_SLABS`]).
@@ -277,7 +277,7 @@ impl Kernels {
             raster_columns: over("raster_columns", &splats_in_layout),
             compose: kernel("compose"),
             scan: Scan::new(gpu),
-            sort: RadixSort::new(gpu),
+            sort: RadixSort::new(gpu, SortShape::of(gpu)),
             live: Live::new(gpu),
             scene_layout,
             frame_layout,
