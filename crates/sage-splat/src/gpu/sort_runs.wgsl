@@ -9,9 +9,20 @@
 // Per digit and thread of the workgroup: its pairs, then (in `scatter`) its next slot.
 var<workgroup> digit_counts: array<u32, 256 * RUN_GROUP>;
 
+// A thread's block of pairs: its number, the pass's number of blocks (the block is past them
+// when the thread has none), and its first and one-past-last pair.
+struct Run {
+    block: u32,
+    blocks: u32,
+    first: u32,
+    end: u32,
+}
+
 // The block of thread lid of workgroup wid.
-fn run_block(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
-    return (wid.x + wid.y * nwg.x) * RUN_GROUP + lid;
+fn run_of(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> Run {
+    let block = (wid.x + wid.y * nwg.x) * RUN_GROUP + lid;
+    let n = live[params.count_slot];
+    return Run(block, blocks_of(n), block * SORT_BLOCK, min(n, (block + 1u) * SORT_BLOCK));
 }
 
 @compute @workgroup_size(RUN_GROUP)
@@ -20,18 +31,16 @@ fn histogram(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let block = run_block(wid, nwg, lid);
-    let n = live[params.count_slot];
-    let blocks = blocks_of(n);
-    if block >= blocks {
+    let run = run_of(wid, nwg, lid);
+    if run.block >= run.blocks {
         return;
     }
     // Workgroup memory starts zeroed (WGSL's rule), so the counts need no clearing here.
-    for (var i = block * SORT_BLOCK; i < min(n, (block + 1u) * SORT_BLOCK); i++) {
+    for (var i = run.first; i < run.end; i++) {
         digit_counts[digit_of(key_in(i)) * RUN_GROUP + lid] += 1u;
     }
     for (var d = 0u; d < 256u; d++) {
-        block_digits[d * blocks + block] = digit_counts[d * RUN_GROUP + lid];
+        block_digits[d * run.blocks + run.block] = digit_counts[d * RUN_GROUP + lid];
     }
 }
 
@@ -41,16 +50,14 @@ fn scatter(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
-    let block = run_block(wid, nwg, lid);
-    let n = live[params.count_slot];
-    let blocks = blocks_of(n);
-    if block >= blocks {
+    let run = run_of(wid, nwg, lid);
+    if run.block >= run.blocks {
         return;
     }
     for (var d = 0u; d < 256u; d++) {
-        digit_counts[d * RUN_GROUP + lid] = first_slot(d, block, blocks);
+        digit_counts[d * RUN_GROUP + lid] = first_slot(d, run.block, run.blocks);
     }
-    for (var i = block * SORT_BLOCK; i < min(n, (block + 1u) * SORT_BLOCK); i++) {
+    for (var i = run.first; i < run.end; i++) {
         let pair = pair_in(i);
         let at = digit_of(pair.x) * RUN_GROUP + lid;
         let slot = digit_counts[at];
