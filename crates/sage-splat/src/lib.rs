@@ -33,5 +33,5 @@ pub mod tile;
 
 pub use camera::{Camera, CameraSpec, Intrinsics};
 pub use device::{Backend, Device, Rendering};
-pub use passes::{Blending, PassTimes};
+pub use passes::{Blending, KernelShape, PassTimes};
 pub use render::{Channels, RenderOptions, RenderOutput, RenderStats, Renderer};

@@ -11,6 +11,33 @@ use std::str::FromStr;
 /// each slab costs a round of dispatches, so fewer).
 pub const GPU_SLABS: u32 = 4;
 
+/// How the GPU renderer's kernels that come in two shapes (the radix sort's two, and `mark`)
+/// share their work between threads. Both shapes form the same bytes (a GPU test holds them to
+/// it); a renderer takes the one for its adapter ([`KernelShape::for_adapter`]) unless told.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KernelShape {
+    /// For hardware GPUs: a thread per element (a pair to sort, a Gaussian of a chunk), which
+    /// rank or mark themselves together through workgroup memory or atomics.
+    Lanes,
+    /// For CPU drivers (lavapipe): a thread per run of elements (a block of 1,024 pairs, a
+    /// chunk's 256 Gaussians), going through it one element at a time with no atomics and no
+    /// barriers. A CPU driver runs a workgroup's threads a vector of lanes at a time and reads
+    /// workgroup or storage memory at an index it cannot prove uniform lane by lane, so these
+    /// do far fewer such reads; a hardware GPU would leave most of its lanes idle.
+    Runs,
+}
+
+impl KernelShape {
+    /// The shape for an adapter: [`KernelShape::Runs`] on a software one (a CPU driver).
+    pub fn for_adapter(software: bool) -> KernelShape {
+        if software {
+            KernelShape::Runs
+        } else {
+            KernelShape::Lanes
+        }
+    }
+}
+
 /// The GPU renderer's blending kernel. Both blend every pixel by the same rules in the same
 /// order and form the same bytes (a GPU test holds them to it); they differ in how threads share
 /// a tile, which suits CPU drivers and hardware GPUs differently.

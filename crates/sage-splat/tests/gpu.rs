@@ -13,7 +13,7 @@ use sage_scene::{Gaussian, Gaussians};
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
 use sage_splat::passes::GPU_SLABS;
 use sage_splat::{
-    Backend, Blending, Camera, Channels, Device, RenderOptions, RenderOutput, Renderer,
+    Backend, Blending, Camera, Channels, Device, KernelShape, RenderOptions, RenderOutput, Renderer,
 };
 use sage_testkit::splats::{psnr, random_gaussians};
 use std::path::PathBuf;
@@ -282,6 +282,59 @@ fn the_images_are_the_same_in_any_number_of_depth_slabs_with_either_blending_ker
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
     assert!(chosen == *first, "slabs chosen from the work differ");
+}
+
+#[test]
+fn the_kernels_shaped_for_hardware_and_for_cpu_drivers_form_the_same_bytes() {
+    let Some(gpu) = gpu() else { return };
+    // Two scenes: a house (many chunks, so four slabs and several sort blocks), and one of
+    // 300 Gaussians (a chunk's last lanes past the scene's end, a sort of a single block).
+    let scene = home(12, 3, 20, 30_000);
+    let small = random_gaussians(5, 300, 1, 1.5);
+    let c = scene.floorplan.rooms[0].profile.centroid();
+    let cameras: Vec<Camera> = (0..6)
+        .map(|k| {
+            let (w, h) = if k % 2 == 0 { (72, 56) } else { (80, 48) };
+            camera(w, h, Vec3::new(c.x, c.y, 1.1), 1.1 * k as f32, 0.0)
+        })
+        .collect();
+    let around = |k: usize| {
+        camera(
+            48,
+            40,
+            Vec3::new(0.0, 0.0, 1.2),
+            0.05 + 0.2 * k as f32,
+            -0.1,
+        )
+    };
+    let small_cameras: Vec<Camera> = (0..3).map(around).collect();
+    let options = RenderOptions::default();
+    let cases = [
+        (
+            &scene.gaussians,
+            &scene.instances.category_ids[..],
+            &cameras,
+        ),
+        (&small, &[][..], &small_cameras),
+    ];
+    for (g, categories, cameras) in cases {
+        let renders = [KernelShape::Lanes, KernelShape::Runs].map(|shape| {
+            let renderer = GpuRenderer::with_shape(&gpu, g, shape).unwrap();
+            let batch = renderer
+                .render_batch(g, categories, cameras, &options)
+                .unwrap();
+            let alone = renderer
+                .render(g, categories, &cameras[1], &options)
+                .unwrap();
+            assert!(
+                alone == batch[1],
+                "{shape:?}: a camera alone differs from its batch"
+            );
+            assert!(renderer.stats().splats > 0, "{shape:?}: nothing drawn");
+            batch
+        });
+        assert!(renders[0] == renders[1], "the two shapes differ");
+    }
 }
 
 /// Sets of images a caller may ask for: each alone, the sensors of an RGB-D agent, the 8-bit

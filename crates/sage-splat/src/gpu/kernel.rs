@@ -41,6 +41,13 @@ fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// Threads per workgroup of the kernels shaped for CPU drivers ([`KernelShape::Runs`]): a
+/// vector of lanes under lavapipe on AVX2, so even a little work makes several workgroups for
+/// its threads to share.
+///
+/// [`KernelShape::Runs`]: crate::passes::KernelShape::Runs
+pub(crate) const RUN_GROUP: u32 = 8;
+
 /// Texels across a row of every texture the kernels index by a flat number (`TEXELS_ACROSS`
 /// and `texel` in `splat.wgsl`): rows of 64 KB, and at least 8,192 rows (33.5 million texels)
 /// on every WebGPU adapter.

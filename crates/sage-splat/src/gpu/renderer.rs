@@ -3,7 +3,7 @@
 //! rendering (`splat.wgsl` holds the kernels, [`super::workspace`] the buffers).
 
 use super::Gpu;
-use super::kernel::{TEXELS_ACROSS, bind, texel_rows};
+use super::kernel::{RUN_GROUP, TEXELS_ACROSS, bind, texel_rows};
 use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, init_buffer, sh_words};
 use super::workspace::{
@@ -13,7 +13,7 @@ use super::workspace::{
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
-use crate::passes::{Blending, PassTimes};
+use crate::passes::{Blending, KernelShape, PassTimes};
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
 use crate::render::{Channels, RenderOptions, RenderOutput, to_byte};
 use crate::sh;
@@ -48,6 +48,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const SLABS: u32 = {SLABS}u;\n\
          const DEPTH_BINS: u32 = {DEPTH_BINS}u;\nconst PLANES: u32 = {PLANES}u;\n\
          const CAMERA_SLOTS: u32 = {camera_slots}u;\n\
+         const RUN_GROUP: u32 = {RUN_GROUP}u;\n\
          const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n",
         sh::C0,
         sh::C1,
@@ -294,12 +295,27 @@ impl Submitted {
 }
 
 impl GpuRenderer {
-    /// Uploads `gaussians` to `gpu` and compiles the kernels for their SH degree.
+    /// Uploads `gaussians` to `gpu` and compiles the kernels for their SH degree, in the
+    /// shape for the adapter ([`KernelShape::for_adapter`]).
     ///
     /// # Errors
     ///
     /// A scene larger than the adapter's buffers or textures, or a GPU fault.
     pub fn new(gpu: &Arc<Gpu>, gaussians: &Gaussians) -> Result<Arc<GpuRenderer>> {
+        Self::with_shape(gpu, gaussians, KernelShape::for_adapter(gpu.is_software()))
+    }
+
+    /// As [`GpuRenderer::new`], with the kernels of `shape` whatever the adapter: the images
+    /// are the same bytes, only the time differs.
+    ///
+    /// # Errors
+    ///
+    /// As [`GpuRenderer::new`].
+    pub fn with_shape(
+        gpu: &Arc<Gpu>,
+        gaussians: &Gaussians,
+        shape: KernelShape,
+    ) -> Result<Arc<GpuRenderer>> {
         let n = gaussians.len();
         // The largest scene buffer: the SH codes, or the colours (two words a Gaussian).
         let words = sh_words(sh_rest_count(gaussians.sh_degree())).max(2);
@@ -325,7 +341,7 @@ impl GpuRenderer {
             slots,
         ) + include_str!("texel.wgsl")
             + include_str!("splat.wgsl");
-        let kernels = Kernels::new(gpu, source, slots);
+        let kernels = Kernels::new(gpu, source, slots, shape);
         let categories_buffer = init_buffer(gpu, "categories", &[]);
         let scene_group = Self::scene_group(gpu, &kernels, &scene, &categories_buffer);
         gpu.check()?;

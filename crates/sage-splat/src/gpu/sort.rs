@@ -2,70 +2,49 @@
 //! radix sort of (key, value) pairs ([`RadixSort`]) from two buffers or a texture into
 //! textures of pairs, each recorded into a compute pass over storage of a fixed capacity,
 //! with the live count read on the GPU and the workgroups dispatched indirectly from it
-//! (`scan.wgsl`, `sort.wgsl`, [`super::live`]). The sort's kernels come in two shapes
-//! ([`SortShape`]), one for hardware GPUs and one for CPU drivers; both leave the same bytes.
+//! (`scan.wgsl`, `sort.wgsl`, [`super::live`]). The sort's kernels come in both
+//! [`KernelShape`]s, one for hardware GPUs and one for CPU drivers; both leave the same bytes.
 
 use super::Gpu;
 use super::kernel::{
-    Kernel, PAIRS, TEXELS_ACROSS, bind, bind_from, layout, storage, texels_in, texels_out, uniform,
-    uniform_buffer,
+    Kernel, PAIRS, RUN_GROUP, TEXELS_ACROSS, bind, bind_from, layout, storage, texels_in,
+    texels_out, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, Size};
+use crate::passes::KernelShape;
 
 /// Elements one workgroup of `scan_blocks` covers (256 threads, a run of 16 each).
 const SCAN_BLOCK: u32 = 4096;
 /// Blocks one workgroup of the lanes-shaped `histogram` counts (fewer workgroups and barriers
 /// for the same counting: a third less time under lavapipe than one block each).
 const HISTOGRAM_BLOCKS: u32 = 4;
-/// Threads per workgroup of the runs-shaped kernels: a vector of lanes under lavapipe on
-/// AVX2, so few pairs still make several workgroups for its threads to share.
-const RUN_GROUP: u32 = 8;
 
-/// How the radix sort's kernels share a pass's pairs between threads. The sorted pairs are the
-/// same bytes either way (a stable sort has one result); what differs is the time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum SortShape {
-    /// For hardware GPUs: a thread per pair, blocks of 256 ranked from bit masks in workgroup
-    /// memory (`sort_lanes.wgsl`).
-    Lanes,
-    /// For CPU drivers (lavapipe): a thread per block of 1,024 pairs, counted and placed one
-    /// at a time (`sort_runs.wgsl`). Under lavapipe on two cores a 24-bit sort of 13,000
-    /// pairs takes half the time of [`SortShape::Lanes`], of 100,000 a third.
-    Runs,
+/// Pairs per block of a sort of `shape` (a column of the digit counts): a thread's each in
+/// [`KernelShape::Lanes`] (`sort_lanes.wgsl`, ranked from bit masks in workgroup memory), one
+/// thread's run in [`KernelShape::Runs`] (`sort_runs.wgsl`, counted and placed one at a time;
+/// under lavapipe on two cores a 24-bit sort of 13,000 pairs takes half the time, of 100,000
+/// a third).
+fn sort_block(shape: KernelShape) -> u32 {
+    match shape {
+        KernelShape::Lanes => 256,
+        KernelShape::Runs => 1024,
+    }
 }
 
-impl SortShape {
-    /// The shape for `gpu`'s adapter.
-    pub(crate) fn of(gpu: &Gpu) -> SortShape {
-        if gpu.is_software() {
-            SortShape::Runs
-        } else {
-            SortShape::Lanes
-        }
+/// Pairs one workgroup of `histogram` and one of `scatter` of `shape` take.
+fn pairs_per_group(shape: KernelShape) -> (u32, u32) {
+    let block = sort_block(shape);
+    match shape {
+        KernelShape::Lanes => (block * HISTOGRAM_BLOCKS, block),
+        KernelShape::Runs => (block * RUN_GROUP, block * RUN_GROUP),
     }
+}
 
-    /// Pairs per block: a column of the digit counts.
-    fn block(self) -> u32 {
-        match self {
-            SortShape::Lanes => 256,
-            SortShape::Runs => 1024,
-        }
-    }
-
-    /// Pairs one workgroup of `histogram` and one of `scatter` take.
-    fn pairs_per_group(self) -> (u32, u32) {
-        match self {
-            SortShape::Lanes => (self.block() * HISTOGRAM_BLOCKS, self.block()),
-            SortShape::Runs => (self.block() * RUN_GROUP, self.block() * RUN_GROUP),
-        }
-    }
-
-    /// The kernels' source.
-    fn source(self) -> &'static str {
-        match self {
-            SortShape::Lanes => include_str!("sort_lanes.wgsl"),
-            SortShape::Runs => include_str!("sort_runs.wgsl"),
-        }
+/// The source of the sort's kernels of `shape`.
+fn sort_kernels(shape: KernelShape) -> &'static str {
+    match shape {
+        KernelShape::Lanes => include_str!("sort_lanes.wgsl"),
+        KernelShape::Runs => include_str!("sort_runs.wgsl"),
     }
 }
 
@@ -239,7 +218,7 @@ impl Scan {
 /// The radix-sort kernels of one shape: a pass reading a pair of buffers (the first) and one
 /// reading the texture the pass before wrote (`sort_buffers.wgsl`, `sort_texture.wgsl`).
 pub(crate) struct RadixSort {
-    shape: SortShape,
+    shape: KernelShape,
     from_buffers: SortKernels,
     from_texture: SortKernels,
 }
@@ -256,7 +235,7 @@ impl SortKernels {
     /// `pair_in`) over `input_bindings` (below 2).
     fn new(
         gpu: &Gpu,
-        shape: SortShape,
+        shape: KernelShape,
         label: &str,
         input: &str,
         input_bindings: &[wgpu::BindGroupLayoutEntry],
@@ -272,10 +251,10 @@ impl SortKernels {
                          const SORT_BLOCK: u32 = {}u;\n\
                          const SCAN_BLOCK: u32 = {SCAN_BLOCK}u;\n\
                          const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n{}{input}{}{}",
-                        shape.block(),
+                        sort_block(shape),
                         include_str!("texel.wgsl"),
                         include_str!("sort.wgsl"),
-                        shape.source()
+                        sort_kernels(shape)
                     )
                     .into(),
                 ),
@@ -331,7 +310,7 @@ pub(crate) enum SortInput<'a> {
 
 impl RadixSort {
     /// Compiles the sort kernels of `shape`.
-    pub(crate) fn new(gpu: &Gpu, shape: SortShape) -> RadixSort {
+    pub(crate) fn new(gpu: &Gpu, shape: KernelShape) -> RadixSort {
         RadixSort {
             shape,
             from_buffers: SortKernels::new(
@@ -368,10 +347,10 @@ impl RadixSort {
         passes: u32,
     ) -> SortPlan {
         let capacity = capacity.max(1);
-        let block = self.shape.block();
+        let block = sort_block(self.shape);
         let blocks = capacity.div_ceil(block);
         let pairs = Size::of(Count::Live(count_slot), capacity);
-        let (histogram_pairs, scatter_pairs) = self.shape.pairs_per_group();
+        let (histogram_pairs, scatter_pairs) = pairs_per_group(self.shape);
         let histogram_args = builder.derive(pairs.dispatched(histogram_pairs)).args;
         let scatter_args = builder.derive(pairs.dispatched(scatter_pairs)).args;
         let digit_count = builder.derive(Size {
@@ -625,17 +604,17 @@ mod tests {
 
     #[test]
     fn the_sort_shaped_for_hardware_is_stable_by_key_with_every_pass_count() {
-        sorts_stably_by_key(SortShape::Lanes);
+        sorts_stably_by_key(KernelShape::Lanes);
     }
 
     #[test]
     fn the_sort_shaped_for_cpu_drivers_is_stable_by_key_with_every_pass_count() {
-        sorts_stably_by_key(SortShape::Runs);
+        sorts_stably_by_key(KernelShape::Runs);
     }
 
     /// Sorts with `shape`'s kernels, from either input, and checks against the standard
     /// library's stable sort.
-    fn sorts_stably_by_key(shape: SortShape) {
+    fn sorts_stably_by_key(shape: KernelShape) {
         let Some(gpu) = gpu() else { return };
         let live = Live::new(&gpu);
         let scan = Scan::new(&gpu);

@@ -1,7 +1,7 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
 // cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
 // MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, TEXELS_ACROSS
+// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, RUN_GROUP, TEXELS_ACROSS
 // and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first runs
@@ -635,6 +635,37 @@ fn mark(
         atomicOr(&entry_masks[8u * entry + lid / 32u], 1u << (lid % 32u));
         atomicAdd(&entry_counts[entry], 1u);
     }
+}
+
+// `mark` shaped for CPU drivers (`KernelShape::Runs`): a thread per entry goes through its
+// chunk's 256 Gaussians one at a time, building the mask words and the count in registers
+// with no atomics (eight entries side by side in a vector's lanes, under lavapipe).
+@compute @workgroup_size(RUN_GROUP)
+fn mark_runs(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    let entry = group_index(wid, nwg) * RUN_GROUP + lid;
+    if entry >= live[slots.entries] {
+        return;
+    }
+    let flat = chunk_list[entry];
+    let c = flat / CHUNKS;
+    let first = (flat % CHUNKS) * 256u;
+    var count = 0u;
+    for (var w = 0u; w < 8u; w++) {
+        var word = 0u;
+        for (var b = 0u; b < 32u; b++) {
+            let g = first + 32u * w + b;
+            if g < GAUSSIANS && in_slab(c, g) {
+                word |= 1u << b;
+            }
+        }
+        atomicStore(&entry_masks[8u * entry + w], word);
+        count += countOneBits(word);
+    }
+    atomicStore(&entry_counts[entry], count);
 }
 
 // Bit `n` (from 0) among the set bits of `w` (which has more than n).

@@ -4,12 +4,12 @@
 
 use super::Gpu;
 use super::kernel::{
-    FLOATS, Kernel, PAIRS, WORDS, bind, bind_from, dynamic_uniform, layout, storage, texel_bytes,
-    texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
+    FLOATS, Kernel, PAIRS, RUN_GROUP, WORDS, bind, bind_from, dynamic_uniform, layout, storage,
+    texel_bytes, texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
-use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan, SortShape};
-use crate::passes::{Blending, GPU_SLABS, PassTimes};
+use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan};
+use crate::passes::{Blending, GPU_SLABS, KernelShape, PassTimes};
 
 /// Most depth slabs a batch renders in ([`GPU_SLABS`]).
 pub(crate) const SLABS: u32 = GPU_SLABS;
@@ -182,6 +182,7 @@ pub(crate) struct Kernels {
     finished_table: Kernel,
     select_chunks: Kernel,
     list_chunks: Kernel,
+    /// `mark` or, for CPU drivers, `mark_runs` ([`Kernels::shape`]).
     mark: Kernel,
     index_entries: Kernel,
     project: Kernel,
@@ -197,12 +198,14 @@ pub(crate) struct Kernels {
     pub(crate) live: Live,
     /// The camera blocks `source` was compiled for ([`camera_slots`]).
     pub(crate) camera_slots: u32,
+    /// The shape of `mark` and of the sort's kernels.
+    shape: KernelShape,
 }
 
 impl Kernels {
     /// Compiles `source` (the prelude and `splat.wgsl`, with cameras in blocks of
-    /// `camera_slots`) and the scan, sort and live kernels.
-    pub(crate) fn new(gpu: &Gpu, source: String, camera_slots: u32) -> Kernels {
+    /// `camera_slots`) and the scan, sort and live kernels, those with two shapes in `shape`.
+    pub(crate) fn new(gpu: &Gpu, source: String, camera_slots: u32, shape: KernelShape) -> Kernels {
         let module = gpu
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -246,7 +249,10 @@ impl Kernels {
             finished_table: kernel("finished_table"),
             select_chunks: kernel("select_chunks"),
             list_chunks: kernel("list_chunks"),
-            mark: kernel("mark"),
+            mark: kernel(match shape {
+                KernelShape::Lanes => "mark",
+                KernelShape::Runs => "mark_runs",
+            }),
             index_entries: over("index_entries", &entries_out_layout),
             project: Kernel::new(
                 gpu,
@@ -277,7 +283,7 @@ impl Kernels {
             raster_columns: over("raster_columns", &splats_in_layout),
             compose: kernel("compose"),
             scan: Scan::new(gpu),
-            sort: RadixSort::new(gpu, SortShape::of(gpu)),
+            sort: RadixSort::new(gpu, shape),
             live: Live::new(gpu),
             scene_layout,
             frame_layout,
@@ -287,6 +293,7 @@ impl Kernels {
             entries_out_layout,
             entries_in_layout,
             camera_slots,
+            shape,
         }
     }
 }
@@ -361,6 +368,8 @@ struct Dispatches {
     camera_chunks: u64,
     /// A workgroup per visible entry (+1).
     entries: u64,
+    /// A thread per visible entry, in workgroups of [`RUN_GROUP`].
+    entry_runs: u64,
     /// A thread per visible entry.
     entry_threads: u64,
     /// A thread per visible splat (+1).
@@ -542,6 +551,8 @@ impl Workspace {
         );
         let entry_threads =
             b.derive(Size::of(Count::Live(entries.n), caps.entries).dispatched(256));
+        let entry_runs =
+            b.derive(Size::of(Count::Live(entries.n), caps.entries).dispatched(RUN_GROUP));
         let entries_scan = k.scan.plan(
             gpu,
             live,
@@ -660,6 +671,7 @@ impl Workspace {
                 camera_chunks: flag_count.args,
                 entries: entry_groups.args,
                 entry_threads: entry_threads.args,
+                entry_runs: entry_runs.args,
                 splats: splat_threads.args,
                 tile_entries: tile_entries.args,
                 listed_tiles: listed_tiles.args,
@@ -747,7 +759,11 @@ impl Workspace {
             k.scan.encode(pass, live, &self.flags_scan);
             live.dispatch(pass, &k.list_chunks, &groups, d.camera_chunks);
             live.encode(pass, &self.programs, 1);
-            live.dispatch(pass, &k.mark, &groups, d.entries);
+            let marks = match k.shape {
+                KernelShape::Lanes => d.entries,
+                KernelShape::Runs => d.entry_runs,
+            };
+            live.dispatch(pass, &k.mark, &groups, marks);
             k.scan.encode(pass, live, &self.entries_scan);
             let [scene, frame] = groups;
             let entries_out = [scene, frame, (&self.entries_out, &[][..])];
