@@ -3,7 +3,7 @@
 //!
 //! Chunks are compact when the Gaussians are stored in Morton order, as
 //! [`sage_scene::Scene::load`] and the synthetic generator keep them
-//! ([`sage_scene::Gaussians::into_morton_order`]); any other order renders the same images,
+//! ([`sage_scene::Gaussians::sort_morton`]); any other order renders the same images,
 //! only culling gets coarser. No permutation is stored, so the index costs about 0.1 byte per
 //! Gaussian.
 

@@ -102,8 +102,9 @@ impl From<Blending> for String {
 }
 
 /// Milliseconds of a batch on the GPU renderer: its stages on the device, summed over its depth
-/// slabs (from timestamps the device writes between dispatches: [`Backend::time_passes`]), the
-/// device's copy of the images to memory the host reads, and the host's unpacking of them.
+/// slabs (from timestamps the device writes between dispatches:
+/// [`Backend::time_passes`](crate::Backend::time_passes)), the device's copy of the images to
+/// memory the host reads, and the host's unpacking of them.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct PassTimes {
     /// Clearing, culling the chunks and cutting the slabs.

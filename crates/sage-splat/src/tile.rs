@@ -162,7 +162,7 @@ impl TileState {
     /// top-left pixel is (x0, y0).
     ///
     /// Each splat visits, row by row, only the pixel centres inside its 1/255 ellipse
-    /// ([`RowSpans`]) that are still live, four pixels at a time. The rows' intervals are
+    /// (`RowSpans`) that are still live, four pixels at a time. The rows' intervals are
     /// solved together before any pixel is touched: they do not depend on the pixel state, so
     /// their square roots stay off the blending's critical path.
     pub fn blend(&mut self, splats: &[Splat], list: &[u64], x0: usize, y0: usize) {
