@@ -1016,7 +1016,7 @@ impl GpuRenderer {
                         tile_entries: totals[2],
                         capacity: caps.tile_entries,
                         regrown: 0,
-                        workspace_bytes: caps.bytes()
+                        workspace_bytes: caps.bytes(self.kernels.shape)
                             + camera_block_bytes(self.kernels.camera_slots),
                         passes,
                     },

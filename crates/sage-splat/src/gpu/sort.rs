@@ -31,6 +31,11 @@ fn sort_block(shape: KernelShape) -> u32 {
     }
 }
 
+/// Words of digit counts a sort of `shape` keeps for up to `pairs` pairs: 256 per block.
+pub(crate) fn digit_words(shape: KernelShape, pairs: u32) -> u64 {
+    u64::from(pairs.max(1).div_ceil(sort_block(shape))) * 256
+}
+
 /// Pairs one workgroup of `histogram` and one of `scatter` of `shape` take.
 fn pairs_per_group(shape: KernelShape) -> (u32, u32) {
     let block = sort_block(shape);
@@ -360,7 +365,7 @@ impl RadixSort {
         });
         let digits = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("radix digits"),
-            size: u64::from(blocks) * 256 * 4,
+            size: digit_words(self.shape, capacity) * 4,
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });

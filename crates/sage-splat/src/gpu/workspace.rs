@@ -8,7 +8,7 @@ use super::kernel::{
     texel_bytes, texel_rows, texels, texels_in, texels_out, threads_grid, uniform, uniform_buffer,
 };
 use super::live::{Count, Live, LiveBuilder, LivePrograms, Size};
-use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan};
+use super::sort::{Finish, RadixSort, Scan, ScanPlan, SortInput, SortPlan, digit_words};
 use crate::passes::{Blending, GPU_SLABS, KernelShape, PassTimes};
 
 /// Most depth slabs a batch renders in ([`GPU_SLABS`]).
@@ -133,8 +133,9 @@ impl Caps {
             // The tile counts (a word per splat and the total).
             (u64::from(self.splats) + 1) * 4,
             u64::from(self.entries) * 32,
-            // The tile sort's digit counts (256 per block of 256 entries).
-            u64::from(self.tile_entries) * 4,
+            // The tile sort's digit counts (256 per block of 256 entries: the most of either
+            // kernel shape).
+            digit_words(KernelShape::Lanes, self.tile_entries) * 4,
             u64::from(self.camera_chunks) * 16 + 4,
             self.image_words * 4,
         ]
@@ -143,14 +144,16 @@ impl Caps {
         .unwrap_or(0)
     }
 
-    /// Device bytes of buffers and textures of these capacities (the scan and sort scratch
-    /// included; the camera blocks, sized by the adapter, not).
-    pub(crate) fn bytes(&self) -> u64 {
+    /// Device bytes of buffers and textures of these capacities for kernels of `shape` (the
+    /// scan and sort scratch included; the camera blocks, sized by the adapter, not).
+    pub(crate) fn bytes(&self, shape: KernelShape) -> u64 {
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
             + 6 * u64::from(self.camera_chunks)
             + 11 * u64::from(self.entries)
-            + u64::from(self.splats) * 4
-            + u64::from(self.tile_entries)
+            // Depth keys and values, tile counts.
+            + u64::from(self.splats) * 3
+            + digit_words(shape, self.splats)
+            + digit_words(shape, self.tile_entries)
             + 8 * u64::from(self.tiles)
             + self.image_words;
         let splat_textures: u64 = SPLAT_TEXTURES
@@ -199,7 +202,7 @@ pub(crate) struct Kernels {
     /// The camera blocks `source` was compiled for ([`camera_slots`]).
     pub(crate) camera_slots: u32,
     /// The shape of `mark` and of the sort's kernels.
-    shape: KernelShape,
+    pub(crate) shape: KernelShape,
 }
 
 impl Kernels {
@@ -842,19 +845,30 @@ mod tests {
             splats: TEXELS_ACROSS,
             ..Caps::default()
         };
-        // A row of texels is allocated whole: the bytes differ by the sort's words of the
-        // splats alone (depth keys and values, tile counts, radix digits).
-        let per_splat = 4 * 4;
-        assert_eq!(
-            row.bytes() - one.bytes(),
-            u64::from(TEXELS_ACROSS - 1) * per_splat
-        );
-        // A row of each splat texture and of the entry table (16 bytes a texel), and of the
-        // two textures of each sort's pairs (8 bytes a texel).
-        let row_of = |bytes: u64| u64::from(TEXELS_ACROSS) * bytes;
-        assert_eq!(
-            one.bytes(),
-            per_splat + (SPLAT_TEXTURES.len() as u64 + 1) * row_of(16) + 4 * row_of(8)
-        );
+        // Radix digit counts: a word per pair in blocks of 256 for hardware GPUs, a quarter
+        // of that in blocks of 1,024 for CPU drivers.
+        assert_eq!(digit_words(KernelShape::Lanes, TEXELS_ACROSS), 4096);
+        assert_eq!(digit_words(KernelShape::Runs, TEXELS_ACROSS), 1024);
+        for shape in [KernelShape::Lanes, KernelShape::Runs] {
+            let digits = |pairs: u32| digit_words(shape, pairs) * 4;
+            // A row of texels is allocated whole: the bytes differ by the words of the splats
+            // alone (depth keys and values, tile counts) and the depth sort's digit counts.
+            let per_splat = 3 * 4;
+            assert_eq!(
+                row.bytes(shape) - one.bytes(shape),
+                u64::from(TEXELS_ACROSS - 1) * per_splat + digits(TEXELS_ACROSS) - digits(1)
+            );
+            // A row of each splat texture and of the entry table (16 bytes a texel), and of the
+            // two textures of each sort's pairs (8 bytes a texel); a block of digit counts for
+            // each sort.
+            let row_of = |bytes: u64| u64::from(TEXELS_ACROSS) * bytes;
+            assert_eq!(
+                one.bytes(shape),
+                per_splat
+                    + 2 * digits(1)
+                    + (SPLAT_TEXTURES.len() as u64 + 1) * row_of(16)
+                    + 4 * row_of(8)
+            );
+        }
     }
 }
