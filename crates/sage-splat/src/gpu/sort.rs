@@ -353,7 +353,7 @@ impl RadixSort {
     ) -> SortPlan {
         let capacity = capacity.max(1);
         let block = sort_block(self.shape);
-        let blocks = capacity.div_ceil(block);
+        let digit_capacity = digit_words(self.shape, capacity);
         let pairs = Size::of(Count::Live(count_slot), capacity);
         let (histogram_pairs, scatter_pairs) = pairs_per_group(self.shape);
         let histogram_args = builder.derive(pairs.dispatched(histogram_pairs)).args;
@@ -365,7 +365,7 @@ impl RadixSort {
         });
         let digits = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("radix digits"),
-            size: digit_words(self.shape, capacity) * 4,
+            size: digit_capacity * 4,
             usage: wgpu::BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
@@ -374,7 +374,7 @@ impl RadixSort {
             live,
             builder,
             &digits,
-            blocks * 256,
+            u32::try_from(digit_capacity).expect("a sort's digit counts fit its u32 sizes"),
             digit_count.n,
             Finish::Apart,
         );
