@@ -5,7 +5,7 @@
 use super::Gpu;
 use super::kernel::{RUN_GROUP, TEXELS_ACROSS, bind, texel_rows};
 use super::live::LIVE_WORDS;
-use super::scene::{SceneBuffers, init_buffer, sh_words};
+use super::scene::{SceneBuffers, appearance_texels, init_buffer};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, ENTRY_TEXELS, Kernels,
     LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES, PLANES, SLABS,
@@ -36,7 +36,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const LOG_SCALE_STEP: f32 = {LOG_SCALE_STEP:?};\n\
          const OPACITY_LOGIT_STEP: f32 = {OPACITY_LOGIT_STEP:?};\n\
          const SH_C0: f32 = {:?};\nconst SH_C1: f32 = {:?};\n\
-         const SH_REST: u32 = {sh_rest}u;\nconst SH_WORDS: u32 = {}u;\n\
+         const SH_REST: u32 = {sh_rest}u;\nconst APPEARANCE_TEXELS: u32 = {}u;\n\
          const GAUSSIANS: u32 = {gaussians}u;\nconst CHUNKS: u32 = {chunks}u;\n\
          const LIVE_CAMERA_CHUNKS: u32 = {LIVE_CAMERA_CHUNKS}u;\n\
          const LIVE_TILES: u32 = {LIVE_TILES}u;\n\
@@ -52,7 +52,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const TEXELS_ACROSS: u32 = {TEXELS_ACROSS}u;\n",
         sh::C0,
         sh::C1,
-        sh_words(sh_rest).max(1),
+        appearance_texels(sh_rest),
     );
     s += &format!(
         "const LOG2_E: f32 = {:?};\nconst LN_2: f32 = {:?};\nconst SQRT_2: f32 = {:?};\n",
@@ -317,19 +317,15 @@ impl GpuRenderer {
         shape: KernelShape,
     ) -> Result<Arc<GpuRenderer>> {
         let n = gaussians.len();
-        // The largest scene buffer: the SH codes, or the colours (two words a Gaussian).
-        let words = sh_words(sh_rest_count(gaussians.sh_degree())).max(2);
-        let largest = n as u64 * words as u64 * 4;
-        let bound = gpu.largest_binding();
-        let rows = texel_rows(u32::try_from(n).unwrap_or(u32::MAX));
+        // The largest scene texture: the appearance, up to four texels a Gaussian.
+        let texels = n as u64 * u64::from(appearance_texels(sh_rest_count(gaussians.sh_degree())));
+        let rows = texel_rows(u32::try_from(texels).unwrap_or(u32::MAX));
         let most_rows = gpu.limits().max_texture_dimension_2d;
-        if largest > bound || rows > most_rows || n >= u32::MAX as usize / 2 {
+        if rows > most_rows || n >= u32::MAX as usize / 2 {
             return Err(Error::invalid(format!(
-                "GPU {}: a scene of {n} Gaussians needs {} MB buffers and textures of {rows} \
-                 rows; the adapter binds at most {} MB and {most_rows} rows",
+                "GPU {}: a scene of {n} Gaussians needs textures of {rows} rows of \
+                 {TEXELS_ACROSS} texels; the adapter holds at most {most_rows} rows",
                 gpu.describe(),
-                largest >> 20,
-                bound >> 20
             )));
         }
         let scene = SceneBuffers::upload(gpu, gaussians);
@@ -381,9 +377,7 @@ impl GpuRenderer {
             &[
                 wgpu::BindingResource::TextureView(&s.positions),
                 wgpu::BindingResource::TextureView(&s.shapes),
-                s.colors.as_entire_binding(),
-                s.sh_codes.as_entire_binding(),
-                s.instances.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&s.appearance),
                 categories.as_entire_binding(),
                 s.chunk_bounds.as_entire_binding(),
             ],

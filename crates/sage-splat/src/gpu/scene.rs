@@ -15,9 +15,9 @@ pub(crate) struct SceneBuffers {
     pub(crate) positions: wgpu::TextureView,
     /// A texel per Gaussian: rotation, log-scales and opacity logit as i16 pairs.
     pub(crate) shapes: wgpu::TextureView,
-    pub(crate) colors: wgpu::Buffer,
-    pub(crate) sh_codes: wgpu::Buffer,
-    pub(crate) instances: wgpu::Buffer,
+    /// [`appearance_texels`] texels per Gaussian: its SH degree 0 and step (f16 pairs), its
+    /// instance, then its higher-order SH codes (i8, four to a word).
+    pub(crate) appearance: wgpu::TextureView,
     pub(crate) chunk_bounds: wgpu::Buffer,
     /// Chunks of [`crate::index::CHUNK`] Gaussians.
     pub(crate) chunks: u32,
@@ -26,8 +26,16 @@ pub(crate) struct SceneBuffers {
 }
 
 /// Words of packed i8 SH codes per Gaussian.
-pub(crate) fn sh_words(sh_rest: usize) -> usize {
+fn sh_words(sh_rest: usize) -> usize {
     (sh_rest * 3).div_ceil(4)
+}
+
+/// Words of a Gaussian's appearance before its SH codes: its colour and step, its instance.
+const APPEARANCE_HEAD: usize = 3;
+
+/// Texels of a Gaussian's appearance with `sh_rest` higher-order SH coefficients (1 to 4).
+pub(crate) fn appearance_texels(sh_rest: usize) -> u32 {
+    (APPEARANCE_HEAD + sh_words(sh_rest)).div_ceil(4) as u32
 }
 
 /// A storage buffer holding `contents` (one zero word when empty), writable by copies.
@@ -41,8 +49,8 @@ pub(crate) fn init_buffer(gpu: &Gpu, label: &str, contents: &[u32]) -> wgpu::Buf
         })
 }
 
-/// A texture of a texel of four words per Gaussian (`words`, four per Gaussian, in rows of
-/// [`TEXELS_ACROSS`], the last row padded with zeros), read by `textureLoad`.
+/// A texture of `words`, four a texel, in rows of [`TEXELS_ACROSS`] (the last row padded with
+/// zeros), read by `textureLoad`.
 fn texel_texture(
     gpu: &Gpu,
     label: &str,
@@ -91,24 +99,21 @@ impl SceneBuffers {
         let half =
             |lo: half::f16, hi: half::f16| u32::from(lo.to_bits()) | u32::from(hi.to_bits()) << 16;
         let rest = sh_rest_count(g.sh_degree());
-        let colors: Vec<u32> = (0..n)
-            .flat_map(|i| {
-                let [r, gr, b] = g.sh_dc[i];
-                let step = if rest > 0 {
-                    g.sh_steps[i]
-                } else {
-                    half::f16::ZERO
-                };
-                [half(r, gr), half(b, step)]
-            })
-            .collect();
-        let words = sh_words(rest);
-        let mut sh_codes = vec![0u32; n * words];
-        if rest > 0 {
-            for (i, codes) in g.sh_codes.chunks_exact(rest * 3).enumerate() {
-                for (j, &c) in codes.iter().enumerate() {
-                    sh_codes[i * words + j / 4] |= u32::from(c as u8) << (8 * (j % 4));
-                }
+        let stride = 4 * appearance_texels(rest) as usize;
+        let mut appearance = vec![0u32; n * stride];
+        for (i, words) in appearance.chunks_exact_mut(stride).enumerate() {
+            let [r, gr, b] = g.sh_dc[i];
+            let step = if rest > 0 {
+                g.sh_steps[i]
+            } else {
+                half::f16::ZERO
+            };
+            words[0] = half(r, gr);
+            words[1] = half(b, step);
+            words[2] = g.instances[i];
+            let codes = &g.sh_codes[i * rest * 3..(i + 1) * rest * 3];
+            for (j, &c) in codes.iter().enumerate() {
+                words[APPEARANCE_HEAD + j / 4] |= u32::from(c as u8) << (8 * (j % 4));
             }
         }
         let index = SplatIndex::build(g);
@@ -126,15 +131,14 @@ impl SceneBuffers {
             })
             .map(f32::to_bits)
             .collect();
-        let buffers = [&colors, &sh_codes, &g.instances, &chunk_bounds];
-        let texture_bytes = texel_bytes(n as u32, FLOATS) + texel_bytes(n as u32, WORDS);
-        let bytes = texture_bytes + buffers.iter().map(|v| 4 * v.len() as u64).sum::<u64>();
+        let texture_bytes = texel_bytes(n as u32, FLOATS)
+            + texel_bytes(n as u32, WORDS)
+            + texel_bytes((appearance.len() / 4) as u32, WORDS);
+        let bytes = texture_bytes + 4 * chunk_bounds.len() as u64;
         SceneBuffers {
             positions: texel_texture(gpu, "positions", FLOATS, &positions),
             shapes: texel_texture(gpu, "shapes", WORDS, &shapes),
-            colors: init_buffer(gpu, "colors", &colors),
-            sh_codes: init_buffer(gpu, "sh codes", &sh_codes),
-            instances: init_buffer(gpu, "instances", &g.instances),
+            appearance: texel_texture(gpu, "appearance", WORDS, &appearance),
             chunk_bounds: init_buffer(gpu, "chunk bounds", &chunk_bounds),
             chunks: index.bounds.len() as u32,
             bytes,

@@ -1,8 +1,8 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
 // cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
 // MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// SH_WORDS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, RUN_GROUP, TEXELS_ACROSS
-// and the fixed live slots).
+// APPEARANCE_TEXELS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, RUN_GROUP,
+// TEXELS_ACROSS and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first runs
 // over what the one before found (`live`, dispatched indirectly). Once per batch: `clear` →
@@ -59,14 +59,15 @@ struct Slots {
 // x, y | z and opacity logit (i16 pairs).
 @group(0) @binding(0) var positions: texture_2d<f32>;
 @group(0) @binding(1) var shapes: texture_2d<u32>;
-// SH degree 0 (r, g | b, step of the higher-order codes as f16 pairs).
-@group(0) @binding(2) var<storage, read> colors: array<vec2<u32>>;
-// Higher-order SH codes, i8, SH_WORDS words per Gaussian.
-@group(0) @binding(3) var<storage, read> sh_codes: array<u32>;
-@group(0) @binding(4) var<storage, read> instances: array<u32>;
-@group(0) @binding(5) var<storage, read> categories: array<u32>;
+// What a Gaussian looks like, APPEARANCE_TEXELS texels each (`appearance`): words 0–1 its SH
+// degree 0 (r, g | b, step of the higher-order codes as f16 pairs), word 2 its instance, then
+// its higher-order SH codes, i8, four to a word. Texels, as they are read where `project`
+// forms each visible splat's colour: a gather each under lavapipe, where reading a word of a
+// storage array is a load per lane.
+@group(0) @binding(2) var appearance_texels: texture_2d<u32>;
+@group(0) @binding(3) var<storage, read> categories: array<u32>;
 // Per chunk: (min, 1 when it holds anything) and (max, 0): what its Gaussians can touch.
-@group(0) @binding(6) var<storage, read> chunk_bounds: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> chunk_bounds: array<vec4<f32>>;
 
 // A batch's work space.
 // A uniform buffer, not storage: lavapipe (Mesa 22) reads a storage array at an index it cannot
@@ -219,45 +220,71 @@ fn high_i16(w: u32) -> f32 {
     return f32(bitcast<i32>(w) >> 16u);
 }
 
-fn sh_code(g: u32, j: u32) -> f32 {
-    let w = sh_codes[g * SH_WORDS + j / 4u];
-    return f32(bitcast<i32>(w << (24u - 8u * (j % 4u))) >> 24u);
+// Texel k of Gaussian g's appearance.
+fn appearance(g: u32, k: u32) -> vec4<u32> {
+    return textureLoad(appearance_texels, texel(APPEARANCE_TEXELS * g + k), 0);
 }
 
-// The colour seen along unit direction d: max(0, Σ c·Y + 0.5), the CPU's basis and order.
-fn sh_color(g: u32, d: vec3<f32>) -> vec3<f32> {
-    let dc = colors[g];
-    let rg = unpack2x16float(dc.x);
-    let b_step = unpack2x16float(dc.y);
+// The four i8 codes of a word, in its byte order.
+fn sh_bytes(w: u32) -> vec4<f32> {
+    return vec4<f32>(vec4<i32>(vec4<u32>(w) << vec4<u32>(24u, 16u, 8u, 0u)) >> vec4<u32>(24u));
+}
+
+// Coefficient `code` (its three codes) of colour `c` times basis function `y`, steps of `step`:
+// the CPU's order of operations.
+fn sh_term(c: vec3<f32>, code: vec3<f32>, step: f32, y: f32) -> vec3<f32> {
+    return c + code * step * y;
+}
+
+// The colour of Gaussian g, whose first appearance texel is `head`, seen along unit direction
+// d: max(0, Σ c·Y + 0.5), the CPU's basis and order. Coefficient k's codes are bytes 3k…3k+2,
+// so each three words hold four coefficients (written out: the texels it reads and the words it
+// indexes are constants).
+fn sh_color(g: u32, head: vec4<u32>, d: vec3<f32>) -> vec3<f32> {
+    let rg = unpack2x16float(head.x);
+    let b_step = unpack2x16float(head.y);
     var c = vec3<f32>(rg.x, rg.y, b_step.x) * SH_C0;
-    if SH_REST > 0u {
-        let step = b_step.y;
-        let x = d.x;
-        let y = d.y;
-        let z = d.z;
-        let xx = x * x;
-        let yy = y * y;
-        let zz = z * z;
-        var basis = array<f32, 15>(
-            -SH_C1 * y,
-            SH_C1 * z,
-            -SH_C1 * x,
-            SH_C2_0 * x * y,
-            SH_C2_1 * y * z,
-            SH_C2_2 * (2.0 * zz - xx - yy),
-            SH_C2_3 * x * z,
-            SH_C2_4 * (xx - yy),
-            SH_C3_0 * y * (3.0 * xx - yy),
-            SH_C3_1 * x * y * z,
-            SH_C3_2 * y * (4.0 * zz - xx - yy),
-            SH_C3_3 * z * (2.0 * zz - 3.0 * xx - 3.0 * yy),
-            SH_C3_4 * x * (4.0 * zz - xx - yy),
-            SH_C3_5 * z * (xx - yy),
-            SH_C3_6 * x * (xx - 3.0 * yy),
-        );
-        for (var k = 0u; k < SH_REST; k++) {
-            let coeff = vec3<f32>(sh_code(g, 3u * k), sh_code(g, 3u * k + 1u), sh_code(g, 3u * k + 2u));
-            c += coeff * step * basis[k];
+    let step = b_step.y;
+    let x = d.x;
+    let y = d.y;
+    let z = d.z;
+    if SH_REST >= 3u {
+        let t1 = appearance(g, 1u);
+        let w0 = sh_bytes(head.w);
+        let w1 = sh_bytes(t1.x);
+        let w2 = sh_bytes(t1.y);
+        c = sh_term(c, w0.xyz, step, -SH_C1 * y);
+        c = sh_term(c, vec3<f32>(w0.w, w1.xy), step, SH_C1 * z);
+        c = sh_term(c, vec3<f32>(w1.zw, w2.x), step, -SH_C1 * x);
+        if SH_REST >= 8u {
+            let t2 = appearance(g, 2u);
+            let w3 = sh_bytes(t1.z);
+            let w4 = sh_bytes(t1.w);
+            let w5 = sh_bytes(t2.x);
+            let xx = x * x;
+            let yy = y * y;
+            let zz = z * z;
+            c = sh_term(c, w2.yzw, step, SH_C2_0 * x * y);
+            c = sh_term(c, w3.xyz, step, SH_C2_1 * y * z);
+            c = sh_term(c, vec3<f32>(w3.w, w4.xy), step, SH_C2_2 * (2.0 * zz - xx - yy));
+            c = sh_term(c, vec3<f32>(w4.zw, w5.x), step, SH_C2_3 * x * z);
+            c = sh_term(c, w5.yzw, step, SH_C2_4 * (xx - yy));
+            if SH_REST >= 15u {
+                let t3 = appearance(g, 3u);
+                let w6 = sh_bytes(t2.y);
+                let w7 = sh_bytes(t2.z);
+                let w8 = sh_bytes(t2.w);
+                let w9 = sh_bytes(t3.x);
+                let w10 = sh_bytes(t3.y);
+                let w11 = sh_bytes(t3.z);
+                c = sh_term(c, w6.xyz, step, SH_C3_0 * y * (3.0 * xx - yy));
+                c = sh_term(c, vec3<f32>(w6.w, w7.xy), step, SH_C3_1 * x * y * z);
+                c = sh_term(c, vec3<f32>(w7.zw, w8.x), step, SH_C3_2 * y * (4.0 * zz - xx - yy));
+                c = sh_term(c, w8.yzw, step, SH_C3_3 * z * (2.0 * zz - 3.0 * xx - 3.0 * yy));
+                c = sh_term(c, w9.xyz, step, SH_C3_4 * x * (4.0 * zz - xx - yy));
+                c = sh_term(c, vec3<f32>(w9.w, w10.xy), step, SH_C3_5 * z * (xx - yy));
+                c = sh_term(c, vec3<f32>(w10.zw, w11.x), step, SH_C3_6 * x * (xx - 3.0 * yy));
+            }
         }
     }
     return max(c + vec3<f32>(0.5), vec3<f32>(0.0));
@@ -763,7 +790,8 @@ fn project(
     let at = texel(slot);
     textureStore(shapes_out, at, vec4<f32>(f.centre, conic.xy));
     textureStore(weights_out, at, vec4<f32>(conic.z, f.opacity, f.depth, f.cutoff));
-    textureStore(colours_out, at, vec4<f32>(sh_color(g, normalize(f.ray)), bitcast<f32>(instances[g])));
+    let looks = appearance(g, 0u);
+    textureStore(colours_out, at, vec4<f32>(sh_color(g, looks, normalize(f.ray)), bitcast<f32>(looks.z)));
     textureStore(boxes_out, at, vec4<u32>(bitcast<vec2<u32>>(f.extent), c | (tiles.x << 8u), tiles.y));
     depth_keys[slot] = depth_key(c, f.depth);
     depth_values[slot] = slot;

@@ -215,8 +215,13 @@ impl Kernels {
                 label: Some("splat"),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
-        let mut scene = vec![texels_in(0, FLOATS), texels_in(1, WORDS)];
-        scene.extend((2..7).map(|b| storage(b, true)));
+        let scene = [
+            texels_in(0, FLOATS),
+            texels_in(1, WORDS),
+            texels_in(2, WORDS),
+            storage(3, true),
+            storage(4, true),
+        ];
         let scene_layout = layout(gpu, &scene);
         let mut frame = vec![uniform(0), storage(1, true)];
         frame.extend((2..11).map(|b| storage(b, false)));
