@@ -21,7 +21,7 @@ use crate::tile::{MIN_TRANSMITTANCE, TILE, TileGrid};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
-use sage_scene::gaussians::{LOG_SCALE_STEP, OPACITY_LOGIT_STEP, sh_rest_count};
+use sage_scene::gaussians::{LOG_SCALE_STEP, sh_rest_count};
 use std::collections::VecDeque;
 use std::ops::Range;
 use std::sync::{Arc, Mutex, MutexGuard, mpsc};
@@ -34,7 +34,6 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const MIN_ALPHA: f32 = {MIN_ALPHA:?};\nconst MAX_ALPHA: f32 = {MAX_ALPHA:?};\n\
          const MIN_TRANSMITTANCE: f32 = {MIN_TRANSMITTANCE:?};\n\
          const LOG_SCALE_STEP: f32 = {LOG_SCALE_STEP:?};\n\
-         const OPACITY_LOGIT_STEP: f32 = {OPACITY_LOGIT_STEP:?};\n\
          const SH_C0: f32 = {:?};\nconst SH_C1: f32 = {:?};\n\
          const SH_REST: u32 = {sh_rest}u;\nconst APPEARANCE_TEXELS: u32 = {}u;\n\
          const GAUSSIANS: u32 = {gaussians}u;\nconst CHUNKS: u32 = {chunks}u;\n\

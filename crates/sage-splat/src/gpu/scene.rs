@@ -4,6 +4,7 @@
 
 use super::Gpu;
 use super::kernel::{FLOATS, TEXELS_ACROSS, WORDS, texel_bytes, texel_rows, texel_rows_texture};
+use crate::fastmath::sigmoid;
 use crate::index::SplatIndex;
 use sage_scene::Gaussians;
 use sage_scene::gaussians::sh_rest_count;
@@ -11,7 +12,9 @@ use wgpu::util::DeviceExt;
 
 /// The scene's buffers and textures.
 pub(crate) struct SceneBuffers {
-    /// A texel per Gaussian (x, y, z, 0), in rows of [`TEXELS_ACROSS`].
+    /// A texel per Gaussian (x, y, z, opacity), in rows of [`TEXELS_ACROSS`]: the opacity as
+    /// the CPU renderer forms it ([`sigmoid`] of the logit), so both executors start from the
+    /// same value and no kernel takes an exponential for it.
     pub(crate) positions: wgpu::TextureView,
     /// A texel per Gaussian: rotation, log-scales and opacity logit as i16 pairs.
     pub(crate) shapes: wgpu::TextureView,
@@ -78,10 +81,11 @@ impl SceneBuffers {
     /// Uploads the store and its chunk bounds.
     pub(crate) fn upload(gpu: &Gpu, g: &Gaussians) -> SceneBuffers {
         let n = g.len();
-        let positions: Vec<u32> = g
-            .positions
-            .iter()
-            .flat_map(|&[x, y, z]| [x, y, z, 0.0])
+        let positions: Vec<u32> = (0..n)
+            .flat_map(|i| {
+                let [x, y, z] = g.positions[i];
+                [x, y, z, sigmoid(g.opacity_logit(i))]
+            })
             .map(f32::to_bits)
             .collect();
         let shapes: Vec<u32> = (0..n)

@@ -53,10 +53,11 @@ struct Slots {
     listed_tiles: u32,
 }
 
-// The scene, resident. Positions (x, y, z, 0) and shapes, a texel per Gaussian (`texel`): a
+// The scene, resident. Positions (x, y, z and the opacity, as the CPU renderer's sigmoid
+// forms it from the logit) and shapes, a texel per Gaussian (`texel`): a
 // texel is one gather under lavapipe (see the splat textures), and `mark` reads a position per
 // Gaussian of every visible chunk. Shapes: rotation (w, x | y, z as snorm16 pairs), log-scales
-// x, y | z and opacity logit (i16 pairs).
+// x, y | z and opacity logit (i16 pairs; the kernels take the opacity from the position).
 @group(0) @binding(0) var positions: texture_2d<f32>;
 @group(0) @binding(1) var shapes: texture_2d<u32>;
 // What a Gaussian looks like, APPEARANCE_TEXELS texels each (`appearance`): words 0–1 its SH
@@ -558,7 +559,8 @@ struct Footprint {
 fn footprint(c: u32, g: u32, depths: vec2<f32>) -> Footprint {
     var f: Footprint;
     f.visible = false;
-    let p = textureLoad(positions, texel(g), 0).xyz;
+    let position = textureLoad(positions, texel(g), 0);
+    let p = position.xyz;
     let rel = p - cameras[c].position.xyz;
     let right = cameras[c].right.xyz;
     let down = cameras[c].down.xyz;
@@ -568,11 +570,11 @@ fn footprint(c: u32, g: u32, depths: vec2<f32>) -> Footprint {
     if !(t.z >= clip.x && t.z <= clip.y && t.z >= depths.x && t.z < depths.y) {
         return f;
     }
-    let shape = textureLoad(shapes, texel(g), 0);
-    let opacity = 1.0 / (1.0 + exp(-high_i16(shape.w) * OPACITY_LOGIT_STEP));
+    let opacity = position.w;
     if !(opacity >= MIN_ALPHA) {
         return f;
     }
+    let shape = textureLoad(shapes, texel(g), 0);
     let focal = cameras[c].focal;
     let fx = focal.x;
     let fy = focal.y;
