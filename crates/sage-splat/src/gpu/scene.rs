@@ -16,7 +16,8 @@ pub(crate) struct SceneBuffers {
     /// the CPU renderer forms it ([`sigmoid`] of the logit), so both executors start from the
     /// same value and no kernel takes an exponential for it.
     pub(crate) positions: wgpu::TextureView,
-    /// A texel per Gaussian: rotation, log-scales and opacity logit as i16 pairs.
+    /// A texel per Gaussian: rotation, log-scales and opacity logit as i16 pairs (the kernels
+    /// take the opacity from `positions`).
     pub(crate) shapes: wgpu::TextureView,
     /// [`appearance_texels`] texels per Gaussian: its SH degree 0 and step (f16 pairs), its
     /// instance, then its higher-order SH codes (i8, four to a word).
