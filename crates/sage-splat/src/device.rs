@@ -280,7 +280,6 @@ impl Backend {
     /// # Errors
     ///
     /// As [`Device::check_slabs`] for the executor that renders.
-    #[cfg_attr(not(feature = "gpu"), expect(unused_variables))]
     pub fn set_slabs(&self, slabs: Option<u32>) -> Result<()> {
         match &self.executor {
             Executor::Cpu(_) => Device::Cpu.check_slabs(slabs),
@@ -295,7 +294,6 @@ impl Backend {
     /// # Errors
     ///
     /// Another kernel than the default on the CPU renderer, which blends its own way.
-    #[cfg_attr(not(feature = "gpu"), expect(unused_variables))]
     pub fn set_blending(&self, blending: Blending) -> Result<()> {
         match &self.executor {
             Executor::Cpu(_) => Device::Cpu.check_blending(blending),

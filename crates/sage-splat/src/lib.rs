@@ -19,6 +19,9 @@
 //! # Ok(()) }
 //! ```
 
+// The docs name the GPU renderer's items, which exist only with the `gpu` feature.
+#![cfg_attr(not(feature = "gpu"), allow(rustdoc::broken_intra_doc_links))]
+
 pub mod camera;
 pub mod device;
 pub mod fastmath;
