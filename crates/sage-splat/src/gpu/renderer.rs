@@ -960,19 +960,18 @@ impl GpuRenderer {
             let view = flight.staging.get_mapped_range(..).map_err(|e| fault(&e))?;
             let words: &[u32] = bytemuck::cast_slice(&view);
             let caps = flight.caps;
-            let [entries, splats, tile_entries] = flight.peaks.map(|slot| words[slot as usize]);
+            let found = flight.peaks.map(|slot| words[slot as usize]);
             let totals = flight.totals.map(|slot| u64::from(words[slot as usize]));
-            if splats > caps.splats || tile_entries > caps.tile_entries || entries > caps.entries {
-                let grow = |n: u32| n.saturating_add(n / 4);
+            if let Some([entries, splats, tile_entries]) = caps.wanted(found) {
                 let cameras = flight.slots.len() as u32;
-                let per_camera = [grow(splats), grow(tile_entries)].map(|n| n.div_ceil(cameras));
+                let per_camera = [splats, tile_entries].map(|n| n.div_ceil(cameras));
                 for (most, n) in state.per_camera.iter_mut().zip(per_camera) {
                     *most = (*most).max(n);
                 }
                 Finished::Grow(Caps {
                     entries: caps.entries.max(entries),
-                    splats: caps.splats.max(grow(splats)),
-                    tile_entries: caps.tile_entries.max(grow(tile_entries)),
+                    splats: caps.splats.max(splats),
+                    tile_entries: caps.tile_entries.max(tile_entries),
                     ..caps
                 })
             } else {

@@ -104,6 +104,26 @@ impl Caps {
             && self.image_words >= need.image_words
     }
 
+    /// What a batch that found `entries`, `splats` and `tile_entries` (the largest over its
+    /// slabs) in buffers of `self` should find room for next time, a quarter over what it found:
+    /// `None` when all fitted. Only the splats the buffers held were binned, so when the splats
+    /// overflowed, their tile entries scaled to every splat found stand for the rest: one
+    /// growth then sizes both, where growing by what was counted would take a second.
+    pub(crate) fn wanted(&self, [entries, splats, tile_entries]: [u32; 3]) -> Option<[u32; 3]> {
+        if entries <= self.entries && splats <= self.splats && tile_entries <= self.tile_entries {
+            return None;
+        }
+        let tile_entries = if splats > self.splats {
+            let scaled =
+                u64::from(tile_entries) * u64::from(splats) / u64::from(self.splats.max(1));
+            u32::try_from(scaled).unwrap_or(u32::MAX)
+        } else {
+            tile_entries
+        };
+        let grow = |n: u32| n.saturating_add(n / 4);
+        Some([entries, grow(splats), grow(tile_entries)])
+    }
+
     /// The larger of each.
     pub(crate) fn max(&self, o: &Caps) -> Caps {
         Caps {
@@ -833,6 +853,25 @@ mod tests {
         assert_eq!(camera_slots_within(all - 1), MAX_CAMERAS - 1);
         // The least a WebGL2-class adapter binds.
         assert_eq!(camera_slots_within(16 << 10), 68);
+    }
+
+    #[test]
+    fn a_batch_that_overflowed_asks_for_room_for_all_it_would_bin_at_once() {
+        let caps = Caps {
+            entries: 50,
+            splats: 1000,
+            tile_entries: 3000,
+            ..Caps::default()
+        };
+        assert_eq!(caps.wanted([50, 1000, 3000]), None);
+        // Only the tile entries overflowed: a quarter over those counted.
+        assert_eq!(caps.wanted([40, 900, 4000]), Some([40, 1125, 5000]));
+        // Three times the splats that fitted: the 2,000 tile entries binned from those stand
+        // for 6,000, more than the buffers hold, though fewer than them were counted.
+        assert_eq!(caps.wanted([40, 3000, 2000]), Some([40, 3750, 7500]));
+        // The scaling saturates rather than wrapping.
+        let wanted = caps.wanted([1, u32::MAX, u32::MAX]).unwrap();
+        assert_eq!(wanted[2], u32::MAX);
     }
 
     #[test]
