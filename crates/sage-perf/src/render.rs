@@ -416,42 +416,26 @@ const ROUNDS: usize = 3;
 /// H200: a batch of one at four to five times a single frame's GPU time).
 const WARM_UP: Duration = Duration::from_millis(500);
 
-/// Renders every batch of `batches` once, so that a GPU renderer's work space has grown to
-/// what each needs before any is timed: a batch that finds more than the work space holds is
+/// Renders `batches` in turn until [`WARM_UP`] has passed and at least `at_least` of them
+/// were rendered. A first pass over all of them also grows a GPU renderer's work space to what
+/// each needs before any is timed: a batch that finds more than the work space holds is
 /// rendered again after it grows, which a timed batch must not pay.
-fn size_work_space(
-    backend: &mut Backend,
-    scene: &Scene,
-    batches: &[&[Camera]],
-    options: &RenderOptions,
-) -> Result<()> {
-    for batch in batches {
-        backend.render_batch(
-            &scene.gaussians,
-            &scene.instances.category_ids,
-            batch,
-            options,
-        )?;
-    }
-    Ok(())
-}
-
-/// Renders `batches` in turn, at least once, until [`WARM_UP`] has passed.
 fn warm_up(
     backend: &mut Backend,
     scene: &Scene,
     batches: &[&[Camera]],
     options: &RenderOptions,
+    at_least: usize,
 ) -> Result<()> {
     let start = Instant::now();
-    for batch in batches.iter().cycle() {
+    for (rendered, batch) in batches.iter().cycle().enumerate() {
         backend.render_batch(
             &scene.gaussians,
             &scene.instances.category_ids,
             batch,
             options,
         )?;
-        if start.elapsed() >= WARM_UP {
+        if rendered + 1 >= at_least && start.elapsed() >= WARM_UP {
             break;
         }
     }
@@ -489,7 +473,7 @@ fn streamed(
 /// Renders `frames` headings at every size, each pass over them after [`WARM_UP`] of rendering
 /// them (on the GPU in [`ROUNDS`] with the CPU renderer); on the GPU then the batches, each
 /// size after a warm-up, timed one at a time and then streamed. Every heading and every batch
-/// is rendered once before the first is timed ([`size_work_space`]).
+/// is rendered once before the first is timed ([`warm_up`]).
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
@@ -535,9 +519,9 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
         let mut rows: Vec<[f64; 7]> = Vec::with_capacity(frames * rounds);
         let mut cpu_ms = Vec::with_capacity(frames * rounds);
         let mut passes: Vec<PassTimes> = Vec::with_capacity(frames * rounds);
-        size_work_space(&mut backend, scene, &singles, &options)?;
-        for _ in 0..rounds {
-            warm_up(&mut backend, scene, &singles, &options)?;
+        for round in 0..rounds {
+            let at_least = if round == 0 { singles.len() } else { 1 };
+            warm_up(&mut backend, scene, &singles, &options, at_least)?;
             for cam in &cams {
                 let start = Instant::now();
                 backend.render(gaussians, categories, cam, &options)?;
@@ -595,8 +579,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 .map(|i| headings[i % headings.len()])
                 .collect();
             let parts: Vec<&[Camera]> = cams.chunks(count).collect();
-            size_work_space(&mut backend, scene, &parts, &options)?;
-            warm_up(&mut backend, scene, &parts, &options)?;
+            warm_up(&mut backend, scene, &parts, &options, parts.len())?;
             // Every part once, and at least three timed batches for a median.
             let mut times = Vec::with_capacity(parts.len().max(3));
             let mut passes = Vec::with_capacity(times.capacity());
