@@ -17,8 +17,8 @@ pub(crate) struct SceneBuffers {
     /// the CPU renderer forms it ([`sigmoid`] of the logit), so both executors start from the
     /// same value and no kernel takes an exponential for it.
     pub(crate) positions: wgpu::TextureView,
-    /// A texel per Gaussian: rotation, log-scales and opacity logit as i16 pairs (the kernels
-    /// take the opacity from `positions`).
+    /// A texel per Gaussian: rotation and log-scales as i16 pairs, the last half-word zero (the
+    /// opacity is in `positions`).
     pub(crate) shapes: wgpu::TextureView,
     /// [`appearance_texels`] texels per Gaussian: its SH degree 0 and step (f16 pairs), its
     /// instance, then its higher-order SH codes (i8, four to a word).
@@ -100,8 +100,7 @@ impl SceneBuffers {
         let shapes = per_gaussian(n, 4, |i, t| {
             let [w, x, y, z] = g.rotations[i];
             let [sx, sy, sz] = g.log_scales[i];
-            let sz_opacity = pair(sz, g.opacity_logits[i]);
-            t.copy_from_slice(&[pair(w, x), pair(y, z), pair(sx, sy), sz_opacity]);
+            t.copy_from_slice(&[pair(w, x), pair(y, z), pair(sx, sy), pair(sz, 0)]);
         });
         let half =
             |lo: half::f16, hi: half::f16| u32::from(lo.to_bits()) | u32::from(hi.to_bits()) << 16;

@@ -57,7 +57,7 @@ struct Slots {
 // forms it from the logit) and shapes, a texel per Gaussian (`texel`): a
 // texel is one gather under lavapipe (see the splat textures), and `mark` reads a position per
 // Gaussian of every visible chunk. Shapes: rotation (w, x | y, z as snorm16 pairs), log-scales
-// x, y | z and opacity logit (i16 pairs; the kernels take the opacity from the position).
+// x, y | z (i16 pairs, the last half zero: the opacity is in the position).
 @group(0) @binding(0) var positions: texture_2d<f32>;
 @group(0) @binding(1) var shapes: texture_2d<u32>;
 // What a Gaussian looks like, APPEARANCE_TEXELS texels each (`appearance`): words 0–1 its SH
