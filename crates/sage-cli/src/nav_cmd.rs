@@ -192,5 +192,12 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         report.out.display(),
         start.elapsed().as_secs_f64()
     );
+    if tally.skipped > 0 {
+        return Err(Error::invalid(format!(
+            "{} of {} scenes were skipped (listed above); they have no trajectories, and a rerun retries them",
+            tally.skipped,
+            outcomes.len()
+        )));
+    }
     Ok(())
 }

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_scene};
+use common::{ok, s, sage3d, small_scene, stderr};
 
 use std::path::Path;
 
@@ -94,4 +94,40 @@ fn a_folder_without_scenes_is_a_clear_error() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("neither a scene folder"), "{err}");
+}
+
+#[test]
+fn a_skipped_scene_is_named_and_the_exit_status_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    small_scene(&scenes.join("good"), "1", "2000");
+    small_scene(&scenes.join("broken"), "2", "2000");
+    let labels = scenes.join("broken").join("labels.json");
+    let intact = std::fs::read(&labels).unwrap();
+    std::fs::write(&labels, "{").unwrap();
+    let out_dir = dir.path().join("out");
+    let args = [
+        "nav",
+        "trajectories",
+        s(&scenes),
+        "--count",
+        "4",
+        "--out",
+        s(&out_dir),
+    ];
+    let out = sage3d(&args);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("broken") && err.contains("labels.json"),
+        "{err}"
+    );
+    assert!(err.contains("1 of 2 scenes were skipped"), "{err}");
+    // The good scene is complete; the broken one has nothing, and a rerun after the fix does
+    // it alone.
+    assert!(out_dir.join("good").join("trajectories.json").is_file());
+    assert!(!out_dir.join("broken").join("trajectories.json").exists());
+    std::fs::write(&labels, intact).unwrap();
+    let again = ok(&args);
+    assert!(again.contains("1 done, 1 already complete"), "{again}");
 }
