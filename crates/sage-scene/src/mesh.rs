@@ -205,12 +205,13 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
         single_index: true,
         ..Default::default()
     };
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
-        tobj::LoadError::OpenFileFailed | tobj::LoadError::ReadError => {
-            Error::io(path, std::io::Error::other(e.to_string()))
-        }
-        other => Error::format("obj", other.to_string()),
-    })?;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = LineCounter::new(std::io::BufReader::new(file));
+    // Materials are not read: a missing or bad `.mtl` is no error of the mesh.
+    let loaded = tobj::load_obj_buf(&mut reader, &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    });
+    let (models, _materials) = loaded.map_err(|e| obj_error(e, reader.line()))?;
     let mut mesh = TriMesh::default();
     for m in &models {
         let part = TriMesh {
@@ -231,6 +232,88 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
         mesh.append(&part);
     }
     Ok(mesh)
+}
+
+/// An OBJ reading error, at `line` where tobj found it on the line it was reading (its
+/// checks of face indices run when an object ends, so those errors name no line).
+fn obj_error(e: tobj::LoadError, line: usize) -> Error {
+    use tobj::LoadError as E;
+    match e {
+        E::ReadError
+        | E::UnrecognizedCharacter
+        | E::PositionParseError
+        | E::ScalingByZeroError
+        | E::ColorParseError
+        | E::NormalParseError
+        | E::TexcoordParseError
+        | E::FaceParseError
+        | E::MaterialParseError
+        | E::InvalidObjectName => Error::format(format!("line {line}"), e.to_string()),
+        other => Error::format("obj", other.to_string()),
+    }
+}
+
+/// A buffered reader that counts the lines read through it, so that an error of tobj, which
+/// reads a whole line and then parses it, can name the line.
+struct LineCounter<R> {
+    inner: R,
+    lines: Lines,
+}
+
+/// Lines seen in the bytes consumed.
+#[derive(Default)]
+struct Lines {
+    /// Newlines consumed.
+    newlines: usize,
+    /// Whether bytes of a line not yet ended by a newline have been consumed.
+    open_line: bool,
+}
+
+impl Lines {
+    /// Counts `bytes`, consumed.
+    fn count(&mut self, bytes: &[u8]) {
+        if let Some(&last) = bytes.last() {
+            self.newlines += bytes.iter().filter(|&&b| b == b'\n').count();
+            self.open_line = last != b'\n';
+        }
+    }
+}
+
+impl<R: std::io::BufRead> LineCounter<R> {
+    fn new(inner: R) -> Self {
+        LineCounter {
+            inner,
+            lines: Lines::default(),
+        }
+    }
+
+    /// The line (from 1) that the last bytes consumed belong to.
+    fn line(&self) -> usize {
+        let l = &self.lines;
+        l.newlines + usize::from(l.open_line || l.newlines == 0)
+    }
+}
+
+impl<R: std::io::BufRead> std::io::Read for LineCounter<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.lines.count(&buf[..n]);
+        Ok(n)
+    }
+}
+
+impl<R: std::io::BufRead> std::io::BufRead for LineCounter<R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        self.inner.fill_buf()
+    }
+
+    fn consume(&mut self, amt: usize) {
+        // The bytes consumed are those `fill_buf` last returned: asking again reads nothing.
+        if let Ok(buf) = self.inner.fill_buf() {
+            self.lines.count(&buf[..amt.min(buf.len())]);
+        }
+        self.inner.consume(amt);
+    }
 }
 
 /// Checks what the glTF reader's own validation assumes: it looks up a primitive's POSITION

@@ -80,6 +80,49 @@ fn bad_meshes_name_file_and_face() {
 }
 
 /// Loads a GLB made of `json` and `bin` and returns its error.
+#[test]
+fn a_bad_obj_line_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    let cases: [(&[u8], &str); 5] = [
+        (
+            b"v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n",
+            "line 2: position parse error",
+        ),
+        (
+            b"# tetra\r\nv 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nf 1 2 q\r\n",
+            "line 5: face parse error",
+        ),
+        (
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nvn 0 0",
+            "line 5: normal parse error",
+        ),
+        (b"v 0 0 0\nv 1 0 \xff\nv 0 1 0\n", "line 2: read error"),
+        (b"v 0 0\n", "line 1: position parse error"),
+    ];
+    for (k, (text, said)) in cases.into_iter().enumerate() {
+        let p = dir.path().join(format!("bad{k}.obj"));
+        std::fs::write(&p, text).unwrap();
+        let e = TriMesh::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("bad{k}.obj")) && e.contains(said),
+            "{e}"
+        );
+    }
+    // A face past the vertices is found when its object ends: no line to name.
+    let p = dir.path().join("past.obj");
+    std::fs::write(&p, format!("{good}f 1 2 9\n")).unwrap();
+    let e = TriMesh::load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("past.obj") && e.contains("out of bounds") && !e.contains("line"),
+        "{e}"
+    );
+    // The material library is not read: a missing one is no error.
+    let p = dir.path().join("mtl.obj");
+    std::fs::write(&p, format!("mtllib nowhere.mtl\n{good}f 1 2 3\n")).unwrap();
+    assert_eq!(TriMesh::load(&p).unwrap().triangles.len(), 1);
+}
+
 fn glb_error(json: &serde_json::Value, bin: &[u8]) -> String {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("hostile.glb");
