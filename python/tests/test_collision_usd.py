@@ -7,6 +7,7 @@ structure; damaged files give an error naming the file and the prim."""
 import json
 import math
 import shutil
+import struct
 
 import pytest
 
@@ -272,6 +273,34 @@ def test_damaged_files_are_clear_errors(scene_src, sage3d, tmp_path):
     define_cube(stage, "/World/Objects/ins_1000/part_0", bad_index=True)
     stage.GetRootLayer().Save()
     fails(bad, "/World/Objects/ins_1000/part_0", "faceVertexIndices[4]", "out of range")
+
+    # Sizes the file declares past what its bytes hold are refused before anything is
+    # allocated for them (the reader would ask for terabytes and the process would abort):
+    # a mesh's points array, and the table of paths.
+    lo, hi = (0.25, 0.5, 0.75), (1.25, 1.5, 1.75)
+    one = tmp_path / "one_cube.usd"
+    stage = Usd.Stage.CreateNew(str(one))
+    define_cube(stage, "/World/Objects/ins_1000/part_0", lo, hi)
+    stage.GetRootLayer().Save()
+    data = bytearray(one.read_bytes())
+    points = data.find(struct.pack("<24f", *[v for p in cube_points(lo, hi) for v in p]))
+    assert points > 0 and struct.unpack_from("<Q", data, points - 8)[0] == 8
+    struct.pack_into("<Q", data, points - 8, 1 << 40)
+    huge_points = tmp_path / "huge_points.usd"
+    huge_points.write_bytes(bytes(data))
+    fails(huge_points, "not a readable USD file", "array value")
+
+    data = bytearray(one.read_bytes())
+    (toc,) = struct.unpack_from("<Q", data, 16)
+    (sections,) = struct.unpack_from("<Q", data, toc)
+    starts = {
+        data[toc + 8 + 32 * k : toc + 24 + 32 * k].rstrip(b"\0").decode(): struct.unpack_from("<Q", data, toc + 24 + 32 * k)[0]
+        for k in range(sections)
+    }
+    struct.pack_into("<Q", data, starts["PATHS"], 1 << 40)
+    huge_paths = tmp_path / "huge_paths.usd"
+    huge_paths.write_bytes(bytes(data))
+    fails(huge_paths, "not a readable USD file", "PATHS", "paths")
 
     proc = sage3d("physics", "build", scene, "--collision", tmp_path / "missing.usd", check=False)
     assert proc.returncode != 0 and "missing.usd" in proc.stderr and "does not exist" in proc.stderr

@@ -11,6 +11,8 @@
 //! floors) become the scene's structure parts. docs/scene-format.md ("The published collision
 //! file") says the rules.
 
+mod usdc;
+
 use crate::mesh::TriMesh;
 use crate::object::{BodyParts, BodySource, Object};
 use glam::{DMat4, DQuat, DVec3, Vec3};
@@ -168,7 +170,9 @@ pub fn names(scene_name: &str) -> Vec<String> {
 ///
 /// # Errors
 ///
-/// A file over `SAGE3D_MAX_COLLISION_MB`, one the USD reader refuses (truncated, not USD), a
+/// A file over `SAGE3D_MAX_COLLISION_MB`, a USDC file whose sections declare more than their
+/// bytes hold (checked before the USD reader allocates what they declare), one the USD reader
+/// refuses (truncated, not USD), a
 /// mesh prim with non-finite points, out-of-range indices or face counts that do not add up, an
 /// unknown or ill-typed `xformOp`, decoded meshes over `SAGE3D_MAX_MESH_MB`, or a stage with no
 /// mesh prim: each names the file and, where one is at fault, the prim.
@@ -180,30 +184,26 @@ pub fn read(path: &Path) -> Result<CollisionFile> {
     let path_str = path
         .to_str()
         .ok_or_else(|| Error::invalid("the path is not valid UTF-8").in_file(path))?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.starts_with(usdc::MAGIC) {
+        usdc::check(&bytes).map_err(|e| {
+            Error::format("(file)", format!("not a readable USD file: {e}")).in_file(path)
+        })?;
+    }
     // The reader is a large third-party parser: a panic inside it on a hostile file becomes
     // an error naming the file, never a crash of the caller.
-    let opened = std::panic::catch_unwind(|| usd::Stage::open(path_str));
-    let stage = match opened {
+    let stage = match quietly(|| usd::Stage::open(path_str)) {
         Ok(Ok(s)) => s,
         Ok(Err(e)) => {
             return Err(
                 Error::format("(file)", format!("not a readable USD file: {e:#}")).in_file(path),
             );
         }
-        Err(_) => {
-            return Err(
-                Error::format("(file)", "the USD reader failed on this file").in_file(path),
-            );
-        }
+        Err(failure) => return Err(failure.in_file(path)),
     };
-    let composed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| compose(&stage)));
-    let mut file = match composed {
+    let mut file = match quietly(std::panic::AssertUnwindSafe(|| compose(&stage))) {
         Ok(r) => r.map_err(|e| e.in_file(path))?,
-        Err(_) => {
-            return Err(
-                Error::format("(file)", "the USD reader failed on this file").in_file(path),
-            );
-        }
+        Err(failure) => return Err(failure.in_file(path)),
     };
     file.path = path.to_path_buf();
     if file.prims.is_empty() {
@@ -217,6 +217,39 @@ pub fn read(path: &Path) -> Result<CollisionFile> {
         .in_file(path));
     }
     Ok(file)
+}
+
+/// Runs `f`, a call into the USD reader, turning a panic into an error that carries its
+/// message, without the panic hook printing it (on this thread; the hook is chained, so other
+/// threads' panics print as before).
+fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> std::result::Result<T, Error> {
+    use std::cell::Cell;
+    thread_local! {
+        static QUIET: Cell<bool> = const { Cell::new(false) };
+    }
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    QUIET.with(|q| q.set(true));
+    let result = std::panic::catch_unwind(f);
+    QUIET.with(|q| q.set(false));
+    result.map_err(|payload| {
+        let message = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("no message");
+        Error::format(
+            "(file)",
+            format!("the USD reader failed on this file ({message})"),
+        )
+    })
 }
 
 /// Walks the stage and composes its mesh prims.
