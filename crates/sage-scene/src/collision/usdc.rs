@@ -110,20 +110,30 @@ pub fn check(bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// Element bytes of an array of USD value type `ty` as the reader reads it raw (strings,
-/// tokens and paths as 4-byte indices; 1 for types it does not read as arrays).
+/// Element bytes of an array of USD value type `ty` as the reader reads it raw (1, the least,
+/// for types it does not read as arrays).
 fn element_bytes(ty: u64) -> u64 {
     match ty {
-        3 | 4 | 8 | 10 | 11 | 12 | 22 => 4,
-        5 | 6 | 9 | 20 | 25 | 56 => 8,
-        7 | 21 => 2,
-        13 | 16 | 27 => 32,
-        14 => 72,
-        15 => 128,
-        17 | 19 | 28 | 30 => 16,
-        18 | 29 => 8,
-        23 => 24,
+        // Half.
+        7 => 2,
+        // Int, Uint, Float, Token (an index), Vec2h.
+        3 | 4 | 8 | 11 | 21 => 4,
+        // Vec3h.
+        25 => 6,
+        // Int64, Uint64, Double, Quath, Vec2f, Vec2i, Vec4h, TimeCode.
+        5 | 6 | 9 | 18 | 20 | 22 | 29 | 56 => 8,
+        // Vec3f, Vec3i.
         24 | 26 => 12,
+        // Quatf, Vec2d, Vec4f, Vec4i.
+        17 | 19 | 28 | 30 => 16,
+        // Vec3d.
+        23 => 24,
+        // Matrix2d, Quatd, Vec4d.
+        13 | 16 | 27 => 32,
+        // Matrix3d.
+        14 => 72,
+        // Matrix4d.
+        15 => 128,
         _ => 1,
     }
 }
@@ -384,6 +394,36 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("FIELDS"), "{e}");
+    }
+
+    #[test]
+    fn element_sizes_are_those_of_the_readers_types() {
+        use openusd::gf;
+        use std::mem::size_of;
+        let sizes = [
+            (7, size_of::<gf::f16>()),
+            (21, size_of::<gf::Vec2h>()),
+            (25, size_of::<gf::Vec3h>()),
+            (29, size_of::<gf::Vec4h>()),
+            (20, size_of::<gf::Vec2f>()),
+            (24, size_of::<gf::Vec3f>()),
+            (28, size_of::<gf::Vec4f>()),
+            (19, size_of::<gf::Vec2d>()),
+            (23, size_of::<gf::Vec3d>()),
+            (27, size_of::<gf::Vec4d>()),
+            (22, size_of::<gf::Vec2i>()),
+            (26, size_of::<gf::Vec3i>()),
+            (30, size_of::<gf::Vec4i>()),
+            (18, size_of::<gf::Quath>()),
+            (17, size_of::<gf::Quatf>()),
+            (16, size_of::<gf::Quatd>()),
+            (13, size_of::<gf::Mat2d>()),
+            (14, size_of::<gf::Mat3d>()),
+            (15, size_of::<gf::Matrix4d>()),
+        ];
+        for (ty, bytes) in sizes {
+            assert_eq!(element_bytes(ty), bytes as u64, "type {ty}");
+        }
     }
 
     #[test]
