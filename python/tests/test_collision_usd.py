@@ -8,6 +8,7 @@ import json
 import math
 import shutil
 import struct
+import zipfile
 
 import pytest
 
@@ -289,6 +290,11 @@ def test_damaged_files_are_clear_errors(scene_src, sage3d, tmp_path):
     huge_points = tmp_path / "huge_points.usd"
     huge_points.write_bytes(bytes(data))
     fails(huge_points, "not a readable USD file", "array value")
+    # The same layer packed in a USDZ archive (stored, its checksum right).
+    packed = tmp_path / "huge_points.usdz"
+    with zipfile.ZipFile(packed, "w", zipfile.ZIP_STORED) as z:
+        z.writestr("one_cube.usd", bytes(data))
+    fails(packed, "not a readable USD file", "one_cube.usd", "array value")
 
     data = bytearray(one.read_bytes())
     (toc,) = struct.unpack_from("<Q", data, 16)

@@ -170,8 +170,9 @@ pub fn names(scene_name: &str) -> Vec<String> {
 ///
 /// # Errors
 ///
-/// A file over `SAGE3D_MAX_COLLISION_MB`, a USDC file whose sections declare more than their
-/// bytes hold (checked before the USD reader allocates what they declare), one the USD reader
+/// A file over `SAGE3D_MAX_COLLISION_MB`, a USDC file (or a USDC layer of a USDZ) whose sections
+/// declare more than their bytes hold (checked before the USD reader allocates what they
+/// declare), one the USD reader
 /// refuses (truncated, not USD), a
 /// mesh prim with non-finite points, out-of-range indices or face counts that do not add up, an
 /// unknown or ill-typed `xformOp`, decoded meshes over `SAGE3D_MAX_MESH_MB`, or a stage with no
@@ -185,11 +186,16 @@ pub fn read(path: &Path) -> Result<CollisionFile> {
         .to_str()
         .ok_or_else(|| Error::invalid("the path is not valid UTF-8").in_file(path))?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if bytes.starts_with(usdc::MAGIC) {
-        usdc::check(&bytes).map_err(|e| {
-            Error::format("(file)", format!("not a readable USD file: {e}")).in_file(path)
-        })?;
-    }
+    let declared = if bytes.starts_with(usdc::MAGIC) {
+        usdc::check(&bytes)
+    } else if bytes.starts_with(usdc::ZIP_MAGIC) {
+        usdc::check_package(&bytes, COLLISION_MB.get()?)
+    } else {
+        Ok(())
+    };
+    declared.map_err(|e| {
+        Error::format("(file)", format!("not a readable USD file: {e}")).in_file(path)
+    })?;
     // The reader is a large third-party parser: a panic inside it on a hostile file becomes
     // an error naming the file, never a crash of the caller.
     let stage = match quietly(|| usd::Stage::open(path_str)) {

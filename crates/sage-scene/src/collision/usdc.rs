@@ -9,13 +9,17 @@
 //! integers (USD's integer coding: at least two bits an integer) fits what its block can expand
 //! to, and a table read raw fits the file. The arrays among the fields' values (read later, when
 //! the stage is composed: points, indices, counts) are checked the same way, each at the place
-//! its value names. A file USD itself wrote always passes. Values nested in time samples,
-//! dictionaries and list edits are not checked.
+//! its value names, and so is every USDC layer packed in a USDZ archive. A file USD itself wrote
+//! always passes. Values nested in time samples, dictionaries and list edits are not checked.
 
 use sage_core::{Error, Result};
+use std::io::Read;
 
 /// The first bytes of a USDC file.
 pub const MAGIC: &[u8; 8] = b"PXR-USDC";
+
+/// The first bytes of a ZIP archive, as a USDZ package is.
+pub const ZIP_MAGIC: &[u8; 4] = b"PK\x03\x04";
 
 /// The oldest crate version whose structural sections the reader reads (older ones it does not
 /// implement, and stops on).
@@ -182,6 +186,32 @@ fn check_array(bytes: &[u8], version: (u8, u8), rep: u64) -> Result<()> {
             }
             // The reader refuses another code itself.
             _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Checks, as [`check`] does, every USDC layer of the USDZ package `bytes`, each read up to
+/// `most` bytes. Faults of the archive itself are left to the reader, which refuses them.
+///
+/// # Errors
+///
+/// A packed layer that [`check`] refuses: the error names the layer.
+pub fn check_package(bytes: &[u8], most: u64) -> Result<()> {
+    let Ok(mut archive) = zip::ZipArchive::new(std::io::Cursor::new(bytes)) else {
+        return Ok(());
+    };
+    for i in 0..archive.len() {
+        let Ok(entry) = archive.by_index(i) else {
+            continue;
+        };
+        let name = entry.name().map(String::from).unwrap_or_default();
+        let mut layer = Vec::new();
+        if entry.take(most).read_to_end(&mut layer).is_err() {
+            continue;
+        }
+        if layer.starts_with(MAGIC) {
+            check(&layer).map_err(|e| Error::format(name, e.to_string()))?;
         }
     }
     Ok(())
