@@ -172,11 +172,10 @@ pub fn names(scene_name: &str) -> Vec<String> {
 ///
 /// A file over `SAGE3D_MAX_COLLISION_MB`, a USDC file (or a USDC layer of a USDZ) whose sections
 /// declare more than their bytes hold (checked before the USD reader allocates what they
-/// declare), one the USD reader
-/// refuses (truncated, not USD), a
-/// mesh prim with non-finite points, out-of-range indices or face counts that do not add up, an
-/// unknown or ill-typed `xformOp`, decoded meshes over `SAGE3D_MAX_MESH_MB`, or a stage with no
-/// mesh prim: each names the file and, where one is at fault, the prim.
+/// declare), one the USD reader refuses (truncated, not USD), a mesh prim with non-finite
+/// points, out-of-range indices or face counts that do not add up, an unknown or ill-typed
+/// `xformOp`, decoded meshes over `SAGE3D_MAX_MESH_MB`, or a stage with no mesh prim: each names
+/// the file and, where one is at fault, the prim.
 pub fn read(path: &Path) -> Result<CollisionFile> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     COLLISION_MB

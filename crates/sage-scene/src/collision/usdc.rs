@@ -36,17 +36,17 @@ const MOST_SECTIONS: u64 = 64;
 /// declaring more than its bytes hold: the error names the section.
 pub fn check(bytes: &[u8]) -> Result<()> {
     let mut header = Cursor::new(bytes, "bootstrap", 8);
-    let version = header.take(8)?;
-    if (version[0], version[1]) < OLDEST {
+    let v = header.take(8)?;
+    let version = (v[0], v[1]);
+    if version < OLDEST {
         return Err(Error::format(
             "bootstrap",
             format!(
                 "USDC version {}.{}.{} is older than {}.{}, which the USD reader does not read",
-                version[0], version[1], version[2], OLDEST.0, OLDEST.1
+                v[0], v[1], v[2], OLDEST.0, OLDEST.1
             ),
         ));
     }
-    let version = (version[0], version[1]);
     let toc = header.count()?;
     let mut contents = Cursor::at(bytes, "table of contents", toc)?;
     let sections = contents.count()?;

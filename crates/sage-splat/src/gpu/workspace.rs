@@ -106,9 +106,10 @@ impl Caps {
 
     /// What a batch that found `entries`, `splats` and `tile_entries` (the largest over its
     /// slabs) in buffers of `self` should find room for next time (the entries found, the splats
-    /// and tile entries a quarter over): `None` when all fitted. Only the splats the buffers held were binned, so when the splats
-    /// overflowed, their tile entries scaled to every splat found stand for the rest: one
-    /// growth then sizes both, where growing by what was counted would take a second.
+    /// and tile entries a quarter over): `None` when all fitted. Only the splats the buffers held
+    /// were binned, so when the splats overflowed, their tile entries scaled to every splat found
+    /// stand for the rest: one growth then sizes both, where growing by what was counted would
+    /// take a second.
     pub(crate) fn wanted(&self, [entries, splats, tile_entries]: [u32; 3]) -> Option<[u32; 3]> {
         if entries <= self.entries && splats <= self.splats && tile_entries <= self.tile_entries {
             return None;
