@@ -3,8 +3,10 @@ against the format with pyarrow, pandas and NumPy alone (no lerobot package): in
 Parquet schemas agree, indices are contiguous, each episode is one row group of one file, the
 task table has `task` as its pandas index, every statistic is what the data gives, frames are
 PNGs of the render's size, the extrinsic is the camera's pose above the agent's, `nav_delta`
-is the step between consecutive poses; the bytes do not depend on the thread count and a
-dataset cut short is redone to the same bytes."""
+is the step between consecutive poses, the action is one-hot beside its code; the bytes do not
+depend on the thread count and a dataset cut short is redone to the same bytes. Where the
+`lerobot` package is installed (CI does not: it brings torch), its own loader and normaliser
+read the dataset too."""
 
 import io
 import json
@@ -127,6 +129,16 @@ def test_info_and_schemas_agree(ds):
                                                "names": ["height", "width", "channel"]}
     assert feats["observation.depth"]["shape"] == [H, W, 1]
     assert feats["observation.camera_extrinsic"]["shape"] == [4, 4]
+    assert feats["action"] == {"dtype": "float32", "shape": [4],
+                               "names": ["stop", "move_forward", "turn_left", "turn_right"]}
+    assert feats["annotation.action_id"] == {"dtype": "int64", "shape": [1], "names": None}
+    # What LeRobot's policies take (every feature named `observation…` or `action…`) is float
+    # or an image: its normaliser casts the statistics to the feature's dtype, so an integer
+    # feature's mean and std would be truncated. An action of shape [1] would load as a scalar.
+    for name, f in feats.items():
+        if name.startswith(("observation", "action")):
+            assert f["dtype"] in ("float32", "image"), name
+    assert feats["action"]["shape"] != [1]
     files = sorted((ds / "data").glob("*/*.parquet"))
     assert [f.relative_to(ds).as_posix() for f in files] == ["data/chunk-000/file-000.parquet"]
     for f in files:
@@ -257,7 +269,8 @@ def test_frames_poses_extrinsics_and_actions(ds, data):
         e = json.loads(line)
         starts[e["episode_id"]] = e["start"]
     episodes = pq.read_table(ds / "meta" / "episodes" / "chunk-000" / "file-000.parquet").to_pandas()
-    action = t.column("action").to_numpy()
+    action = t.column("annotation.action_id").to_numpy()
+    np.testing.assert_array_equal(column(t, "action", [4]), np.eye(4)[action])
     text = t.column("annotation.action_text").to_pylist()
     nav = column(t, "action.nav_delta", [3])
     for _, e in episodes.iterrows():
@@ -326,3 +339,51 @@ def test_hugging_face_datasets_reads_it_with_lerobots_features(ds):
     assert item["observation.depth"].shape == (H, W, 1)
     assert item["observation.camera_extrinsic"].shape == (4, 4)
     assert item["index"] == 1 and isinstance(table[1]["annotation.action_text"], str)
+
+
+def test_lerobots_loader_and_normaliser_read_it(ds, monkeypatch):
+    """LeRobot's `LeRobotDataset` opens the folder offline and its `NormalizerProcessorStep`
+    scales every policy feature to finite, standardised values (skipped without the `lerobot`
+    package; checked with lerobot 0.4.4, the last release for Python 3.11)."""
+    monkeypatch.setenv("HF_HUB_OFFLINE", "1")  # read when huggingface_hub is imported
+    pytest.importorskip("lerobot")
+    torch = pytest.importorskip("torch")
+    try:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    except ImportError:
+        from lerobot.datasets import LeRobotDataset
+    from lerobot.configs.types import FeatureType, NormalizationMode
+    from lerobot.datasets.utils import dataset_to_policy_features
+    from lerobot.processor.converters import batch_to_transition, transition_to_batch
+    from lerobot.processor.normalize_processor import NormalizerProcessorStep
+
+    meta = info(ds)
+    dataset = LeRobotDataset("local/sage3d", root=ds)
+    assert (dataset.num_episodes, dataset.num_frames) == (meta["total_episodes"], meta["total_frames"])
+    item = dataset[0]
+    assert item["observation.images.rgb"].shape == (3, H, W)
+    assert item["action"].shape == (4,) and item["action"].dtype == torch.float32
+    tasks = pd.read_parquet(ds / "meta" / "tasks.parquet")
+    assert item["task"] == tasks.index[int(item["task_index"])]
+    # An action chunk, as ACT and diffusion policies ask for: [steps, 4], padded past the end.
+    chunked = LeRobotDataset("local/sage3d", root=ds, delta_timestamps={"action": [0.0, 1.0, 2.0]})
+    assert chunked[0]["action"].shape == (3, 4)
+
+    features = dataset_to_policy_features(dataset.meta.features)
+    assert features["action"].type == FeatureType.ACTION and features["action"].shape == (4,)
+    batch = next(iter(torch.utils.data.DataLoader(dataset, batch_size=len(dataset))))
+    for mode in (NormalizationMode.MEAN_STD, NormalizationMode.MIN_MAX):
+        step = NormalizerProcessorStep.from_lerobot_dataset(
+            dataset, features, {t: mode for t in (FeatureType.VISUAL, FeatureType.STATE, FeatureType.ACTION)})
+        out = transition_to_batch(step(batch_to_transition(dict(batch))))
+        for name in ("action", "observation.state", "observation.images.rgb", "observation.depth"):
+            v = out[name].double()
+            assert torch.isfinite(v).all(), (mode, name)
+            if mode == NormalizationMode.MIN_MAX:
+                assert v.min() >= -1 - 1e-5 and v.max() <= 1 + 1e-5, name
+        if mode == NormalizationMode.MEAN_STD:
+            # Every element that varies comes out with mean 0 and std 1 over the dataset.
+            a = out["action"].double()
+            varies = batch["action"].double().std(dim=0) > 0
+            assert (a.mean(dim=0)[varies].abs() < 1e-4).all()
+            assert ((a.std(dim=0, unbiased=False)[varies] - 1).abs() < 1e-3).all()

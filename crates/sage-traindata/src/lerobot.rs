@@ -12,7 +12,8 @@
 //! One episode of the training set is one LeRobot episode; its frames are those of its walk,
 //! one per action (the frame seen before the action), at [`FPS`] frames a second (one action
 //! a simulated second, as the walk's action space). Frames go into the data files as PNG bytes
-//! (`struct<bytes, path>`, LeRobot's image feature); depth, when rendered, as float32 metres.
+//! (`struct<bytes, path>`, LeRobot's image feature); depth, when rendered, as float32 metres;
+//! the action as a float32 one-hot vector, its code beside it as an annotation (see [`ACTION`]).
 //! Data files are cut at [`DATA_FILE_MB`] (never inside an episode) and grouped
 //! [`CHUNK_SIZE`] to a chunk folder, as LeRobot's own writer does.
 //!
@@ -76,8 +77,17 @@ pub const DEPTH: &str = "observation.depth";
 pub const STATE: &str = "observation.state";
 /// The camera-to-world matrix (OpenCV axes), row-major 4×4.
 pub const EXTRINSIC: &str = "observation.camera_extrinsic";
-/// The action's code ([`DiscreteAction`]: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT).
+/// The action taken after the frame, one-hot over [`ACTION_NAMES`] (float32 `[4]`): what
+/// LeRobot's policies predict and its normaliser scales. Not the code itself: the normaliser
+/// casts a feature's statistics to the feature's dtype, so an int64 action's mean and standard
+/// deviation would become integers (0.63 → 0) and its values be scaled by 10⁸; and a feature
+/// of shape `[1]` loads as a scalar, which policies' action layers do not take.
 pub const ACTION: &str = "action";
+/// The elements of [`ACTION`], in code order.
+pub const ACTION_NAMES: [&str; 4] = ["stop", "move_forward", "turn_left", "turn_right"];
+/// The action's code ([`DiscreteAction`]: 0 STOP, 1 MOVE_FORWARD, 2 TURN_LEFT, 3 TURN_RIGHT),
+/// int64. Not under `action`, which LeRobot would take for a policy output.
+pub const ACTION_ID: &str = "annotation.action_id";
 /// The executed action's displacement in the agent's frame `[dx, dy, dyaw]`.
 pub const NAV_DELTA: &str = "action.nav_delta";
 /// The action in the preset's words. Not under `action`: LeRobot types every feature whose
@@ -252,7 +262,7 @@ struct Loaded {
     depth_mm: Vec<u16>,
     state: Vec<[f32; 4]>,
     extrinsic: Vec<[f32; 16]>,
-    action: Vec<i64>,
+    action: Vec<DiscreteAction>,
     nav: Vec<[f32; 3]>,
 }
 
@@ -299,11 +309,22 @@ fn load(images: &Path, episode: &EpisodeSample, spec: &Spec) -> Result<Loaded> {
             glam::Vec3::new(x, y, z + spec.eye_height),
             yaw,
         ));
-        out.action
-            .push(i64::from(u8::from(action_code(&step.action))));
+        out.action.push(action_code(&step.action));
         out.nav.push(nav_delta(step.pose, step.achieved));
     }
     Ok(out)
+}
+
+/// The one-hot row of `action` ([`ACTION`]).
+fn one_hot(action: DiscreteAction) -> [f32; 4] {
+    let mut row = [0.0; 4];
+    row[usize::from(u8::from(action))] = 1.0;
+    row
+}
+
+/// The code of `action` ([`ACTION_ID`]).
+fn code(action: DiscreteAction) -> i64 {
+    i64::from(u8::from(action))
 }
 
 /// The dataset code of a published action name.
@@ -369,8 +390,9 @@ fn features(spec: &Spec) -> Vec<Feature> {
     out.extend([
         f(STATE, "float32", &[4], json!(["x", "y", "z", "yaw"])),
         f(EXTRINSIC, "float32", &[4, 4], Value::Null),
-        f(ACTION, "int64", &[1], Value::Null),
+        f(ACTION, "float32", &[4], json!(ACTION_NAMES)),
         f(NAV_DELTA, "float32", &[3], json!(["dx", "dy", "dyaw"])),
+        f(ACTION_ID, "int64", &[1], Value::Null),
         f(ACTION_TEXT, "string", &[1], Value::Null),
         f("timestamp", "float32", &[1], Value::Null),
         f("frame_index", "int64", &[1], Value::Null),
@@ -506,8 +528,11 @@ fn batch(
     columns.extend([
         fixed_list(&e.state),
         Arc::new(extr.finish()) as ArrayRef,
-        Arc::new(Int64Array::from(e.action.clone())),
+        fixed_list(&e.action.iter().copied().map(one_hot).collect::<Vec<_>>()),
         fixed_list(&e.nav),
+        Arc::new(Int64Array::from_iter_values(
+            e.action.iter().copied().map(code),
+        )),
         Arc::new(text.finish()),
         Arc::new(Float32Array::from_iter_values(
             frames.clone().map(|k| k as f32 / FPS as f32),
@@ -572,8 +597,9 @@ impl Collected {
         for k in 0..e.png.len() {
             self.push(STATE, &e.state[k]);
             self.push(EXTRINSIC, &e.extrinsic[k]);
-            self.push_int(ACTION, e.action[k]);
+            self.push(ACTION, &one_hot(e.action[k]));
             self.push(NAV_DELTA, &e.nav[k]);
+            self.push_int(ACTION_ID, code(e.action[k]));
             self.push("timestamp", &[k as f32 / FPS as f32]);
             self.push_int("frame_index", k as i64);
             self.push_int("episode_index", episode_index);
@@ -989,6 +1015,41 @@ mod tests {
         assert!(near(col(2), [1.0, 0.0, 0.0]), "{m:?}");
         assert!(near(col(0), [0.0, -1.0, 0.0]), "{m:?}");
         assert!(near(col(1), [0.0, 0.0, -1.0]), "{m:?}");
+    }
+
+    #[test]
+    fn policy_features_are_float_vectors() {
+        // LeRobot casts statistics to a feature's dtype and loads shape [1] as a scalar: what
+        // its policies take (names under `observation` and `action`) must be float vectors.
+        let spec = Spec {
+            split: "train".into(),
+            robot_type: "wheeled".into(),
+            width: 8,
+            height: 6,
+            hfov_deg: 90.0,
+            depth: true,
+            eye_height: 1.2,
+            floor: HashMap::new(),
+        };
+        for f in features(&spec) {
+            if f.name.starts_with("observation") || f.name.starts_with("action") {
+                assert!(matches!(f.dtype, "float32" | "image"), "{}", f.name);
+                assert_ne!(f.shape, [1], "{}", f.name);
+            }
+        }
+        for (k, a) in [
+            DiscreteAction::Stop,
+            DiscreteAction::Forward,
+            DiscreteAction::Left,
+            DiscreteAction::Right,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let row = one_hot(a);
+            assert_eq!(code(a), k as i64);
+            assert!(row.iter().enumerate().all(|(i, &v)| v == f32::from(i == k)));
+        }
     }
 
     #[test]
