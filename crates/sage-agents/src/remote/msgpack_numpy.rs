@@ -161,14 +161,23 @@ impl NdArray {
             ("f", 8) => |w| f64::from_le_bytes(w),
             _ => return Err(bad()),
         };
-        let count: usize = self.shape.iter().product();
-        if self.data.len() != count * size {
+        // Checked: a hostile shape's product would otherwise wrap to match the data's length.
+        let expected = self
+            .shape
+            .iter()
+            .try_fold(size, |bytes, &n| bytes.checked_mul(n))
+            .ok_or_else(|| {
+                format!(
+                    "array {} of shape {:?} is too large",
+                    self.dtype, self.shape
+                )
+            })?;
+        if self.data.len() != expected {
             return Err(format!(
-                "array {} of shape {:?} has {} bytes, expected {}",
+                "array {} of shape {:?} has {} bytes, expected {expected}",
                 self.dtype,
                 self.shape,
                 self.data.len(),
-                count * size
             ));
         }
         Ok(Numbers {
@@ -460,6 +469,13 @@ mod tests {
             data: vec![0; 5],
         };
         assert!(short.numbers().unwrap_err().contains("5 bytes"));
+        // A shape whose byte count wraps to the data's length (2⁶² × 2⁶² × 4 is 0 mod 2⁶⁴).
+        let wraps = NdArray {
+            dtype: "<f4".into(),
+            shape: vec![1 << 62, 1 << 62],
+            data: Vec::new(),
+        };
+        assert!(wraps.numbers().unwrap_err().contains("too large"));
         let text = NdArray {
             dtype: "<U3".into(),
             shape: vec![1],
