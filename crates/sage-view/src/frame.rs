@@ -115,7 +115,10 @@ impl FrameRequest {
             ("pitch", self.pitch),
         ] {
             if !v.is_finite() {
-                return Err(Error::invalid(format!("{name}: not a finite number")));
+                // A query's number past f32's range (1e308) arrives as inf: say why.
+                return Err(Error::invalid(format!(
+                    "{name}: {v} is not a finite number within ±3.4e38"
+                )));
             }
         }
         for (name, v) in [("width", self.width), ("height", self.height)] {

@@ -243,6 +243,20 @@ fn scenes_map_frames_and_explore_sessions_through_physics() {
         &[],
     );
     assert_eq!(status, 400);
+    // A number past f32's range names itself and the range.
+    let (status, body) = request(
+        v.addr,
+        "GET",
+        "/api/scenes/home1/frame?x=1e308&y=0&z=0&yaw=0",
+        None,
+        &[],
+    );
+    let body = String::from_utf8_lossy(&body);
+    assert_eq!(status, 400, "{body}");
+    assert!(
+        body.contains("x: inf is not a finite number within ±3.4e38"),
+        "{body}"
+    );
 }
 
 #[test]
