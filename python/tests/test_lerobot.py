@@ -317,7 +317,7 @@ def test_same_bytes_on_two_threads_and_after_a_cut(ds, data, sage3d, tmp_path):
 def test_hugging_face_datasets_reads_it_with_lerobots_features(ds):
     """LeRobot loads the data files with `datasets`, cast to the features its
     `get_hf_features_from_features` makes of info.json (mirrored here; skipped without the
-    `datasets` package, which the test requirements install)."""
+    `datasets` package, which CI does not install)."""
     datasets = pytest.importorskip("datasets")
     meta = info(ds)
     hf = {}
