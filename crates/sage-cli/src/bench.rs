@@ -30,7 +30,7 @@ pub enum BenchCommand {
     /// and 640×480 (and 1024×768 on a GPU); report the median frame time and its breakdown,
     /// and on a GPU the frames per second of batches of cameras rendered in one submission.
     Render(RenderBenchArgs),
-    /// Plan trajectories in a 20 × 20 m synthetic home: grid and EDT once, then sampling, A*,
+    /// Plan trajectories in a 27-room synthetic home (about 23.5 × 19.8 m): grid and EDT once, then sampling, A*,
     /// shortcut and resampling per trajectory, in parallel; report trajectories per second.
     Nav(NavBenchArgs),
     /// Step one agent through a 200-object synthetic home, physics only (no rendering), and
@@ -227,7 +227,7 @@ pub struct NavBenchArgs {
     /// Seed of the scene and of the sampling.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Rooms of the generated home (about 15 m² each; 27 make about 20 × 20 m).
+    /// Rooms of the generated home (about 15–17 m² each; 27 make about 23.5 × 19.8 m).
     #[arg(long, default_value_t = 27)]
     rooms: usize,
     /// Scene folder to use instead of a generated home.

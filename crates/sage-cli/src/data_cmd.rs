@@ -300,9 +300,13 @@ pub fn print_render(m: &sage_traindata::Manifest, out: &Path, rendered: usize, s
         c.ignored.values().sum::<usize>(),
         listed(&c.ignored)
     );
+    // Samples are NaVILA's (one per step); the other layouts hold episodes of frames.
+    let samples = match m.settings.get("format").and_then(|f| f.as_str()) {
+        Some("navila") => format!("{} NaVILA samples, ", c.samples),
+        _ => String::new(),
+    };
     println!(
-        "{} samples, {} frames; rendered {rendered} frames in {secs:.1} s ({:.1} frames/s on {} threads) -> {}",
-        c.samples,
+        "{samples}{} frames; rendered {rendered} frames in {secs:.1} s ({:.1} frames/s on {} threads) -> {}",
         c.frames,
         rendered as f64 / secs.max(1e-9),
         rayon::current_num_threads(),

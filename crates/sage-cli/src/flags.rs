@@ -5,7 +5,9 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 19] = [
+const NAMED_SETTINGS: [&str; 21] = [
+    "cell",
+    "length_mix",
     "force",
     "play",
     "public",

@@ -21,6 +21,7 @@ mod splat_cmd;
 mod view_cmd;
 
 use clap::{Parser, Subcommand};
+use std::ffi::OsString;
 use std::process::ExitCode;
 
 /// sage3d: executable 3D Gaussian Splatting scenes for vision-and-language navigation.
@@ -43,12 +44,13 @@ enum Command {
     /// The main job on synthetic scenes, end to end: scenes, maps, physics, dataset, evaluation
     /// of the baseline agents, reports (each step printed as the subcommand it runs).
     Demo(demo_cmd::DemoArgs),
-    /// Scene folders: synthesise one, describe one.
+    /// Scene folders: synthesise one, describe one, draw its plan, import your own capture.
     #[command(subcommand)]
     Scene(scene_cmd::SceneCommand),
     /// Render RGB, depth, instance and semantic images of a scene from a camera.
     Render(render_cmd::RenderArgs),
-    /// 3DGS PLY files: convert between the standard and compressed layouts.
+    /// 3DGS files: convert between formats (reads PLY, compressed PLY, SPZ, SOG, glTF/GLB and
+    /// .splat; writes PLY, compressed PLY and SPZ).
     #[command(subcommand)]
     Splat(splat_cmd::SplatCommand),
     /// Physics: collision bodies and their quality, the CoACD work list, driving an agent.
@@ -84,30 +86,48 @@ enum Command {
     Bench(bench::BenchCommand),
 }
 
-/// The command line, with the flags of `--config FILE.toml` added when it is given.
-fn command_line() -> sage_core::Result<Vec<std::ffi::OsString>> {
-    let raw: Vec<std::ffi::OsString> = std::env::args_os().collect();
+/// The command line, with the flags of `--config FILE.toml` added when it is given, and where
+/// each added flag came from.
+fn command_line() -> sage_core::Result<(Vec<OsString>, config::Origins)> {
+    let raw: Vec<OsString> = std::env::args_os().collect();
     let text: Vec<String> = raw
         .iter()
         .map(|a| a.to_string_lossy().into_owned())
         .collect();
     let Some(file) = config::config_path(&text) else {
-        return Ok(raw);
+        return Ok((raw, Vec::new()));
     };
     let file = std::path::PathBuf::from(file);
     let toml = std::fs::read_to_string(&file).map_err(|e| sage_core::Error::io(&file, e))?;
     let path = config::subcommand_path::<Cli>(&text);
-    let added = config::apply(&toml, &file, &path, &text)?;
-    Ok(raw
+    let applied = config::apply::<Cli>(&toml, &file, &path, &text)?;
+    let argv = raw
         .into_iter()
-        .chain(added[text.len()..].iter().map(Into::into))
-        .collect())
+        .chain(applied.argv[text.len()..].iter().map(Into::into))
+        .collect();
+    Ok((argv, applied.origins))
+}
+
+/// The parsed command line; clap's refusal of a flag the config file gave says where it came
+/// from.
+fn parse(argv: Vec<OsString>, origins: &[(String, String)]) -> Cli {
+    Cli::try_parse_from(argv).unwrap_or_else(|e| {
+        if let Some(clap::error::ContextValue::String(arg)) =
+            e.get(clap::error::ContextKind::InvalidArg)
+            && let Some(origin) = config::origin_of(origins, arg)
+        {
+            let _ = e.print();
+            eprintln!("note: that value is {origin}");
+            std::process::exit(e.exit_code());
+        }
+        e.exit()
+    })
 }
 
 fn main() -> ExitCode {
     quiet_on_closed_pipe();
     let cli = match command_line() {
-        Ok(argv) => Cli::parse_from(argv),
+        Ok((argv, origins)) => parse(argv, &origins),
         Err(e) => {
             eprintln!("error: {e}");
             return ExitCode::FAILURE;

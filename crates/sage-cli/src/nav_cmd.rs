@@ -154,10 +154,10 @@ fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {
     p.sampling.min_distance = a.min_distance;
     p.sampling.length_mix = a.length_mix.clone();
     p.sampling.kind_weights = match a.kinds.as_slice() {
-        [r, o, ar] => [*r, *o, *ar],
+        [r, o, ar] if a.kinds.iter().all(|w| *w >= 0.0) && r + o + ar > 0.0 => [*r, *o, *ar],
         other => {
             return Err(Error::invalid(format!(
-                "--kinds needs three weights (room,object,area), got {other:?}"
+                "--kinds needs three weights (room,object,area) >= 0, not all 0, got {other:?}"
             )));
         }
     };

@@ -22,13 +22,24 @@ pub struct RenderArgs {
     /// Camera JSON: width, height, hfov_deg (or fx, fy, cx, cy), position with yaw_deg and
     /// pitch_deg (or c2w: 4x4, row-major, OpenCV axes), near, far. Without it the camera
     /// stands at 1.2 m in the middle of the largest room, set by the flags below.
-    #[arg(long)]
+    #[arg(
+        long,
+        conflicts_with_all = ["width", "height", "hfov", "position", "yaw", "pitch"]
+    )]
     camera: Option<PathBuf>,
     /// Image width (without --camera).
-    #[arg(long, default_value_t = CameraPose::DEFAULT.width)]
+    #[arg(
+        long,
+        default_value_t = CameraPose::DEFAULT.width,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(sage_splat::MAX_IMAGE_SIDE))
+    )]
     width: u32,
     /// Image height (without --camera).
-    #[arg(long, default_value_t = CameraPose::DEFAULT.height)]
+    #[arg(
+        long,
+        default_value_t = CameraPose::DEFAULT.height,
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(sage_splat::MAX_IMAGE_SIDE))
+    )]
     height: u32,
     /// Horizontal field of view, degrees (without --camera).
     #[arg(long, default_value_t = CameraPose::DEFAULT.hfov_deg)]

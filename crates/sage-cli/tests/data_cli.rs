@@ -124,7 +124,7 @@ fn build_takes_a_length_mix() {
     ]);
     assert!(!bad.status.success());
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(err.contains("length mix needs 3 shares"), "{err}");
+    assert!(err.contains("--length-mix needs 3 shares"), "{err}");
     assert!(!dir.path().join("bad").exists());
 }
 

@@ -145,9 +145,11 @@ fn bad_input_gives_clear_errors() {
     };
     let e = err(&dir.path().join("missing"), "train", "oracle");
     assert!(
-        e.contains("missing") && e.contains("not a dataset folder"),
+        e.contains("missing") && e.contains("no such dataset folder"),
         "{e}"
     );
+    let e = err(&scenes, "train", "oracle");
+    assert!(e.contains("not a dataset folder"), "{e}");
     let e = err(&data, "tset", "oracle");
     assert!(
         e.contains("unknown split 'tset'") && e.contains("train, val"),

@@ -16,7 +16,7 @@ fn refused_by_holder(out: &Output, command: &str) {
     let err = stderr(out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains(&format!("being written by `sage3d {command}`"))
+        err.contains(&format!("being written by the `{command}` run"))
             && err.contains(&format!("process {}", std::process::id())),
         "{err}"
     );

@@ -25,10 +25,13 @@ pub const SPLITS_FILE: &str = "splits.json";
 ///
 /// # Errors
 ///
-/// An `invalid` error naming the folder.
+/// An `invalid` error naming the folder: it does not exist, or it has no `episodes/`.
 pub fn check(dataset: &Path) -> Result<()> {
     if dataset.join("episodes").is_dir() {
         return Ok(());
+    }
+    if !dataset.exists() {
+        return Err(Error::invalid("no such dataset folder").in_file(dataset));
     }
     Err(Error::invalid(
         "not a dataset folder (no episodes/ in it; make one with `sage3d data build`)",

@@ -131,13 +131,19 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 /// Parses the JSON `text` of file `path` into `T` (a leading byte-order mark is accepted); an
 /// error names the file, line and column.
 pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T> {
-    serde_json::from_str(strip_bom(text)).map_err(|e| {
-        Error::format(
-            format!("line {} column {}", e.line(), e.column()),
-            e.to_string(),
-        )
-        .in_file(path)
-    })
+    serde_json::from_str(strip_bom(text)).map_err(|e| json_error(&e).in_file(path))
+}
+
+/// A JSON parse error located at its line and column, said once (serde_json's own text ends
+/// with the place again).
+pub fn json_error(e: &serde_json::Error) -> Error {
+    let place = format!("line {} column {}", e.line(), e.column());
+    let text = e.to_string();
+    let message = text
+        .strip_suffix(&format!(" at {place}"))
+        .unwrap_or(&text)
+        .to_string();
+    Error::format(place, message)
 }
 
 /// Writes an 8- or 16-bit PNG (atomically). `data` holds the rows top to bottom, samples

@@ -175,8 +175,10 @@ fn held(dir: &Path, path: &Path) -> Error {
             let process = field("process")
                 .and_then(|p| p.as_str().map(String::from))
                 .filter(|p| !p.is_empty())
-                .map_or_else(String::new, |p| format!(": {p}"));
-            format!("`sage3d {command}` (process {pid}{process})")
+                .map_or_else(String::new, |p| format!(" ({p})"));
+            // The run's kind, not the program: human play in the viewer writes an `eval` run,
+            // and Python's functions take the same locks.
+            format!("the `{command}` run of process {pid}{process}")
         }
         _ => "another command".to_string(),
     };
@@ -201,7 +203,7 @@ mod tests {
             .to_string();
         let pid = std::process::id().to_string();
         assert!(
-            e.contains("`sage3d eval`") && e.contains(&format!("process {pid}")),
+            e.contains(&format!("the `eval` run of process {pid}")),
             "{e}"
         );
         assert!(e.contains("run") && e.contains("being written"), "{e}");

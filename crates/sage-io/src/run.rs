@@ -162,7 +162,7 @@ mod tests {
         let e = claim_folder(dir.path(), &["eval"], &[], false)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("being written by `sage3d eval`"), "{e}");
+        assert!(e.contains("being written by the `eval` run"), "{e}");
         drop(held);
         drop(claim_folder(dir.path(), &["eval"], &[], false).unwrap());
     }

@@ -18,10 +18,13 @@ pub fn is_scene_dir(dir: &Path) -> bool {
 ///
 /// # Errors
 ///
-/// `root` cannot be read, or neither it nor any sub-folder is a scene.
+/// `root` does not exist or cannot be read, or neither it nor any sub-folder is a scene.
 pub fn scene_dirs(root: &Path) -> Result<Vec<PathBuf>> {
     if is_scene_dir(root) {
         return Ok(vec![root.to_path_buf()]);
+    }
+    if !root.exists() {
+        return Err(Error::invalid(format!("{} does not exist", root.display())));
     }
     let mut dirs: Vec<PathBuf> = std::fs::read_dir(root)
         .map_err(|e| Error::io(root, e))?

@@ -59,7 +59,7 @@ impl GridParams {
     pub fn validate(&self) -> Result<()> {
         if !(self.cell >= 0.005 && self.cell <= 1.0) {
             return Err(Error::invalid(format!(
-                "grid cell must be 0.005-1 m, got {}",
+                "`cell` (the grid cell) must be 0.005-1 m, got {}",
                 self.cell
             )));
         }

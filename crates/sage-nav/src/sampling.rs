@@ -151,7 +151,7 @@ impl SamplingParams {
             || self.kind_weights.iter().sum::<f32>() <= 0.0
         {
             return bad(format!(
-                "kind weights must be >= 0 and not all 0, got {:?}",
+                "`kind_weights` must be >= 0 and not all 0, got {:?}",
                 self.kind_weights
             ));
         }
@@ -164,7 +164,7 @@ impl SamplingParams {
                 || mix.iter().sum::<f32>() <= 0.0)
         {
             return bad(format!(
-                "length mix needs {} shares >= 0 (one per bin), got {mix:?}",
+                "`length_mix` needs {} shares >= 0 (one per length bin), got {mix:?}",
                 self.length_edges.len() + 1
             ));
         }

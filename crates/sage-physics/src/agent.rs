@@ -198,17 +198,28 @@ pub enum Command {
     },
 }
 
+/// `angle` (radians) in degrees, in the fewest decimals that parse back to the same angle: the
+/// `15` of `turn:15`, where the plain conversion writes `15.000001`.
+fn degrees(angle: f32) -> String {
+    let exact = angle.to_degrees();
+    (0..9)
+        .map(|decimals| format!("{exact:.decimals$}"))
+        .find(|text| text.parse::<f32>().is_ok_and(|d| d.to_radians() == angle))
+        .unwrap_or_else(|| exact.to_string())
+}
+
 impl fmt::Display for Command {
+    /// The command's text, as [`Command::from_str`] reads it.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Command::Forward { distance } => write!(f, "forward:{distance}"),
-            Command::Turn { angle } => write!(f, "turn:{}", angle.to_degrees()),
+            Command::Turn { angle } => write!(f, "turn:{}", degrees(angle)),
             Command::Stop => f.write_str("stop"),
             Command::Ground { vx, vy, wz, dt } => {
-                write!(f, "vel:{vx}:{vy}:{}:{dt}", wz.to_degrees())
+                write!(f, "vel:{vx}:{vy}:{}:{dt}", degrees(wz))
             }
             Command::Uav { vx, vy, vz, wz, dt } => {
-                write!(f, "uav:{vx}:{vy}:{vz}:{}:{dt}", wz.to_degrees())
+                write!(f, "uav:{vx}:{vy}:{vz}:{}:{dt}", degrees(wz))
             }
         }
     }
@@ -222,9 +233,19 @@ impl FromStr for Command {
         let mut it = s.trim().split(':');
         let word = it.next().unwrap_or("").to_ascii_lowercase();
         let nums = it
-            .map(|x| x.trim().parse::<f32>().ok().filter(|v| v.is_finite()))
-            .collect::<Option<Vec<f32>>>()
-            .ok_or_else(|| Error::invalid(format!("command '{s}': a number is not finite")))?;
+            .map(|x| {
+                x.trim()
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        Error::invalid(format!(
+                            "command '{s}': '{}' is not a finite number",
+                            x.trim()
+                        ))
+                    })
+            })
+            .collect::<Result<Vec<f32>>>()?;
         let cmd = match (word.as_str(), nums.as_slice()) {
             ("forward", [d]) => Command::Forward { distance: *d },
             ("turn", [a]) => Command::Turn {
@@ -617,9 +638,19 @@ mod tests {
             "uav:1:0:0.5:0:0.5",
         ] {
             let c: Command = s.parse().unwrap();
+            assert_eq!(c.to_string(), s, "written as read");
             let back: Command = c.to_string().parse().unwrap();
             assert_eq!(c, back, "{s}");
         }
+        // Any angle read from text comes back exactly, in as few decimals as that takes.
+        for k in 0..2000 {
+            let c: Command = format!("turn:{}", k as f32 * 0.1373 - 137.0)
+                .parse()
+                .unwrap();
+            assert_eq!(c.to_string().parse::<Command>().unwrap(), c);
+        }
+        let e = "turn:abc".parse::<Command>().unwrap_err().to_string();
+        assert!(e.contains("'abc' is not a finite number"), "{e}");
         assert!("forward".parse::<Command>().is_err());
         assert!("vel:1:0:0:-1".parse::<Command>().is_err());
         assert!("turn:NaN".parse::<Command>().is_err());

@@ -122,8 +122,9 @@ impl Decomposer {
                 max_hulls,
             } => Ok(vhacd(mesh, resolution, concavity, max_hulls)),
             Decomposer::Coacd { .. } => Err(Error::invalid(
-                "CoACD hulls are made offline: run python/tools/coacd_cache.py on the scene \
-                 (it fills the cache), then build again",
+                "CoACD hulls are made offline: `sage3d physics pending SCENE --backend coacd \
+                 --out todo.json` lists the meshes, `python python/tools/coacd_cache.py \
+                 todo.json` fills the cache, then build again",
             )),
         }
     }

@@ -35,11 +35,7 @@ impl FromStr for ScalePoints {
     type Err = Error;
 
     fn from_str(s: &str) -> Result<ScalePoints> {
-        let bad = || {
-            Error::invalid(format!(
-                "`scale_points` must be two points x1,y1,z1:x2,y2,z2, got '{s}'"
-            ))
-        };
+        let bad = || Error::invalid(format!("expected two points x1,y1,z1:x2,y2,z2, got '{s}'"));
         let (a, b) = s.split_once(':').ok_or_else(bad)?;
         let point = |t: &str| -> Result<[f32; 3]> {
             let v: Vec<f32> = t
@@ -126,7 +122,7 @@ pub struct ImportSettings {
     )]
     pub scale: Option<f32>,
     /// Two points in the capture's own coordinates, x1,y1,z1:x2,y2,z2, whose true distance
-    /// is `scale_distance` metres.
+    /// in metres is the scale distance.
     #[cfg_attr(
         feature = "clap",
         arg(long, requires = "scale_distance", allow_hyphen_values = true)
@@ -145,11 +141,12 @@ pub struct ImportSettings {
     /// Gaussians fainter than this opacity may be floaters.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = FloaterSettings::default().max_opacity))]
     pub floater_opacity: f32,
-    /// A faint Gaussian with fewer than `floater_neighbours` others within this radius
-    /// (metres) is a floater.
+    /// A faint Gaussian with fewer others within this radius (metres) than the floater
+    /// neighbours is a floater.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = FloaterSettings::default().radius))]
     pub floater_radius: f32,
-    /// See `floater_radius`; 0 keeps every Gaussian.
+    /// The fewest others a faint Gaussian has within the floater radius not to be a floater;
+    /// 0 keeps every Gaussian.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = FloaterSettings::default().min_neighbours))]
     pub floater_neighbours: usize,
     /// Gaussian file layout written.

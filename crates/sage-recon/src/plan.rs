@@ -268,12 +268,7 @@ impl Plan {
     pub fn load(path: &Path) -> Result<Plan> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let plan: Plan = serde_json::from_str(&text)
-            .map_err(|e| {
-                Error::format(
-                    format!("line {} column {}", e.line(), e.column()),
-                    e.to_string(),
-                )
-            })
+            .map_err(|e| sage_io::files::json_error(&e))
             .in_file(path)?;
         if plan.format != FORMAT {
             return Err(Error::format(

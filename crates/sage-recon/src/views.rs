@@ -100,12 +100,7 @@ pub fn read_manifest(dir: &Path) -> Result<Option<Manifest>> {
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
     serde_json::from_str(&text)
         .map(Some)
-        .map_err(|e| {
-            Error::format(
-                format!("line {} column {}", e.line(), e.column()),
-                e.to_string(),
-            )
-        })
+        .map_err(|e| sage_io::files::json_error(&e))
         .in_file(&path)
 }
 

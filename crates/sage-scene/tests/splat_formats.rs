@@ -193,6 +193,8 @@ fn sh_bands_can_be_dropped_not_added() {
         "{:?}",
         report.losses
     );
+    let one = splats::convert::losses(splats::Format::Spz, 1, 0);
+    assert!(one[0].starts_with("SH band 1 dropped (1 of 4"), "{one:?}");
     let (kept, _) = splats::read_table_file(&out).unwrap();
     let (full, _) = table("random_4k_sh3.ply");
     assert_eq!(kept.sh_degree, 1);

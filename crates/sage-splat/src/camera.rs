@@ -41,12 +41,15 @@ pub struct Camera {
     pub far: f32,
 }
 
+/// The largest image side, in pixels, a camera may have.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
 impl Intrinsics {
     /// Square pixels from a horizontal field of view: fx = fy = (width/2)/tan(hfov/2), centred.
     pub fn from_hfov(width: u32, height: u32, hfov_deg: f32) -> Result<Intrinsics> {
-        if width == 0 || height == 0 || width > 16384 || height > 16384 {
+        if width == 0 || height == 0 || width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
             return Err(Error::invalid(format!(
-                "image size must be 1-16384 pixels, got {width}x{height}"
+                "image size must be 1-{MAX_IMAGE_SIDE} pixels, got {width}x{height}"
             )));
         }
         if !(hfov_deg > 0.0 && hfov_deg < 180.0) {
@@ -147,11 +150,11 @@ impl Camera {
     pub fn validate(&self) -> Result<()> {
         if self.intrinsics.width == 0
             || self.intrinsics.height == 0
-            || self.intrinsics.width > 16384
-            || self.intrinsics.height > 16384
+            || self.intrinsics.width > MAX_IMAGE_SIDE
+            || self.intrinsics.height > MAX_IMAGE_SIDE
         {
             return Err(Error::invalid(format!(
-                "image size must be 1-16384 pixels, got {}x{}",
+                "image size must be 1-{MAX_IMAGE_SIDE} pixels, got {}x{}",
                 self.intrinsics.width, self.intrinsics.height
             )));
         }
@@ -228,12 +231,7 @@ pub struct CameraSpec {
 impl CameraSpec {
     /// Parses a camera JSON text (errors name the field or line).
     pub fn parse(text: &str) -> Result<CameraSpec> {
-        serde_json::from_str(text).map_err(|e| {
-            Error::format(
-                format!("line {} column {}", e.line(), e.column()),
-                e.to_string(),
-            )
-        })
+        serde_json::from_str(text).map_err(|e| sage_io::files::json_error(&e))
     }
 
     /// The camera this spec describes.

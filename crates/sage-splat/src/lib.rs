@@ -34,7 +34,7 @@ pub mod render;
 pub mod sh;
 pub mod tile;
 
-pub use camera::{Camera, CameraSpec, Intrinsics};
+pub use camera::{Camera, CameraSpec, Intrinsics, MAX_IMAGE_SIDE};
 pub use device::{Backend, Device, Rendering};
 pub use passes::{Blending, KernelShape, PassTimes};
 pub use render::{Channels, RenderOptions, RenderOutput, RenderStats, Renderer};

@@ -7,12 +7,8 @@ use serde_json::Value;
 /// Parses JSON text (a leading byte-order mark is accepted); a syntax error names its line and
 /// column.
 pub fn parse_text(text: &str) -> Result<Value> {
-    serde_json::from_str(sage_io::files::strip_bom(text)).map_err(|e| {
-        Error::format(
-            format!("line {} column {}", e.line(), e.column()),
-            e.to_string(),
-        )
-    })
+    serde_json::from_str(sage_io::files::strip_bom(text))
+        .map_err(|e| sage_io::files::json_error(&e))
 }
 
 /// `v[key]`, or an error naming `key` as missing.

@@ -150,9 +150,13 @@ fn zero_sh_above(gaussians: &mut [Gaussian], degree: u8) {
 pub fn losses(to: Format, from_degree: u8, to_degree: u8) -> Vec<String> {
     let mut out = Vec::new();
     if to_degree < from_degree {
+        let bands = if to_degree + 1 == from_degree {
+            format!("SH band {from_degree}")
+        } else {
+            format!("SH bands {}–{from_degree}", to_degree + 1)
+        };
         out.push(format!(
-            "SH bands {}–{from_degree} dropped ({} of {} coefficients per colour channel kept)",
-            to_degree + 1,
+            "{bands} dropped ({} of {} coefficients per colour channel kept)",
             sh_rest_count(to_degree) + 1,
             sh_rest_count(from_degree) + 1
         ));
