@@ -119,7 +119,18 @@ fn the_cpu_renders_the_same_images_with_or_without_the_flag() {
     }
     let record: serde_json::Value =
         serde_json::from_slice(&bytes(&dir.path().join("cpu/sage3d_run.json"))).unwrap();
-    assert_eq!(record["device"], "cpu", "{record}");
+    assert_eq!(record["settings"]["device"], "cpu", "{record}");
+    // The files the render read, each with its hash: the Gaussians and the annotations.
+    let inputs = record["inputs"].as_object().unwrap();
+    assert!(
+        inputs.keys().any(|k| k.starts_with("3dgs")) && inputs.contains_key("labels.json"),
+        "{record}"
+    );
+    assert!(
+        inputs
+            .values()
+            .all(|h| h.as_str().is_some_and(|h| h.len() == 16))
+    );
     let info: serde_json::Value =
         serde_json::from_slice(&bytes(&dir.path().join("cpu/render.json"))).unwrap();
     assert!(info["stats_ms"]["raster"].is_number() && info["splats"].is_number());

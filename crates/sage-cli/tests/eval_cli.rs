@@ -120,6 +120,29 @@ fn oracle_solves_the_vln_episodes_independent_of_threads_and_resumes_exactly() {
     let other = eval_output("1", &data, &scenes, &one, &["--agent", "forward"]);
     assert!(!other.status.success());
     assert!(String::from_utf8_lossy(&other.stderr).contains("other settings"));
+
+    // Nor on other scene files: the record holds the hash of every file of each scene, and a
+    // file changed since is named.
+    let inputs = run["scene_inputs"].as_object().unwrap();
+    let (name, files) = inputs.iter().next().unwrap();
+    assert!(
+        files.get("labels.json").is_some()
+            && files
+                .as_object()
+                .unwrap()
+                .keys()
+                .any(|f| f.starts_with("3dgs")),
+        "{run}"
+    );
+    let labels = scenes.join(name).join("labels.json");
+    let text = read(&labels);
+    std::fs::write(&labels, format!("{text}\n")).unwrap();
+    let changed = eval_output("1", &data, &scenes, &one, &["--agent", "oracle"]);
+    let e = String::from_utf8_lossy(&changed.stderr);
+    assert!(
+        !changed.status.success() && e.contains(&format!("{name}/labels.json changed since")),
+        "{e}"
+    );
 }
 
 #[test]

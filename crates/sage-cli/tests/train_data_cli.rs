@@ -223,6 +223,25 @@ fn gvln_and_r2r_files_import_as_a_split_that_renders() {
             .unwrap();
     let names: Vec<&String> = listed["splits"].as_object().unwrap().keys().collect();
     assert_eq!(names, ["from_r2r", "train"]);
+    // The run record lists each import with its source files' hashes.
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(imported.join("sage3d_run.json")).unwrap())
+            .unwrap();
+    let gvln_hash = sage_io::hash::fnv1a64_hex(&std::fs::read(&gvln).unwrap());
+    assert_eq!(record["imports"]["train"]["format"], "gvln", "{record}");
+    assert_eq!(
+        record["imports"]["train"]["inputs"][gvln.display().to_string()],
+        gvln_hash.as_str(),
+        "{record}"
+    );
+    let r2r = &record["imports"]["from_r2r"];
+    assert_eq!(r2r["format"], "r2r", "{record}");
+    assert!(
+        r2r["inputs"]
+            .as_object()
+            .is_some_and(|f| f.keys().any(|k| k.ends_with("train.json.gz"))),
+        "{record}"
+    );
     let unplaced = sage3d(&[
         "data",
         "render",

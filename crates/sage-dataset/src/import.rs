@@ -57,6 +57,46 @@ pub struct Imported {
 /// The command, as the run record of a dataset folder it made names it.
 pub const COMMAND: &str = "data import";
 
+/// What the run record says of an import: the source's format, its settings and the hashes
+/// (FNV-1a 64) of the files read.
+fn provenance(source: &Source) -> Result<serde_json::Value> {
+    let hashed = |files: &[PathBuf]| -> Result<serde_json::Value> {
+        files
+            .iter()
+            .map(|f| {
+                let hash = sage_io::hash::fnv1a64_file_hex(f)?;
+                Ok((f.display().to_string(), serde_json::Value::String(hash)))
+            })
+            .collect::<Result<serde_json::Map<_, _>>>()
+            .map(serde_json::Value::Object)
+    };
+    Ok(match source {
+        Source::Gvln { file, offset } => serde_json::json!({
+            "format": "gvln",
+            "offset": [offset.x, offset.y],
+            "inputs": hashed(std::slice::from_ref(file))?,
+        }),
+        Source::R2r { dir, split } => {
+            let (main, gt) = r2r::paths(dir, split);
+            let read: Vec<PathBuf> = std::iter::once(main)
+                .chain(Some(gt).filter(|p| p.is_file()))
+                .collect();
+            serde_json::json!({
+                "format": "r2r",
+                "split": split,
+                "inputs": hashed(&read)?,
+            })
+        }
+        Source::GnBench {
+            file, instruction, ..
+        } => serde_json::json!({
+            "format": "gn-bench",
+            "instruction": instruction,
+            "inputs": hashed(std::slice::from_ref(file))?,
+        }),
+    })
+}
+
 /// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
 /// in the dataset's `splits.json` ([`folder::add_split`]). `dataset` must
 /// be new, empty, or a dataset folder written by `data build` or `data import` (a folder
@@ -125,13 +165,24 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     jsonl::write(&file, &episodes)?;
     folder::add_split(dataset, split, &episodes)?;
-    // A built dataset keeps its build's record (it names the scenes folder `eval` reads).
+    // A built dataset keeps its build's record (it names the scenes folder `eval` reads); either
+    // record lists every import by split, with its source and the source files' hashes.
+    let imported = provenance(source)?;
     if sage_io::run::recorded_command(dataset).is_none() {
-        let settings = match &gn {
+        let mut settings = match &gn {
             Some((_, _, s, _)) => serde_json::json!({"scenes": folder::scenes_record(dataset, s)}),
             None => serde_json::json!({}),
         };
+        settings["imports"] = serde_json::json!({ split: imported });
         sage_io::run::write_run_record(dataset, COMMAND, None, settings)?;
+    } else {
+        let path = dataset.join(sage_io::RUN_RECORD);
+        let mut record: serde_json::Value = sage_io::files::read_json(&path)?;
+        if !record["imports"].is_object() {
+            record["imports"] = serde_json::json!({});
+        }
+        record["imports"][split] = imported;
+        sage_io::files::write_json(&path, &record)?;
     }
     let mut out = Imported {
         episodes,

@@ -193,9 +193,45 @@ pub fn claim(out: &Path, force: bool) -> Result<FolderLock> {
     sage_io::run::claim_folder(out, &[COMMAND], &RUN_OUTPUTS, force)
 }
 
+/// The run record's fingerprint of the scenes the split's `episodes` name: per scene, the hash
+/// of every file loading it reads ([`sage_scene::input_hashes`]; a scene not among `dirs`
+/// has none).
+pub(crate) fn scene_inputs(
+    episodes: &[Episode],
+    dirs: &BTreeMap<String, std::path::PathBuf>,
+) -> serde_json::Value {
+    let names: BTreeSet<&str> = episodes.iter().map(|e| e.scene.as_str()).collect();
+    let hashes: Vec<(&str, BTreeMap<String, String>)> = names
+        .into_par_iter()
+        .filter_map(|name| Some((name, sage_scene::input_hashes(dirs.get(name)?))))
+        .collect();
+    serde_json::json!(hashes.into_iter().collect::<BTreeMap<_, _>>())
+}
+
+/// The first scene file whose hash differs between two run records' `scene_inputs`, as
+/// `scene/file` (only files both record are compared: a record written before the hashes
+/// existed has none).
+fn changed_scene_file(old: &serde_json::Value, new: &serde_json::Value) -> Option<String> {
+    let old = old.as_object()?;
+    new.as_object()?.iter().find_map(|(scene, files)| {
+        let before = old.get(scene)?.as_object()?;
+        files.as_object()?.iter().find_map(|(file, hash)| {
+            before
+                .get(file)
+                .filter(|h| *h != hash)
+                .map(|_| format!("{scene}/{file}"))
+        })
+    })
+}
+
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
-/// run) and writes the run record.
-fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str) -> Result<()> {
+/// run, on the same data and scenes) and writes the run record.
+fn claim_run_folder(
+    out: &Path,
+    settings: &serde_json::Value,
+    dataset_hash: &str,
+    scenes: &serde_json::Value,
+) -> Result<()> {
     let path = out.join(RUN_RECORD);
     if path.is_file() {
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
@@ -220,8 +256,17 @@ fn claim_run_folder(out: &Path, settings: &serde_json::Value, dataset_hash: &str
             )
             .in_file(&path));
         }
+        if let Some(file) = old
+            .get("scene_inputs")
+            .and_then(|o| changed_scene_file(o, scenes))
+        {
+            return Err(Error::invalid(format!(
+                "this run folder holds a run on other scene files ({file} changed since); use a new run folder (`out`)"
+            ))
+            .in_file(&path));
+        }
     }
-    write_run_record(out, settings, dataset_hash)
+    write_run_record(out, settings, dataset_hash, scenes)
 }
 
 /// The settings as the run record stores them: `settings` with the agent's recorded name.
@@ -232,11 +277,13 @@ pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<
     Ok(recorded)
 }
 
-/// Writes an evaluation's run record: its recorded settings and the split file's hash.
+/// Writes an evaluation's run record: its recorded settings, the split file's hash and the
+/// hashes of its scenes' files ([`scene_inputs`]).
 pub(crate) fn write_run_record(
     out: &Path,
     recorded: &serde_json::Value,
     dataset_hash: &str,
+    scenes: &serde_json::Value,
 ) -> Result<()> {
     sage_io::run::write_run_record(
         out,
@@ -245,6 +292,7 @@ pub(crate) fn write_run_record(
         serde_json::json!({
             "settings": recorded,
             "dataset_hash": dataset_hash,
+            "scene_inputs": scenes,
         }),
     )
 }
@@ -287,12 +335,15 @@ pub(crate) fn open_split(
         ))
         .in_file(&file));
     }
-    if let Some(keep) = shard {
-        episodes.retain(|e| keep(e));
-    }
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let dataset_hash = sage_io::hash::fnv1a64_hex(&bytes);
     let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
+    // The whole split's scenes, so that the shards of a run record what the run over all
+    // of them records.
+    let scenes = scene_inputs(&episodes, &dirs);
+    if let Some(keep) = shard {
+        episodes.retain(|e| keep(e));
+    }
     if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
         return Err(Error::invalid(format!(
             "scene '{}' of episode {} is not among the scenes",
@@ -302,7 +353,7 @@ pub(crate) fn open_split(
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let recorded = recorded_settings(settings, agent)?;
-    claim_run_folder(out, &recorded, &dataset_hash)?;
+    claim_run_folder(out, &recorded, &dataset_hash, &scenes)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let done = records::resume(&out.join(RECORDS_FILE), &ids)?;
     Ok(Split {

@@ -1,7 +1,7 @@
 //! Merging the records of an evaluation run in shards (one per node or scene group) into the
 //! run folder one evaluation over the union would have written.
 
-use crate::evaluator::{recorded_settings, write_run_record};
+use crate::evaluator::{recorded_settings, scene_inputs, write_run_record};
 use crate::folder::{RECORDS_FILE, SUMMARY_FILE};
 use crate::records::EvalRecord;
 use crate::settings::EvalSettings;
@@ -74,6 +74,9 @@ pub fn merge_shards(
     write_json(&out.join(SUMMARY_FILE), &summary)?;
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let recorded = recorded_settings(settings, agent)?;
-    write_run_record(out, &recorded, &sage_io::hash::fnv1a64_hex(&bytes))?;
+    // The scenes as they are where the shards are merged; without them there, none.
+    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes).unwrap_or_default();
+    let scenes = scene_inputs(&episodes, &dirs);
+    write_run_record(out, &recorded, &sage_io::hash::fnv1a64_hex(&bytes), &scenes)?;
     Ok(summary)
 }

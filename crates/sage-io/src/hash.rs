@@ -13,14 +13,43 @@ pub fn fnv1a32(bytes: &[u8]) -> u32 {
 
 /// FNV-1a, 64 bits: fingerprints of files and seeds derived from names.
 pub fn fnv1a64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    })
+    fnv1a64_on(FNV64_OFFSET, bytes)
+}
+
+/// FNV-1a 64's start: the hash of nothing.
+const FNV64_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// FNV-1a 64 of what gave `h`, followed by `bytes`.
+fn fnv1a64_on(h: u64, bytes: &[u8]) -> u64 {
+    bytes
+        .iter()
+        .fold(h, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
 }
 
 /// [`fnv1a64`] as 16 lower-case hex digits, as run records and scene files store it.
 pub fn fnv1a64_hex(bytes: &[u8]) -> String {
     format!("{:016x}", fnv1a64(bytes))
+}
+
+/// [`fnv1a64_hex`] of the file at `path`, read in pieces (a scene's Gaussians may be hundreds
+/// of megabytes).
+///
+/// # Errors
+///
+/// The file cannot be read, naming it.
+pub fn fnv1a64_file_hex(path: &std::path::Path) -> sage_core::Result<String> {
+    use std::io::Read;
+    let fail = |e| sage_core::Error::io(path, e);
+    let mut file = std::fs::File::open(path).map_err(fail)?;
+    let mut buf = vec![0u8; 1 << 20];
+    let mut h = FNV64_OFFSET;
+    loop {
+        let n = file.read(&mut buf).map_err(fail)?;
+        if n == 0 {
+            return Ok(format!("{h:016x}"));
+        }
+        h = fnv1a64_on(h, &buf[..n]);
+    }
 }
 
 /// FNV-1a, 128 bits, fed piece by piece: cache keys over many values.
@@ -73,6 +102,20 @@ mod tests {
         assert_eq!(h.finish(), 0x6c62_272e_07bb_0142_62b8_2175_6295_c58d);
         h.write(b"a");
         assert_eq!(h.finish(), 0xd228_cb69_6f1a_8caf_7891_2b70_4e4a_8964);
+    }
+
+    #[test]
+    fn a_file_hashes_as_its_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f");
+        // Past one read's piece, so the pieces are chained.
+        let bytes: Vec<u8> = (0..(3 << 20) + 17)
+            .map(|i: u32| (i * 7 % 251) as u8)
+            .collect();
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(fnv1a64_file_hex(&path).unwrap(), fnv1a64_hex(&bytes));
+        let e = fnv1a64_file_hex(&dir.path().join("missing")).unwrap_err();
+        assert!(e.to_string().contains("missing"), "{e}");
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Finding scene folders, naming them, and fingerprinting the files a pipeline reads.
 
-use crate::hash::fnv1a64_hex;
+use crate::hash::fnv1a64_file_hex;
 use sage_core::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -72,23 +72,29 @@ pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
     ]
     .iter()
     .map(|f| dir.join(f))
-    .filter(|p| p.is_file())
     .collect();
     if let Ok(entries) = std::fs::read_dir(dir.join("meshes")) {
         let mut meshes: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
         meshes.sort();
         files.extend(meshes);
     }
+    hash_files(dir, &files)
+}
+
+/// FNV-1a 64 hashes (hex) of those of `files` that are readable files, keyed by their path
+/// relative to `dir`.
+pub fn hash_files(dir: &Path, files: &[PathBuf]) -> BTreeMap<String, String> {
     files
         .iter()
+        .filter(|p| p.is_file())
         .filter_map(|p| {
-            let bytes = std::fs::read(p).ok()?;
+            let hash = fnv1a64_file_hex(p).ok()?;
             let name = p
                 .strip_prefix(dir)
                 .unwrap_or(p)
                 .to_string_lossy()
                 .into_owned();
-            Some((name, fnv1a64_hex(&bytes)))
+            Some((name, hash))
         })
         .collect()
 }
@@ -96,6 +102,7 @@ pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hash::fnv1a64_hex;
 
     #[test]
     fn a_folder_of_scenes_lists_its_scenes_by_name_and_a_scene_lists_itself() {

@@ -1,4 +1,5 @@
-//! The validator every instruction passes, whatever wrote it (SPEC §8): no internal ids, 5–20
+//! The validator every instruction sage3d writes passes, whatever wrote it (SPEC §8; imported
+//! benchmarks keep their published instructions): no internal ids, 5–20
 //! words, every object noun grounded in the scene's text map, and the type's defining feature
 //! present. Rejects are counted by reason.
 

@@ -124,6 +124,7 @@ pub fn plan(
             "sampled": sampled,
             "kept": plan.views.len(),
             "dropped": plan.dropped.len(),
+            "inputs": sage_scene::input_hashes(scene_dir),
         }),
     )?;
     Ok(PlanReport {
@@ -136,6 +137,18 @@ pub fn plan(
         safety_threshold: plan.safety_threshold,
         groups,
     })
+}
+
+/// The files of reconstruction folder `dir` a fit reads: the plan and the rendered views,
+/// sorted.
+fn recon_inputs(dir: &Path) -> Vec<PathBuf> {
+    let views = dir.join(views::VIEWS_DIR);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&views)
+        .map(|entries| entries.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    files.sort();
+    files.insert(0, dir.join(PLAN_FILE));
+    files
 }
 
 /// The scene folder of a step: the one given, else the one the plan was made from.
@@ -306,7 +319,8 @@ pub fn fit(
         return Err(Error::invalid("`points` must be at least 1"));
     }
     let seed = settings.seed.unwrap_or(plan.seed);
-    let (scene, surfaces) = load_mesh_scene(&scene_of(&plan, scene))?;
+    let scene_dir = scene_of(&plan, scene);
+    let (scene, surfaces) = load_mesh_scene(&scene_dir)?;
     let samples = surface_samples(&surfaces, settings.points, seed);
     // The mean distance between samples spread evenly over the area.
     let spacing = (surfaces.area() / settings.points as f64).sqrt() as f32;
@@ -358,7 +372,14 @@ pub fn fit(
         out,
         FIT_COMMAND,
         Some(seed),
-        serde_json::json!({ "recon": dir.to_string_lossy(), "iterations": settings.iterations, "points": settings.points }),
+        serde_json::json!({
+            "recon": dir.to_string_lossy(),
+            "iterations": settings.iterations,
+            "points": settings.points,
+            // The plan, every file of the rendered views, and the scene.
+            "inputs": sage_io::scenes::hash_files(dir, &recon_inputs(dir)),
+            "scene_inputs": sage_scene::input_hashes(&scene_dir),
+        }),
     )?;
     Ok(FitReport {
         gaussians: report.gaussians,

@@ -312,7 +312,17 @@ pub fn render_to_folder(
         out,
         RENDER_COMMAND,
         None,
-        serde_json::json!({ "scene": scene.name, "camera": record["camera"], "turntable": settings.turntable, "device": settings.device }),
+        serde_json::json!({
+            "scene": scene.name,
+            "settings": {
+                "scene": settings.scene,
+                "camera": record["camera"],
+                "background": settings.background,
+                "turntable": settings.turntable,
+                "device": settings.device,
+            },
+            "inputs": sage_scene::input_hashes(&settings.scene),
+        }),
     )?;
     files.push(sage_io::RUN_RECORD.into());
     Ok(RenderReport {

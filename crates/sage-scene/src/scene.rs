@@ -116,6 +116,23 @@ pub mod files {
     ];
 }
 
+/// FNV-1a 64 hashes (hex) of every file loading the scene folder `dir` reads, keyed by their
+/// path relative to `dir`: the annotations, occupancy and meshes navigation reads
+/// ([`sage_io::scenes::input_hashes`]), the Gaussian file and the published collision file
+/// found by name. What run records store, so that a result names the exact scene it came from.
+pub fn input_hashes(dir: &Path) -> std::collections::BTreeMap<String, String> {
+    let mut hashes = sage_io::scenes::input_hashes(dir);
+    let gaussians = files::GAUSSIANS
+        .iter()
+        .map(|name| dir.join(name))
+        .find(|p| p.is_file());
+    let name = sage_io::scenes::scene_name(dir);
+    let collision = collision::find_in_folder(dir, &name);
+    let more: Vec<PathBuf> = gaussians.into_iter().chain(collision).collect();
+    hashes.extend(sage_io::scenes::hash_files(dir, &more));
+    hashes
+}
+
 impl Scene {
     /// Builds the instance table, numbers the objects, assigns rooms (where unset) and
     /// per-Gaussian instances.

@@ -232,6 +232,20 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// The run record's fingerprint of the scenes walked: per scene, the hash of every file
+    /// loading it reads ([`sage_scene::input_hashes`]).
+    pub fn scene_inputs(&self) -> serde_json::Value {
+        use rayon::prelude::*;
+        let hashes: BTreeMap<&String, BTreeMap<String, String>> = self
+            .routes
+            .keys()
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .filter_map(|name| Some((name, sage_scene::input_hashes(self.scene_dirs.get(name)?))))
+            .collect();
+        serde_json::json!(hashes)
+    }
+
     /// Reads the split and groups its goal-directed episodes (the first `limit`) into routes.
     ///
     /// # Errors
@@ -981,14 +995,17 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<(FolderLock, Option
         )
         .in_file(out));
     }
+    let scenes = plan.scene_inputs();
+    // Records written before the scenes' hashes existed resume on their settings alone.
     let same = read_json::<serde_json::Value>(&record_path).is_ok_and(|old| {
         old.get("settings") == Some(&settings)
             && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(plan.dataset_hash.as_str())
+            && old.get("scene_inputs").is_none_or(|o| *o == scenes)
     });
     if !same && !names.is_empty() {
         if !force {
             return Err(Error::invalid(
-                "the output folder holds a render with other settings or another dataset; use a new output folder (`out`), or set `force` to replace it",
+                "the output folder holds a render with other settings, another dataset or other scene files; use a new output folder (`out`), or set `force` to replace it",
             )
             .in_file(out));
         }
@@ -1010,7 +1027,11 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<(FolderLock, Option
         out,
         COMMAND,
         Some(plan.settings.seed),
-        serde_json::json!({ "settings": settings, "dataset_hash": plan.dataset_hash }),
+        serde_json::json!({
+            "settings": settings,
+            "dataset_hash": plan.dataset_hash,
+            "scene_inputs": scenes,
+        }),
     )?;
     Ok((lock, None))
 }
