@@ -56,6 +56,10 @@ def test_generate_equals_data_build(local_ray, scenes, cli_data, tmp_path):
     assert run(tmp_path / "ray")["scenes"]["absolute"] == run(cli_data)["scenes"]["absolute"]
     again = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)
     assert [o["status"] for o in again["scenes"]] == ["resumed"] * 3
+    # A misspelt setting is named before any task starts, as build_dataset names it.
+    with pytest.raises(ValueError, match="per_scen"):
+        distributed.generate(scenes, tmp_path / "typo", per_scen=2)
+    assert not (tmp_path / "typo").exists()
 
 
 class Forward:

@@ -152,7 +152,21 @@ def test_bad_settings_are_clear_errors():
         make(hfov=190)
     with pytest.raises(ValueError, match="unknown sensors"):
         make(sensors=["lidar"])
-    with pytest.raises(ValueError, match="0-5"):
-        env = make()
-        env.reset(seed=0)
-        env.step(9)
+    env = make()
+    env.reset(seed=0)
+    # LOOK_UP (4) is not among Discrete(4)'s actions: refused, as any index past the space.
+    for action in (9, 4, -1, 1.5):
+        with pytest.raises(ValueError, match=r"not in the action space Discrete\(4\)"):
+            env.step(action)
+    looking = make(look=True)
+    looking.reset(seed=0)
+    looking.step(4)
+    for bad, match in (({"episode_index": -1}, "episode_index: expected a whole number"),
+                       ({"episode_index": 10**6}, "episode_index: 1000000 is past")):
+        with pytest.raises(ValueError, match=match):
+            env.reset(options=bad)
+    with pytest.raises(ValueError, match="num_episodes: expected a whole number >= 1"):
+        make(num_episodes=-1)
+    # A misspelt field of `config` is named, not ignored.
+    with pytest.raises(ValueError, match="sensors.widht: unknown field"):
+        make(config={"sensors": {"widht": 3}})

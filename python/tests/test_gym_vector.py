@@ -59,3 +59,6 @@ def test_wrong_batch_sizes_are_errors():
     vec.reset(seed=0)
     with pytest.raises(ValueError, match="one per sub-environment"):
         vec.step(np.array([1, 1, 1]))
+    # LOOK_UP / LOOK_DOWN are not in MultiDiscrete([4 4]).
+    with pytest.raises(ValueError, match="not in the action space MultiDiscrete"):
+        vec.step(np.array([4, 5]))

@@ -100,6 +100,11 @@ def test_settings_are_checked(data, tmp_path):
         sg.render_training_data(dataset, scenes, tmp_path / "a", sensors=["rgb", "lidar"])
     with pytest.raises(ValueError, match="image"):
         sg.render_training_data(dataset, scenes, tmp_path / "a", image="webp")
+    # Each bad value names its argument.
+    with pytest.raises(ValueError, match="`jpeg_quality`: invalid value: integer `300`"):
+        sg.render_training_data(dataset, scenes, tmp_path / "a", jpeg_quality=300)
+    with pytest.raises(ValueError, match="`jpeg_quality` must be 1-100, got 0"):
+        sg.render_training_data(dataset, scenes, tmp_path / "a", jpeg_quality=0)
     (tmp_path / "b").mkdir()
     (tmp_path / "b" / "notes.txt").write_text("mine")
     with pytest.raises(ValueError, match="notes.txt"):

@@ -148,6 +148,16 @@ def test_python_view_serves_until_interrupted(world):
     assert proc.returncode != 0 and "KeyboardInterrupt" in err
 
 
+def test_an_exception_in_on_ready_stops_the_viewer_and_is_raised(world):
+    import sage3d
+
+    def fail(url):
+        raise RuntimeError(f"no browser for {url}")
+
+    with pytest.raises(RuntimeError, match="no browser for http://127.0.0.1:"):
+        sage3d.view(str(world[0]), port=0, on_ready=fail)
+
+
 # ---------- in a real browser ----------
 
 

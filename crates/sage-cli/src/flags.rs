@@ -5,7 +5,10 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 21] = [
+const NAMED_SETTINGS: [&str; 24] = [
+    "jpeg_quality",
+    "objects",
+    "seed",
     "cell",
     "length_mix",
     "force",

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 /// What actions the agent may send (STOP is allowed in every space).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ActionSpace {
     /// `stop / move_forward / turn_left / turn_right / look_up / look_down`.
     Discrete {
@@ -47,6 +47,7 @@ impl Default for ActionSpace {
 
 /// The camera and which images it produces.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SensorConfig {
     /// Image width, pixels.
     pub width: u32,
@@ -96,6 +97,7 @@ impl SensorConfig {
 
 /// Task limits (SPEC §10).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TaskConfig {
     /// Steps after which an episode is cut (STOP included).
     pub max_steps: usize,
@@ -132,6 +134,7 @@ pub fn gnbench_hfov_deg() -> f32 {
 
 /// Everything an [`crate::Env`] is set up with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct EnvConfig {
     /// Agent profile name (`wheeled`, `go2`, `g1`, `h1`, `uav`).
     pub agent: String,
@@ -183,8 +186,16 @@ impl EnvConfig {
             match (base, over) {
                 (Value::Object(b), Value::Object(o)) => {
                     for (k, v) in o {
+                        // An object of another kind (`actions` turned `ground`) replaces the
+                        // preset's whole: the preset's fields are not that kind's.
+                        let same_kind = |slot: &Value| {
+                            v.get("kind")
+                                .is_none_or(|kind| slot.get("kind") == Some(kind))
+                        };
                         match b.get_mut(k) {
-                            Some(slot) if v.is_object() && slot.is_object() => merge(slot, v),
+                            Some(slot) if v.is_object() && slot.is_object() && same_kind(slot) => {
+                                merge(slot, v)
+                            }
                             _ => {
                                 b.insert(k.clone(), v.clone());
                             }
@@ -197,8 +208,10 @@ impl EnvConfig {
         let mut v = serde_json::to_value(EnvConfig::preset(preset)?)
             .map_err(|e| Error::invalid(e.to_string()))?;
         merge(&mut v, overrides);
-        let config: EnvConfig = serde_json::from_value(v)
-            .map_err(|e| Error::invalid(format!("environment config: {e}")))?;
+        // The path names the field at fault (`sensors.widht`), which serde's message lacks.
+        let config: EnvConfig = serde_path_to_error::deserialize(v).map_err(|e| {
+            Error::invalid(format!("environment config: {}: {}", e.path(), e.inner()))
+        })?;
         config.validate()?;
         Ok(config)
     }
@@ -421,7 +434,32 @@ mod tests {
         assert!(e.to_string().contains("hfov_deg"), "{e}");
         let e =
             EnvConfig::with_overrides("sage", &json!({"sensors": {"width": "wide"}})).unwrap_err();
-        assert!(e.to_string().contains("environment config"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("environment config: sensors.width: invalid type"),
+            "{e}"
+        );
+        // A misspelt field is an error naming it, at any depth.
+        for (over, path) in [
+            (
+                json!({"sensors": {"widht": 3}}),
+                "sensors.widht: unknown field `widht`",
+            ),
+            (json!({"sensorz": {}}), "sensorz: unknown field `sensorz`"),
+            (
+                json!({"task": {"max_step": 3}}),
+                "task.max_step: unknown field",
+            ),
+            (
+                json!({"actions": {"forwrd": 0.3}}),
+                "actions: unknown field `forwrd`",
+            ),
+        ] {
+            let e = EnvConfig::with_overrides("sage", &over)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(path), "{over}: {e}");
+        }
         assert!(EnvConfig::with_overrides("habitat", &json!({})).is_err());
     }
 

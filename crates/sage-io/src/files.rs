@@ -137,13 +137,19 @@ pub fn parse_json<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Re
 /// A JSON parse error located at its line and column, said once (serde_json's own text ends
 /// with the place again).
 pub fn json_error(e: &serde_json::Error) -> Error {
-    let place = format!("line {} column {}", e.line(), e.column());
+    Error::format(
+        format!("line {} column {}", e.line(), e.column()),
+        json_message(e),
+    )
+}
+
+/// serde_json's message without the place it appends (` at line L column C`): for text whose
+/// lines and columns mean nothing to its reader, such as JSON made from keyword arguments.
+pub fn json_message(e: &serde_json::Error) -> String {
     let text = e.to_string();
-    let message = text
-        .strip_suffix(&format!(" at {place}"))
+    text.strip_suffix(&format!(" at line {} column {}", e.line(), e.column()))
         .unwrap_or(&text)
-        .to_string();
-    Error::format(place, message)
+        .to_string()
 }
 
 /// Writes an 8- or 16-bit PNG (atomically). `data` holds the rows top to bottom, samples

@@ -300,9 +300,11 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
         .map(|t| EnvEpisode::from_trajectory(format!("t{}", t.id), t, "go to the goal"))
         .collect();
     if episodes.is_empty() {
-        return Err(Error::invalid(
-            "the generated home has no trajectory to run",
-        ));
+        return Err(Error::invalid(format!(
+            "the generated home of {} objects has no trajectory to run (its endpoints are \
+             objects, rooms and areas: more `objects` or another `seed` gives some)",
+            scene.objects.len()
+        )));
     }
     let (name, objects, gaussians) = (
         scene.name.clone(),

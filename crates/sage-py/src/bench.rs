@@ -74,6 +74,19 @@ fn eval_options(
     Ok(EvalOptions { scenes, ..given })
 }
 
+/// Checks the settings of a dataset build into `out` (`sage3d data build`'s flags by name)
+/// before any work: a bad name or value is a `ValueError` naming it, as
+/// [`build_dataset`](crate::pipeline::build_dataset) raises it.
+#[pyfunction]
+#[pyo3(signature = (out, **settings))]
+pub fn check_build_settings(
+    py: Python<'_>,
+    out: PathBuf,
+    settings: Option<&Bound<'_, PyDict>>,
+) -> PyResult<()> {
+    build_params(py, &out, settings).map(|_| ())
+}
+
 /// The options of an evaluation (`sage3d eval`'s flags by name) with every default filled in,
 /// as a dict: what a driver that splits the evaluation needs to know of them (its split).
 #[pyfunction]

@@ -80,9 +80,18 @@ pub fn from_kwargs<T: DeserializeOwned>(
     from_json(&text, what)
 }
 
-/// Parses `text` (JSON written by the Python side) as `T`, naming `what` on failure.
+/// Parses `text` (JSON written by the Python side) as `T`, naming `what` and the argument at
+/// fault (`per_scene`, `sensors.width`) on failure.
 pub fn from_json<T: DeserializeOwned>(text: &str, what: &str) -> PyResult<T> {
-    serde_json::from_str(text).map_err(|e| PyValueError::new_err(format!("{what}: {e}")))
+    serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_str(text)).map_err(|e| {
+        let path = e.path().to_string();
+        let message = sage_io::files::json_message(e.inner());
+        PyValueError::new_err(if path == "." {
+            format!("{what}: {message}")
+        } else {
+            format!("{what}: `{path}`: {message}")
+        })
+    })
 }
 
 /// A floor point from 2 (x, y) or 3 (x, y, z; z ignored) coordinates in the W frame.

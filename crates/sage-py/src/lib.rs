@@ -38,6 +38,7 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bench::merge_eval, m)?)?;
     m.add_function(wrap_pyfunction!(bench::run_records, m)?)?;
     m.add_function(wrap_pyfunction!(bench::evaluation_options, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::check_build_settings, m)?)?;
     m.add_function(wrap_pyfunction!(bench::build_scene, m)?)?;
     m.add_function(wrap_pyfunction!(bench::assemble_dataset, m)?)?;
     m.add_function(wrap_pyfunction!(bench::scene_dirs, m)?)?;

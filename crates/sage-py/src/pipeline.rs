@@ -41,18 +41,20 @@ pub fn demo<'py>(
 /// (`per_scene=20`, `seed=0`, `agent="wheeled"`, `length_mix=None`, `base_actions=None`,
 /// `nogoal=1`, `high_per_type=1`, `balanced=1000`, `scene_unseen=0.15`, `val=0.1`, and
 /// `llm_url`, `llm_model`, `llm_key_env`, `llm_concurrency`, `llm_cache` for an LLM's
-/// high-level instructions). Returns the dataset's summary.
+/// high-level instructions); `force=True` writes into a folder of other files, never
+/// replacing one of them. Returns the dataset's summary.
 #[pyfunction]
-#[pyo3(signature = (scenes, out, **settings))]
+#[pyo3(signature = (scenes, out, force=false, **settings))]
 pub fn build_dataset<'py>(
     py: Python<'py>,
     scenes: PathBuf,
     out: PathBuf,
+    force: bool,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings: BuildSettings = from_kwargs(py, settings, "dataset build settings")?;
     let report = py
-        .detach(|| sage_pipeline::dataset::build(&scenes, &out, &settings, false, &|_, _| {}))
+        .detach(|| sage_pipeline::dataset::build(&scenes, &out, &settings, force, &|_, _| {}))
         .py()?;
     to_py(py, &report.summary)
 }

@@ -11,8 +11,9 @@ use std::sync::{Arc, Mutex};
 /// Serves the viewer over `path` (a scene, a folder of scenes, a dataset or an evaluation run)
 /// until interrupted (Ctrl-C, which is raised as `KeyboardInterrupt` when the server has
 /// stopped). The keyword arguments are `sage3d view`'s flags by name; `on_ready(url)` is
-/// called once the server listens (default: print the URL). `play=RUN` records human play of
-/// the dataset split into the run folder RUN.
+/// called once the server listens, before it answers (default: print the URL); an exception
+/// it raises stops the server and is raised here. `play=RUN` records human play of the
+/// dataset split into the run folder RUN.
 #[pyfunction]
 #[pyo3(signature = (
     path, *, scenes=None, split=None, play=None, force=false, preset="sage".to_string(),
@@ -51,9 +52,14 @@ pub fn view(
         public,
         ..ViewOptions::new(path)
     };
-    // The interrupt that stopped the server, raised once it has.
+    // The exception that stopped the server (an interrupt, or `on_ready`'s), raised once it
+    // has.
     let interrupted: Arc<Mutex<Option<PyErr>>> = Arc::default();
-    let slot = interrupted.clone();
+    let keep = |e: PyErr| {
+        if let Ok(mut slot) = interrupted.lock() {
+            slot.get_or_insert(e);
+        }
+    };
     py.detach(|| {
         sage_view::serve(
             &opts,
@@ -61,22 +67,22 @@ pub fn view(
                 Python::attach(|py| match &on_ready {
                     Some(f) => {
                         if let Err(e) = f.call1(py, (server.url.clone(),)) {
-                            e.print(py);
+                            keep(e);
                         }
                     }
                     None => println!("sage3d view: open {}", server.url),
                 })
             },
-            move || {
-                Python::attach(|py| match py.check_signals() {
-                    Ok(()) => true,
-                    Err(e) => {
-                        if let Ok(mut slot) = slot.lock() {
-                            *slot = Some(e);
+            || {
+                let failed = interrupted.lock().is_ok_and(|slot| slot.is_some());
+                !failed
+                    && Python::attach(|py| match py.check_signals() {
+                        Ok(()) => true,
+                        Err(e) => {
+                            keep(e);
+                            false
                         }
-                        false
-                    }
-                })
+                    })
             },
         )
     })

@@ -8,7 +8,7 @@ use crate::encode::ImageType;
 use crate::output::Layout;
 use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS, PresetName};
 use crate::run::{Sensors, Settings};
-use sage_core::Result;
+use sage_core::{Error, Result};
 use sage_dataset::folder::scenes_folder;
 use sage_physics::AgentProfile;
 use sage_splat::Device;
@@ -152,8 +152,14 @@ impl Options {
     ///
     /// # Errors
     ///
-    /// A step, turn or cap out of range.
+    /// A step, turn, cap or JPEG quality out of range.
     pub fn settings_with(&self, scenes: &Path) -> Result<Settings> {
+        if !(1..=100).contains(&self.jpeg_quality) {
+            return Err(Error::invalid(format!(
+                "`jpeg_quality` must be 1-100, got {}",
+                self.jpeg_quality
+            )));
+        }
         let preset = ActionPreset::with(
             self.preset.preset(),
             self.step,

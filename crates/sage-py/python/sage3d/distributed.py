@@ -147,6 +147,8 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     """
     ray = _ray()
     out = os.fspath(out)
+    # A misspelt or bad setting fails here, naming it, not in every task.
+    _sage3d.check_build_settings(out, **settings)
     dirs = [os.fspath(d) for d in _sage3d.scene_dirs(os.fspath(scenes))]
     task = ray.remote(num_cpus=num_cpus)(_build_scene)
     refs = {task.remote(d, out, settings): os.path.basename(d) for d in dirs}

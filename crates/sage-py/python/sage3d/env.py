@@ -61,7 +61,7 @@ def _merge(base: dict, over: dict) -> dict:
 
 
 def config_overrides(width: int | None = None, height: int | None = None,
-                     sensors: Iterable[str] | None = None, actions: str = "discrete",
+                     sensors: str | Iterable[str] | None = None, actions: str = "discrete",
                      max_steps: int | None = None, hfov: float | None = None,
                      config: dict | None = None, device: str | None = None) -> dict:
     """The environment settings over the preset (``EnvConfig`` fields, as JSON) from the
@@ -77,7 +77,8 @@ def config_overrides(width: int | None = None, height: int | None = None,
     if hfov is not None:
         s["hfov_deg"] = float(hfov)
     if sensors is not None:
-        sensors = set(sensors)
+        # "rgb,depth" as data render takes it, or a list of names.
+        sensors = set(sensors.split(",") if isinstance(sensors, str) else sensors)
         unknown = sensors - set(SENSORS)
         if unknown:
             raise ValueError(f"unknown sensors {sorted(unknown)} (expected some of {list(SENSORS)})")
@@ -94,6 +95,14 @@ def config_overrides(width: int | None = None, height: int | None = None,
     if max_steps is not None:
         o["task"] = {"max_steps": int(max_steps)}
     return _merge(o, config or {})
+
+
+def whole(name: str, value, least: int = 0) -> int:
+    """``value`` as an int of at least ``least``, or a ``ValueError`` naming ``name`` (a negative
+    count would otherwise reach the Rust side as an ``OverflowError`` that names nothing)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ValueError(f"{name}: expected a whole number >= {least}, got {value!r}")
+    return int(value)
 
 
 def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", episodes=None,
@@ -121,7 +130,8 @@ def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", ep
             scene = synth_scene(**(synth or {}))
         elif not isinstance(scene, _sage3d.Scene):
             scene = _sage3d.Scene.load(os.fspath(scene))
-        eps = episodes if episodes is not None else scene.episodes(count=num_episodes, seed=seed)
+        eps = episodes if episodes is not None else scene.episodes(
+            count=whole("num_episodes", num_episodes, 1), seed=seed)
         eps = filter_episodes(eps, **filters)
         loaded, scene_of = [scene], [0] * len(eps)
     if not eps:
@@ -149,6 +159,25 @@ def observation_space(config: dict, instructions: Iterable[str]) -> spaces.Dict:
     charset = frozenset(string.printable).union(*texts)
     d["instruction"] = spaces.Text(max([1024, *map(len, texts)]), min_length=0, charset=charset)
     return spaces.Dict(d)
+
+
+def check_discrete(space: spaces.Space, action) -> None:
+    """Refuses an index outside a discrete action space: the simulator takes every index of
+    the six actions, but an env made without ``look`` offers four, and LOOK_UP / LOOK_DOWN
+    must not pass as if offered. (Velocities outside a Box are clamped to the agent's limits by
+    the physics, as documented.)"""
+    if isinstance(space, spaces.MultiDiscrete):
+        indices = np.asarray(action)
+        # A batch of another size: the simulator's message names the count it wants.
+        if indices.shape != space.shape:
+            return
+        inside = np.issubdtype(indices.dtype, np.integer) and space.contains(indices.astype(np.int64))
+    elif isinstance(space, spaces.Discrete):
+        inside = space.contains(action)
+    else:
+        return
+    if not inside:
+        raise ValueError(f"action {action!r} is not in the action space {space}")
 
 
 def action_space(config: dict, look: bool = False) -> spaces.Space:
@@ -245,7 +274,10 @@ class SageEnv(_Prepared, gym.Env):
             except KeyError:
                 raise ValueError(f"episode {options['episode_id']!r} is not among this env's episodes") from None
         if "episode_index" in options:
-            return int(options["episode_index"])
+            index = whole("episode_index", options["episode_index"])
+            if index >= len(self._ids):
+                raise ValueError(f"episode_index: {index} is past this env's {len(self._ids)} episodes")
+            return index
         return int(self.np_random.integers(len(self._ids)))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -255,6 +287,7 @@ class SageEnv(_Prepared, gym.Env):
         return obs, info
 
     def step(self, action):
+        check_discrete(self.action_space, action)
         obs, reward, terminated, truncated, info = self._sim.step(action)
         self._last = obs
         return obs, float(reward), terminated, truncated, info

@@ -134,6 +134,9 @@ class TrainingSet:
         self.settings: dict = self.manifest.get("settings", {})
         #: The layout: ``navila``, ``webdataset`` or ``frames``.
         self.format: str = self.settings.get("format", "")
+        if self.format == "lerobot":
+            raise ValueError(f"{manifest}: a LeRobot dataset: read it with LeRobot's own loader "
+                             "(lerobot.datasets.lerobot_dataset.LeRobotDataset; docs/training-data.md)")
         if self.format not in ("navila", "webdataset", "frames"):
             raise ValueError(f"{manifest}: unknown training-set format {self.format!r}")
 

@@ -11,7 +11,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _sage3d
-from .env import _json, _Prepared, action_space, observation_space
+from .env import _json, _Prepared, action_space, check_discrete, observation_space, whole
 
 
 class SageVectorEnv(_Prepared, VectorEnv):
@@ -37,6 +37,7 @@ class SageVectorEnv(_Prepared, VectorEnv):
                  sensors: Iterable[str] | None = None, actions: str = "discrete",
                  look: bool = False, max_steps: int | None = None, hfov: float | None = None,
                  config: dict | None = None, mode: str = "sage", device: str = "cpu"):
+        num_envs = whole("num_envs", num_envs, 1)
         overrides, pool_scenes, eps, scene_of = self._prepare(
             render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
             seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config, device)
@@ -88,6 +89,7 @@ class SageVectorEnv(_Prepared, VectorEnv):
         return self._batch(obs, infos)
 
     def step(self, actions):
+        check_discrete(self.action_space, actions)
         resets = [self._draw(i) if done else None for i, done in enumerate(self._autoreset)]
         obs, rewards, terminated, truncated, infos = self._sim.step(list(actions), resets)
         self._autoreset = terminated | truncated
