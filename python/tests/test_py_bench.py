@@ -79,6 +79,10 @@ def test_metric_mode_and_dtw_from_python_equal_the_cli(data, sage3d, tmp_path):
         sg.evaluate(dataset, scenes, "forward", tmp_path / "py", split="train", mode="vlnce")
     with pytest.raises(ValueError, match="expected exact or fast"):
         sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", dtw="approx")
+    with pytest.raises(ValueError, match="scenes_only: 'nosuch' has no episode in split 'train'"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", scenes_only=["nosuch"])
+    with pytest.raises(ValueError, match="`seed`: invalid value: integer `-1`"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", seed=-1)
 
 
 def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):

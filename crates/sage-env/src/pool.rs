@@ -314,7 +314,8 @@ impl PooledEnv {
         let trace = env
             .trace()
             .ok_or_else(|| Error::invalid("no running episode"))?;
-        let path_length: f32 = trace
+        // A fold from +0: `sum` of no steps is −0, which Python prints as `-0.0`.
+        let path_length = trace
             .steps
             .iter()
             .scan(trace.episode.start.position, |at, s| {
@@ -322,7 +323,7 @@ impl PooledEnv {
                 *at = s.pose.position;
                 Some(d)
             })
-            .sum();
+            .fold(0.0_f32, |total, d| total + d);
         let metrics = match trace.termination {
             Some(_) => Some(crate::scoring::score(ctx, trace, mode)?),
             None => None,

@@ -166,6 +166,20 @@ pub fn evaluate<'py>(
             .map_err(|e| Error::invalid(format!("python agent {name}: {e}"))),
         }
     };
+    if let Some(names) = &scenes_only {
+        // A name that matches nothing would run no episode and say nothing.
+        let (_, episodes) =
+            sage_dataset::folder::split_episodes(&settings.dataset, &settings.split).py()?;
+        let present: std::collections::BTreeSet<&str> =
+            episodes.iter().map(|e| e.scene.as_str()).collect();
+        if let Some(missing) = names.iter().find(|n| !present.contains(n.as_str())) {
+            return Err(PyValueError::new_err(format!(
+                "scenes_only: '{missing}' has no episode in split '{}' (its scenes: {})",
+                settings.split,
+                present.into_iter().collect::<Vec<_>>().join(", ")
+            )));
+        }
+    }
     let keep =
         |e: &sage_dataset::Episode| scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene));
     let runner = Runner {

@@ -262,7 +262,14 @@ impl PyPathFinder {
             .pathfinder
             .sample_navigable_point(&mut *rng, island)
             .ok_or_else(|| {
-                pyo3::exceptions::PyValueError::new_err(format!("no island {island:?}"))
+                let islands = self.ctx.pathfinder.island_areas().len();
+                pyo3::exceptions::PyValueError::new_err(match island {
+                    Some(i) => format!(
+                        "island: {i} is not an island (this scene has {islands}: 0-{})",
+                        islands.saturating_sub(1)
+                    ),
+                    None => "the scene has no navigable cell".to_string(),
+                })
             })?;
         Self::xy(py, p)
     }
