@@ -61,3 +61,10 @@ def test_snapping_sampling_and_unreachable_points(planned):
     island = pf.island(a[0])
     assert areas[island] > 0
     assert pf.island(pf.sample_navigable_point(island)) == island
+    # Out-of-range integers are ValueErrors naming the argument, not bare OverflowErrors.
+    with pytest.raises(ValueError, match=f"island: {len(areas)} is not an island"):
+        pf.sample_navigable_point(len(areas))
+    with pytest.raises(ValueError, match="island: expected a whole number within u32, got -1"):
+        pf.sample_navigable_point(-1)
+    with pytest.raises(ValueError, match="count: expected a whole number within usize, got -1"):
+        scene.episodes(count=-1)

@@ -80,6 +80,18 @@ pub fn from_kwargs<T: DeserializeOwned>(
     from_json(&text, what)
 }
 
+/// The Python integer `value` of argument `name` as the unsigned `T`, or a `ValueError` naming
+/// the argument and the type's range (PyO3's own `OverflowError` for a negative or huge int
+/// names neither).
+pub fn unsigned<T: TryFrom<i128>>(name: &str, value: i128) -> PyResult<T> {
+    T::try_from(value).map_err(|_| {
+        PyValueError::new_err(format!(
+            "{name}: expected a whole number within {}, got {value}",
+            std::any::type_name::<T>()
+        ))
+    })
+}
+
 /// Parses `text` (JSON written by the Python side) as `T`, naming `what` and the argument at
 /// fault (`per_scene`, `sensors.width`) on failure.
 pub fn from_json<T: DeserializeOwned>(text: &str, what: &str) -> PyResult<T> {

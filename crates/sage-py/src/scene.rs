@@ -1,7 +1,7 @@
 //! Scenes as Python objects: a loaded [`SceneContext`] (from a folder, or synthesised and
 //! cached) and its path finder with Habitat's query names.
 
-use crate::convert::{PyResultExt, array, point, to_py};
+use crate::convert::{PyResultExt, array, point, to_py, unsigned};
 use glam::Vec2;
 use numpy::ndarray::Ix1;
 use pyo3::prelude::*;
@@ -158,10 +158,10 @@ impl PyScene {
     fn episodes<'py>(
         &self,
         py: Python<'py>,
-        count: usize,
-        seed: u64,
+        count: i128,
+        seed: i128,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let params = SceneParams::new(count, seed);
+        let params = SceneParams::new(unsigned("count", count)?, unsigned("seed", seed)?);
         let (_, episodes) = py
             .detach(|| scene_episodes(&self.ctx.scene, &params, None))
             .py()?;
@@ -254,8 +254,9 @@ impl PyPathFinder {
     fn sample_navigable_point<'py>(
         &self,
         py: Python<'py>,
-        island: Option<u32>,
+        island: Option<i128>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let island: Option<u32> = island.map(|i| unsigned("island", i)).transpose()?;
         let mut rng = self.rng.lock().map_err(|_| poisoned())?;
         let p = self
             .ctx

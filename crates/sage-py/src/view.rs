@@ -32,7 +32,7 @@ pub fn view(
     mode: String,
     device: String,
     host: String,
-    port: u16,
+    port: i128,
     public: bool,
     on_ready: Option<Py<PyAny>>,
 ) -> PyResult<()> {
@@ -48,7 +48,7 @@ pub fn view(
             .parse()
             .map_err(|_| Error::invalid(format!("host: '{host}' is not an IP address")))
             .py()?,
-        port,
+        port: crate::convert::unsigned("port", port)?,
         public,
         ..ViewOptions::new(path)
     };
