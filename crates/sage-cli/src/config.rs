@@ -173,8 +173,8 @@ fn check_table(
         .collect::<Vec<_>>()
         .join(" ");
     for (key, value) in table {
-        let inner_at = [at, std::slice::from_ref(key)].concat();
         if let Some(inner) = value.as_table() {
+            let inner_at = [at, std::slice::from_ref(key)].concat();
             let Some(sub) = cmd.find_subcommand(key) else {
                 let known: Vec<&str> = cmd.get_subcommands().map(|c| c.get_name()).collect();
                 let what = if known.is_empty() {

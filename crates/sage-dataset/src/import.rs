@@ -59,32 +59,22 @@ pub const COMMAND: &str = "data import";
 
 /// What the run record says of an import: the source's format, its settings and the hashes
 /// (FNV-1a 64) of the files read.
-fn provenance(source: &Source) -> Result<serde_json::Value> {
-    let hashed = |files: &[PathBuf]| -> Result<serde_json::Value> {
-        files
-            .iter()
-            .map(|f| {
-                let hash = sage_io::hash::fnv1a64_file_hex(f)?;
-                Ok((f.display().to_string(), serde_json::Value::String(hash)))
-            })
-            .collect::<Result<serde_json::Map<_, _>>>()
-            .map(serde_json::Value::Object)
-    };
-    Ok(match source {
+fn provenance(source: &Source) -> serde_json::Value {
+    // Keyed by the paths as given (relative to nothing); an absent ground-truth file of an
+    // R2R split is left out, as the reader leaves it.
+    let hashed = |files: &[PathBuf]| sage_io::scenes::hash_files(Path::new(""), files);
+    match source {
         Source::Gvln { file, offset } => serde_json::json!({
             "format": "gvln",
             "offset": [offset.x, offset.y],
-            "inputs": hashed(std::slice::from_ref(file))?,
+            "inputs": hashed(std::slice::from_ref(file)),
         }),
         Source::R2r { dir, split } => {
             let (main, gt) = r2r::paths(dir, split);
-            let read: Vec<PathBuf> = std::iter::once(main)
-                .chain(Some(gt).filter(|p| p.is_file()))
-                .collect();
             serde_json::json!({
                 "format": "r2r",
                 "split": split,
-                "inputs": hashed(&read)?,
+                "inputs": hashed(&[main, gt]),
             })
         }
         Source::GnBench {
@@ -92,9 +82,9 @@ fn provenance(source: &Source) -> Result<serde_json::Value> {
         } => serde_json::json!({
             "format": "gn-bench",
             "instruction": instruction,
-            "inputs": hashed(std::slice::from_ref(file))?,
+            "inputs": hashed(std::slice::from_ref(file)),
         }),
-    })
+    }
 }
 
 /// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
@@ -167,7 +157,7 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     folder::add_split(dataset, split, &episodes)?;
     // A built dataset keeps its build's record (it names the scenes folder `eval` reads); either
     // record lists every import by split, with its source and the source files' hashes.
-    let imported = provenance(source)?;
+    let imported = provenance(source);
     if sage_io::run::recorded_command(dataset).is_none() {
         let mut settings = match &gn {
             Some((_, _, s, _)) => serde_json::json!({"scenes": folder::scenes_record(dataset, s)}),

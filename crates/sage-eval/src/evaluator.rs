@@ -193,19 +193,17 @@ pub fn claim(out: &Path, force: bool) -> Result<FolderLock> {
     sage_io::run::claim_folder(out, &[COMMAND], &RUN_OUTPUTS, force)
 }
 
-/// The run record's fingerprint of the scenes the split's `episodes` name: per scene, the hash
-/// of every file loading it reads ([`sage_scene::input_hashes`]; a scene not among `dirs`
-/// has none).
+/// The run record's fingerprint of the scenes `episodes` name: per scene, the hash of every
+/// file loading it reads ([`sage_scene::scenes_input_hashes`]; a scene not among `dirs` has
+/// none).
 pub(crate) fn scene_inputs(
     episodes: &[Episode],
     dirs: &BTreeMap<String, std::path::PathBuf>,
 ) -> serde_json::Value {
-    let names: BTreeSet<&str> = episodes.iter().map(|e| e.scene.as_str()).collect();
-    let hashes: Vec<(&str, BTreeMap<String, String>)> = names
-        .into_par_iter()
-        .filter_map(|name| Some((name, sage_scene::input_hashes(dirs.get(name)?))))
-        .collect();
-    serde_json::json!(hashes.into_iter().collect::<BTreeMap<_, _>>())
+    serde_json::json!(sage_scene::scenes_input_hashes(
+        episodes.iter().map(|e| e.scene.as_str()),
+        dirs
+    ))
 }
 
 /// The first scene file whose hash differs between two run records' `scene_inputs`, as
@@ -338,12 +336,12 @@ pub(crate) fn open_split(
     let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
     let dataset_hash = sage_io::hash::fnv1a64_hex(&bytes);
     let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes)?;
-    // The whole split's scenes, so that the shards of a run record what the run over all
-    // of them records.
-    let scenes = scene_inputs(&episodes, &dirs);
     if let Some(keep) = shard {
         episodes.retain(|e| keep(e));
     }
+    // A shard hashes the scenes it runs (each node would otherwise read every scene's
+    // Gaussians); the merge of the shards records the whole split's, as one run over it does.
+    let scenes = scene_inputs(&episodes, &dirs);
     if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
         return Err(Error::invalid(format!(
             "scene '{}' of episode {} is not among the scenes",

@@ -33,5 +33,5 @@ pub use mesh::TriMesh;
 pub use object::{Attributes, BodyParts, BodySource, DoorState, Object, PhysicsRole, RigidBody};
 pub use occupancy::OccupancyMap;
 pub use ply::SplatLayout;
-pub use scene::{LoadOptions, LoadReport, Scene, input_hashes};
+pub use scene::{LoadOptions, LoadReport, Scene, input_hashes, scenes_input_hashes};
 pub use summary::SceneSummary;

@@ -133,6 +133,19 @@ pub fn input_hashes(dir: &Path) -> std::collections::BTreeMap<String, String> {
     hashes
 }
 
+/// [`input_hashes`] of each scene `names` names (once each, in parallel), by name; a name
+/// `dirs` does not hold is left out. What the run records of commands over many scenes store.
+pub fn scenes_input_hashes<'a>(
+    names: impl IntoIterator<Item = &'a str>,
+    dirs: &std::collections::BTreeMap<String, PathBuf>,
+) -> std::collections::BTreeMap<String, std::collections::BTreeMap<String, String>> {
+    let names: std::collections::BTreeSet<&str> = names.into_iter().collect();
+    names
+        .into_par_iter()
+        .filter_map(|name| Some((name.to_string(), input_hashes(dirs.get(name)?))))
+        .collect()
+}
+
 impl Scene {
     /// Builds the instance table, numbers the objects, assigns rooms (where unset) and
     /// per-Gaussian instances.

@@ -233,17 +233,12 @@ pub struct Plan {
 
 impl Plan {
     /// The run record's fingerprint of the scenes walked: per scene, the hash of every file
-    /// loading it reads ([`sage_scene::input_hashes`]).
+    /// loading it reads ([`sage_scene::scenes_input_hashes`]).
     pub fn scene_inputs(&self) -> serde_json::Value {
-        use rayon::prelude::*;
-        let hashes: BTreeMap<&String, BTreeMap<String, String>> = self
-            .routes
-            .keys()
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .filter_map(|name| Some((name, sage_scene::input_hashes(self.scene_dirs.get(name)?))))
-            .collect();
-        serde_json::json!(hashes)
+        serde_json::json!(sage_scene::scenes_input_hashes(
+            self.routes.keys().map(String::as_str),
+            &self.scene_dirs
+        ))
     }
 
     /// Reads the split and groups its goal-directed episodes (the first `limit`) into routes.
