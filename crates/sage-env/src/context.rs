@@ -9,7 +9,7 @@ use sage_physics::{
     default_cache_dir, splat_bodies,
 };
 use sage_scene::{LoadOptions, Scene};
-use sage_splat::{Backend, Device};
+use sage_splat::{Backend, Device, RendererPool};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -17,9 +17,9 @@ use std::sync::{Arc, Mutex, OnceLock};
 /// A loaded scene with its semantic map, collision bodies and path finder.
 ///
 /// Immutable once built (but for what it builds on first use and keeps: path finders for wide
-/// agents, the scene's upload to the GPU): share it (`Arc`) between the environments of all
-/// worker threads. What changes during an episode (the physics world with its movable bodies,
-/// the CPU renderer's buffers) lives in each [`crate::Env`], which copies its world from the
+/// agents, the scene's upload to the GPU or its pool of CPU renderers): share it (`Arc`)
+/// between the environments of all worker threads. What changes during an episode (the
+/// physics world with its movable bodies) lives in each [`crate::Env`], which copies its world from the
 /// context's pristine one.
 pub struct SceneContext {
     /// The scene.
@@ -44,9 +44,10 @@ pub struct SceneContext {
     /// GN-Bench's inflated occupancy grids (metric mode `gnbench`), built on first use;
     /// `None` inside when the scene has no occupancy image.
     gnbench: OnceLock<Option<GnBenchGrid>>,
-    /// The scene's Gaussians resident on a GPU, uploaded by the first environment that renders
-    /// there, by the device it was asked for (`gpu` and `auto` may choose different adapters).
-    gpu: Mutex<Vec<(Device, Backend)>>,
+    /// The scene's renderers by the device they were asked for (`gpu` and `auto` may choose
+    /// different adapters), opened by the first environment that renders there: the
+    /// Gaussians resident on a GPU, or the CPU's pool of renderers.
+    renderers: Mutex<Vec<(Device, Backend)>>,
 }
 
 impl SceneContext {
@@ -91,7 +92,7 @@ impl SceneContext {
             pathfinder: Arc::new(pathfinder),
             planners: Mutex::new(BTreeMap::new()),
             gnbench: OnceLock::new(),
-            gpu: Mutex::new(Vec::new()),
+            renderers: Mutex::new(Vec::new()),
         })
     }
 
@@ -108,10 +109,11 @@ impl SceneContext {
             .as_ref()
     }
 
-    /// A renderer of the scene's Gaussians on `device`. On a GPU every call hands out a handle
-    /// on one upload (the first call's; a scene is uploaded once however many environments
-    /// render it); the CPU renderer is built anew for each call, since its buffers are per
-    /// frame. `auto` without a usable hardware GPU gives a CPU renderer that says why in
+    /// A renderer of the scene's Gaussians on `device`: every call hands out a handle on the
+    /// first call's ([`Backend::shared_clone`]). On a GPU that is one upload of the scene
+    /// however many environments render it; on the CPU one pool of renderers over one index,
+    /// holding as many frame buffers as renders ran at once, not a set per environment.
+    /// `auto` without a usable hardware GPU gives a CPU renderer that says why in
     /// [`Backend::describe`].
     ///
     /// # Errors
@@ -119,23 +121,14 @@ impl SceneContext {
     /// `gpu` without a usable adapter (or in a build without the GPU renderer), or a scene too
     /// large for the adapter.
     pub fn renderer(&self, device: Device) -> Result<Backend> {
-        if device == Device::Cpu {
-            return Ok(Backend::cpu(&self.scene.gaussians));
-        }
-        // Held while uploading, so that environments created at once upload the scene once.
-        let mut uploads = self.gpu.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(shared) = uploads
-            .iter()
-            .find(|(d, _)| *d == device)
-            .and_then(|(_, b)| b.shared_clone())
-        {
-            return Ok(shared);
+        // Held while opening, so that environments created at once upload the scene once.
+        let mut opened = self.opened();
+        if let Some((_, backend)) = opened.iter().find(|(d, _)| *d == device) {
+            return Ok(backend.shared_clone());
         }
         let backend = Backend::open(device, &self.scene.gaussians)
             .map_err(|e| e.within(format!("device {device}")))?;
-        if let Some(shared) = backend.shared_clone() {
-            uploads.push((device, shared));
-        }
+        opened.push((device, backend.shared_clone()));
         Ok(backend)
     }
 
@@ -204,7 +197,21 @@ impl SceneContext {
     /// How many uploads of the scene are resident on GPUs: one per device asked for (`gpu`,
     /// `auto` where it took a GPU), however many environments render from it.
     pub fn uploads(&self) -> usize {
-        self.gpu.lock().unwrap_or_else(|e| e.into_inner()).len()
+        self.opened().iter().filter(|(_, b)| b.is_gpu()).count()
+    }
+
+    /// How many CPU renderers (sets of frame buffers) the scene's environments hold between
+    /// them: the most that rendered at once, however many environments there are.
+    pub fn cpu_renderers(&self) -> usize {
+        self.opened()
+            .iter()
+            .filter_map(|(_, b)| b.as_cpu())
+            .map(RendererPool::renderers)
+            .sum()
+    }
+
+    fn opened(&self) -> std::sync::MutexGuard<'_, Vec<(Device, Backend)>> {
+        self.renderers.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// A fresh physics world (movable bodies at their scene poses): a copy of the one built

@@ -118,8 +118,8 @@ pub struct Env {
 
 impl Env {
     /// An environment over `ctx` with `config` (validated). When the sensors produce images,
-    /// the renderer on `config.device` is opened here ([`SceneContext::renderer`]: the CPU
-    /// renderer's index is built, or the scene's one GPU upload shared).
+    /// the renderer on `config.device` is opened here ([`SceneContext::renderer`]: the scene's
+    /// one pool of CPU renderers, or its one GPU upload, shared).
     ///
     /// # Errors
     ///

@@ -16,9 +16,10 @@
 //! a dataset episode the environment uses), so this crate never depends on the benchmark crate.
 //!
 //! Images are rendered on the configuration's device ([`EnvConfig::device`], through
-//! `sage_splat::Backend`): on the CPU each environment has its own renderer; on a GPU every
-//! environment over a scene renders from one upload of it ([`SceneContext::renderer`]), and a
-//! [`VecEnv`] sends the cameras of its environments over a scene in one batch per step.
+//! `sage_splat::Backend`): every environment over a scene renders through the scene's one
+//! renderer ([`SceneContext::renderer`]): on the CPU a pool lending a renderer per render, on a
+//! GPU one upload of the Gaussians, to which a [`VecEnv`] sends the cameras of its
+//! environments over the scene in one batch per step.
 
 pub mod action;
 pub mod agents;

@@ -728,3 +728,74 @@ fn the_gnbench_preset_renders_480_by_360_and_its_mode_scores_on_the_occupancy_im
         f.ctx.gnbench_grid().unwrap()
     ));
 }
+
+/// CPU environments over a scene render with the scene's one pool of renderers: a vector
+/// environment of many holds the frame buffers of the renders that ran at once, not one set
+/// per environment, and forms the images a renderer of its own would.
+#[test]
+fn cpu_environments_share_the_scenes_renderers() {
+    use sage_env::pool::Order;
+    use sage_env::{Pool, PoolEpisode, VecEnv};
+    use sage_metrics::Mode;
+    let f = fixture();
+    // A context of its own: other tests' environments do not count.
+    let ctx = Arc::new(
+        SceneContext::new(
+            f.ctx.scene.clone(),
+            f.bodies.clone(),
+            &TrajectoryParams::default().grid,
+            TrajectoryParams::default().cost,
+        )
+        .unwrap(),
+    );
+    let entries: Vec<PoolEpisode> = f
+        .episodes
+        .iter()
+        .take(4)
+        .map(|e| PoolEpisode {
+            scene: 0,
+            scene_name: "home".into(),
+            episode: e.clone(),
+        })
+        .collect();
+    let pool = Arc::new(Pool::new(vec![ctx.clone()], entries).unwrap());
+    let envs = 16;
+    let threads = 2;
+    let workers = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let (resets, steps) = workers.install(|| {
+        let mut vec_env = VecEnv::new(envs, pool.clone(), tiny_camera(), Mode::Sage).unwrap();
+        let resets = vec_env
+            .run((0..envs).map(|i| Order::Reset(i % 4)).collect())
+            .unwrap();
+        let steps = vec_env
+            .run((0..envs).map(|_| Order::Step(Action::TurnLeft)).collect())
+            .unwrap();
+        (resets, steps)
+    });
+    assert!(ctx.cpu_renderers() >= 1);
+    assert!(
+        ctx.cpu_renderers() < envs,
+        "{} renderers for {envs} environments",
+        ctx.cpu_renderers()
+    );
+    // The images are those of an environment over a context of its own.
+    for i in [0, 5, 15] {
+        let single_ctx = Arc::new(
+            SceneContext::new(
+                f.ctx.scene.clone(),
+                f.bodies.clone(),
+                &TrajectoryParams::default().grid,
+                TrajectoryParams::default().cost,
+            )
+            .unwrap(),
+        );
+        let mut env = Env::new(single_ctx, tiny_camera()).unwrap();
+        let obs = env.reset(&f.episodes[i % 4]).unwrap();
+        assert_eq!(obs.images, resets[i].obs.images, "reset of environment {i}");
+        let (obs, _) = env.step(Action::TurnLeft).unwrap();
+        assert_eq!(obs.images, steps[i].obs.images, "step of environment {i}");
+    }
+}

@@ -7,8 +7,8 @@ use sage_core::Result;
 use sage_scene::Scene;
 use sage_scene::ply::SplatLayout;
 use sage_splat::{
-    Backend, Blending, Camera, Channels, Device, Intrinsics, PassTimes, RenderOptions, Renderer,
-    Rendering,
+    Backend, Blending, Camera, Channels, Device, Intrinsics, PassTimes, RenderOptions,
+    RendererPool, Rendering,
 };
 use sage_synth::{SceneKind, SynthConfig};
 use serde::{Deserialize, Serialize};
@@ -526,7 +526,10 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 let start = Instant::now();
                 backend.render(gaussians, categories, cam, &options)?;
                 let total = start.elapsed().as_secs_f64() * 1e3;
-                let s = backend.as_cpu().map(Renderer::stats).unwrap_or_default();
+                let s = backend
+                    .as_cpu()
+                    .map(RendererPool::stats)
+                    .unwrap_or_default();
                 passes.extend(backend.pass_times());
                 rows.push([
                     total,

@@ -10,7 +10,7 @@ use sage_scene::{InstanceKind, Scene};
 use sage_splat::camera::default_eye;
 use sage_splat::{
     Backend, Camera, CameraSpec, Channels, Device, Intrinsics, RenderOptions, RenderOutput,
-    Renderer,
+    RendererPool,
 };
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -268,7 +268,7 @@ pub fn render_to_folder(
     )?;
     // The CPU renderer times its stages; the GPU's frame is timed whole, read-back included.
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    let stats = backend.as_cpu().map(Renderer::stats);
+    let stats = backend.as_cpu().map(RendererPool::stats);
     write_images(out, &image)?;
     write_legend(&out.join("legend.json"), &scene, &image)?;
     let mut files: Vec<PathBuf> = IMAGES.iter().map(PathBuf::from).collect();

@@ -4,13 +4,13 @@
 
 use crate::camera::Camera;
 use crate::passes::{Blending, GPU_SLABS, PassTimes};
-use crate::render::{RenderOptions, RenderOutput, Renderer};
+use crate::pool::RendererPool;
+use crate::render::{RenderOptions, RenderOutput};
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
-#[cfg(feature = "gpu")]
 use std::sync::Arc;
 
 /// Where images are rendered: `cpu`, `gpu`, or `auto` (a hardware GPU when there is one,
@@ -138,7 +138,7 @@ impl FromStr for Device {
 
 /// The executor behind a [`Backend`].
 enum Executor {
-    Cpu(Box<Renderer>),
+    Cpu(Arc<RendererPool>),
     #[cfg(feature = "gpu")]
     Gpu(Arc<crate::gpu::GpuRenderer>),
 }
@@ -152,10 +152,10 @@ pub struct Backend {
 }
 
 impl Backend {
-    /// The CPU renderer for `gaussians`.
+    /// The CPU renderer for `gaussians` (a pool of its own: see [`Backend::shared_clone`]).
     pub fn cpu(gaussians: &Gaussians) -> Backend {
         Backend {
-            executor: Executor::Cpu(Box::new(Renderer::new(gaussians))),
+            executor: Executor::Cpu(Arc::new(RendererPool::new(gaussians))),
             description: cpu_description(),
             auto: false,
         }
@@ -239,17 +239,19 @@ impl Backend {
         &self.description
     }
 
-    /// Another handle on the same resident scene when the GPU renders (every environment over a
-    /// scene shares one upload); `None` for the CPU renderer, whose buffers are per frame.
-    pub fn shared_clone(&self) -> Option<Backend> {
-        match &self.executor {
-            Executor::Cpu(_) => None,
-            #[cfg(feature = "gpu")]
-            Executor::Gpu(r) => Some(Backend {
-                executor: Executor::Gpu(r.clone()),
-                description: self.description.clone(),
-                auto: self.auto,
-            }),
+    /// Another handle on the same renderer: on a GPU the same resident scene (every
+    /// environment over a scene shares one upload), on the CPU the same [`RendererPool`] (every
+    /// environment over a scene holds the frame buffers of as many renders as run at once,
+    /// not a set of its own).
+    pub fn shared_clone(&self) -> Backend {
+        Backend {
+            executor: match &self.executor {
+                Executor::Cpu(pool) => Executor::Cpu(pool.clone()),
+                #[cfg(feature = "gpu")]
+                Executor::Gpu(r) => Executor::Gpu(r.clone()),
+            },
+            description: self.description.clone(),
+            auto: self.auto,
         }
     }
 
@@ -319,10 +321,10 @@ impl Backend {
         !matches!(self.executor, Executor::Cpu(_))
     }
 
-    /// The CPU renderer, when it is the executor (for its timings and index).
-    pub fn as_cpu(&self) -> Option<&Renderer> {
+    /// The CPU renderers, when they are the executor (for their timings and index).
+    pub fn as_cpu(&self) -> Option<&RendererPool> {
         match &self.executor {
-            Executor::Cpu(r) => Some(r),
+            Executor::Cpu(pool) => Some(pool),
             #[cfg(feature = "gpu")]
             Executor::Gpu(_) => None,
         }
@@ -368,11 +370,8 @@ impl Backend {
                 Err(e) => return Err(e),
             }
         }
-        match &mut self.executor {
-            Executor::Cpu(r) => cameras
-                .iter()
-                .map(|c| r.render(gaussians, categories, c, options))
-                .collect(),
+        match &self.executor {
+            Executor::Cpu(pool) => pool.render_batch(gaussians, categories, cameras, options),
             #[cfg(feature = "gpu")]
             Executor::Gpu(r) => r.render_batch(gaussians, categories, cameras, options),
         }

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use sage_core::{Aabb, Error, Result};
 use sage_scene::Gaussians;
 use sage_scene::gaussians::{LOG_SCALE_STEP, sh_rest_count};
+use std::sync::Arc;
 use std::time::Instant;
 use wide::f32x4;
 
@@ -273,7 +274,7 @@ struct ChunkView {
 
 /// A renderer for one set of Gaussians: the spatial index plus buffers reused across frames.
 pub struct Renderer {
-    index: SplatIndex,
+    index: Arc<SplatIndex>,
     count: usize,
     visible: Vec<u32>,
     views: Vec<ChunkView>,
@@ -346,9 +347,15 @@ fn chunk_view(chunk: u32, b: &Aabb, camera: &Camera, w2c: &Mat3, grid: &TileGrid
 impl Renderer {
     /// Indexes `gaussians` (Morton chunks) for rendering.
     pub fn new(gaussians: &Gaussians) -> Renderer {
+        Renderer::with_index(Arc::new(SplatIndex::build(gaussians)), gaussians.len())
+    }
+
+    /// A renderer over the index of `count` Gaussians built already (shared by the renderers
+    /// of a [`crate::RendererPool`]).
+    pub(crate) fn with_index(index: Arc<SplatIndex>, count: usize) -> Renderer {
         Renderer {
-            index: SplatIndex::build(gaussians),
-            count: gaussians.len(),
+            index,
+            count,
             visible: Vec::new(),
             views: Vec::new(),
             splats: Vec::new(),

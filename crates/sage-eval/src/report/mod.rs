@@ -413,7 +413,7 @@ fn write_videos<'a>(
     }
     let total = chosen.len();
     // One scene in memory at a time (a scene context holds its Gaussians and physics); its
-    // episodes in parallel, each with its own renderer.
+    // episodes in parallel, each in an environment of its own.
     for (scene, recs) in &by_scene {
         let ctx = SceneContext::load(&dirs[*scene], None).within(format!("scene {scene}"))?;
         recs.par_iter()
