@@ -567,11 +567,9 @@ fn vector_observations_equal_single_ones_with_images() {
 /// `gpu` opens on any adapter (Mesa's software one where there is no GPU) and every
 /// environment over a scene renders from one upload of it; `auto` takes only a hardware GPU,
 /// falling back to the CPU with the reason.
-#[test]
-fn gpu_environments_share_one_upload_per_scene() {
-    let f = fixture();
-    // A context of its own: other tests' environments do not count.
-    let ctx = Arc::new(
+/// A context over the fixture's scene that no other test's environments render through.
+fn own_context(f: &Fixture) -> Arc<SceneContext> {
+    Arc::new(
         SceneContext::new(
             f.ctx.scene.clone(),
             f.bodies.clone(),
@@ -579,7 +577,29 @@ fn gpu_environments_share_one_upload_per_scene() {
             TrajectoryParams::default().cost,
         )
         .unwrap(),
-    );
+    )
+}
+
+/// A pool of the fixture's first `n` episodes in the scene of `ctx`.
+fn one_scene_pool(f: &Fixture, ctx: &Arc<SceneContext>, n: usize) -> Arc<sage_env::Pool> {
+    let entries = f
+        .episodes
+        .iter()
+        .take(n)
+        .map(|e| sage_env::PoolEpisode {
+            scene: 0,
+            scene_name: "home".into(),
+            episode: e.clone(),
+        })
+        .collect();
+    Arc::new(sage_env::Pool::new(vec![ctx.clone()], entries).unwrap())
+}
+
+#[test]
+fn gpu_environments_share_one_upload_per_scene() {
+    let f = fixture();
+    // A context of its own: other tests' environments do not count.
+    let ctx = own_context(f);
     let mut cfg = tiny_camera();
     cfg.device = Device::Gpu;
     assert_eq!(ctx.uploads(), 0);
@@ -623,7 +643,7 @@ fn gpu_environments_share_one_upload_per_scene() {
 #[test]
 fn gpu_observations_match_the_cpu() {
     use sage_env::pool::Order;
-    use sage_env::{Pool, PoolEpisode, PooledEnv, VecEnv};
+    use sage_env::{PooledEnv, VecEnv};
     use sage_metrics::Mode;
     let f = fixture();
     let mut cfg = tiny_camera();
@@ -671,17 +691,7 @@ fn gpu_observations_match_the_cpu() {
             cs.len()
         );
     }
-    let entries: Vec<PoolEpisode> = f
-        .episodes
-        .iter()
-        .take(3)
-        .map(|e| PoolEpisode {
-            scene: 0,
-            scene_name: "home".into(),
-            episode: e.clone(),
-        })
-        .collect();
-    let pool = Arc::new(Pool::new(vec![f.ctx.clone()], entries).unwrap());
+    let pool = one_scene_pool(f, &f.ctx, 3);
     let mut vec_env = VecEnv::new(3, pool.clone(), gpu_cfg.clone(), Mode::Sage).unwrap();
     let batch = vec_env.run((0..3).map(Order::Reset).collect()).unwrap();
     for (i, t) in batch.iter().enumerate() {
@@ -734,31 +744,13 @@ fn the_gnbench_preset_renders_480_by_360_and_its_mode_scores_on_the_occupancy_im
 /// per environment, and forms the images a renderer of its own would.
 #[test]
 fn cpu_environments_share_the_scenes_renderers() {
+    use sage_env::VecEnv;
     use sage_env::pool::Order;
-    use sage_env::{Pool, PoolEpisode, VecEnv};
     use sage_metrics::Mode;
     let f = fixture();
     // A context of its own: other tests' environments do not count.
-    let ctx = Arc::new(
-        SceneContext::new(
-            f.ctx.scene.clone(),
-            f.bodies.clone(),
-            &TrajectoryParams::default().grid,
-            TrajectoryParams::default().cost,
-        )
-        .unwrap(),
-    );
-    let entries: Vec<PoolEpisode> = f
-        .episodes
-        .iter()
-        .take(4)
-        .map(|e| PoolEpisode {
-            scene: 0,
-            scene_name: "home".into(),
-            episode: e.clone(),
-        })
-        .collect();
-    let pool = Arc::new(Pool::new(vec![ctx.clone()], entries).unwrap());
+    let ctx = own_context(f);
+    let pool = one_scene_pool(f, &ctx, 4);
     let envs = 16;
     let threads = 2;
     let workers = rayon::ThreadPoolBuilder::new()
@@ -783,16 +775,7 @@ fn cpu_environments_share_the_scenes_renderers() {
     );
     // The images are those of an environment over a context of its own.
     for i in [0, 5, 15] {
-        let single_ctx = Arc::new(
-            SceneContext::new(
-                f.ctx.scene.clone(),
-                f.bodies.clone(),
-                &TrajectoryParams::default().grid,
-                TrajectoryParams::default().cost,
-            )
-            .unwrap(),
-        );
-        let mut env = Env::new(single_ctx, tiny_camera()).unwrap();
+        let mut env = Env::new(own_context(f), tiny_camera()).unwrap();
         let obs = env.reset(&f.episodes[i % 4]).unwrap();
         assert_eq!(obs.images, resets[i].obs.images, "reset of environment {i}");
         let (obs, _) = env.step(Action::TurnLeft).unwrap();
