@@ -105,6 +105,12 @@ pub struct VectorRate {
     /// Sub-environment steps per second (physics, rendering, observations; resets of ended
     /// episodes included).
     pub steps_per_s: f64,
+    /// CPU renderers (sets of frame buffers) the scene's environments built between them: the
+    /// most renders under way at once (0 when a GPU renders).
+    pub cpu_renderers: usize,
+    /// The process's resident memory after the vector environment's steps, bytes (where the
+    /// OS tells it).
+    pub resident_bytes: Option<u64>,
 }
 
 /// Steps and resets of one configuration.
@@ -170,6 +176,20 @@ impl fmt::Display for EnvReport {
                 "vector env       {} envs at {}x{} RGB + depth: {:.1} steps/s ({} lockstep steps)",
                 v.envs, v.width, v.height, v.steps_per_s, v.batches
             )?;
+            if v.cpu_renderers > 0 {
+                writeln!(
+                    f,
+                    "                 {} CPU renderers between the scene's environments (one per render under way at once)",
+                    v.cpu_renderers
+                )?;
+            }
+            if let Some(bytes) = v.resident_bytes {
+                writeln!(
+                    f,
+                    "resident         {:.0} MB: the whole process after the vector environment",
+                    bytes as f64 / 1e6
+                )?;
+            }
         }
         Ok(())
     }
@@ -365,6 +385,8 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
                 height,
                 batches,
                 steps_per_s,
+                cpu_renderers: ctx.cpu_renderers(),
+                resident_bytes: machine::resident_bytes(),
             })
         }
     };
