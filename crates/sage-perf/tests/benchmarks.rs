@@ -138,3 +138,36 @@ fn physics_steps_an_agent() {
     };
     assert!(physics::run(&unknown).is_err());
 }
+
+#[test]
+fn env_steps_a_vector_environment_over_the_scenes_renderers() {
+    use sage_perf::env::{self, EnvSettings};
+    let cache = tempfile::tempdir().unwrap();
+    let settings = EnvSettings {
+        objects: 40,
+        gaussians: 20_000,
+        steps: 100,
+        render_steps: 6,
+        sizes: vec![(32, 24)],
+        cache: Some(cache.path().to_path_buf()),
+        envs: 6,
+        ..EnvSettings::default()
+    };
+    let report = env::run(&settings).unwrap();
+    assert_eq!(report.rendered.len(), 1);
+    let v = report.vector.as_ref().unwrap();
+    assert_eq!((v.envs, v.width, v.height), (6, 32, 24));
+    // The environments borrow renderers from the scene's pool: at least one, never one each
+    // beyond what rendered at once (the single environments of the rates before were one
+    // at a time).
+    assert!(v.cpu_renderers >= 1 && v.cpu_renderers <= 6, "{v:?}");
+    let text = report.to_string();
+    assert!(
+        text.contains("CPU renderers between the scene's environments"),
+        "{text}"
+    );
+    if cfg!(target_os = "linux") {
+        assert!(v.resident_bytes.is_some_and(|b| b > 0));
+        assert!(text.contains("MB: the whole process after the vector environment"));
+    }
+}
