@@ -19,8 +19,8 @@ use std::sync::{Arc, Mutex, OnceLock};
 /// Immutable once built (but for what it builds on first use and keeps: path finders for wide
 /// agents, the scene's upload to the GPU or its pool of CPU renderers): share it (`Arc`)
 /// between the environments of all worker threads. What changes during an episode (the
-/// physics world with its movable bodies) lives in each [`crate::Env`], which copies its world from the
-/// context's pristine one.
+/// physics world with its movable bodies) lives in each [`crate::Env`], which copies its
+/// world from the context's pristine one.
 pub struct SceneContext {
     /// The scene.
     pub scene: Scene,

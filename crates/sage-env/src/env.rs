@@ -164,9 +164,10 @@ impl Env {
         self.renderer.as_ref().map(Backend::describe)
     }
 
-    /// True when the renderer is a handle on the scene's shared GPU upload, so the cameras of
-    /// every environment over the scene can go to it in one batch.
-    pub fn shares_renderer(&self) -> bool {
+    /// True when the renderer is a handle on the scene's GPU upload, so the cameras of every
+    /// environment over the scene can go to it in one batch (a CPU renderer renders a camera
+    /// at a time; environments over a scene borrow from its pool in parallel instead).
+    pub fn renders_in_scene_batches(&self) -> bool {
         self.renderer.as_ref().is_some_and(Backend::is_gpu)
     }
 

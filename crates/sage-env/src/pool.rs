@@ -215,7 +215,8 @@ impl PooledEnv {
         self.run(Order::Step(action))
     }
 
-    /// Runs `order` with its observation rendered by this environment's own renderer.
+    /// Runs `order` with its observation rendered by this environment's handle on the scene's
+    /// renderer, the camera alone.
     fn run(&mut self, order: Order) -> Result<Transition> {
         let begun = self.begin(order)?;
         let outputs = self
@@ -300,7 +301,7 @@ impl PooledEnv {
         let scene = self.pool.episodes[*k].scene;
         self.envs[scene]
             .as_ref()?
-            .shares_renderer()
+            .renders_in_scene_batches()
             .then_some(scene)
     }
 
@@ -498,10 +499,9 @@ impl VecEnv {
     }
 
     /// The render batches of `begun`, sub-environment indices in order, each batch's first
-    /// the one that renders it: one per scene for the sub-environments on the scene's shared
-    /// GPU upload, one per sub-environment for the others (a CPU renderer has its own
-    /// buffers, and renders independently in parallel). Sub-environments without cameras are
-    /// in none.
+    /// the one that renders it: one per scene for the sub-environments on the scene's GPU
+    /// upload, one per sub-environment for the others (CPU renders each borrow a renderer from
+    /// the scene's pool and run in parallel). Sub-environments without cameras are in none.
     fn batches(&self, begun: &[Begun]) -> Vec<Vec<usize>> {
         let mut batches: Vec<Vec<usize>> = Vec::new();
         let mut by_scene: BTreeMap<usize, usize> = BTreeMap::new();

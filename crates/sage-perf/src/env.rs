@@ -179,7 +179,7 @@ impl fmt::Display for EnvReport {
             if v.cpu_renderers > 0 {
                 writeln!(
                     f,
-                    "                 {} CPU renderers between the scene's environments (one per render under way at once)",
+                    "                 {} CPU renderers between the scene's environments (the most renders at once)",
                     v.cpu_renderers
                 )?;
             }

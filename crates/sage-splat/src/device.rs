@@ -149,6 +149,10 @@ pub struct Backend {
     description: String,
     /// Opened by `auto`: a GPU that fails while rendering hands over to the CPU renderer.
     auto: bool,
+    /// The CPU renderers that every handle on one GPU upload hands over to under `auto`:
+    /// one pool for them all, as they shared one upload before the fault.
+    #[cfg(feature = "gpu")]
+    fallback: Arc<std::sync::OnceLock<Arc<RendererPool>>>,
 }
 
 impl Backend {
@@ -158,6 +162,8 @@ impl Backend {
             executor: Executor::Cpu(Arc::new(RendererPool::new(gaussians))),
             description: cpu_description(),
             auto: false,
+            #[cfg(feature = "gpu")]
+            fallback: Arc::default(),
         }
     }
 
@@ -189,14 +195,19 @@ impl Backend {
     }
 
     /// After a GPU fault under `auto`: the CPU renderer from now on (it says why), or the
-    /// error where the device was asked for explicitly.
+    /// error where the device was asked for explicitly. Every handle on the upload that
+    /// faults hands over to the same pool of CPU renderers, made (and the fault told) once.
     #[cfg(feature = "gpu")]
     fn fall_back(&mut self, gaussians: &Gaussians, e: Error) -> Result<()> {
         if !self.auto || gaussians.len() != self.gaussian_count() {
             return Err(e);
         }
-        eprintln!("warning: the GPU renderer failed ({e}); rendering on the CPU from now on");
-        *self = Backend::cpu(gaussians).because(&e);
+        let pool = self.fallback.get_or_init(|| {
+            eprintln!("warning: the GPU renderer failed ({e}); rendering on the CPU from now on");
+            Arc::new(RendererPool::new(gaussians))
+        });
+        self.executor = Executor::Cpu(pool.clone());
+        self.description = format!("{} (auto: {})", cpu_description(), e.message());
         Ok(())
     }
 
@@ -230,6 +241,7 @@ impl Backend {
             description: format!("gpu: {}", renderer.gpu().describe()),
             executor: Executor::Gpu(renderer),
             auto: false,
+            fallback: Arc::default(),
         }
     }
 
@@ -252,6 +264,8 @@ impl Backend {
             },
             description: self.description.clone(),
             auto: self.auto,
+            #[cfg(feature = "gpu")]
+            fallback: self.fallback.clone(),
         }
     }
 
@@ -476,5 +490,57 @@ mod tests {
         }
         assert!(cpu.set_blending(Blending::Blocks).is_ok());
         assert!(cpu.set_blending(Blending::Columns).is_err());
+    }
+
+    /// Every handle on one GPU upload that faults under `auto` hands over to one pool of CPU
+    /// renderers; a device asked for explicitly returns the fault.
+    #[cfg(feature = "gpu")]
+    #[test]
+    fn handles_on_one_upload_fall_back_to_one_pool() {
+        let gpu = match crate::gpu::Gpu::shared(false) {
+            Ok(gpu) => gpu,
+            Err(e) if std::env::var_os("SAGE3D_REQUIRE_GPU").is_some() => {
+                panic!("SAGE3D_REQUIRE_GPU is set and no GPU adapter opened: {e}")
+            }
+            Err(e) => return eprintln!("no GPU adapter, GPU test not run: {e}"),
+        };
+        let mut g = Gaussians::new(0).unwrap();
+        for i in 0..300 {
+            g.push(&sage_scene::Gaussian {
+                position: glam::Vec3::new(0.01 * i as f32, 2.0, 0.0),
+                opacity_logit: 2.0,
+                ..sage_scene::Gaussian::default()
+            });
+        }
+        let upload = crate::gpu::GpuRenderer::new(&gpu, &g).unwrap();
+        let mut explicit = Backend::from_gpu(upload.clone());
+        let mut first = Backend::from_gpu(upload);
+        first.auto = true;
+        let mut second = first.shared_clone();
+        let fault = || Error::invalid("device lost");
+        first.fall_back(&g, fault()).unwrap();
+        second.fall_back(&g, fault()).unwrap();
+        assert!(std::ptr::eq(
+            first.as_cpu().unwrap(),
+            second.as_cpu().unwrap()
+        ));
+        assert!(
+            first.describe().starts_with("cpu (")
+                && first.describe().ends_with("(auto: device lost)"),
+            "{}",
+            first.describe()
+        );
+        let k = crate::camera::Intrinsics::from_hfov(32, 24, 90.0).unwrap();
+        let camera = Camera::from_yaw_pitch(k, glam::Vec3::ZERO, std::f32::consts::FRAC_PI_2, 0.0);
+        first
+            .render(&g, &[], &camera, &RenderOptions::default())
+            .unwrap();
+        second
+            .render(&g, &[], &camera, &RenderOptions::default())
+            .unwrap();
+        assert_eq!(first.as_cpu().unwrap().renderers(), 1);
+        let e = explicit.fall_back(&g, fault()).unwrap_err();
+        assert_eq!(e.message(), "device lost");
+        assert!(explicit.is_gpu());
     }
 }

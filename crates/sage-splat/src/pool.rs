@@ -25,7 +25,8 @@ pub struct RendererPool {
 #[derive(Default)]
 struct Idle {
     renderers: Vec<Renderer>,
-    /// Renderers built so far.
+    /// Renderers built so far (counted once back from their first render: one lost to a
+    /// panicking render is not held).
     built: usize,
     /// Timings and counts of the last render to finish.
     last: RenderStats,
@@ -56,7 +57,8 @@ impl RendererPool {
         self.lock().last
     }
 
-    /// Renderers built so far: the most renders that were under way at once.
+    /// Renderers built so far: the most renders that were under way at once. The pool keeps
+    /// them all, each with buffers sized for the largest frame it rendered.
     pub fn renderers(&self) -> usize {
         self.lock().built
     }
@@ -74,14 +76,9 @@ impl RendererPool {
         cameras: &[Camera],
         options: &RenderOptions,
     ) -> Result<Vec<RenderOutput>> {
-        let taken = {
-            let mut idle = self.lock();
-            idle.renderers.pop().or_else(|| {
-                idle.built += 1;
-                None
-            })
-        };
-        // Built outside the lock: the index is shared, the buffers start empty.
+        let taken = self.lock().renderers.pop();
+        let new = taken.is_none();
+        // Built and rendering outside the lock: the index is shared, the buffers start empty.
         let mut renderer =
             taken.unwrap_or_else(|| Renderer::with_index(self.index.clone(), self.count));
         let images = cameras
@@ -89,13 +86,15 @@ impl RendererPool {
             .map(|c| renderer.render(gaussians, categories, c, options))
             .collect();
         let mut idle = self.lock();
+        idle.built += usize::from(new);
         idle.last = renderer.stats();
         idle.renderers.push(renderer);
         images
     }
 
     fn lock(&self) -> MutexGuard<'_, Idle> {
-        // A render that panicked left its renderer out of the pool, nothing half-changed in it.
+        // The lock is held only to push, pop or count, which leave `Idle` whole even if a
+        // panic poisoned it in between.
         self.idle.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
@@ -168,6 +167,34 @@ mod tests {
             assert_eq!(out, &alone[i % cams.len()], "camera {i}");
         }
         assert!((1..=rayon::current_num_threads()).contains(&pool.renderers()));
+    }
+
+    #[test]
+    fn one_renderer_lent_for_frames_of_every_size_forms_fresh_images() {
+        let g = scene();
+        let pool = RendererPool::new(&g);
+        let options = RenderOptions::default();
+        let eye = glam::Vec3::new(0.0, -1.0, 0.2);
+        // Growing, shrinking and odd sizes through one renderer: its buffers, sized by the
+        // frames before, must not show in the next.
+        let mut seen = 0;
+        for (i, (w, h)) in [(64, 48), (17, 95), (200, 120), (33, 31), (96, 64), (16, 16)]
+            .into_iter()
+            .enumerate()
+        {
+            let k = Intrinsics::from_hfov(w, h, 80.0 + 5.0 * i as f32).unwrap();
+            let c = Camera::from_yaw_pitch(k, eye, std::f32::consts::FRAC_PI_2, 0.1);
+            let lent = pool
+                .render_batch(&g, &[], &[c], &options)
+                .unwrap()
+                .remove(0);
+            let fresh = Renderer::new(&g).render(&g, &[], &c, &options).unwrap();
+            assert_eq!((lent.width, lent.height), (w as usize, h as usize));
+            assert_eq!(lent, fresh, "{w}x{h}");
+            seen += usize::from(lent.alpha.iter().any(|&a| a > 0.5));
+        }
+        assert!(seen >= 4, "{seen} frames saw the Gaussians");
+        assert_eq!(pool.renderers(), 1);
     }
 
     #[test]

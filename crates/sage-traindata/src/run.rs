@@ -513,7 +513,7 @@ pub fn render_scene(
         Ok(())
     };
     let first = Env::new(ctx.clone(), plan.env.clone())?;
-    if first.shares_renderer() {
+    if first.renders_in_scene_batches() {
         return lockstep(plan, &ctx, &pending, first, &begin, &end).map(|()| pending.len());
     }
     // One worker walks with the environment opened above; the others open their own.

@@ -392,7 +392,7 @@ fn a_gpu_render_walks_in_lockstep_and_each_walk_is_what_it_gives_alone() {
             sage_env::SceneContext::load(&plan.scene_dirs[scene], None).unwrap(),
         );
         let mut env = sage_env::Env::new(ctx, plan.env.clone()).unwrap();
-        assert!(env.shares_renderer());
+        assert!(env.renders_in_scene_batches());
         for route in routes {
             let dir = route_dir(out.path(), route);
             let walk = replay::walk(
