@@ -149,10 +149,10 @@ pub struct Backend {
     description: String,
     /// Opened by `auto`: a GPU that fails while rendering hands over to the CPU renderer.
     auto: bool,
-    /// The CPU renderers that every handle on one GPU upload hands over to under `auto`:
-    /// one pool for them all, as they shared one upload before the fault.
+    /// The CPU renderers that every handle on one GPU upload hands over to under `auto`, and
+    /// their description: one pool for them all, as they shared one upload before the fault.
     #[cfg(feature = "gpu")]
-    fallback: Arc<std::sync::OnceLock<Arc<RendererPool>>>,
+    fallback: Arc<std::sync::OnceLock<(Arc<RendererPool>, String)>>,
 }
 
 impl Backend {
@@ -202,13 +202,25 @@ impl Backend {
         if !self.auto || gaussians.len() != self.gaussian_count() {
             return Err(e);
         }
-        let pool = self.fallback.get_or_init(|| {
+        self.fallback.get_or_init(|| {
             eprintln!("warning: the GPU renderer failed ({e}); rendering on the CPU from now on");
-            Arc::new(RendererPool::new(gaussians))
+            let description = format!("{} (auto: {})", cpu_description(), e.message());
+            (Arc::new(RendererPool::new(gaussians)), description)
         });
-        self.executor = Executor::Cpu(pool.clone());
-        self.description = format!("{} (auto: {})", cpu_description(), e.message());
+        self.follow_fallback();
         Ok(())
+    }
+
+    /// Hands over to the CPU renderers of the upload's fallback once any handle on the upload
+    /// made one, so that no handle tries a failed GPU again (a handle cloned after the fault
+    /// included).
+    #[cfg(feature = "gpu")]
+    fn follow_fallback(&mut self) {
+        if let (Executor::Gpu(_), Some((pool, description))) = (&self.executor, self.fallback.get())
+        {
+            self.executor = Executor::Cpu(pool.clone());
+            self.description = description.clone();
+        }
     }
 
     /// How many Gaussians the backend was opened for.
@@ -377,6 +389,8 @@ impl Backend {
         options: &RenderOptions,
     ) -> Result<Vec<RenderOutput>> {
         #[cfg(feature = "gpu")]
+        self.follow_fallback();
+        #[cfg(feature = "gpu")]
         if let Executor::Gpu(r) = &self.executor {
             match r.render_batch(gaussians, categories, cameras, options) {
                 Ok(out) => return Ok(out),
@@ -407,6 +421,8 @@ impl Backend {
         cameras: &[Camera],
         options: &RenderOptions,
     ) -> Result<Rendering> {
+        #[cfg(feature = "gpu")]
+        self.follow_fallback();
         #[cfg(feature = "gpu")]
         if let Executor::Gpu(r) = &self.executor {
             match r.submit(gaussians, categories, cameras, options) {
@@ -514,9 +530,11 @@ mod tests {
         }
         let upload = crate::gpu::GpuRenderer::new(&gpu, &g).unwrap();
         let mut explicit = Backend::from_gpu(upload.clone());
-        let mut first = Backend::from_gpu(upload);
-        first.auto = true;
-        let mut second = first.shared_clone();
+        // What a scene's context keeps: the handle it clones for each environment.
+        let mut kept = Backend::from_gpu(upload);
+        kept.auto = true;
+        let mut first = kept.shared_clone();
+        let mut second = kept.shared_clone();
         let fault = || Error::invalid("device lost");
         first.fall_back(&g, fault()).unwrap();
         second.fall_back(&g, fault()).unwrap();
@@ -539,6 +557,14 @@ mod tests {
             .render(&g, &[], &camera, &RenderOptions::default())
             .unwrap();
         assert_eq!(first.as_cpu().unwrap().renderers(), 1);
+        // A handle cloned afterwards from the kept one, which never faulted, renders on the CPU
+        // without trying the GPU again.
+        assert!(kept.is_gpu());
+        let mut later = kept.shared_clone();
+        later
+            .render(&g, &[], &camera, &RenderOptions::default())
+            .unwrap();
+        assert!(!later.is_gpu() && later.describe() == first.describe());
         let e = explicit.fall_back(&g, fault()).unwrap_err();
         assert_eq!(e.message(), "device lost");
         assert!(explicit.is_gpu());

@@ -168,10 +168,7 @@ pub fn render(
         ..RenderOptions::default()
     };
     let out = {
-        let mut renderer = scene
-            .renderer
-            .lock()
-            .map_err(|_| Error::invalid("renderer poisoned"))?;
+        let mut renderer = scene.ctx.renderer(scene.device)?;
         let gaussians = &scene.ctx.scene.gaussians;
         let categories = &scene.ctx.scene.instances.category_ids;
         renderer

@@ -6,7 +6,7 @@ use glam::Vec2;
 use sage_core::{Error, Result, ResultExt};
 use sage_env::SceneContext;
 use sage_eval::report::maps::{base_map, map_zoom};
-use sage_splat::{Backend, Device};
+use sage_splat::Device;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -16,8 +16,10 @@ use std::sync::{Arc, Mutex, OnceLock};
 pub struct LoadedScene {
     /// The scene as the environment runs it.
     pub ctx: Arc<SceneContext>,
-    /// Its renderer on the viewer's device (one frame at a time).
-    pub renderer: Mutex<Backend>,
+    /// The viewer's device: frames render through the context's one renderer there
+    /// ([`SceneContext::renderer`]), opened when the scene loads, so requests render at once
+    /// (on the CPU each borrows a renderer from the scene's pool).
+    pub device: Device,
     /// The top-down map, PNG.
     pub map_png: Vec<u8>,
     /// What the page needs to draw over the map and label it ([`map_json`]).
@@ -90,11 +92,12 @@ impl SceneCache {
 /// Loads the scene in `dir` with its renderer and map.
 fn load(dir: &std::path::Path, device: Device) -> Result<LoadedScene> {
     let ctx = Arc::new(SceneContext::load(dir, None)?);
-    let renderer = ctx.renderer(device)?;
+    // Opened now, so that a device that cannot render fails the scene's load, not each frame.
+    ctx.renderer(device)?;
     let (map_png, map) = map_json(&ctx)?;
     Ok(LoadedScene {
         ctx,
-        renderer: Mutex::new(renderer),
+        device,
         map_png,
         map,
     })

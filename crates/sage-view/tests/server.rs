@@ -235,6 +235,16 @@ fn scenes_map_frames_and_explore_sessions_through_physics() {
     }
     let (status, jpeg) = request(v.addr, "GET", &q("rgb", "jpeg"), None, &[]);
     assert_eq!((status, &jpeg[..2]), (200, &[0xff, 0xd8][..]));
+    // Requests at once render at once (on the CPU each borrows a renderer from the scene's
+    // pool) and give the bytes of the same frame alone.
+    let (_, alone) = request(v.addr, "GET", &q("rgb", "png"), None, &[]);
+    let together: Vec<Vec<u8>> = std::thread::scope(|s| {
+        let tasks: Vec<_> = (0..4)
+            .map(|_| s.spawn(|| request(v.addr, "GET", &q("rgb", "png"), None, &[]).1))
+            .collect();
+        tasks.into_iter().map(|t| t.join().unwrap()).collect()
+    });
+    assert!(together.iter().all(|b| *b == alone));
     let (status, _) = request(
         v.addr,
         "GET",
