@@ -49,7 +49,7 @@ pub struct ExportArgs {
     /// The split to write.
     #[arg(long)]
     split: String,
-    /// The file to write.
+    /// The file to write (never a file of the dataset or of its scenes).
     #[arg(long)]
     out: PathBuf,
     /// The format.
@@ -209,7 +209,7 @@ fn data_export(a: ExportArgs) -> Result<()> {
     let format = match a.format {
         ExportFormat::GnBench => Format::GnBench,
     };
-    let r = sage_dataset::export::export(
+    let r = sage_pipeline::dataset::export(
         &a.dataset,
         &a.split,
         a.scenes.as_deref(),

@@ -85,7 +85,8 @@ pub struct InfoArgs {
 pub struct PreviewArgs {
     /// Scene folder.
     dir: PathBuf,
-    /// Output PNG (default: DIR/preview.png); an existing file is refused without --force.
+    /// Output PNG (default: DIR/preview.png); an existing file is refused without --force,
+    /// and a file of the scene always.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Replace an existing output file.
@@ -137,8 +138,11 @@ pub fn run(cmd: SceneCommand) -> Result<()> {
         ),
         SceneCommand::Import(a) => import(&a),
         SceneCommand::Preview(a) => {
-            let (scene, _) = Scene::load(&a.dir)?;
             let out = a.out.unwrap_or_else(|| a.dir.join("preview.png"));
+            // Checked before the scene is loaded: a refused output costs nothing.
+            let inputs = sage_scene::scene_files(&a.dir);
+            sage_io::run::claim_output_file(&out, &inputs, "a file of the input scene", a.force)?;
+            let (scene, _) = Scene::load_for_rendering(&a.dir)?;
             write_preview(&scene, &out, a.resolution, a.force)
         }
     }

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_scene};
+use common::{ok, s, sage3d, small_scene, stderr};
 
 use std::path::PathBuf;
 
@@ -388,6 +388,75 @@ fn render_writes_every_channel_and_a_turntable() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
+}
+
+#[test]
+fn rendering_a_scene_without_its_gaussians_is_an_error_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        "3",
+        "--rooms",
+        "2",
+        "--objects",
+        "6",
+        "--gaussians",
+        "2000",
+        "--out",
+        s(&scene),
+    ]);
+    let ply = scene.join("3dgs_compressed.ply");
+    let out = dir.path().join("render");
+    let render = || {
+        sage3d(&[
+            "render",
+            s(&scene),
+            "--position",
+            "0,0,1.2",
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--out",
+            s(&out),
+        ])
+    };
+    std::fs::remove_file(&ply).unwrap();
+    // Listed as missing where the Gaussians are not needed ...
+    let info = ok(&["scene", "info", s(&scene)]);
+    assert!(info.contains("3dgs_compressed.ply"), "{info}");
+    // ... and an error where they are, leaving no output.
+    for o in [
+        render(),
+        sage3d(&[
+            "scene",
+            "preview",
+            s(&scene),
+            "--out",
+            s(&dir.path().join("p.png")),
+        ]),
+    ] {
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(
+            e.contains(&format!("{}: missing", ply.display())) && e.contains("Gaussians"),
+            "{e}"
+        );
+    }
+    assert!(!out.exists());
+    // A directory by its name is no file, and not a missing one either: every command says so.
+    std::fs::create_dir(&ply).unwrap();
+    for o in [render(), sage3d(&["scene", "info", s(&scene)])] {
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(
+            e.contains(&format!("{}: a directory, not a file", ply.display())),
+            "{e}"
+        );
+    }
 }
 
 #[test]

@@ -41,6 +41,75 @@ fn map_writes_json_png_and_occupancy() {
     }
 }
 
+/// The first object mesh of the scene in `scene`.
+fn first_mesh(scene: &Path) -> std::path::PathBuf {
+    let mut meshes: Vec<_> = std::fs::read_dir(scene.join("meshes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.file_name().is_some_and(|n| n != "structure.obj"))
+        .collect();
+    meshes.sort();
+    meshes.remove(0)
+}
+
+#[test]
+fn a_mesh_beyond_the_coordinate_bound_is_refused_and_one_at_it_is_mapped() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    small_scene(&scene, "1", "2000");
+    let mesh = first_mesh(&scene);
+    let tetra = |far: &str| {
+        format!(
+            "v 0 0 0\nv {far} 0 0\nv 0 {far} 0\nv 0 0 {far}\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+        )
+    };
+    std::fs::write(&mesh, tetra("1e30")).unwrap();
+    let out = sage3d(&["nav", "map", s(&scene)]);
+    let e = stderr(&out);
+    assert!(!out.status.success(), "{e}");
+    assert!(
+        e.contains(&format!(
+            "{}: line 2: vertex (1e30, 0.0, 0.0)",
+            mesh.display()
+        )) && e.contains("within ±10000 m"),
+        "{e}"
+    );
+    assert!(
+        !scene.join("nav").exists(),
+        "a refused scene leaves no folder"
+    );
+    // At the bound the mesh's footprint is kilometres across; the maps cover the rooms only.
+    std::fs::write(&mesh, tetra("1e4")).unwrap();
+    ok(&["nav", "map", s(&scene)]);
+    assert!(scene.join("nav/sage3d_run.json").is_file());
+}
+
+#[test]
+fn a_map_that_fails_to_write_leaves_none_of_its_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    small_scene(&scene, "1", "2000");
+    ok(&["nav", "map", s(&scene)]);
+    let nav = scene.join("nav");
+    // A folder where the picture goes makes its write fail, after the JSON map was written.
+    std::fs::remove_file(nav.join("semantic_map.png")).unwrap();
+    std::fs::create_dir(nav.join("semantic_map.png")).unwrap();
+    let out = sage3d(&["nav", "map", s(&scene)]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("semantic_map.png"),
+        "{}",
+        stderr(&out)
+    );
+    for f in ["semantic_map.json", "occupancy.png", "occupancy.json"] {
+        assert!(!nav.join(f).exists(), "{f} left beside a failed write");
+    }
+    // The folder is still the command's: once the obstacle is gone, a rerun makes the maps.
+    std::fs::remove_dir(nav.join("semantic_map.png")).unwrap();
+    ok(&["nav", "map", s(&scene)]);
+    assert!(nav.join("semantic_map.json").is_file() && nav.join("semantic_map.png").is_file());
+}
+
 #[test]
 fn trajectories_resume_over_a_folder_and_match_across_threads() {
     let dir = tempfile::tempdir().unwrap();

@@ -312,3 +312,85 @@ fn output_files_are_replaced_only_with_force() {
         assert_ne!(std::fs::read(path).unwrap(), MINE, "{args:?}");
     }
 }
+
+#[test]
+fn no_output_file_replaces_a_file_of_its_input_scene_or_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let scene = scenes.join("home1");
+    let labels = scene.join("labels.json");
+    let ply = scene.join("3dgs_compressed.ply");
+    let mesh = std::fs::read_dir(scene.join("meshes"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let splits = data.join("splits.json");
+    let cases: [(Vec<&str>, &Path); 6] = [
+        (
+            vec!["export", "usd", s(&scene), s(&labels), "--force"],
+            &labels,
+        ),
+        (
+            vec![
+                "physics",
+                "pending",
+                s(&scene),
+                "--out",
+                s(&mesh),
+                "--force",
+            ],
+            &mesh,
+        ),
+        (
+            vec!["scene", "preview", s(&scene), "--out", s(&ply), "--force"],
+            &ply,
+        ),
+        (vec!["splat", "convert", s(&ply), s(&ply), "--force"], &ply),
+        (
+            vec![
+                "data",
+                "export",
+                s(&data),
+                "--split",
+                "train",
+                "--out",
+                s(&splits),
+                "--force",
+            ],
+            &splits,
+        ),
+        (
+            vec![
+                "data",
+                "export",
+                s(&data),
+                "--split",
+                "train",
+                "--scenes",
+                s(&scenes),
+                "--out",
+                s(&labels),
+                "--force",
+            ],
+            &labels,
+        ),
+    ];
+    for (args, path) in &cases {
+        let before = std::fs::read(path).unwrap();
+        let refused = sage3d(args);
+        let e = stderr(&refused);
+        assert!(!refused.status.success(), "{args:?}: {e}");
+        assert!(
+            e.contains(s(path)) && e.contains("the output is ") && e.contains("write to another"),
+            "{args:?}: {e}"
+        );
+        assert_eq!(std::fs::read(path).unwrap(), before, "{args:?}");
+    }
+    // The scene still loads, and a new file beside its own is written.
+    ok(&["scene", "info", s(&scene)]);
+    let usd = scene.join("scene.usda");
+    ok(&["export", "usd", s(&scene), s(&usd)]);
+    ok(&["export", "usd", s(&scene), s(&usd), "--force"]);
+}

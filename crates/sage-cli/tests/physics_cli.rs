@@ -52,4 +52,44 @@ fn drive_prints_a_report_per_step_and_refuses_bad_commands() {
     let out = sage3d(&[args.as_slice(), &["vel:1:0:0:1"]].concat());
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("does not apply"));
+    // Values no step could honour are refused before anything moves (at 1e20 m a shape cast
+    // passes through walls), and so are starts that are not finite or off any scene.
+    let mut ground = vec!["physics", "drive", scene];
+    ground.extend(common);
+    for (start, commands, said) in [
+        ("0,0,0", "forward:1e20", "command 'forward:"),
+        ("0,0,0", "vel:1:0:0:1e6", "dt 1000000.0 is out of range"),
+        ("0,0,0", "forward:nan", "'nan' is not a finite number"),
+        (
+            "nan,0,0",
+            "stop",
+            "--position/--yaw: position [NaN, 0.0, 0.0]",
+        ),
+        (
+            "0,2e4,0",
+            "stop",
+            "expected finite coordinates within ±10000 m",
+        ),
+    ] {
+        let out = sage3d(
+            &[
+                ground.as_slice(),
+                &["--position", start, "--commands", commands],
+            ]
+            .concat(),
+        );
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{start} {commands}: {e}");
+        assert!(e.contains(said), "{start} {commands}: {e}");
+        assert!(out.stdout.is_empty(), "no step is reported");
+    }
+    let out = sage3d(
+        &[
+            ground.as_slice(),
+            &["--position", "0,0,0", "--yaw", "inf", "--commands", "stop"],
+        ]
+        .concat(),
+    );
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("yaw"));
 }

@@ -5,6 +5,19 @@ use crate::error::{Error, Result};
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
+/// The largest coordinate magnitude sage3d accepts from a file or a caller, metres: far beyond
+/// any indoor scene, small enough that f32 keeps millimetres there and that work that grows
+/// with a scene's extent (grids, maps, paths, shape casts) stays bounded. A number too large
+/// for f32 reads as infinity, which the bound refuses too.
+pub const MAX_COORDINATE: f32 = 1.0e4;
+
+/// Whether every coordinate of `p` is finite and within ±[`MAX_COORDINATE`].
+pub fn within_bounds(p: Vec3) -> bool {
+    // Written out rather than with `max_element`: a NaN must fail the comparison, not be
+    // skipped by `f32::max`.
+    p.to_array().iter().all(|c| c.abs() <= MAX_COORDINATE)
+}
+
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Aabb {
@@ -337,6 +350,22 @@ pub fn resample_polyline(points: &[Vec2], step: f32) -> Vec<Vec2> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn points_beyond_the_bound_or_not_finite_are_out_of_bounds() {
+        assert!(within_bounds(Vec3::new(
+            MAX_COORDINATE,
+            -MAX_COORDINATE,
+            0.0
+        )));
+        for bad in [1.0001e4, 1e30, f32::INFINITY, f32::NAN, -f32::INFINITY] {
+            for axis in 0..3 {
+                let mut p = [0.0; 3];
+                p[axis] = bad;
+                assert!(!within_bounds(Vec3::from_array(p)), "{p:?}");
+            }
+        }
+    }
 
     proptest! {
         #[test]

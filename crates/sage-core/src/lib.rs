@@ -15,7 +15,7 @@ pub mod pose;
 pub mod task;
 
 pub use error::{Error, ErrorKind, Result, ResultExt};
-pub use geometry::{Aabb, Obb, Polygon2};
+pub use geometry::{Aabb, MAX_COORDINATE, Obb, Polygon2, within_bounds};
 pub use glam;
 pub use glam::{Mat3, Mat4, Quat, Vec2, Vec3, Vec4};
 pub use id::InstanceId;

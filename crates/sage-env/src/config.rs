@@ -2,7 +2,8 @@
 //! §13).
 
 use glam::Vec3;
-use sage_core::{Error, Pose, Result};
+use sage_core::{Error, MAX_COORDINATE, Pose, Result};
+use sage_physics::agent::{MAX_COMMAND_SECONDS, MAX_TURN};
 use sage_physics::{AgentProfile, Locomotion};
 use sage_splat::{Camera, Device, Intrinsics};
 use serde::{Deserialize, Serialize};
@@ -345,10 +346,28 @@ impl EnvConfig {
                         "discrete steps and seconds must be finite and >= 0",
                     );
                 }
+                // The commands the steps become are checked again as they are carried out
+                // (`Command::validate`); refused here, a bad preset fails before an episode.
+                if forward > MAX_COORDINATE
+                    || turn_deg.to_radians() > MAX_TURN
+                    || seconds > MAX_COMMAND_SECONDS
+                {
+                    return bad(
+                        "actions",
+                        &format!(
+                            "a discrete step is at most {MAX_COORDINATE} m forward, {}° of turn \
+                             and {MAX_COMMAND_SECONDS} s",
+                            MAX_TURN.to_degrees().round()
+                        ),
+                    );
+                }
             }
             ActionSpace::Ground { max_dt } | ActionSpace::Uav { max_dt } => {
-                if !(max_dt.is_finite() && max_dt > 0.0) {
-                    return bad("actions.max_dt", "expected a finite time > 0 s");
+                if !(max_dt.is_finite() && max_dt > 0.0 && max_dt <= MAX_COMMAND_SECONDS) {
+                    return bad(
+                        "actions.max_dt",
+                        &format!("expected a time > 0 and <= {MAX_COMMAND_SECONDS} s"),
+                    );
                 }
                 let wants_uav = matches!(self.actions, ActionSpace::Uav { .. });
                 if wants_uav != uav {
@@ -406,6 +425,15 @@ mod tests {
         c.validate().unwrap();
         c.agent = "robot".into();
         assert!(c.validate().is_err());
+        // Steps that the agent's commands would refuse are refused here first.
+        c.agent = "uav".into();
+        c.actions = ActionSpace::Uav { max_dt: 1e6 };
+        assert!(c.validate().unwrap_err().message().contains("max_dt"));
+        let mut c = EnvConfig::default();
+        if let ActionSpace::Discrete { forward, .. } = &mut c.actions {
+            *forward = 1e20;
+        }
+        assert!(c.validate().unwrap_err().message().contains("at most"));
     }
 
     #[test]

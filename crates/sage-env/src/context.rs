@@ -118,13 +118,24 @@ impl SceneContext {
     ///
     /// # Errors
     ///
-    /// `gpu` without a usable adapter (or in a build without the GPU renderer), or a scene too
-    /// large for the adapter.
+    /// A scene without Gaussians, `gpu` without a usable adapter (or in a build without the
+    /// GPU renderer), or a scene too large for the adapter.
     pub fn renderer(&self, device: Device) -> Result<Backend> {
         // Held while opening, so that environments created at once upload the scene once.
         let mut opened = self.opened();
         if let Some((_, backend)) = opened.iter().find(|(d, _)| *d == device) {
             return Ok(backend.shared_clone());
+        }
+        // A scene loads without its Gaussian file (physics and paths need none), but its
+        // views would be black: an observation of nothing is an error, not an image.
+        if self.scene.gaussians.is_empty() {
+            return Err(Error::invalid(format!(
+                "scene {} has no Gaussians to render: its folder has no {} (nor {}), or the \
+                 file holds none",
+                self.scene.name,
+                sage_scene::scene::files::COMPRESSED_PLY,
+                sage_scene::scene::files::GAUSSIANS[1..].join(", ")
+            )));
         }
         let backend = Backend::open(device, &self.scene.gaussians)
             .map_err(|e| e.within(format!("device {device}")))?;

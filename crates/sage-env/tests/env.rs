@@ -782,3 +782,22 @@ fn cpu_environments_share_the_scenes_renderers() {
         assert_eq!(obs.images, steps[i].obs.images, "step of environment {i}");
     }
 }
+
+#[test]
+fn a_scene_without_gaussians_has_no_renderer_to_give() {
+    let f = fixture();
+    let mut scene = f.ctx.scene.clone();
+    scene.gaussians = sage_scene::Gaussians::new(0).unwrap();
+    let params = TrajectoryParams::default();
+    let ctx = SceneContext::new(scene, f.bodies.clone(), &params.grid, params.cost).unwrap();
+    // Paths and physics need no Gaussians; views of nothing would be black, so are refused.
+    let Err(e) = ctx.renderer(Device::Cpu) else {
+        panic!("a renderer of no Gaussians");
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("has no Gaussians to render") && e.contains("3dgs_compressed.ply"),
+        "{e}"
+    );
+    assert!(f.ctx.renderer(Device::Cpu).is_ok());
+}

@@ -90,9 +90,12 @@ impl Canvas {
                 }
             }
             xs.sort_by(f32::total_cmp);
+            // Clipped to the image: a polygon reaching far outside it (a broken mesh's hull)
+            // must cost the pixels it covers here, not the ones it would cover out there.
+            let last = self.width as i64 - 1;
             for pair in xs.chunks_exact(2) {
                 let x0 = (pair[0] - 0.5).ceil().max(0.0) as i64;
-                let x1 = (pair[1] - 0.5).floor() as i64;
+                let x1 = ((pair[1] - 0.5).floor() as i64).min(last);
                 for x in x0..=x1 {
                     self.put(x, y as i64, c);
                 }
@@ -106,9 +109,17 @@ impl Canvas {
 
     /// Draws a world segment `thickness` pixels wide.
     pub fn line(&mut self, a: Vec2, b: Vec2, c: [u8; 3], thickness: i64) {
-        let (pa, pb) = (self.to_pixel(a), self.to_pixel(b));
-        let steps = (pa.distance(pb).ceil() as usize).max(1);
         let r = thickness / 2;
+        // Stepped only over its part near the image, so the cost is bounded by the image
+        // whatever the segment's length.
+        let margin = Vec2::splat(r as f32 + 1.0);
+        let size = Vec2::new(self.width as f32, self.height as f32);
+        let Some((pa, pb)) =
+            clip_segment(self.to_pixel(a), self.to_pixel(b), -margin, size + margin)
+        else {
+            return;
+        };
+        let steps = (pa.distance(pb).ceil() as usize).max(1);
         for s in 0..=steps {
             let p = pa.lerp(pb, s as f32 / steps as f32);
             for dy in -r..=r {
@@ -191,6 +202,51 @@ impl Canvas {
 
 /// Pixel height of one legend row.
 pub const LEGEND_ROW: i64 = 18;
+
+/// The part of segment `a`–`b` inside the rectangle `lo`…`hi` (Cohen–Sutherland); `None` when
+/// none is, or when an end is not finite. An end moved to the rectangle is put exactly on the
+/// side it crosses, and clamped into the rectangle: f32 cannot place a cut made at 1e30 within
+/// the rectangle's size, and the cost of drawing is then bounded by the rectangle whatever
+/// the ends.
+fn clip_segment(mut a: Vec2, mut b: Vec2, lo: Vec2, hi: Vec2) -> Option<(Vec2, Vec2)> {
+    if !(a.is_finite() && b.is_finite()) {
+        return None;
+    }
+    let code = |p: Vec2| {
+        u8::from(p.x < lo.x)
+            | u8::from(p.x > hi.x) << 1
+            | u8::from(p.y < lo.y) << 2
+            | u8::from(p.y > hi.y) << 3
+    };
+    // Each pass puts one end on one more side: four sides, two ends.
+    for _ in 0..8 {
+        let (ca, cb) = (code(a), code(b));
+        if ca | cb == 0 {
+            break;
+        }
+        if ca & cb != 0 {
+            return None;
+        }
+        let (out, other, c) = if ca != 0 { (a, b, ca) } else { (b, a, cb) };
+        // The other end is on the inner side of the side crossed, so the divisor is not zero.
+        let d = other - out;
+        let moved = if c & 1 != 0 {
+            Vec2::new(lo.x, out.y + d.y * (lo.x - out.x) / d.x)
+        } else if c & 2 != 0 {
+            Vec2::new(hi.x, out.y + d.y * (hi.x - out.x) / d.x)
+        } else if c & 4 != 0 {
+            Vec2::new(out.x + d.x * (lo.y - out.y) / d.y, lo.y)
+        } else {
+            Vec2::new(out.x + d.x * (hi.y - out.y) / d.y, hi.y)
+        };
+        if ca != 0 {
+            a = moved;
+        } else {
+            b = moved;
+        }
+    }
+    Some((a.clamp(lo, hi), b.clamp(lo, hi)))
+}
 
 /// Pixel width the legend needs for labels of up to `chars` characters.
 pub fn legend_width(chars: usize) -> usize {
@@ -333,6 +389,57 @@ fn glyph(c: char) -> [u8; 7] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shapes_far_outside_the_image_cost_only_the_pixels_inside() {
+        let mut c = Canvas::new(40, 30, [0; 3], Vec2::ZERO, 0.05, 30);
+        // Kilometres and beyond at 5 cm a pixel: stepping the whole shapes would take
+        // billions of steps (or forever, past the range of the pixel coordinates).
+        let far = 1e30;
+        c.fill_polygon(
+            &[
+                Vec2::new(0.5, 0.5),
+                Vec2::new(far, 0.5),
+                Vec2::new(0.5, far),
+            ],
+            [255; 3],
+        );
+        c.line(Vec2::new(-far, 1.0), Vec2::new(far, 1.0), [7; 3], 3);
+        c.line(Vec2::new(0.1, -1e5), Vec2::new(0.1, 1e5), [9; 3], 1);
+        c.line(Vec2::new(-far, -far), Vec2::new(-far, far), [5; 3], 1);
+        let px = |x: usize, y: usize| {
+            let k = (y * c.width + x) * 3;
+            c.rgb[k]
+        };
+        // The triangle covers the image's upper right from (0.5, 0.5) m on, the row at 1 m
+        // carries the horizontal line, the column at 0.1 m the vertical one.
+        assert_eq!(px(39, 0), 255);
+        assert_eq!(px(39, 10), 7);
+        assert_eq!(px(2, 5), 9);
+        assert_eq!(
+            px(0, 29),
+            0,
+            "the corner below and left of the triangle stays clear"
+        );
+        assert_eq!(
+            clip_segment(
+                Vec2::ZERO,
+                Vec2::new(3.0, 4.0),
+                Vec2::splat(-1.0),
+                Vec2::splat(9.0)
+            ),
+            Some((Vec2::ZERO, Vec2::new(3.0, 4.0)))
+        );
+        assert_eq!(
+            clip_segment(
+                Vec2::new(20.0, 0.0),
+                Vec2::new(20.0, 5.0),
+                Vec2::ZERO,
+                Vec2::splat(9.0)
+            ),
+            None
+        );
+    }
 
     #[test]
     fn polygon_fill_covers_its_area() {

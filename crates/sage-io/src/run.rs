@@ -3,7 +3,7 @@
 use crate::files::{is_temporary, write_json};
 use crate::lock::{FolderLock, LOCK_FILE};
 use sage_core::{Error, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The file in which a command records how its output folder was made (SPEC §13).
 pub const RUN_RECORD: &str = "sage3d_run.json";
@@ -123,6 +123,56 @@ pub fn claim_file(path: &Path, force: bool) -> Result<()> {
     Ok(())
 }
 
+/// [`claim_file`] for a command that reads `inputs`: files, and folders every file of which it
+/// reads. `path` may never be one of them or a file inside one of those folders, however it is
+/// spelled (a link, `..`, another name of the same file), not even with `force`: replacing it
+/// would destroy what the command reads (a scene's `labels.json` written over with its own
+/// export). `what` says what the inputs are, for the message (`the input`, `a file of the
+/// input scene`).
+///
+/// # Errors
+///
+/// An `invalid` error naming `path` and the input it is, or those of [`claim_file`].
+pub fn claim_output_file(path: &Path, inputs: &[PathBuf], what: &str, force: bool) -> Result<()> {
+    if let Some(input) = input_at(path, inputs) {
+        return Err(Error::invalid(format!(
+            "the output is {what} ({}); write to another file",
+            input.display()
+        ))
+        .in_file(path));
+    }
+    claim_file(path, force)
+}
+
+/// The first of `inputs` that the existing file `path` is, or is inside; `None` for a path
+/// that does not exist (a new file replaces nothing).
+fn input_at<'a>(path: &Path, inputs: &'a [PathBuf]) -> Option<&'a PathBuf> {
+    let out = std::fs::canonicalize(path).ok()?;
+    let out_meta = std::fs::metadata(&out).ok()?;
+    inputs.iter().find(|input| {
+        let Ok(input) = std::fs::canonicalize(input) else {
+            return false;
+        };
+        if input.is_dir() {
+            return out.starts_with(&input);
+        }
+        out == input || std::fs::metadata(&input).is_ok_and(|m| same_file(&m, &out_meta))
+    })
+}
+
+/// Whether two files are one (hard links of one file have different paths).
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+/// Whether two files are one: elsewhere, only their canonical paths tell.
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata) -> bool {
+    false
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -184,6 +234,58 @@ mod tests {
         assert!(stale.is_file());
         drop(claim_folder(out, &["eval"], &["summary.json"], true).unwrap());
         assert!(!stale.exists() && out.join("notes.txt").is_file());
+    }
+
+    #[test]
+    fn an_input_is_never_an_output_however_it_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = dir.path().join("scene");
+        std::fs::create_dir_all(scene.join("meshes")).unwrap();
+        let labels = scene.join("labels.json");
+        std::fs::write(&labels, "[]").unwrap();
+        std::fs::write(scene.join("meshes/1.obj"), "").unwrap();
+        let inputs = [labels.clone()];
+        let what = "a file of the input scene";
+        let e = claim_output_file(&labels, &inputs, what, true)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{}: the output is a file of the input scene ({}); write to another file",
+                labels.display(),
+                labels.display()
+            )
+        );
+        // Another spelling of the same file.
+        let dotted = scene.join("meshes/../labels.json");
+        assert!(claim_output_file(&dotted, &inputs, what, true).is_err());
+        #[cfg(unix)]
+        {
+            let link = dir.path().join("link.json");
+            std::os::unix::fs::symlink(&labels, &link).unwrap();
+            assert!(claim_output_file(&link, &inputs, what, true).is_err());
+            let hard = dir.path().join("hard.json");
+            std::fs::hard_link(&labels, &hard).unwrap();
+            assert!(claim_output_file(&hard, &inputs, what, true).is_err());
+        }
+        // A folder input covers every file inside it, and nothing beside it.
+        let folder = [scene.clone()];
+        let e = claim_output_file(
+            &scene.join("meshes/1.obj"),
+            &folder,
+            "inside the input",
+            true,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("the output is inside the input ("), "{e}");
+        // New files, and existing files that are no input, follow `claim_file`.
+        claim_output_file(&scene.join("export.usda"), &inputs, what, false).unwrap();
+        let other = dir.path().join("other.json");
+        std::fs::write(&other, "{}").unwrap();
+        assert!(claim_output_file(&other, &folder, what, false).is_err());
+        claim_output_file(&other, &folder, what, true).unwrap();
     }
 
     #[test]

@@ -59,10 +59,16 @@ pub fn scene_dirs_by_name(root: &Path) -> Result<BTreeMap<String, PathBuf>> {
         .collect())
 }
 
-/// FNV-1a 64 hashes (hex) of the files navigation reads (labels, structure, objects,
-/// occupancy, meshes), keyed by their path relative to `dir`: what run records store so a
-/// later reader can tell whether a scene changed.
+/// FNV-1a 64 hashes (hex) of the files navigation reads ([`input_files`]), keyed by their path
+/// relative to `dir`: what run records store so a later reader can tell whether a scene
+/// changed.
 pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
+    hash_files(dir, &input_files(dir))
+}
+
+/// The paths of the files navigation reads in scene folder `dir` (labels, structure, objects,
+/// occupancy, and whatever `meshes/` holds), whether or not each exists.
+pub fn input_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = [
         "labels.json",
         "structure.json",
@@ -78,7 +84,7 @@ pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
         meshes.sort();
         files.extend(meshes);
     }
-    hash_files(dir, &files)
+    files
 }
 
 /// FNV-1a 64 hashes (hex) of those of `files` that are readable files, keyed by their path

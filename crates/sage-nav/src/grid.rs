@@ -206,7 +206,17 @@ impl NavGrid {
             splat,
             extra,
         )
-        .map_err(|e| Error::invalid(format!("scene {}: {e}", scene.name)))?;
+        .map_err(|e| {
+            // The extent is the Gaussians' and the geometry's: say where each reaches.
+            let g = scene.gaussians.bounds();
+            let mut parts = vec![ExtentPart {
+                name: "the Gaussians".to_string(),
+                lo: g.min.truncate(),
+                hi: g.max.truncate(),
+            }];
+            parts.extend(geometry_parts(scene));
+            Error::invalid(format!("scene {}: {e}{}", scene.name, farthest(&parts)))
+        })?;
         if !has_geometry {
             return Ok((grid, GridSource::Gaussians));
         }
@@ -448,19 +458,21 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
             scene.name
         )));
     }
+    let parts: Vec<ExtentPart> = room_parts(scene).chain(wall_parts(scene)).collect();
     let (mut lo, mut hi) = (Vec2::INFINITY, Vec2::NEG_INFINITY);
-    for r in &fp.rooms {
-        let (a, b) = r.profile.bounds();
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    for w in &fp.walls {
-        let b = w.obb().aabb();
-        lo = lo.min(b.min.truncate());
-        hi = hi.max(b.max.truncate());
+    for p in &parts {
+        lo = lo.min(p.lo);
+        hi = hi.max(p.hi);
     }
     let margin = Vec2::splat(params.margin);
-    let mut grid = NavGrid::new(lo - margin, hi + margin, params.cell)?;
+    let mut grid = NavGrid::new(lo - margin, hi + margin, params.cell).map_err(|e| {
+        Error::invalid(format!(
+            "scene {}: {}{}",
+            scene.name,
+            e.message(),
+            farthest(&parts)
+        ))
+    })?;
     grid.mark_rooms(scene);
     for k in 0..grid.cells.len() {
         if grid.rooms[k] != NO_ROOM {
@@ -469,6 +481,88 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
     }
     block_geometry(&mut grid, scene, (params.slab_bottom, params.agent_height));
     Ok(grid)
+}
+
+/// A part of a scene that a grid covers, named by the file and entry it comes from, with its
+/// floor-plane bounds: what an error about the grid's extent names.
+struct ExtentPart {
+    /// `structure.json rooms[2]`, `labels.json object 1003`, …
+    name: String,
+    /// Lower corner, metres.
+    lo: Vec2,
+    /// Upper corner, metres.
+    hi: Vec2,
+}
+
+/// The rooms of `scene`, as parts of its extent.
+fn room_parts(scene: &Scene) -> impl Iterator<Item = ExtentPart> + '_ {
+    scene.floorplan.rooms.iter().enumerate().map(|(i, r)| {
+        let (lo, hi) = r.profile.bounds();
+        ExtentPart {
+            name: format!("structure.json rooms[{i}]"),
+            lo,
+            hi,
+        }
+    })
+}
+
+/// The walls of `scene`, as parts of its extent.
+fn wall_parts(scene: &Scene) -> impl Iterator<Item = ExtentPart> + '_ {
+    scene.floorplan.walls.iter().enumerate().map(|(i, w)| {
+        let b = w.obb().aabb();
+        ExtentPart {
+            name: format!("structure.json walls[{i}]"),
+            lo: b.min.truncate(),
+            hi: b.max.truncate(),
+        }
+    })
+}
+
+/// The walls, objects and structure mesh of `scene` (what [`geometry_bounds`] spans), as parts
+/// of its extent.
+fn geometry_parts(scene: &Scene) -> Vec<ExtentPart> {
+    let mut parts: Vec<ExtentPart> = wall_parts(scene).collect();
+    parts.extend(scene.objects.iter().map(|o| {
+        let b = o.obb.aabb();
+        ExtentPart {
+            name: format!("labels.json object {}", o.ins_id),
+            lo: b.min.truncate(),
+            hi: b.max.truncate(),
+        }
+    }));
+    if let Some(m) = &scene.structure_mesh {
+        let b = m.aabb();
+        parts.push(ExtentPart {
+            name: "meshes/structure.obj".to_string(),
+            lo: b.min.truncate(),
+            hi: b.max.truncate(),
+        });
+    }
+    parts
+}
+
+/// `; it reaches farthest at NAME, which spans …` for the part of `parts` farthest from the
+/// median of their centres (the one that stretches the extent when one part is broken), or
+/// nothing without parts.
+fn farthest(parts: &[ExtentPart]) -> String {
+    let centres: Vec<Vec2> = parts.iter().map(|p| (p.lo + p.hi) * 0.5).collect();
+    let median = |axis: fn(&Vec2) -> f32| {
+        let mut v: Vec<f32> = centres.iter().map(axis).collect();
+        v.sort_by(f32::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    let m = Vec2::new(median(|c| c.x), median(|c| c.y));
+    // How far a part reaches from the median: its farthest corner.
+    let reach = |p: &ExtentPart| (p.lo - m).abs().max((p.hi - m).abs()).max_element();
+    parts
+        .iter()
+        .max_by(|a, b| reach(a).total_cmp(&reach(b)))
+        .map_or_else(String::new, |p| {
+            format!(
+                "; it reaches farthest at {}, which spans x {} to {} and y {} to {} m",
+                p.name, p.lo.x, p.hi.x, p.lo.y, p.hi.y
+            )
+        })
 }
 
 /// The floor-plane bounds (lower, upper corner) of the walls and objects of `scene`.

@@ -719,3 +719,52 @@ fn an_object_outside_the_map_is_clipped_not_a_panic() {
         "an object off the map has no stand point"
     );
 }
+
+#[test]
+fn a_grid_too_large_names_the_part_that_stretches_it() {
+    // One wall 9 km off, the rest a 6 x 4 m room: 180000 x 180000 cells of 5 cm.
+    let far = Wall {
+        start: Vec2::new(0.0, 9000.0),
+        end: Vec2::new(9000.0, 9000.0),
+        thickness: 0.1,
+        height: 2.8,
+    };
+    let scene = room_scene(vec![], vec![far]);
+    let e = NavGrid::from_scene(&scene, &GridParams::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("scene hand: a ") && e.contains("grid is too large"),
+        "{e}"
+    );
+    assert!(
+        e.contains("it reaches farthest at structure.json walls[4], which spans x "),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_map_of_an_object_reaching_kilometres_away_is_drawn_within_the_grid() {
+    // A mesh reaching to the coordinate bound: its footprint is kilometres across, the map
+    // only the room's; drawing costs the map's pixels, not the footprint's.
+    let mesh = box_mesh(Vec3::new(1.0, 1.0, 0.0), Vec3::new(1e4, 1e4, 1.0));
+    let scene = room_scene(
+        vec![object(
+            "sofa",
+            Some(mesh),
+            obb_of(Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, 2.0, 1.0)),
+        )],
+        vec![],
+    );
+    let (g, _) = NavGrid::from_scene(&scene, &GridParams::default()).unwrap();
+    let (canvas, map_width) = SemanticMap::build(&scene).draw(&g, &[]);
+    assert!(map_width >= g.width && canvas.height >= g.height);
+    // The footprint covers the room's upper right corner.
+    let (x, y) = (map_width - 2, 1);
+    let k = (y * canvas.width + x) * 3;
+    assert_eq!(
+        canvas.rgb[k..k + 3],
+        sage_io::canvas::palette(0),
+        "the footprint is drawn in the colour of its category, the only one"
+    );
+}

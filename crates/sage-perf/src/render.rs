@@ -343,10 +343,10 @@ pub fn run(
     settings.device.check_slabs(settings.slabs)?;
     settings.device.check_blending(settings.blending)?;
     if let (Some(dir), false) = (&settings.scene, settings.sh3) {
-        return measure(&Scene::load(dir)?.0, settings);
+        return measure(&Scene::load_for_rendering(dir)?.0, settings);
     }
     let mut scene = match &settings.scene {
-        Some(dir) => Scene::load(dir)?.0,
+        Some(dir) => Scene::load_for_rendering(dir)?.0,
         None => {
             eprintln!("generating a {}-Gaussian home …", settings.gaussians);
             sage_synth::generate(&SynthConfig {

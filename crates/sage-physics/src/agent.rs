@@ -8,7 +8,7 @@ use crate::world::World;
 use glam::{Vec2, Vec3};
 use rapier3d::parry::query::ShapeCastOptions;
 use rapier3d::prelude::*;
-use sage_core::{Error, InstanceId, Pose, Result, wrap_angle};
+use sage_core::{Error, InstanceId, MAX_COORDINATE, Pose, Result, within_bounds, wrap_angle};
 use serde::Serialize;
 use std::fmt;
 use std::str::FromStr;
@@ -25,6 +25,12 @@ pub const STUCK_STEPS: u32 = 5;
 const NO_PROGRESS: f32 = 0.05;
 /// Slide iterations per step (each handles one more contact plane).
 const SLIDE_ITERATIONS: usize = 4;
+/// The largest turn a command or a heading may hold, radians (ten full turns): more is a
+/// mistake, and f32 keeps no useful precision in an angle much larger.
+pub const MAX_TURN: f32 = 20.0 * std::f32::consts::PI;
+/// The longest a velocity command may be held, seconds: a command is one control step, and the
+/// physics of the rigid bodies is stepped through all of it.
+pub const MAX_COMMAND_SECONDS: f32 = 60.0;
 
 /// How an agent moves: a ground robot or a UAV (named apart from `sage_agents::AgentKind`,
 /// the agent an evaluation runs).
@@ -198,6 +204,103 @@ pub enum Command {
     },
 }
 
+impl Command {
+    /// Checks the command's numbers: finite; a distance, speed and the distance a velocity
+    /// asks for (speed × duration) within ±[`MAX_COORDINATE`] m (and m/s); turns and yaw rates
+    /// within ±[`MAX_TURN`] (rad, rad/s); durations from 0 to [`MAX_COMMAND_SECONDS`]. Beyond
+    /// those a shape cast cannot place the agent (at 1e20 m it passes through walls) and the
+    /// physics would step for ages; the limits of the agent's profile then clamp what is left.
+    ///
+    /// # Errors
+    ///
+    /// An `invalid` error naming the command and the value at fault.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: &str, value: f32, range: String| {
+            Err(Error::invalid(format!(
+                "command '{self}': {what} {value:?} is {}; expected {range}",
+                if value.is_finite() {
+                    "out of range"
+                } else {
+                    "not finite"
+                }
+            )))
+        };
+        let metres = |what: &str, v: f32| {
+            if v.abs() <= MAX_COORDINATE {
+                Ok(())
+            } else {
+                bad(what, v, format!("within ±{MAX_COORDINATE}"))
+            }
+        };
+        let angle = |what: &str, a: f32| {
+            if a.abs() <= MAX_TURN {
+                Ok(())
+            } else {
+                bad(
+                    what,
+                    a.to_degrees(),
+                    format!("within ±{}°", MAX_TURN.to_degrees().round()),
+                )
+            }
+        };
+        let seconds = |dt: f32| {
+            if (0.0..=MAX_COMMAND_SECONDS).contains(&dt) {
+                Ok(())
+            } else {
+                bad("dt", dt, format!("0 to {MAX_COMMAND_SECONDS} s"))
+            }
+        };
+        match *self {
+            Command::Forward { distance } => metres("distance (m)", distance),
+            Command::Turn { angle: a } => angle("turn (deg)", a),
+            Command::Stop => Ok(()),
+            Command::Ground { vx, vy, wz, dt } => {
+                metres("vx (m/s)", vx)?;
+                metres("vy (m/s)", vy)?;
+                angle("yaw rate (deg/s)", wz)?;
+                seconds(dt)?;
+                metres(
+                    "distance asked for, speed × dt (m)",
+                    Vec2::new(vx, vy).length() * dt,
+                )
+            }
+            Command::Uav { vx, vy, vz, wz, dt } => {
+                metres("vx (m/s)", vx)?;
+                metres("vy (m/s)", vy)?;
+                metres("vz (m/s)", vz)?;
+                angle("yaw rate (deg/s)", wz)?;
+                seconds(dt)?;
+                metres(
+                    "distance asked for, speed × dt (m)",
+                    Vec3::new(vx, vy, vz).length() * dt,
+                )
+            }
+        }
+    }
+}
+
+/// Checks a pose an agent is placed at: a finite position within ±[`MAX_COORDINATE`] m and a
+/// finite heading (any: it is wrapped as the agent turns).
+///
+/// # Errors
+///
+/// An `invalid` error giving the pose.
+pub fn check_pose(pose: &Pose) -> Result<()> {
+    if !within_bounds(pose.position) {
+        return Err(Error::invalid(format!(
+            "position {:?}: expected finite coordinates within ±{MAX_COORDINATE} m",
+            pose.position.to_array()
+        )));
+    }
+    if !pose.yaw.is_finite() {
+        return Err(Error::invalid(format!(
+            "yaw {:?}: expected a finite heading",
+            pose.yaw
+        )));
+    }
+    Ok(())
+}
+
 /// `angle` (radians) in degrees, in the fewest decimals that parse back to the same angle: the
 /// `15` of `turn:15`, where the plain conversion writes `15.000001`.
 fn degrees(angle: f32) -> String {
@@ -272,6 +375,7 @@ impl FromStr for Command {
                 )));
             }
         };
+        cmd.validate()?;
         Ok(cmd)
     }
 }
@@ -422,8 +526,14 @@ impl AgentBody {
     ///
     /// # Errors
     ///
-    /// A ground command to a UAV or a UAV command to a ground robot.
+    /// A command out of range ([`Command::validate`]), an agent at a pose out of range
+    /// ([`check_pose`]: [`AgentBody::new`] takes any), a ground command to a UAV or a UAV
+    /// command to a ground robot.
     pub fn step(&mut self, world: &mut World, cmd: &Command) -> Result<StepReport> {
+        // Commands are built by hand, from text, from Python and by environments: each is
+        // checked where it is carried out.
+        cmd.validate()?;
+        check_pose(&self.pose).map_err(|e| e.within("the agent's pose"))?;
         let (commanded, turn, dt) = self.resolve(cmd)?;
         world.advance(dt);
         let planar = self.profile.kind == Locomotion::Ground;
@@ -654,6 +764,81 @@ mod tests {
         assert!("forward".parse::<Command>().is_err());
         assert!("vel:1:0:0:-1".parse::<Command>().is_err());
         assert!("turn:NaN".parse::<Command>().is_err());
+    }
+
+    #[test]
+    fn commands_out_of_range_are_refused_from_text_and_by_hand() {
+        for (text, said) in [
+            (
+                "forward:1e20",
+                "distance (m) 1e20 is out of range; expected within ±10000",
+            ),
+            ("forward:-10001", "distance (m) -10001.0 is out of range"),
+            ("turn:1e9", "turn (deg)"),
+            ("vel:1e5:0:0:1", "vx (m/s) 100000.0 is out of range"),
+            (
+                "vel:1:0:0:61",
+                "dt 61.0 is out of range; expected 0 to 60 s",
+            ),
+            ("uav:0:0:1e30:0:1", "vz (m/s)"),
+            // Each number in range, the distance they ask for not: 5000 m/s for 50 s.
+            (
+                "vel:5000:0:0:50",
+                "distance asked for, speed × dt (m) 250000.0",
+            ),
+            ("forward:1e40", "'1e40' is not a finite number"),
+        ] {
+            let e = text.parse::<Command>().unwrap_err().to_string();
+            assert!(e.contains(said), "{text}: {e}");
+        }
+        for fine in [
+            "forward:10000",
+            "turn:3599",
+            "vel:1:0:90:60",
+            "uav:3:0:1.5:0:60",
+        ] {
+            fine.parse::<Command>().unwrap();
+        }
+        let by_hand = [
+            Command::Forward { distance: f32::NAN },
+            Command::Turn {
+                angle: f32::INFINITY,
+            },
+            Command::Ground {
+                vx: 1.0,
+                vy: 0.0,
+                wz: 0.0,
+                dt: -1.0,
+            },
+            Command::Uav {
+                vx: 0.0,
+                vy: 0.0,
+                vz: 0.0,
+                wz: f32::NAN,
+                dt: 1.0,
+            },
+        ];
+        for c in by_hand {
+            assert!(c.validate().is_err(), "{c}");
+        }
+        let e = Command::Forward { distance: f32::NAN }
+            .validate()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("NaN is not finite"), "{e}");
+    }
+
+    #[test]
+    fn poses_must_be_finite_and_within_the_bound() {
+        check_pose(&Pose::new(Vec3::new(1e4, -1e4, 0.0), 100.0)).unwrap();
+        for (p, yaw) in [
+            (Vec3::new(f32::NAN, 0.0, 0.0), 0.0),
+            (Vec3::new(0.0, 2e4, 0.0), 0.0),
+            (Vec3::new(0.0, 0.0, f32::INFINITY), 0.0),
+            (Vec3::ZERO, f32::NAN),
+        ] {
+            assert!(check_pose(&Pose::new(p, yaw)).is_err(), "{p} {yaw}");
+        }
     }
 
     #[test]

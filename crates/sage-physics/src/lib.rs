@@ -19,7 +19,8 @@ pub mod worklist;
 pub mod world;
 
 pub use agent::{
-    AgentBody, AgentProfile, Command, Locomotion, StepReport, Touch, collision_intensity,
+    AgentBody, AgentProfile, Command, Locomotion, StepReport, Touch, check_pose,
+    collision_intensity,
 };
 pub use bodies::{Body, BodyKind, BuildReport, PartSource, SceneBodies};
 pub use decompose::{Decomposer, HullCache, cache_key, default_cache_dir};

@@ -145,6 +145,45 @@ fn agent(name: &str, x: f32, y: f32, z: f32, yaw_deg: f32) -> AgentBody {
 }
 
 #[test]
+fn commands_and_poses_out_of_range_are_refused_and_the_largest_stops_at_the_wall() {
+    let scene = hall(None);
+    let mut world = world_of(&scene);
+    // The farthest move allowed, into the outer wall x = 0: stopped there like any other.
+    let mut a = agent("wheeled", 1.0, 1.5, 0.0, 180.0);
+    let far = a
+        .step(&mut world, &Command::Forward { distance: 1e4 })
+        .unwrap();
+    assert!(!far.touched.is_empty());
+    assert!((a.pose.position.x - (0.05 + a.profile.radius + SKIN)).abs() < 2e-3);
+    // Beyond it, or not finite, the step is refused and the agent stays where it was.
+    let before = a.pose;
+    for c in [
+        Command::Forward { distance: 1e20 },
+        Command::Forward { distance: f32::NAN },
+        Command::Ground {
+            vx: 1.0,
+            vy: 0.0,
+            wz: 0.0,
+            dt: 1e6,
+        },
+    ] {
+        let e = a.step(&mut world, &c).unwrap_err().to_string();
+        assert!(e.starts_with("command '"), "{e}");
+        assert_eq!(a.pose, before);
+    }
+    // An agent placed at a pose that is not finite takes no step.
+    let mut lost = agent("wheeled", f32::NAN, 1.5, 0.0, 0.0);
+    let e = lost
+        .step(&mut world, &Command::Stop)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("the agent's pose: position [NaN, 1.5, 0.0]"),
+        "{e}"
+    );
+}
+
+#[test]
 fn agent_driven_into_a_wall_stops_at_its_radius_and_slides_along_it() {
     let scene = hall(None);
     let mut world = world_of(&scene);

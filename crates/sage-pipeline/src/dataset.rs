@@ -251,3 +251,39 @@ pub fn import(source: &Source, out: &Path, split: &str, force: bool) -> Result<I
         report: imported.report,
     })
 }
+
+/// Writes split `split` of `dataset` to the file `out` in `format`
+/// ([`sage_dataset::export::export`]), after checking that `out` is none of the files the
+/// export reads, force or not: the dataset's own files ([`build::OUTPUTS`], the import's
+/// reports) and the files of the scenes in its scenes folder ([`sage_scene::scene_files`]).
+///
+/// # Errors
+///
+/// `out` being a file of the dataset or of one of its scenes, or those of
+/// [`sage_dataset::export::export`].
+pub fn export(
+    dataset: &Path,
+    split: &str,
+    scenes: Option<&Path>,
+    format: sage_dataset::export::Format,
+    out: &Path,
+    force: bool,
+) -> Result<sage_dataset::export::Exported> {
+    let mut inputs: Vec<PathBuf> = build::OUTPUTS
+        .iter()
+        .chain(&[sage_dataset::import::REPORTS_DIR])
+        .map(|name| dataset.join(name))
+        .collect();
+    // A scenes folder that cannot be found is the export's error to report, with its advice.
+    if let Ok(folder) = sage_dataset::folder::scenes_folder(dataset, scenes) {
+        let dirs = sage_io::scenes::scene_dirs(&folder).unwrap_or_default();
+        inputs.extend(dirs.iter().flat_map(|d| sage_scene::scene_files(d)));
+    }
+    sage_io::run::claim_output_file(
+        out,
+        &inputs,
+        "a file of the input dataset or of its scenes",
+        force,
+    )?;
+    sage_dataset::export::export(dataset, split, scenes, format, out, force)
+}

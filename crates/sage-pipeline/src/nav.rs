@@ -66,7 +66,9 @@ pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Re
 
 /// Writes `semantic_map.json`, `semantic_map.png`, `occupancy.png` + `occupancy.json`, the
 /// published map `2D_Semantic_Map_{scene}_Complete.json` (when the scene has an occupancy
-/// image) and the run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`).
+/// image) and the run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`),
+/// all computed before the first is written, and the run record last (it marks the maps
+/// complete); a write that fails removes the maps written before it.
 /// `out` must be new, empty or a `nav` folder (a rerun replaces its maps); with `force`, a
 /// folder of other files is written into, provided none of them would be replaced
 /// ([`sage_io::run::claim_folder`]).
@@ -93,20 +95,33 @@ pub fn map_into(
         sage_io::RUN_RECORD,
     ];
     let _lock = sage_io::run::claim_folder(&out, &NAV_COMMANDS, &names, force)?;
+    // Everything is computed before the first file is written, so that a run that fails or
+    // is interrupted while it works leaves no map behind, and the writing that follows takes
+    // moments; the run record, written last, marks the folder complete.
     let (grid, source) = NavGrid::from_scene(&scene, grid_params)?;
     let map = SemanticMap::build(&scene);
-    map.save_json(&out.join("semantic_map.json"))?;
-    map.draw(&grid, &[])
-        .0
-        .save_png(&out.join("semantic_map.png"))?;
-    grid.to_occupancy((grid_params.slab_bottom, grid_params.agent_height))?
-        .save(&out)?;
+    let picture = map.draw(&grid, &[]).0;
+    let occupancy = grid.to_occupancy((grid_params.slab_bottom, grid_params.agent_height))?;
     let published = scene
         .occupancy
         .as_ref()
         .map(|occ| PublishedMap::build(&scene.objects, occ));
-    if let Some(p) = &published {
-        sage_io::files::write_json(&out.join(&published_name), &p.to_json())?;
+    let written = (|| {
+        map.save_json(&out.join("semantic_map.json"))?;
+        picture.save_png(&out.join("semantic_map.png"))?;
+        occupancy.save(&out)?;
+        if let Some(p) = &published {
+            sage_io::files::write_json(&out.join(&published_name), &p.to_json())?;
+        }
+        Ok::<(), sage_core::Error>(())
+    })();
+    if let Err(e) = written {
+        // A failed write leaves no part of a map beside the others (the claim made sure that
+        // these names are this command's to replace).
+        for name in names.iter().filter(|n| **n != sage_io::RUN_RECORD) {
+            let _ = std::fs::remove_file(out.join(name));
+        }
+        return Err(e);
     }
     let (free, occupied, unknown) = grid.counts();
     sage_io::run::write_run_record(

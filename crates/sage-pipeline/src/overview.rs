@@ -50,7 +50,7 @@ pub fn write(scenes: &Path, run: &Path, out: &Path) -> Result<()> {
     let rec = pick(&files.records)
         .ok_or_else(|| Error::invalid("no VLN episode with a path").in_file(run))?;
     let episode = rec.record.as_ref().expect("picked records have one");
-    let (scene, _) = Scene::load(&scenes.join(&rec.scene))?;
+    let (scene, _) = Scene::load_for_rendering(&scenes.join(&rec.scene))?;
     let (grid, _) = NavGrid::from_scene(&scene, &TrajectoryParams::default().grid)?;
     let map = report::maps::episode_map(&SemanticMap::build(&scene), &grid, rec);
     let height = map.height;

@@ -34,6 +34,22 @@ impl BodyOptions {
         splat_bodies::attach(&mut scene, self.splat_bodies, &SplatBodyParams::default())?;
         Ok((scene, loaded))
     }
+
+    /// The files loading the scene in `scene_dir` with these options reads: what an output of
+    /// a command on the scene may never replace.
+    pub fn inputs(&self, scene_dir: &Path) -> Vec<PathBuf> {
+        let mut inputs = sage_scene::scene_files(scene_dir);
+        inputs.extend(self.load.collision.clone());
+        inputs
+    }
+
+    /// Checks that the output file `out` of a command reading the scene in `scene_dir` may be
+    /// written: never one of the scene's files ([`BodyOptions::inputs`]), and an existing file
+    /// only with `force` ([`sage_io::run::claim_output_file`]).
+    fn claim_output(&self, scene_dir: &Path, out: &Path, force: bool) -> Result<()> {
+        let inputs = self.inputs(scene_dir);
+        sage_io::run::claim_output_file(out, &inputs, "a file of the input scene", force)
+    }
 }
 
 /// Loads the scene in `scene_dir` with `options` and builds its collision bodies with
@@ -60,11 +76,12 @@ pub fn bodies(
 
 /// Writes to `out` the work list of the scene in `scene_dir` (loaded with `options`): its
 /// object meshes that `decomposer` has not yet decomposed into `cache` (what an offline
-/// decomposer such as `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`.
+/// decomposer such as `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`,
+/// and never when it is one of the scene's files.
 ///
 /// # Errors
 ///
-/// An existing `out` without `force`, a scene that cannot be loaded, or a write error.
+/// An existing `out` without `force`, `out` being a file of the scene, a scene that cannot be loaded, or a write error.
 pub fn work_list(
     scene_dir: &Path,
     options: &BodyOptions,
@@ -73,7 +90,7 @@ pub fn work_list(
     cache: &HullCache,
     force: bool,
 ) -> Result<WorkList> {
-    sage_io::run::claim_file(out, force)?;
+    options.claim_output(scene_dir, out, force)?;
     let (scene, _) = options.load(scene_dir)?;
     let list = WorkList::of(&scene, decomposer, cache);
     write_json(out, &list)?;
@@ -96,11 +113,12 @@ pub struct UsdReport {
 /// Writes the hybrid scene of `scene_dir` (loaded with `options`) as USDA to `out`: its
 /// collision bodies (built as [`bodies`] does) with UsdPhysics schemas, and its Gaussians
 /// referenced as a PLY asset by a path relative to `out`'s folder, so that the two can move together. An existing `out` is
-/// replaced only with `force`, and that is checked before the bodies are built.
+/// replaced only with `force`, never when it is one of the scene's files (its `labels.json`
+/// written over breaks the scene), and that is checked before the bodies are built.
 ///
 /// # Errors
 ///
-/// An existing `out` without `force`, a scene that cannot be loaded, a decomposition that
+/// An existing `out` without `force`, `out` being a file of the scene, a scene that cannot be loaded, a decomposition that
 /// fails, or a write error.
 pub fn export_usd(
     scene_dir: &Path,
@@ -111,7 +129,7 @@ pub fn export_usd(
     force: bool,
     on_object: &(dyn Fn(usize) + Sync),
 ) -> Result<UsdReport> {
-    sage_io::run::claim_file(out, force)?;
+    options.claim_output(scene_dir, out, force)?;
     let (scene, bodies, build) = bodies(scene_dir, options, decomposer, cache, on_object)?;
     let out_dir = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -233,6 +251,60 @@ mod tests {
         .unwrap();
         assert_eq!(again.build.decomposed, 0, "the hulls come from the cache");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
+        // The scene's own files are never outputs, force or not, however they are named; a new
+        // file in the scene folder is.
+        let mesh = std::fs::read_dir(scene.join("meshes"))
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        let dotted = scene.join("meshes/../structure.json");
+        for file in [scene.join("labels.json"), dotted, mesh] {
+            let before = std::fs::read(&file).unwrap();
+            let refused = export_usd(
+                &scene,
+                &BodyOptions::default(),
+                &file,
+                &decomposer,
+                &cache,
+                true,
+                &|_| {},
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(
+                refused.contains("the output is a file of the input scene"),
+                "{refused}"
+            );
+            let refused = work_list(
+                &scene,
+                &BodyOptions::default(),
+                &file,
+                &decomposer,
+                &cache,
+                true,
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(
+                refused.contains("the output is a file of the input scene"),
+                "{refused}"
+            );
+            assert_eq!(std::fs::read(&file).unwrap(), before, "{}", file.display());
+        }
+        let inside = scene.join("scene.usda");
+        export_usd(
+            &scene,
+            &BodyOptions::default(),
+            &inside,
+            &decomposer,
+            &cache,
+            false,
+            &|_| {},
+        )
+        .unwrap();
+        assert!(inside.is_file());
     }
 
     #[test]

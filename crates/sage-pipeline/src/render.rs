@@ -240,8 +240,9 @@ const OUTPUTS: [&str; 12] = [
 ///
 /// # Errors
 ///
-/// A bad setting, a scene or camera file that cannot be read, an output folder holding files
-/// a render did not write, a device that cannot render, or a write error.
+/// A bad setting, a scene or camera file that cannot be read, a scene without Gaussians
+/// ([`Scene::load_for_rendering`]), an output folder holding files a render did not write, a
+/// device that cannot render, or a write error.
 pub fn render_to_folder(
     settings: &RenderSettings,
     out: &Path,
@@ -249,7 +250,7 @@ pub fn render_to_folder(
     on_progress: &mut dyn FnMut(RenderProgress),
 ) -> Result<RenderReport> {
     settings.validate()?;
-    let (scene, _) = Scene::load(&settings.scene)?;
+    let (scene, _) = Scene::load_for_rendering(&settings.scene)?;
     let camera = settings.camera.camera(&scene)?;
     let options = RenderOptions {
         background: settings.background,

@@ -104,6 +104,12 @@ impl Gaussian {
 pub const LOG_SCALE_STEP: f32 = 1.0 / 2048.0;
 /// The step of stored opacity logits: 1/1024 keeps opacity within 1.3e-4 over logits ±32.
 pub const OPACITY_LOGIT_STEP: f32 = 1.0 / 1024.0;
+/// Height above the floor (z = 0 in the world frame W) below which a Gaussian's centre is floor
+/// rather than obstacle, metres: the floor of a trained capture is a layer of Gaussians a few
+/// centimetres thick. The occupancy grid of a scene without a map counts no obstacle below it
+/// (`sage_nav::splat_grid`) and the collision body of a capture's loose Gaussians starts above it
+/// (`sage_physics::splat_bodies`), so that where the map is free an agent stands free.
+pub const FLOOR_BAND: f32 = 0.05;
 /// The code stored for a value that was not finite, so that [`Gaussians::validate`] can name it.
 const NOT_FINITE: i16 = i16::MIN;
 

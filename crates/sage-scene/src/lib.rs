@@ -27,11 +27,13 @@ pub mod summary;
 pub mod vocabulary;
 
 pub use floorplan::{Floorplan, Hole, HoleKind, Room, StructureItem, Wall};
-pub use gaussians::{Gaussian, Gaussians};
+pub use gaussians::{FLOOR_BAND, Gaussian, Gaussians};
 pub use instances::{InstanceKind, InstanceTable};
 pub use mesh::TriMesh;
 pub use object::{Attributes, BodyParts, BodySource, DoorState, Object, PhysicsRole, RigidBody};
 pub use occupancy::OccupancyMap;
 pub use ply::SplatLayout;
-pub use scene::{LoadOptions, LoadReport, Scene, input_hashes, scenes_input_hashes};
+pub use scene::{
+    LoadOptions, LoadReport, Scene, gaussians_file, input_hashes, scene_files, scenes_input_hashes,
+};
 pub use summary::SceneSummary;

@@ -2,7 +2,7 @@
 
 use crate::ply::header::{element_rows, parse_header};
 use glam::{Mat4, Vec3};
-use sage_core::{Aabb, Error, Result, ResultExt};
+use sage_core::{Aabb, Error, MAX_COORDINATE, Result, ResultExt, within_bounds};
 use sage_io::limits::{Limit, MESH_MB};
 use std::io::Write;
 use std::path::Path;
@@ -89,12 +89,13 @@ impl TriMesh {
         Aabb::from_points(self.positions.iter().copied())
     }
 
-    /// Checks indices and coordinates; names the first bad triangle or vertex.
+    /// Checks indices and coordinates (finite, within ±[`MAX_COORDINATE`] m); names the first
+    /// bad triangle or vertex.
     pub fn validate(&self) -> Result<()> {
-        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+        if let Some(i) = self.first_vertex_out_of_bounds() {
             return Err(Error::format(
                 format!("vertex[{i}]"),
-                "coordinate is not finite",
+                vertex_out_of_bounds(self.positions[i]),
             ));
         }
         let n = self.positions.len() as u32;
@@ -109,6 +110,11 @@ impl TriMesh {
             ));
         }
         Ok(())
+    }
+
+    /// The index of the first vertex that is not finite or lies beyond ±[`MAX_COORDINATE`] m.
+    fn first_vertex_out_of_bounds(&self) -> Option<usize> {
+        self.positions.iter().position(|p| !within_bounds(*p))
     }
 
     /// Writes the mesh as Wavefront OBJ text.
@@ -214,6 +220,18 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
     let (models, _materials) = loaded.map_err(|e| obj_error(e, reader.line()))?;
     let mut mesh = TriMesh::default();
     for m in &models {
+        let positions = m.mesh.positions.chunks_exact(3);
+        if let Some(p) = positions
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .find(|p| !within_bounds(*p))
+        {
+            // tobj renumbers vertices (single index), so the vertex's own line is found again.
+            let at = obj_vertex_line(path, p).map_or_else(
+                || format!("object '{}'", m.name),
+                |line| format!("line {line}"),
+            );
+            return Err(Error::format(at, vertex_out_of_bounds(p)));
+        }
         let part = TriMesh {
             positions: m
                 .mesh
@@ -232,6 +250,48 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
         mesh.append(&part);
     }
     Ok(mesh)
+}
+
+/// Why vertex `p` is refused.
+fn vertex_out_of_bounds(p: Vec3) -> String {
+    format!(
+        "vertex ({:?}, {:?}, {:?}): expected finite coordinates within ±{MAX_COORDINATE} m (a \
+         mesh is in metres, in the scene's frame)",
+        p.x, p.y, p.z
+    )
+}
+
+/// The line (from 1) of the first `v` statement of the OBJ file `path` whose position is `p`,
+/// read as tobj reads it (the first three numbers, as f32); `None` when the file cannot be
+/// read again or holds no such line. Only called for an error, so reading twice costs nothing
+/// on the good path.
+fn obj_vertex_line(path: &Path, p: Vec3) -> Option<usize> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).ok()?;
+    let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    let mut reader = std::io::BufReader::new(file);
+    let mut line = Vec::new();
+    let mut n = 0;
+    loop {
+        line.clear();
+        if reader.read_until(b'\n', &mut line).ok()? == 0 {
+            return None;
+        }
+        n += 1;
+        let text = String::from_utf8_lossy(&line);
+        let mut words = text.split_whitespace();
+        if words.next() != Some("v") {
+            continue;
+        }
+        let xyz: Vec<f32> = words.take(3).map_while(|w| w.parse().ok()).collect();
+        if let [x, y, z] = xyz[..]
+            && same(x, p.x)
+            && same(y, p.y)
+            && same(z, p.z)
+        {
+            return Some(n);
+        }
+    }
 }
 
 /// An OBJ reading error, at `line` where tobj found it on the line it was reading (its

@@ -213,11 +213,15 @@ impl Scene {
                 dir.display()
             )));
         }
+        // Each file is looked at once: a folder by its name is an error, not a missing file.
+        let splat_path = gaussians_file(dir)?;
+        let labels_path = dir.join(files::LABELS);
+        let has_labels = is_present(&labels_path)?;
+        let structure_path = dir.join(files::STRUCTURE);
+        let has_structure = is_present(&structure_path)?;
         // A folder with none of the files that make a scene is a mistaken path, not an empty
         // scene.
-        let has = |name: &str| dir.join(name).is_file();
-        if !files::GAUSSIANS.iter().any(|f| has(f)) && !has(files::LABELS) && !has(files::STRUCTURE)
-        {
+        if splat_path.is_none() && !has_labels && !has_structure {
             return Err(Error::invalid(format!(
                 "{} is not a scene folder: missing {} (or {}), {} and {}",
                 dir.display(),
@@ -235,10 +239,6 @@ impl Scene {
                 report.missing.push(name.to_string())
             }
         };
-        let splat_path = files::GAUSSIANS
-            .iter()
-            .map(|f| dir.join(f))
-            .find(|p| p.is_file());
         let gaussians = match &splat_path {
             Some(p) => {
                 note(&p.file_name().unwrap_or_default().to_string_lossy(), true);
@@ -256,8 +256,7 @@ impl Scene {
                 Gaussians::new(0)?
             }
         };
-        let labels_path = dir.join(files::LABELS);
-        let mut objects = if labels_path.is_file() {
+        let mut objects = if has_labels {
             note(files::LABELS, true);
             let text = read_text(&labels_path)?;
             let (objects, skipped) = labels::parse(&text).in_file(&labels_path)?;
@@ -272,26 +271,25 @@ impl Scene {
             note(files::LABELS, false);
             Vec::new()
         };
-        let structure_path = dir.join(files::STRUCTURE);
-        let floorplan = if structure_path.is_file() {
+        let floorplan = if has_structure {
             note(files::STRUCTURE, true);
             structure::parse(&read_text(&structure_path)?).in_file(&structure_path)?
         } else {
             note(files::STRUCTURE, false);
             Floorplan::default()
         };
-        let occupancy =
-            if dir.join("occupancy.json").is_file() && dir.join("occupancy.png").is_file() {
-                note("occupancy.png", true);
-                note("occupancy.json", true);
-                Some(OccupancyMap::load(dir)?)
-            } else {
-                note("occupancy.png", false);
-                None
-            };
+        let occupancy_json = is_present(&dir.join("occupancy.json"))?;
+        let occupancy = if is_present(&dir.join("occupancy.png"))? && occupancy_json {
+            note("occupancy.png", true);
+            note("occupancy.json", true);
+            Some(OccupancyMap::load(dir)?)
+        } else {
+            note("occupancy.png", false);
+            None
+        };
         let objects_path = dir.join(files::OBJECTS);
         let mut mesh_files = vec![None; objects.len()];
-        if objects_path.is_file() {
+        if is_present(&objects_path)? {
             note(files::OBJECTS, true);
             let applied = objects_json::apply(&read_text(&objects_path)?, &mut objects)
                 .in_file(&objects_path)?;
@@ -307,6 +305,11 @@ impl Scene {
         let mesh_dir = dir.join(files::MESHES);
         if mesh_dir.is_dir() {
             note(files::MESHES, true);
+        } else if mesh_dir.exists() {
+            return Err(
+                Error::invalid("a file, not a folder: the scene's meshes go in a folder")
+                    .in_file(&mesh_dir),
+            );
         }
         let meshes = objects
             .par_iter()
@@ -314,7 +317,7 @@ impl Scene {
             .map(|(o, named)| match named {
                 Some(rel) => {
                     let p = dir.join(rel);
-                    if !p.is_file() {
+                    if !is_present(&p)? {
                         return Err(Error::format(
                             format!("objects[ins_id {}].mesh", o.ins_id),
                             format!("names {rel}, which does not exist"),
@@ -323,21 +326,22 @@ impl Scene {
                     }
                     TriMesh::load(&p).map(Some)
                 }
-                None => MESH_EXTENSIONS
-                    .iter()
-                    .map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id)))
-                    .find(|p| p.is_file())
-                    .map(|p| TriMesh::load(&p))
-                    .transpose(),
+                None => first_present(
+                    MESH_EXTENSIONS
+                        .iter()
+                        .map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id))),
+                )?
+                .map(|p| TriMesh::load(&p))
+                .transpose(),
             })
             .collect::<Result<Vec<_>>>()?;
         for (o, m) in objects.iter_mut().zip(meshes) {
             report.meshes += usize::from(m.is_some());
             o.mesh = m;
         }
-        let structure_path = mesh_dir.join(files::STRUCTURE_MESH);
-        let structure_mesh = if structure_path.is_file() {
-            Some(TriMesh::load(&structure_path)?)
+        let structure_mesh_path = mesh_dir.join(files::STRUCTURE_MESH);
+        let structure_mesh = if is_present(&structure_mesh_path)? {
+            Some(TriMesh::load(&structure_mesh_path)?)
         } else {
             None
         };
@@ -375,6 +379,33 @@ impl Scene {
             instances: InstanceTable::default(),
         };
         scene.finish();
+        Ok((scene, report))
+    }
+
+    /// [`Scene::load`] for work that needs the Gaussians (rendering, plan views): a folder
+    /// without a Gaussian file, or whose file holds none, is an error naming the file rather
+    /// than a scene that renders black.
+    ///
+    /// # Errors
+    ///
+    /// Those of [`Scene::load`], no Gaussian file, or an empty one.
+    pub fn load_for_rendering(dir: &Path) -> Result<(Scene, LoadReport)> {
+        // Checked first: loading the rest of a scene that cannot be rendered is wasted.
+        if dir.is_dir() && gaussians_file(dir)?.is_none() {
+            return Err(Error::invalid(format!(
+                "missing (and so are {}): this needs the scene's Gaussians",
+                files::GAUSSIANS[1..].join(", ")
+            ))
+            .in_file(dir.join(files::COMPRESSED_PLY)));
+        }
+        let (scene, report) = Self::load(dir)?;
+        if scene.gaussians.is_empty() {
+            let file = gaussians_file(dir)?.unwrap_or_else(|| dir.join(files::COMPRESSED_PLY));
+            return Err(
+                Error::invalid("holds no Gaussians: this needs the scene's Gaussians")
+                    .in_file(file),
+            );
+        }
         Ok((scene, report))
     }
 
@@ -418,6 +449,70 @@ impl Scene {
         }
         Ok(())
     }
+}
+
+/// Whether the scene file `path` is there: `Ok(true)` for a file, `Ok(false)` when nothing is
+/// (a dangling link included).
+///
+/// # Errors
+///
+/// Something other than a file at `path`, naming it: a folder by a file's name is a mistake to
+/// report, not a file to treat as missing.
+pub fn is_present(path: &Path) -> Result<bool> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(true),
+        Ok(m) if m.is_dir() => Err(Error::invalid(
+            "a directory, not a file: the scene needs a file by this name, or none",
+        )
+        .in_file(path)),
+        Ok(_) => Err(Error::invalid("not a regular file").in_file(path)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) => Err(Error::io(path, e)),
+    }
+}
+
+/// The first of `paths` that [`is_present`].
+fn first_present(paths: impl IntoIterator<Item = PathBuf>) -> Result<Option<PathBuf>> {
+    for p in paths {
+        if is_present(&p)? {
+            return Ok(Some(p));
+        }
+    }
+    Ok(None)
+}
+
+/// The Gaussian file of scene folder `dir`: the first of [`files::GAUSSIANS`] there, `None` when
+/// there is none.
+///
+/// # Errors
+///
+/// A folder by one of those names (before the file found), as [`is_present`].
+pub fn gaussians_file(dir: &Path) -> Result<Option<PathBuf>> {
+    first_present(files::GAUSSIANS.iter().map(|f| dir.join(f)))
+}
+
+/// The files of scene folder `dir` that loading it reads ([`input_hashes`]), with every
+/// Gaussian file by a name the loader looks for, the provenance of an imported capture and the
+/// scene's run record: what a command reading the scene must never write over, whatever
+/// `force` says.
+pub fn scene_files(dir: &Path) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = sage_io::scenes::input_files(dir);
+    found.extend(
+        files::GAUSSIANS
+            .iter()
+            .chain(&["capture.json", sage_io::RUN_RECORD])
+            .map(|name| dir.join(name)),
+    );
+    // The collision file is found by the folder's own name, as loading names the scene.
+    let named = [dir.canonicalize().ok(), Some(dir.to_path_buf())];
+    for folder in named.iter().flatten() {
+        let name = sage_io::scenes::scene_name(folder);
+        found.extend(collision::names(&name).into_iter().map(|n| dir.join(n)));
+    }
+    found.retain(|p| p.is_file());
+    found.sort();
+    found.dedup();
+    found
 }
 
 /// A scene JSON file's text, refused before reading when it is over [`SCENE_JSON_MB`].

@@ -79,6 +79,59 @@ fn bad_meshes_name_file_and_face() {
     );
 }
 
+#[test]
+fn vertices_beyond_the_coordinate_bound_are_refused_naming_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    // The vertices of the faces, renumbered by the reader, are traced back to their lines.
+    let cases = [
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1e30 0\nf 1 2 3\n",
+            "line 3: vertex (0.0, 1e30, 0.0)",
+        ),
+        (
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 -2e4\nf 4 2 3\n",
+            "line 4: vertex",
+        ),
+        (
+            "v 0 0 0\nv 1e40 0 0\nv 0 1 0\nf 1 2 3\n",
+            "line 2: vertex (inf, 0.0, 0.0)",
+        ),
+        (
+            "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n",
+            "line 2: vertex (NaN, 0.0, 0.0)",
+        ),
+    ];
+    for (k, (text, said)) in cases.into_iter().enumerate() {
+        let p = dir.path().join(format!("far{k}.obj"));
+        std::fs::write(&p, text).unwrap();
+        let e = TriMesh::load(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("far{k}.obj: {said}")) && e.contains("within ±10000 m"),
+            "{e}"
+        );
+    }
+    // The bound itself is accepted.
+    let p = dir.path().join("edge.obj");
+    std::fs::write(&p, "v 0 0 0\nv 1e4 0 0\nv 0 -1e4 0\nf 1 2 3\n").unwrap();
+    assert_eq!(TriMesh::load(&p).unwrap().positions.len(), 3);
+    // PLY and glTF vertices are numbered by the file itself.
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 0 1e5\n3 0 1 2\n";
+    let p = dir.path().join("far.ply");
+    std::fs::write(&p, ply).unwrap();
+    let e = TriMesh::load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("far.ply: vertex[2]: vertex (0.0, 0.0, 100000.0)"),
+        "{e}"
+    );
+    let p = dir.path().join("far.glb");
+    std::fs::write(&p, glb(&tetrahedron(), Vec3::new(0.0, 2e4, 0.0))).unwrap();
+    let e = TriMesh::load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("far.glb") && e.contains("within ±10000 m"),
+        "{e}"
+    );
+}
+
 /// Loads a GLB made of `json` and `bin` and returns its error.
 #[test]
 fn a_bad_obj_line_is_named() {

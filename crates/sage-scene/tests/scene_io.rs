@@ -111,6 +111,83 @@ fn a_folder_with_only_labels_loads_and_reports_the_rest_missing() {
 }
 
 #[test]
+fn rendering_needs_a_gaussian_file_that_holds_gaussians() {
+    let scene = generate(&small()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+    let (loaded, _) = Scene::load_for_rendering(dir.path()).unwrap();
+    assert_eq!(loaded.gaussians.len(), scene.gaussians.len());
+    let ply = dir.path().join("3dgs_compressed.ply");
+    std::fs::remove_file(&ply).unwrap();
+    // Loading for anything else still works, and reports the file missing.
+    let (_, report) = Scene::load(dir.path()).unwrap();
+    assert!(report.missing.iter().any(|m| m == "3dgs_compressed.ply"));
+    let e = Scene::load_for_rendering(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with(&format!("{}: missing", ply.display()))
+            && e.contains("needs the scene's Gaussians"),
+        "{e}"
+    );
+    // A file holding none is no better than no file.
+    let empty = sage_scene::Gaussians::new(0).unwrap();
+    sage_scene::ply::write_splats_file(&ply, &empty, SplatLayout::Standard).unwrap();
+    let e = Scene::load_for_rendering(dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with(&format!("{}: holds no Gaussians", ply.display())),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_directory_by_the_name_of_a_scene_file_is_an_error_naming_it() {
+    let scene = generate(&small()).unwrap();
+    for name in [
+        "3dgs_compressed.ply",
+        "labels.json",
+        "structure.json",
+        "objects.json",
+        "occupancy.png",
+        "meshes/structure.obj",
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+        let p = dir.path().join(name);
+        if p.exists() {
+            std::fs::remove_file(&p).unwrap();
+        }
+        std::fs::create_dir(&p).unwrap();
+        let e = Scene::load(dir.path()).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            format!(
+                "{}: a directory, not a file: the scene needs a file by this name, or none",
+                p.display()
+            )
+        );
+    }
+    // A mesh of an object found by its id, and the mesh folder itself.
+    let dir = tempfile::tempdir().unwrap();
+    scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+    let with_mesh = scene.objects.iter().find(|o| o.mesh.is_some()).unwrap();
+    let mesh = dir.path().join(format!("meshes/{}.obj", with_mesh.ins_id));
+    std::fs::remove_file(&mesh).unwrap();
+    std::fs::create_dir(&mesh).unwrap();
+    let e = Scene::load(dir.path()).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!("{}: a directory", mesh.display())),
+        "{e}"
+    );
+    std::fs::remove_dir_all(dir.path().join("meshes")).unwrap();
+    std::fs::write(dir.path().join("meshes"), "").unwrap();
+    let e = Scene::load(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("meshes: a file, not a folder"), "{e}");
+}
+
+#[test]
 fn scene_json_files_may_begin_with_a_byte_order_mark_and_are_refused_over_their_limit() {
     let scene = generate(&small()).unwrap();
     let dir = tempfile::tempdir().unwrap();

@@ -1,7 +1,7 @@
 //! Small helpers for reading loosely typed JSON with errors that name the field.
 
 use glam::{Vec2, Vec3};
-use sage_core::{Error, Result};
+use sage_core::{Error, MAX_COORDINATE, Result};
 use serde_json::Value;
 
 /// Parses JSON text (a leading byte-order mark is accepted); a syntax error names its line and
@@ -48,7 +48,9 @@ pub fn array<'a>(v: &'a Value, at: &str) -> Result<&'a Vec<Value>> {
         .ok_or_else(|| Error::format(at, format!("expected an array, found {}", short(v))))
 }
 
-/// A point given as `[x, y, (z)]` or `{x, y, (z)}`; a missing z reads as 0.
+/// A point given as `[x, y, (z)]` or `{x, y, (z)}`; a missing z reads as 0. Each coordinate
+/// must be within ±[`MAX_COORDINATE`] m: a scene far larger than any building is a broken file
+/// (or one in millimetres), and maps and grids grow with it.
 pub fn point3(v: &Value, at: &str) -> Result<Vec3> {
     let comps: Vec<&Value> = match v {
         Value::Array(a) if a.len() == 2 || a.len() == 3 => a.iter().collect(),
@@ -67,6 +69,15 @@ pub fn point3(v: &Value, at: &str) -> Result<Vec3> {
     let mut p = [0.0f32; 3];
     for (i, c) in comps.iter().enumerate() {
         p[i] = number(c, &format!("{at}[{i}]"))?;
+        if p[i].abs() > MAX_COORDINATE {
+            return Err(Error::format(
+                format!("{at}[{i}]"),
+                format!(
+                    "{} is beyond ±{MAX_COORDINATE} m (coordinates are metres)",
+                    short(c)
+                ),
+            ));
+        }
     }
     Ok(Vec3::from_array(p))
 }

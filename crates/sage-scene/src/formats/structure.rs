@@ -7,7 +7,7 @@
 use super::json::{array, field, number, parse_text, point2, point3, string};
 use crate::floorplan::{Floorplan, Hole, HoleKind, Room, StructureItem, Wall};
 use crate::object::DoorState;
-use sage_core::{Error, Polygon2, Result, ResultExt};
+use sage_core::{Error, MAX_COORDINATE, Polygon2, Result, ResultExt};
 use serde_json::{Value, json};
 
 /// Wall thickness assumed when a wall gives none.
@@ -71,6 +71,13 @@ fn parse_wall(v: &Value) -> Result<Wall> {
     let height = optional_number(v, "height", DEFAULT_WALL_HEIGHT)?;
     if thickness < 0.0 || height < 0.0 {
         return Err(Error::format("thickness/height", "must not be negative"));
+    }
+    // Bounded like coordinates: a wall is part of the scene's extent.
+    if thickness.max(height) > MAX_COORDINATE {
+        return Err(Error::format(
+            "thickness/height",
+            format!("{thickness} / {height} m: beyond {MAX_COORDINATE} m"),
+        ));
     }
     Ok(Wall {
         start: point2(&loc[0], "location[0]")?,
@@ -221,6 +228,16 @@ mod tests {
         assert!(
             e.to_string()
                 .starts_with("holes[0].type: expected DOOR or WINDOW")
+        );
+        let e = parse(r#"{"rooms":[{"profile":[[0,0],[1,-1e7],[1,1]]}]}"#).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "rooms[0].profile[1][1]: -10000000.0 is beyond ±10000 m (coordinates are metres)"
+        );
+        let e = parse(r#"{"walls":[{"location":[[0,0],[1,0]],"height":1e9}]}"#).unwrap_err();
+        assert!(
+            e.to_string().starts_with("walls[0].thickness/height: "),
+            "{e}"
         );
         let e = parse(r#"{"rooms":[{"profile":[[0,0],[1,"x"],[1,1]]}]}"#).unwrap_err();
         assert!(

@@ -47,19 +47,7 @@ pub struct ConvertReport {
 /// writer's errors (naming the file).
 pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<ConvertReport> {
     let output_format = Format::from_output_name(output)?;
-    if output.exists() {
-        let same = std::fs::canonicalize(input)
-            .ok()
-            .zip(std::fs::canonicalize(output).ok())
-            .is_some_and(|(a, b)| a == b);
-        if same {
-            return Err(Error::invalid(format!(
-                "{}: the output is the input; write to another file",
-                output.display()
-            )));
-        }
-    }
-    sage_io::run::claim_file(output, options.force)?;
+    sage_io::run::claim_output_file(output, &[input.to_path_buf()], "the input", options.force)?;
     // Errors of the input name it; the output's name the output already.
     with_mapped_file(input, |bytes| {
         convert_bytes(bytes, output, output_format, options.sh_degree)
