@@ -128,6 +128,23 @@ def test_episode_options_and_render():
         env.reset(options={"episode_id": "nope"})
 
 
+def test_sensor_names_as_text_may_have_spaces():
+    # As the command line's --sensors reads them: spaces around a name and empty names are
+    # dropped; an unknown name is still an error naming it.
+    spaced = make(sensors="rgb, depth")
+    listed = make(sensors=[" rgb", "depth "])
+    plain = make(sensors=["rgb", "depth"])
+    assert set(spaced.observation_space.spaces) == set(plain.observation_space.spaces)
+    assert set(listed.observation_space.spaces) == set(plain.observation_space.spaces)
+    assert {"rgb", "depth"} <= set(spaced.observation_space.spaces)
+    assert "semantic" not in spaced.observation_space.spaces
+    with pytest.raises(ValueError, match=r"unknown sensors \['lidar'\]"):
+        make(sensors="rgb, lidar")
+    # With render_mode="rgb_array", text names are names, not letters: rgb is added.
+    depth = make(render_mode="rgb_array", sensors="depth")
+    assert {"rgb", "depth"} <= set(depth.observation_space.spaces)
+
+
 def test_continuous_ground_actions():
     env = make(actions="ground", sensors=[])
     assert env.action_space.shape == (5,)
@@ -165,6 +182,20 @@ def test_bad_settings_are_clear_errors():
                        ({"episode_index": 10**6}, "episode_index: 1000000 is past")):
         with pytest.raises(ValueError, match=match):
             env.reset(options=bad)
+    # A misspelt or unknown reset option is named with the accepted ones, not ignored (the
+    # episode would be drawn at random instead of the one asked for); nothing is reseeded.
+    env.reset(seed=5)
+    drawn = env.np_random.integers(1000)
+    env.reset(seed=5)
+    for bad, match in (({"foo": 1}, r"unknown reset option 'foo' \(accepted: episode_id, episode_index\)"),
+                       ({"episode": "x", "seed": 3}, r"unknown reset option 'episode', 'seed'"),
+                       ({"episode_id": env.episodes[0]["episode_id"], "episode_index": 1},
+                        "not both")):
+        with pytest.raises(ValueError, match=match):
+            env.reset(seed=99, options=bad)
+    assert env.np_random.integers(1000) == drawn
+    with pytest.raises(TypeError, match="expected a dict"):
+        env.reset(options=["episode_id"])
     with pytest.raises(ValueError, match="num_episodes: expected a whole number >= 1"):
         make(num_episodes=-1)
     # A misspelt field of `config` is named, not ignored.

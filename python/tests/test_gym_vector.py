@@ -62,3 +62,6 @@ def test_wrong_batch_sizes_are_errors():
     # LOOK_UP / LOOK_DOWN are not in MultiDiscrete([4 4]).
     with pytest.raises(ValueError, match="not in the action space MultiDiscrete"):
         vec.step(np.array([4, 5]))
+    # An unknown reset option is named with the accepted one, not ignored.
+    with pytest.raises(ValueError, match=r"unknown reset option 'episode_id' \(accepted: episode_index\)"):
+        vec.reset(options={"episode_id": "x"})

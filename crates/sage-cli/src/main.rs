@@ -75,7 +75,8 @@ enum Command {
     /// Evaluate an agent on a dataset split: per-episode records, resumable, summary per slice.
     Eval(eval_cmd::EvalArgs),
     /// Write an evaluation run's report: report.html (tables, charts, trajectory maps), PNGs and,
-    /// with --videos N, episode GIFs.
+    /// with --videos N, episode GIFs; with --mode/--dtw and --out NEW, rescore the run in
+    /// another metric mode into a new run folder.
     Report(report_cmd::ReportArgs),
     /// The browser viewer: a scene's map and first-person view, driving with the keyboard, an
     /// evaluation run's episodes step by step, human play of a dataset split scored like any

@@ -1,11 +1,13 @@
-//! `sage3d report RUN [--scenes SCENES] [--videos N]`: (re)writes an evaluation run's
-//! `report.html`, its PNGs and N episode videos under progress bars (`docs/evaluation.md`,
-//! "Report"), holding the run folder's lock
+//! `sage3d report RUN [--scenes SCENES] [--videos N] [--mode M] [--dtw D] [--out NEW]`:
+//! (re)writes an evaluation run's `report.html`, its PNGs and N episode videos under progress
+//! bars (`docs/evaluation.md`, "Report"), holding the run folder's lock
 //! (`sage_pipeline::evaluate::report`); `sage3d eval` calls the same writer at the end of a run.
+//! With `--mode` or `--dtw` it rescores the run from its stored records into the new run
+//! folder `--out` instead (`sage_eval::rescore`, "Rescoring") and writes that folder's report.
 
 use sage_core::{Error, Result};
 use sage_eval::report::{ReportOptions, ReportOutcome};
-use sage_io::run::RUN_RECORD;
+use sage_metrics::{Dtw, Mode};
 use std::path::{Path, PathBuf};
 
 /// Flags of `sage3d report`.
@@ -20,11 +22,28 @@ pub struct ReportArgs {
     /// in the gallery's order: unsuccessful first, then by id.
     #[arg(long, default_value_t = 0, value_name = "N")]
     videos: usize,
+    /// Rescore the run in this metric mode (sage, vlnce, sage-official, gnbench) from its stored
+    /// records, into the new run folder --out (the run is left as it is); gnbench only from a
+    /// run scored in gnbench.
+    #[arg(long, requires = "out")]
+    mode: Option<Mode>,
+    /// Rescore the run with this nDTW alignment (exact or fast) into --out; with --mode, or
+    /// alone to keep the run's mode.
+    #[arg(long, requires = "out")]
+    dtw: Option<Dtw>,
+    /// The new run folder a rescoring (--mode, --dtw) writes: records, summary, run record and
+    /// report, as an evaluation in that mode writes them; new or empty.
+    #[arg(long, value_name = "NEW")]
+    out: Option<PathBuf>,
+    /// Write the rescored run into a folder holding other files (never replacing one of them).
+    #[arg(long, requires = "out")]
+    force: bool,
 }
 
 /// Writes the report of `run` with the scenes of `scenes` and `videos` episode videos under
-/// progress bars over the episodes' maps and videos.
-fn write_with_bar(run: &Path, scenes: &Path, videos: usize) -> Result<ReportOutcome> {
+/// progress bars over the episodes' maps and videos; `locked`: the caller holds the run
+/// folder's lock already (a rescoring writing its new folder), else the report takes it.
+fn write_with_bar(run: &Path, scenes: &Path, videos: usize, locked: bool) -> Result<ReportOutcome> {
     let maps = crate::progress::bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let clips = crate::progress::bar("{bar:30} {pos}/{len} videos {elapsed} (eta {eta}) {msg}");
     let tick = |bar: &indicatif::ProgressBar, id: &str, total: usize| {
@@ -36,16 +55,16 @@ fn write_with_bar(run: &Path, scenes: &Path, videos: usize) -> Result<ReportOutc
         videos,
         ..ReportOptions::default()
     };
-    let outcome = sage_pipeline::evaluate::report_with_options(
-        run,
-        scenes,
-        &options,
-        &|id, total| tick(&maps, id, total),
-        &|id, total| {
-            maps.finish_and_clear();
-            tick(&clips, id, total)
-        },
-    );
+    let on_map = |id: &str, total: usize| tick(&maps, id, total);
+    let on_video = |id: &str, total: usize| {
+        maps.finish_and_clear();
+        tick(&clips, id, total)
+    };
+    let outcome = if locked {
+        sage_eval::report::write_with_options(run, scenes, &options, &on_map, &on_video)
+    } else {
+        sage_pipeline::evaluate::report_with_options(run, scenes, &options, &on_map, &on_video)
+    };
     maps.finish_and_clear();
     clips.finish_and_clear();
     outcome
@@ -62,26 +81,38 @@ pub fn describe(o: &ReportOutcome) -> String {
     )
 }
 
-/// The scenes folder the run was evaluated with, from its run record.
-fn recorded_scenes(run: &Path) -> Result<PathBuf> {
-    let path = run.join(RUN_RECORD);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| Error::format(RUN_RECORD, e.to_string()).in_file(&path))?;
-    v.get("settings")
-        .and_then(|s| s.get("scenes"))
-        .and_then(|s| s.as_str())
-        .map(PathBuf::from)
-        .ok_or_else(|| Error::invalid("no settings.scenes in it; pass --scenes").in_file(&path))
-}
-
-/// Regenerates the report and prints its path.
+/// Regenerates the report (or rescores the run into a new folder) and prints what it wrote.
 pub fn run(a: ReportArgs) -> Result<()> {
-    let scenes = match a.scenes {
-        Some(s) => s,
-        None => recorded_scenes(&a.run)?,
+    // A folder that is not a run is named for what it is before anything else is read.
+    sage_eval::folder::run_record(&a.run)?;
+    let scenes = match &a.scenes {
+        Some(s) => s.clone(),
+        None => sage_eval::folder::recorded_scenes(&a.run)?,
     };
-    let outcome = write_with_bar(&a.run, &scenes, a.videos)?;
+    let outcome = match &a.out {
+        Some(out) => {
+            if a.mode.is_none() && a.dtw.is_none() {
+                return Err(Error::invalid(
+                    "--out names the folder of a rescoring: give the mode (--mode) or the alignment (--dtw) to rescore in",
+                ));
+            }
+            let _lock = sage_eval::claim(out, a.force)?;
+            let done = sage_eval::rescore(&a.run, a.mode, a.dtw, out)?;
+            print!("{}", done.summary.table());
+            println!(
+                "rescored {} episodes ({} faulted, copied) from mode {} ({} DTW) to mode {} ({} DTW) -> {}",
+                done.rescored,
+                done.faulted,
+                done.from.mode,
+                done.from.dtw,
+                done.to.mode,
+                done.to.dtw,
+                out.display()
+            );
+            write_with_bar(out, &scenes, a.videos, true)?
+        }
+        None => write_with_bar(&a.run, &scenes, a.videos, false)?,
+    };
     println!("{}", describe(&outcome));
     if a.videos > 0 {
         let mut line = format!("videos: {} in report/videos/", outcome.videos);

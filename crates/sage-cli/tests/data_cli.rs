@@ -1,10 +1,12 @@
 //! `sage3d data build` end to end: the dataset folder, the same bytes with 1 and 2 threads, the
-//! summary, resume, and a clear error for a bad folder.
+//! summary, resume, its GVLN files imported back as the same episodes, and a clear error for a
+//! bad folder.
 
 mod common;
 
 use common::{ok, s, sage3d, small_scene};
 use sage_io::files::read_tree;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 #[test]
@@ -59,6 +61,78 @@ fn build_writes_the_dataset_deterministically_and_resumes() {
     let again = run(args(&a, "2"));
     assert!(again.contains("3 already complete"), "{again}");
     assert_eq!(read_tree(&a).unwrap(), read_tree(&b).unwrap());
+}
+
+/// The GVLN files a build writes import back as the episodes they were written from, byte for
+/// byte: Base-Action turns keep their goal heading and actions, every episode its geodesic
+/// distance, lengths and slices (our keys beside the published fields), no-goal starts their
+/// headings; and a negative zero is written as 0.0.
+#[test]
+fn gvln_files_of_a_build_import_as_the_same_episodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    small_scene(&scenes.join("home1"), "1", "1000");
+    let data = dir.path().join("data");
+    ok(&[
+        "data",
+        "build",
+        s(&scenes),
+        "--out",
+        s(&data),
+        "--per-scene",
+        "3",
+        "--seed",
+        "2",
+        "--base-actions",
+        "8",
+        "--nogoal",
+        "2",
+    ]);
+    let lines = |file: &Path| -> BTreeMap<String, String> {
+        std::fs::read_to_string(file)
+            .unwrap()
+            .lines()
+            .map(|l| {
+                let v: serde_json::Value = serde_json::from_str(l).unwrap();
+                (v["episode_id"].as_str().unwrap().to_string(), l.to_string())
+            })
+            .collect()
+    };
+    let mut compared = 0;
+    let mut turns = 0;
+    for split in ["train", "val", "test_scene_unseen", "test_balanced"] {
+        let gvln = data.join(format!("gvln/{split}.json"));
+        let built = lines(&data.join(format!("episodes/{split}.jsonl")));
+        if built.is_empty() {
+            continue;
+        }
+        let name = format!("back_{split}");
+        ok(&[
+            "data",
+            "import",
+            s(&gvln),
+            "--out",
+            s(&data),
+            "--split",
+            &name,
+        ]);
+        let back = lines(&data.join(format!("episodes/{name}.jsonl")));
+        assert_eq!(built, back, "{split}");
+        compared += built.len();
+        // Turns in place: one point, a goal heading, turns before STOP.
+        turns += built
+            .values()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|e| {
+                e["reference_path"].as_array().unwrap().len() == 1
+                    && e["goal"]["yaw"].is_number()
+                    && e["actions"].as_array().unwrap().len() > 1
+            })
+            .count();
+        assert!(built.values().all(|l| !l.contains(":-0.0")), "{split}");
+    }
+    assert!(compared > 10, "{compared}");
+    assert!(turns > 0, "no turn in place among the episodes");
 }
 
 #[test]

@@ -1,7 +1,9 @@
 //! `sage3d report` and the report `sage3d eval` writes: eval prints the report's path, a
 //! regenerated report is the same bytes (also with the run's own scenes folder), faulted
-//! episodes are listed under a banner, bad run folders give errors naming the file, and
-//! `--videos N` writes N episode videos that the page shows (one per episode when N is more).
+//! episodes are listed under a banner, bad run folders give errors naming the file and a folder
+//! that is not a run says so, `--videos N` writes N episode videos that the page shows (one
+//! per episode when N is more), and `--mode M --out NEW` rescores a run into a new folder with
+//! the numbers of an evaluation in mode M.
 
 mod common;
 
@@ -93,16 +95,27 @@ fn faulted_episodes_are_listed_with_their_errors() {
 fn bad_run_folders_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path();
-    std::fs::write(
-        run.join("sage3d_run.json"),
-        r#"{"tool": "sage3d", "settings": {"scenes": "nowhere"}}"#,
-    )
-    .unwrap();
     let fails = |args: &[&str]| {
         let out = sage3d(args);
         assert!(!out.status.success(), "{args:?} succeeded");
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
+    // A run record that names no command: not a run of anything.
+    std::fs::write(
+        run.join("sage3d_run.json"),
+        r#"{"tool": "sage3d", "settings": {"scenes": "nowhere"}}"#,
+    )
+    .unwrap();
+    let e = fails(&["report", s(run), "--scenes", s(run)]);
+    assert!(
+        e.contains("sage3d_run.json") && e.contains("command"),
+        "{e}"
+    );
+    std::fs::write(
+        run.join("sage3d_run.json"),
+        r#"{"tool": "sage3d", "command": "eval", "settings": {"scenes": "nowhere"}}"#,
+    )
+    .unwrap();
     let e = fails(&["report", s(run), "--scenes", s(run)]);
     assert!(
         e.contains("summary.json") && e.contains("sage3d eval"),
@@ -113,8 +126,133 @@ fn bad_run_folders_name_the_file() {
     assert!(e.contains("summary.json"), "{e}");
     std::fs::remove_file(run.join("sage3d_run.json")).unwrap();
     let e = fails(&["report", s(run)]);
-    assert!(e.contains("sage3d_run.json"), "{e}");
+    assert!(
+        e.contains("not an evaluation run (it has no sage3d_run.json"),
+        "{e}"
+    );
     assert!(!run.join("report.html").exists());
+}
+
+#[test]
+fn a_folder_that_is_not_a_run_is_named_for_what_it_is() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    // A dataset folder: its run record is from `data build`; said first, with and without
+    // --scenes and when rescoring, and nothing is written into it.
+    let before = sage_io::files::read_tree(&data).unwrap();
+    for args in [
+        vec!["report", s(&data)],
+        vec!["report", s(&data), "--scenes", s(&scenes)],
+        vec![
+            "report",
+            s(&data),
+            "--mode",
+            "vlnce",
+            "--out",
+            s(&dir.path().join("new")),
+        ],
+    ] {
+        let out = sage3d(&args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            e.contains("not an evaluation run (its sage3d_run.json is from `data build`"),
+            "{e}"
+        );
+    }
+    assert_eq!(sage_io::files::read_tree(&data).unwrap(), before);
+    assert!(!dir.path().join("new").exists());
+}
+
+/// The metric tables of a command's output: the lines from the first table header on (the
+/// `agent … · mode …` line names the mode, so it is left out).
+fn tables(out: &str) -> Vec<&str> {
+    out.lines()
+        .skip_while(|l| !l.starts_with("agent "))
+        .skip(1)
+        .take_while(|l| !l.contains(" episodes: ") && !l.starts_with("rescored "))
+        .collect()
+}
+
+#[test]
+fn report_mode_rescores_into_a_new_run_folder_with_an_evaluations_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = small_dataset(dir.path());
+    let (sage, vlnce, rescored) = (
+        dir.path().join("sage"),
+        dir.path().join("vlnce"),
+        dir.path().join("rescored"),
+    );
+    eval("2", &data, &scenes, &sage, &["--agent", "random"]);
+    let evaluated = eval(
+        "2",
+        &data,
+        &scenes,
+        &vlnce,
+        &["--agent", "random", "--mode", "vlnce"],
+    );
+    let run_before = sage_io::files::read_tree(&sage).unwrap();
+    let out = ok(&["report", s(&sage), "--mode", "vlnce", "--out", s(&rescored)]);
+    assert!(
+        out.contains("from mode sage (exact DTW) to mode vlnce (exact DTW)")
+            && out.contains(&format!(
+                "report: {}",
+                rescored.join("report.html").display()
+            )),
+        "{out}"
+    );
+    // The tables of the rescoring are those of the evaluation in mode vlnce.
+    assert_eq!(tables(&out), tables(&evaluated));
+    assert!(tables(&out).len() > 5, "{out}");
+    assert_eq!(sage_io::files::read_tree(&sage).unwrap(), run_before);
+    // The new folder is that evaluation's run: `eval` in mode vlnce resumes it, runs nothing.
+    let resumed = eval(
+        "2",
+        &data,
+        &scenes,
+        &rescored,
+        &["--agent", "random", "--mode", "vlnce"],
+    );
+    assert!(resumed.contains("already recorded, 0 run now"), "{resumed}");
+    // Refused: over the run itself, over a run, gnbench from a run not scored in it, a mode
+    // without --out (a usage error), --out without a mode.
+    for (args, code, needle) in [
+        (
+            vec!["report", s(&sage), "--mode", "vlnce", "--out", s(&sage)],
+            1,
+            "a rescoring writes a new run folder",
+        ),
+        (
+            vec!["report", s(&sage), "--mode", "vlnce", "--out", s(&vlnce)],
+            1,
+            "the folder holds a run already",
+        ),
+        (
+            vec![
+                "report",
+                s(&sage),
+                "--mode",
+                "gnbench",
+                "--out",
+                s(&dir.path().join("gn")),
+            ],
+            1,
+            "GN-Bench",
+        ),
+        (vec!["report", s(&sage), "--mode", "vlnce"], 2, "--out"),
+        (
+            vec!["report", s(&sage), "--out", s(&dir.path().join("x"))],
+            1,
+            "--mode",
+        ),
+    ] {
+        let out = sage3d(&args);
+        assert_eq!(out.status.code(), Some(code), "{args:?}");
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(e.contains(needle), "{args:?}: {e}");
+    }
+    assert!(!dir.path().join("gn").exists() && !dir.path().join("x").exists());
+    assert_eq!(sage_io::files::read_tree(&sage).unwrap(), run_before);
 }
 
 #[test]

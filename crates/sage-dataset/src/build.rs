@@ -371,7 +371,8 @@ pub fn scene_episodes(
         let length: f32 = path
             .windows(2)
             .map(|w| Vec2::new(w[1][0] - w[0][0], w[1][1] - w[0][1]).length())
-            .sum();
+            // Folded from +0.0: an empty float sum is −0.0 (a turn in place has no segment).
+            .fold(0.0, |a, b| a + b);
         let end = *path.last().unwrap_or(&plan.start.position.into());
         let goal = Goal {
             reference: String::new(),

@@ -91,10 +91,9 @@ pub struct Episode {
     pub slices: Slices,
 }
 
-/// The largest coordinate magnitude an episode file may hold, metres: far beyond any indoor
-/// scene, small enough that f32 keeps millimetres there and that following a path takes a
-/// bounded number of steps (a number too large for f32 reads as infinity).
-pub const MAX_COORDINATE: f32 = 1.0e4;
+/// The largest coordinate magnitude an episode file may hold, metres: the bound every file
+/// reader applies (following a path then takes a bounded number of steps).
+pub use sage_core::MAX_COORDINATE;
 
 /// Checks a point read from a file: finite, each coordinate within [`MAX_COORDINATE`].
 ///
@@ -102,7 +101,7 @@ pub const MAX_COORDINATE: f32 = 1.0e4;
 ///
 /// At `at`, naming the offending value.
 pub fn check_point(p: [f32; 3], at: &str) -> Result<()> {
-    if p.iter().all(|c| c.abs() <= MAX_COORDINATE) {
+    if sage_core::within_bounds(glam::Vec3::from_array(p)) {
         Ok(())
     } else {
         Err(Error::format(
@@ -136,10 +135,15 @@ pub fn check_unique_ids(episodes: &[Episode], at: impl Fn(usize) -> String) -> R
     Ok(())
 }
 
+/// The kinds a goal may have: what `goal.kind` says the goal region is (an object's footprint,
+/// a room's or an area's point, a pose; docs/dataset.md).
+pub const GOAL_KINDS: [&str; 4] = ["object", "room", "area", "pose"];
+
 impl Episode {
     /// Checks an episode read from a file: an id, a scene that is a plain name (it names a
     /// folder: [`sage_io::names::check_plain`]), finite points within [`MAX_COORDINATE`],
-    /// finite headings and finite, non-negative lengths.
+    /// finite headings and finite, non-negative lengths, and what its task needs to be scored
+    /// ([`Episode::check_task`]).
     ///
     /// # Errors
     ///
@@ -173,7 +177,114 @@ impl Episode {
                 ));
             }
         }
+        self.check_task()
+    }
+
+    /// Checks what the episode's task needs to be run and scored, so that an episode a reader
+    /// lets through never faults for its own content once an evaluation has started:
+    ///
+    /// - a `vln` episode has a goal (success is reaching it) and a reference path of at least
+    ///   one point (nDTW and CSR measure the walk against it; with none, every walk would score
+    ///   0 there whatever it did);
+    /// - a `nogoal` episode has no goal (its metrics are exploration's; a goal there would be
+    ///   read by no metric, yet the oracle would walk to it);
+    /// - the type `Goal-less` goes with the task `nogoal` and no other (the GVLN files tell the
+    ///   task by the type);
+    /// - a goal's `kind` is one of [`GOAL_KINDS`]; an `object` goal names its object (`ref`,
+    ///   whose footprint is the goal region); only a `pose` goal has a heading (`yaw`: the
+    ///   environment reads it on pose goals alone, so elsewhere it would be silently ignored).
+    ///
+    /// Whether an object goal's `ref` names an object of its scene needs the scene: the
+    /// environment checks it when the episode starts.
+    ///
+    /// # Errors
+    ///
+    /// The first unmet need, naming its field.
+    pub fn check_task(&self) -> Result<()> {
+        match (self.task, &self.goal) {
+            (Task::Vln, None) => {
+                return Err(Error::format(
+                    "goal",
+                    "missing: a vln episode needs a goal (its success is reaching it)",
+                ));
+            }
+            (Task::Nogoal, Some(_)) => {
+                return Err(Error::format(
+                    "goal",
+                    "a nogoal episode has no goal (drop the goal, or make the task vln)",
+                ));
+            }
+            _ => {}
+        }
+        let goal_less = self.instruction_type == InstructionType::GoalLess;
+        if goal_less != (self.task == Task::Nogoal) {
+            return Err(Error::format(
+                "instruction_type",
+                format!(
+                    "'{}' with task '{}': the type Goal-less goes with the task nogoal, and only with it",
+                    self.instruction_type.as_str(),
+                    match self.task {
+                        Task::Vln => "vln",
+                        Task::Nogoal => "nogoal",
+                    }
+                ),
+            ));
+        }
+        if let Some(g) = &self.goal {
+            if !GOAL_KINDS.contains(&g.kind.as_str()) {
+                return Err(Error::format(
+                    "goal.kind",
+                    format!(
+                        "'{}': expected one of {}",
+                        g.kind.escape_debug(),
+                        GOAL_KINDS.join(", ")
+                    ),
+                ));
+            }
+            if g.kind == "object" && g.reference.is_empty() {
+                return Err(Error::format(
+                    "goal.ref",
+                    "empty: an object goal names its object's item id (`sofa_2`), whose footprint is the goal region",
+                ));
+            }
+            if g.yaw.is_some() && g.kind != "pose" {
+                return Err(Error::format(
+                    "goal.yaw",
+                    format!(
+                        "only a pose goal has a heading (this goal's kind is '{}')",
+                        g.kind
+                    ),
+                ));
+            }
+        }
+        if self.task == Task::Vln && self.reference_path.is_empty() {
+            return Err(Error::format(
+                "reference_path",
+                "empty: a vln episode's reference path holds at least its start (nDTW and CSR are measured against it)",
+            ));
+        }
         Ok(())
+    }
+
+    /// This episode with every negative zero of its numbers made a plain zero: an empty sum of
+    /// floats is −0.0 (a turn in place has no path length), which files would otherwise show
+    /// as `-0.0`. Adding +0.0 turns −0.0 into +0.0 and leaves every other value as it is.
+    pub fn without_negative_zeros(&self) -> Episode {
+        let z = |v: f32| v + 0.0;
+        let point = |p: [f32; 3]| p.map(z);
+        let mut e = self.clone();
+        e.start.position = point(e.start.position);
+        e.start.yaw = z(e.start.yaw);
+        if let Some(g) = &mut e.goal {
+            g.position = point(g.position);
+            g.yaw = g.yaw.map(z);
+        }
+        for p in &mut e.reference_path {
+            *p = point(*p);
+        }
+        e.path_length = z(e.path_length);
+        e.geodesic_distance = z(e.geodesic_distance);
+        e
     }
 
     /// The environment's view of this episode: an object goal names its item id, so the

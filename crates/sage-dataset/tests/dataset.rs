@@ -13,7 +13,7 @@ use sage_dataset::{Episode, Task};
 use sage_io::files::read_tree;
 use sage_io::runner::Status;
 use sage_lang::InstructionType;
-use sage_lang::actions::{StepSizes, replay};
+use sage_lang::actions::{StepSizes, follow, replay};
 use sage_synth::{SynthConfig, generate};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -222,6 +222,258 @@ fn same_episode(a: &Episode, b: &Episode, tol: f32) {
     assert!(wrap_angle(a.start.yaw - b.start.yaw).abs() < 1e-3);
 }
 
+/// `b` (read back from a file) equals `a` once its floats are within `tol` of `a`'s (headings
+/// compared wrapped): every other field, the lengths and the actions included, is exact.
+fn same_but_rounding(a: &Episode, b: &Episode, tol: f32) {
+    let close = |x: f32, y: f32| (x - y).abs() <= tol;
+    let heading = |x: f32, y: f32| wrap_angle(x - y).abs() <= tol;
+    let point = |p: &[f32; 3], q: &[f32; 3]| (0..3).all(|i| close(p[i], q[i]));
+    let id = &a.episode_id;
+    assert!(point(&a.start.position, &b.start.position), "{id}");
+    assert!(heading(a.start.yaw, b.start.yaw), "{id}: start heading");
+    assert_eq!(a.reference_path.len(), b.reference_path.len(), "{id}");
+    assert!(
+        a.reference_path
+            .iter()
+            .zip(&b.reference_path)
+            .all(|(p, q)| point(p, q)),
+        "{id}"
+    );
+    let mut b = b.clone();
+    if let (Some(ga), Some(gb)) = (&a.goal, &mut b.goal) {
+        assert!(point(&ga.position, &gb.position), "{id}");
+        match (ga.yaw, gb.yaw) {
+            (Some(x), Some(y)) => assert!(heading(x, y), "{id}: goal heading {x} vs {y}"),
+            (x, y) => assert_eq!(x, y, "{id}: goal heading"),
+        }
+        gb.position = ga.position;
+        gb.yaw = ga.yaw;
+    }
+    b.start = a.start;
+    b.reference_path = a.reference_path.clone();
+    assert_eq!(*a, b);
+}
+
+/// A Base-Action turn in place, as the demo's `office_2-b0`: one point, two headings.
+fn turn_in_place() -> Episode {
+    serde_json::from_str(
+        r#"{"episode_id":"office_2-b0","scene":"office_2","task":"vln","instruction":"Turn 60 degrees to the left in place.","level":"low","instruction_type":"Base-Action","source":"template","start":{"position":[-8.825001,-5.625001,0.0],"yaw":-0.26180005},"goal":{"ref":"","kind":"pose","position":[-8.825001,-5.625001,0.0],"yaw":0.7853975},"reference_path":[[-8.825001,-5.625001,0.0]],"actions":[2,2,2,2,0],"path_length":0.0,"geodesic_distance":0.0,"slices":{"assets":"many","path":"short"}}"#,
+    )
+    .unwrap()
+}
+
+#[test]
+fn gvln_keeps_a_turn_in_place_its_headings_and_lengths() {
+    let space = StepSizes::default();
+    let dir = tempfile::tempdir().unwrap();
+    let turn = turn_in_place();
+    // A no-goal start facing −x (heading π, whose rotation is the published placeholder
+    // `[0, 0, 0, 1]`), and a trajectory whose geodesic distance is shorter than its path.
+    let mut explore = turn.clone();
+    explore.episode_id = "office_2-n0".into();
+    explore.task = Task::Nogoal;
+    explore.instruction_type = InstructionType::GoalLess;
+    explore.level = None;
+    explore.goal = None;
+    explore.actions = Vec::new();
+    explore.start.yaw = std::f32::consts::PI;
+    explore.slices.path = "none".into();
+    let mut walk = turn.clone();
+    walk.episode_id = "office_2-b1".into();
+    walk.reference_path = vec![[0.0, 0.0, 0.0], [0.25, 0.0, 0.0], [0.5, 0.0, 0.0]];
+    walk.start.position = [0.0, 0.0, 0.0];
+    walk.start.yaw = 0.0;
+    walk.goal = Some(sage_dataset::Goal {
+        reference: String::new(),
+        kind: "pose".into(),
+        position: [0.5, 0.0, 0.0],
+        yaw: Some(std::f32::consts::PI),
+    });
+    // Two steps, then the half turn to the goal's heading (π: the last point's rotation is
+    // the published placeholder, so only our key holds it).
+    let flat = [Vec2::ZERO, Vec2::new(0.25, 0.0), Vec2::new(0.5, 0.0)];
+    walk.actions = follow(&flat, 0.0, Some(std::f32::consts::PI), &space).unwrap();
+    assert!(walk.actions.len() > 3, "{:?}", walk.actions);
+    walk.path_length = 0.5;
+    walk.geodesic_distance = 0.4;
+    let eps = vec![turn.clone(), explore, walk];
+    for frame in [
+        GvlnFrame::World,
+        GvlnFrame::Sage(SageFrame {
+            offset: Vec2::new(3.5, -1.25),
+        }),
+    ] {
+        let p = dir.path().join("g.json");
+        gvln::write(&p, &eps, frame, &space).unwrap();
+        let back = gvln::read(&p, Vec2::ZERO, &space).unwrap();
+        assert_eq!(back.len(), eps.len());
+        for a in &eps {
+            let b = back.iter().find(|b| b.episode_id == a.episode_id).unwrap();
+            same_but_rounding(a, b, 1e-4);
+        }
+    }
+    // Our keys taken out of a file, as a tool that rewrites it without them would.
+    let p = dir.path().join("g.json");
+    gvln::write(&p, &eps, GvlnFrame::World, &space).unwrap();
+    let mut root: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let mut strip = |keys: &[&str]| {
+        for scene in root["scenes"].as_array_mut().unwrap() {
+            for sample in scene["samples"].as_array_mut().unwrap() {
+                for ins in sample["instructions"].as_array_mut().unwrap() {
+                    let ins = ins.as_object_mut().unwrap();
+                    keys.iter().for_each(|k| _ = ins.remove(*k));
+                }
+            }
+        }
+        std::fs::write(&p, root.to_string()).unwrap();
+        gvln::read(&p, Vec2::ZERO, &space).unwrap()
+    };
+    // Without the actions, they are recomputed: to the goal's heading, so the turn in place
+    // turns left four times, as the instruction asks.
+    let recomputed = strip(&["actions"]);
+    let b0 = recomputed
+        .iter()
+        .find(|b| b.episode_id == turn.episode_id)
+        .unwrap();
+    assert_eq!(b0.actions, turn.actions);
+    // Without any of our keys (a published file) the headings come from the points and both
+    // lengths are the path's: the file read that way loses what only the keys hold.
+    let plain = strip(&[
+        "start_yaw",
+        "goal_yaw",
+        "goal_kind",
+        "path_length",
+        "geodesic_distance",
+        "slices",
+    ]);
+    let walk = plain
+        .iter()
+        .find(|e| e.episode_id == "office_2-b1")
+        .unwrap();
+    assert_eq!(walk.goal.as_ref().unwrap().yaw, None);
+    assert_eq!(walk.geodesic_distance, walk.path_length);
+    assert_eq!(walk.slices.assets, "medium");
+    // The actions are then recomputed from the points: the turn's end heading is lost too.
+    let turn_back = plain
+        .iter()
+        .find(|e| e.episode_id == "office_2-b0")
+        .unwrap();
+    assert_eq!(turn_back.actions, [sage_lang::DiscreteAction::Stop]);
+    // A bad value under one of our keys is named.
+    root["scenes"][0]["samples"][0]["instructions"][0]["goal_yaw"] = "left".into();
+    std::fs::write(&p, root.to_string()).unwrap();
+    let e = gvln::read(&p, Vec2::ZERO, &space).unwrap_err().to_string();
+    assert!(
+        e.contains("g.json")
+            && e.contains("instructions[0]")
+            && e.contains("goal_yaw")
+            && e.contains("expected a finite number"),
+        "{e}"
+    );
+}
+
+/// What a case of [`readers_refuse_episodes_their_task_cannot_score`] changes in a good episode.
+type Spoil = Box<dyn Fn(&mut Episode)>;
+
+#[test]
+fn readers_refuse_episodes_their_task_cannot_score() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("e.jsonl");
+    let base = turn_in_place();
+    let mut object = base.clone();
+    object.episode_id = "office_2-t0-0".into();
+    object.instruction_type = InstructionType::SingleGoal;
+    object.goal = Some(sage_dataset::Goal {
+        reference: "sofa_2".into(),
+        kind: "object".into(),
+        position: [1.0, 0.0, 0.0],
+        yaw: None,
+    });
+    let cases: Vec<(&str, Spoil, &str)> = vec![
+        ("no goal", Box::new(|e| e.goal = None), "goal: missing"),
+        (
+            "empty reference path",
+            Box::new(|e| e.reference_path.clear()),
+            "reference_path: empty",
+        ),
+        (
+            "unknown goal kind",
+            Box::new(|e| e.goal.as_mut().unwrap().kind = "objet".into()),
+            "goal.kind: 'objet': expected one of object, room, area, pose",
+        ),
+        (
+            "object goal without its object",
+            Box::new(|e| {
+                let g = e.goal.as_mut().unwrap();
+                g.kind = "object".into();
+                g.reference.clear();
+                g.yaw = None;
+            }),
+            "goal.ref: empty",
+        ),
+        (
+            "heading on a room goal",
+            Box::new(|e| {
+                let g = e.goal.as_mut().unwrap();
+                g.kind = "room".into();
+                g.reference = "room_2".into();
+            }),
+            "goal.yaw: only a pose goal has a heading",
+        ),
+        (
+            "no-goal episode with a goal",
+            Box::new(|e| {
+                e.task = Task::Nogoal;
+                e.instruction_type = InstructionType::GoalLess;
+            }),
+            "goal: a nogoal episode has no goal",
+        ),
+        (
+            "Goal-less type on a vln episode",
+            Box::new(|e| e.instruction_type = InstructionType::GoalLess),
+            "instruction_type: 'Goal-less' with task 'vln'",
+        ),
+    ];
+    for (what, spoil, needle) in cases {
+        let mut bad = base.clone();
+        spoil(&mut bad);
+        // The bad episode second: the error names its line.
+        jsonl::write(&p, &[object.clone(), bad]).unwrap();
+        let e = jsonl::read(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("e.jsonl") && e.contains("line 2") && e.contains(needle),
+            "{what}: {e}"
+        );
+    }
+    // The unspoilt pair reads, and a no-goal episode needs no reference path to be scored.
+    jsonl::write(&p, &[object.clone(), base.clone()]).unwrap();
+    assert_eq!(jsonl::read(&p).unwrap().len(), 2);
+    let mut explore = base;
+    explore.task = Task::Nogoal;
+    explore.instruction_type = InstructionType::GoalLess;
+    explore.goal = None;
+    explore.reference_path.clear();
+    jsonl::write(&p, &[explore]).unwrap();
+    assert_eq!(jsonl::read(&p).unwrap().len(), 1);
+}
+
+#[test]
+fn negative_zeros_are_written_as_zeros() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("e.jsonl");
+    let mut e = turn_in_place();
+    e.path_length = -0.0;
+    e.geodesic_distance = -0.0;
+    e.start.position[2] = -0.0;
+    jsonl::write(&p, &[e]).unwrap();
+    let text = std::fs::read_to_string(&p).unwrap();
+    assert!(!text.contains("-0.0"), "{text}");
+    assert!(text.contains("\"path_length\":0.0"), "{text}");
+    let back = &jsonl::read(&p).unwrap()[0];
+    assert!(back.path_length.is_sign_positive() && back.geodesic_distance.is_sign_positive());
+}
+
 #[test]
 fn formats_round_trip() {
     let out = tempfile::tempdir().unwrap();
@@ -245,11 +497,12 @@ fn formats_round_trip() {
         assert_eq!(back.len(), eps.len());
         for a in &eps {
             let b = back.iter().find(|b| b.episode_id == a.episode_id).unwrap();
-            same_episode(a, b, 1e-4);
-            assert_eq!(
-                a.goal.as_ref().map(|g| &g.kind),
-                b.goal.as_ref().map(|g| &g.kind)
-            );
+            // Everything comes back (our keys hold what the points cannot): in W exactly, in
+            // S with floats within rounding.
+            if frame == GvlnFrame::World {
+                assert_eq!(a, b);
+            }
+            same_but_rounding(a, b, 1e-4);
             // GVLN carries no actions: the reader recomputes them, and they must reach the goal.
             if let Some(g) = &b.goal {
                 let end = *replay(b.start.pose(), &b.actions, &space).last().unwrap();

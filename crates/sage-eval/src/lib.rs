@@ -3,9 +3,10 @@
 //! [`evaluator`] runs an agent (named by `sage-agents`) over a dataset split (read by
 //! `sage-dataset`) in the environment, resumably and in parallel; [`settings`] is what a run
 //! folder records and resumes, [`records`] the per-episode records file, [`summary`] the
-//! metric means overall and per slice, [`merge`] the merge of sharded runs, and [`folder`] the
-//! layout of a run folder; [`human`] records and scores the episodes a person plays in the
-//! viewer like an agent's. [`report`] turns a run folder into a self-contained HTML page with
+//! metric means overall and per slice, [`merge`] the merge of sharded runs,
+//! [`rescore`](mod@rescore) a finished run scored again in another metric mode from its stored
+//! records, and [`folder`] the layout of a run folder and how a folder is told to be one;
+//! [`human`] records and scores the episodes a person plays in the viewer like an agent's. [`report`] turns a run folder into a self-contained HTML page with
 //! the metric tables, per-slice charts and per-episode trajectory maps.
 
 pub mod evaluator;
@@ -14,6 +15,7 @@ pub mod human;
 pub mod merge;
 pub mod records;
 pub mod report;
+pub mod rescore;
 pub mod settings;
 pub mod summary;
 
@@ -21,5 +23,6 @@ pub use evaluator::{RunOutcome, Runner, claim, env_config, run, run_with, score_
 pub use human::HumanRun;
 pub use merge::merge_shards;
 pub use records::{EvalRecord, Failure};
+pub use rescore::{Rescored, rescore};
 pub use settings::EvalSettings;
 pub use summary::Summary;

@@ -7,7 +7,7 @@
 use crate::records::{EvalRecord, Failure};
 use crate::settings::EvalSettings;
 use sage_env::agents::FaultKind;
-use sage_metrics::{Aggregate, Dtw, Mode, aggregate};
+use sage_metrics::{Aggregate, Dtw, Mode, Scoring, aggregate};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write;
@@ -100,8 +100,25 @@ fn slice_of(rec: &EvalRecord, axis: &str) -> String {
 impl Summary {
     /// The summary of `records` (sorted by episode id) of a run with `settings`.
     pub fn of(settings: &EvalSettings, records: &[EvalRecord]) -> Summary {
+        Summary::of_records(
+            &settings.agent.to_string(),
+            &settings.split,
+            settings.scoring(),
+            records,
+        )
+    }
+
+    /// The summary of `records` (sorted by episode id) of agent `agent` over split `split`,
+    /// scored with `scoring`: what [`Summary::of`] computes, for callers that hold no
+    /// [`EvalSettings`] (a rescoring reads its run's from the run record).
+    pub fn of_records(
+        agent: &str,
+        split: &str,
+        scoring: Scoring,
+        records: &[EvalRecord],
+    ) -> Summary {
         let scored: Vec<&EvalRecord> = records.iter().filter(|r| r.metrics.is_some()).collect();
-        let mode = settings.mode;
+        let mode = scoring.mode;
         let means =
             |rs: &[&EvalRecord]| aggregate(mode, rs.iter().filter_map(|r| r.metrics.as_ref()));
         let slices = AXES
@@ -133,10 +150,10 @@ impl Summary {
             *faults.entry(f.kind).or_insert(0) += 1;
         }
         Summary {
-            agent: settings.agent.to_string(),
-            split: settings.split.clone(),
+            agent: agent.to_string(),
+            split: split.to_string(),
             mode,
-            dtw: settings.dtw,
+            dtw: scoring.dtw,
             episodes: records.len(),
             failed: records
                 .iter()

@@ -5,7 +5,7 @@
 //! where the records put them, in colours that stay apart for colour-blind readers, with a
 //! legend of only what each map shows; the episode table holds the instructions; a faulted
 //! episode gets a banner; same inputs give the same bytes; bad run folders give errors naming
-//! the file.
+//! the file, and folders that are not runs say so.
 
 mod common;
 
@@ -629,7 +629,26 @@ fn bad_run_folders_are_errors_naming_the_file() {
     let e = report::write(&f.run.join("nowhere"), &f.scenes)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("sage3d_run.json"), "{e}");
+    assert!(e.contains("nowhere: no such run folder"), "{e}");
+    // Folders that are not evaluation runs are named for what they are, before any file of a
+    // run is looked for: one without a run record, and a dataset (another command's record).
+    let bare = tempfile::tempdir().unwrap();
+    let e = report::write(bare.path(), &f.scenes)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not an evaluation run (it has no sage3d_run.json"),
+        "{e}"
+    );
+    let data = bare.path().join("data");
+    std::fs::create_dir_all(data.join("episodes")).unwrap();
+    sage_io::run::write_run_record(&data, "data build", Some(0), serde_json::json!({})).unwrap();
+    let e = report::write(&data, &f.scenes).unwrap_err().to_string();
+    assert!(
+        e.contains("data: not an evaluation run (its sage3d_run.json is from `data build`"),
+        "{e}"
+    );
+    assert!(!data.join(sage_eval::folder::REPORT_FILE).exists());
     // A scene of the records that is not among the scenes.
     let e = report::write(&f.run, dir.path()).unwrap_err().to_string();
     assert!(e.contains("scene"), "{e}");

@@ -8,14 +8,23 @@
 //!   `frame_offset: [δx, δy]`: x_S = −x_W + δx, y_S = −y_W + δy). A file without `frame` (the
 //!   published ones) is read as S with the offset the caller gives.
 //! - **rotation**: `[−sin(φ/2), 0, 0, cos(φ/2)]` with φ = ψ + π, ψ the heading in the file's frame
-//!   toward the next point; the last point holds the final heading (the published files force
-//!   `[0, 0, 0, 1]` there, which the reader ignores).
+//!   toward the next point; the first point holds the start heading and the last the final
+//!   heading (the published files force `[0, 0, 0, 1]` there, which the reader ignores at the
+//!   last point only).
 //! - **position** z: the floor (0), not the published 0.5.
-//! - Each instruction carries extra keys of ours (`episode_id`, `level`, `subtype`, `source`,
-//!   `task`) that other readers ignore. A sample is a trajectory with all its instructions;
-//!   Base-Action and no-goal episodes are samples of their own.
-//! - Reading: one episode per (sample, instruction); ground-truth actions are recomputed from
-//!   the points; the type `Default` (the published generator's failure text) reads as
+//! - Each instruction carries extra keys of ours that other readers ignore: `episode_id`,
+//!   `level`, `subtype`, `source`, `task`, and what the points cannot hold exactly —
+//!   `start_yaw` and, for a pose goal, `goal_yaw` (headings in the file's frame, radians; in W
+//!   as they are, unwrapped: a turn in place is one point with two headings), `goal_kind`,
+//!   `path_length`, `geodesic_distance`, `slices` and the ground-truth `actions`. So a file in
+//!   W reads back as exactly the episodes it was written from. A sample is a trajectory with
+//!   all its instructions; Base-Action and no-goal episodes are samples of their own.
+//! - Reading: one episode per (sample, instruction), each checked as the JSONL reader checks
+//!   it ([`Episode::check`]); without our keys (the published files) the ground-truth actions
+//!   are recomputed from the points (turning at the end to `goal_yaw` when only that key is
+//!   there, else to the last point's heading), the headings come from the points, the goal's
+//!   kind from its `end` name ([`goal_kind`]), both lengths are the path's and the asset slice
+//!   is `medium`; the type `Default` (the published generator's failure text) reads as
 //!   Single-Goal.
 
 use crate::episode::{Episode, Goal, StartPose, Task, check_point, check_unique_ids};
@@ -51,15 +60,18 @@ impl GvlnFrame {
             GvlnFrame::Sage(s) => s.sage_to_world(Vec3::from(p)).into(),
         }
     }
+    // In W a heading is written as it is: wrapping it would round it (and a no-goal start of
+    // 330° would come back as −30°), so a file in W would read back with other headings than
+    // it was written from. `rotation` wraps its angle itself.
     fn heading(&self, yaw: f32) -> f32 {
         match self {
-            GvlnFrame::World => wrap_angle(yaw),
+            GvlnFrame::World => yaw,
             GvlnFrame::Sage(s) => s.heading_to_sage(yaw),
         }
     }
     fn heading_back(&self, yaw: f32) -> f32 {
         match self {
-            GvlnFrame::World => wrap_angle(yaw),
+            GvlnFrame::World => yaw,
             GvlnFrame::Sage(s) => s.heading_to_world(yaw),
         }
     }
@@ -93,7 +105,11 @@ fn headings(path: &[[f32; 3]], last: f32) -> Vec<f32> {
 /// distance of an imported episode come from (the files hold no other distance).
 pub(crate) fn planar(path: &[[f32; 3]]) -> (Vec<Vec2>, f32) {
     let flat: Vec<Vec2> = path.iter().map(|p| Vec2::new(p[0], p[1])).collect();
-    let length = flat.windows(2).map(|w| w[0].distance(w[1])).sum();
+    // Folded from +0.0: an empty float sum is −0.0 (a path of one point).
+    let length = flat
+        .windows(2)
+        .map(|w| w[0].distance(w[1]))
+        .fold(0.0, |a, b| a + b);
     (flat, length)
 }
 
@@ -149,14 +165,27 @@ pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSi
                     let instructions: Vec<Value> = eps
                         .iter()
                         .map(|e| {
-                            json!({
+                            let e = e.without_negative_zeros();
+                            let mut ins = json!({
                                 "instruction_type": e.instruction_type.as_str(),
                                 "start": e.start_ref.clone().unwrap_or_default(),
                                 "end": e.goal.as_ref().map(|g| g.reference.clone()).unwrap_or_default(),
                                 "generated_instruction": e.instruction, "scene_id": scene,
                                 "episode_id": e.episode_id, "level": e.level, "subtype": e.subtype,
                                 "source": e.source, "task": e.task,
-                            })
+                                "start_yaw": frame.heading(e.start.yaw),
+                                "path_length": e.path_length,
+                                "geodesic_distance": e.geodesic_distance,
+                                "slices": e.slices,
+                                "actions": e.actions,
+                            });
+                            if let Some(g) = &e.goal {
+                                ins["goal_kind"] = json!(g.kind);
+                                if let Some(yaw) = g.yaw {
+                                    ins["goal_yaw"] = json!(frame.heading(yaw));
+                                }
+                            }
+                            ins
                         })
                         .collect();
                     json!({"trajectory_id": key, "instructions": instructions, "points": points})
@@ -224,6 +253,23 @@ fn floats<const N: usize>(v: &Value, key: &str) -> Result<[f32; N]> {
     Ok(out)
 }
 
+/// An optional number of an instruction (one of the keys of ours): `None` when absent or null.
+///
+/// # Errors
+///
+/// A value that is not a number finite in single precision, naming `key`.
+fn optional_number(v: &Value, key: &str) -> Result<Option<f32>> {
+    match v.get(key) {
+        None | Some(Value::Null) => Ok(None),
+        Some(x) => x
+            .as_f64()
+            .map(|f| f as f32)
+            .filter(|f| f.is_finite())
+            .map(Some)
+            .ok_or_else(|| Error::format(key, format!("{x}: expected a finite number"))),
+    }
+}
+
 fn text(v: &Value, key: &str) -> String {
     match v.get(key) {
         Some(Value::String(s)) => s.clone(),
@@ -233,7 +279,8 @@ fn text(v: &Value, key: &str) -> String {
 }
 
 /// Reads a GVLN file; `sage_offset` is the S-frame offset for files that do not state their frame.
-/// Asset slices are unknown in the file and read as `medium` unless the caller re-tags them.
+/// Files without our `slices` key (the published ones) hold no asset count: their asset slices
+/// read as `medium` unless the caller re-tags them.
 pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Episode>> {
     let text_in = sage_io::files::read_text(path, &sage_io::limits::JSON_MB)?;
     let root: Value = sage_io::files::parse_json(&text_in, path)?;
@@ -299,13 +346,13 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                     let pos = frame.point_back(pos);
                     check_point(pos, "position").within(format!("points[{pi}]"))?;
                     positions.push(pos);
-                    yaws.push(
-                        (rot != [0.0, 0.0, 0.0, 1.0])
-                            .then(|| frame.heading_back(decode_rotation(rot))),
-                    );
+                    // Only the last point's `[0, 0, 0, 1]` is the published files' placeholder;
+                    // elsewhere it is the heading π like any other rotation.
+                    let placeholder = pi + 1 == pts.len() && rot == [0.0, 0.0, 0.0, 1.0];
+                    yaws.push((!placeholder).then(|| frame.heading_back(decode_rotation(rot))));
                 }
-                let start_yaw = yaws[0].unwrap_or(0.0);
-                let final_yaw = yaws.last().copied().flatten();
+                let path_start_yaw = yaws[0].unwrap_or(0.0);
+                let path_final_yaw = yaws.last().copied().flatten();
                 let (flat, length) = planar(&positions);
                 let tid = text(sample, "trajectory_id");
                 // A goal-directed trajectory's id is its index, which the published files
@@ -344,21 +391,62 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                     } else {
                         Task::Vln
                     };
-                    let actions = match task {
-                        Task::Nogoal => Vec::new(),
-                        Task::Vln => {
-                            follow(&flat, start_yaw, final_yaw, space).ok_or_else(|| {
-                                Error::format(
-                                    "points",
-                                    "the path cannot be followed with discrete actions",
-                                )
-                            })?
-                        }
-                    };
+                    // Our own keys (other readers ignore them) carry what the points cannot:
+                    // the headings exactly (a turn in place has one point for two headings),
+                    // the goal's kind and heading, the lengths and the slices.
+                    let ours =
+                        |key: &str| optional_number(ins, key).within(format!("instructions[{ii}]"));
+                    let start_yaw =
+                        ours("start_yaw")?.map_or(path_start_yaw, |y| frame.heading_back(y));
+                    let goal_yaw = ours("goal_yaw")?.map(|y| frame.heading_back(y));
+                    let final_yaw = goal_yaw.or(path_final_yaw);
+                    let actions =
+                        match (ins.get("actions"), task) {
+                            // Ours, as written: recomputing them from rounded points could pick
+                            // another, equivalent sequence.
+                            (Some(a), _) if !a.is_null() => serde_json::from_value(a.clone())
+                                .map_err(|e| {
+                                    Error::format(
+                                        format!("instructions[{ii}].actions"),
+                                        format!("expected action ids 0-3: {e}"),
+                                    )
+                                })?,
+                            (_, Task::Nogoal) => Vec::new(),
+                            (_, Task::Vln) => follow(&flat, start_yaw, final_yaw, space)
+                                .ok_or_else(|| {
+                                    Error::format(
+                                        "points",
+                                        "the path cannot be followed with discrete actions",
+                                    )
+                                })?,
+                        };
                     let id = text(ins, "episode_id");
                     let start_ref = text(ins, "start");
                     let end = text(ins, "end");
-                    eps.push(Episode {
+                    let end_kind = match ins.get("goal_kind") {
+                        None | Some(Value::Null) => goal_kind(&end).to_string(),
+                        Some(Value::String(k)) => k.clone(),
+                        Some(other) => {
+                            return Err(Error::format(
+                                format!("instructions[{ii}].goal_kind"),
+                                format!("{other}: expected a string"),
+                            ));
+                        }
+                    };
+                    let slices = match ins.get("slices") {
+                        None | Some(Value::Null) => Slices {
+                            assets: "medium".into(),
+                            path: if task == Task::Nogoal {
+                                "none".into()
+                            } else {
+                                path_slice(length).into()
+                            },
+                        },
+                        Some(v) => serde_json::from_value(v.clone()).map_err(|e| {
+                            Error::format(format!("instructions[{ii}].slices"), e.to_string())
+                        })?,
+                    };
+                    let episode = Episode {
                         episode_id: if id.is_empty() {
                             format!("{name}-t{tid}-{ii}")
                         } else {
@@ -387,24 +475,21 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                             yaw: start_yaw,
                         },
                         goal: (task == Task::Vln).then(|| Goal {
-                            kind: goal_kind(&end).into(),
+                            kind: end_kind,
                             reference: end,
                             position: *positions.last().unwrap_or(&positions[0]),
-                            yaw: None,
+                            yaw: goal_yaw,
                         }),
                         reference_path: positions.clone(),
                         actions,
-                        path_length: length,
-                        geodesic_distance: length,
-                        slices: Slices {
-                            assets: "medium".into(),
-                            path: if task == Task::Nogoal {
-                                "none".into()
-                            } else {
-                                path_slice(length).into()
-                            },
-                        },
-                    });
+                        path_length: ours("path_length")?.unwrap_or(length),
+                        geodesic_distance: ours("geodesic_distance")?.unwrap_or(length),
+                        slices,
+                    };
+                    // The same check as our JSONL reader's, so an import writes no episode
+                    // that `eval` would refuse.
+                    episode.check().within(format!("instructions[{ii}]"))?;
+                    eps.push(episode);
                 }
                 Ok(eps)
             };

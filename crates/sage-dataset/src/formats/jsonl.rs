@@ -5,11 +5,13 @@ use sage_core::{Error, Result, ResultExt};
 use std::io::Write;
 use std::path::Path;
 
-/// Writes `episodes`, one per line (atomically).
+/// Writes `episodes`, one per line (atomically), every negative zero written as `0.0`
+/// ([`Episode::without_negative_zeros`]).
 pub fn write(path: &Path, episodes: &[Episode]) -> Result<()> {
     sage_io::files::write_atomic(path, |w| {
         for e in episodes {
-            serde_json::to_writer(&mut *w, e).map_err(std::io::Error::other)?;
+            serde_json::to_writer(&mut *w, &e.without_negative_zeros())
+                .map_err(std::io::Error::other)?;
             w.write_all(b"\n")?;
         }
         Ok(())

@@ -334,7 +334,8 @@ pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> 
             let length: f32 = path
                 .windows(2)
                 .map(|w| Vec3::from(w[0]).distance(Vec3::from(w[1])))
-                .sum();
+                // Folded from +0.0: an empty float sum is −0.0 (a path of one point).
+                .fold(0.0, |a, b| a + b);
             let x = r.sage3d.clone();
             let episode = Episode {
                 episode_id: x

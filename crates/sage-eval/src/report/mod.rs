@@ -92,13 +92,12 @@ fn read_text(path: &Path) -> Result<String> {
 ///
 /// # Errors
 ///
-/// A missing or unreadable file, a bad line of `episodes.jsonl` (named by its line), an episode
-/// recorded twice, or a summary that does not count the records (an unfinished run): each names
-/// the file.
+/// A folder that is not an evaluation run ([`crate::folder::run_record`]: none, a dataset,
+/// another command's), a missing or unreadable file, a bad line of `episodes.jsonl` (named by
+/// its line), an episode recorded twice, or a summary that does not count the records (an
+/// unfinished run): each names the folder or file.
 pub fn read_run(run_dir: &Path) -> Result<RunFiles> {
-    let run_path = run_dir.join(RUN_RECORD);
-    let run: serde_json::Value = serde_json::from_str(&read_text(&run_path)?)
-        .map_err(|e| Error::format(RUN_RECORD, e.to_string()).in_file(&run_path))?;
+    let run = crate::folder::run_record(run_dir)?;
     let summary_path = run_dir.join(SUMMARY_FILE);
     if !summary_path.is_file() {
         return Err(Error::invalid(

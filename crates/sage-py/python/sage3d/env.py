@@ -38,6 +38,35 @@ def check_device(device: str) -> str:
     return device
 
 
+def sensor_names(sensors: str | Iterable[str]) -> list[str]:
+    """The sensor names of ``sensors``: ``"rgb,depth"`` as ``data render`` takes it (spaces
+    around a name allowed, empty names dropped, as the command line reads it) or a list of
+    names; ``ValueError`` naming any that is not one of :data:`SENSORS`."""
+    if isinstance(sensors, str):
+        sensors = sensors.split(",")
+    names = [str(n).strip() for n in sensors]
+    names = [n for n in names if n]
+    unknown = sorted(set(names) - set(SENSORS))
+    if unknown:
+        raise ValueError(f"unknown sensors {unknown} (expected some of {list(SENSORS)})")
+    return names
+
+
+def check_options(options, known: tuple[str, ...]) -> dict:
+    """The ``options`` of ``reset`` as a dict (``None``: none), after checking that every key
+    is one of ``known``: a misspelt key would otherwise be ignored and the episode drawn at
+    random instead of the one asked for."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(f"reset options: expected a dict, got {type(options).__name__}")
+    unknown = sorted(str(k) for k in options if k not in known)
+    if unknown:
+        raise ValueError(f"unknown reset option {', '.join(map(repr, unknown))} "
+                         f"(accepted: {', '.join(known)})")
+    return options
+
+
 def cache_dir() -> str:
     """Where synthetic scenes and their collision hulls are cached: ``$SAGE3D_CACHE``, else
     ``sage3d-cache`` in the system's temporary folder."""
@@ -77,12 +106,8 @@ def config_overrides(width: int | None = None, height: int | None = None,
     if hfov is not None:
         s["hfov_deg"] = float(hfov)
     if sensors is not None:
-        # "rgb,depth" as data render takes it, or a list of names.
-        sensors = set(sensors.split(",") if isinstance(sensors, str) else sensors)
-        unknown = sensors - set(SENSORS)
-        if unknown:
-            raise ValueError(f"unknown sensors {sorted(unknown)} (expected some of {list(SENSORS)})")
-        s.update({k: k in sensors for k in SENSORS})
+        names = sensor_names(sensors)
+        s.update({k: k in names for k in SENSORS})
     if s:
         o["sensors"] = s
     if actions == "ground":
@@ -208,8 +233,11 @@ class _Prepared:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
         self.render_mode = render_mode
-        if render_mode == "rgb_array" and sensors is not None and "rgb" not in sensors:
-            sensors = [*sensors, "rgb"]
+        if render_mode == "rgb_array" and sensors is not None:
+            # Names, not text: "depth" as a string would otherwise be spread into letters.
+            sensors = sensor_names(sensors)
+            if "rgb" not in sensors:
+                sensors = [*sensors, "rgb"]
         overrides = _json(config_overrides(width, height, sensors, actions, max_steps, hfov, config,
                                            device))
         self.config = _sage3d.env_config(preset, overrides)
@@ -223,7 +251,8 @@ class SageEnv(_Prepared, gym.Env):
     """A sage3d environment as a Gymnasium 1.x ``Env``.
 
     ``reset(seed=, options=)`` picks an episode with the env's seeded generator, or the one named
-    by ``options={"episode_id": ...}`` / ``{"episode_index": i}``; ``step(action)`` returns
+    by ``options={"episode_id": ...}`` / ``{"episode_index": i}`` (any other key is a
+    ``ValueError``); ``step(action)`` returns
     ``(obs, reward, terminated, truncated, info)``. Observations are NumPy arrays that own the
     rendered buffers. ``info`` holds the episode, pose, contacts, the step record, metrics so far
     and, once the episode has ended, its metrics (mode ``mode``). The environment does not reset
@@ -266,8 +295,10 @@ class SageEnv(_Prepared, gym.Env):
         ``None`` when no image is configured."""
         return self._sim.render_device
 
-    def _index(self, options: dict | None) -> int:
-        options = options or {}
+    #: The keys ``reset(options=...)`` accepts; any other is a ``ValueError``.
+    RESET_OPTIONS = ("episode_id", "episode_index")
+
+    def _index(self, options: dict) -> int:
         if "episode_id" in options:
             try:
                 return self._ids[options["episode_id"]]
@@ -281,6 +312,10 @@ class SageEnv(_Prepared, gym.Env):
         return int(self.np_random.integers(len(self._ids)))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        # Checked before the generator is reseeded, so a refused call changes nothing.
+        options = check_options(options, self.RESET_OPTIONS)
+        if "episode_id" in options and "episode_index" in options:
+            raise ValueError("reset options: name the episode by episode_id or by episode_index, not both")
         super().reset(seed=seed)
         obs, info = self._sim.reset(self._index(options))
         self._last = obs

@@ -11,7 +11,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _sage3d
-from .env import _json, _Prepared, action_space, check_discrete, observation_space, whole
+from .env import (_json, _Prepared, action_space, check_discrete, check_options, observation_space,
+                  whole)
 
 
 class SageVectorEnv(_Prepared, VectorEnv):
@@ -68,10 +69,15 @@ class SageVectorEnv(_Prepared, VectorEnv):
             vector_infos = self._add_info(vector_infos, info, i)
         return obs, vector_infos
 
+    #: The keys ``reset(options=...)`` accepts; any other is a ``ValueError``.
+    RESET_OPTIONS = ("episode_index",)
+
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Resets every sub-environment; ``seed`` an int (sub-environment ``i`` gets
         ``seed + i``) or one per sub-environment; ``options={"episode_index": [...]}`` picks
-        the episodes."""
+        the episodes (any other key is a ``ValueError``)."""
+        # Checked before the generators are reseeded, so a refused call changes nothing.
+        options = check_options(options, self.RESET_OPTIONS)
         if seed is not None:
             seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else list(seed)
             if len(seeds) != self.num_envs:
@@ -79,7 +85,6 @@ class SageVectorEnv(_Prepared, VectorEnv):
             for i, s in enumerate(seeds):
                 if s is not None:
                     self._rngs[i] = seeding.np_random(s)[0]
-        options = options or {}
         if "episode_index" in options:
             indices = [int(k) for k in options["episode_index"]]
         else:
