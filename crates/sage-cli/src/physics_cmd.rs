@@ -4,8 +4,8 @@
 use clap::{Args, Subcommand};
 use sage_core::{Error, Pose, Result, Vec3};
 use sage_physics::{
-    AgentBody, AgentProfile, BuildReport, Command, Decomposer, HullCache, SceneBodies, SplatBodies,
-    World, WorldOptions, default_cache_dir,
+    AgentBody, AgentProfile, BodyKind, BuildReport, Command, Decomposer, HullCache, SceneBodies,
+    SplatBodies, World, WorldOptions, default_cache_dir,
 };
 use sage_pipeline::physics::BodyOptions;
 use sage_scene::{BodySource, LoadOptions, Scene};
@@ -151,7 +151,8 @@ pub struct PendingArgs {
     scene: PathBuf,
     #[command(flatten)]
     decomp: DecompArgs,
-    /// Output JSON file (an existing one is refused without --force).
+    /// Output JSON file (an existing one is refused without --force, and a file of the scene
+    /// always).
     #[arg(long)]
     out: PathBuf,
     /// Replace an existing output file.
@@ -168,13 +169,15 @@ pub struct DriveArgs {
     /// Agent profile: wheeled, go2, g1, h1 or uav.
     #[arg(long, default_value = "wheeled")]
     agent: String,
-    /// Start position X,Y,Z (metres, world frame; ground robots: Z of the floor).
+    /// Start position X,Y,Z (metres, world frame, each within ±10000; ground robots: Z of the
+    /// floor).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     position: Vec<f32>,
     /// Start heading, degrees counter-clockwise from +X.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     yaw: f32,
-    /// Commands: forward:D, turn:DEG, stop, vel:VX:VY:WZDEG:DT, uav:VX:VY:VZ:WZDEG:DT.
+    /// Commands: forward:D, turn:DEG, stop, vel:VX:VY:WZDEG:DT, uav:VX:VY:VZ:WZDEG:DT
+    /// (finite; distances and speeds within ±10000, turns within ±3600°, DT 0-60 s).
     #[arg(
         long,
         value_delimiter = ',',
@@ -191,7 +194,8 @@ pub struct DriveArgs {
 pub struct UsdArgs {
     /// Scene folder.
     scene: PathBuf,
-    /// Output `.usda` file (an existing one is refused without --force).
+    /// Output `.usda` file (an existing one is refused without --force, and a file of the
+    /// scene always).
     out: PathBuf,
     /// Replace an existing output file.
     #[arg(long)]
@@ -248,15 +252,37 @@ pub fn print_build(scene: &Scene, bodies: &SceneBodies, report: &BuildReport) {
         report.cached,
         report.boxes
     );
+    let parts_of = |kind: fn(&BodyKind) -> bool| -> usize {
+        bodies
+            .bodies
+            .iter()
+            .filter(|b| kind(&b.kind))
+            .map(|b| b.parts.len())
+            .sum()
+    };
+    let meshed = if report.objects.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "; {:.1} per object with a mesh ({} of them)",
+            report.mean_hulls(),
+            report.objects.len()
+        )
+    };
     println!(
-        "hulls            {} in all; {:.1} per meshed object",
+        "hulls            {} convex parts: {} of objects, {} of walls, {} of the structure body, {} of floor and ceiling slabs{meshed}",
         report.parts,
-        report.mean_hulls()
+        parts_of(|k| matches!(k, BodyKind::Object(_))),
+        parts_of(|k| matches!(k, BodyKind::Wall(_))),
+        parts_of(|k| matches!(k, BodyKind::Structure)),
+        parts_of(|k| matches!(k, BodyKind::Floor | BodyKind::Ceiling)),
     );
-    println!(
-        "volume           hulls / meshes = {:.3} (1 = exact, > 1 = fattened)",
-        report.volume_ratio()
-    );
+    if !report.objects.is_empty() {
+        println!(
+            "volume           hulls / meshes = {:.3} (1 = exact, > 1 = fattened)",
+            report.volume_ratio()
+        );
+    }
     let mut worst: Vec<_> = report
         .objects
         .iter()
@@ -315,13 +341,16 @@ fn drive(a: DriveArgs) -> Result<()> {
         [] => Err(Error::invalid("--position X,Y,Z is required"))?,
         _ => Err(Error::invalid("--position takes three numbers X,Y,Z"))?,
     };
+    let start = Pose::new(position, a.yaw.to_radians());
+    // Checked before the bodies are built, as the commands are: a bad flag costs nothing.
+    sage_physics::check_pose(&start).map_err(|e| e.within("--position/--yaw"))?;
     let (scene, bodies, _) = a.decomp.bodies(&a.scene)?;
     let options = WorldOptions {
         articulated_doors: a.articulated_doors,
         ..WorldOptions::default()
     };
     let mut world = World::new(&scene, bodies, &options);
-    let mut agent = AgentBody::new(profile, Pose::new(position, a.yaw.to_radians()));
+    let mut agent = AgentBody::new(profile, start);
     for (i, c) in commands.iter().enumerate() {
         let report = agent.step(&mut world, c)?;
         let mut line = serde_json::to_value(&report).map_err(|e| Error::invalid(e.to_string()))?;

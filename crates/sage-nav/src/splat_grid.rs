@@ -34,7 +34,8 @@ pub struct SplatGridParams {
     /// Gaussians more transparent than this are no evidence (default 0.3): floaters and the
     /// faint fringes of trained scenes say little about solid matter.
     pub min_opacity: f32,
-    /// Half-height of the floor band around z = 0, metres (default 0.05).
+    /// Half-height of the floor band around z = 0, metres (default
+    /// [`sage_scene::FLOOR_BAND`], where a capture's collision body starts too).
     pub floor_band: f32,
     /// Largest vertical standard deviation of a floor Gaussian, metres (default 0.05).
     pub floor_thickness: f32,
@@ -53,7 +54,7 @@ impl Default for SplatGridParams {
     fn default() -> Self {
         SplatGridParams {
             min_opacity: 0.3,
-            floor_band: 0.05,
+            floor_band: sage_scene::FLOOR_BAND,
             floor_thickness: 0.05,
             floor_mass: 0.5,
             obstacle_mass: 1.0,

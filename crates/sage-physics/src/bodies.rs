@@ -333,7 +333,14 @@ impl SceneBodies {
             }
         }
         let bounds = scene.bounds();
-        let ceiling_height = scene.floorplan.ceiling_height();
+        // A scene without walls (a capture, labels without `structure.json`) has no ceiling
+        // height of its own: its slab caps everything the scene holds, and where its Gaussians
+        // show a ceiling, the structure body of the capture stops agents first.
+        let ceiling_height = if scene.floorplan.walls.is_empty() && !bounds.is_empty() {
+            bounds.max.z
+        } else {
+            scene.floorplan.ceiling_height()
+        };
         if !bounds.is_empty() {
             let (lo, hi) = (bounds.min.truncate(), bounds.max.truncate());
             let slab = |z0: f32, kind: BodyKind, name: &str| {

@@ -17,8 +17,9 @@
 //! beneath the one and thicken the other.
 //!
 //! In a scene with no structure at all (a capture), the Gaussians that belong to no object make
-//! the scene's structure body the same way, closed but not filled (a room's walls, floor and
-//! ceiling enclose its air).
+//! the scene's structure body the same way, closed but not filled (a room's walls and ceiling
+//! enclose its air); those of the floor band ([`sage_scene::FLOOR_BAND`]) are left to the floor
+//! slab every scene has.
 //!
 //! Same Gaussians, same parts: nothing here depends on the thread count.
 
@@ -27,7 +28,7 @@ use crate::hull::ConvexPart;
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 use sage_core::{Aabb, Obb, Result};
-use sage_scene::{BodyParts, BodySource, Gaussians, Object, Scene, TriMesh};
+use sage_scene::{BodyParts, BodySource, FLOOR_BAND, Gaussians, Object, Scene, TriMesh};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
@@ -195,8 +196,10 @@ pub fn attach(
 const MAX_LOOSE_PARTS: usize = 4096;
 
 /// The body of the Gaussians that belong to no object, for a scene with no structure at all (a
-/// capture): their skin, closed but not filled — a room's walls, floor and ceiling enclose its
-/// air, which must stay free.
+/// capture): their skin, closed but not filled — a room's walls and ceiling enclose its air,
+/// which must stay free. Gaussians centred in the floor band are left to the floor slab: the
+/// skin of a floor a few centimetres thick would stand above a ground robot's clearance, and
+/// every agent on the floor would touch it; the occupancy grid counts no obstacle there either.
 fn loose_body(
     scene: &Scene,
     structure: &Structure,
@@ -204,7 +207,7 @@ fn loose_body(
 ) -> Option<Vec<TriMesh>> {
     let g = &scene.gaussians;
     let loose: Vec<u32> = (0..g.len() as u32)
-        .filter(|&i| g.instances[i as usize] == 0)
+        .filter(|&i| g.instances[i as usize] == 0 && g.positions[i as usize][2] >= FLOOR_BAND)
         .collect();
     let bounds = Aabb::from_points(
         loose

@@ -3,9 +3,10 @@
 //! determinism. `sage3d bench bodies` measures the same on larger homes.
 
 use glam::Vec3;
+use sage_core::Pose;
 use sage_physics::{
-    BodyKind, ConvexPart, Decomposer, HullCache, SceneBodies, SplatBodies, SplatBodyParams,
-    splat_bodies, volume_iou,
+    AgentBody, AgentProfile, BodyKind, Command, ConvexPart, Decomposer, HullCache, SceneBodies,
+    SplatBodies, SplatBodyParams, World, WorldOptions, splat_bodies, volume_iou,
 };
 use sage_scene::{BodySource, Scene};
 use sage_synth::{SceneKind, SynthConfig, generate};
@@ -189,4 +190,70 @@ fn a_bare_capture_gets_a_structure_body_with_its_air_left_free() {
     };
     splat_bodies::attach(&mut never, SplatBodies::Never, &SplatBodyParams::default()).unwrap();
     assert!(never.structure_body.is_none());
+}
+
+/// A ground agent at `(x, y)` of `world`, after turning in place: what it touched.
+fn touched_turning(world: &mut World, profile: &str, x: f32, y: f32) -> Vec<u32> {
+    let profile: AgentProfile = profile.parse().unwrap();
+    let mut agent = AgentBody::new(profile, Pose::new(Vec3::new(x, y, 0.0), 0.0));
+    let report = agent.step(world, &Command::Turn { angle: 0.5 }).unwrap();
+    report.touched.iter().map(|t| t.instance.0).collect()
+}
+
+#[test]
+fn an_agent_standing_free_in_a_capture_touches_nothing_and_its_ceiling_caps_the_capture() {
+    // Five rooms: over ten metres, so the body's voxels are coarser than a ground robot's
+    // clearance, as in a captured home.
+    let full = generate(&SynthConfig {
+        seed: 11,
+        kind: SceneKind::Home,
+        rooms: 5,
+        objects: 60,
+        gaussians: 150_000,
+        ..SynthConfig::default()
+    })
+    .unwrap();
+    let mut capture = Scene {
+        objects: Vec::new(),
+        floorplan: Default::default(),
+        occupancy: None,
+        structure_mesh: None,
+        structure_body: None,
+        ..full.clone()
+    };
+    capture.gaussians.instances.fill(0);
+    splat_bodies::attach(&mut capture, SplatBodies::Auto, &SplatBodyParams::default()).unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let world_of = |scene: &Scene| {
+        let (bodies, _) =
+            SceneBodies::build(scene, &COARSE, &HullCache::new(cache.path())).unwrap();
+        let ceiling = bodies.ceiling_height;
+        (World::new(scene, bodies, &WorldOptions::default()), ceiling)
+    };
+    let (mut truth, _) = world_of(&full);
+    let (mut world, ceiling) = world_of(&capture);
+    // The slab caps everything the capture holds: it has no wall heights to take a ceiling from.
+    assert!(ceiling >= capture.gaussians.bounds().max.z);
+    // Wherever the scene's own bodies leave a wide agent (h1, 0.30 m) free, the capture's
+    // body leaves the wheeled robot (0.20 m) free: its floor is no obstacle.
+    let b = full.gaussians.bounds();
+    let mut free = 0;
+    for i in 0..40 {
+        for j in 0..40 {
+            let x = b.min.x + (b.max.x - b.min.x) * (i as f32 + 0.5) / 40.0;
+            let y = b.min.y + (b.max.y - b.min.y) * (j as f32 + 0.5) / 40.0;
+            if full.floorplan.room_at(glam::Vec2::new(x, y)).is_none()
+                || !touched_turning(&mut truth, "h1", x, y).is_empty()
+            {
+                continue;
+            }
+            free += 1;
+            let touched = touched_turning(&mut world, "wheeled", x, y);
+            assert!(
+                touched.is_empty(),
+                "at ({x}, {y}) the agent touched {touched:?}"
+            );
+        }
+    }
+    assert!(free > 100, "only {free} free places");
 }
