@@ -90,6 +90,7 @@ fn room_scene(objects: Vec<Object>, inner_walls: Vec<Wall>) -> Scene {
             walls,
             holes: vec![],
             items: vec![],
+            ceiling: None,
         },
         occupancy: None,
         structure_mesh: None,

@@ -333,13 +333,15 @@ impl SceneBodies {
             }
         }
         let bounds = scene.bounds();
-        // A scene without walls (a capture, labels without `structure.json`) has no ceiling
-        // height of its own: its slab caps everything the scene holds, and where its Gaussians
-        // show a ceiling, the structure body of the capture stops agents first.
-        let ceiling_height = if scene.floorplan.walls.is_empty() && !bounds.is_empty() {
-            bounds.max.z
-        } else {
-            scene.floorplan.ceiling_height()
+        // A scene without walls takes the ceiling its capture's import measured; without one
+        // (labels without `structure.json`, a capture with no ceiling found) its slab caps
+        // everything the scene holds rather than cutting through it at a guessed height.
+        let ceiling_height = match scene.floorplan.ceiling {
+            _ if !scene.floorplan.walls.is_empty() || bounds.is_empty() => {
+                scene.floorplan.ceiling_height()
+            }
+            Some(measured) => measured,
+            None => bounds.max.z,
         };
         if !bounds.is_empty() {
             let (lo, hi) = (bounds.min.truncate(), bounds.max.truncate());

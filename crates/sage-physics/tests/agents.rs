@@ -113,6 +113,7 @@ fn hall(door: Option<DoorState>) -> Scene {
                 state: door,
             }],
             items: Vec::new(),
+            ceiling: None,
         },
         occupancy: None,
         structure_mesh: None,

@@ -24,7 +24,7 @@ use std::str::FromStr;
 pub const IMPORT_COMMAND: &str = "scene import";
 
 /// The provenance file of an imported capture.
-pub const CAPTURE_FILE: &str = "capture.json";
+pub const CAPTURE_FILE: &str = sage_scene::scene::files::CAPTURE;
 
 /// Two points of the capture, in its own coordinates (`x1,y1,z1:x2,y2,z2` on the command
 /// line; `[[x1, y1, z1], [x2, y2, z2]]` in files and Python).

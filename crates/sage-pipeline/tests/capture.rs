@@ -229,3 +229,46 @@ fn bad_input_is_refused_with_its_reason_and_nothing_is_written() {
     assert!(e.contains("not empty") && e.contains("notes.txt"), "{e}");
     assert_eq!(sage_io::run::entries(&out).unwrap(), vec!["notes.txt"]);
 }
+
+#[test]
+fn an_imported_capture_keeps_the_ceiling_height_its_import_measured() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_capture(dir.path(), "cap.spz", Format::Spz);
+    // Capture units are half metres; a scale of 0.4 makes the synthetic home's 2.8 m rooms
+    // 2.24 m high, away from the 2.8 m a scene without walls would otherwise be given.
+    let out = dir.path().join("low");
+    let settings = ImportSettings {
+        scale: Some(0.4),
+        ..ImportSettings::default()
+    };
+    let report = import(&input, &out, &settings, &noop).unwrap();
+    assert!((report.ceiling - 2.24).abs() < 0.05, "{}", report.ceiling);
+    let (scene, loaded) = Scene::load(&out).unwrap();
+    assert!(loaded.files.iter().any(|f| f == CAPTURE_FILE));
+    // capture.json keeps six decimals.
+    let ceiling = scene.floorplan.ceiling.expect("the measured ceiling");
+    assert!((ceiling - report.ceiling).abs() < 1e-5, "{ceiling}");
+    assert_eq!(scene.floorplan.ceiling_height(), ceiling);
+
+    // A ceiling that is not a height is refused, naming the file and the field.
+    let path = out.join(CAPTURE_FILE);
+    let mut record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    for bad in [
+        serde_json::json!(-1.0),
+        serde_json::json!("high"),
+        serde_json::json!(1e9),
+    ] {
+        record["floor"]["ceiling_m"] = bad;
+        std::fs::write(&path, record.to_string()).unwrap();
+        let e = Scene::load(&out).unwrap_err().to_string();
+        assert!(
+            e.contains(CAPTURE_FILE) && e.contains("floor.ceiling_m"),
+            "{e}"
+        );
+    }
+    // None found (0): the scene has no measured ceiling.
+    record["floor"]["ceiling_m"] = serde_json::json!(0.0);
+    std::fs::write(&path, record.to_string()).unwrap();
+    assert_eq!(Scene::load(&out).unwrap().0.floorplan.ceiling, None);
+}

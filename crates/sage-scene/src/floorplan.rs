@@ -105,6 +105,9 @@ pub struct Floorplan {
     pub holes: Vec<Hole>,
     /// Structural items.
     pub items: Vec<StructureItem>,
+    /// The ceiling height where no wall gives one, metres: a capture's, as its import measured
+    /// it (`capture.json`). Not part of `structure.json`.
+    pub ceiling: Option<f32>,
 }
 
 impl Floorplan {
@@ -132,12 +135,14 @@ impl Floorplan {
         })
     }
 
-    /// The ceiling height: the tallest wall (2.8 m, InteriorGS's common value, without walls).
+    /// The ceiling height: the tallest wall; without walls, the one measured for the scene
+    /// ([`Floorplan::ceiling`]), else 2.8 m (InteriorGS's common value).
     pub fn ceiling_height(&self) -> f32 {
         self.walls
             .iter()
             .map(|w| w.height)
             .fold(None, |m: Option<f32>, h| Some(m.map_or(h, |m| m.max(h))))
+            .or(self.ceiling)
             .unwrap_or(2.8)
     }
 

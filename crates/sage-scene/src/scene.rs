@@ -101,6 +101,9 @@ pub mod files {
     pub const MESHES: &str = "meshes";
     /// Structure mesh inside the mesh folder.
     pub const STRUCTURE_MESH: &str = "structure.obj";
+    /// What `sage3d scene import` did to a capture (its transform, scale and floor fit); the
+    /// loader reads the ceiling height it measured.
+    pub const CAPTURE: &str = "capture.json";
     /// Everything [`Scene::save`](super::Scene::save) may write at the top of a scene folder
     /// (the occupancy map's two files included), so that a command writing a scene can refuse
     /// a folder where it would replace someone else's file.
@@ -271,13 +274,20 @@ impl Scene {
             note(files::LABELS, false);
             Vec::new()
         };
-        let floorplan = if has_structure {
+        let mut floorplan = if has_structure {
             note(files::STRUCTURE, true);
             structure::parse(&read_text(&structure_path)?).in_file(&structure_path)?
         } else {
             note(files::STRUCTURE, false);
             Floorplan::default()
         };
+        // A capture has no walls to give its ceiling height: its import measured one.
+        let capture_path = dir.join(files::CAPTURE);
+        if !has_structure && is_present(&capture_path)? {
+            note(files::CAPTURE, true);
+            floorplan.ceiling =
+                capture_ceiling(&read_text(&capture_path)?).in_file(&capture_path)?;
+        }
         let occupancy_json = is_present(&dir.join("occupancy.json"))?;
         let occupancy = if is_present(&dir.join("occupancy.png"))? && occupancy_json {
             note("occupancy.png", true);
@@ -481,6 +491,31 @@ fn first_present(paths: impl IntoIterator<Item = PathBuf>) -> Result<Option<Path
     Ok(None)
 }
 
+/// The ceiling height in a capture's `capture.json` (`floor.ceiling_m`, metres above the
+/// floor): `None` where the import found no ceiling (0) or the file has no such field.
+///
+/// # Errors
+///
+/// Not JSON, or a ceiling that is not a number from 0 to [`sage_core::MAX_COORDINATE`].
+fn capture_ceiling(text: &str) -> Result<Option<f32>> {
+    let root: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| Error::invalid(format!("not JSON: {e}")))?;
+    let Some(value) = root.get("floor").and_then(|f| f.get("ceiling_m")) else {
+        return Ok(None);
+    };
+    match value.as_f64() {
+        Some(0.0) => Ok(None),
+        Some(c) if c > 0.0 && c <= f64::from(sage_core::MAX_COORDINATE) => Ok(Some(c as f32)),
+        _ => Err(Error::format(
+            "floor.ceiling_m",
+            format!(
+                "{value}: expected the ceiling's height in metres, from 0 (none found) to {}",
+                sage_core::MAX_COORDINATE
+            ),
+        )),
+    }
+}
+
 /// The Gaussian file of scene folder `dir`: the first of [`files::GAUSSIANS`] there, `None` when
 /// there is none.
 ///
@@ -500,7 +535,7 @@ pub fn scene_files(dir: &Path) -> Vec<PathBuf> {
     found.extend(
         files::GAUSSIANS
             .iter()
-            .chain(&["capture.json", sage_io::RUN_RECORD])
+            .chain(&[files::CAPTURE, sage_io::RUN_RECORD])
             .map(|name| dir.join(name)),
     );
     // The collision file is found by the folder's own name, as loading names the scene.

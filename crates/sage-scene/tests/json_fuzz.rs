@@ -168,6 +168,7 @@ fn floorplan() -> impl Strategy<Value = Floorplan> {
             walls,
             holes,
             items,
+            ceiling: None,
         })
 }
 

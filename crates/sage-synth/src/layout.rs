@@ -265,6 +265,7 @@ impl Layout {
             walls,
             holes,
             items: Vec::new(),
+            ceiling: None,
         }
     }
 

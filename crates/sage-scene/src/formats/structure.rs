@@ -154,6 +154,7 @@ pub fn parse(text: &str) -> Result<Floorplan> {
         walls: each(&root, "walls", parse_wall)?,
         holes: each(&root, "holes", parse_hole)?,
         items: each(&root, "ins", parse_item)?,
+        ceiling: None,
     })
 }
 
