@@ -29,6 +29,21 @@ fn scene() -> Scene {
     .unwrap()
 }
 
+/// `full` as a capture shows it: its Gaussians alone, none given an instance, and no objects,
+/// floorplan, map or structure.
+fn capture_of(full: &Scene) -> Scene {
+    let mut capture = Scene {
+        objects: Vec::new(),
+        floorplan: Default::default(),
+        occupancy: None,
+        structure_mesh: None,
+        structure_body: None,
+        ..full.clone()
+    };
+    capture.gaussians.instances.fill(0);
+    capture
+}
+
 fn object_parts(bodies: &SceneBodies, i: usize) -> Vec<ConvexPart> {
     bodies
         .bodies
@@ -148,15 +163,7 @@ fn bad_parameters_and_choices_are_refused() {
 #[test]
 fn a_bare_capture_gets_a_structure_body_with_its_air_left_free() {
     let full = scene();
-    let mut capture = Scene {
-        objects: Vec::new(),
-        floorplan: Default::default(),
-        occupancy: None,
-        structure_mesh: None,
-        structure_body: None,
-        ..full.clone()
-    };
-    capture.gaussians.instances.fill(0);
+    let mut capture = capture_of(&full);
     let r =
         splat_bodies::attach(&mut capture, SplatBodies::Auto, &SplatBodyParams::default()).unwrap();
     let body = capture
@@ -213,15 +220,7 @@ fn an_agent_standing_free_in_a_capture_touches_nothing_and_its_ceiling_caps_the_
         ..SynthConfig::default()
     })
     .unwrap();
-    let mut capture = Scene {
-        objects: Vec::new(),
-        floorplan: Default::default(),
-        occupancy: None,
-        structure_mesh: None,
-        structure_body: None,
-        ..full.clone()
-    };
-    capture.gaussians.instances.fill(0);
+    let mut capture = capture_of(&full);
     splat_bodies::attach(&mut capture, SplatBodies::Auto, &SplatBodyParams::default()).unwrap();
     let cache = tempfile::tempdir().unwrap();
     let world_of = |scene: &Scene| {
