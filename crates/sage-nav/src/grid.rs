@@ -459,11 +459,7 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
         )));
     }
     let parts: Vec<ExtentPart> = room_parts(scene).chain(wall_parts(scene)).collect();
-    let (mut lo, mut hi) = (Vec2::INFINITY, Vec2::NEG_INFINITY);
-    for p in &parts {
-        lo = lo.min(p.lo);
-        hi = hi.max(p.hi);
-    }
+    let (lo, hi) = extent(&parts);
     let margin = Vec2::splat(params.margin);
     let mut grid = NavGrid::new(lo - margin, hi + margin, params.cell).map_err(|e| {
         Error::invalid(format!(
@@ -518,8 +514,7 @@ fn wall_parts(scene: &Scene) -> impl Iterator<Item = ExtentPart> + '_ {
     })
 }
 
-/// The walls, objects and structure mesh of `scene` (what [`geometry_bounds`] spans), as parts
-/// of its extent.
+/// The walls, objects and structure mesh of `scene`, as parts of its extent.
 fn geometry_parts(scene: &Scene) -> Vec<ExtentPart> {
     let mut parts: Vec<ExtentPart> = wall_parts(scene).collect();
     parts.extend(scene.objects.iter().map(|o| {
@@ -565,19 +560,19 @@ fn farthest(parts: &[ExtentPart]) -> String {
         })
 }
 
-/// The floor-plane bounds (lower, upper corner) of the walls and objects of `scene`.
+/// The floor-plane bounds (lower, upper corner) of the walls, objects and structure mesh of
+/// `scene`.
 fn geometry_bounds(scene: &Scene) -> (Vec2, Vec2) {
-    let mut b = sage_core::Aabb::EMPTY;
-    for w in &scene.floorplan.walls {
-        b = b.union(w.obb().aabb());
-    }
-    for o in &scene.objects {
-        b = b.union(o.obb.aabb());
-    }
-    if let Some(m) = &scene.structure_mesh {
-        b = b.union(sage_core::Aabb::from_points(m.positions.iter().copied()));
-    }
-    (b.min.truncate(), b.max.truncate())
+    extent(&geometry_parts(scene))
+}
+
+/// The floor-plane bounds (lower, upper corner) that `parts` span together.
+fn extent(parts: &[ExtentPart]) -> (Vec2, Vec2) {
+    parts
+        .iter()
+        .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p.lo), hi.max(p.hi))
+        })
 }
 
 /// Blocks the cells of every wall, the structure mesh and every object body that reach into
