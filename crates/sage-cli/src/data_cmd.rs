@@ -82,8 +82,11 @@ pub struct ImportArgs {
     /// scene's occupancy map in --scenes; rows that fail are listed and not imported.
     #[arg(long, conflicts_with = "r2r_split")]
     gn_bench: bool,
-    /// The scenes folder of a GN-Bench import (default: the one the dataset records).
-    #[arg(long, requires = "gn_bench")]
+    /// The folder of the episodes' scenes (or one scene folder): every episode's scene must be
+    /// there, and a dataset that records no scenes folder records this one for `eval` and
+    /// `data render`. A GN-Bench import checks its rows against it (default: the one the
+    /// dataset records).
+    #[arg(long)]
     scenes: Option<PathBuf>,
     /// Which text of a GN-Bench row the agent gets (the other is kept in the episode).
     #[arg(long, value_enum, default_value = "grounded", requires = "gn_bench")]
@@ -160,7 +163,6 @@ fn data_import(a: ImportArgs) -> Result<()> {
     let source = if a.gn_bench {
         Source::GnBench {
             file: a.source.clone(),
-            scenes: a.scenes.clone(),
             instruction: match a.instruction {
                 GnInstruction::Grounded => InstructionChoice::Grounded,
                 GnInstruction::Plain => InstructionChoice::Plain,
@@ -180,7 +182,8 @@ fn data_import(a: ImportArgs) -> Result<()> {
             offset: glam::Vec2::new(num(x)?, num(y)?),
         }
     };
-    let r = sage_pipeline::dataset::import(&source, &a.out, &a.split, a.force)?;
+    let r =
+        sage_pipeline::dataset::import(&source, &a.out, &a.split, a.scenes.as_deref(), a.force)?;
     for x in &r.rejected {
         eprintln!(
             "rejected row {} ({}, {}): {}",

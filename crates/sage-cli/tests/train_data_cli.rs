@@ -257,13 +257,39 @@ fn gvln_and_r2r_files_import_as_a_split_that_renders() {
             && err.contains("the dataset does not record its scenes folder; name it (--scenes)"),
         "{err}"
     );
+    // An import naming a scenes folder that lacks the episodes' scene is refused, and writes
+    // nothing; one naming theirs is recorded, so a render needs no --scenes.
+    let elsewhere = dir.path().join("elsewhere");
+    std::fs::create_dir_all(elsewhere.join("other")).unwrap();
+    let wrong = sage3d(&[
+        "data",
+        "import",
+        s(&gvln),
+        "--out",
+        s(&imported),
+        "--split",
+        "placed",
+        "--scenes",
+        s(&elsewhere),
+    ]);
+    assert!(!wrong.status.success());
+    assert!(!imported.join("episodes/placed.jsonl").exists());
+    ok(&[
+        "data",
+        "import",
+        s(&gvln),
+        "--out",
+        s(&imported),
+        "--split",
+        "placed",
+        "--scenes",
+        s(&scenes),
+    ]);
     let out = dir.path().join("out");
     let printed = ok(&[
         "data",
         "render",
         s(&imported),
-        "--scenes",
-        s(&scenes),
         "--split",
         "from_r2r",
         "--out",

@@ -31,9 +31,6 @@ pub enum Source {
     GnBench {
         /// The file.
         file: PathBuf,
-        /// The scenes folder (a scene folder or a folder of them); `None`: the one the
-        /// dataset folder records ([`folder::scenes_folder`]).
-        scenes: Option<PathBuf>,
         /// Which instruction text the agent gets.
         instruction: InstructionChoice,
     },
@@ -89,11 +86,15 @@ fn provenance(source: &Source) -> serde_json::Value {
 
 /// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
 /// in the dataset's `splits.json` ([`folder::add_split`]). `dataset` must
-/// be new, empty, or a dataset folder written by `data build` or `data import` (a folder
-/// without a run record gets this command's, naming the scenes folder of a GN-Bench import so
-/// that `eval` finds it); with `force`, a folder of other files is
-/// written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]), and
-/// an existing split file is replaced.
+/// be new, empty, or a dataset folder written by `data build` or `data import`; with `force`, a
+/// folder of other files is written into, provided none of them would be replaced
+/// ([`sage_io::run::claim_folder`]), and an existing split file is replaced.
+///
+/// `scenes` (a scene folder or a folder of them) is the folder the episodes' scenes are in:
+/// every episode's scene must be there, and a dataset that records no scenes folder yet records
+/// it, so that `eval` and `data render` find it. A GN-Bench import checks its rows against
+/// those scenes and so needs one: `scenes`, else the one the dataset records
+/// ([`folder::scenes_folder`]).
 ///
 /// A GN-Bench import also writes `dataset/import_reports/{split}.json`: the source, the
 /// instruction chosen, the row of each imported episode and each rejected row with its column
@@ -104,9 +105,15 @@ fn provenance(source: &Source) -> serde_json::Value {
 /// A split name that would name a file outside the dataset, an output folder holding files a
 /// dataset command did not write, a bad source file (naming
 /// the file and field), a GN-Bench file none of whose rows could be imported (naming the first
-/// row and column), a GN-Bench import without a scenes folder, an existing split without
-/// `force`, a write error.
-pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Result<Imported> {
+/// row and column), a GN-Bench import without a scenes folder, an episode whose scene is not
+/// in `scenes`, an existing split without `force`, a write error.
+pub fn import(
+    source: &Source,
+    dataset: &Path,
+    split: &str,
+    scenes: Option<&Path>,
+    force: bool,
+) -> Result<Imported> {
     sage_io::names::check_plain("split", split).within("`split`")?;
     let names = [
         "episodes",
@@ -120,13 +127,9 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     let episodes = match source {
         Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
         Source::R2r { dir, split } => r2r::read(dir, split, &space)?,
-        Source::GnBench {
-            file,
-            scenes,
-            instruction,
-        } => {
+        Source::GnBench { file, instruction } => {
             let scenes = match scenes {
-                Some(s) => s.clone(),
+                Some(s) => s.to_path_buf(),
                 // A new folder records none (`scenes_folder` would call it no dataset).
                 None if sage_io::run::recorded_command(dataset).is_none() => {
                     return Err(Error::invalid(
@@ -140,10 +143,22 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
                 return Err(read.nothing_imported(file));
             }
             let episodes = std::mem::take(&mut read.episodes);
-            gn = Some((file, *instruction, scenes, read));
+            gn = Some((file, *instruction, read));
             episodes
         }
     };
+    if let Some(scenes) = scenes {
+        let dirs = sage_io::scenes::scene_dirs_by_name(scenes)?;
+        if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
+            return Err(Error::invalid(format!(
+                "scene '{}' of episode {} is not among the scenes (their folders: {})",
+                e.scene,
+                e.episode_id,
+                dirs.keys().cloned().collect::<Vec<_>>().join(", ")
+            ))
+            .in_file(scenes));
+        }
+    }
     let dir = dataset.join("episodes");
     let file = dir.join(format!("{split}.jsonl"));
     if file.exists() && !force {
@@ -159,11 +174,10 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
     // record lists every import by split, with its source and the source files' hashes.
     let imported = provenance(source);
     if sage_io::run::recorded_command(dataset).is_none() {
-        let mut settings = match &gn {
-            Some((_, _, s, _)) => serde_json::json!({"scenes": folder::scenes_record(dataset, s)}),
-            None => serde_json::json!({}),
-        };
-        settings["imports"] = serde_json::json!({ split: imported });
+        let mut settings = serde_json::json!({ "imports": { split: imported } });
+        if let Some(s) = scenes {
+            settings["scenes"] = folder::scenes_record(dataset, s);
+        }
         sage_io::run::write_run_record(dataset, COMMAND, None, settings)?;
     } else {
         let path = dataset.join(sage_io::RUN_RECORD);
@@ -172,6 +186,10 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
             record["imports"] = serde_json::json!({});
         }
         record["imports"][split] = imported;
+        // The folder a dataset records stays; one that records none learns this one.
+        if let (Some(s), None) = (scenes, record.get("scenes")) {
+            record["scenes"] = folder::scenes_record(dataset, s);
+        }
         sage_io::files::write_json(&path, &record)?;
     }
     let mut out = Imported {
@@ -179,7 +197,7 @@ pub fn import(source: &Source, dataset: &Path, split: &str, force: bool) -> Resu
         rejected: Vec::new(),
         report: None,
     };
-    if let Some((source_file, instruction, _, read)) = gn {
+    if let Some((source_file, instruction, read)) = gn {
         let reports = dataset.join(REPORTS_DIR);
         std::fs::create_dir_all(&reports).map_err(|e| Error::io(&reports, e))?;
         let path = reports.join(format!("{split}.json"));

@@ -373,6 +373,65 @@ fn gvln_keeps_a_turn_in_place_its_headings_and_lengths() {
     );
 }
 
+/// A GVLN file as SAGE-Bench publishes it (research notes §2.1): no `frame`, the world id as
+/// the scene's name, the folder key in each instruction, every point at z = 0.5 in the S frame.
+#[test]
+fn gvln_reads_a_published_file_at_the_floor_in_its_scene_folder() {
+    let space = StepSizes::default();
+    let dir = tempfile::tempdir().unwrap();
+    let offset = Vec2::new(3.0, -2.0);
+    let s = SageFrame { offset };
+    // A walk along +x in W from (1, 0.5) to (2, 0.5), facing +x.
+    let w: Vec<[f32; 3]> = (0..5).map(|k| [1.0 + 0.25 * k as f32, 0.5, 0.0]).collect();
+    let points: Vec<serde_json::Value> = w
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = s.world_to_sage(glam::Vec3::new(p[0], p[1], 0.5));
+            let rotation = if i + 1 == w.len() {
+                [0.0, 0.0, 0.0, 1.0]
+            } else {
+                gvln::encode_rotation(s.heading_to_sage(0.0))
+            };
+            serde_json::json!({"point": i.to_string(), "position": [q.x, q.y, q.z],
+                "rotation": rotation, "action": [], "camera_images": []})
+        })
+        .collect();
+    let file = |folder_key: &str| {
+        serde_json::json!({"Data_2set_metaData_2": {}, "scenes": [{"scene_id": "839873",
+            "scene_name": "839873", "samples": [{"trajectory_id": "0", "instructions": [
+                {"instruction_type": "Scenario_Driven", "start": "sofa_1", "end": "table_1",
+                 "generated_instruction": "Walk to the table.", "scene_id": folder_key}],
+            "points": points}]}]})
+    };
+    let p = dir.path().join("published.json");
+    std::fs::write(&p, file("0033_839873").to_string()).unwrap();
+    let eps = gvln::read(&p, offset, &space).unwrap();
+    assert_eq!(eps.len(), 1);
+    let e = &eps[0];
+    // The scene is the InteriorGS folder the instruction names, not the bare world id.
+    assert_eq!(e.scene, "0033_839873");
+    assert_eq!(e.episode_id, "0033_839873-t0-0");
+    // Every point back in W at the floor: the published 0.5 is the agent's base.
+    for (a, b) in e.reference_path.iter().zip(&w) {
+        for k in 0..3 {
+            assert!((a[k] - b[k]).abs() < 1e-5, "{a:?} against {b:?}");
+        }
+    }
+    assert_eq!(e.start.position[2], 0.0);
+    assert_eq!(e.goal.as_ref().unwrap().position[2], 0.0);
+    assert!(wrap_angle(e.start.yaw).abs() < 1e-5, "{}", e.start.yaw);
+    // A folder key that would leave the scenes folder is refused where it stands.
+    std::fs::write(&p, file("../0033_839873").to_string()).unwrap();
+    let err = gvln::read(&p, offset, &space).unwrap_err().to_string();
+    assert!(
+        err.contains("published.json")
+            && err.contains("instructions[0].scene_id")
+            && err.contains("'../0033_839873'"),
+        "{err}"
+    );
+}
+
 /// What a case of [`readers_refuse_episodes_their_task_cannot_score`] changes in a good episode.
 type Spoil = Box<dyn Fn(&mut Episode)>;
 
@@ -494,7 +553,6 @@ fn formats_round_trip() {
         let p = dir.path().join("g.json");
         gvln::write(&p, &eps, frame, &space).unwrap();
         let back = gvln::read(&p, Vec2::ZERO, &space).unwrap();
-        assert_eq!(back.len(), eps.len());
         for a in &eps {
             let b = back.iter().find(|b| b.episode_id == a.episode_id).unwrap();
             // Everything comes back (our keys hold what the points cannot): in W exactly, in
@@ -517,6 +575,19 @@ fn formats_round_trip() {
             }
         }
     }
+    // A split reads back in its own order, trajectory 10 after 9 (not after 1).
+    let first = eps.iter().find(|e| e.trajectory_id.is_some()).unwrap();
+    let many: Vec<Episode> = (0..12)
+        .map(|t| {
+            let mut e = first.clone();
+            e.trajectory_id = Some(t);
+            e.episode_id = format!("{}-t{t}-0", e.scene);
+            e
+        })
+        .collect();
+    let p = dir.path().join("many.json");
+    gvln::write(&p, &many, GvlnFrame::World, &space).unwrap();
+    assert_eq!(gvln::read(&p, Vec2::ZERO, &space).unwrap(), many);
     // R2R in the Habitat frame (no-goal episodes are left out).
     let n = r2r::write(dir.path(), "train", &eps, &space).unwrap();
     let vln: Vec<&Episode> = eps.iter().filter(|e| e.task == Task::Vln).collect();

@@ -235,13 +235,20 @@ pub struct ImportReport {
 }
 
 /// Imports the episodes of `source` (a SAGE-Bench GVLN file, an R2R-VLNCE split or a GN-Bench
-/// split) as split `split` of the dataset folder `out` ([`sage_dataset::import::import`]).
+/// split) as split `split` of the dataset folder `out`, their scenes in `scenes`
+/// ([`sage_dataset::import::import`]).
 ///
 /// # Errors
 ///
 /// As [`sage_dataset::import::import`].
-pub fn import(source: &Source, out: &Path, split: &str, force: bool) -> Result<ImportReport> {
-    let imported = sage_dataset::import::import(source, out, split, force)?;
+pub fn import(
+    source: &Source,
+    out: &Path,
+    split: &str,
+    scenes: Option<&Path>,
+    force: bool,
+) -> Result<ImportReport> {
+    let imported = sage_dataset::import::import(source, out, split, scenes, force)?;
     let scenes: BTreeSet<&str> = imported.episodes.iter().map(|e| e.scene.as_str()).collect();
     Ok(ImportReport {
         episodes: imported.episodes.len(),

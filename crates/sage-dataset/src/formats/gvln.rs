@@ -11,7 +11,12 @@
 //!   toward the next point; the first point holds the start heading and the last the final
 //!   heading (the published files force `[0, 0, 0, 1]` there, which the reader ignores at the
 //!   last point only).
-//! - **position** z: the floor (0), not the published 0.5.
+//! - **position** z: the floor (0). The published files (no `frame`) write the agent's base
+//!   [`PUBLISHED_BASE_Z`] = 0.5 m above the floor, which the reader takes off.
+//! - **scene**: an instruction's `scene_id` (the published files' full folder key,
+//!   `0033_839873`, the name of an InteriorGS scene folder), else the scene's `scene_name` (there
+//!   the bare world id `839873`), else its `scene_id`; the writer writes the scene's name in all
+//!   three.
 //! - Each instruction carries extra keys of ours that other readers ignore: `episode_id`,
 //!   `level`, `subtype`, `source`, `task`, and what the points cannot hold exactly —
 //!   `start_yaw` and, for a pose goal, `goal_yaw` (headings in the file's frame, radians; in W
@@ -35,8 +40,12 @@ use sage_core::{Error, Result, ResultExt, wrap_angle};
 use sage_lang::actions::{StepSizes, follow};
 use sage_lang::{InstructionType, Level, Source};
 use serde_json::{Value, json};
-use std::collections::BTreeMap;
+use std::collections::HashMap;
 use std::path::Path;
+
+/// The height above the floor at which the published GVLN files (those without `frame`) put
+/// every point: the agent's base in SAGE-Bench's generator (research notes §2.1).
+pub const PUBLISHED_BASE_Z: f32 = 0.5;
 
 /// The frame of a GVLN file.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,9 +122,16 @@ pub(crate) fn planar(path: &[[f32; 3]]) -> (Vec<Vec2>, f32) {
     (flat, length)
 }
 
-/// Writes episodes as one GVLN file in `frame` (atomically).
+/// A sample of a GVLN file as written: its trajectory id and its episodes.
+type Sample<'a> = (String, Vec<&'a Episode>);
+
+/// Writes episodes as one GVLN file in `frame` (atomically), with
+/// scenes and their samples (trajectories) in the order of their first episodes, so a split
+/// reads back in its own order (a map keyed by the ids would put trajectory 10 before 3).
 pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSizes) -> Result<()> {
-    let mut scenes: BTreeMap<&str, BTreeMap<String, Vec<&Episode>>> = BTreeMap::new();
+    let mut scenes: Vec<(&str, Vec<Sample>)> = Vec::new();
+    let mut scene_at: HashMap<&str, usize> = HashMap::new();
+    let mut sample_at: HashMap<(usize, String), usize> = HashMap::new();
     for e in episodes {
         let key = match e.trajectory_id {
             Some(t) => format!("{t}"),
@@ -126,12 +142,16 @@ pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSi
                 .unwrap_or_default()
                 .to_string(),
         };
-        scenes
-            .entry(&e.scene)
-            .or_default()
-            .entry(key)
-            .or_default()
-            .push(e);
+        let at = *scene_at.entry(&e.scene).or_insert_with(|| {
+            scenes.push((&e.scene, Vec::new()));
+            scenes.len() - 1
+        });
+        let samples = &mut scenes[at].1;
+        let k = *sample_at.entry((at, key.clone())).or_insert_with(|| {
+            samples.push((key, Vec::new()));
+            samples.len() - 1
+        });
+        samples[k].1.push(e);
     }
     let scenes: Vec<Value> = scenes
         .into_iter()
@@ -285,7 +305,14 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
     let text_in = sage_io::files::read_text(path, &sage_io::limits::JSON_MB)?;
     let root: Value = sage_io::files::parse_json(&text_in, path)?;
     let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);
-    let frame = match meta.get("frame").and_then(Value::as_str) {
+    let stated = meta.get("frame").and_then(Value::as_str);
+    // The published files' points stand at the agent's base; ours at the floor.
+    let base_z = if stated.is_none() {
+        PUBLISHED_BASE_Z
+    } else {
+        0.0
+    };
+    let frame = match stated {
         Some("W") => GvlnFrame::World,
         Some("S") => {
             let o: [f32; 2] = floats(&meta, "frame_offset")
@@ -316,13 +343,16 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
     let mut places = Vec::new();
     for (si, scene) in scenes.iter().enumerate() {
         let ctx = format!("scenes[{si}]");
+        // The scene's own name, for instructions without a `scene_id` of their own.
         let name = match text(scene, "scene_name") {
             n if n.is_empty() => text(scene, "scene_id"),
             n => n,
         };
-        sage_io::names::check_plain("scene", &name)
-            .within(format!("{ctx}.scene_name"))
-            .in_file(path)?;
+        if !name.is_empty() {
+            sage_io::names::check_plain("scene", &name)
+                .within(format!("{ctx}.scene_name"))
+                .in_file(path)?;
+        }
         let samples = field(scene, "samples")
             .ok()
             .and_then(Value::as_array)
@@ -343,7 +373,8 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                 for (pi, p) in pts.iter().enumerate() {
                     let pos: [f32; 3] = floats(p, "position").within(format!("points[{pi}]"))?;
                     let rot: [f32; 4] = floats(p, "rotation").within(format!("points[{pi}]"))?;
-                    let pos = frame.point_back(pos);
+                    let [x, y, z] = frame.point_back(pos);
+                    let pos = [x, y, z - base_z];
                     check_point(pos, "position").within(format!("points[{pi}]"))?;
                     positions.push(pos);
                     // Only the last point's `[0, 0, 0, 1]` is the published files' placeholder;
@@ -420,6 +451,12 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                                     )
                                 })?,
                         };
+                    let scene = match text(ins, "scene_id") {
+                        s if s.is_empty() => name.clone(),
+                        s => s,
+                    };
+                    sage_io::names::check_plain("scene", &scene)
+                        .within(format!("instructions[{ii}].scene_id"))?;
                     let id = text(ins, "episode_id");
                     let start_ref = text(ins, "start");
                     let end = text(ins, "end");
@@ -448,11 +485,11 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                     };
                     let episode = Episode {
                         episode_id: if id.is_empty() {
-                            format!("{name}-t{tid}-{ii}")
+                            format!("{scene}-t{tid}-{ii}")
                         } else {
                             id
                         },
-                        scene: name.clone(),
+                        scene,
                         task,
                         trajectory_id: index(kind, task)?,
                         instruction: text(ins, "generated_instruction"),
