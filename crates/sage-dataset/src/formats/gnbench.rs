@@ -26,7 +26,7 @@
 //! one the file was made for).
 
 use crate::episode::{Episode, Goal, StartPose, Task};
-use crate::formats::gvln::planar;
+use crate::formats::gvln::{goal_kind, planar};
 use crate::slices::{Slices, assets_slice, path_slice};
 use arrow_array::cast::AsArray;
 use arrow_array::types::{Float32Type, Float64Type, Int16Type, Int32Type, Int64Type};
@@ -598,11 +598,16 @@ fn episode(
             position: world(row.goal_world),
             yaw: None,
         },
-        // Not an object of the scene's labels.json: the goal is its point, and the raw id is
-        // kept as the reference.
+        // Not an object of the scene's labels.json: a room or an area where the id names one
+        // as sage3d's export writes them (`room_2`, `sleeping_area_1`), else the goal's point;
+        // the raw id is kept as the reference.
         None => Goal {
             reference: row.label_ins_id.clone(),
-            kind: "pose".into(),
+            kind: match goal_kind(&row.label_ins_id) {
+                kind @ ("room" | "area") => kind,
+                _ => "pose",
+            }
+            .into(),
             position: world(row.goal_world),
             yaw: None,
         },
@@ -725,6 +730,11 @@ fn row(e: &Episode, info: &SceneInfo) -> std::result::Result<Row, String> {
         .goal
         .as_ref()
         .ok_or("a no-goal episode: GN-Bench episodes have a goal")?;
+    if goal.yaw.is_some() {
+        // GN-Bench scores the distance to the goal point alone: a turn in place would be
+        // solved by stopping at the start.
+        return Err("a goal heading: GN-Bench scores only the distance to the goal point".into());
+    }
     let frame = &info.frame;
     let gn = |p: [f32; 3]| frame.from_world([f64::from(p[0]), f64::from(p[1])]);
     let object = (goal.kind == "object")
@@ -1049,6 +1059,20 @@ mod tests {
         let g = e.goal.unwrap();
         assert_eq!((g.reference.as_str(), g.kind.as_str()), ("42", "pose"));
         assert_eq!(g.yaw, None);
+        // A room or an area as sage3d's export names them comes back as one.
+        for (id, kind) in [("room_2", "room"), ("sleeping_area_1", "area")] {
+            let mut r = walk();
+            r.label_ins_id = id.into();
+            let e = episode(&r, &info(), InstructionChoice::Grounded, &space).unwrap();
+            let g = e.goal.unwrap();
+            assert_eq!((g.reference.as_str(), g.kind.as_str()), (id, kind));
+            // And goes out under the same id.
+            let mut e = episode(&r, &info(), InstructionChoice::Grounded, &space).unwrap();
+            assert_eq!(row(&e, &info()).unwrap().label_ins_id, id);
+            // A goal heading (a turn in place) has no column: the episode is left out.
+            e.goal.as_mut().unwrap().yaw = Some(1.0);
+            assert!(row(&e, &info()).unwrap_err().contains("goal heading"));
+        }
     }
 
     /// A one-row batch holding every column, with `edit` changing it first.
