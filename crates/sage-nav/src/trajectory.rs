@@ -20,7 +20,7 @@ use sage_core::{Error, Result};
 use sage_io::runner::{Status, resume_or_run};
 use sage_scene::Scene;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -168,6 +168,10 @@ pub struct SamplingReport {
     pub rejected_too_short: usize,
     /// Rejected: its length bin already had its share.
     pub rejected_bin_full: usize,
+    /// Rejected: the same path as a trajectory already taken (the same endpoints drawn again
+    /// with the same stand points), which would weigh one route twice in a benchmark.
+    #[serde(default)]
+    pub rejected_duplicate: usize,
     /// Endpoints available per kind.
     pub endpoints: BTreeMap<String, usize>,
     /// Trajectories per `start_kind->goal_kind`.
@@ -366,6 +370,7 @@ pub fn generate(
     };
     let mut times = StageTimes::default();
     let mut out: Vec<Trajectory> = Vec::with_capacity(params.count);
+    let mut taken: HashSet<PathKey> = HashSet::new();
     let max_candidates = params.count.saturating_mul(sp.attempts_per_trajectory);
     while out.len() < params.count && report.candidates < max_candidates {
         let t = Instant::now();
@@ -401,6 +406,10 @@ pub fn generate(
             };
             if t.length < sp.min_length {
                 report.rejected_too_short += 1;
+                continue;
+            }
+            if !taken.insert(path_key(&t)) {
+                report.rejected_duplicate += 1;
                 continue;
             }
             let bin = sp.bin_of(t.length);
@@ -449,6 +458,17 @@ pub fn generate(
         },
         times,
     ))
+}
+
+/// What makes two trajectories the same route: their endpoints and their points, bit for bit.
+type PathKey = (String, String, Vec<[u32; 3]>);
+
+fn path_key(t: &Trajectory) -> PathKey {
+    (
+        t.start.reference.clone(),
+        t.goal.reference.clone(),
+        t.points.iter().map(|p| p.map(f32::to_bits)).collect(),
+    )
 }
 
 /// Draws the semantic map with every trajectory (start green, goal red).

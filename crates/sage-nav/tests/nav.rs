@@ -583,6 +583,7 @@ fn trajectories_are_deterministic_across_thread_counts_and_meet_the_rules() {
             + r.rejected_unreachable
             + r.rejected_too_short
             + r.rejected_bin_full
+            + r.rejected_duplicate
     );
     assert_eq!(r.by_kinds.values().sum::<usize>(), 30);
     assert_eq!(r.by_length.values().sum::<usize>(), 30);
@@ -615,6 +616,27 @@ fn trajectories_are_deterministic_across_thread_counts_and_meet_the_rules() {
     };
     let (set2, _) = trajectory::generate(&scene.name, &prep, &other).unwrap();
     assert_ne!(set2.trajectories, set.trajectories);
+    // Asked for more trajectories than the scene has distinct routes to spare, sampling draws
+    // routes again: none is taken twice.
+    let many = TrajectoryParams {
+        count: 150,
+        ..params.clone()
+    };
+    let (set3, _) = trajectory::generate(&scene.name, &prep, &many).unwrap();
+    assert!(set3.report.rejected_duplicate > 0, "{:?}", set3.report);
+    let routes: std::collections::HashSet<(&str, &str, Vec<[u32; 3]>)> = set3
+        .trajectories
+        .iter()
+        .map(|t| {
+            let points = t.points.iter().map(|p| p.map(f32::to_bits)).collect();
+            (
+                t.start.reference.as_str(),
+                t.goal.reference.as_str(),
+                points,
+            )
+        })
+        .collect();
+    assert_eq!(routes.len(), set3.trajectories.len());
 }
 
 #[test]

@@ -780,7 +780,8 @@ impl Manifest {
 ///
 /// # Errors
 ///
-/// A route not rendered yet, an unreadable route record or frame, a write error.
+/// A route not rendered yet, an unreadable route record or frame, no episode kept, a write
+/// error.
 ///
 /// Callers hold the lock on `out` ([`claim`], [`lock`]).
 pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
@@ -829,6 +830,27 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
     counts.kept = samples.len();
     counts.skipped = skipped.len();
     counts.samples = samples.iter().map(|e| e.actions.len()).sum();
+    if samples.is_empty() {
+        // Training data without an episode is no training data (and LeRobot cannot open it):
+        // refused before any file of the layout, so the folder is never taken for a finished one.
+        let dropped: Vec<String> = counts
+            .dropped
+            .iter()
+            .map(|(why, n)| format!("{n} {why}"))
+            .collect();
+        return Err(Error::invalid(format!(
+            "no episode was kept: {} dropped ({}), {} skipped; nothing to write (`keep_failed` \
+             keeps the walks that did not end clean)",
+            counts.dropped.values().sum::<usize>(),
+            if dropped.is_empty() {
+                "none".to_string()
+            } else {
+                dropped.join(", ")
+            },
+            counts.skipped
+        ))
+        .in_file(out));
+    }
     let written = match s.format {
         Layout::Navila => output::write_navila(
             out,

@@ -331,6 +331,44 @@ fn other_settings_or_foreign_files_in_the_output_are_refused() {
 }
 
 #[test]
+fn a_render_that_keeps_no_episode_fails_and_writes_no_layout() {
+    // Only episodes that must walk a metre or more, and one motion each: no walk reaches its
+    // goal, and failed walks are not kept.
+    let (scenes, dataset) = data();
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("data");
+    std::fs::create_dir_all(copy.join("episodes")).unwrap();
+    let text = std::fs::read_to_string(dataset.join("episodes/train.jsonl")).unwrap();
+    let far: Vec<&str> = text
+        .lines()
+        .filter(|l| {
+            let e: serde_json::Value = serde_json::from_str(l).unwrap();
+            e["goal"].is_object() && e["geodesic_distance"].as_f64().unwrap() > 1.0
+        })
+        .collect();
+    assert!(!far.is_empty());
+    std::fs::write(copy.join("episodes/train.jsonl"), far.join("\n")).unwrap();
+    let mut s = Settings {
+        width: 32,
+        height: 24,
+        format: Layout::Lerobot,
+        ..Settings::new(&copy, scenes).unwrap()
+    };
+    s.preset.max_actions = 1;
+    let out = dir.path().join("out");
+    let e = sage_traindata::render(&s, &out, false, &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("no episode was kept") && e.contains("dropped"),
+        "{e}"
+    );
+    for made in ["meta", "data", "manifest.json"] {
+        assert!(!out.join(made).exists(), "{made}");
+    }
+}
+
+#[test]
 fn episodes_of_a_missing_scene_are_skipped_with_the_reason_and_the_rest_rendered() {
     let (scenes, dataset) = data();
     let dir = tempfile::tempdir().unwrap();
