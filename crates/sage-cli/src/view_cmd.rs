@@ -31,8 +31,9 @@ pub struct ViewArgs {
     /// Metric mode human play is scored in: sage, vlnce, sage-official or gnbench.
     #[arg(long, default_value_t = Mode::default())]
     mode: Mode,
-    /// Address to listen on; anything but a loopback address needs --public.
-    #[arg(long, default_value = "127.0.0.1")]
+    /// Address to listen on (an IP address, or `localhost`); anything but a loopback address
+    /// needs --public.
+    #[arg(long, default_value = "127.0.0.1", value_parser = parse_host)]
     host: IpAddr,
     /// Port to listen on (0: any free port).
     #[arg(long, default_value_t = 8765)]
@@ -69,4 +70,28 @@ pub fn run(a: ViewArgs) -> Result<()> {
         },
         || true,
     )
+}
+
+/// `--host`: an IP address, or `localhost` (the loopback address a browser would use); other
+/// names are refused, since a name resolving elsewhere would widen what the viewer serves.
+fn parse_host(text: &str) -> Result<IpAddr, String> {
+    if text.eq_ignore_ascii_case("localhost") {
+        return Ok(IpAddr::from([127, 0, 0, 1]));
+    }
+    text.parse()
+        .map_err(|e| format!("{e}: give an IP address (127.0.0.1, 0.0.0.0, ::1) or localhost"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn host_takes_addresses_and_localhost_only() {
+        assert_eq!(parse_host("localhost"), Ok(IpAddr::from([127, 0, 0, 1])));
+        assert_eq!(parse_host("0.0.0.0"), Ok(IpAddr::from([0, 0, 0, 0])));
+        assert!(parse_host("::1").is_ok_and(|h| h.is_loopback()));
+        let e = parse_host("example.org").unwrap_err();
+        assert!(e.contains("localhost"), "{e}");
+    }
 }
