@@ -101,7 +101,9 @@ impl FrameRequest {
         Pose::new(Vec3::new(self.x, self.y, self.z), self.yaw)
     }
 
-    /// Checks the numbers: finite, a size of 1 to [`MAX_SIDE`] pixels a side.
+    /// Checks the numbers: positions and angles within ±[`sage_core::MAX_COORDINATE`] (metres,
+    /// radians: so the angle in degrees of the `render` command it answers with stays a number),
+    /// a size of 1 to [`MAX_SIDE`] pixels a side.
     ///
     /// # Errors
     ///
@@ -114,10 +116,11 @@ impl FrameRequest {
             ("yaw", self.yaw),
             ("pitch", self.pitch),
         ] {
-            if !v.is_finite() {
-                // A query's number past f32's range (1e308) arrives as inf: say why.
+            // A NaN fails the bound; a query's number past f32's range arrives as inf.
+            if !sage_core::within_bounds(glam::Vec3::splat(v)) {
                 return Err(Error::invalid(format!(
-                    "{name}: {v} is not a finite number within ±3.4e38"
+                    "{name}: {v} is not a number within ±{}",
+                    sage_core::MAX_COORDINATE
                 )));
             }
         }

@@ -264,7 +264,21 @@ fn scenes_map_frames_and_explore_sessions_through_physics() {
     let body = String::from_utf8_lossy(&body);
     assert_eq!(status, 400, "{body}");
     assert!(
-        body.contains("x: inf is not a finite number within ±3.4e38"),
+        body.contains("x: inf is not a number within ±10000"),
+        "{body}"
+    );
+    // So is an angle whose degrees would not be a number in the `render` command answered.
+    let (status, body) = request(
+        v.addr,
+        "GET",
+        "/api/scenes/home1/frame?x=1&y=0&z=0&yaw=0&pitch=3e38",
+        None,
+        &[],
+    );
+    let body = String::from_utf8_lossy(&body);
+    assert_eq!(status, 400, "{body}");
+    assert!(
+        body.contains("pitch: 300000000000000000000000000000000000000 is not a number"),
         "{body}"
     );
 }
