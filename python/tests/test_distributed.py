@@ -51,7 +51,7 @@ def test_generate_equals_data_build(local_ray, scenes, cli_data, tmp_path):
     for rel in files(cli_data):
         assert (tmp_path / "ray" / rel).read_bytes() == (cli_data / rel).read_bytes(), rel
     run = lambda d: json.loads((d / "sage3d_run.json").read_text())  # noqa: E731
-    for key in ("config", "inputs"):
+    for key in ("config", "inputs", "status"):
         assert run(tmp_path / "ray")[key] == run(cli_data)[key], key
     assert run(tmp_path / "ray")["scenes"]["absolute"] == run(cli_data)["scenes"]["absolute"]
     again = distributed.generate(scenes, tmp_path / "ray", per_scene=2, seed=5, balanced=6)

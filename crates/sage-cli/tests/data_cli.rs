@@ -267,3 +267,85 @@ fn build_never_writes_over_files_it_did_not_write() {
         "mine\n"
     );
 }
+
+/// A build killed while it assembled the dataset leaves its run record (written before the
+/// work, unfinished), some split files and no `splits.json`: no command takes that folder
+/// for a dataset (by the old rule, every `episodes/*.jsonl` a split), each names the folder
+/// and says to rerun the build, and the rerun finishes it.
+#[test]
+fn a_killed_build_is_refused_until_rerun_finishes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = common::small_dataset(dir.path());
+    let finished = read_tree(&data).unwrap();
+    // The state a kill in the assembly leaves: the record as the build writes it first, the
+    // scene files, the split files written so far, nothing after them.
+    let record_path = data.join("sage3d_run.json");
+    let mut record: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&record_path).unwrap()).unwrap();
+    assert_eq!(record["status"], "finished");
+    record["status"] = "unfinished".into();
+    std::fs::write(&record_path, record.to_string()).unwrap();
+    for f in ["splits.json", "summary.json", "summary.txt"] {
+        std::fs::remove_file(data.join(f)).unwrap();
+    }
+    for split in ["test_balanced", "test_trajectory_unseen", "train", "val"] {
+        std::fs::remove_file(data.join("episodes").join(format!("{split}.jsonl"))).unwrap();
+    }
+    let refused = |args: &[&str]| {
+        let out = sage3d(args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let e = common::stderr(&out);
+        assert!(
+            e.contains(&format!(
+                "{}: the `sage3d data build` of this folder has not finished",
+                data.display()
+            )) && e.contains("rerun `sage3d data build` into this folder to finish it"),
+            "{args:?}: {e}"
+        );
+    };
+    let run = dir.path().join("run");
+    refused(&[
+        "eval",
+        s(&data),
+        "--agent",
+        "oracle",
+        "--split",
+        "test_scene_unseen",
+        "--out",
+        s(&run),
+    ]);
+    refused(&["eval", s(&data), "--agent", "oracle", "--out", s(&run)]);
+    assert!(!run.exists());
+    let train = dir.path().join("train");
+    refused(&["data", "render", s(&data), "--out", s(&train)]);
+    assert!(!train.exists());
+    let parquet = dir.path().join("split.parquet");
+    refused(&[
+        "data",
+        "export",
+        s(&data),
+        "--split",
+        "test_scene_unseen",
+        "--out",
+        s(&parquet),
+    ]);
+    assert!(!parquet.exists());
+    // The viewer refuses it before it listens: a taken port would fail it otherwise.
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = taken.local_addr().unwrap().port().to_string();
+    refused(&["view", s(&data), "--port", &port]);
+    // Rerunning the build finishes the folder: the same dataset as the build that was not
+    // killed, and it evaluates.
+    ok(&common::small_build_args(&scenes, &data));
+    assert_eq!(read_tree(&data).unwrap(), finished);
+    ok(&[
+        "eval",
+        s(&data),
+        "--agent",
+        "oracle",
+        "--split",
+        "train",
+        "--out",
+        s(&run),
+    ]);
+}

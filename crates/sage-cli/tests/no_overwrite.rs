@@ -199,6 +199,186 @@ fn recon_plan_and_fit_claim_their_folders() {
     claims_its_folder(dir.path(), "fit", "structure.json", "recon fit", &fit);
 }
 
+/// Checks that a command stopped while it writes its folder leaves one that is recognisably its
+/// own unfinished work, which its rerun (no `--force`) redoes. `run(out)` runs the command into
+/// `out`; `command` is what its run record names; `late` is one of its outputs written after
+/// others; `scene` says whether the folder is a scene, which loads only once finished.
+///
+/// The stop is made without timing: with `late` turned into a folder, writing it fails there,
+/// as a kill there would stop it, and the folder keeps what was written before; a kill's
+/// leftover temporary file is added by hand. A first run killed the same way leaves the same
+/// record beside fewer outputs, which is built by hand in a second folder.
+fn a_stopped_run_is_redone(
+    dir: &Path,
+    name: &str,
+    command: &str,
+    late: &str,
+    scene: bool,
+    run: &dyn Fn(&Path) -> Output,
+) {
+    let out = dir.join(name);
+    let done = run(&out);
+    assert!(done.status.success(), "{name}: {}", stderr(&done));
+    // A first run stopped after its first output: the record and that output alone.
+    let first = dir.join(format!("{name}_first"));
+    std::fs::create_dir(&first).unwrap();
+    sage_io::run::mark_unfinished(&first, command, None).unwrap();
+    let kept = sage_io::run::entries(&out)
+        .unwrap()
+        .into_iter()
+        .find(|e| out.join(e).is_file() && e != sage_io::RUN_RECORD)
+        .unwrap();
+    std::fs::copy(out.join(&kept), first.join(&kept)).unwrap();
+    std::fs::remove_file(out.join(late)).unwrap();
+    std::fs::create_dir(out.join(late)).unwrap();
+    let stopped = run(&out);
+    assert!(!stopped.status.success(), "{name}");
+    // The record was marked unfinished before the first output was written.
+    assert_eq!(
+        sage_io::run::unfinished_command(&out).as_deref(),
+        Some(command),
+        "{name}"
+    );
+    if scene {
+        let info = sage3d(&["scene", "info", s(&out)]);
+        let e = stderr(&info);
+        assert!(!info.status.success(), "{name}: a stopped scene loads");
+        assert!(
+            e.contains(s(&out)) && e.contains("did not finish") && e.contains("rerun"),
+            "{name}: {e}"
+        );
+    }
+    std::fs::remove_dir(out.join(late)).unwrap();
+    let stale = format!(".{late}.tmp-4242-0");
+    for folder in [&out, &first] {
+        std::fs::write(folder.join(&stale), "half").unwrap();
+        let redone = run(folder);
+        assert!(redone.status.success(), "{name}: {}", stderr(&redone));
+        assert!(sage_io::run::is_finished(folder), "{name}");
+        assert_eq!(
+            sage_io::run::recorded_command(folder).as_deref(),
+            Some(command),
+            "{name}"
+        );
+        assert!(folder.join(late).is_file(), "{name}");
+        assert!(
+            !folder.join(&stale).exists(),
+            "{name}: a stale temporary file is left"
+        );
+        if scene {
+            ok(&["scene", "info", s(folder)]);
+        }
+    }
+}
+
+#[test]
+fn commands_stopped_while_writing_their_folders_are_redone_by_their_reruns() {
+    let dir = tempfile::tempdir().unwrap();
+    let synth = |out: &Path| {
+        sage3d(&[
+            "scene",
+            "synth",
+            "--seed",
+            "7",
+            "--rooms",
+            "2",
+            "--objects",
+            "6",
+            "--gaussians",
+            "1000",
+            "--out",
+            s(out),
+        ])
+    };
+    a_stopped_run_is_redone(
+        dir.path(),
+        "synth",
+        "scene synth",
+        "objects.json",
+        true,
+        &synth,
+    );
+    // A stopped scene is no input: its scenes are skipped, naming it, until it is redone.
+    let stopped = dir.path().join("stopped/home");
+    std::fs::create_dir_all(&stopped).unwrap();
+    sage_io::run::mark_unfinished(&stopped, "scene synth", None).unwrap();
+    for f in ["3dgs_compressed.ply", "labels.json"] {
+        std::fs::copy(dir.path().join("synth").join(f), stopped.join(f)).unwrap();
+    }
+    let data = dir.path().join("data");
+    let build = sage3d(&["data", "build", s(&stopped), "--out", s(&data)]);
+    let e = stderr(&build);
+    assert!(!build.status.success(), "{e}");
+    assert!(
+        e.contains(s(&stopped)) && e.contains("did not finish"),
+        "{e}"
+    );
+    let scene = dir.path().join("synth");
+    let render = |out: &Path| {
+        sage3d(&[
+            "render",
+            s(&scene),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--out",
+            s(out),
+        ])
+    };
+    a_stopped_run_is_redone(
+        dir.path(),
+        "render",
+        "render",
+        "render.json",
+        false,
+        &render,
+    );
+    let map = |out: &Path| sage3d(&["nav", "map", s(&scene), "--cell", "0.1", "--out", s(out)]);
+    a_stopped_run_is_redone(
+        dir.path(),
+        "map",
+        "nav map",
+        "semantic_map.png",
+        false,
+        &map,
+    );
+    let recon = dir.path().join("recon");
+    ok(&[
+        "recon",
+        "plan",
+        s(&scene),
+        "--policy",
+        "volume",
+        "--budget",
+        "20",
+        "--out",
+        s(&recon),
+    ]);
+    ok(&["recon", "render", s(&recon), "--size", "24x18"]);
+    let fit = |out: &Path| {
+        sage3d(&[
+            "recon",
+            "fit",
+            s(&recon),
+            "--iterations",
+            "2",
+            "--points",
+            "200",
+            "--out",
+            s(out),
+        ])
+    };
+    a_stopped_run_is_redone(
+        dir.path(),
+        "fit",
+        "recon fit",
+        "fit_report.json",
+        true,
+        &fit,
+    );
+}
+
 #[test]
 fn data_import_and_eval_claim_their_folders() {
     let dir = tempfile::tempdir().unwrap();

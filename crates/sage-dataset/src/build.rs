@@ -40,6 +40,9 @@ use std::path::{Path, PathBuf};
 /// The no-goal instruction (the published default, completed).
 pub const NOGOAL_TEXT: &str =
     "Explore this environment as much as possible, but avoid colliding with anything.";
+/// The command, as the run record of a built dataset names it.
+pub const COMMAND: &str = "data build";
+
 /// What a dataset build writes at the top of its folder (the LLM cache is there by default).
 pub const OUTPUTS: [&str; 9] = [
     "episodes",
@@ -492,9 +495,11 @@ pub fn run_scene(
 
 /// Writes the dataset's run record into `out`: the scenes folder `scenes` the dataset was
 /// built from ([`folder::scenes_record`]: absolute and relative to `out`, so `eval` and `data
-/// render` find it), the settings of both steps and the fingerprints of every scene's input
-/// files (`dirs`, the scene folders), as `sage3d data build` and the distributed build leave
-/// it.
+/// render` find it), the settings of both steps, the fingerprints of every scene's input
+/// files (`dirs`, the scene folders) and the `status`: [`sage_io::run::FINISHED`] when
+/// `finished` (the dataset is assembled), else [`sage_io::run::UNFINISHED`], which every
+/// reader of the folder refuses ([`folder::check`]) until a rerun finishes it. `sage3d data
+/// build` and the distributed build write it unfinished before their work and finished after.
 ///
 /// # Errors
 ///
@@ -505,6 +510,7 @@ pub fn write_run_record(
     dirs: &[std::path::PathBuf],
     params: &SceneParams,
     assemble: &AssembleParams,
+    finished: bool,
 ) -> Result<()> {
     let inputs: BTreeMap<String, _> = dirs
         .iter()
@@ -517,9 +523,10 @@ pub fn write_run_record(
         .collect();
     sage_io::run::write_run_record(
         out,
-        "data build",
+        COMMAND,
         Some(assemble.seed),
         serde_json::json!({
+            "status": if finished { sage_io::run::FINISHED } else { sage_io::run::UNFINISHED },
             "scenes": folder::scenes_record(out, scenes),
             "config": {"scene": params, "assemble": assemble},
             "inputs": inputs,

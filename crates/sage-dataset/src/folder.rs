@@ -4,7 +4,17 @@
 //! **Splits.** A split is a name listed under `"splits"` in `splits.json` (which `data build`
 //! writes and `data import` extends), its episodes in `episodes/{split}.jsonl`; any other
 //! `*.jsonl` lying in `episodes/` is not a split. Folders written before the list existed (no
-//! `splits.json`) fall back to the old rule: every `episodes/*.jsonl` is a split.
+//! `splits.json`, and no build's run record: below) fall back to the old rule: every
+//! `episodes/*.jsonl` is a split.
+//!
+//! **Unfinished builds.** `data build` records itself before it works (so that its rerun
+//! resumes) with the `status` [`UNFINISHED`](sage_io::run::UNFINISHED), and again with
+//! [`FINISHED`] once `splits.json` and the summary are written. A folder whose record is a
+//! build's with a `status` other than [`FINISHED`], or a build's record (of any status,
+//! records before the field included) beside no `splits.json`, is a build stopped halfway (or
+//! still running): its episode files may be some of the splits, or another build's, so every
+//! reader refuses it ([`check`]) rather than take its files for splits by the old rule.
+//! Folders without a record (made by hand, or before the record existed) are read as before.
 //!
 //! **Scenes.** `data build` records the scenes folder it read twice: absolute, and relative to
 //! the dataset folder. A command that needs the scenes and is not given them resolves the
@@ -14,28 +24,64 @@
 use crate::Episode;
 use sage_core::{Error, Result};
 use sage_io::files::{read_json, write_json};
-use sage_io::run::RUN_RECORD;
+use sage_io::run::{FINISHED, RUN_RECORD};
 use serde_json::{Map, Value, json};
 use std::path::{Component, Path, PathBuf};
 
 /// The file listing a dataset's splits and their episode ids.
 pub const SPLITS_FILE: &str = "splits.json";
 
-/// Checks that `dataset` is a dataset folder (it has `episodes/`).
+/// Checks that `dataset` is a dataset folder (it has `episodes/`) and not one a `data build`
+/// left unfinished (see the module doc).
 ///
 /// # Errors
 ///
-/// An `invalid` error naming the folder: it does not exist, or it has no `episodes/`.
+/// An `invalid` error naming the folder: it does not exist, it is an unfinished build, or it
+/// has no `episodes/`; an unreadable run record, naming it.
 pub fn check(dataset: &Path) -> Result<()> {
-    if dataset.join("episodes").is_dir() {
-        return Ok(());
-    }
     if !dataset.exists() {
         return Err(Error::invalid("no such dataset folder").in_file(dataset));
+    }
+    check_finished(dataset)?;
+    if dataset.join("episodes").is_dir() {
+        return Ok(());
     }
     Err(Error::invalid(
         "not a dataset folder (no episodes/ in it; make one with `sage3d data build`)",
     )
+    .in_file(dataset))
+}
+
+/// Checks that `dataset` is not a folder a `data build` was stopped in before it finished:
+/// its run record is a build's and has a `status` other than [`FINISHED`] (a build records
+/// [`UNFINISHED`](sage_io::run::UNFINISHED) before it works), or it has no `splits.json`
+/// (which a build writes before it records [`FINISHED`]). A folder without a run record
+/// passes.
+///
+/// # Errors
+///
+/// An `invalid` error naming the folder and telling to rerun the build; an unreadable run
+/// record, naming it.
+pub(crate) fn check_finished(dataset: &Path) -> Result<()> {
+    let path = dataset.join(RUN_RECORD);
+    if !path.is_file() {
+        return Ok(());
+    }
+    let record: Value = read_json(&path)?;
+    let field = |name: &str| record.get(name).and_then(Value::as_str);
+    if field("command") != Some(crate::build::COMMAND) {
+        return Ok(());
+    }
+    let why = if let Some(status) = field("status").filter(|s| *s != FINISHED) {
+        format!("its {RUN_RECORD} has status '{status}'")
+    } else if !dataset.join(SPLITS_FILE).is_file() {
+        format!("no {SPLITS_FILE}")
+    } else {
+        return Ok(());
+    };
+    Err(Error::invalid(format!(
+        "the `sage3d data build` of this folder has not finished ({why}: it was stopped, or is still running); rerun `sage3d data build` into this folder to finish it"
+    ))
     .in_file(dataset))
 }
 
@@ -281,6 +327,7 @@ mod tests {
         );
         let record = json!({"command": "data build", "scenes": scenes_record(&data, &scenes)});
         write_json(&data.join(RUN_RECORD), &record).unwrap();
+        write_json(&data.join(SPLITS_FILE), &json!({"splits": {}})).unwrap();
         assert_eq!(record["scenes"]["relative"], "../scenes");
         assert_eq!(scenes_folder(&data, None).unwrap(), data.join("../scenes"));
         // Moved together: the relative path holds.

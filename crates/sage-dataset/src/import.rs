@@ -4,7 +4,7 @@
 
 use crate::formats::gnbench::{self, InstructionChoice, Rejected};
 use crate::formats::{gvln, jsonl, r2r};
-use crate::{Episode, folder};
+use crate::{Episode, build, folder};
 use glam::Vec2;
 use sage_core::{Error, Result, ResultExt};
 use sage_lang::StepSizes;
@@ -86,7 +86,8 @@ fn provenance(source: &Source) -> serde_json::Value {
 
 /// Reads `source`, writes its episodes as `dataset/episodes/{split}.jsonl` and lists the split
 /// in the dataset's `splits.json` ([`folder::add_split`]). `dataset` must
-/// be new, empty, or a dataset folder written by `data build` or `data import`; with `force`, a
+/// be new, empty, or a dataset folder written by `data build` (a finished one:
+/// [`folder::check`]) or `data import`; with `force`, a
 /// folder of other files is written into, provided none of them would be replaced
 /// ([`sage_io::run::claim_folder`]), and an existing split file is replaced.
 ///
@@ -103,7 +104,7 @@ fn provenance(source: &Source) -> serde_json::Value {
 /// # Errors
 ///
 /// A split name that would name a file outside the dataset, an output folder holding files a
-/// dataset command did not write, a bad source file (naming
+/// dataset command did not write, a build that did not finish, a bad source file (naming
 /// the file and field), a GN-Bench file none of whose rows could be imported (naming the first
 /// row and column), a GN-Bench import without a scenes folder, an episode whose scene is not
 /// in `scenes`, an existing split without `force`, a write error.
@@ -121,7 +122,9 @@ pub fn import(
         sage_io::RUN_RECORD,
         REPORTS_DIR,
     ];
-    let _lock = sage_io::run::claim_folder(dataset, &[COMMAND, "data build"], &names, force)?;
+    let _lock = sage_io::run::claim_folder(dataset, &[COMMAND, build::COMMAND], &names, force)?;
+    // A folder a build left unfinished is no dataset yet to add a split to.
+    folder::check_finished(dataset)?;
     let space = StepSizes::default();
     let mut gn = None;
     let episodes = match source {

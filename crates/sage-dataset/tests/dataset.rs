@@ -676,3 +676,79 @@ fn every_reader_refuses_ids_twice_and_names_that_leave_a_folder() {
         "{e}"
     );
 }
+
+#[test]
+fn a_build_stopped_before_it_finished_is_no_dataset_until_rerun() {
+    use sage_dataset::folder;
+    let dir = tempfile::tempdir().unwrap();
+    let (data, scenes) = (dir.path().join("data"), dir.path().join("scenes"));
+    std::fs::create_dir_all(data.join("episodes")).unwrap();
+    std::fs::create_dir_all(&scenes).unwrap();
+    let (p, a) = params();
+    let record = |finished| build::write_run_record(&data, &scenes, &[], &p, &a, finished);
+    // What a build killed in its assembly leaves: its record written before the work, some
+    // split files, no splits.json.
+    record(false).unwrap();
+    for split in ["test_instruction_unseen", "train"] {
+        let file = data.join("episodes").join(format!("{split}.jsonl"));
+        jsonl::write(&file, &[turn_in_place()]).unwrap();
+    }
+    let refused = |what: &str, e: sage_core::Error| {
+        let e = e.to_string();
+        assert!(
+            e.starts_with(&format!("{}: ", data.display()))
+                && e.contains("has not finished")
+                && e.contains("rerun `sage3d data build` into this folder to finish it"),
+            "{what}: {e}"
+        );
+    };
+    refused("splits", folder::splits(&data).unwrap_err());
+    refused("non-empty", folder::non_empty_splits(&data).unwrap_err());
+    refused("split", folder::split_episodes(&data, "train").unwrap_err());
+    refused("scenes", folder::scenes_folder(&data, None).unwrap_err());
+    let gvln_file = dir.path().join("g.json");
+    gvln::write(
+        &gvln_file,
+        &[turn_in_place()],
+        GvlnFrame::World,
+        &StepSizes::default(),
+    )
+    .unwrap();
+    let source = sage_dataset::import::Source::Gvln {
+        file: gvln_file,
+        offset: Vec2::ZERO,
+    };
+    refused(
+        "import",
+        sage_dataset::import::import(&source, &data, "mine", None, false).unwrap_err(),
+    );
+    assert!(!data.join("episodes/mine.jsonl").exists());
+    // Its record says why: unfinished.
+    let e = folder::splits(&data).unwrap_err().to_string();
+    assert!(e.contains("status 'unfinished'"), "{e}");
+    // A build's record beside no splits.json, of any status (one written before the status
+    // existed too), is no finished build either.
+    record(true).unwrap();
+    let e = folder::splits(&data).unwrap_err().to_string();
+    assert!(e.contains("no splits.json"), "{e}");
+    // A rerun killed after an earlier build had finished: the old splits.json is still there.
+    std::fs::write(
+        data.join(folder::SPLITS_FILE),
+        r#"{"splits": {"train": []}}"#,
+    )
+    .unwrap();
+    record(false).unwrap();
+    refused("rerun", folder::splits(&data).unwrap_err());
+    // Finished: the listed splits, and the recorded scenes.
+    record(true).unwrap();
+    assert_eq!(folder::splits(&data).unwrap(), ["train"]);
+    assert_eq!(folder::split_episodes(&data, "train").unwrap().1.len(), 1);
+    assert!(folder::scenes_folder(&data, None).unwrap().is_dir());
+    // A folder without a run record (made by hand, or before records) keeps the old rule.
+    std::fs::remove_file(data.join(sage_io::RUN_RECORD)).unwrap();
+    std::fs::remove_file(data.join(folder::SPLITS_FILE)).unwrap();
+    assert_eq!(
+        folder::splits(&data).unwrap(),
+        ["test_instruction_unseen", "train"]
+    );
+}

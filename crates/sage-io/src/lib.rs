@@ -9,8 +9,8 @@
 //!   image pixels, decoded meshes), each raised by an environment variable `SAGE3D_MAX_…`;
 //! - [`hash`]: the one stable hash (FNV-1a) for fingerprints, cache keys and derived seeds;
 //! - [`image`]: PNG and JPEG encoded in memory (frames, responses, training data);
-//! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made, and the
-//!   claim of an output folder;
+//! - [`run`]: the run record `sage3d_run.json` that says how an output folder was made (or that
+//!   its command has not finished writing it), and the claim of an output folder;
 //! - [`lock`]: one writer per output folder (an OS advisory lock held while a command writes
 //!   it), and the removal of the temporary files an interrupted run left there;
 //! - [`scenes`]: finding scene folders, their names, and fingerprints of their input files;

@@ -28,11 +28,65 @@ pub fn write_run_record(
     write_json(&dir.join(RUN_RECORD), &record)
 }
 
+/// The `status` of a run record written before a command's first output and replaced by its
+/// full record once it has written everything ([`mark_unfinished`]).
+pub const UNFINISHED: &str = "unfinished";
+
+/// The `status` of a run record whose command wrote everything. Most records carry no
+/// `status`, which means the same; any other `status` (such as [`UNFINISHED`]) marks a folder
+/// its command has not finished writing.
+pub const FINISHED: &str = "finished";
+
+/// Writes the run record of `command` into `dir` marked unfinished (`"status": "unfinished"`),
+/// to do before the command writes its first output there and to be replaced by
+/// [`write_run_record`] once it has written its last. A folder whose command was killed or
+/// failed half-way then holds its outputs beside a record that names it: a rerun claims the
+/// folder as its own and redoes the work ([`claim_folder`]), and a reader can tell the outputs
+/// are not complete ([`unfinished_command`]).
+///
+/// # Errors
+///
+/// The record cannot be written.
+pub fn mark_unfinished(dir: &Path, command: &str, seed: Option<u64>) -> Result<()> {
+    write_run_record(
+        dir,
+        command,
+        seed,
+        serde_json::json!({ "status": UNFINISHED }),
+    )
+}
+
+/// The run record in `dir`, if there is a readable one.
+fn read_record(dir: &Path) -> Option<serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join(RUN_RECORD)).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
 /// The command named by the run record in `dir`, if there is a readable one.
 pub fn recorded_command(dir: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(dir.join(RUN_RECORD)).ok()?;
-    let record: serde_json::Value = serde_json::from_str(&text).ok()?;
+    read_record(dir)?.get("command")?.as_str().map(String::from)
+}
+
+/// The command whose work in `dir` is unfinished, as its run record says ([`mark_unfinished`]):
+/// it was killed, or failed, before writing all of its outputs. `None` for a finished record or
+/// none.
+pub fn unfinished_command(dir: &Path) -> Option<String> {
+    let record = read_record(dir).filter(is_unfinished)?;
     record.get("command")?.as_str().map(String::from)
+}
+
+/// Whether `dir` holds a readable run record that is not marked unfinished: the command that
+/// wrote the folder wrote all of it.
+pub fn is_finished(dir: &Path) -> bool {
+    read_record(dir).is_some_and(|record| !is_unfinished(&record))
+}
+
+/// Whether a run record is marked unfinished: its `status` is a word other than [`FINISHED`].
+fn is_unfinished(record: &serde_json::Value) -> bool {
+    record
+        .get("status")
+        .and_then(serde_json::Value::as_str)
+        .is_some_and(|status| status != FINISHED)
 }
 
 /// The names of the entries of folder `dir`, sorted, without its lock file
@@ -56,9 +110,10 @@ pub fn entries(dir: &Path) -> Result<Vec<String>> {
 /// Claims `dir` for `commands[0]`, which writes its outputs (`names`: the files and folders it
 /// writes at the top of `dir`) there, and returns the lock that `commands[0]` holds on it for
 /// as long as it writes ([`FolderLock`]; the folder is made if missing). The folder must be new,
-/// empty, or one whose run record names one of `commands` (a rerun, which resumes; the commands
-/// after the first are those whose folders it shares, such as `nav map` and
-/// `nav trajectories` in `SCENE/nav`). Any other folder holds files it did not write: it is
+/// empty, or one whose run record names one of `commands` (a rerun, which resumes, or redoes
+/// the work of a run that was killed after marking the folder its own with
+/// [`mark_unfinished`]; the commands after the first are those whose folders it shares, such as
+/// `nav map` and `nav trajectories` in `SCENE/nav`). Any other folder holds files it did not write: it is
 /// refused unless `force`, and even then when it holds one of `names`, which would be
 /// replaced. Once the folder is claimed, the temporary files of interrupted earlier runs are
 /// removed from it ([`FolderLock::remove_temporary`]); a refused folder is left as it was.
@@ -203,6 +258,37 @@ mod tests {
         drop(claim(&["data import", "data build"], false).unwrap());
         std::fs::write(dir.path().join("file"), "x").unwrap();
         assert!(claim_folder(&dir.path().join("file"), &["render"], &[], true).is_err());
+    }
+
+    #[test]
+    fn a_folder_left_unfinished_is_its_command_s_own_and_says_so_until_finished() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path();
+        assert!(!is_finished(out) && unfinished_command(out).is_none());
+        // What a kill leaves: the record marked unfinished, some outputs, a temporary file.
+        mark_unfinished(out, "scene synth", Some(7)).unwrap();
+        std::fs::write(out.join("labels.json"), "[]").unwrap();
+        let stale = out.join(".structure.json.tmp-4242-0");
+        std::fs::write(&stale, "half").unwrap();
+        assert_eq!(unfinished_command(out).as_deref(), Some("scene synth"));
+        assert_eq!(recorded_command(out).as_deref(), Some("scene synth"));
+        assert!(!is_finished(out));
+        let names = ["labels.json", "structure.json", RUN_RECORD];
+        // Another command may not take it over, even with `force`.
+        assert!(claim_folder(out, &["recon fit"], &names, true).is_err());
+        assert!(stale.is_file());
+        // The command's rerun takes it without `force`, and the stale file goes.
+        drop(claim_folder(out, &["scene synth"], &names, false).unwrap());
+        assert!(!stale.exists() && out.join("labels.json").is_file());
+        write_run_record(out, "scene synth", Some(7), serde_json::json!({})).unwrap();
+        assert!(is_finished(out) && unfinished_command(out).is_none());
+        // A command's own words for its state read the same way.
+        for (status, finished) in [(FINISHED, true), ("building", false)] {
+            let details = serde_json::json!({ "status": status });
+            write_run_record(out, "data build", None, details).unwrap();
+            assert_eq!(is_finished(out), finished, "{status}");
+            assert_eq!(unfinished_command(out).is_some(), !finished, "{status}");
+        }
     }
 
     #[test]

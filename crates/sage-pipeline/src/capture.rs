@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// The command that imports captures, as its run record names it.
-pub const IMPORT_COMMAND: &str = "scene import";
+pub const IMPORT_COMMAND: &str = sage_scene::scene::writers::IMPORT;
 
 /// The provenance file of an imported capture.
 pub const CAPTURE_FILE: &str = sage_scene::scene::files::CAPTURE;
@@ -294,12 +294,14 @@ pub struct ImportReport {
 }
 
 /// Imports the capture at `input` into the new scene folder `out` (see the module docs).
-/// `out` must not exist or be empty. `on_stage` is told each [`Stage`] as it starts.
+/// `out` must not exist or be empty, or hold an import that did not finish (its run record,
+/// marked unfinished before the first file: [`sage_io::run::mark_unfinished`], says so; the
+/// rerun replaces it). `on_stage` is told each [`Stage`] as it starts.
 ///
 /// # Errors
 ///
 /// Bad settings, an unreadable, empty or malformed capture, no floor found, an output folder
-/// that holds anything, or a write error (after which the files written are removed).
+/// that holds anything else, or a write error (after which the files written are removed).
 pub fn import(
     input: &Path,
     out: &Path,
@@ -461,7 +463,8 @@ fn r6(v: f32) -> f64 {
     (f64::from(v) * 1e6).round() / 1e6
 }
 
-/// Refuses an output folder that holds anything (the import writes a whole new scene).
+/// Refuses an output folder that holds anything (the import writes a whole new scene) but an
+/// import that did not finish, which the rerun replaces.
 fn refuse_filled(out: &Path) -> Result<()> {
     if out.exists() && !out.is_dir() {
         return Err(Error::invalid(
@@ -469,7 +472,8 @@ fn refuse_filled(out: &Path) -> Result<()> {
         )
         .in_file(out));
     }
-    if out.is_dir() {
+    let unfinished = sage_io::run::unfinished_command(out).as_deref() == Some(IMPORT_COMMAND);
+    if out.is_dir() && !unfinished {
         let held = sage_io::run::entries(out)?;
         if let Some(first) = held.first() {
             return Err(Error::invalid(format!(
@@ -481,7 +485,8 @@ fn refuse_filled(out: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes the scene folder's files, the provenance and the run record last.
+/// Writes the scene folder's files and the provenance between the run record marked
+/// unfinished and the full one.
 fn write_folder(
     out: &Path,
     gaussians: &sage_scene::Gaussians,
@@ -491,6 +496,7 @@ fn write_folder(
     record: &serde_json::Value,
     settings: &ImportSettings,
 ) -> Result<()> {
+    sage_io::run::mark_unfinished(out, IMPORT_COMMAND, None)?;
     sage_scene::ply::write_splats_file(&out.join(splat_file), gaussians, layout)?;
     occupancy.save(out)?;
     sage_io::files::write_json(&out.join(CAPTURE_FILE), record)?;

@@ -205,13 +205,14 @@ pub fn build_with(
 ) -> Result<DatasetReport> {
     params.validate()?;
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
-    let _lock = sage_io::run::claim_folder(out, &["data build"], &build::OUTPUTS, force)?;
-    // Recorded before the work too, so a build that crashes halfway is this command's folder
-    // and its rerun resumes instead of being refused.
-    build::write_run_record(out, scenes, &dirs, params, assemble)?;
+    let _lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, force)?;
+    // Recorded before the work too, as unfinished: a build that crashes halfway is this
+    // command's folder, so its rerun resumes instead of being refused, and no reader takes
+    // its half-written files for a dataset.
+    build::write_run_record(out, scenes, &dirs, params, assemble, false)?;
     let (outcomes, summary) =
         build::build(&dirs, out, params, assemble, &|o| on_scene(o, dirs.len()))?;
-    build::write_run_record(out, scenes, &dirs, params, assemble)?;
+    build::write_run_record(out, scenes, &dirs, params, assemble, true)?;
     Ok(DatasetReport {
         dirs,
         outcomes,

@@ -3,9 +3,9 @@
 //! [`plan`] decides every step before anything runs; each [`Step`] is one pipeline step of this
 //! crate with its typed settings, the same settings the `sage3d` subcommand that does the same
 //! takes (the front end prints each step as that command), so the demo doubles as a worked
-//! example of pointing the same commands at real data. Each step resumes: scenes already synthesised are kept, collision
-//! hulls come from their cache, the dataset build and the evaluations skip what their folders
-//! already hold.
+//! example of pointing the same commands at real data. Each step resumes: scenes already
+//! synthesised are kept (one cut short is made again), collision hulls come from their cache,
+//! the dataset build and the evaluations skip what their folders already hold.
 
 use crate::dataset::{BuildSettings, DatasetReport};
 use crate::nav::MapReport;
@@ -315,7 +315,9 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
             .collect(),
     };
     for (k, (name, dir)) in dirs.into_iter().enumerate() {
-        if s.from.is_none() && !dir.join(sage_io::RUN_RECORD).is_file() {
+        // A scene is kept once its run record is there and not marked unfinished: one killed
+        // half-way is synthesised again.
+        if s.from.is_none() && !sage_io::run::is_finished(&dir) {
             let layout = scene_name(k).1;
             steps.push(Step::Synth {
                 name: name.clone(),
@@ -439,6 +441,9 @@ mod tests {
         std::fs::create_dir_all(&first).unwrap();
         std::fs::write(first.join(sage_io::RUN_RECORD), "{}").unwrap();
         assert_eq!(plan(&s).unwrap().len(), steps.len() - 1);
+        // One whose synthesis was killed half-way is made again.
+        sage_io::run::mark_unfinished(&first, crate::scene::SYNTH_COMMAND, Some(0)).unwrap();
+        assert_eq!(plan(&s).unwrap().len(), steps.len());
         let none = DemoSettings {
             scenes: 0,
             ..s.clone()

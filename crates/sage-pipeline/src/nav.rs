@@ -67,11 +67,11 @@ pub fn map(scene_dir: &Path, out: Option<&Path>, grid_params: &GridParams) -> Re
 /// Writes `semantic_map.json`, `semantic_map.png`, `occupancy.png` + `occupancy.json`, the
 /// published map `2D_Semantic_Map_{scene}_Complete.json` (when the scene has an occupancy
 /// image) and the run record of the scene in `scene_dir` into `out` (default `scene_dir/nav`),
-/// all computed before the first is written, and the run record last (it marks the maps
-/// complete); a write that fails removes the maps written before it.
-/// `out` must be new, empty or a `nav` folder (a rerun replaces its maps); with `force`, a
-/// folder of other files is written into, provided none of them would be replaced
-/// ([`sage_io::run::claim_folder`]).
+/// all computed before the first is written; the run record is marked unfinished before the
+/// first map and written in full after the last ([`sage_io::run::mark_unfinished`]), and a
+/// write that fails removes the maps written before it. `out` must be new, empty or a `nav`
+/// folder, finished or not (a rerun replaces its maps); with `force`, a folder of other files
+/// is written into, provided none of them would be replaced ([`sage_io::run::claim_folder`]).
 ///
 /// # Errors
 ///
@@ -97,7 +97,8 @@ pub fn map_into(
     let _lock = sage_io::run::claim_folder(&out, &NAV_COMMANDS, &names, force)?;
     // Everything is computed before the first file is written, so that a run that fails or
     // is interrupted while it works leaves no map behind, and the writing that follows takes
-    // moments; the run record, written last, marks the folder complete.
+    // moments; one killed while it writes leaves the record marked unfinished, which its rerun
+    // takes as its own.
     let (grid, source) = NavGrid::from_scene(&scene, grid_params)?;
     let map = SemanticMap::build(&scene);
     let picture = map.draw(&grid, &[]).0;
@@ -106,6 +107,7 @@ pub fn map_into(
         .occupancy
         .as_ref()
         .map(|occ| PublishedMap::build(&scene.objects, occ));
+    sage_io::run::mark_unfinished(&out, MAP_COMMAND, None)?;
     let written = (|| {
         map.save_json(&out.join("semantic_map.json"))?;
         picture.save_png(&out.join("semantic_map.png"))?;

@@ -63,7 +63,7 @@ pub struct PlanReport {
 pub const PLAN_COMMAND: &str = "recon plan";
 
 /// The command that fits a scene folder, as its run record names it.
-pub const FIT_COMMAND: &str = "recon fit";
+pub const FIT_COMMAND: &str = sage_scene::scene::writers::FIT;
 
 /// Everything the reconstruction steps write at the top of the folder [`plan`] makes (the
 /// later steps write into the plan's folder).
@@ -77,7 +77,8 @@ const RECON_OUTPUTS: [&str; 6] = [
 ];
 
 /// Plans the cameras of the scene in `scene_dir` into `out` (`plan.json`, `plan.png`, the run
-/// record). `out` must be new, empty or a reconstruction folder (a rerun replaces its plan);
+/// record, marked unfinished before the plan: [`sage_io::run::mark_unfinished`]). `out` must
+/// be new, empty or a reconstruction folder, finished or not (a rerun replaces its plan);
 /// with `force`, a folder of other files is written into, provided none of them would be
 /// replaced ([`sage_io::run::claim_folder`]).
 ///
@@ -94,6 +95,7 @@ pub fn plan(
     let _lock = sage_io::run::claim_folder(out, &[PLAN_COMMAND], &RECON_OUTPUTS, force)?;
     let (scene, surfaces) = load_mesh_scene(scene_dir)?;
     let plan = make_plan(&scene, &scene_dir.to_string_lossy(), &surfaces, settings)?;
+    sage_io::run::mark_unfinished(out, PLAN_COMMAND, Some(settings.seed))?;
     plan.save(&out.join(PLAN_FILE))?;
     draw_plan(&scene, &plan).save_png(&out.join(PLAN_PNG))?;
     let sampled = plan.views.len() + plan.dropped.len();
@@ -291,10 +293,12 @@ pub struct FitReport {
 /// Fits Gaussians to the rendered views of the reconstruction folder `dir` (the pipeline recon
 /// → fit): starts from surface samples of the scene's meshes, optimises with `sage-train`
 /// (`on_iteration(iteration, loss)`), and writes the scene folder `out` (the fitted Gaussians
-/// with the original labels, structure and meshes), `out/fit_report.json` and the run record.
-/// `out` must be new, empty or a fit's (a rerun replaces its files); with `force`, a folder of
-/// other files is written into, provided none of them would be replaced
-/// ([`sage_io::run::claim_folder`]).
+/// with the original labels, structure and meshes), `out/fit_report.json` and the run record,
+/// marked unfinished before the first file and written in full after the last
+/// ([`sage_io::run::mark_unfinished`]: a fit killed half-way leaves a folder that loads as no
+/// scene and that its rerun redoes). `out` must be new, empty or a fit's, finished or not (a
+/// rerun replaces its files); with `force`, a folder of other files is written into, provided
+/// none of them would be replaced ([`sage_io::run::claim_folder`]).
 ///
 /// # Errors
 ///
@@ -350,6 +354,7 @@ pub fn fit(
     let mut fitted = scene;
     fitted.gaussians = gaussians;
     fitted.finish();
+    sage_io::run::mark_unfinished(out, FIT_COMMAND, Some(seed))?;
     fitted.save(out, SplatLayout::Compressed)?;
     let details = serde_json::json!({
         "recon": dir.to_string_lossy(),

@@ -233,10 +233,12 @@ const OUTPUTS: [&str; 12] = [
 ];
 
 /// Renders as `settings` say into `out`: every channel, the legend, `render.json`, the
-/// turntable if asked, and the run record last. `out` must be new, empty or a render's (a
-/// rerun replaces its files); with `force`, a folder of other files is written into, provided
-/// none of them would be replaced ([`sage_io::run::claim_folder`]). `on_progress` hears when
-/// the renderer is open and as turntable frames are written.
+/// turntable if asked, and the run record, marked unfinished before the first file and written
+/// in full after the last ([`sage_io::run::mark_unfinished`]). `out` must be new, empty or a
+/// render's, finished or not (a rerun replaces its files); with `force`, a folder of other
+/// files is written into, provided none of them would be replaced
+/// ([`sage_io::run::claim_folder`]). `on_progress` hears when the renderer is open and as
+/// turntable frames are written.
 ///
 /// # Errors
 ///
@@ -270,6 +272,7 @@ pub fn render_to_folder(
     // The CPU renderer times its stages; the GPU's frame is timed whole, read-back included.
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let stats = backend.as_cpu().map(RendererPool::stats);
+    sage_io::run::mark_unfinished(out, RENDER_COMMAND, None)?;
     write_images(out, &image)?;
     write_legend(&out.join("legend.json"), &scene, &image)?;
     let mut files: Vec<PathBuf> = IMAGES.iter().map(PathBuf::from).collect();

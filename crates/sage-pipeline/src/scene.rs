@@ -15,7 +15,7 @@ pub enum Stage {
 }
 
 /// The command that writes synthetic scene folders, as their run record names it.
-pub const SYNTH_COMMAND: &str = "scene synth";
+pub const SYNTH_COMMAND: &str = sage_scene::scene::writers::SYNTH;
 
 /// [`synthesize_into`] without `force`: `out` must be new, empty or a synthesised scene's.
 ///
@@ -32,8 +32,10 @@ pub fn synthesize(
 }
 
 /// Generates the scene of `config` and writes it to `out` in the InteriorGS layout with
-/// Gaussians in `layout`, then the run record (written last: its presence marks a complete
-/// folder). `out` must be new, empty or a synthesised scene's (a rerun replaces its files);
+/// Gaussians in `layout`: the run record marked unfinished before the first file, the full one
+/// after the last ([`sage_io::run::mark_unfinished`]), so a run killed half-way leaves a folder
+/// that loads as no scene and that its rerun redoes. `out` must be new, empty or a synthesised
+/// scene's, finished or not (a rerun replaces its files);
 /// with `force`, a folder of other files is written into, provided none of them would be
 /// replaced ([`sage_io::run::claim_folder`]). `on_stage` is told each [`Stage`] as it starts.
 ///
@@ -53,6 +55,7 @@ pub fn synthesize_into(
     on_stage(Stage::Generating);
     let scene = sage_synth::generate(config)?;
     on_stage(Stage::Writing);
+    sage_io::run::mark_unfinished(out, SYNTH_COMMAND, Some(config.seed))?;
     scene.save(out, layout)?;
     let details = serde_json::json!({
         "config": {

@@ -5,7 +5,7 @@
 use glam::{Quat, Vec2, Vec3};
 use sage_capture::transform::{self, Similarity};
 use sage_nav::{CostParams, GridParams, GridSource, NavGrid, PathFinder};
-use sage_pipeline::capture::{CAPTURE_FILE, ImportSettings, ScalePoints, import};
+use sage_pipeline::capture::{CAPTURE_FILE, IMPORT_COMMAND, ImportSettings, ScalePoints, import};
 use sage_scene::splats::Format;
 use sage_scene::{Gaussians, Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig, generate};
@@ -122,6 +122,24 @@ fn a_capture_becomes_a_scene_that_loads_maps_and_plans() {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not empty"), "{e}");
+
+        // An import killed while it wrote: its record marked unfinished, the Gaussians, a
+        // temporary file. It is no scene, and the rerun replaces it.
+        sage_io::run::mark_unfinished(&out, IMPORT_COMMAND, None).unwrap();
+        for f in ["occupancy.png", "occupancy.json", CAPTURE_FILE] {
+            std::fs::remove_file(out.join(f)).unwrap();
+        }
+        let stale = out.join(format!(".{CAPTURE_FILE}.tmp-4242-0"));
+        std::fs::write(&stale, "half").unwrap();
+        let e = Scene::load(&out).unwrap_err().to_string();
+        assert!(e.contains("did not finish") && e.contains("rerun"), "{e}");
+        import(&input, &out, &settings, &noop).unwrap();
+        assert!(
+            out.join(CAPTURE_FILE).is_file() && !stale.exists(),
+            "{name}"
+        );
+        assert!(sage_io::run::is_finished(&out), "{name}");
+        Scene::load(&out).unwrap();
     }
 }
 

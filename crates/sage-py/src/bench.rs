@@ -301,9 +301,10 @@ pub fn build_scene<'py>(
 }
 
 /// Assembles a dataset from its scene files (`out/scenes/*.json`, one per folder in `scenes`):
-/// splits, balanced test selection, JSONL / GVLN / R2R files and the summary, then the run
-/// record (naming `root`, the folder the scene folders were found in), as `sage3d data build`
-/// ends. Returns the summary.
+/// splits, balanced test selection, JSONL / GVLN / R2R files and the summary, between two run
+/// records (naming `root`, the folder the scene folders were found in), unfinished before
+/// and finished after, as `sage3d data build` ends: an assembly cut short leaves a folder no
+/// reader takes for a dataset. Returns the summary.
 #[pyfunction]
 #[pyo3(signature = (out, scenes, root, **settings))]
 pub fn assemble_dataset<'py>(
@@ -321,8 +322,9 @@ pub fn assemble_dataset<'py>(
     let summary = py
         .detach(|| {
             let names: Vec<String> = scenes.iter().map(|d| name(d)).collect();
+            build::write_run_record(&out, &root, &scenes, &params, &assemble, false)?;
             let summary = build::assemble(&out, &names, &assemble, &params.space)?;
-            build::write_run_record(&out, &root, &scenes, &params, &assemble)?;
+            build::write_run_record(&out, &root, &scenes, &params, &assemble, true)?;
             Ok::<_, Error>(summary)
         })
         .py()?;

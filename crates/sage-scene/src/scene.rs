@@ -119,6 +119,34 @@ pub mod files {
     ];
 }
 
+/// The commands that write scene folders, as their run records name them. A folder whose run
+/// record marks one of them unfinished ([`sage_io::run::mark_unfinished`]) holds part of a scene,
+/// which [`Scene::load_with`] refuses.
+pub mod writers {
+    /// `sage3d scene synth`.
+    pub const SYNTH: &str = "scene synth";
+    /// `sage3d scene import`.
+    pub const IMPORT: &str = "scene import";
+    /// `sage3d recon fit`.
+    pub const FIT: &str = "recon fit";
+    /// All of them.
+    pub const ALL: [&str; 3] = [SYNTH, IMPORT, FIT];
+}
+
+/// Refuses scene folder `dir` when its run record says that the command writing it has not
+/// finished ([`writers`]): a killed run's Gaussians and labels are not a scene. A folder
+/// without a run record (a downloaded InteriorGS scene) or with a finished one passes.
+fn refuse_unfinished(dir: &Path) -> Result<()> {
+    match sage_io::run::unfinished_command(dir) {
+        Some(command) if writers::ALL.contains(&command.as_str()) => Err(Error::invalid(format!(
+            "not a whole scene: `sage3d {command}` did not finish writing this folder (its {} says so); rerun that command into it",
+            sage_io::RUN_RECORD
+        ))
+        .in_file(dir)),
+        _ => Ok(()),
+    }
+}
+
 /// FNV-1a 64 hashes (hex) of every file loading the scene folder `dir` reads, keyed by their
 /// path relative to `dir`: the annotations, occupancy and meshes navigation reads
 /// ([`sage_io::scenes::input_hashes`]), the Gaussian file and the published collision file
@@ -196,8 +224,8 @@ impl Scene {
     ///
     /// # Errors
     ///
-    /// Those of [`Scene::load`], a named collision file that does not exist, and those of
-    /// [`collision::read`].
+    /// Those of [`Scene::load`], a named collision file that does not exist, a folder a scene
+    /// writer has not finished ([`writers`]), and those of [`collision::read`].
     pub fn load_with(dir: &Path, options: &LoadOptions) -> Result<(Scene, LoadReport)> {
         if let Some(c) = &options.collision
             && !c.is_file()
@@ -216,6 +244,7 @@ impl Scene {
                 dir.display()
             )));
         }
+        refuse_unfinished(dir)?;
         // Each file is looked at once: a folder by its name is an error, not a missing file.
         let splat_path = gaussians_file(dir)?;
         let labels_path = dir.join(files::LABELS);

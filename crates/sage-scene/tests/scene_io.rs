@@ -111,6 +111,43 @@ fn a_folder_with_only_labels_loads_and_reports_the_rest_missing() {
 }
 
 #[test]
+fn a_folder_a_scene_writer_left_unfinished_is_refused_until_it_finishes() {
+    let scene = generate(&small()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path();
+    // What a `recon fit` killed while writing leaves: its record marked unfinished, the
+    // Gaussians and the labels, and nothing else.
+    sage_io::run::mark_unfinished(out, sage_scene::scene::writers::FIT, Some(0)).unwrap();
+    scene.save(out, SplatLayout::Compressed).unwrap();
+    for f in [
+        "structure.json",
+        "objects.json",
+        "occupancy.png",
+        "occupancy.json",
+    ] {
+        std::fs::remove_file(out.join(f)).unwrap();
+    }
+    std::fs::remove_dir_all(out.join("meshes")).unwrap();
+    for load in [Scene::load, Scene::load_for_rendering] {
+        let e = load(out).unwrap_err().to_string();
+        assert!(
+            e.contains(&out.display().to_string())
+                && e.contains("`sage3d recon fit` did not finish")
+                && e.contains("rerun"),
+            "{e}"
+        );
+    }
+    // A command that writes no scene, left unfinished beside one, does not unmake it.
+    sage_io::run::mark_unfinished(out, "render", None).unwrap();
+    Scene::load(out).unwrap();
+    // Nor does a scene writer's finished record.
+    let finished = serde_json::json!({});
+    sage_io::run::write_run_record(out, sage_scene::scene::writers::FIT, Some(0), finished)
+        .unwrap();
+    Scene::load(out).unwrap();
+}
+
+#[test]
 fn rendering_needs_a_gaussian_file_that_holds_gaussians() {
     let scene = generate(&small()).unwrap();
     let dir = tempfile::tempdir().unwrap();
