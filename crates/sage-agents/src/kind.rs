@@ -15,8 +15,10 @@ use std::sync::Arc;
 /// The agent of an evaluation, as named by `--agent` and stored in the run record as the same
 /// string: `random`, `forward`, `oracle`, `replay:FILE`, `socket:HOST:PORT`, `http:URL`,
 /// `chat:MODEL@BASE_URL`, `ws:HOST:PORT` or `human`, the remote ones with `?key=value&…` options
-/// ([`RemoteSpec`]). Display writes the canonical string (default options left out), which
-/// parses back to the same kind.
+/// ([`RemoteSpec`]); a server's URL (`http://HOST:PORT`, `https://…`, `ws://HOST:PORT`,
+/// `socket://HOST:PORT`) names the same agent as its spec ([`RemoteSpec::parse`]). Display
+/// writes the canonical string (default options left out), which parses back to the same
+/// kind.
 #[derive(Debug, Clone, PartialEq)]
 pub enum AgentKind {
     /// Uniform FORWARD / LEFT / RIGHT with a small STOP probability, seeded per episode.
@@ -151,6 +153,10 @@ impl FromStr for AgentKind {
             ("socket" | "http" | "chat" | "ws", Some(rest)) => {
                 Ok(AgentKind::Remote(RemoteSpec::parse(&kind, rest)?))
             }
+            // An `https://` URL is an `http:` agent's (`http:https://…`).
+            ("https", Some(rest)) if rest.starts_with("//") => {
+                Ok(AgentKind::Remote(RemoteSpec::parse("http", s)?))
+            }
             _ => Err(Error::invalid(format!(
                 "unknown agent '{s}' (expected one of: {KINDS})"
             ))),
@@ -270,6 +276,56 @@ mod tests {
                 "socket:h:1?temperature=1",
                 "history, timeout, retries, quality, repeat",
             ),
+        ] {
+            let e = bad.parse::<AgentKind>().unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_servers_url_names_the_same_agent_as_its_spec() {
+        for (url, spec) in [
+            ("http://127.0.0.1:18765", "http:127.0.0.1:18765"),
+            ("HTTP://127.0.0.1:18765/", "http:127.0.0.1:18765"),
+            (
+                "http://127.0.0.1:8000/v1/step?timeout=5",
+                "http:http://127.0.0.1:8000/v1/step?timeout=5",
+            ),
+            (
+                "https://models.example:443",
+                "http:https://models.example:443",
+            ),
+            ("ws://127.0.0.1:8000", "ws:127.0.0.1:8000"),
+            (
+                "ws://127.0.0.1:8000/?actions=4",
+                "ws:127.0.0.1:8000?actions=4",
+            ),
+            ("ws://[::1]:8001/", "ws:[::1]:8001"),
+            (
+                "socket://127.0.0.1:54321?server=navila",
+                "socket:127.0.0.1:54321?server=navila",
+            ),
+        ] {
+            let from_url: AgentKind = url.parse().unwrap();
+            assert_eq!(from_url, spec.parse::<AgentKind>().unwrap(), "{url}");
+            assert_eq!(
+                from_url.to_string().parse::<AgentKind>().unwrap(),
+                from_url,
+                "{url}"
+            );
+        }
+        assert_eq!(
+            "http://127.0.0.1:18765"
+                .parse::<AgentKind>()
+                .unwrap()
+                .to_string(),
+            "http:http://127.0.0.1:18765/vln_step"
+        );
+        // A path on a ws or socket server is no port of theirs; a TLS WebSocket is not spoken.
+        for (bad, says) in [
+            ("ws://h:1/policy", "port '1/policy'"),
+            ("socket://h", "socket:HOST:PORT"),
+            ("wss://h:1", "unknown agent"),
         ] {
             let e = bad.parse::<AgentKind>().unwrap_err().to_string();
             assert!(e.contains(says), "{bad}: {e}");

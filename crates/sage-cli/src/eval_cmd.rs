@@ -22,7 +22,8 @@ pub struct EvalArgs {
     /// max_tokens=64; socket also server=navila|navid|mllm for the published SAGE-3D servers);
     /// ws:HOST:PORT (GN0 / openpi WebSocket policy server, ws:// only) with
     /// ?actions=8&state=0&format=auto&rotate=chunk_start&history_cap=auto&metadata=2&timeout=120&retries=3.
-    /// See docs/evaluation.md.
+    /// A server's URL names the same agent (http://HOST:PORT is http:HOST:PORT, ws://HOST:PORT
+    /// is ws:HOST:PORT). See docs/evaluation.md.
     #[arg(long)]
     agent: String,
     #[command(flatten)]

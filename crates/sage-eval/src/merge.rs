@@ -21,8 +21,8 @@ use std::path::Path;
 ///
 /// # Errors
 ///
-/// A line that is not a record, an episode not in the split or recorded by two shards (naming
-/// shard and line), or a write error.
+/// A line that is not a record or holds a bad field ([`EvalRecord::from_line`]), an episode
+/// not in the split or recorded by two shards (naming shard and line), or a write error.
 pub fn merge_shards(
     settings: &EvalSettings,
     agent: &str,
@@ -42,8 +42,7 @@ pub fn merge_shards(
             .filter(|(_, l)| !l.trim().is_empty())
         {
             let at = || format!("shard {i}, line {}", line + 1);
-            let rec: EvalRecord =
-                serde_json::from_str(l).map_err(|e| Error::format(at(), e.to_string()))?;
+            let rec = EvalRecord::from_line(l, &at())?;
             if !ids.contains(rec.episode_id.as_str()) {
                 return Err(Error::format(
                     at(),

@@ -5,13 +5,21 @@
 //! the next starts), so on resume an unfinished or unreadable last line is dropped and the file
 //! rewritten without it; any other bad line, an id outside the split or an id recorded twice is
 //! an error naming the line, because it means the file is not this run's.
+//!
+//! Every reader of a records file (resume, sort, the report, a rescoring, a merge of shards,
+//! the viewer) reads a line through [`EvalRecord::from_line`], which checks what the record
+//! holds of positions and numbers ([`EvalRecord::check`]) as the episode readers check
+//! episodes: a record edited by hand or damaged is refused there, naming line and field,
+//! rather than failing later in a drawing or a metric without saying where.
 
-use sage_core::{Error, Result};
+use sage_core::{Error, MAX_COORDINATE, Result, ResultExt};
 use sage_dataset::Task;
+use sage_dataset::episode::check_point;
 use sage_dataset::slices::Slices;
 use sage_env::Termination;
 use sage_env::agents::Fault;
 use sage_lang::{InstructionType, Level};
+use sage_metrics::distance::OfficialGoal;
 use sage_metrics::{EpisodeMetrics, EpisodeRecord};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet};
@@ -71,6 +79,101 @@ impl EvalRecord {
     /// count as [`Failure::EpisodeError`].
     pub fn failure_kind(&self) -> Failure {
         self.failure.unwrap_or(Failure::EpisodeError)
+    }
+
+    /// Reads one line of a records file as a record and checks it ([`EvalRecord::check`]);
+    /// an error is placed at `at` (the line), the caller names the file.
+    ///
+    /// # Errors
+    ///
+    /// A line that is not a record, or the first bad field of one.
+    pub fn from_line(line: &str, at: &str) -> Result<EvalRecord> {
+        let rec: EvalRecord =
+            serde_json::from_str(line).map_err(|e| Error::format(at, e.to_string()))?;
+        rec.check().within(at)?;
+        Ok(rec)
+    }
+
+    /// Checks a record read from a file: every position of its episode record (start, steps,
+    /// reference path, goal point and footprint, the published goal box) finite and within
+    /// ±[`MAX_COORDINATE`] m, every heading, time, length, intensity and distance of its f32
+    /// fields finite (a number too large for f32 reads as infinity; JSON holds no other
+    /// non-finite number).
+    ///
+    /// # Errors
+    ///
+    /// The first bad field, named (`record.steps[0].position`).
+    pub fn check(&self) -> Result<()> {
+        let Some(r) = &self.record else {
+            return Ok(());
+        };
+        check_episode_record(r).within("record")
+    }
+}
+
+/// [`EvalRecord::check`] on the episode record itself.
+fn check_episode_record(r: &EpisodeRecord) -> Result<()> {
+    check_point(r.start, "start")?;
+    finite(r.start_yaw, "start_yaw")?;
+    for (i, s) in r.steps.iter().enumerate() {
+        let at = |field: &str| format!("steps[{i}].{field}");
+        check_point(s.position, &at("position"))?;
+        for (field, v) in [
+            ("yaw", s.yaw),
+            ("time", s.time),
+            ("commanded", s.commanded),
+            ("achieved", s.achieved),
+            ("intensity", s.intensity),
+        ] {
+            finite(v, &at(field))?;
+        }
+        if let Some(d) = s.geodesic_to_goal_point {
+            finite(d, &at("geodesic_to_goal_point"))?;
+        }
+    }
+    for (i, p) in r.reference_path.iter().enumerate() {
+        check_point(*p, &format!("reference_path[{i}]"))?;
+    }
+    if let Some(g) = &r.goal {
+        check_floor_point(g.point, "goal.point")?;
+        for (i, p) in g.footprint.iter().flatten().enumerate() {
+            check_floor_point(*p, &format!("goal.footprint[{i}]"))?;
+        }
+    }
+    if let OfficialGoal::Map { chosen: Some(b) } = &r.official_goal {
+        check_floor_point(b.min, "official_goal.chosen.min")?;
+        check_floor_point(b.max, "official_goal.chosen.max")?;
+    }
+    for (field, d) in [
+        ("start_to_region", r.geodesics.start_to_region),
+        ("start_to_point", r.geodesics.start_to_point),
+        ("final_to_region", r.geodesics.final_to_region),
+    ] {
+        if let Some(d) = d {
+            finite(d, &format!("geodesics.{field}"))?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks a number read from a file: finite.
+fn finite(v: f32, at: &str) -> Result<()> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(Error::format(at, format!("{v}: expected a finite number")))
+    }
+}
+
+/// Checks a floor point `[x, y]` read from a file as [`check_point`] checks a point.
+fn check_floor_point(p: [f64; 2], at: &str) -> Result<()> {
+    if p.iter().all(|c| c.abs() <= f64::from(MAX_COORDINATE)) {
+        Ok(())
+    } else {
+        Err(Error::format(
+            at,
+            format!("{p:?}: expected finite coordinates within ±{MAX_COORDINATE} m"),
+        ))
     }
 }
 
@@ -160,8 +263,7 @@ fn parse(
         let whole = line.ends_with('\n');
         let where_ = format!("line {}", k + 1);
         let parsed = if whole {
-            serde_json::from_str::<EvalRecord>(line)
-                .map_err(|e| Error::format(where_.clone(), e.to_string()).in_file(path))
+            EvalRecord::from_line(line, &where_).in_file(path)
         } else {
             Err(Error::format(where_.clone(), "unfinished line").in_file(path))
         };

@@ -598,6 +598,92 @@ fn same_inputs_give_the_same_bytes_with_any_thread_count() {
 }
 
 #[test]
+fn positions_out_of_bounds_in_records_are_refused_naming_line_and_field() {
+    let f = fixture();
+    let lines = std::fs::read_to_string(f.run.join("episodes.jsonl")).unwrap();
+    let first: serde_json::Value = serde_json::from_str(lines.lines().next().unwrap()).unwrap();
+    let owned: Vec<String> = lines
+        .lines()
+        .map(|l| serde_json::from_str::<EvalRecord>(l).unwrap().episode_id)
+        .collect();
+    let ids: std::collections::BTreeSet<&str> = owned.iter().map(String::as_str).collect();
+    let huge = serde_json::json!(1e300);
+    for (pointer, value, field) in [
+        (
+            "/record/steps/0/position",
+            serde_json::json!([1e300, 0, 0]),
+            "record.steps[0].position",
+        ),
+        ("/record/steps/0/yaw", huge.clone(), "record.steps[0].yaw"),
+        ("/record/steps/0/time", huge.clone(), "record.steps[0].time"),
+        (
+            "/record/start",
+            serde_json::json!([20000.0, 0, 0]),
+            "record.start",
+        ),
+        ("/record/start_yaw", huge.clone(), "record.start_yaw"),
+        (
+            "/record/reference_path/0",
+            serde_json::json!([0, 1e300, 0]),
+            "record.reference_path[0]",
+        ),
+        (
+            "/record/goal/point",
+            serde_json::json!([1e300, 0]),
+            "record.goal.point",
+        ),
+    ] {
+        let mut rec = first.clone();
+        *rec.pointer_mut(pointer)
+            .unwrap_or_else(|| panic!("{pointer}")) = value;
+        let mut hostile: Vec<String> = lines.lines().map(str::to_string).collect();
+        hostile[0] = rec.to_string();
+        let text = hostile.join("\n") + "\n";
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        std::fs::create_dir(&run).unwrap();
+        for name in ["summary.json", "sage3d_run.json"] {
+            std::fs::copy(f.run.join(name), run.join(name)).unwrap();
+        }
+        let records = run.join("episodes.jsonl");
+        std::fs::write(&records, &text).unwrap();
+        let named = |what: &str, e: String| {
+            assert!(
+                e.contains(&format!("{}: line 1.{field}: ", records.display()))
+                    && e.contains("finite"),
+                "{what}, {pointer}: {e}"
+            );
+        };
+        // The report (maps and videos), a rescoring, the viewer (all through `read_run`),
+        // and the evaluator's own reader of its file.
+        named("read", report::read_run(&run).unwrap_err().to_string());
+        let options = report::ReportOptions {
+            videos: 3,
+            ..Default::default()
+        };
+        let e = report::write_with_options(&run, &f.scenes, &options, &|_, _| {}, &|_, _| {});
+        named("report", e.unwrap_err().to_string());
+        let e = sage_eval::rescore(&run, Some(Mode::Vlnce), None, &dir.path().join("re"));
+        named("rescore", e.unwrap_err().to_string());
+        let e = sage_eval::records::sort(&records, &ids)
+            .unwrap_err()
+            .to_string();
+        named("sort", e);
+        assert!(!run.join(sage_eval::folder::REPORT_FILE).exists());
+        // Shards are text, not files: the merge names shard, line and field.
+        let e = sage_eval::merge_shards(
+            &settings(&f.data, &f.scenes),
+            "forward",
+            &[text],
+            &dir.path().join("merged"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(&format!("shard 0, line 1.{field}: ")), "{e}");
+    }
+}
+
+#[test]
 fn bad_run_folders_are_errors_naming_the_file() {
     let f = fixture();
     let dir = tempfile::tempdir().unwrap();

@@ -247,7 +247,11 @@ pub struct RemoteSpec {
 }
 
 impl RemoteSpec {
-    /// Parses the part after `socket:`, `ws:`, `http:` or `chat:` (`kind`).
+    /// Parses the part after `socket:`, `ws:`, `http:` or `chat:` (`kind`). The URL spelling
+    /// of a server, `ws://HOST:PORT/`, `socket://HOST:PORT` or `http://HOST:PORT/PATH` (the
+    /// scheme taken for the kind, so `rest` starts with `//`), names the same agent as
+    /// `ws:HOST:PORT`, `socket:HOST:PORT` or `http:http://HOST:PORT/PATH`: no address of these
+    /// kinds starts with `//`, so the two spellings never meet.
     ///
     /// # Errors
     ///
@@ -256,6 +260,16 @@ impl RemoteSpec {
         let (address, query) = match rest.split_once('?') {
             Some((a, q)) => (a.trim(), Some(q)),
             None => (rest.trim(), None),
+        };
+        let url;
+        let address = match (kind, address.strip_prefix("//")) {
+            ("http", Some(_)) => {
+                url = format!("http:{address}");
+                url.as_str()
+            }
+            // The servers' root, as `ws://HOST:PORT/` names it; any other path is no port.
+            ("socket" | "ws", Some(host_port)) => host_port.strip_suffix('/').unwrap_or(host_port),
+            _ => address,
         };
         let host_port = || {
             let (host, port) = address

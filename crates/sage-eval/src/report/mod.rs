@@ -94,8 +94,8 @@ fn read_text(path: &Path) -> Result<String> {
 ///
 /// A folder that is not an evaluation run ([`crate::folder::run_record`]: none, a dataset,
 /// another command's), a missing or unreadable file, a bad line of `episodes.jsonl` (named by
-/// its line), an episode recorded twice, or a summary that does not count the records (an
-/// unfinished run): each names the folder or file.
+/// its line and field: [`EvalRecord::from_line`]), an episode recorded twice, or a summary
+/// that does not count the records (an unfinished run): each names the folder or file.
 pub fn read_run(run_dir: &Path) -> Result<RunFiles> {
     let run = crate::folder::run_record(run_dir)?;
     let summary_path = run_dir.join(SUMMARY_FILE);
@@ -112,8 +112,7 @@ pub fn read_run(run_dir: &Path) -> Result<RunFiles> {
     let mut seen = BTreeSet::new();
     for (k, line) in read_text(&records_path)?.lines().enumerate() {
         let where_ = format!("line {}", k + 1);
-        let rec: EvalRecord = serde_json::from_str(line)
-            .map_err(|e| Error::format(where_.clone(), e.to_string()).in_file(&records_path))?;
+        let rec = EvalRecord::from_line(line, &where_).in_file(&records_path)?;
         if !seen.insert(rec.episode_id.clone()) {
             return Err(Error::format(
                 where_,
