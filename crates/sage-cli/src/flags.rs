@@ -5,7 +5,7 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 24] = [
+const NAMED_SETTINGS: [&str; 26] = [
     "jpeg_quality",
     "objects",
     "seed",
@@ -30,6 +30,8 @@ const NAMED_SETTINGS: [&str; 24] = [
     "scale",
     "floater_opacity",
     "floater_radius",
+    "keep_failed",
+    "sensors",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in
