@@ -133,6 +133,41 @@ fn gvln_files_of_a_build_import_as_the_same_episodes() {
     }
     assert!(compared > 10, "{compared}");
     assert!(turns > 0, "no turn in place among the episodes");
+    // A rerun of the build keeps the imported splits listed, and their sources recorded.
+    let build = [
+        "data",
+        "build",
+        s(&scenes),
+        "--out",
+        s(&data),
+        "--per-scene",
+        "3",
+        "--seed",
+        "2",
+        "--base-actions",
+        "8",
+        "--nogoal",
+        "2",
+    ];
+    ok(&build);
+    let read = |name: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(data.join(name)).unwrap()).unwrap()
+    };
+    assert!(read("splits.json")["splits"]["back_train"].is_array());
+    assert_eq!(
+        read("sage3d_run.json")["imports"]["back_train"]["format"],
+        "gvln"
+    );
+    ok(&[
+        "eval",
+        s(&data),
+        "--split",
+        "back_train",
+        "--agent",
+        "oracle",
+        "--out",
+        s(&dir.path().join("run")),
+    ]);
 }
 
 #[test]

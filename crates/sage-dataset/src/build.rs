@@ -500,6 +500,8 @@ pub fn run_scene(
 /// `finished` (the dataset is assembled), else [`sage_io::run::UNFINISHED`], which every
 /// reader of the folder refuses ([`folder::check`]) until a rerun finishes it. `sage3d data
 /// build` and the distributed build write it unfinished before their work and finished after.
+/// The splits that `data import` added to the dataset stay listed (`imports`), so a rebuild
+/// keeps them ([`assemble`]).
 ///
 /// # Errors
 ///
@@ -521,17 +523,16 @@ pub fn write_run_record(
             )
         })
         .collect();
-    sage_io::run::write_run_record(
-        out,
-        COMMAND,
-        Some(assemble.seed),
-        serde_json::json!({
-            "status": if finished { sage_io::run::FINISHED } else { sage_io::run::UNFINISHED },
-            "scenes": folder::scenes_record(out, scenes),
-            "config": {"scene": params, "assemble": assemble},
-            "inputs": inputs,
-        }),
-    )
+    let mut details = serde_json::json!({
+        "status": if finished { sage_io::run::FINISHED } else { sage_io::run::UNFINISHED },
+        "scenes": folder::scenes_record(out, scenes),
+        "config": {"scene": params, "assemble": assemble},
+        "inputs": inputs,
+    });
+    if let Some(imports) = folder::imports(out) {
+        details["imports"] = imports;
+    }
+    sage_io::run::write_run_record(out, COMMAND, Some(assemble.seed), details)
 }
 
 /// Settings of the assembly step.
@@ -787,9 +788,17 @@ pub fn assemble(
             )
         }))
         .collect();
+    let mut listed = serde_json::json!(split_ids);
+    // The splits `data import` added keep their place beside the built ones (a build's own
+    // split of the same name replaces the import's file, so it replaces its entry too).
+    for (name, ids) in folder::imported_splits(out)? {
+        if !split_ids.contains_key(name.as_str()) {
+            listed[name] = ids;
+        }
+    }
     write_json(
         &out.join(folder::SPLITS_FILE),
-        &serde_json::json!({"seed": params.seed, "params": params, "splits": split_ids}),
+        &serde_json::json!({"seed": params.seed, "params": params, "splits": listed}),
     )?;
     write_json(&out.join("summary.json"), &summary)?;
     sage_io::files::write_atomic(&out.join("summary.txt"), |w| {

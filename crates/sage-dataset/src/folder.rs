@@ -218,6 +218,48 @@ pub fn add_split(dataset: &Path, split: &str, episodes: &[Episode]) -> Result<()
     write_json(&path, &value)
 }
 
+/// The `imports` of `dataset`'s run record (the splits `data import` added, by name, with
+/// their sources), if it has a readable record listing any.
+pub fn imports(dataset: &Path) -> Option<Value> {
+    let text = std::fs::read_to_string(dataset.join(RUN_RECORD)).ok()?;
+    let record: Value = serde_json::from_str(&text).ok()?;
+    record
+        .get("imports")
+        .filter(|i| i.as_object().is_some_and(|o| !o.is_empty()))
+        .cloned()
+}
+
+/// The entries of `splits.json` for the splits `data import` added to `dataset` (as its run
+/// record lists them) whose episode files are there: what a rebuild of the dataset keeps.
+///
+/// # Errors
+///
+/// An unreadable `splits.json`.
+pub(crate) fn imported_splits(dataset: &Path) -> Result<Vec<(String, Value)>> {
+    let path = dataset.join(SPLITS_FILE);
+    let Some(imports) = imports(dataset) else {
+        return Ok(Vec::new());
+    };
+    if !path.is_file() {
+        return Ok(Vec::new());
+    }
+    let listed: Value = read_json(&path)?;
+    Ok(imports
+        .as_object()
+        .into_iter()
+        .flat_map(|o| o.keys())
+        // A name read from the record becomes a file name only when it is a plain one.
+        .filter(|name| sage_io::names::check_plain("split", name).is_ok())
+        .filter(|name| {
+            dataset
+                .join("episodes")
+                .join(format!("{name}.jsonl"))
+                .is_file()
+        })
+        .filter_map(|name| Some((name.clone(), listed["splits"].get(name)?.clone())))
+        .collect())
+}
+
 /// `path` made absolute: resolved through links when it exists, else joined to the working
 /// directory.
 pub(crate) fn absolute(path: &Path) -> PathBuf {
