@@ -198,6 +198,9 @@ def test_bad_settings_are_clear_errors():
         env.reset(options=["episode_id"])
     with pytest.raises(ValueError, match="num_episodes: expected a whole number >= 1"):
         make(num_episodes=-1)
+    # Rendering shows the rgb sensor: a config that turns it off is refused when the env is made.
+    with pytest.raises(ValueError, match="render_mode='rgb_array'"):
+        make(render_mode="rgb_array", config={"sensors": {"rgb": False}})
     # A misspelt field of `config` is named, not ignored.
     with pytest.raises(ValueError, match="sensors.widht: unknown field"):
         make(config={"sensors": {"widht": 3}})

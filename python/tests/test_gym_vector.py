@@ -65,3 +65,17 @@ def test_wrong_batch_sizes_are_errors():
     # An unknown reset option is named with the accepted one, not ignored.
     with pytest.raises(ValueError, match=r"unknown reset option 'episode_id' \(accepted: episode_index\)"):
         vec.reset(options={"episode_id": "x"})
+    # Indices and seeds are whole numbers, NumPy's included; others are named.
+    for bad, match in (({"episode_index": [0, -1]}, "episode_index: expected a whole number"),
+                       ({"episode_index": 0}, "one index per sub-environment")):
+        with pytest.raises(ValueError, match=match):
+            vec.reset(options=bad)
+    first, _ = vec.reset(seed=np.int64(3))
+    again, _ = vec.reset(seed=3)
+    np.testing.assert_array_equal(first["pose"], again["pose"])
+    # Closed, it is not stepped or reset again, as Gymnasium's own vector environments.
+    vec.close()
+    with pytest.raises(gymnasium.error.ClosedEnvironmentError):
+        vec.step(np.array([1, 1]))
+    with pytest.raises(gymnasium.error.ClosedEnvironmentError):
+        vec.reset(seed=0)

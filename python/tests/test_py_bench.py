@@ -4,6 +4,9 @@ records and summary of `sage3d eval` — with the built-in agents and with a Pyt
 CPU or the GPU."""
 
 import json
+import os
+import signal
+import threading
 
 import numpy as np
 import pytest
@@ -166,6 +169,67 @@ def test_python_agents_see_images_and_their_errors_are_recorded(data, tmp_path):
     # strict: the same run (resumed from its folder) raises, as `sage3d eval --strict` exits 1.
     with pytest.raises(ValueError, match=f"every episode of the run faulted \\({len(recs)}\\)"):
         sg.evaluate(dataset, scenes, Broken(), tmp_path / "broken", split="test_balanced", sensors=[], strict=True)
+
+
+def test_evaluated_agents_are_offered_what_sage_env_offers(data, tmp_path):
+    scenes, dataset = data
+
+    class TiltUp:
+        def act(self, obs):
+            return 4
+
+    # LOOK_UP is not among SageEnv's default Discrete(4): an agent answering it faults.
+    with pytest.warns(RuntimeWarning, match="every episode of the run faulted"):
+        sg.evaluate(dataset, scenes, TiltUp, tmp_path / "tilt", split="test_balanced", sensors=[])
+    recs = jsonl(tmp_path / "tilt" / "episodes.jsonl")
+    assert recs and all("camera tilt" in x["error"] for x in recs)
+    # Something that is no agent at all is refused before any episode.
+    with pytest.raises(TypeError, match="agent: expected"):
+        sg.evaluate(dataset, scenes, 123, tmp_path / "number", split="test_balanced")
+    assert not (tmp_path / "number").exists()
+
+
+class Interrupter:
+    """Presses Ctrl-C (SIGINT to this process) on the first action of the first run; every
+    agent of that run then waits until Python has handled it (`handled`) before it stops, so
+    no episode can end before the run sees the interrupt."""
+
+    armed = True
+    handled = threading.Event()
+
+    def act(self, obs):
+        if Interrupter.armed:
+            Interrupter.armed = False
+            signal.raise_signal(signal.SIGINT)
+        Interrupter.handled.wait()
+        return 0
+
+
+def test_ctrl_c_stops_an_evaluation_which_then_resumes(data, tmp_path):
+    scenes, dataset = data
+    run = tmp_path / "run"
+
+    def on_interrupt(signum, frame):
+        Interrupter.handled.set()
+        raise KeyboardInterrupt
+
+    default = signal.signal(signal.SIGINT, on_interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            sg.evaluate(dataset, scenes, Interrupter, run, split="test_balanced", sensors=[])
+    finally:
+        signal.signal(signal.SIGINT, default)
+    # Stopped: only the episodes in flight when Ctrl-C came were recorded (one per thread at
+    # most), and no summary was written, as a killed run leaves none.
+    recorded = len(jsonl(run / "episodes.jsonl"))
+    summarised = (run / "summary.json").exists()
+    assert 1 <= recorded <= (os.cpu_count() or 1)
+    # The same run resumes from them.
+    r = sg.evaluate(dataset, scenes, Interrupter, run, split="test_balanced", sensors=[])
+    assert r["resumed"] == recorded and r["resumed"] + r["ran"] == r["total"]
+    assert summarised == (recorded == r["total"])
+    if r["total"] > (os.cpu_count() or 1):
+        assert not summarised
 
 
 class Looker:

@@ -46,6 +46,12 @@ def test_snapping_sampling_and_unreachable_points(planned):
     q = pf.snap_point(p)
     assert pf.is_navigable(q) and np.linalg.norm(q - p) <= pf.cell_size
     assert pf.snap_point([1e4, 1e4]) is None
+    # Unbounded, the nearest cell anywhere, as any bound wide enough finds it.
+    anywhere = pf.snap_point([1e4, 1e4], max_distance=math.inf)
+    np.testing.assert_array_equal(anywhere, pf.snap_point([1e4, 1e4], max_distance=1e9))
+    for bad in (-1.0, math.nan):
+        with pytest.raises(ValueError, match="max_distance"):
+            pf.snap_point(p, max_distance=bad)
     assert pf.geodesic_distance([1e4, 1e4], p) == math.inf
     with pytest.raises(ValueError, match="not navigable|outside the map"):
         pf.find_path([1e4, 1e4], p)

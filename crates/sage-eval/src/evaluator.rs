@@ -28,6 +28,7 @@ use sage_metrics::{Dtw, Scoring};
 use sage_splat::Device;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// What [`run`] did.
@@ -103,6 +104,9 @@ pub struct Runner<'a> {
     pub shard: Option<&'a (dyn Fn(&Episode) -> bool + Sync)>,
     /// Run the episodes one at a time (the agent's server holds one episode's state).
     pub serial: bool,
+    /// Set by the caller to stop the run (Ctrl-C in Python): no episode starts once it is, the
+    /// episodes in flight are recorded, and the run ends with an error; a rerun resumes.
+    pub stop: Option<&'a AtomicBool>,
 }
 
 /// The record of episode `e` by agent `agent` before it runs: its tags, no outcome yet.
@@ -387,6 +391,7 @@ pub fn run(
         agent: &|| maker.build(settings.seed),
         shard: None,
         serial: maker.serial(),
+        stop: None,
     };
     run_with(settings, &runner, out, on_done)
 }
@@ -425,6 +430,11 @@ pub fn run_with(
             .within(format!("scene {scene}"))
             .map(Arc::new);
         let record_episode = |e: &&Episode| {
+            if runner.stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
+                return Err(Error::invalid(
+                    "the run was stopped; run it again to resume where it stopped",
+                ));
+            }
             let rec = match &ctx {
                 Ok(ctx) => run_one(ctx, runner, settings.scoring(), e),
                 Err(err) => EvalRecord {

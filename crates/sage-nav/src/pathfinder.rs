@@ -156,13 +156,21 @@ impl PathFinder {
             .map(|k| self.grid.center_of(k))
     }
 
-    /// The navigable cell nearest to `p` within `max_distance` metres.
+    /// The navigable cell nearest to `p` within `max_distance` metres (any distance when it is
+    /// infinite; none when it is negative or NaN).
     pub fn snap_cell(&self, p: Vec2, max_distance: f32) -> Option<usize> {
+        if max_distance.is_nan() || max_distance < 0.0 {
+            return None;
+        }
         if let Some(k) = self.cell_of(p) {
             return Some(k);
         }
-        let r = Vec2::splat(max_distance.max(0.0));
-        let (i0, j0, i1, j1) = self.grid.cell_range(p - r, p + r)?;
+        // The window clamped to the grid, so an infinite bound searches all of it.
+        let (lo, hi) = (self.grid.origin, self.grid.origin + self.grid.size());
+        let r = Vec2::splat(max_distance);
+        let (i0, j0, i1, j1) = self
+            .grid
+            .cell_range((p - r).clamp(lo, hi), (p + r).clamp(lo, hi))?;
         let mut best: Option<(usize, f32)> = None;
         for j in j0..=j1 {
             for i in i0..=i1 {

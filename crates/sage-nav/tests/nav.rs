@@ -410,6 +410,13 @@ fn the_path_finder_answers_habitat_style_queries() {
     let far = Vec2::new(1e4, 1e4);
     assert!(!pf.is_navigable(far));
     assert_eq!(pf.snap_point(far, 1.0), None);
+    // An unbounded snap finds the nearest cell anywhere, as a large finite bound does; a
+    // bound that is no distance finds nothing.
+    let anywhere = pf.snap_point(far, f32::INFINITY).unwrap();
+    assert_eq!(Some(anywhere), pf.snap_point(far, 1e9));
+    assert!(pf.is_navigable(anywhere));
+    assert_eq!(pf.snap_point(a, -1.0), None);
+    assert_eq!(pf.snap_point(a, f32::NAN), None);
     let wall = scene.floorplan.walls[0]
         .start
         .lerp(scene.floorplan.walls[0].end, 0.5);

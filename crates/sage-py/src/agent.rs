@@ -3,6 +3,7 @@
 
 use crate::convert::to_py;
 use crate::sim::{obs_to_py, parse_action};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use sage_core::{Error, Result};
 use sage_env::agents::Agent;
@@ -57,7 +58,15 @@ impl Agent for PyAgent {
                 .obj
                 .bind(py)
                 .call_method1("act", (obs_to_py(py, obs.clone())?,))?;
-            parse_action(&self.space, &a)
+            match parse_action(&self.space, &a)? {
+                // What `SageEnv` offers by default (`Discrete(4)`): a policy is scored with
+                // the actions it was trained with, not with the camera tilts beyond them.
+                Action::LookUp | Action::LookDown => Err(PyValueError::new_err(format!(
+                    "action: {a} is a camera tilt (LOOK_UP / LOOK_DOWN), which an evaluated \
+                     agent is not offered: it answers 0-3, as SageEnv.step takes them"
+                ))),
+                action => Ok(action),
+            }
         })
         .map_err(|e| agent_error(&self.name, e))
     }

@@ -16,6 +16,7 @@ use sage_eval::{Runner, Summary};
 use sage_pipeline::dataset::BuildSettings;
 use sage_pipeline::evaluate::{Callbacks, EvalOptions};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The episodes of `split` in a dataset folder, as dicts (the JSONL schema).
 #[pyfunction]
@@ -182,6 +183,7 @@ pub fn evaluate<'py>(
     }
     let keep =
         |e: &sage_dataset::Episode| scenes_only.as_ref().is_none_or(|s| s.contains(&e.scene));
+    let stop = AtomicBool::new(false);
     let runner = Runner {
         config,
         agent_name: name.clone(),
@@ -190,18 +192,48 @@ pub fn evaluate<'py>(
             .is_some()
             .then_some(&keep as &(dyn Fn(&_) -> bool + Sync)),
         serial: maker.as_ref().is_some_and(AgentMaker::serial),
+        stop: Some(&stop),
     };
-    let (outcome, _) = py
-        .detach(|| {
-            sage_pipeline::evaluate::evaluate_with(
-                &settings,
-                &runner,
-                &out,
-                report,
-                Callbacks::silent(),
-            )
+    // The run goes on a thread of its own while this one, Python's main thread, watches for
+    // Ctrl-C (signals reach Python only there): once one arrives no episode starts, those in
+    // flight are recorded, and the KeyboardInterrupt is raised; the folder resumes.
+    let mut interrupted: Option<PyErr> = None;
+    let result = py.detach(|| {
+        std::thread::scope(|s| {
+            let run = s.spawn(|| {
+                sage_pipeline::evaluate::evaluate_with(
+                    &settings,
+                    &runner,
+                    &out,
+                    report,
+                    Callbacks::silent(),
+                )
+            });
+            loop {
+                let finished = run.is_finished();
+                // Stopped while the GIL is held: an agent waiting on Python for the interrupt
+                // to be handled cannot end its episode and start another before the stop.
+                if interrupted.is_none()
+                    && let Err(e) = Python::attach(|py| {
+                        py.check_signals()
+                            .inspect_err(|_| stop.store(true, Ordering::Relaxed))
+                    })
+                {
+                    interrupted = Some(e);
+                }
+                if finished {
+                    break;
+                }
+                std::thread::sleep(SIGNAL_POLL);
+            }
+            run.join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
         })
-        .py()?;
+    });
+    if let Some(e) = interrupted {
+        return Err(e);
+    }
+    let (outcome, _) = result.py()?;
     if strict {
         outcome.verdict(true).py()?;
     }
@@ -226,6 +258,9 @@ pub fn run_records(run: PathBuf) -> PyResult<String> {
         .map_err(|e| sage_core::Error::io(&path, e))
         .py()
 }
+
+/// How often [`evaluate`] looks for Ctrl-C while a run goes on.
+const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
 
 /// What [`evaluate`] returns to Python.
 #[derive(serde::Serialize)]

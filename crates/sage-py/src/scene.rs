@@ -235,6 +235,11 @@ impl PyPathFinder {
         p: Vec<f32>,
         max_distance: f32,
     ) -> PyResult<Option<Bound<'py, PyAny>>> {
+        if max_distance.is_nan() || max_distance < 0.0 {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "max_distance: {max_distance} is not a distance (0 or more; inf for any)"
+            )));
+        }
         let q = self
             .ctx
             .pathfinder

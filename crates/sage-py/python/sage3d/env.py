@@ -241,6 +241,8 @@ class _Prepared:
         overrides = _json(config_overrides(width, height, sensors, actions, max_steps, hfov, config,
                                            device))
         self.config = _sage3d.env_config(preset, overrides)
+        if render_mode == "rgb_array" and not self.config["sensors"]["rgb"]:
+            raise ValueError("render_mode='rgb_array' renders the rgb sensor, which config turns off")
         pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
                                                   filters, num_episodes, seed, synth)
         self.scenes = pool_scenes

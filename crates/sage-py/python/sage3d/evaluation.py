@@ -68,7 +68,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     run in parallel; Python agents decide one at a time under the GIL while rendering and
     physics run in parallel. ``scenes_only`` runs only the episodes of those scenes (a shard).
     ``options`` are ``sage3d eval``'s flags by name, with the same defaults: ``split``
-    (``"test_balanced"``), ``mode`` (``"sage"``, ``"vlnce"`` or ``"sage-official"``) and ``dtw``
+    (``"test_balanced"``), ``mode`` (``"sage"``, ``"vlnce"``, ``"sage-official"`` or ``"gnbench"``) and ``dtw``
     (``"exact"`` or ``"fast"``, VLN-CE's FastDTW) choose how episodes are scored, ``seed`` (0),
     ``preset`` (``"sage"``) and ``device``. Faulted episodes (never scored) are recorded and listed in
     ``summary["failed"]`` (per kind in ``summary["failures"]``); with ``strict=True`` any failure
@@ -79,6 +79,9 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
+    if not (isinstance(agent, str) or callable(agent) or callable(getattr(agent, "act", None))):
+        raise TypeError(f"agent: expected an agent string, a class, or an object with act(obs), "
+                        f"got {type(agent).__name__}")
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
         os.fspath(dataset), None if scenes is None else os.fspath(scenes), os.fspath(out),

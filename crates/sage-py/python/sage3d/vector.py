@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
+from gymnasium.error import ClosedEnvironmentError
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -76,30 +77,44 @@ class SageVectorEnv(_Prepared, VectorEnv):
         """Resets every sub-environment; ``seed`` an int (sub-environment ``i`` gets
         ``seed + i``) or one per sub-environment; ``options={"episode_index": [...]}`` picks
         the episodes (any other key is a ``ValueError``)."""
+        self._check_open()
         # Checked before the generators are reseeded, so a refused call changes nothing.
         options = check_options(options, self.RESET_OPTIONS)
+        indices = None
+        if "episode_index" in options:
+            given = options["episode_index"]
+            if not isinstance(given, Iterable) or isinstance(given, (str, bytes)):
+                raise ValueError(f"episode_index: expected one index per sub-environment, got {given!r}")
+            indices = [whole("episode_index", k) for k in given]
         if seed is not None:
-            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, int) else list(seed)
+            if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+                seeds = [int(seed) + i for i in range(self.num_envs)]
+            else:
+                seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"expected {self.num_envs} seeds, got {len(seeds)}")
             for i, s in enumerate(seeds):
                 if s is not None:
-                    self._rngs[i] = seeding.np_random(s)[0]
-        if "episode_index" in options:
-            indices = [int(k) for k in options["episode_index"]]
-        else:
+                    self._rngs[i] = seeding.np_random(whole("seed", s))[0]
+        if indices is None:
             indices = [self._draw(i) for i in range(self.num_envs)]
         obs, infos = self._sim.reset(indices)
         self._autoreset[:] = False
         return self._batch(obs, infos)
 
     def step(self, actions):
+        self._check_open()
         check_discrete(self.action_space, actions)
         resets = [self._draw(i) if done else None for i, done in enumerate(self._autoreset)]
         obs, rewards, terminated, truncated, infos = self._sim.step(list(actions), resets)
         self._autoreset = terminated | truncated
         obs, infos = self._batch(obs, infos)
         return obs, rewards.astype(np.float64), terminated, truncated, infos
+
+    def _check_open(self):
+        # As Gymnasium's own vector environments: a closed one is not stepped again.
+        if self.closed:
+            raise ClosedEnvironmentError("the vector environment is closed")
 
     def render(self):
         """The last RGB observations, ``(num_envs, H, W, 3)`` uint8 (``render_mode="rgb_array"``)."""
