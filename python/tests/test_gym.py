@@ -198,6 +198,16 @@ def test_bad_settings_are_clear_errors():
         env.reset(options=["episode_id"])
     with pytest.raises(ValueError, match="num_episodes: expected a whole number >= 1"):
         make(num_episodes=-1)
+    # Sizes and counts are whole numbers, named when not (never truncated, never an
+    # OverflowError that names nothing).
+    for bad, match in (({"width": 1.5}, "width: expected a whole number"),
+                       ({"height": 0}, "height: expected a whole number >= 1"),
+                       ({"max_steps": -3}, "max_steps: expected")):
+        with pytest.raises(ValueError, match=match):
+            make(**bad)
+    for bad in ({"seed": -1}, {"rooms": -2}, {"gaussians": 0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            sage3d.synth_scene(**bad)
     # Rendering shows the rgb sensor: a config that turns it off is refused when the env is made.
     with pytest.raises(ValueError, match="render_mode='rgb_array'"):
         make(render_mode="rgb_array", config={"sensors": {"rgb": False}})

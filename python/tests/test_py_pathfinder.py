@@ -52,6 +52,9 @@ def test_snapping_sampling_and_unreachable_points(planned):
     for bad in (-1.0, math.nan):
         with pytest.raises(ValueError, match="max_distance"):
             pf.snap_point(p, max_distance=bad)
+    for bad in (-1, 2**70):
+        with pytest.raises(ValueError, match="seed: expected a whole number"):
+            pf.seed(bad)
     assert pf.geodesic_distance([1e4, 1e4], p) == math.inf
     with pytest.raises(ValueError, match="not navigable|outside the map"):
         pf.find_path([1e4, 1e4], p)

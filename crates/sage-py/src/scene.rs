@@ -248,7 +248,13 @@ impl PyPathFinder {
     }
 
     /// Reseeds the sampler of [`Self::sample_navigable_point`].
-    fn seed(&self, seed: u64) -> PyResult<()> {
+    fn seed(&self, seed: i128) -> PyResult<()> {
+        // Taken wide, so a negative or huge seed is named rather than an `OverflowError`.
+        let seed = u64::try_from(seed).map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "seed: expected a whole number 0 to 2^64 - 1, got {seed}"
+            ))
+        })?;
         *self.rng.lock().map_err(|_| poisoned())? = ChaCha8Rng::seed_from_u64(seed);
         Ok(())
     }

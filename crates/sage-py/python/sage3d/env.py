@@ -78,8 +78,9 @@ def synth_scene(seed: int = 0, kind: str = "home", rooms: int = 4, objects: int 
     """A synthetic scene, generated on first use and then loaded from the cache (keyed by
     kind, seed and sizes; collision hulls are cached beside it)."""
     root = os.path.join(cache or cache_dir(), "synth")
-    return _sage3d.Scene.synth(root, seed=seed, kind=kind, rooms=rooms, objects=objects,
-                               gaussians=gaussians)
+    return _sage3d.Scene.synth(root, seed=whole("seed", seed), kind=kind,
+                               rooms=whole("rooms", rooms, 1), objects=whole("objects", objects),
+                               gaussians=whole("gaussians", gaussians, 1))
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -100,9 +101,9 @@ def config_overrides(width: int | None = None, height: int | None = None,
         o["device"] = check_device(device)
     s: dict = {}
     if width is not None:
-        s["width"] = int(width)
+        s["width"] = whole("width", width, 1)
     if height is not None:
-        s["height"] = int(height)
+        s["height"] = whole("height", height, 1)
     if hfov is not None:
         s["hfov_deg"] = float(hfov)
     if sensors is not None:
@@ -118,7 +119,7 @@ def config_overrides(width: int | None = None, height: int | None = None,
     elif actions != "discrete":
         raise ValueError(f"unknown action space {actions!r} (expected discrete, ground or uav)")
     if max_steps is not None:
-        o["task"] = {"max_steps": int(max_steps)}
+        o["task"] = {"max_steps": whole("max_steps", max_steps, 1)}
     return _merge(o, config or {})
 
 
