@@ -187,6 +187,8 @@ def test_evaluated_agents_are_offered_what_sage_env_offers(data, tmp_path):
     with pytest.raises(TypeError, match="agent: expected"):
         sg.evaluate(dataset, scenes, 123, tmp_path / "number", split="test_balanced")
     assert not (tmp_path / "number").exists()
+    with pytest.raises(TypeError, match="scenes_only: expected a list"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "one", scenes_only="home7")
 
 
 class Interrupter:

@@ -82,6 +82,9 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     if not (isinstance(agent, str) or callable(agent) or callable(getattr(agent, "act", None))):
         raise TypeError(f"agent: expected an agent string, a class, or an object with act(obs), "
                         f"got {type(agent).__name__}")
+    if isinstance(scenes_only, (str, bytes)):
+        # A string is a sequence too: it would be taken letter by letter.
+        raise TypeError(f"scenes_only: expected a list of scene names, got the string {scenes_only!r}")
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
         os.fspath(dataset), None if scenes is None else os.fspath(scenes), os.fspath(out),
