@@ -73,7 +73,7 @@ fn gvln_files_of_a_build_import_as_the_same_episodes() {
     let scenes = dir.path().join("scenes");
     small_scene(&scenes.join("home1"), "1", "1000");
     let data = dir.path().join("data");
-    ok(&[
+    let build = [
         "data",
         "build",
         s(&scenes),
@@ -87,7 +87,8 @@ fn gvln_files_of_a_build_import_as_the_same_episodes() {
         "8",
         "--nogoal",
         "2",
-    ]);
+    ];
+    ok(&build);
     let lines = |file: &Path| -> BTreeMap<String, String> {
         std::fs::read_to_string(file)
             .unwrap()
@@ -134,21 +135,6 @@ fn gvln_files_of_a_build_import_as_the_same_episodes() {
     assert!(compared > 10, "{compared}");
     assert!(turns > 0, "no turn in place among the episodes");
     // A rerun of the build keeps the imported splits listed, and their sources recorded.
-    let build = [
-        "data",
-        "build",
-        s(&scenes),
-        "--out",
-        s(&data),
-        "--per-scene",
-        "3",
-        "--seed",
-        "2",
-        "--base-actions",
-        "8",
-        "--nogoal",
-        "2",
-    ];
     ok(&build);
     let read = |name: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(data.join(name)).unwrap()).unwrap()
