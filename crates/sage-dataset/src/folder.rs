@@ -9,8 +9,8 @@
 //!
 //! **Unfinished builds.** `data build` records itself before it works (so that its rerun
 //! resumes) with the `status` [`UNFINISHED`](sage_io::run::UNFINISHED), and again with
-//! [`FINISHED`] once `splits.json` and the summary are written. A folder whose record is a
-//! build's with a `status` other than [`FINISHED`], or a build's record (of any status,
+//! [`FINISHED`](sage_io::run::FINISHED) once `splits.json` and the summary are written. A folder whose record is a
+//! build's with a `status` other than [`FINISHED`](sage_io::run::FINISHED), or a build's record (of any status,
 //! records before the field included) beside no `splits.json`, is a build stopped halfway (or
 //! still running): its episode files may be some of the splits, or another build's, so every
 //! reader refuses it ([`check`]) rather than take its files for splits by the old rule.
@@ -24,7 +24,7 @@
 use crate::Episode;
 use sage_core::{Error, Result};
 use sage_io::files::{read_json, write_json};
-use sage_io::run::{FINISHED, RUN_RECORD};
+use sage_io::run::RUN_RECORD;
 use serde_json::{Map, Value, json};
 use std::path::{Component, Path, PathBuf};
 
@@ -53,9 +53,9 @@ pub fn check(dataset: &Path) -> Result<()> {
 }
 
 /// Checks that `dataset` is not a folder a `data build` was stopped in before it finished:
-/// its run record is a build's and has a `status` other than [`FINISHED`] (a build records
+/// its run record is a build's and has a `status` other than [`FINISHED`](sage_io::run::FINISHED) (a build records
 /// [`UNFINISHED`](sage_io::run::UNFINISHED) before it works), or it has no `splits.json`
-/// (which a build writes before it records [`FINISHED`]). A folder without a run record
+/// (which a build writes before it records [`FINISHED`](sage_io::run::FINISHED)). A folder without a run record
 /// passes.
 ///
 /// # Errors
@@ -72,7 +72,7 @@ pub(crate) fn check_finished(dataset: &Path) -> Result<()> {
     if field("command") != Some(crate::build::COMMAND) {
         return Ok(());
     }
-    let why = if let Some(status) = field("status").filter(|s| *s != FINISHED) {
+    let why = if let Some(status) = sage_io::run::unfinished_status(&record) {
         format!("its {RUN_RECORD} has status '{status}'")
     } else if !dataset.join(SPLITS_FILE).is_file() {
         format!("no {SPLITS_FILE}")
@@ -221,9 +221,7 @@ pub fn add_split(dataset: &Path, split: &str, episodes: &[Episode]) -> Result<()
 /// The `imports` of `dataset`'s run record (the splits `data import` added, by name, with
 /// their sources), if it has a readable record listing any.
 pub fn imports(dataset: &Path) -> Option<Value> {
-    let text = std::fs::read_to_string(dataset.join(RUN_RECORD)).ok()?;
-    let record: Value = serde_json::from_str(&text).ok()?;
-    record
+    sage_io::run::read_record(dataset)?
         .get("imports")
         .filter(|i| i.as_object().is_some_and(|o| !o.is_empty()))
         .cloned()

@@ -57,7 +57,7 @@ pub fn mark_unfinished(dir: &Path, command: &str, seed: Option<u64>) -> Result<(
 }
 
 /// The run record in `dir`, if there is a readable one.
-fn read_record(dir: &Path) -> Option<serde_json::Value> {
+pub fn read_record(dir: &Path) -> Option<serde_json::Value> {
     let text = std::fs::read_to_string(dir.join(RUN_RECORD)).ok()?;
     serde_json::from_str(&text).ok()
 }
@@ -71,22 +71,23 @@ pub fn recorded_command(dir: &Path) -> Option<String> {
 /// it was killed, or failed, before writing all of its outputs. `None` for a finished record or
 /// none.
 pub fn unfinished_command(dir: &Path) -> Option<String> {
-    let record = read_record(dir).filter(is_unfinished)?;
+    let record = read_record(dir).filter(|r| unfinished_status(r).is_some())?;
     record.get("command")?.as_str().map(String::from)
 }
 
 /// Whether `dir` holds a readable run record that is not marked unfinished: the command that
 /// wrote the folder wrote all of it.
 pub fn is_finished(dir: &Path) -> bool {
-    read_record(dir).is_some_and(|record| !is_unfinished(&record))
+    read_record(dir).is_some_and(|record| unfinished_status(&record).is_none())
 }
 
-/// Whether a run record is marked unfinished: its `status` is a word other than [`FINISHED`].
-fn is_unfinished(record: &serde_json::Value) -> bool {
+/// The `status` of a run record that marks its folder unfinished: a word other than
+/// [`FINISHED`] (a record without one is finished).
+pub fn unfinished_status(record: &serde_json::Value) -> Option<&str> {
     record
         .get("status")
         .and_then(serde_json::Value::as_str)
-        .is_some_and(|status| status != FINISHED)
+        .filter(|status| *status != FINISHED)
 }
 
 /// The names of the entries of folder `dir`, sorted, without its lock file
