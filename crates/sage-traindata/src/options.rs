@@ -152,15 +152,8 @@ impl Options {
     ///
     /// # Errors
     ///
-    /// A step, turn, cap or JPEG quality out of range; sensors the layout cannot hold.
+    /// A step, turn, cap or JPEG quality out of range.
     pub fn settings_with(&self, scenes: &Path) -> Result<Settings> {
-        if self.format == Layout::Lerobot && (self.sensors.semantic || self.sensors.instance) {
-            return Err(Error::invalid(format!(
-                "the LeRobot layout holds RGB and depth images only, not `sensors` {}; \
-                 category and instance ids need the navila, webdataset or frames layout",
-                self.sensors
-            )));
-        }
         if !(1..=100).contains(&self.jpeg_quality) {
             return Err(Error::invalid(format!(
                 "`jpeg_quality` must be 1-100, got {}",
@@ -297,7 +290,12 @@ mod tests {
         let ids: Options =
             serde_json::from_str(r#"{"format": "lerobot", "sensors": "rgb,depth,semantic"}"#)
                 .unwrap();
-        let e = ids.settings_with(Path::new("s")).unwrap_err().to_string();
+        let e = ids
+            .settings_with(Path::new("s"))
+            .unwrap()
+            .env_config()
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("LeRobot") && e.contains("semantic"), "{e}");
         let cpu = Options::default().settings_with(Path::new("s")).unwrap();
         assert!(

@@ -149,7 +149,8 @@ impl Settings {
     ///
     /// # Errors
     ///
-    /// A bad profile, size, field of view or preset, naming the field.
+    /// A bad profile, size, field of view or preset, naming the field; sensors the layout
+    /// cannot hold.
     pub fn env_config(&self) -> Result<EnvConfig> {
         let mut config = EnvConfig {
             agent: self.agent.clone(),
@@ -176,6 +177,13 @@ impl Settings {
         config.task.max_steps = config.task.max_steps.max(self.preset.max_actions + 1);
         if self.shard_size == 0 {
             return Err(Error::invalid("shard size: must be at least 1"));
+        }
+        if self.format == Layout::Lerobot && (self.sensors.semantic || self.sensors.instance) {
+            return Err(Error::invalid(format!(
+                "the LeRobot layout holds RGB and depth images only, not `sensors` {}; \
+                 category and instance ids need the navila, webdataset or frames layout",
+                self.sensors
+            )));
         }
         config.validate()?;
         if config.profile()?.kind != sage_physics::Locomotion::Ground {
