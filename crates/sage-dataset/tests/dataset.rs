@@ -373,6 +373,42 @@ fn gvln_keeps_a_turn_in_place_its_headings_and_lengths() {
     );
 }
 
+/// In S, the frame of SAGE-Bench's tools, the points stand at the agent's base 0.5 m up as in
+/// the published files, and `base_z` says so; a file of ours in S from before the key (points
+/// at the floor) still reads at the floor, and a bad `base_z` is named.
+#[test]
+fn gvln_in_the_sage_frame_puts_the_points_at_the_published_base() {
+    let space = StepSizes::default();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("s.json");
+    let eps = [turn_in_place()];
+    let frame = GvlnFrame::Sage(SageFrame {
+        offset: Vec2::new(3.5, -1.25),
+    });
+    gvln::write(&p, &eps, frame, &space).unwrap();
+    let mut root: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    assert_eq!(root["dataset_metadata"]["base_z"], 0.5);
+    let z = &root["scenes"][0]["samples"][0]["points"][0]["position"][2];
+    assert_eq!(z.as_f64(), Some(f64::from(gvln::PUBLISHED_BASE_Z)));
+    let back = gvln::read(&p, Vec2::ZERO, &space).unwrap();
+    assert_eq!(back[0].reference_path[0][2], 0.0);
+    // An S file of ours from before `base_z`: its points were at the floor.
+    let meta = root["dataset_metadata"].as_object_mut().unwrap();
+    meta.remove("base_z");
+    root["scenes"][0]["samples"][0]["points"][0]["position"][2] = 0.0.into();
+    std::fs::write(&p, root.to_string()).unwrap();
+    let back = gvln::read(&p, Vec2::ZERO, &space).unwrap();
+    assert_eq!(back[0].reference_path[0][2], 0.0);
+    root["dataset_metadata"]["base_z"] = "high".into();
+    std::fs::write(&p, root.to_string()).unwrap();
+    let e = gvln::read(&p, Vec2::ZERO, &space).unwrap_err().to_string();
+    assert!(
+        e.contains("s.json") && e.contains("dataset_metadata") && e.contains("base_z"),
+        "{e}"
+    );
+}
+
 /// A GVLN file as SAGE-Bench publishes it (research notes §2.1): no `frame`, the world id as
 /// the scene's name, the folder key in each instruction, every point at z = 0.5 in the S frame.
 #[test]

@@ -11,8 +11,11 @@
 //!   toward the next point; the first point holds the start heading and the last the final
 //!   heading (the published files force `[0, 0, 0, 1]` there, which the reader ignores at the
 //!   last point only).
-//! - **position** z: the floor (0). The published files (no `frame`) write the agent's base
-//!   [`PUBLISHED_BASE_Z`] = 0.5 m above the floor, which the reader takes off.
+//! - **position** z: the agent's base above the floor, `base_z` in the metadata. The published
+//!   files (no `frame`, no `base_z`) put it [`PUBLISHED_BASE_Z`] = 0.5 m up, and so does this
+//!   writer in S, the frame those files' tools read; in W it writes the floor (`base_z: 0`).
+//!   The reader takes `base_z` off (0.5 without `frame`, 0 in a file of ours that predates the
+//!   key).
 //! - **scene**: an instruction's `scene_id` (the published files' full folder key,
 //!   `0033_839873`, the name of an InteriorGS scene folder), else the scene's `scene_name` (there
 //!   the bare world id `839873`), else its `scene_id`; the writer writes the scene's name in all
@@ -61,6 +64,14 @@ impl GvlnFrame {
         match self {
             GvlnFrame::World => p,
             GvlnFrame::Sage(s) => s.world_to_sage(Vec3::from(p)).into(),
+        }
+    }
+    // The height of the agent's base above the floor at which this writer puts the points: in S
+    // where the published files put it, so their tools stand the agent where they expect.
+    fn base_z(&self) -> f32 {
+        match self {
+            GvlnFrame::World => 0.0,
+            GvlnFrame::Sage(_) => PUBLISHED_BASE_Z,
         }
     }
     fn point_back(&self, p: [f32; 3]) -> [f32; 3] {
@@ -173,8 +184,9 @@ pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSi
                         .zip(hs)
                         .enumerate()
                         .map(|(i, (p, h))| {
+                            let [x, y, z] = frame.point(*p);
                             json!({
-                                "point": i.to_string(), "position": frame.point(*p),
+                                "point": i.to_string(), "position": [x, y, z + frame.base_z()],
                                 "rotation": encode_rotation(frame.heading(h)),
                                 "action": [], "camera_images": [], "focal_length": 7.0,
                                 "horizontal_aperture": 20.955, "vertical_aperture": 20.955,
@@ -214,8 +226,10 @@ pub fn write(path: &Path, episodes: &[Episode], frame: GvlnFrame, space: &StepSi
             json!({"scene_id": scene, "scene_name": scene, "samples": samples})
         })
         .collect();
-    let mut meta =
-        json!({"name": "GVLN", "generator": format!("sage3d {}", env!("CARGO_PKG_VERSION"))});
+    let mut meta = json!({
+        "name": "GVLN", "generator": format!("sage3d {}", env!("CARGO_PKG_VERSION")),
+        "base_z": frame.base_z(),
+    });
     match frame {
         GvlnFrame::World => meta["frame"] = json!("W"),
         GvlnFrame::Sage(s) => {
@@ -306,11 +320,15 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
     let root: Value = sage_io::files::parse_json(&text_in, path)?;
     let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);
     let stated = meta.get("frame").and_then(Value::as_str);
-    // The published files' points stand at the agent's base; ours at the floor.
-    let base_z = if stated.is_none() {
-        PUBLISHED_BASE_Z
-    } else {
-        0.0
+    // The points stand at the agent's base: where the file says, else where the published
+    // files put it (no `frame`), else at the floor (our files before `base_z`).
+    let stated_base = optional_number(&meta, "base_z")
+        .within("dataset_metadata")
+        .in_file(path)?;
+    let base_z = match stated_base {
+        Some(z) => z,
+        None if stated.is_none() => PUBLISHED_BASE_Z,
+        None => 0.0,
     };
     let frame = match stated {
         Some("W") => GvlnFrame::World,
