@@ -293,10 +293,11 @@ pub fn print_render(m: &sage_traindata::Manifest, out: &Path, rendered: usize, s
         }
     };
     println!(
-        "{} episodes ({} walks): {} kept, {} dropped{}, {} skipped; {} ignored{}",
+        "{} episodes ({} walks): {} kept{}, {} dropped{}, {} skipped; {} ignored{}",
         c.episodes,
         c.routes,
         c.kept,
+        listed(&c.kept_failed).replacen(" (", " (not clean: ", 1),
         c.dropped.values().sum::<usize>(),
         listed(&c.dropped),
         c.skipped,

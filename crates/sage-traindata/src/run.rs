@@ -731,6 +731,10 @@ pub struct Counts {
     pub kept: usize,
     /// Episodes dropped, by their walk's verdict.
     pub dropped: BTreeMap<String, usize>,
+    /// Episodes written although their walk did not end clean (`keep_failed`), by its verdict:
+    /// what `dropped` would have counted. Absent when there are none.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub kept_failed: BTreeMap<String, usize>,
     /// Episodes skipped for an error (listed in `skipped`).
     pub skipped: usize,
     /// Episodes of the split with nothing to walk, by reason (`no_goal`, `no_motion`).
@@ -822,14 +826,23 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
                 episode_id: e.episode_id.clone(),
                 reason: rec.error.clone().unwrap_or_default(),
             })),
-            Some(walk) if walk.verdict != Verdict::Clean && !s.keep_failed => {
-                let key = serde_json::to_value(walk.verdict)
-                    .ok()
-                    .and_then(|v| v.as_str().map(String::from))
-                    .unwrap_or_default();
-                *counts.dropped.entry(key).or_default() += route.episodes.len();
-            }
             Some(walk) => {
+                let failed = (walk.verdict != Verdict::Clean).then(|| {
+                    serde_json::to_value(walk.verdict)
+                        .ok()
+                        .and_then(|v| v.as_str().map(String::from))
+                        .unwrap_or_default()
+                });
+                match failed {
+                    Some(why) if !s.keep_failed => {
+                        *counts.dropped.entry(why).or_default() += route.episodes.len();
+                        continue;
+                    }
+                    Some(why) => {
+                        *counts.kept_failed.entry(why).or_default() += route.episodes.len()
+                    }
+                    None => {}
+                }
                 counts.frames += walk.steps.len();
                 samples.extend(sample::samples(route, &rec, &s.preset));
             }

@@ -331,7 +331,7 @@ fn other_settings_or_foreign_files_in_the_output_are_refused() {
 }
 
 #[test]
-fn a_render_that_keeps_no_episode_fails_and_writes_no_layout() {
+fn failed_walks_are_counted_dropped_or_kept_and_a_render_keeping_none_writes_no_layout() {
     // Only episodes that must walk a metre or more, and one motion each: no walk reaches its
     // goal, and failed walks are not kept.
     let (scenes, dataset) = data();
@@ -366,6 +366,22 @@ fn a_render_that_keeps_no_episode_fails_and_writes_no_layout() {
     for made in ["meta", "data", "manifest.json"] {
         assert!(!out.join(made).exists(), "{made}");
     }
+    // Kept on request, the same walks are counted by their verdict all the same.
+    s.keep_failed = true;
+    let out = dir.path().join("kept");
+    let m = sage_traindata::render(&s, &out, false, &|_| {}).unwrap();
+    assert!(m.counts.dropped.is_empty(), "{:?}", m.counts);
+    assert_eq!(
+        m.counts.kept_failed.values().sum::<usize>(),
+        m.counts.kept,
+        "{:?}",
+        m.counts
+    );
+    assert!(
+        m.counts.kept_failed.contains_key("far_from_goal"),
+        "{:?}",
+        m.counts
+    );
 }
 
 #[test]
