@@ -235,6 +235,9 @@ fn claim_run_folder(
     scenes: &serde_json::Value,
 ) -> Result<()> {
     let path = out.join(RUN_RECORD);
+    // A rescoring's folder resumed as the evaluation it equals keeps the word of where its
+    // numbers came from.
+    let mut rescored_from = None;
     if path.is_file() {
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         let old: serde_json::Value = serde_json::from_str(&text)
@@ -267,8 +270,9 @@ fn claim_run_folder(
             ))
             .in_file(&path));
         }
+        rescored_from = old.get("rescored_from").cloned();
     }
-    write_run_record(out, settings, dataset_hash, scenes)
+    write_run_record(out, settings, dataset_hash, scenes, rescored_from)
 }
 
 /// The settings as the run record stores them: `settings` with the agent's recorded name.
@@ -279,23 +283,29 @@ pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<
     Ok(recorded)
 }
 
-/// Writes an evaluation's run record: its recorded settings, the split file's hash and the
-/// hashes of its scenes' files ([`scene_inputs`]).
+/// Writes an evaluation's run record: its recorded settings, the split file's hash, the
+/// hashes of its scenes' files ([`scene_inputs`]) and, for a folder a rescoring wrote, the
+/// run it was rescored from.
 pub(crate) fn write_run_record(
     out: &Path,
     recorded: &serde_json::Value,
     dataset_hash: &str,
     scenes: &serde_json::Value,
+    rescored_from: Option<serde_json::Value>,
 ) -> Result<()> {
+    let mut record = serde_json::json!({
+        "settings": recorded,
+        "dataset_hash": dataset_hash,
+        "scene_inputs": scenes,
+    });
+    if let Some(from) = rescored_from {
+        record["rescored_from"] = from;
+    }
     sage_io::run::write_run_record(
         out,
         COMMAND,
         recorded.get("seed").and_then(serde_json::Value::as_u64),
-        serde_json::json!({
-            "settings": recorded,
-            "dataset_hash": dataset_hash,
-            "scene_inputs": scenes,
-        }),
+        record,
     )
 }
 

@@ -76,6 +76,12 @@ pub fn merge_shards(
     // The scenes as they are where the shards are merged; without them there, none.
     let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes).unwrap_or_default();
     let scenes = scene_inputs(&episodes, &dirs);
-    write_run_record(out, &recorded, &sage_io::hash::fnv1a64_hex(&bytes), &scenes)?;
+    write_run_record(
+        out,
+        &recorded,
+        &sage_io::hash::fnv1a64_hex(&bytes),
+        &scenes,
+        None,
+    )?;
     Ok(summary)
 }

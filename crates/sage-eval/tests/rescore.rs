@@ -174,11 +174,16 @@ fn a_rescored_run_has_the_numbers_of_an_evaluation_in_that_mode() {
         assert_eq!(done.rescored + done.faulted, records(&run(from)).len());
         same_numbers(&out, &run(evaluated));
         // The new folder is a run of that evaluation: an `eval` in the same settings resumes it,
-        // with nothing left to run and the same summary.
+        // with nothing left to run, the same summary and the record of its provenance.
         let target = settings(done.to.mode, done.to.dtw);
+        let provenance =
+            |run: &Path| sage_eval::folder::run_record(run).unwrap()["rescored_from"].clone();
+        let from_before = provenance(&out);
+        assert!(from_before["run"].is_string(), "{from_before}");
         let resumed = sage_eval::run(&target, &out, &|_, _| {}).unwrap();
         assert_eq!((resumed.ran, resumed.resumed), (0, resumed.total));
         same_numbers(&out, &run(evaluated));
+        assert_eq!(provenance(&out), from_before);
     }
     // The run rescored is only read.
     assert_eq!(read_tree(&run("sage")).unwrap(), before);
