@@ -267,9 +267,12 @@ impl LlmClient {
             "TEXT MAP:\n{}\nSTARTING POINT: \"starting_point\": \"{start}\"\nEND POINT: \"end_point\": \"{end}\"\nTRAJECTORY ID: \"{trajectory_id}\"\n",
             tm.to_text()
         );
+        // The f32's shortest decimal: widened, 0.7 would go out as 0.699999988079071.
+        let t = self.config.temperature;
+        let temperature: f64 = t.to_string().parse().unwrap_or_else(|_| f64::from(t));
         serde_json::json!({
             "model": self.config.model,
-            "temperature": self.config.temperature,
+            "temperature": temperature,
             "messages": [
                 {"role": "system", "content": PROMPT},
                 {"role": "user", "content": user},

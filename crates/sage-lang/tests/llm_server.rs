@@ -200,6 +200,7 @@ fn asks_with_the_prompt_parses_and_validates() {
     assert_eq!(items.len(), 7);
     let body = state.bodies.lock().unwrap()[0].clone();
     assert_eq!(body["model"], "test-model");
+    assert_eq!(body["temperature"], 0.7);
     assert_eq!(body["messages"][0]["content"], sage_lang::llm::PROMPT);
     let user = body["messages"][1]["content"].as_str().unwrap();
     assert!(

@@ -55,6 +55,12 @@ pub fn base_url(url: &str) -> Result<String> {
     Ok(with_scheme(url)?.trim_end_matches('/').to_string())
 }
 
+/// `x` as the f64 of its shortest decimal: 0.1f32 goes out as `0.1`, where widening it would
+/// send `0.10000000149011612`.
+fn decimal(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or_else(|_| f64::from(x))
+}
+
 /// POSTs `body` as JSON to `url`; the reply's text when the status is 200, else a fault.
 fn post(
     client: &Client,
@@ -151,7 +157,7 @@ impl ChatClient {
                 {"role": "system", "content": CHAT_PROMPT},
                 {"role": "user", "content": content},
             ],
-            "temperature": self.temperature,
+            "temperature": decimal(self.temperature),
             "max_tokens": self.max_tokens,
         })
     }
@@ -199,5 +205,15 @@ mod tests {
         );
         assert_eq!(base_url("https://api.x/v1/").unwrap(), "https://api.x/v1");
         assert!(step_url("ftp://h").is_err());
+    }
+
+    #[test]
+    fn the_chat_request_sends_the_temperature_as_written() {
+        let chat = ChatClient::new("m", "http://h/v1", Duration::from_secs(1), 0.1, 64);
+        let body = chat.request(&["AAAA".into()], "go");
+        assert_eq!(body["temperature"].to_string(), "0.1");
+        assert_eq!(body["max_tokens"], 64);
+        assert_eq!(decimal(0.7), 0.7);
+        assert_eq!(decimal(1.0), 1.0);
     }
 }
