@@ -36,9 +36,10 @@ pub enum AgentKind {
     Human,
 }
 
-/// The kinds as error messages list them.
+/// The kinds an evaluation builds, as error messages list them; `human` is named apart, as
+/// only the viewer plays it.
 const KINDS: &str = "random, forward, oracle, replay:FILE, socket:HOST:PORT, http:URL, \
-                     chat:MODEL@BASE_URL, ws:HOST:PORT, human";
+                     chat:MODEL@BASE_URL, ws:HOST:PORT";
 
 impl AgentKind {
     /// Reads what the kind needs once (the replay file) and returns the maker of one agent
@@ -158,7 +159,8 @@ impl FromStr for AgentKind {
                 Ok(AgentKind::Remote(RemoteSpec::parse("http", s)?))
             }
             _ => Err(Error::invalid(format!(
-                "unknown agent '{s}' (expected one of: {KINDS})"
+                "unknown agent '{s}' (expected one of: {KINDS}; `human`, a person, plays \
+                 only in `sage3d view DATASET --play RUN`)"
             ))),
         }
     }
@@ -280,6 +282,14 @@ mod tests {
             let e = bad.parse::<AgentKind>().unwrap_err().to_string();
             assert!(e.contains(says), "{bad}: {e}");
         }
+        // `human` is not offered as an agent to evaluate: the message says where it plays.
+        let e = "foo".parse::<AgentKind>().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown agent 'foo' (expected one of: random, forward, oracle, replay:FILE, \
+             socket:HOST:PORT, http:URL, chat:MODEL@BASE_URL, ws:HOST:PORT; `human`, a person, \
+             plays only in `sage3d view DATASET --play RUN`)"
+        );
     }
 
     #[test]
