@@ -216,6 +216,42 @@ fn sh_bands_can_be_dropped_not_added() {
 }
 
 #[test]
+fn sh_quantisation_is_reported_only_when_the_output_holds_higher_sh() {
+    let compressed = Format::Ply(SplatLayout::Compressed);
+    let sh = |losses: &[String]| -> Vec<String> {
+        losses
+            .iter()
+            .filter(|l| l.contains("SH"))
+            .cloned()
+            .collect()
+    };
+    // Degree 3 to a compressed PLY of degree 0: the bands are dropped, nothing is quantised.
+    let dropped = splats::convert::losses(compressed, 3, 0);
+    assert_eq!(
+        sh(&dropped),
+        ["SH bands 1–3 dropped (1 of 16 coefficients per colour channel kept)"]
+    );
+    assert!(sh(&splats::convert::losses(compressed, 0, 0)).is_empty());
+    assert!(sh(&splats::convert::losses(Format::Spz, 0, 0)).is_empty());
+    assert_eq!(
+        sh(&splats::convert::losses(compressed, 1, 1)),
+        ["higher SH quantised to 8 bits over [-4, 4]"]
+    );
+    assert_eq!(
+        sh(&splats::convert::losses(Format::Spz, 1, 1)),
+        ["higher SH quantised to 5 bits per coefficient"]
+    );
+    assert_eq!(
+        sh(&splats::convert::losses(Format::Spz, 3, 2))[1],
+        "higher SH quantised to 5 bits (degree 1) and 4 bits (degree 2) per coefficient"
+    );
+    assert_eq!(
+        sh(&splats::convert::losses(Format::Spz, 3, 3)),
+        ["higher SH quantised to 5 bits (degree 1) and 4 bits (degrees 2–3) per coefficient"]
+    );
+}
+
+#[test]
 fn convert_never_replaces_a_file_unasked_and_writes_only_what_it_can() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("mine.ply");

@@ -149,27 +149,44 @@ pub fn losses(to: Format, from_degree: u8, to_degree: u8) -> Vec<String> {
             sh_rest_count(from_degree) + 1
         ));
     }
+    // The SH quantisation is lost only where the output holds higher SH at all.
     match to {
         Format::Ply(SplatLayout::Standard) => {}
-        Format::Ply(SplatLayout::Compressed) => out.extend(
-            [
-                "positions and log-scales quantised to 11-10-11 bits between the bounds of each 256-Gaussian chunk",
-                "rotations normalised and quantised to 10 bits per component (smallest three)",
-                "base colour quantised to 8 bits per channel between each chunk's colour bounds, opacity to 8 bits after the sigmoid",
-                "higher SH quantised to 8 bits over [-4, 4]",
-            ]
-            .map(String::from),
-        ),
-        _ => out.extend(
-            [
-                "positions quantised to 24-bit fixed point (1/4096 m steps)",
-                "log-scales quantised to 8 bits (1/16 steps over [-10, 6))",
-                "rotations normalised and quantised (smallest three, 9 bits per component)",
-                "base colour and opacity quantised to 8 bits",
-                "higher SH quantised to 5 bits (degree 1) and 4 bits (degrees 2–3) per coefficient",
-            ]
-            .map(String::from),
-        ),
+        Format::Ply(SplatLayout::Compressed) => {
+            out.extend(
+                [
+                    "positions and log-scales quantised to 11-10-11 bits between the bounds of each 256-Gaussian chunk",
+                    "rotations normalised and quantised to 10 bits per component (smallest three)",
+                    "base colour quantised to 8 bits per channel between each chunk's colour bounds, opacity to 8 bits after the sigmoid",
+                ]
+                .map(String::from),
+            );
+            if to_degree >= 1 {
+                out.push("higher SH quantised to 8 bits over [-4, 4]".to_string());
+            }
+        }
+        _ => {
+            out.extend(
+                [
+                    "positions quantised to 24-bit fixed point (1/4096 m steps)",
+                    "log-scales quantised to 8 bits (1/16 steps over [-10, 6))",
+                    "rotations normalised and quantised (smallest three, 9 bits per component)",
+                    "base colour and opacity quantised to 8 bits",
+                ]
+                .map(String::from),
+            );
+            match to_degree {
+                0 => {}
+                1 => out.push("higher SH quantised to 5 bits per coefficient".to_string()),
+                2 => out.push(
+                    "higher SH quantised to 5 bits (degree 1) and 4 bits (degree 2) per coefficient"
+                        .to_string(),
+                ),
+                d => out.push(format!(
+                    "higher SH quantised to 5 bits (degree 1) and 4 bits (degrees 2–{d}) per coefficient"
+                )),
+            }
+        }
     }
     out
 }
