@@ -17,6 +17,12 @@ pub const VIEWS_DIR: &str = "views";
 /// The manifest's name inside [`VIEWS_DIR`].
 pub const MANIFEST: &str = "render.json";
 
+/// Why views of a replaced plan are refused, and what to do, the same wherever they are met:
+/// `recon render` never deletes images, so removing them is the user's step.
+const OTHER_PLAN: &str = "the views were rendered for another plan (its views differ from \
+                          plan.json); remove the views folder, then run `sage3d recon render` \
+                          again to render this one";
+
 /// What every view of a folder shares.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
@@ -111,10 +117,9 @@ pub fn prepare(dir: &Path, manifest: &Manifest) -> Result<()> {
     std::fs::create_dir_all(&views).map_err(|e| Error::io(&views, e))?;
     match read_manifest(dir)? {
         Some(m) if m == *manifest => Ok(()),
-        Some(m) if m.plan_views_hash != manifest.plan_views_hash => Err(Error::invalid(
-            "views were rendered for another plan (its views differ from plan.json); remove the views folder to render this one",
-        )
-        .in_file(views.join(MANIFEST))),
+        Some(m) if m.plan_views_hash != manifest.plan_views_hash => {
+            Err(Error::invalid(OTHER_PLAN).in_file(views.join(MANIFEST)))
+        }
         Some(m) => Err(Error::invalid(format!(
             "views already rendered at {}x{} (hfov {}°, {} views); render with the same size or remove the views folder",
             m.width, m.height, m.hfov_deg, m.views
@@ -191,10 +196,7 @@ pub fn export_views(dir: &Path, plan: &Plan) -> Result<Vec<ExportView>> {
             .in_file(dir.join(VIEWS_DIR).join(MANIFEST))
     })?;
     if manifest.plan_views_hash != views_hash(plan)? {
-        return Err(Error::invalid(
-            "the views were rendered for another plan (its views differ from plan.json); render again",
-        )
-        .in_file(dir.join(VIEWS_DIR).join(MANIFEST)));
+        return Err(Error::invalid(OTHER_PLAN).in_file(dir.join(VIEWS_DIR).join(MANIFEST)));
     }
     let missing = pending(dir, plan);
     if let Some(first) = missing.first() {

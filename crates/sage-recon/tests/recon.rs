@@ -12,6 +12,7 @@ use sage_recon::plan::{PlanSettings, Policy, make_plan};
 use sage_recon::raster::{pixel_ray, render_view, to_u8};
 use sage_recon::surfaces::{SceneSurfaces, SurfaceKind, shade};
 use sage_recon::sweep::{Baseline, SweepParams, Tier, perimeter, sweep};
+use sage_recon::views::{self, Manifest};
 use sage_recon::volume::{TEMPLATE, VolumeParams, volume};
 use sage_recon::{PoseTag, apportion};
 use sage_scene::{Floorplan, Object, Room, Scene};
@@ -566,4 +567,44 @@ fn plan_files_round_trip_and_bad_ones_name_the_field() {
     std::fs::write(&path, "{\"format\": 3}").unwrap();
     let e = sage_recon::Plan::load(&path).unwrap_err().to_string();
     assert!(e.contains("plan.json") && e.contains("line 1"), "{e}");
+}
+
+#[test]
+fn views_of_a_replaced_plan_are_refused_with_the_same_advice_everywhere() {
+    let make = |budget| {
+        make_plan(
+            scene(),
+            "scene",
+            surfaces(),
+            &PlanSettings {
+                budget,
+                ..PlanSettings::default()
+            },
+        )
+        .unwrap()
+    };
+    let (old, new) = (make(30), make(45));
+    let dir = tempfile::tempdir().unwrap();
+    views::prepare(dir.path(), &Manifest::new(&old, 24, 16).unwrap()).unwrap();
+    // A rerun plan: rendering refuses the old views, and so does exporting (or fitting), and
+    // both say what works: remove the folder, then render again.
+    let render = views::prepare(dir.path(), &Manifest::new(&new, 24, 16).unwrap())
+        .unwrap_err()
+        .to_string();
+    let export = views::export_views(dir.path(), &new)
+        .unwrap_err()
+        .to_string();
+    for e in [&render, &export] {
+        assert!(
+            e.contains("rendered for another plan")
+                && e.contains("remove the views folder, then run `sage3d recon render` again"),
+            "{e}"
+        );
+    }
+    assert_eq!(render, export);
+    // Nothing was deleted: the old manifest still stands.
+    assert_eq!(
+        views::read_manifest(dir.path()).unwrap(),
+        Some(Manifest::new(&old, 24, 16).unwrap())
+    );
 }
