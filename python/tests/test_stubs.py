@@ -1,8 +1,7 @@
 """The type stubs of the compiled module (`sage3d/_sage3d.pyi`) match the built module: mypy's
 stubtest finds every public name, parameter (names, kinds, defaults) and class member of
 `sage3d._sage3d` in the stub and nothing in the stub that the module lacks. Nothing is
-allowlisted: the four `view` defaults pyo3 shows as `...` (`"sage".to_string()` and the like)
-are `...` in the stub too."""
+allowlisted."""
 
 import os
 import pathlib

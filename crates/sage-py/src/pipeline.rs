@@ -1,13 +1,20 @@
 //! The pipelines from Python: the demo end to end and the dataset build, the same library
 //! functions `sage3d demo` and `sage3d data build` call (`sage-pipeline`).
 
-use crate::convert::{PyResultExt, from_kwargs, to_py};
+use crate::convert::{PyResultExt, arg_extractors, from_kwargs, to_py};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sage_pipeline::dataset::BuildSettings;
 use sage_pipeline::demo::DemoSettings;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
+
+arg_extractors! {
+    demo_out: PathBuf = "demo: out";
+    build_scenes: PathBuf = "build_dataset: scenes";
+    build_out: PathBuf = "build_dataset: out";
+    build_force: bool = "build_dataset: force";
+}
 
 /// Runs the demo into `out` (synthetic scenes, or the scene folders of `from_dir`): scenes,
 /// maps, collision bodies, the dataset, an evaluation with its report per agent and
@@ -19,7 +26,7 @@ use std::path::PathBuf;
 #[pyo3(signature = (out, **settings))]
 pub fn demo<'py>(
     py: Python<'py>,
-    out: PathBuf,
+    #[pyo3(from_py_with = demo_out)] out: PathBuf,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings = DemoSettings {
@@ -47,9 +54,9 @@ pub fn demo<'py>(
 #[pyo3(signature = (scenes, out, force=false, **settings))]
 pub fn build_dataset<'py>(
     py: Python<'py>,
-    scenes: PathBuf,
-    out: PathBuf,
-    force: bool,
+    #[pyo3(from_py_with = build_scenes)] scenes: PathBuf,
+    #[pyo3(from_py_with = build_out)] out: PathBuf,
+    #[pyo3(from_py_with = build_force)] force: bool,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let settings: BuildSettings = from_kwargs(py, settings, "dataset build settings")?;

@@ -1,13 +1,13 @@
 //! Scenes as Python objects: a loaded [`SceneContext`] (from a folder, or synthesised and
 //! cached) and its path finder with Habitat's query names.
 
-use crate::convert::{PyResultExt, array, point, to_py, unsigned};
+use crate::convert::{PyResultExt, arg_extractors, array, to_py};
 use glam::Vec2;
 use numpy::ndarray::Ix1;
 use pyo3::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sage_core::{Error, Result};
+use sage_core::{Error, Result, ResultExt};
 use sage_dataset::build::{SceneParams, scene_episodes};
 use sage_env::SceneContext;
 use sage_scene::{LoadOptions, SplatLayout};
@@ -59,6 +59,20 @@ fn synth_folder(config: &SynthConfig, cache: &Path) -> Result<PathBuf> {
     Ok(dir)
 }
 
+arg_extractors! {
+    load_path: PathBuf = "Scene.load: path";
+    load_cache: Option<PathBuf> = "Scene.load: cache";
+    load_collision: Option<PathBuf> = "Scene.load: collision";
+    synth_cache: PathBuf = "Scene.synth: cache";
+    synth_seed: u64 = "Scene.synth: seed";
+    synth_kind: String = "Scene.synth: kind";
+    synth_rooms: usize = "Scene.synth: rooms";
+    synth_objects: usize = "Scene.synth: objects";
+    synth_gaussians: usize = "Scene.synth: gaussians";
+    episodes_count: usize = "Scene.episodes: count";
+    episodes_seed: u64 = "Scene.episodes: seed";
+}
+
 #[pymethods]
 impl PyScene {
     /// Loads a scene folder (InteriorGS layout) with its collision bodies (hulls cached in
@@ -69,9 +83,9 @@ impl PyScene {
     #[pyo3(signature = (path, cache=None, collision=None))]
     fn load(
         py: Python<'_>,
-        path: PathBuf,
-        cache: Option<PathBuf>,
-        collision: Option<PathBuf>,
+        #[pyo3(from_py_with = load_path)] path: PathBuf,
+        #[pyo3(from_py_with = load_cache)] cache: Option<PathBuf>,
+        #[pyo3(from_py_with = load_collision)] collision: Option<PathBuf>,
     ) -> PyResult<PyScene> {
         let options = LoadOptions { collision };
         let ctx = py
@@ -87,19 +101,24 @@ impl PyScene {
     /// and sizes) and loaded from there, so later calls and other processes reuse the folder and
     /// its collision hulls.
     #[staticmethod]
-    #[pyo3(signature = (cache, seed=0, kind="home", rooms=4, objects=40, gaussians=60_000))]
+    #[pyo3(
+        signature = (cache, seed=0, kind="home".to_string(), rooms=4, objects=40, gaussians=60_000),
+        // PyO3 shows a default it cannot print as a Python literal (`"home".to_string()`) as
+        // `...`: the signature `help()` and `inspect.signature` read is written out here.
+        text_signature = "(cache, seed=0, kind='home', rooms=4, objects=40, gaussians=60000)"
+    )]
     fn synth(
         py: Python<'_>,
-        cache: PathBuf,
-        seed: u64,
-        kind: &str,
-        rooms: usize,
-        objects: usize,
-        gaussians: usize,
+        #[pyo3(from_py_with = synth_cache)] cache: PathBuf,
+        #[pyo3(from_py_with = synth_seed)] seed: u64,
+        #[pyo3(from_py_with = synth_kind)] kind: String,
+        #[pyo3(from_py_with = synth_rooms)] rooms: usize,
+        #[pyo3(from_py_with = synth_objects)] objects: usize,
+        #[pyo3(from_py_with = synth_gaussians)] gaussians: usize,
     ) -> PyResult<PyScene> {
         let config = SynthConfig {
             seed,
-            kind: kind.parse::<SceneKind>().py()?,
+            kind: kind.parse::<SceneKind>().within("kind").py()?,
             rooms,
             objects,
             gaussians,
@@ -158,10 +177,10 @@ impl PyScene {
     fn episodes<'py>(
         &self,
         py: Python<'py>,
-        count: i128,
-        seed: i128,
+        #[pyo3(from_py_with = episodes_count)] count: usize,
+        #[pyo3(from_py_with = episodes_seed)] seed: u64,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let params = SceneParams::new(unsigned("count", count)?, unsigned("seed", seed)?);
+        let params = SceneParams::new(count, seed);
         let (_, episodes) = py
             .detach(|| scene_episodes(&self.ctx.scene, &params, None))
             .py()?;
@@ -194,6 +213,19 @@ impl PyPathFinder {
     }
 }
 
+arg_extractors! {
+    find_path_start: Vec2 = "PathFinder.find_path: start";
+    find_path_goal: Vec2 = "PathFinder.find_path: goal";
+    geodesic_a: Vec2 = "PathFinder.geodesic_distance: a";
+    geodesic_b: Vec2 = "PathFinder.geodesic_distance: b";
+    is_navigable_p: Vec2 = "PathFinder.is_navigable: p";
+    snap_point_p: Vec2 = "PathFinder.snap_point: p";
+    snap_point_max_distance: f32 = "PathFinder.snap_point: max_distance";
+    seed_seed: u64 = "PathFinder.seed: seed";
+    sample_island: Option<u32> = "PathFinder.sample_navigable_point: island";
+    island_p: Vec2 = "PathFinder.island: p";
+}
+
 #[pymethods]
 impl PyPathFinder {
     /// The cheapest path from `start` to `goal` (clearance-aware costs, line-of-sight
@@ -202,11 +234,12 @@ impl PyPathFinder {
     fn find_path<'py>(
         &self,
         py: Python<'py>,
-        start: Vec<f32>,
-        goal: Vec<f32>,
+        #[pyo3(from_py_with = find_path_start)] start: Vec2,
+        #[pyo3(from_py_with = find_path_goal)] goal: Vec2,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (a, b) = (point(&start, "start")?, point(&goal, "goal")?);
-        let path = py.detach(|| self.ctx.pathfinder.find_path(a, b)).py()?;
+        let path = py
+            .detach(|| self.ctx.pathfinder.find_path(start, goal))
+            .py()?;
         let n = path.waypoints.len();
         let flat = path.waypoints.iter().flat_map(|p| [p.x, p.y]).collect();
         array(py, numpy::ndarray::Ix2(n, 2), flat)
@@ -214,16 +247,19 @@ impl PyPathFinder {
 
     /// The geodesic distance between two points in metres; `inf` when either is not
     /// navigable or they are not connected (as Habitat).
-    fn geodesic_distance(&self, py: Python<'_>, a: Vec<f32>, b: Vec<f32>) -> PyResult<f32> {
-        let (a, b) = (point(&a, "a")?, point(&b, "b")?);
-        Ok(py
-            .detach(|| self.ctx.pathfinder.geodesic_distance(a, b))
-            .unwrap_or(f32::INFINITY))
+    fn geodesic_distance(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = geodesic_a)] a: Vec2,
+        #[pyo3(from_py_with = geodesic_b)] b: Vec2,
+    ) -> f32 {
+        py.detach(|| self.ctx.pathfinder.geodesic_distance(a, b))
+            .unwrap_or(f32::INFINITY)
     }
 
     /// True when the point lies on the navigable grid.
-    fn is_navigable(&self, p: Vec<f32>) -> PyResult<bool> {
-        Ok(self.ctx.pathfinder.is_navigable(point(&p, "point")?))
+    fn is_navigable(&self, #[pyo3(from_py_with = is_navigable_p)] p: Vec2) -> bool {
+        self.ctx.pathfinder.is_navigable(p)
     }
 
     /// The navigable cell centre nearest to `p` within `max_distance` metres (`p` itself's
@@ -232,29 +268,21 @@ impl PyPathFinder {
     fn snap_point<'py>(
         &self,
         py: Python<'py>,
-        p: Vec<f32>,
-        max_distance: f32,
+        #[pyo3(from_py_with = snap_point_p)] p: Vec2,
+        #[pyo3(from_py_with = snap_point_max_distance)] max_distance: f32,
     ) -> PyResult<Option<Bound<'py, PyAny>>> {
         if max_distance.is_nan() || max_distance < 0.0 {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
-                "max_distance: {max_distance} is not a distance (0 or more; inf for any)"
+                "PathFinder.snap_point: max_distance: {max_distance} is not a distance (0 or \
+                 more; inf for any)"
             )));
         }
-        let q = self
-            .ctx
-            .pathfinder
-            .snap_point(point(&p, "point")?, max_distance);
+        let q = self.ctx.pathfinder.snap_point(p, max_distance);
         q.map(|q| Self::xy(py, q)).transpose()
     }
 
     /// Reseeds the sampler of [`Self::sample_navigable_point`].
-    fn seed(&self, seed: i128) -> PyResult<()> {
-        // Taken wide, so a negative or huge seed is named rather than an `OverflowError`.
-        let seed = u64::try_from(seed).map_err(|_| {
-            pyo3::exceptions::PyValueError::new_err(format!(
-                "seed: expected a whole number 0 to 2^64 - 1, got {seed}"
-            ))
-        })?;
+    fn seed(&self, #[pyo3(from_py_with = seed_seed)] seed: u64) -> PyResult<()> {
         *self.rng.lock().map_err(|_| poisoned())? = ChaCha8Rng::seed_from_u64(seed);
         Ok(())
     }
@@ -265,9 +293,8 @@ impl PyPathFinder {
     fn sample_navigable_point<'py>(
         &self,
         py: Python<'py>,
-        island: Option<i128>,
+        #[pyo3(from_py_with = sample_island)] island: Option<u32>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let island: Option<u32> = island.map(|i| unsigned("island", i)).transpose()?;
         let mut rng = self.rng.lock().map_err(|_| poisoned())?;
         let p = self
             .ctx
@@ -277,7 +304,7 @@ impl PyPathFinder {
                 let islands = self.ctx.pathfinder.island_areas().len();
                 pyo3::exceptions::PyValueError::new_err(match island {
                     Some(i) => format!(
-                        "island: {i} is not an island (this scene has {islands}: 0-{})",
+                        "PathFinder.sample_navigable_point: island: {i} is not an island (this scene has {islands}: 0-{})",
                         islands.saturating_sub(1)
                     ),
                     None => "the scene has no navigable cell".to_string(),
@@ -287,8 +314,8 @@ impl PyPathFinder {
     }
 
     /// The island (connected component) of a navigable point, or `None`.
-    fn island(&self, p: Vec<f32>) -> PyResult<Option<u32>> {
-        Ok(self.ctx.pathfinder.island(point(&p, "point")?))
+    fn island(&self, #[pyo3(from_py_with = island_p)] p: Vec2) -> Option<u32> {
+        self.ctx.pathfinder.island(p)
     }
 
     /// Area of each island in m², indexed by island id.

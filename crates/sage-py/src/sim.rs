@@ -3,7 +3,7 @@
 //! info record come from sage-env; this module only translates: it releases the GIL while they
 //! reset, step and render, and hands images out as NumPy arrays that own the rendered buffers.
 
-use crate::convert::{PyResultExt, array, drop_none, from_json, to_py};
+use crate::convert::{PyResultExt, arg_extractors, array, drop_none, from_json, to_py};
 use numpy::ndarray::{Ix1, Ix2, Ix3, Ix4};
 use pyo3::exceptions::{PyIndexError, PyValueError};
 use pyo3::prelude::*;
@@ -146,16 +146,27 @@ struct Limits {
     camera_height: f32,
 }
 
+arg_extractors! {
+    env_config_preset: String = "env_config: preset";
+    env_config_overrides: String = "env_config: overrides";
+}
+
 /// Resolves a preset plus JSON overrides for Python callers (the Gymnasium wrappers read
 /// spaces from it), with the agent profile's limits under `profile`.
 #[pyfunction]
-#[pyo3(signature = (preset="sage", overrides="{}"))]
+#[pyo3(
+    signature = (preset="sage".to_string(), overrides="{}".to_string()),
+    // PyO3 shows a default it cannot print as a Python literal (`"sage".to_string()`) as `...`:
+    // the signature `help()` and `inspect.signature` read is written out here.
+    text_signature = "(preset='sage', overrides='{}')"
+)]
 pub fn env_config<'py>(
     py: Python<'py>,
-    preset: &str,
-    overrides: &str,
+    #[pyo3(from_py_with = env_config_preset)] preset: String,
+    #[pyo3(from_py_with = env_config_overrides)] overrides: String,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let config = EnvConfig::with_overrides(preset, &from_json(overrides, "overrides")?).py()?;
+    let overrides = from_json(&overrides, "env_config: overrides")?;
+    let config = EnvConfig::with_overrides(&preset, &overrides).py()?;
     let profile = config.profile().py()?;
     let out = to_py(py, &config)?;
     out.set_item(

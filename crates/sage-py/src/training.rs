@@ -4,7 +4,7 @@
 //! [`training_settings`] from the same keyword arguments [`render_training_data`] takes;
 //! both, like the command line, turn them into settings with `sage_traindata::Options`.
 
-use crate::convert::{PyResultExt, from_json, from_kwargs, to_py};
+use crate::convert::{PyResultExt, arg_extractors, from_json, from_kwargs, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -44,6 +44,13 @@ pub fn training_settings(
     serde_json::to_string(&s).map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
+arg_extractors! {
+    render_dataset: PathBuf = "render_training_data: dataset";
+    render_scenes: Option<PathBuf> = "render_training_data: scenes";
+    render_out: PathBuf = "render_training_data: out";
+    render_force: bool = "render_training_data: force";
+}
+
 /// Renders (or resumes) a training set into `out`, as `sage3d data render DATASET --scenes
 /// SCENES --out OUT ...` does (the same pipeline function, the same files byte for byte;
 /// `scenes=None`: the scenes folder the dataset records, as without `--scenes`). The keyword
@@ -61,10 +68,10 @@ pub fn training_settings(
 #[pyo3(signature = (dataset, scenes, out, force=false, **options))]
 pub fn render_training_data<'py>(
     py: Python<'py>,
-    dataset: PathBuf,
-    scenes: Option<PathBuf>,
-    out: PathBuf,
-    force: bool,
+    #[pyo3(from_py_with = render_dataset)] dataset: PathBuf,
+    #[pyo3(from_py_with = render_scenes)] scenes: Option<PathBuf>,
+    #[pyo3(from_py_with = render_out)] out: PathBuf,
+    #[pyo3(from_py_with = render_force)] force: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = self::options(py, dataset, scenes, options)?;

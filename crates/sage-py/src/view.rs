@@ -1,12 +1,27 @@
 //! The browser viewer from Python: `sage3d.view(path)` serves what `sage3d view PATH` serves
 //! (`sage-view`), until Ctrl-C.
 
-use crate::convert::PyResultExt;
+use crate::convert::{Callable, PyResultExt, arg_extractors};
 use pyo3::prelude::*;
 use sage_core::{Error, ResultExt};
 use sage_view::ViewOptions;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
+
+arg_extractors! {
+    view_path: PathBuf = "view: path";
+    view_scenes: Option<PathBuf> = "view: scenes";
+    view_split: Option<String> = "view: split";
+    view_play: Option<PathBuf> = "view: play";
+    view_force: bool = "view: force";
+    view_preset: String = "view: preset";
+    view_mode: String = "view: mode";
+    view_device: String = "view: device";
+    view_host: String = "view: host";
+    view_port: u16 = "view: port";
+    view_public: bool = "view: public";
+    view_on_ready: Option<Callable> = "view: on_ready";
+}
 
 /// Serves the viewer over `path` (a scene, a folder of scenes, a dataset or an evaluation run)
 /// until interrupted (Ctrl-C, which is raised as `KeyboardInterrupt` when the server has
@@ -15,26 +30,33 @@ use std::sync::{Arc, Mutex};
 /// it raises stops the server and is raised here. `play=RUN` records human play of the
 /// dataset split into the run folder RUN.
 #[pyfunction]
-#[pyo3(signature = (
-    path, *, scenes=None, split=None, play=None, force=false, preset="sage".to_string(),
-    mode="sage".to_string(), device="cpu".to_string(), host="127.0.0.1".to_string(), port=8765,
-    public=false, on_ready=None
-))]
+#[pyo3(
+    signature = (
+        path, *, scenes=None, split=None, play=None, force=false, preset="sage".to_string(),
+        mode="sage".to_string(), device="cpu".to_string(), host="127.0.0.1".to_string(),
+        port=8765, public=false, on_ready=None
+    ),
+    // PyO3 shows a default it cannot print as a Python literal (`"sage".to_string()`) as `...`:
+    // the signature `help()` and `inspect.signature` read is written out here.
+    text_signature = "(path, *, scenes=None, split=None, play=None, force=False, preset='sage', \
+                      mode='sage', device='cpu', host='127.0.0.1', port=8765, public=False, \
+                      on_ready=None)"
+)]
 #[allow(clippy::too_many_arguments)]
 pub fn view(
     py: Python<'_>,
-    path: PathBuf,
-    scenes: Option<PathBuf>,
-    split: Option<String>,
-    play: Option<PathBuf>,
-    force: bool,
-    preset: String,
-    mode: String,
-    device: String,
-    host: String,
-    port: i128,
-    public: bool,
-    on_ready: Option<Py<PyAny>>,
+    #[pyo3(from_py_with = view_path)] path: PathBuf,
+    #[pyo3(from_py_with = view_scenes)] scenes: Option<PathBuf>,
+    #[pyo3(from_py_with = view_split)] split: Option<String>,
+    #[pyo3(from_py_with = view_play)] play: Option<PathBuf>,
+    #[pyo3(from_py_with = view_force)] force: bool,
+    #[pyo3(from_py_with = view_preset)] preset: String,
+    #[pyo3(from_py_with = view_mode)] mode: String,
+    #[pyo3(from_py_with = view_device)] device: String,
+    #[pyo3(from_py_with = view_host)] host: String,
+    #[pyo3(from_py_with = view_port)] port: u16,
+    #[pyo3(from_py_with = view_public)] public: bool,
+    #[pyo3(from_py_with = view_on_ready)] on_ready: Option<Callable>,
 ) -> PyResult<()> {
     let opts = ViewOptions {
         scenes,
@@ -48,7 +70,7 @@ pub fn view(
             .parse()
             .map_err(|_| Error::invalid(format!("host: '{host}' is not an IP address")))
             .py()?,
-        port: crate::convert::unsigned("port", port)?,
+        port,
         public,
         ..ViewOptions::new(path)
     };
@@ -65,7 +87,7 @@ pub fn view(
             &opts,
             |server| {
                 Python::attach(|py| match &on_ready {
-                    Some(f) => {
+                    Some(Callable(f)) => {
                         if let Err(e) = f.call1(py, (server.url.clone(),)) {
                             keep(e);
                         }

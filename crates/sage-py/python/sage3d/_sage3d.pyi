@@ -1,5 +1,6 @@
 # Stubs for the compiled module `sage3d._sage3d` (crates/sage-py/src/*.rs, pyo3). Names in the
-# order of `__all__` (lib.rs); defaults as the `#[pyo3(signature = ...)]` attributes give them.
+# order of `__all__` (lib.rs); defaults as the `#[pyo3(signature = ...)]` attributes give them
+# (or their `text_signature`, where a default is no Python literal in Rust).
 # Checked against the built module by python/tests/test_stubs.py (mypy.stubtest).
 #
 # Dicts built from sage3d's JSON (episodes, summaries, manifests, configs, infos) are
@@ -189,12 +190,10 @@ def view(
     split: str | None = None,
     play: _Path | None = None,
     force: bool = False,
-    # Rust defaults "sage", "sage", "cpu", "127.0.0.1": written `String` expressions
-    # (`"sage".to_string()`), which pyo3's text signature shows as `...`.
-    preset: str = ...,
-    mode: str = ...,
-    device: str = ...,
-    host: str = ...,
+    preset: str = "sage",
+    mode: str = "sage",
+    device: str = "cpu",
+    host: str = "127.0.0.1",
     port: int = 8765,
     public: bool = False,
     on_ready: Callable[[str], object] | None = None,

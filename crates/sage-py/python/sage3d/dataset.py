@@ -6,7 +6,7 @@ import json
 import os
 from collections.abc import Iterable, Iterator
 
-from . import _sage3d
+from . import _args, _sage3d
 
 #: Episode fields a filter may name; ``assets`` and ``path`` are the complexity slices.
 FILTER_KEYS = ("task", "level", "instruction_type", "subtype", "source", "scene", "assets", "path")
@@ -18,6 +18,24 @@ def _value(episode: dict, key: str):
     return episode.get(key)
 
 
+def check_filters(filters: dict) -> dict[str, set]:
+    """The accepted values of each episode filter (see :func:`filter_episodes`), after checking
+    the filters' names and the types of their values."""
+    unknown = set(filters) - set(FILTER_KEYS)
+    if unknown:
+        raise ValueError(f"unknown episode filter {sorted(unknown)} (expected some of {list(FILTER_KEYS)})")
+    accept = {}
+    for k, v in filters.items():
+        values = [v] if v is None or isinstance(v, str) else None
+        if values is None and isinstance(v, Iterable) and not isinstance(v, (bytes, dict)):
+            values = list(v)
+        if values is None or not all(x is None or isinstance(x, str) for x in values):
+            raise TypeError(f"{k}: expected an episode field's value (a string, or None) or a "
+                            f"collection of them, got {_args.got(v)}")
+        accept[k] = set(values)
+    return accept
+
+
 def filter_episodes(episodes: Iterable[dict], **filters) -> list[dict]:
     """The episodes whose fields match every filter.
 
@@ -26,12 +44,12 @@ def filter_episodes(episodes: Iterable[dict], **filters) -> list[dict]:
     ``assets="many"``, ``path="long"`` (the slices), ``scene=...``. ``None`` matches episodes
     without the field (no-goal episodes have no level).
     """
-    unknown = set(filters) - set(FILTER_KEYS)
-    if unknown:
-        raise ValueError(f"unknown episode filter {sorted(unknown)} (expected some of {list(FILTER_KEYS)})")
-    accept = {
-        k: {v} if v is None or isinstance(v, str) else set(v) for k, v in filters.items()
-    }
+    accept = check_filters(filters)
+    episodes = _args.sequence("episodes", episodes, "of episode dicts")
+    for e in episodes:
+        if not isinstance(e, dict):
+            raise TypeError(f"episodes: expected a list of episode dicts, got a list holding "
+                            f"{_args.got(e)}")
     return [e for e in episodes if all(_value(e, k) in ok for k, ok in accept.items())]
 
 
@@ -39,12 +57,15 @@ class Dataset:
     """A dataset folder: ``episodes/{split}.jsonl``, ``splits.json``, ``summary.json``."""
 
     def __init__(self, path: str | os.PathLike):
-        self.path = os.fspath(path)
+        self.path = _args.path("Dataset: path", path)
         self.splits = _sage3d.list_splits(self.path)
 
     def episodes(self, split: str = "train", **filters) -> list[dict]:
         """The episodes of ``split`` (dicts in the JSONL schema), filtered as
         :func:`filter_episodes`."""
+        split = _args.text("Dataset.episodes: split", split)
+        # Before the split is read, so that a bad filter is named whatever the split holds.
+        check_filters(filters)
         return filter_episodes(_sage3d.read_split(self.path, split), **filters)
 
     def __iter__(self) -> Iterator[tuple[str, list[dict]]]:
@@ -63,4 +84,4 @@ class Dataset:
 
 def load_dataset(path: str | os.PathLike) -> Dataset:
     """Opens a dataset folder written by ``sage3d data build``."""
-    return Dataset(path)
+    return Dataset(_args.path("load_dataset: path", path))

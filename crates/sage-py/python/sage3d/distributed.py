@@ -23,8 +23,8 @@ import sys
 import tempfile
 import time
 
-from . import _sage3d
-from .evaluation import agent_factory, agent_name, overrides_json
+from . import _args, _sage3d
+from .evaluation import agent_factory, agent_name, check_agent, overrides_json
 
 
 def _ray():
@@ -145,11 +145,15 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     CLI's does. ``progress`` prints a line per finished scene. Returns ``{"scenes": [outcome
     per scene], "summary": ...}``.
     """
-    ray = _ray()
-    out = os.fspath(out)
-    # A misspelt or bad setting fails here, naming it, not in every task.
+    # Every argument is checked before Ray starts; a misspelt or bad setting fails here, naming
+    # it, not in every task.
+    scenes = _args.path("generate: scenes", scenes)
+    out = _args.path("generate: out", out)
+    num_cpus = _args.number("generate: num_cpus", num_cpus)
+    progress = _args.flag("generate: progress", progress)
     _sage3d.check_build_settings(out, **settings)
-    dirs = [os.fspath(d) for d in _sage3d.scene_dirs(os.fspath(scenes))]
+    ray = _ray()
+    dirs = [os.fspath(d) for d in _sage3d.scene_dirs(scenes)]
     task = ray.remote(num_cpus=num_cpus)(_build_scene)
     refs = {task.remote(d, out, settings): os.path.basename(d) for d in dirs}
     outcomes = {}
@@ -172,7 +176,7 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     finally:
         tasks.close()
     tasks.raise_failed("dataset generation", len(refs), out)
-    summary = _sage3d.assemble_dataset(out, dirs, os.fspath(scenes), **settings)
+    summary = _sage3d.assemble_dataset(out, dirs, scenes, **settings)
     return {"scenes": [outcomes[os.path.basename(d)] for d in dirs], "summary": summary}
 
 
@@ -204,13 +208,20 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
+    # Every argument is checked before Ray starts.
+    check_agent("distributed.evaluate: agent", agent)
+    dataset = _args.path("distributed.evaluate: dataset", dataset)
+    given_scenes = _args.optional_path("distributed.evaluate: scenes", scenes)
+    out = _args.path("distributed.evaluate: out", out)
+    num_cpus = _args.number("distributed.evaluate: num_cpus", num_cpus)
+    max_retries = _args.whole("distributed.evaluate: max_retries", max_retries)
+    progress = _args.flag("distributed.evaluate: progress", progress)
+    overrides = overrides_json(width, height, sensors, config)
     split = _sage3d.evaluation_options(**options)["split"]
     ray = _ray()
-    dataset, out = os.fspath(dataset), os.fspath(out)
-    scenes = os.fspath(_sage3d.scenes_folder(dataset, None if scenes is None else os.fspath(scenes)))
+    scenes = os.fspath(_sage3d.scenes_folder(dataset, given_scenes))
     episodes = _sage3d.read_split(dataset, split)
     names = sorted({e["scene"] for e in episodes})
-    overrides = overrides_json(width, height, sensors, config)
     spec = _sage3d.agent_spec(agent) if isinstance(agent, str) else None
     name = spec["name"] if spec else agent_name(agent)
     kwargs = dict(options, agent_name=None if isinstance(agent, str) else name,
@@ -296,7 +307,8 @@ def _progress(total, unit, desc, show=True):
     task on stderr. Returns ``(step(key, note, done), note(text), close())``; ``note`` prints a
     line whether or not progress is shown."""
     try:
-        from tqdm.auto import tqdm
+        # tqdm is optional and ships no type hints (types-tqdm has them).
+        from tqdm.auto import tqdm  # type: ignore[import-untyped, import-not-found, unused-ignore]
     except ImportError:
         tqdm = None
     if show and tqdm is not None:
@@ -341,18 +353,23 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     scene, after the other scenes are written (a rerun renders only what is missing).
     Returns the manifest.
     """
-    ray = _ray()
-    dataset, out = os.fspath(dataset), os.fspath(out)
-    scenes = None if scenes is None else os.fspath(scenes)
+    # Every argument is checked before Ray starts.
+    dataset = _args.path("distributed.render_training_data: dataset", dataset)
+    scenes = _args.optional_path("distributed.render_training_data: scenes", scenes)
+    out = _args.path("distributed.render_training_data: out", out)
+    num_cpus = _args.number("distributed.render_training_data: num_cpus", num_cpus)
+    force = _args.flag("distributed.render_training_data: force", force)
+    progress = _args.flag("distributed.render_training_data: progress", progress)
     settings = _sage3d.training_settings(dataset, scenes, **kwargs)
+    ray = _ray()
     finished = _sage3d.training_claim(settings, out, force)
     if finished is not None:
         return finished
     pending = {}
-    for scene, progress in _sage3d.training_progress(settings, out).items():
-        if len(progress["done"]) < progress["routes"]:
+    for scene, state in _sage3d.training_progress(settings, out).items():
+        if len(state["done"]) < state["routes"]:
             done = {}
-            for rel in progress["done"]:
+            for rel in state["done"]:
                 with open(os.path.join(out, rel), "rb") as f:
                     done[rel] = f.read()
             pending[scene] = done

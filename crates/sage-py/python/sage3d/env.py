@@ -12,13 +12,15 @@ import os
 import string
 import tempfile
 from collections.abc import Iterable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from . import _sage3d
-from .dataset import Dataset, filter_episodes
+from . import _args, _sage3d
+from ._args import whole
+from .dataset import Dataset, check_filters, filter_episodes
 
 #: The renderer's far plane (metres): the largest depth an image holds (0 where nothing is hit).
 DEPTH_FAR = 100.0
@@ -34,7 +36,7 @@ DEVICES = ("cpu", "gpu", "auto")
 def check_device(device: str) -> str:
     """``device`` when it is one of :data:`DEVICES`, else ``ValueError``."""
     if device not in DEVICES:
-        raise ValueError(f"unknown device {device!r} (expected one of {', '.join(DEVICES)})")
+        raise ValueError(f"device: unknown device {device!r} (expected one of {', '.join(DEVICES)})")
     return device
 
 
@@ -44,6 +46,7 @@ def sensor_names(sensors: str | Iterable[str]) -> list[str]:
     names; ``ValueError`` naming any that is not one of :data:`SENSORS`."""
     if isinstance(sensors, str):
         sensors = sensors.split(",")
+    sensors = _args.sequence("sensors", sensors, 'of sensor names, or "rgb,depth"')
     names = [str(n).strip() for n in sensors]
     names = [n for n in names if n]
     unknown = sorted(set(names) - set(SENSORS))
@@ -52,7 +55,7 @@ def sensor_names(sensors: str | Iterable[str]) -> list[str]:
     return names
 
 
-def check_options(options, known: tuple[str, ...]) -> dict:
+def check_options(options: Any, known: tuple[str, ...]) -> dict:
     """The ``options`` of ``reset`` as a dict (``None``: none), after checking that every key
     is one of ``known``: a misspelt key would otherwise be ignored and the episode drawn at
     random instead of the one asked for."""
@@ -77,8 +80,9 @@ def synth_scene(seed: int = 0, kind: str = "home", rooms: int = 4, objects: int 
                 gaussians: int = 60_000, cache: str | None = None) -> _sage3d.Scene:
     """A synthetic scene, generated on first use and then loaded from the cache (keyed by
     kind, seed and sizes; collision hulls are cached beside it)."""
+    cache = _args.optional_path("cache", cache)
     root = os.path.join(cache or cache_dir(), "synth")
-    return _sage3d.Scene.synth(root, seed=whole("seed", seed), kind=kind,
+    return _sage3d.Scene.synth(root, seed=whole("seed", seed), kind=_args.text("kind", kind),
                                rooms=whole("rooms", rooms, 1), objects=whole("objects", objects),
                                gaussians=whole("gaussians", gaussians, 1))
 
@@ -105,7 +109,7 @@ def config_overrides(width: int | None = None, height: int | None = None,
     if height is not None:
         s["height"] = whole("height", height, 1)
     if hfov is not None:
-        s["hfov_deg"] = float(hfov)
+        s["hfov_deg"] = _args.number("hfov", hfov)
     if sensors is not None:
         names = sensor_names(sensors)
         s.update({k: k in names for k in SENSORS})
@@ -117,18 +121,11 @@ def config_overrides(width: int | None = None, height: int | None = None,
         o["actions"] = {"kind": "uav", "max_dt": MAX_DT}
         o["agent"] = "uav"
     elif actions != "discrete":
-        raise ValueError(f"unknown action space {actions!r} (expected discrete, ground or uav)")
+        raise ValueError(f"actions: unknown action space {actions!r} (expected discrete, ground or uav)")
     if max_steps is not None:
         o["task"] = {"max_steps": whole("max_steps", max_steps, 1)}
-    return _merge(o, config or {})
-
-
-def whole(name: str, value, least: int = 0) -> int:
-    """``value`` as an int of at least ``least``, or a ``ValueError`` naming ``name`` (a negative
-    count would otherwise reach the Rust side as an ``OverflowError`` that names nothing)."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise ValueError(f"{name}: expected a whole number >= {least}, got {value!r}")
-    return int(value)
+    config = {} if config is None else _args.mapping("config", config, "of EnvConfig fields")
+    return _merge(o, config)
 
 
 def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", episodes=None,
@@ -136,26 +133,38 @@ def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", ep
                  seed: int = 0, synth: dict | None = None):
     """The scenes and episodes an environment draws from: ``(scenes, episodes, scene_of)``,
     episode ``i`` running in ``scenes[scene_of[i]]``."""
-    filters = dict(filters or {})
+    filters = {} if filters is None else _args.mapping("filters", filters, "of episode filters")
     if task is not None:
         filters["task"] = task
+    # Every argument is checked before a scene is loaded or synthesised.
+    check_filters(filters)
+    split = _args.text("split", split)
+    dataset = _args.optional_path("dataset", dataset)
+    scenes = _args.optional_path("scenes", scenes)
+    seed = whole("seed", seed)
+    synth = {} if synth is None else _args.mapping("synth", synth, "of synth_scene's arguments")
+    if scene is not None and not isinstance(scene, _sage3d.Scene):
+        if not isinstance(scene, (str, os.PathLike)):
+            raise TypeError(f"scene: expected a sage3d.Scene or a scene folder (str or os.PathLike), "
+                            f"got {_args.got(scene)}")
+        scene = _args.path("scene", scene)
     if dataset is not None:
         if scenes is None:
             raise ValueError("dataset= needs scenes= (the scene folder, or the folder of scene folders)")
         eps = Dataset(dataset).episodes(split, **filters)
-        dirs = {os.path.basename(d): d for d in _sage3d.scene_dirs(os.fspath(scenes))}
+        dirs = {os.path.basename(d): d for d in _sage3d.scene_dirs(scenes)}
         names = sorted({e["scene"] for e in eps})
         missing = [n for n in names if n not in dirs]
         if missing:
-            raise ValueError(f"scenes {missing} of the dataset are not in {os.fspath(scenes)!r}")
+            raise ValueError(f"scenes {missing} of the dataset are not in {scenes!r}")
         loaded = [_sage3d.Scene.load(dirs[n]) for n in names]
         index = {n: i for i, n in enumerate(names)}
         scene_of = [index[e["scene"]] for e in eps]
     else:
         if scene is None:
-            scene = synth_scene(**(synth or {}))
+            scene = synth_scene(**synth)
         elif not isinstance(scene, _sage3d.Scene):
-            scene = _sage3d.Scene.load(os.fspath(scene))
+            scene = _sage3d.Scene.load(scene)
         eps = episodes if episodes is not None else scene.episodes(
             count=whole("num_episodes", num_episodes, 1), seed=seed)
         eps = filter_episodes(eps, **filters)
@@ -171,7 +180,7 @@ def observation_space(config: dict, instructions: Iterable[str]) -> spaces.Dict:
     s = config["sensors"]
     h, w = s["height"], s["width"]
     dw, dh = s.get("depth_size") or (w, h)
-    d = {}
+    d: dict[str, spaces.Space[Any]] = {}
     if s["rgb"]:
         d["rgb"] = spaces.Box(0, 255, (h, w, 3), np.uint8)
     if s["depth"]:
@@ -187,14 +196,14 @@ def observation_space(config: dict, instructions: Iterable[str]) -> spaces.Dict:
     return spaces.Dict(d)
 
 
-def check_discrete(space: spaces.Space, action) -> None:
+def check_discrete(space: spaces.Space, action: Any, name: str = "action") -> None:
     """Refuses an index outside a discrete action space: the simulator takes every index of
     the six actions, but an env made without ``look`` offers four, and LOOK_UP / LOOK_DOWN
     must not pass as if offered. (Velocities outside a Box are clamped to the agent's limits by
-    the physics, as documented.)"""
+    the physics, as documented.) ``name`` is the argument the message names."""
     if isinstance(space, spaces.MultiDiscrete):
         indices = np.asarray(action)
-        # A batch of another size: the simulator's message names the count it wants.
+        # Not one index per sub-environment: the simulator's message says what it wants.
         if indices.shape != space.shape:
             return
         inside = np.issubdtype(indices.dtype, np.integer) and space.contains(indices.astype(np.int64))
@@ -203,7 +212,7 @@ def check_discrete(space: spaces.Space, action) -> None:
     else:
         return
     if not inside:
-        raise ValueError(f"action {action!r} is not in the action space {space}")
+        raise ValueError(f"{name}: {action!r} is not in the action space {space}")
 
 
 def action_space(config: dict, look: bool = False) -> spaces.Space:
@@ -226,13 +235,16 @@ class _Prepared:
     """What the single and the vector environment do first with their keyword arguments."""
 
     def _prepare(self, render_mode, scene, dataset, scenes, split, episodes, task, filters,
-                 num_episodes, seed, synth, preset, width, height, sensors, actions, max_steps,
-                 hfov, config, device):
-        """Checks ``render_mode``, resolves the configuration into ``self.config`` and gathers
-        the episode pool into ``self.scenes``; returns (overrides JSON, scenes, episodes,
-        scene of each episode)."""
+                 num_episodes, seed, synth, preset, width, height, sensors, actions, look,
+                 max_steps, hfov, config, mode, device):
+        """Checks ``render_mode``, ``look`` and ``mode``, resolves the configuration into
+        ``self.config`` and gathers the episode pool into ``self.scenes``; returns (overrides
+        JSON, scenes, episodes, scene of each episode)."""
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode {render_mode!r} is not one of {self.metadata['render_modes']}")
+            raise ValueError(f"render_mode: expected None or one of {self.metadata['render_modes']}, "
+                             f"got {render_mode!r}")
+        _args.flag("look", look)
+        _args.text("mode", mode)
         self.render_mode = render_mode
         if render_mode == "rgb_array" and sensors is not None:
             # Names, not text: "depth" as a string would otherwise be spread into letters.
@@ -279,12 +291,13 @@ class SageEnv(_Prepared, gym.Env):
                  device: str = "cpu"):
         overrides, pool_scenes, eps, scene_of = self._prepare(
             render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
-            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config, device)
+            seed, synth, preset, width, height, sensors, actions, look, max_steps, hfov, config,
+            mode, device)
         self._sim = _sage3d.Sim(pool_scenes, _json(eps), scene_of, preset, overrides, mode)
         self._ids = {e["episode_id"]: i for i, e in enumerate(eps)}
         self.observation_space = observation_space(self.config, (e["instruction"] for e in eps))
         self.action_space = action_space(self.config, look)
-        self._last = None
+        self._last: dict[str, Any] | None = None
 
     @property
     def episodes(self) -> list[dict]:
@@ -319,7 +332,7 @@ class SageEnv(_Prepared, gym.Env):
         options = check_options(options, self.RESET_OPTIONS)
         if "episode_id" in options and "episode_index" in options:
             raise ValueError("reset options: name the episode by episode_id or by episode_index, not both")
-        super().reset(seed=seed)
+        super().reset(seed=None if seed is None else whole("seed", seed))
         obs, info = self._sim.reset(self._index(options))
         self._last = obs
         return obs, info

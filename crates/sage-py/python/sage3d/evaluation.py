@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import copy
-import os
 import warnings
 
-from . import _sage3d
+from . import _args, _sage3d
 from .env import _json, config_overrides
 
 
@@ -19,6 +18,14 @@ def agent_name(agent) -> str:
     if isinstance(name, str) and name:
         return name
     return agent.__name__ if isinstance(agent, type) else type(agent).__name__
+
+
+def check_agent(what: str, agent) -> None:
+    """Refuses what is no agent at all (``agent=123``) before any episode runs, naming ``what``
+    (the argument)."""
+    if not (isinstance(agent, str) or callable(agent) or callable(getattr(agent, "act", None))):
+        raise TypeError(f"{what}: expected an agent string, a class, or an object with act(obs), "
+                        f"got {_args.got(agent)}")
 
 
 def agent_factory(agent):
@@ -79,20 +86,24 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
-    if not (isinstance(agent, str) or callable(agent) or callable(getattr(agent, "act", None))):
-        raise TypeError(f"agent: expected an agent string, a class, or an object with act(obs), "
-                        f"got {type(agent).__name__}")
-    if isinstance(scenes_only, (str, bytes)):
-        # A string is a sequence too: it would be taken letter by letter.
-        raise TypeError(f"scenes_only: expected a list of scene names, got the string {scenes_only!r}")
+    check_agent("evaluate: agent", agent)
+    dataset = _args.path("evaluate: dataset", dataset)
+    scenes = _args.optional_path("evaluate: scenes", scenes)
+    out = _args.path("evaluate: out", out)
+    if scenes_only is not None:
+        scenes_only = _args.sequence("evaluate: scenes_only", scenes_only, "of scene names")
+        for name in scenes_only:
+            if not isinstance(name, str):
+                raise TypeError(f"evaluate: scenes_only: expected a list of scene names, got a list holding "
+                                f"{_args.got(name)}")
+    strict = _args.flag("evaluate: strict", strict)
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
-        os.fspath(dataset), None if scenes is None else os.fspath(scenes), os.fspath(out),
-        agent_factory(agent),
+        dataset, scenes, out, agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), overrides=overrides,
         scenes_only=scenes_only, strict=strict, **options)
     summary = result["summary"]
     if summary["episodes"] and len(summary["failed"]) == summary["episodes"]:
         warnings.warn(f"every episode of the run faulted ({summary['episodes']}); see the records' "
-                      f"\"error\" fields in {os.fspath(out)}/episodes.jsonl", RuntimeWarning, stacklevel=2)
+                      f"\"error\" fields in {out}/episodes.jsonl", RuntimeWarning, stacklevel=2)
     return result

@@ -43,6 +43,8 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from . import _args
+
 MANIFEST = "manifest.json"
 IMAGES_DIR = "images"
 ROUTE_FILE = "route.json"
@@ -121,7 +123,7 @@ class TrainingSet:
     """
 
     def __init__(self, path):
-        self.path = os.fspath(path)
+        self.path = _args.path("TrainingSet: path", path)
         manifest = os.path.join(self.path, MANIFEST)
         if not os.path.isfile(manifest):
             raise FileNotFoundError(
@@ -170,15 +172,13 @@ class TrainingSet:
         ``images=False`` skips the image files (no image keys). ``shard=(i, n)`` yields only
         the episodes at positions i, i + n, i + 2n, … (one data-loader worker's share).
         """
-        for ep in self._episodes(images, shard):
-            ep.pop("_navila", None)
-            yield ep
+        # Checked here, outside the generator, so that a bad argument fails the call itself
+        # rather than the first step of the iteration.
+        images = _args.flag("TrainingSet.episodes: images", images)
+        part = _shard("TrainingSet.episodes: shard", shard)
+        return (_public(ep) for ep in self._episodes(images, part))
 
-    def _episodes(self, images: bool, shard: tuple | None) -> Iterator[dict]:
-        if shard is not None:
-            i, n = shard
-            if not (0 <= i < n):
-                raise ValueError(f"shard: expected (i, n) with 0 <= i < n, got {shard!r}")
+    def _episodes(self, images: bool, shard: tuple[int, int] | None) -> Iterator[dict]:
         readers = {"navila": self._navila, "webdataset": self._webdataset,
                    "frames": self._frames}
         for pos, (record, read) in enumerate(readers[self.format]()):
@@ -195,6 +195,9 @@ class TrainingSet:
         the question, the answer and the frame count are the annotation parts' own (the
         order is not their shuffled one). ``shard`` as in :meth:`episodes`.
         """
+        return self._samples(_shard("TrainingSet.samples: shard", shard))
+
+    def _samples(self, shard: tuple[int, int] | None) -> Iterator[dict]:
         for ep in self._episodes(True, shard):
             # The NaVILA layout's own question, answers and frame counts, else the record's.
             navila = ep.pop("_navila", None) or {
@@ -270,6 +273,26 @@ class TrainingSet:
                 with open(path) as f:
                     cached = ((scene, route), json.load(f))
             yield _navila_record(ep, scene, route, cached[1]), read
+
+
+def _shard(what: str, shard: Any) -> tuple[int, int] | None:
+    """``shard`` as ``(i, n)``, two whole numbers with 0 <= i < n, or None."""
+    if shard is None:
+        return None
+    if not (isinstance(shard, (tuple, list)) and len(shard) == 2
+            and all(isinstance(k, (int, np.integer)) and not isinstance(k, bool) for k in shard)):
+        raise TypeError(f"{what}: expected (i, n), two whole numbers, got {_args.got(shard)}")
+    i, n = int(shard[0]), int(shard[1])
+    if not (0 <= i < n):
+        raise ValueError(f"{what}: expected (i, n) with 0 <= i < n, got {shard!r}")
+    return i, n
+
+
+def _public(ep: dict) -> dict:
+    """An episode as :meth:`TrainingSet.episodes` yields it: without the NaVILA layout's own
+    question, answers and frame counts, which only :meth:`TrainingSet.samples` reads."""
+    ep.pop("_navila", None)
+    return ep
 
 
 def _wds_sample(path, key, group):
@@ -371,8 +394,10 @@ def _episode(record: dict, read: Callable[[str], bytes] | None) -> dict:
 
 def _torch_dataset_class():
     try:
-        import torch
-        from torch.utils.data import IterableDataset, get_worker_info
+        # PyTorch is optional: without it installed, mypy has nothing to check these against.
+        import torch  # type: ignore[import-not-found, unused-ignore]
+        from torch.utils.data import (  # type: ignore[import-not-found, unused-ignore]
+            IterableDataset, get_worker_info)
     except ImportError as e:
         raise ImportError("sage3d.training.TorchDataset needs PyTorch: pip install torch") from e
 
@@ -392,9 +417,12 @@ def _torch_dataset_class():
         def __init__(self, path, transform: Callable | None = None,
                      channels_first: bool = True):
             super().__init__()
+            if transform is not None and not callable(transform):
+                raise TypeError(f"TorchDataset: transform: expected a callable or None, got "
+                                f"{_args.got(transform)}")
             self.training_set = TrainingSet(path)
             self.transform = transform
-            self.channels_first = channels_first
+            self.channels_first = _args.flag("TorchDataset: channels_first", channels_first)
 
         def __len__(self) -> int:
             return len(self.training_set)

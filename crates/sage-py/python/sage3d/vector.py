@@ -4,6 +4,7 @@ Gymnasium ``VectorEnv`` with next-step autoreset."""
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
 from gymnasium.error import ClosedEnvironmentError
@@ -11,9 +12,9 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from . import _sage3d
-from .env import (_json, _Prepared, action_space, check_discrete, check_options, observation_space,
-                  whole)
+from . import _args, _sage3d
+from ._args import whole
+from .env import _json, _Prepared, action_space, check_discrete, check_options, observation_space
 
 
 class SageVectorEnv(_Prepared, VectorEnv):
@@ -42,7 +43,8 @@ class SageVectorEnv(_Prepared, VectorEnv):
         num_envs = whole("num_envs", num_envs, 1)
         overrides, pool_scenes, eps, scene_of = self._prepare(
             render_mode, scene, dataset, scenes, split, episodes, task, filters, num_episodes,
-            seed, synth, preset, width, height, sensors, actions, max_steps, hfov, config, device)
+            seed, synth, preset, width, height, sensors, actions, look, max_steps, hfov, config,
+            mode, device)
         self._sim = _sage3d.VecSim(num_envs, pool_scenes, _json(eps), scene_of, preset,
                                    overrides, mode)
         self.num_envs = num_envs
@@ -52,7 +54,7 @@ class SageVectorEnv(_Prepared, VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._rngs = [seeding.np_random(None)[0] for _ in range(num_envs)]
         self._autoreset = np.zeros(num_envs, dtype=bool)
-        self._last = None
+        self._last: dict[str, Any] | None = None
 
     @property
     def render_device(self) -> str | None:
@@ -86,13 +88,18 @@ class SageVectorEnv(_Prepared, VectorEnv):
             if not isinstance(given, Iterable) or isinstance(given, (str, bytes)):
                 raise ValueError(f"episode_index: expected one index per sub-environment, got {given!r}")
             indices = [whole("episode_index", k) for k in given]
+            if len(indices) != self.num_envs:
+                raise ValueError(f"episode_index: expected {self.num_envs} indices, one per "
+                                 f"sub-environment, got {len(indices)}")
         if seed is not None:
+            seeds: list[Any]
             if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
                 seeds = [int(seed) + i for i in range(self.num_envs)]
             else:
-                seeds = list(seed)
+                seeds = _args.sequence("seed", seed, "of seeds (one per sub-environment), or an int")
             if len(seeds) != self.num_envs:
-                raise ValueError(f"expected {self.num_envs} seeds, got {len(seeds)}")
+                raise ValueError(f"seed: expected {self.num_envs} seeds (one per sub-environment), "
+                                 f"got {len(seeds)}")
             for i, s in enumerate(seeds):
                 if s is not None:
                     self._rngs[i] = seeding.np_random(whole("seed", s))[0]
@@ -104,9 +111,13 @@ class SageVectorEnv(_Prepared, VectorEnv):
 
     def step(self, actions):
         self._check_open()
-        check_discrete(self.action_space, actions)
+        batch = _args.sequence("actions", actions, "of actions (one per sub-environment)")
+        if len(batch) != self.num_envs:
+            raise ValueError(f"actions: expected {self.num_envs} actions, one per sub-environment, "
+                             f"got {len(batch)}")
+        check_discrete(self.action_space, actions, "actions")
         resets = [self._draw(i) if done else None for i, done in enumerate(self._autoreset)]
-        obs, rewards, terminated, truncated, infos = self._sim.step(list(actions), resets)
+        obs, rewards, terminated, truncated, infos = self._sim.step(batch, resets)
         self._autoreset = terminated | truncated
         obs, infos = self._batch(obs, infos)
         return obs, rewards.astype(np.float64), terminated, truncated, infos
