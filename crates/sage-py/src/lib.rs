@@ -4,7 +4,7 @@
 //! environment as a single or batched simulator handing out NumPy arrays that own the Rust
 //! buffers ([`sim`]), datasets, the evaluator with agents written in Python, and the per-scene
 //! steps of dataset generation and evaluation that `sage3d.distributed` spreads over a Ray
-//! cluster ([`bench`]), and the pipelines the CLI runs ([`pipeline`]: the demo, the dataset
+//! cluster ([`bench`](mod@bench)), and the pipelines the CLI runs ([`pipeline`]: the demo, the dataset
 //! build), and the training-data render with its per-scene steps ([`training`]), and the browser
 //! viewer ([`view`]). Long calls
 //! release the GIL. The Gymnasium classes are pure Python on
