@@ -1,10 +1,10 @@
 //! The evaluator (SPEC §10, `docs/evaluation.md`): runs an agent over a dataset split and
 //! scores every episode.
 //!
-//! Episodes are grouped by scene so each scene's [`SceneContext`](sage_env::SceneContext)
+//! Episodes are grouped by scene so each scene's [`SceneContext`]
 //! loads once and is shared; scenes and the episodes within them run in parallel. Each finished
 //! episode is appended to `RUN/episodes.jsonl` as one flushed line, so a crashed run resumes by
-//! skipping the ids already recorded ([`records`](crate::records)); the summary is computed from the records
+//! skipping the ids already recorded ([`records`]); the summary is computed from the records
 //! sorted by episode id, so it does not depend on the thread count or finishing order
 //! ([`summary`](crate::summary)); at the end the records file itself is rewritten in episode-id order, so it
 //! is the same bytes however the run went (threads, resumes, shards merged). Agents whose server holds one episode's state (NaVid) run their episodes one

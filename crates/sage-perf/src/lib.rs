@@ -1,6 +1,6 @@
 //! `sage-perf`: the performance benchmarks behind `sage3d bench` (the figures of SPEC §12).
 //!
-//! One module per benchmark: [`load`], [`render`], [`nav`], [`physics`], [`bodies`], [`env`],
+//! One module per benchmark: [`load`], [`render`], [`nav`], [`physics`], [`bodies`], [`env`](mod@env),
 //! [`fit`], [`traindata`] and [`view`].
 //! Each has a settings struct whose `Default` is the command's defaults and a `run` function
 //! that sets up the benchmark's scene (synthesising one when none is given), times the work and

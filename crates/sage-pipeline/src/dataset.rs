@@ -147,7 +147,7 @@ impl BuildSettings {
     }
 }
 
-/// What [`build`] did.
+/// What [`build()`] did.
 #[derive(Debug, Clone)]
 pub struct DatasetReport {
     /// The scene folders.
@@ -190,11 +190,11 @@ pub fn build(
     build_with(scenes, out, &params, &assemble, force, on_scene)
 }
 
-/// [`build`] with per-scene and assembly settings made by the caller (the demo's).
+/// [`build()`] with per-scene and assembly settings made by the caller (the demo's).
 ///
 /// # Errors
 ///
-/// As [`build`].
+/// As [`build()`].
 pub fn build_with(
     scenes: &Path,
     out: &Path,

@@ -186,7 +186,7 @@ pub fn report(
     report_with_options(run, scenes, &ReportOptions::default(), on_map, &|_, _| {})
 }
 
-/// [`report`] with `options` (episode videos: [`report::write_with_options`], `on_video`
+/// [`report()`] with `options` (episode videos: [`report::write_with_options`], `on_video`
 /// called after each video).
 ///
 /// # Errors

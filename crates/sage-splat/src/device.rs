@@ -1,4 +1,4 @@
-//! Choosing the executor: the CPU tile renderer ([`Renderer`]) or the wgpu compute renderer
+//! Choosing the executor: the CPU tile renderer ([`Renderer`](crate::render::Renderer)) or the wgpu compute renderer
 //! ([`crate::gpu::GpuRenderer`], cargo feature `gpu`). Both form the same images (SPEC §3);
 //! [`Backend`] is what commands and environments hold, whichever was chosen.
 

@@ -1,7 +1,7 @@
 //! `sage-train`: fits 3D Gaussian Splatting parameters to posed images on the CPU.
 //!
 //! Its one job is reconstruction's optimisation step: given initial Gaussians (e.g. sampled
-//! from a mesh's surface with [`init_gaussians`]) and views with known cameras, [`fit`]
+//! from a mesh's surface with [`init_gaussians`]) and views with known cameras, [`fit()`]
 //! minimises the 3DGS photometric loss (L1 + D-SSIM) by Adam through a differentiable copy of
 //! `sage-splat`'s image formation ([`forward`], [`backward`]), with the adaptive density
 //! control of 3DGS ([`density`]), and reports PSNR on held-out views.

@@ -52,7 +52,8 @@ pub struct Options {
     /// Horizontal field of view in degrees.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().hfov))]
     pub hfov: f32,
-    /// Images per frame: rgb[,depth,semantic,instance] (depth: 16-bit PNG millimetres).
+    /// Images per frame, comma-separated: rgb and any of depth, semantic, instance (depth: 16-bit
+    /// PNG millimetres).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().sensors))]
     #[serde(with = "sensor_names")]
     pub sensors: Sensors,

@@ -111,7 +111,7 @@ impl Session {
     }
 
     /// Starts the explore session again at `(x, y)` (snapped to navigable floor within
-    /// [`PLACE_SNAP_M`]) facing `yaw`, keeping its goal.
+    /// 0.5 m) facing `yaw`, keeping its goal.
     ///
     /// # Errors
     ///

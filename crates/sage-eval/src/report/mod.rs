@@ -47,7 +47,7 @@ pub struct RunFiles {
     pub records: Vec<EvalRecord>,
 }
 
-/// What [`write`] wrote.
+/// What [`write()`] wrote.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReportOutcome {
     /// `RUN/report.html`.
@@ -230,7 +230,7 @@ pub fn write(run_dir: &Path, scenes_dir: &Path) -> Result<ReportOutcome> {
     write_with(run_dir, scenes_dir, &|_, _| {})
 }
 
-/// [`write`], calling `on_map(episode_id, total)` after each episode map is drawn.
+/// [`write()`], calling `on_map(episode_id, total)` after each episode map is drawn.
 ///
 /// # Errors
 ///
