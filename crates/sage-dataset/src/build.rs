@@ -467,6 +467,11 @@ pub fn run_scene(
         (done.settings == *params).then_some(done.episodes.len())
     };
     let outcome = resume_or_run(complete, || {
+        // An earlier build's file of other settings goes first: were this scene to fail now,
+        // the assembly would otherwise take that file's episodes for this build's.
+        if file.is_file() {
+            std::fs::remove_file(&file).map_err(|e| Error::io(&file, e))?;
+        }
         let (mut scene, _) = Scene::load(dir)?;
         scene.name = name.clone();
         let (report, episodes) = scene_episodes(&scene, params, client)?;
@@ -678,6 +683,44 @@ fn load_scene_files(out: &Path, scenes: &[String]) -> Result<Vec<SceneEpisodes>>
     Ok(files)
 }
 
+/// Removes what an earlier build into `out` wrote that this one does not: the scene files of
+/// scenes no longer among `scenes`, and without a balanced selection (`balanced` false) the
+/// `test_balanced` files of every format, unless `data import` made that split. Outside
+/// loaders (SAGE-Bench's, VLN-CE's) would take them for part of the dataset.
+fn remove_stale(out: &Path, scenes: &[String], balanced: bool) -> Result<()> {
+    let remove = |path: &Path| match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(path, e)),
+        _ => Ok(()),
+    };
+    let scene_dir = out.join("scenes");
+    if let Ok(entries) = std::fs::read_dir(&scene_dir) {
+        for entry in entries.flatten() {
+            let path = entry.path();
+            let stale = path.extension().is_some_and(|x| x == "json")
+                && path
+                    .file_stem()
+                    .is_some_and(|n| !scenes.iter().any(|s| n == s.as_str()));
+            if stale && entry.file_type().is_ok_and(|t| t.is_file()) {
+                remove(&path)?;
+            }
+        }
+    }
+    let imported = folder::imported_splits(out)?
+        .iter()
+        .any(|(name, _)| name == split::TEST_BALANCED);
+    if !balanced && !imported {
+        let name = split::TEST_BALANCED;
+        remove(&out.join("episodes").join(format!("{name}.jsonl")))?;
+        remove(&out.join("gvln").join(format!("{name}.json")))?;
+        let (episodes, ground_truth) = r2r::paths(&out.join("r2r"), name);
+        remove(&episodes)?;
+        remove(&ground_truth)?;
+        // The split's folder, only when nothing else is in it.
+        let _ = std::fs::remove_dir(out.join("r2r").join(name));
+    }
+    Ok(())
+}
+
 /// Assembles the dataset from the scene files: splits, balanced test selection, the JSONL,
 /// GVLN and R2R files per split, `splits.json` and `summary.json` / `summary.txt`.
 pub fn assemble(
@@ -777,6 +820,7 @@ pub fn assemble(
         summary.unfollowable += f.report.unfollowable;
         summary.llm_failures += f.report.llm_failures;
     }
+    remove_stale(out, scenes, params.balanced > 0)?;
     // The list of splits: the files just written, `test_balanced` only when it was.
     let split_ids: BTreeMap<&str, Vec<&str>> = by_split
         .iter()

@@ -98,6 +98,31 @@ fn same_bytes_with_one_and_two_threads_and_resume_redoes_only_missing_scenes() {
     assert!(outcomes.iter().all(|o| o.status == Status::Done));
 }
 
+/// A rebuild over fewer scenes and without a balanced selection leaves the folder as a fresh
+/// build with those settings makes it: nothing of the earlier build's scenes or its
+/// `test_balanced` stays behind for outside loaders to read.
+#[test]
+fn a_rebuild_with_other_settings_leaves_nothing_of_the_earlier_build() {
+    let (again, fresh) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    build_with(2, again.path());
+    assert!(again.path().join("r2r/test_balanced").is_dir());
+    let (p, mut a) = params();
+    a.balanced = 0;
+    let fewer = &scenes().1[..3];
+    build::build(fewer, again.path(), &p, &a, &|_| {}).unwrap();
+    build::build(fewer, fresh.path(), &p, &a, &|_| {}).unwrap();
+    let (got, want) = (
+        read_tree(again.path()).unwrap(),
+        read_tree(fresh.path()).unwrap(),
+    );
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        want.keys().collect::<Vec<_>>()
+    );
+    assert!(got == want);
+    assert!(!again.path().join("r2r/test_balanced").exists());
+}
+
 #[test]
 fn episodes_are_complete_and_their_actions_reach_the_goal() {
     let out = tempfile::tempdir().unwrap();
