@@ -146,10 +146,16 @@ fn trajectories_resume_over_a_folder_and_match_across_threads() {
         assert_eq!(a, b, "{scene} differs across thread counts");
         assert!(out_a.join(scene).join("trajectories.png").is_file());
     }
-    // A crash that lost one scene's output: the rerun redoes that scene only.
+    // A crash that lost one scene's output: the rerun redoes that scene only, and records
+    // what the folder holds, as the run that went through did.
+    let recorded = std::fs::read(out_a.join("sage3d_run.json")).unwrap();
     std::fs::remove_file(out_a.join("s2").join("trajectories.json")).unwrap();
     let again = run(&out_a, "2");
     assert!(again.contains("1 done, 1 already complete"), "{again}");
+    assert_eq!(
+        String::from_utf8(std::fs::read(out_a.join("sage3d_run.json")).unwrap()).unwrap(),
+        String::from_utf8(recorded).unwrap()
+    );
     let record: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out_a.join("sage3d_run.json")).unwrap()).unwrap();
     assert_eq!(record["seed"], 5);

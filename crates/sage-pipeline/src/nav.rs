@@ -5,6 +5,7 @@
 
 use rayon::prelude::*;
 use sage_core::Result;
+use sage_io::runner::Status;
 use sage_nav::trajectory::{self, SceneOutcome, TrajectoryParams};
 use sage_nav::{GridParams, NavGrid, PublishedMap, SemanticMap, published_map};
 use sage_scene::Scene;
@@ -239,6 +240,19 @@ pub fn trajectories(
             outcome
         })
         .collect();
-    record(&outcomes)?;
+    // The record says what the folder holds, not what this run did: a scene another run
+    // completed is `done` there, so a resumed or repeated run records the same bytes as one
+    // that ran through (the outcomes returned still tell the resumed ones apart).
+    let held: Vec<SceneOutcome> = outcomes
+        .iter()
+        .cloned()
+        .map(|mut o| {
+            if o.status == Status::Resumed {
+                o.status = Status::Done;
+            }
+            o
+        })
+        .collect();
+    record(&held)?;
     Ok(TrajectoriesReport { out, outcomes })
 }
