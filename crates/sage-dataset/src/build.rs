@@ -40,8 +40,7 @@ use std::path::{Path, PathBuf};
 /// The no-goal instruction (the published default, completed).
 pub const NOGOAL_TEXT: &str =
     "Explore this environment as much as possible, but avoid colliding with anything.";
-/// The command, as the run record of a built dataset names it.
-pub const COMMAND: &str = "data build";
+pub use crate::folder::COMMAND;
 
 /// What a dataset build writes at the top of its folder (the LLM cache is there by default).
 pub const OUTPUTS: [&str; 9] = [

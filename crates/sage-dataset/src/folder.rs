@@ -31,6 +31,9 @@ use std::path::{Component, Path, PathBuf};
 /// The file listing a dataset's splits and their episode ids.
 pub const SPLITS_FILE: &str = "splits.json";
 
+/// The command, as the run record of a built dataset names it.
+pub const COMMAND: &str = "data build";
+
 /// Checks that `dataset` is a dataset folder (it has `episodes/`) and not one a `data build`
 /// left unfinished (see the module doc).
 ///
@@ -69,7 +72,7 @@ pub(crate) fn check_finished(dataset: &Path) -> Result<()> {
     }
     let record: Value = read_json(&path)?;
     let field = |name: &str| record.get(name).and_then(Value::as_str);
-    if field("command") != Some(crate::build::COMMAND) {
+    if field("command") != Some(COMMAND) {
         return Ok(());
     }
     let why = if let Some(status) = sage_io::run::unfinished_status(&record) {
