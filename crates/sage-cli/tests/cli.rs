@@ -235,7 +235,13 @@ fn demo_runs_the_whole_pipeline_and_resumes() {
         e.contains("split is empty") && e.contains("--split train"),
         "{e}"
     );
+    // The failed demo's folder says it is not complete, and is still the demo's to resume.
+    assert_eq!(
+        sage_io::run::unfinished_command(&out).as_deref(),
+        Some("demo")
+    );
     let printed = ok(&[&args[..], &["--split", "train"]].concat());
+    assert!(sage_io::run::is_finished(&out));
     let rows: Vec<&str> = printed
         .lines()
         .filter(|l| l.starts_with("oracle") || l.starts_with("forward"))

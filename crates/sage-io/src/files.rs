@@ -246,7 +246,10 @@ mod tests {
         let written = f64::from(0.03_f32);
         let text = serde_json::to_string(&serde_json::json!({ "slab_bottom": written })).unwrap();
         let back: serde_json::Value = parse_json(&text, Path::new("r.json")).unwrap();
-        assert_eq!(back["slab_bottom"].as_f64().unwrap().to_bits(), written.to_bits());
+        assert_eq!(
+            back["slab_bottom"].as_f64().unwrap().to_bits(),
+            written.to_bits()
+        );
         assert_eq!(serde_json::to_string(&back).unwrap(), text);
     }
 

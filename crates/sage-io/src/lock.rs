@@ -4,6 +4,15 @@
 //! lock when its process ends, however it ends, so a crashed or killed holder never blocks a
 //! rerun; the command and process id written in the file only serve the message.
 //!
+//! A folder inside one that another process is writing is refused the same way: once it holds
+//! its own folder's lock, [`FolderLock::acquire`] looks at every folder above it (by its
+//! canonical path, up to the root) and refuses when one of them is locked by another process,
+//! naming that folder and its holder. While `sage3d demo --out D` runs, `sage3d data build …
+//! --out D/dataset` or `sage3d eval … --out D/runs/oracle` from another process would change
+//! what the demo's own steps write there. Folders locked by this same process do not count:
+//! they are the outer command's own steps (the demo's dataset, training set and runs). A lock
+//! file left above by a process that has ended does not count either.
+//!
 //! Holding the lock also makes every [temporary file](crate::files::is_temporary) in the folder
 //! a leftover of an interrupted earlier run, which [`FolderLock::remove_temporary`] removes.
 
@@ -12,6 +21,7 @@ use sage_core::{Error, Result};
 use std::fs::{File, OpenOptions, TryLockError};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 /// The lock file of a folder that a command is writing (removed when the command lets go).
 pub const LOCK_FILE: &str = ".sage3d.lock";
@@ -19,6 +29,14 @@ pub const LOCK_FILE: &str = ".sage3d.lock";
 /// How often [`FolderLock::acquire`] opens the lock file again when the holder before it
 /// removed that file as it let go (each time means another command took and released it).
 const ATTEMPTS: usize = 16;
+
+/// How long a refused command waits for the holder to write who it is: a holder locks its
+/// file before it writes its name there, so a command that loses a race by a hair finds it
+/// empty for a moment.
+const HOLDER_WAIT: Duration = Duration::from_millis(200);
+
+/// How often the lock file is read again while waiting for its holder's name.
+const HOLDER_POLL: Duration = Duration::from_millis(5);
 
 /// The lock on a folder that a command writes, held until the guard is dropped; then the lock
 /// file is removed, and so are the folders that [`FolderLock::acquire`] made when they are still
@@ -37,14 +55,29 @@ pub struct FolderLock {
 impl FolderLock {
     /// Locks folder `dir` (made, with its parents, when missing) for `command`, as the run
     /// records name commands (`eval`, `data render`, …), writing that command, this process's
-    /// id and its command line into the lock file.
+    /// id and its command line into the lock file; then checks that no folder above `dir` is
+    /// locked by another process (see the module's documentation), letting go of `dir` again
+    /// when one is.
     ///
     /// # Errors
     ///
-    /// An `invalid` error naming the folder when another command holds it, with that command,
-    /// its process id and command line when they can be read; an I/O error when the folder or
-    /// its lock file cannot be made or locked.
+    /// An `invalid` error naming the folder when another command holds it or a folder above
+    /// it, with that command, its process id and command line when they can be read; an I/O
+    /// error when the folder or its lock file cannot be made or locked.
     pub fn acquire(dir: &Path, command: &str) -> Result<FolderLock> {
+        let lock = FolderLock::lock(dir, command)?;
+        // Only now: an outer command that starts later finds `dir` itself held when one of its
+        // steps comes to write there.
+        if let Err(e) = outer_writers(dir) {
+            // Dropping the guard removes only the lock file and the folders it made.
+            drop(lock);
+            return Err(e);
+        }
+        Ok(lock)
+    }
+
+    /// Takes the lock of `dir` itself ([`FolderLock::acquire`] without the folders above).
+    fn lock(dir: &Path, command: &str) -> Result<FolderLock> {
         let path = dir.join(LOCK_FILE);
         for _ in 0..ATTEMPTS {
             let made = missing_folders(dir);
@@ -164,13 +197,69 @@ fn still_at(_file: &File, path: &Path) -> bool {
     path.exists()
 }
 
-/// The error for folder `dir` held by another command, naming it from its lock file `path`.
-fn held(dir: &Path, path: &Path) -> Error {
-    let holder: Option<serde_json::Value> = std::fs::read_to_string(path)
-        .ok()
-        .and_then(|text| serde_json::from_str(&text).ok());
-    let field = |key: &str| holder.as_ref().and_then(|h| h.get(key)).cloned();
-    let who = match (field("command"), field("pid")) {
+/// Refuses folder `dir` when a folder above it is locked by another process (a lock that
+/// this process holds is its own outer command's; a lock file whose holder has ended is
+/// stale). A lock file that cannot be opened or tested is passed over: the check is only as
+/// good as the files it can read.
+fn outer_writers(dir: &Path) -> Result<()> {
+    // An empty path is the working folder, as it is to `dir.join(LOCK_FILE)`.
+    let here = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let real = std::fs::canonicalize(here).map_err(|e| Error::io(dir, e))?;
+    for outer in real.ancestors().skip(1) {
+        let path = outer.join(LOCK_FILE);
+        let Ok(file) = File::open(&path) else {
+            continue;
+        };
+        // A shared lock only tests: two commands testing the same folder at once do not take
+        // each other for its holder. It goes when `file` is closed, at the end of this turn.
+        if !matches!(file.try_lock_shared(), Err(TryLockError::WouldBlock)) {
+            continue;
+        }
+        let holder = read_holder(&path);
+        let own = u64::from(std::process::id());
+        if holder
+            .as_ref()
+            .and_then(|h| h.get("pid"))
+            .and_then(serde_json::Value::as_u64)
+            == Some(own)
+        {
+            continue;
+        }
+        return Err(Error::invalid(format!(
+            "the folder is inside {}, which is being written by {}; wait for it to finish, or choose another folder",
+            outer.display(),
+            describe(holder.as_ref())
+        ))
+        .in_file(dir));
+    }
+    Ok(())
+}
+
+/// The holder named in lock file `path`, waiting up to [`HOLDER_WAIT`] for it to be written
+/// (a holder locks the file before writing its name); `None` when it is not written by then,
+/// or when the file is gone (its holder let go).
+fn read_holder(path: &Path) -> Option<serde_json::Value> {
+    let deadline = Instant::now() + HOLDER_WAIT;
+    loop {
+        let text = std::fs::read_to_string(path).ok()?;
+        let holder = serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .filter(serde_json::Value::is_object);
+        if holder.is_some() || Instant::now() >= deadline {
+            return holder;
+        }
+        std::thread::sleep(HOLDER_POLL);
+    }
+}
+
+/// Who a lock file's `holder` is, in words.
+fn describe(holder: Option<&serde_json::Value>) -> String {
+    let field = |key: &str| holder.and_then(|h| h.get(key)).cloned();
+    match (field("command"), field("pid")) {
         (Some(serde_json::Value::String(command)), Some(pid)) => {
             let process = field("process")
                 .and_then(|p| p.as_str().map(String::from))
@@ -181,9 +270,14 @@ fn held(dir: &Path, path: &Path) -> Error {
             format!("the `{command}` run of process {pid}{process}")
         }
         _ => "another command".to_string(),
-    };
+    }
+}
+
+/// The error for folder `dir` held by another command, naming it from its lock file `path`.
+fn held(dir: &Path, path: &Path) -> Error {
     Error::invalid(format!(
-        "the folder is being written by {who}; wait for it to finish, or choose another folder"
+        "the folder is being written by {}; wait for it to finish, or choose another folder",
+        describe(read_holder(path).as_ref())
     ))
     .in_file(dir)
 }
@@ -235,6 +329,71 @@ mod tests {
         assert_eq!(holder["command"], "report");
         assert_eq!(holder["pid"], std::process::id());
         drop(lock);
+    }
+
+    #[test]
+    fn a_refused_command_waits_briefly_for_the_holder_to_name_itself() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(LOCK_FILE);
+        // A holder that has locked its file but not yet written its name, as a command that
+        // won a race by a hair is for a moment.
+        let holder = File::create(&path).unwrap();
+        holder.try_lock().unwrap();
+        let writer = {
+            let path = path.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(Duration::from_millis(20));
+                let name = r#"{"command": "eval", "pid": 4242, "process": "sage3d eval"}"#;
+                std::fs::write(path, name).unwrap();
+            })
+        };
+        let e = FolderLock::acquire(dir.path(), "report")
+            .unwrap_err()
+            .to_string();
+        writer.join().unwrap();
+        assert!(
+            e.contains("the `eval` run of process 4242 (sage3d eval)"),
+            "{e}"
+        );
+        // A holder that never names itself is not waited for long.
+        std::fs::write(&path, "").unwrap();
+        let start = Instant::now();
+        let e = FolderLock::acquire(dir.path(), "report")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("being written by another command"), "{e}");
+        assert!(
+            start.elapsed() < Duration::from_secs(2),
+            "{:?}",
+            start.elapsed()
+        );
+        drop(holder);
+        drop(FolderLock::acquire(dir.path(), "report").unwrap());
+    }
+
+    #[test]
+    fn this_process_may_lock_a_folder_inside_one_it_holds_and_a_stale_outer_file_is_passed() {
+        let root = tempfile::tempdir().unwrap();
+        let demo = root.path().join("demo");
+        let outer = FolderLock::acquire(&demo, "demo").unwrap();
+        let inner = FolderLock::acquire(&demo.join("runs/oracle"), "eval").unwrap();
+        // The inner folder is still one writer's: a second lock on it is refused.
+        assert!(FolderLock::acquire(&demo.join("runs/oracle"), "eval").is_err());
+        drop(inner);
+        drop(outer);
+        // A lock file whose holder has ended, even one naming another process.
+        std::fs::create_dir_all(&demo).unwrap();
+        std::fs::write(
+            demo.join(LOCK_FILE),
+            r#"{"command": "demo", "pid": 1, "process": "sage3d demo"}"#,
+        )
+        .unwrap();
+        drop(FolderLock::acquire(&demo.join("dataset"), "data build").unwrap());
+        assert!(
+            demo.join(LOCK_FILE).is_file(),
+            "another's lock file is left alone"
+        );
+        assert!(!demo.join("dataset").exists());
     }
 
     #[test]

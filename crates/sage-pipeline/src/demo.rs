@@ -387,7 +387,9 @@ fn check_split(dataset: &Path, split: &str) -> Result<()> {
 
 /// Runs the demo: every step of [`plan`] in order (`on_step(k, n, step)` before step `k` of
 /// `n`, `on_tick` inside it, `on_done(step, report)` after it), then the overview picture
-/// `out/overview.png` of the first agent's run. Returns the summaries of the agents' runs.
+/// `out/overview.png` of the first agent's run, and last marks the demo's run record finished
+/// ([`crate::demo_folder::finish`]; [`crate::demo_folder::claim`] wrote it unfinished, and the
+/// caller holds the folder's lock meanwhile). Returns the summaries of the agents' runs.
 ///
 /// # Errors
 ///
@@ -411,13 +413,16 @@ pub fn run(
         &s.run_folder(&s.agents[0]),
         &s.out.join("overview.png"),
     )?;
-    s.agents
+    let runs = s
+        .agents
         .iter()
         .map(|agent| {
             let path = s.run_folder(agent).join(SUMMARY_FILE);
             Ok((agent.clone(), sage_io::files::read_json(&path)?))
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()?;
+    crate::demo_folder::finish(s)?;
+    Ok(runs)
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 use rayon::prelude::*;
 use sage_core::{Error, Result, Vec3};
 use sage_io::files::write_json;
+use sage_io::lock::FolderLock;
 use sage_io::run::write_run_record;
 use sage_recon::export::{
     POINTS_FILE, TRANSFORMS_FILE, is_heldout, transforms_for, write_points_ply, write_transforms,
@@ -61,6 +62,12 @@ pub struct PlanReport {
 
 /// The command that plans a reconstruction folder, as its run record names it.
 pub const PLAN_COMMAND: &str = "recon plan";
+
+/// The command that renders a reconstruction folder's views, as its lock file names it.
+pub const RENDER_COMMAND: &str = "recon render";
+
+/// The command that exports a reconstruction folder, as its lock file names it.
+pub const EXPORT_COMMAND: &str = "recon export";
 
 /// The command that fits a scene folder, as its run record names it.
 pub const FIT_COMMAND: &str = sage_scene::scene::writers::FIT;
@@ -141,6 +148,17 @@ pub fn plan(
     })
 }
 
+/// Locks the reconstruction folder `dir` that [`plan`] made for `command`, a later step that
+/// writes into it ([`FolderLock`]; [`plan`] itself claims the folder), and reads its plan.
+/// Under the lock no other command writes there, so once the folder is known to be a plan's,
+/// the temporary files that an interrupted step left in it are stale and go.
+fn lock_folder(dir: &Path, command: &str) -> Result<(FolderLock, Plan)> {
+    let lock = FolderLock::acquire(dir, command)?;
+    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    lock.remove_temporary();
+    Ok((lock, plan))
+}
+
 /// The files of reconstruction folder `dir` a fit reads: the plan and the rendered views,
 /// sorted.
 fn recon_inputs(dir: &Path) -> Vec<PathBuf> {
@@ -172,11 +190,14 @@ pub struct RenderReport {
 }
 
 /// Renders the planned views of the reconstruction folder `dir` at `width × height` that are
-/// not yet there (RGB + depth into `dir/views`); `on_view` is called after each.
+/// not yet there (RGB + depth into `dir/views`); `on_view` is called after each. Holds the
+/// folder's lock meanwhile ([`FolderLock`]): another render would write the same views, a new
+/// plan would change them under this one.
 ///
 /// # Errors
 ///
-/// No plan, a manifest of another size, the scene cannot be loaded, or a write error.
+/// A folder that another command is writing, no plan, a manifest of another size, the scene
+/// cannot be loaded, or a write error.
 pub fn render(
     dir: &Path,
     scene: Option<&Path>,
@@ -184,7 +205,7 @@ pub fn render(
     height: u32,
     on_view: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RenderReport> {
-    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    let (_lock, plan) = lock_folder(dir, RENDER_COMMAND)?;
     let manifest = Manifest::new(&plan, width, height)?;
     views::prepare(dir, &manifest)?;
     let todo = views::pending(dir, &plan);
@@ -234,13 +255,15 @@ pub struct ExportReport {
 }
 
 /// Writes `dir/transforms.json` for the rendered views, and `points3d.ply` of `points` surface
-/// samples when `points > 0`.
+/// samples when `points > 0`, holding the folder's lock meanwhile ([`FolderLock`]): the views
+/// it lists may not change while it reads them.
 ///
 /// # Errors
 ///
-/// No plan or views, the scene cannot be loaded, or a write error.
+/// A folder that another command is writing, no plan or views, the scene cannot be loaded, or
+/// a write error.
 pub fn export(dir: &Path, scene: Option<&Path>, points: usize) -> Result<ExportReport> {
-    let plan = Plan::load(&dir.join(PLAN_FILE))?;
+    let (_lock, plan) = lock_folder(dir, EXPORT_COMMAND)?;
     let views = views::export_views(dir, &plan)?;
     let mut transforms = transforms_for(&views)?;
     if points > 0 {
