@@ -129,7 +129,7 @@ fn print_step(step: &Step, report: &StepReport, secs: f64) {
 /// Runs the demo and prints where everything is.
 pub fn run(a: DemoArgs) -> Result<()> {
     let (force, s) = (a.force, a.settings);
-    let _lock = sage_pipeline::demo_folder::claim(&s, force)?;
+    let _lock = sage_pipeline::demo::claim(&s, force)?;
     let start = Instant::now();
     let step_start = std::cell::Cell::new(Instant::now());
     let bar = crate::progress::bar("{bar:30} {pos}/{len} {msg} {elapsed}");

@@ -1,8 +1,8 @@
 //! `sage-pipeline`: the pipelines of sage3d as library functions, shared by the command line
 //! and the Python package (as brush's `brush-process` is by its CLI and app).
 //!
-//! - [`demo`]: the whole job end to end on synthetic (or real) scenes, as a plan of steps, and
-//!   [`demo_folder`]: the claim of its output folder;
+//! - [`demo`]: the whole job end to end on synthetic (or real) scenes, as a plan of steps, with
+//!   the claim of its output folder;
 //! - its steps: [`scene`] (synthesise a scene folder), [`nav`] (semantic map and occupancy),
 //!   [`physics`] (collision bodies, the hull cache's work list, the USDA export), [`dataset`]
 //!   (the dataset build and imports, with [`dataset::BuildSettings`]), [`traindata`]
@@ -23,7 +23,6 @@
 pub mod capture;
 pub mod dataset;
 pub mod demo;
-pub mod demo_folder;
 pub mod evaluate;
 pub mod nav;
 pub mod overview;

@@ -35,7 +35,7 @@ pub fn demo<'py>(
     };
     let runs = py
         .detach(|| {
-            let _lock = sage_pipeline::demo_folder::claim(&settings, false)?;
+            let _lock = sage_pipeline::demo::claim(&settings, false)?;
             sage_pipeline::demo::run(&settings, &|_, _, _| {}, &|_| {}, &|_, _| {})
         })
         .py()?;
