@@ -3,10 +3,11 @@
 //! bars (`docs/evaluation.md`, "Report"), holding the run folder's lock
 //! (`sage_pipeline::evaluate::report`); `sage3d eval` calls the same writer at the end of a run.
 //! With `--mode` or `--dtw` it rescores the run from its stored records into the new run
-//! folder `--out` instead (`sage_eval::rescore`, "Rescoring") and writes that folder's report.
+//! folder `--out` instead (`sage_eval::rescore_with_report`, "Rescoring"), with that folder's
+//! report.
 
 use sage_core::{Error, Result};
-use sage_eval::report::{ReportOptions, ReportOutcome};
+use sage_eval::report::{ReportJob, ReportOptions, ReportOutcome};
 use sage_metrics::{Dtw, Mode};
 use std::path::{Path, PathBuf};
 
@@ -40,10 +41,13 @@ pub struct ReportArgs {
     force: bool,
 }
 
-/// Writes the report of `run` with the scenes of `scenes` and `videos` episode videos under
-/// progress bars over the episodes' maps and videos; `locked`: the caller holds the run
-/// folder's lock already (a rescoring writing its new folder), else the report takes it.
-fn write_with_bar(run: &Path, scenes: &Path, videos: usize, locked: bool) -> Result<ReportOutcome> {
+/// Calls `write` with the report of the scenes of `scenes` and `videos` episode videos, under
+/// progress bars over the episodes' maps and videos.
+fn with_bars<T>(
+    scenes: &Path,
+    videos: usize,
+    write: impl FnOnce(&ReportJob) -> Result<T>,
+) -> Result<T> {
     let maps = crate::progress::bar("{bar:30} {pos}/{len} maps {elapsed} (eta {eta}) {msg}");
     let clips = crate::progress::bar("{bar:30} {pos}/{len} videos {elapsed} (eta {eta}) {msg}");
     let tick = |bar: &indicatif::ProgressBar, id: &str, total: usize| {
@@ -51,20 +55,21 @@ fn write_with_bar(run: &Path, scenes: &Path, videos: usize, locked: bool) -> Res
         bar.set_message(id.to_string());
         bar.inc(1);
     };
-    let options = ReportOptions {
-        videos,
-        ..ReportOptions::default()
-    };
     let on_map = |id: &str, total: usize| tick(&maps, id, total);
     let on_video = |id: &str, total: usize| {
         maps.finish_and_clear();
         tick(&clips, id, total)
     };
-    let outcome = if locked {
-        sage_eval::report::write_with_options(run, scenes, &options, &on_map, &on_video)
-    } else {
-        sage_pipeline::evaluate::report_with_options(run, scenes, &options, &on_map, &on_video)
+    let job = ReportJob {
+        scenes,
+        options: ReportOptions {
+            videos,
+            ..ReportOptions::default()
+        },
+        on_map: &on_map,
+        on_video: &on_video,
     };
+    let outcome = write(&job);
     maps.finish_and_clear();
     clips.finish_and_clear();
     outcome
@@ -83,8 +88,9 @@ pub fn describe(o: &ReportOutcome) -> String {
 
 /// Regenerates the report (or rescores the run into a new folder) and prints what it wrote.
 pub fn run(a: ReportArgs) -> Result<()> {
-    // A folder that is not a run is named for what it is before anything else is read.
-    sage_eval::folder::run_record(&a.run)?;
+    // A folder that is not a run, or a run not finished, is named for what it is before
+    // anything else is read.
+    sage_eval::folder::finished_run_record(&a.run)?;
     let scenes = match &a.scenes {
         Some(s) => s.clone(),
         None => sage_eval::folder::recorded_scenes(&a.run)?,
@@ -97,7 +103,9 @@ pub fn run(a: ReportArgs) -> Result<()> {
                 ));
             }
             let _lock = sage_eval::claim(out, a.force)?;
-            let done = sage_eval::rescore(&a.run, a.mode, a.dtw, out)?;
+            let (done, report) = with_bars(&scenes, a.videos, |job| {
+                sage_eval::rescore_with_report(&a.run, a.mode, a.dtw, out, job)
+            })?;
             print!("{}", done.summary.table());
             println!(
                 "rescored {} episodes ({} faulted, copied) from mode {} ({} DTW) to mode {} ({} DTW) -> {}",
@@ -109,9 +117,17 @@ pub fn run(a: ReportArgs) -> Result<()> {
                 done.to.dtw,
                 out.display()
             );
-            write_with_bar(out, &scenes, a.videos, true)?
+            report
         }
-        None => write_with_bar(&a.run, &scenes, a.videos, false)?,
+        None => with_bars(&scenes, a.videos, |job| {
+            sage_pipeline::evaluate::report_with_options(
+                &a.run,
+                job.scenes,
+                &job.options,
+                job.on_map,
+                job.on_video,
+            )
+        })?,
     };
     println!("{}", describe(&outcome));
     if a.videos > 0 {

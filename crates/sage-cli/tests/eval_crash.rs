@@ -1,6 +1,7 @@
-//! `sage3d eval` killed with SIGKILL mid-run: the rerun of the same command finishes the split
-//! with every episode recorded once, each record the line an uninterrupted run writes, the same
-//! records file and the same summary bytes.
+//! `sage3d eval` killed with SIGKILL mid-run: its run record says unfinished, which `report`
+//! refuses; the rerun of the same command finishes the split with every episode recorded once,
+//! each record the line an uninterrupted run writes, the same records file and the same summary
+//! and run record bytes.
 
 mod common;
 
@@ -122,6 +123,19 @@ fn an_eval_killed_mid_run_resumes_to_the_records_and_summary_of_an_uninterrupted
             continue;
         };
         assert!(left >= 1, "the kill came before any record");
+        // The folder says it was not finished, and the report says what to do.
+        let record = |run: &Path| std::fs::read(run.join("sage3d_run.json")).unwrap();
+        let status = |run: &Path| {
+            serde_json::from_slice::<serde_json::Value>(&record(run)).unwrap()["status"].clone()
+        };
+        assert_eq!(status(&killed), "unfinished");
+        let report = common::sage3d(&["report", s(&killed)]);
+        assert!(
+            common::stderr(&report)
+                .contains("not finished (its sage3d_run.json has status 'unfinished'): rerun the same `sage3d eval` into it to finish it"),
+            "{}",
+            common::stderr(&report)
+        );
 
         let resumed = ok(&eval_args(&data, &scenes, &killed));
         assert!(
@@ -142,11 +156,13 @@ fn an_eval_killed_mid_run_resumes_to_the_records_and_summary_of_an_uninterrupted
             std::fs::read(killed.join("episodes.jsonl")).unwrap(),
             std::fs::read(whole.join("episodes.jsonl")).unwrap()
         );
-        // The summary has no timing field: its bytes must match.
+        // The summary has no timing field: its bytes must match, as the run records' do.
         assert_eq!(
             std::fs::read(killed.join("summary.json")).unwrap(),
             std::fs::read(whole.join("summary.json")).unwrap()
         );
+        assert_eq!(status(&killed), "finished");
+        assert_eq!(record(&killed), record(&whole));
         return;
     }
     panic!("every evaluation ended before it could be killed");

@@ -10,8 +10,9 @@
 //! is the same bytes however the run went (threads, resumes, shards merged). Agents whose server holds one episode's state (NaVid) run their episodes one
 //! at a time.
 
-use crate::folder::{COMMAND, RECORDS_FILE, RUN_OUTPUTS, SUMMARY_FILE};
+use crate::folder::{COMMAND, RECORDS_FILE, RUN_OUTPUTS, SUMMARY_FILE, mark_finished};
 use crate::records::{self, EvalRecord, Failure};
+use crate::report::{ReportJob, ReportOutcome};
 use crate::settings::EvalSettings;
 use crate::summary::Summary;
 use rayon::prelude::*;
@@ -23,7 +24,7 @@ use sage_env::SceneContext;
 use sage_env::agents::{Agent, run_episode};
 use sage_env::{Env, EnvConfig, EpisodeTrace, SensorConfig};
 use sage_io::lock::FolderLock;
-use sage_io::run::RUN_RECORD;
+use sage_io::run::{RUN_RECORD, UNFINISHED};
 use sage_metrics::{Dtw, Scoring};
 use sage_splat::Device;
 use std::collections::{BTreeMap, BTreeSet};
@@ -226,11 +227,53 @@ fn changed_scene_file(old: &serde_json::Value, new: &serde_json::Value) -> Optio
     })
 }
 
+/// The differences between the settings a run folder recorded (`old`) and those asked
+/// (`new`), as `key: OLD recorded, NEW asked`, in key order. The dataset and scenes folders are
+/// not compared (they may be named from another working directory; the hashes say which data),
+/// and the defaults of fields recorded only since they existed are filled in (exact DTW, the
+/// CPU).
+fn changed_settings(old: Option<&serde_json::Value>, new: &serde_json::Value) -> Vec<String> {
+    let run_of = |v: Option<&serde_json::Value>| {
+        let mut fields = v
+            .and_then(serde_json::Value::as_object)
+            .cloned()
+            .unwrap_or_default();
+        fields.remove("dataset");
+        fields.remove("scenes");
+        fields
+            .entry("dtw")
+            .or_insert_with(|| Dtw::Exact.as_str().into());
+        fields
+            .entry("device")
+            .or_insert_with(|| Device::Cpu.to_string().into());
+        fields
+    };
+    let (old, new) = (run_of(old), run_of(Some(new)));
+    let shown = |v: Option<&serde_json::Value>| match v {
+        None => "none".to_string(),
+        Some(serde_json::Value::String(s)) => s.clone(),
+        Some(v) => v.to_string(),
+    };
+    let keys: BTreeSet<&String> = old.keys().chain(new.keys()).collect();
+    keys.into_iter()
+        .filter(|k| old.get(*k) != new.get(*k))
+        .map(|k| {
+            format!(
+                "{k}: {} recorded, {} asked",
+                shown(old.get(k)),
+                shown(new.get(k))
+            )
+        })
+        .collect()
+}
+
 /// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
-/// run, on the same data and scenes) and writes the run record.
+/// run, on the same data and scenes; `split_file` is the split's episodes file, whose hash is
+/// `dataset_hash`) and writes the run record, marked unfinished until the run is written.
 fn claim_run_folder(
     out: &Path,
     settings: &serde_json::Value,
+    split_file: &Path,
     dataset_hash: &str,
     scenes: &serde_json::Value,
 ) -> Result<()> {
@@ -242,23 +285,27 @@ fn claim_run_folder(
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         let old: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| Error::format("sage3d_run.json", e.to_string()).in_file(&path))?;
-        // The folders may be named from another working directory; the hash says which data.
-        let run_of = |v: Option<&serde_json::Value>| {
-            let mut v = v.cloned().unwrap_or_default();
-            if let Some(o) = v.as_object_mut() {
-                o.remove("dataset");
-                o.remove("scenes");
-                // Runs recorded before the DTW choice existed used exact DTW.
-                o.entry("dtw").or_insert_with(|| Dtw::Exact.as_str().into());
-            }
-            v
+        let changed = changed_settings(old.get("settings"), settings);
+        // Another split is another file: its hash differing says nothing more.
+        let other_data = old.get("dataset_hash").and_then(|h| h.as_str()) != Some(dataset_hash)
+            && !changed.iter().any(|c| c.starts_with("split:"));
+        let dataset = format!(
+            "another dataset (its split file {} changed since the run)",
+            split_file.display()
+        );
+        let why = match (changed.is_empty(), other_data) {
+            (true, false) => None,
+            (true, true) => Some(dataset),
+            (false, false) => Some(format!("other settings ({})", changed.join("; "))),
+            (false, true) => Some(format!(
+                "other settings ({}) and {dataset}",
+                changed.join("; ")
+            )),
         };
-        let same = run_of(old.get("settings")) == run_of(Some(settings))
-            && old.get("dataset_hash").and_then(|h| h.as_str()) == Some(dataset_hash);
-        if !same {
-            return Err(Error::invalid(
-                "this run folder holds a run with other settings or another dataset; use a new run folder (`out`)",
-            )
+        if let Some(why) = why {
+            return Err(Error::invalid(format!(
+                "this run folder holds a run with {why}; use a new run folder (`out`)"
+            ))
             .in_file(&path));
         }
         if let Some(file) = old
@@ -272,7 +319,7 @@ fn claim_run_folder(
         }
         rescored_from = old.get("rescored_from").cloned();
     }
-    write_run_record(out, settings, dataset_hash, scenes, rescored_from)
+    mark_unfinished(out, settings, dataset_hash, scenes, rescored_from)
 }
 
 /// The settings as the run record stores them: `settings` with the agent's recorded name.
@@ -283,10 +330,11 @@ pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<
     Ok(recorded)
 }
 
-/// Writes an evaluation's run record: its recorded settings, the split file's hash, the
-/// hashes of its scenes' files ([`scene_inputs`]) and, for a folder a rescoring wrote, the
-/// run it was rescored from.
-pub(crate) fn write_run_record(
+/// Writes an evaluation's run record marked unfinished (`"status": "unfinished"`, the first
+/// write of a run: [`crate::folder::mark_finished`] is its last): its recorded settings, the
+/// split file's hash, the hashes of its scenes' files ([`scene_inputs`]) and, for a folder a
+/// rescoring wrote, the run it was rescored from.
+pub(crate) fn mark_unfinished(
     out: &Path,
     recorded: &serde_json::Value,
     dataset_hash: &str,
@@ -297,6 +345,7 @@ pub(crate) fn write_run_record(
         "settings": recorded,
         "dataset_hash": dataset_hash,
         "scene_inputs": scenes,
+        "status": UNFINISHED,
     });
     if let Some(from) = rescored_from {
         record["rescored_from"] = from;
@@ -365,7 +414,7 @@ pub(crate) fn open_split(
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let recorded = recorded_settings(settings, agent)?;
-    claim_run_folder(out, &recorded, &dataset_hash, &scenes)?;
+    claim_run_folder(out, &recorded, &file, &dataset_hash, &scenes)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let done = records::resume(&out.join(RECORDS_FILE), &ids)?;
     Ok(Split {
@@ -376,8 +425,9 @@ pub(crate) fn open_split(
 }
 
 /// Runs (or resumes) an evaluation into `out`, calling `on_done(record, to_run)` after each
-/// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`.
-/// Callers [`claim`] `out` first and hold its lock until the run and its report are written.
+/// episode is recorded (`to_run`: the episodes this call runs), then writes `out/summary.json`
+/// and marks the run finished. Callers [`claim`] `out` first and hold its lock until the run
+/// and its report are written.
 ///
 /// # Errors
 ///
@@ -389,6 +439,17 @@ pub fn run(
     out: &Path,
     on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
 ) -> Result<RunOutcome> {
+    with_runner(settings, |runner| run_with(settings, runner, out, on_done))
+}
+
+/// Calls `f` with the runner [`run`] runs the agent of `settings` with: the environment of its
+/// preset, a fresh agent per episode, every episode of the split.
+///
+/// # Errors
+///
+/// The agent `human` (a person plays in the viewer), an agent that cannot be made, an unknown
+/// preset; `f`'s own.
+pub fn with_runner<T>(settings: &EvalSettings, f: impl FnOnce(&Runner) -> Result<T>) -> Result<T> {
     if settings.agent == sage_agents::AgentKind::Human {
         return Err(Error::invalid(
             "agent human: a person plays the split in `sage3d view DATASET --play RUN`; eval runs built agents",
@@ -403,7 +464,7 @@ pub fn run(
         serial: maker.serial(),
         stop: None,
     };
-    run_with(settings, &runner, out, on_done)
+    f(&runner)
 }
 
 /// [`run`] with the environment, agents and shard given by `runner` (the settings still name
@@ -413,6 +474,36 @@ pub fn run(
 ///
 /// As [`run`].
 pub fn run_with(
+    settings: &EvalSettings,
+    runner: &Runner,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+) -> Result<RunOutcome> {
+    let outcome = run_unfinished(settings, runner, out, on_done)?;
+    mark_finished(out)?;
+    Ok(outcome)
+}
+
+/// [`run_with`] that also writes the run's report (`report`) before it marks the run finished,
+/// as `sage3d eval` does: a run killed before its report is written is still unfinished, and
+/// its rerun writes it.
+///
+/// # Errors
+///
+/// As [`run`] and [`crate::report::write_with_options`].
+pub fn run_with_report(
+    settings: &EvalSettings,
+    runner: &Runner,
+    out: &Path,
+    on_done: &(dyn Fn(&EvalRecord, usize) + Sync),
+    report: &ReportJob,
+) -> Result<(RunOutcome, ReportOutcome)> {
+    let outcome = run_unfinished(settings, runner, out, on_done)?;
+    Ok((outcome, report.finish(out)?))
+}
+
+/// [`run_with`] up to its summary: the run record stays marked unfinished.
+fn run_unfinished(
     settings: &EvalSettings,
     runner: &Runner,
     out: &Path,

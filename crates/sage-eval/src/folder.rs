@@ -1,8 +1,16 @@
-//! The layout of a run folder: what an evaluation and its report write at its top, and how a
-//! folder is told to be one.
+//! The layout of a run folder: what an evaluation and its report write at its top, how a
+//! folder is told to be one, and whether its writer finished it.
+//!
+//! Every command that writes a run folder (`sage3d eval`, a rescoring, a merge of shards, human
+//! play) records itself in `sage3d_run.json` before its first output, marked unfinished
+//! ([`UNFINISHED`](sage_io::run::UNFINISHED)), and marks the run [`FINISHED`] once its last
+//! output is written (the summary, and the report when it writes one). A run whose record says
+//! unfinished was killed or failed half-way: its rerun resumes or redoes it, and every reader
+//! that needs the run's numbers refuses it ([`finished_run_record`]). Records written before
+//! the status existed have none and read as finished.
 
 use sage_core::{Error, Result};
-use sage_io::run::RUN_RECORD;
+use sage_io::run::{FINISHED, RUN_RECORD, unfinished_status};
 use std::path::{Path, PathBuf};
 
 /// The command, as the run record of a run folder names it.
@@ -58,6 +66,75 @@ pub fn run_record(dir: &Path) -> Result<serde_json::Value> {
         .in_file(dir)),
         None => Err(Error::format("command", "missing: expected the command that made the folder").in_file(&path)),
     }
+}
+
+/// [`run_record`] of a run whose writer finished it: the run record of `dir`, which must not
+/// be marked unfinished (see the module doc). Every reader of a run's numbers (its report, a
+/// rescoring, the viewer) goes through this.
+///
+/// # Errors
+///
+/// As [`run_record`]; an `invalid` error naming the folder when the run was not finished,
+/// saying which command to rerun to finish it.
+pub fn finished_run_record(dir: &Path) -> Result<serde_json::Value> {
+    let record = run_record(dir)?;
+    let Some(status) = unfinished_status(&record) else {
+        return Ok(record);
+    };
+    let settings = record.get("settings");
+    let setting = |key: &str| {
+        settings
+            .and_then(|s| s.get(key))
+            .and_then(serde_json::Value::as_str)
+            .unwrap_or("?")
+    };
+    let (what, finish) = if let Some(from) = record.get("rescored_from") {
+        let run = from
+            .get("run")
+            .and_then(serde_json::Value::as_str)
+            .unwrap_or("RUN");
+        (
+            "rescoring",
+            format!(
+                "rerun the same rescoring (`sage3d report {run} --mode {} --dtw {} --out {}`) to finish it",
+                setting("mode"),
+                setting("dtw"),
+                dir.display()
+            ),
+        )
+    } else if setting("agent") == sage_agents::AgentKind::Human.to_string() {
+        (
+            "human run",
+            format!(
+                "play an episode of it (`sage3d view {} --play {}`) to finish it",
+                setting("dataset"),
+                dir.display()
+            ),
+        )
+    } else {
+        (
+            "evaluation",
+            format!("rerun the same `sage3d {COMMAND}` into it to finish it"),
+        )
+    };
+    Err(Error::invalid(format!(
+        "the {what} in this folder was not finished (its {RUN_RECORD} has status '{status}'): {finish}"
+    ))
+    .in_file(dir))
+}
+
+/// Marks the run in `dir` finished: its run record written again with the `status`
+/// [`FINISHED`], the last write of every command that writes a run folder. The record is
+/// otherwise kept as its command wrote it, so a resumed run ends with the same bytes as an
+/// uninterrupted one.
+///
+/// # Errors
+///
+/// Not an evaluation run ([`run_record`]), or a write error.
+pub(crate) fn mark_finished(dir: &Path) -> Result<()> {
+    let mut record = run_record(dir)?;
+    record["status"] = FINISHED.into();
+    sage_io::files::write_json(&dir.join(RUN_RECORD), &record)
 }
 
 /// The scenes folder the evaluation run in `dir` was evaluated with, as its run record names it

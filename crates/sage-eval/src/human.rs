@@ -8,10 +8,12 @@
 //! moves the agent; the steps go through the same [`Env`](sage_env::Env) as an agent's, and the
 //! trace it returns at the end is what is scored here. Each finished episode is appended as one
 //! flushed line and the summary is rewritten at once, so a closed browser tab or a killed
-//! server loses no finished episode, and a split can be played over several sittings.
+//! server loses no finished episode, and a split can be played over several sittings. The run
+//! record says unfinished only while no episode is played (or a kill came between a record and
+//! its summary, which opening the run again mends).
 
 use crate::evaluator::{Split, blank_record, claim, env_config, open_split, score_into};
-use crate::folder::{RECORDS_FILE, SUMMARY_FILE};
+use crate::folder::{RECORDS_FILE, SUMMARY_FILE, mark_finished};
 use crate::records::{self, Appender, EvalRecord};
 use crate::settings::EvalSettings;
 use crate::summary::Summary;
@@ -58,7 +60,13 @@ impl HumanRun {
         let Split { episodes, dirs, .. } =
             open_split(&settings, &settings.agent.to_string(), None, out)?;
         let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
-        let recorded = records::sort(&out.join(RECORDS_FILE), &ids)?
+        let played = records::sort(&out.join(RECORDS_FILE), &ids)?;
+        // Opening marked the run unfinished; with episodes played it is a finished run again
+        // (its summary written anew, over what was played, in case a kill came before it).
+        if !played.is_empty() {
+            write_summary(out, &settings, &played)?;
+        }
+        let recorded = played
             .into_iter()
             .map(|r| (r.episode_id.clone(), r))
             .collect();
@@ -160,10 +168,14 @@ impl HumanRun {
             .map(|e| e.episode_id.as_str())
             .collect();
         let all = records::sort(&path, &ids)?;
-        sage_io::files::write_json(
-            &self.out.join(SUMMARY_FILE),
-            &Summary::of(&self.settings, &all),
-        )?;
+        write_summary(&self.out, &self.settings, &all)?;
         Ok(rec)
     }
+}
+
+/// Writes the summary of the human run in `out` over the episodes played (`played`) and marks
+/// the run finished: every episode played so far is recorded and counted.
+fn write_summary(out: &Path, settings: &EvalSettings, played: &[EvalRecord]) -> Result<()> {
+    sage_io::files::write_json(&out.join(SUMMARY_FILE), &Summary::of(settings, played))?;
+    mark_finished(out)
 }

@@ -19,10 +19,12 @@ pub mod rescore;
 pub mod settings;
 pub mod summary;
 
-pub use evaluator::{RunOutcome, Runner, claim, env_config, run, run_with, score_into};
+pub use evaluator::{
+    RunOutcome, Runner, claim, env_config, run, run_with, run_with_report, score_into, with_runner,
+};
 pub use human::HumanRun;
-pub use merge::merge_shards;
+pub use merge::{merge_shards, merge_shards_with_report};
 pub use records::{EvalRecord, Failure};
-pub use rescore::{Rescored, rescore};
+pub use rescore::{Rescored, rescore, rescore_with_report};
 pub use settings::EvalSettings;
 pub use summary::Summary;

@@ -1,9 +1,10 @@
 //! Merging the records of an evaluation run in shards (one per node or scene group) into the
 //! run folder one evaluation over the union would have written.
 
-use crate::evaluator::{recorded_settings, scene_inputs, write_run_record};
-use crate::folder::{RECORDS_FILE, SUMMARY_FILE};
+use crate::evaluator::{mark_unfinished, recorded_settings, scene_inputs};
+use crate::folder::{RECORDS_FILE, SUMMARY_FILE, mark_finished};
 use crate::records::EvalRecord;
+use crate::report::{ReportJob, ReportOutcome};
 use crate::settings::EvalSettings;
 use crate::summary::Summary;
 use sage_core::{Error, Result};
@@ -24,6 +25,35 @@ use std::path::Path;
 /// A line that is not a record or holds a bad field ([`EvalRecord::from_line`]), an episode
 /// not in the split or recorded by two shards (naming shard and line), or a write error.
 pub fn merge_shards(
+    settings: &EvalSettings,
+    agent: &str,
+    shards: &[String],
+    out: &Path,
+) -> Result<Summary> {
+    let summary = merge_unfinished(settings, agent, shards, out)?;
+    mark_finished(out)?;
+    Ok(summary)
+}
+
+/// [`merge_shards`] that also writes the merged run's report (`report`) before it marks the
+/// run finished, as one evaluation over the union does.
+///
+/// # Errors
+///
+/// As [`merge_shards`] and [`crate::report::write_with_options`].
+pub fn merge_shards_with_report(
+    settings: &EvalSettings,
+    agent: &str,
+    shards: &[String],
+    out: &Path,
+    report: &ReportJob,
+) -> Result<(Summary, ReportOutcome)> {
+    let summary = merge_unfinished(settings, agent, shards, out)?;
+    Ok((summary, report.finish(out)?))
+}
+
+/// [`merge_shards`] up to its summary: the run record, written first, stays marked unfinished.
+fn merge_unfinished(
     settings: &EvalSettings,
     agent: &str,
     shards: &[String],
@@ -57,7 +87,19 @@ pub fn merge_shards(
             }
         }
     }
+    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+    let recorded = recorded_settings(settings, agent)?;
+    // The scenes as they are where the shards are merged; without them there, none.
+    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes).unwrap_or_default();
+    let scenes = scene_inputs(&episodes, &dirs);
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    mark_unfinished(
+        out,
+        &recorded,
+        &sage_io::hash::fnv1a64_hex(&bytes),
+        &scenes,
+        None,
+    )?;
     write_atomic(&out.join(RECORDS_FILE), |w| {
         for (line, _) in all.values() {
             w.write_all(line.trim_end().as_bytes())?;
@@ -71,17 +113,5 @@ pub fn merge_shards(
         ..Summary::of(settings, &records)
     };
     write_json(&out.join(SUMMARY_FILE), &summary)?;
-    let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
-    let recorded = recorded_settings(settings, agent)?;
-    // The scenes as they are where the shards are merged; without them there, none.
-    let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes).unwrap_or_default();
-    let scenes = scene_inputs(&episodes, &dirs);
-    write_run_record(
-        out,
-        &recorded,
-        &sage_io::hash::fnv1a64_hex(&bytes),
-        &scenes,
-        None,
-    )?;
     Ok(summary)
 }

@@ -9,17 +9,22 @@
 //! record holds the run's settings with the new mode and alignment, so its report, the viewer
 //! and a resumed `eval` in that mode read it as one; the run rescored is only read.
 //!
+//! The new folder's run record is written first, marked unfinished, and marked finished last
+//! (after the report, when one is written): a rescoring killed half-way leaves a folder that
+//! its rerun — the same run, mode and alignment into the same folder — takes as its own and
+//! writes again, where any other run, finished or not, is refused.
+//!
 //! One exception: GN-Bench's distances to goal (`record.gnbench`) are only computed in a run
 //! scored in mode `gnbench`, so only such a run's records rescore in that mode; a record of
 //! another run says so ([`sage_metrics::evaluate`]'s error), before anything is written.
 
-use crate::folder::{COMMAND, RECORDS_FILE, SUMMARY_FILE, run_record};
+use crate::folder::{COMMAND, RECORDS_FILE, SUMMARY_FILE, finished_run_record, mark_finished};
 use crate::records::EvalRecord;
-use crate::report::read_run;
+use crate::report::{ReportJob, ReportOutcome, read_run};
 use crate::summary::Summary;
 use sage_core::{Error, Result, ResultExt};
 use sage_io::lock::FolderLock;
-use sage_io::run::RUN_RECORD;
+use sage_io::run::{RUN_RECORD, UNFINISHED, read_record, unfinished_status};
 use sage_metrics::{Dtw, Mode, Scoring};
 use std::io::Write;
 use std::path::Path;
@@ -82,6 +87,21 @@ fn rescore_record(rec: &EvalRecord, scoring: Scoring) -> Result<EvalRecord> {
     Ok(out)
 }
 
+/// Whether `out` holds a rescoring of the run at `from_run` (its canonical path) in `scoring`
+/// that was stopped before it finished: that rescoring's own folder, which its rerun writes
+/// again.
+fn unfinished_rescoring(out: &Path, from_run: &Path, scoring: Scoring) -> bool {
+    read_record(out).is_some_and(|record| {
+        record.get("command").and_then(serde_json::Value::as_str) == Some(COMMAND)
+            && unfinished_status(&record).is_some()
+            && record
+                .pointer("/rescored_from/run")
+                .and_then(serde_json::Value::as_str)
+                == from_run.to_str()
+            && recorded_scoring(&record).is_ok_and(|s| s == scoring)
+    })
+}
+
 /// Rescores the finished evaluation run in `run` in metric mode `mode` with nDTW alignment
 /// `dtw` (`None`: as the run was scored) into the new run folder `out`:
 /// `episodes.jsonl` with every scored episode's metrics computed again from its stored record
@@ -95,11 +115,42 @@ fn rescore_record(rec: &EvalRecord, scoring: Scoring) -> Result<EvalRecord> {
 /// # Errors
 ///
 /// `run` not a finished evaluation run ([`read_run`]), `out` the same folder as `run` or one
-/// that already holds a run (a rescoring writes a new one), a record that cannot be rescored
-/// in the new mode (naming its episode: a run not scored in `gnbench` cannot be rescored in
-/// `gnbench`), or a write error.
+/// that already holds a run (a rescoring writes a new one; the unfinished folder of this same
+/// rescoring is written again), a record that cannot be rescored in the new mode (naming its
+/// episode: a run not scored in `gnbench` cannot be rescored in `gnbench`), or a write error.
 pub fn rescore(run: &Path, mode: Option<Mode>, dtw: Option<Dtw>, out: &Path) -> Result<Rescored> {
-    run_record(run)?;
+    let rescored = rescore_unfinished(run, mode, dtw, out)?;
+    mark_finished(out)?;
+    Ok(rescored)
+}
+
+/// [`rescore`] that also writes the new folder's report (`report`) before it marks the new
+/// run finished, as `sage3d report RUN --mode M --out NEW` does: a rescoring killed before its
+/// report is written is still unfinished, and its rerun writes it all again.
+///
+/// # Errors
+///
+/// As [`rescore`] and [`crate::report::write_with_options`].
+pub fn rescore_with_report(
+    run: &Path,
+    mode: Option<Mode>,
+    dtw: Option<Dtw>,
+    out: &Path,
+    report: &ReportJob,
+) -> Result<(Rescored, ReportOutcome)> {
+    let rescored = rescore_unfinished(run, mode, dtw, out)?;
+    Ok((rescored, report.finish(out)?))
+}
+
+/// [`rescore`] up to the new folder's summary: its run record, written first, stays marked
+/// unfinished.
+fn rescore_unfinished(
+    run: &Path,
+    mode: Option<Mode>,
+    dtw: Option<Dtw>,
+    out: &Path,
+) -> Result<Rescored> {
+    finished_run_record(run)?;
     let same = |a: &Path, b: &Path| {
         let abs = |p: &Path| std::fs::canonicalize(p).or_else(|_| std::path::absolute(p));
         matches!((abs(a), abs(b)), (Ok(x), Ok(y)) if x == y)
@@ -110,23 +161,24 @@ pub fn rescore(run: &Path, mode: Option<Mode>, dtw: Option<Dtw>, out: &Path) -> 
         )
         .in_file(out));
     }
-    if let Some(held) = [RECORDS_FILE, SUMMARY_FILE, RUN_RECORD]
-        .into_iter()
-        .find(|f| out.join(f).exists())
+    let _reading = FolderLock::acquire(run, "report")?;
+    let files = read_run(run)?;
+    let from = recorded_scoring(&files.run).in_file(run.join(RUN_RECORD))?;
+    let scoring = Scoring {
+        mode: mode.unwrap_or(from.mode),
+        dtw: dtw.unwrap_or(from.dtw),
+    };
+    let from_run = std::fs::canonicalize(run).unwrap_or_else(|_| run.to_path_buf());
+    if !unfinished_rescoring(out, &from_run, scoring)
+        && let Some(held) = [RECORDS_FILE, SUMMARY_FILE, RUN_RECORD]
+            .into_iter()
+            .find(|f| out.join(f).exists())
     {
         return Err(Error::invalid(format!(
             "the folder holds a run already ({held}); a rescoring writes a new one: choose a new or empty folder (`out`)"
         ))
         .in_file(out));
     }
-    let _reading = FolderLock::acquire(run, "report")?;
-    let files = read_run(run)?;
-    let run_path = run.join(RUN_RECORD);
-    let from = recorded_scoring(&files.run).in_file(&run_path)?;
-    let scoring = Scoring {
-        mode: mode.unwrap_or(from.mode),
-        dtw: dtw.unwrap_or(from.dtw),
-    };
     let rescored: Vec<EvalRecord> = files
         .records
         .iter()
@@ -150,18 +202,11 @@ pub fn rescore(run: &Path, mode: Option<Mode>, dtw: Option<Dtw>, out: &Path) -> 
         scoring,
         &records,
     );
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    sage_io::files::write_atomic(&out.join(RECORDS_FILE), |w| {
-        lines.iter().try_for_each(|l| {
-            w.write_all(l.as_bytes())?;
-            w.write_all(b"\n")
-        })
-    })?;
-    sage_io::files::write_json(&out.join(SUMMARY_FILE), &summary)?;
     let mut settings = files.run.get("settings").cloned().unwrap_or_default();
     settings["mode"] = scoring.mode.as_str().into();
     settings["dtw"] = scoring.dtw.as_str().into();
-    let from_run = std::fs::canonicalize(run).unwrap_or_else(|_| run.to_path_buf());
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    // The record first: a rescoring killed from here on leaves a folder its rerun takes.
     sage_io::run::write_run_record(
         out,
         COMMAND,
@@ -170,6 +215,7 @@ pub fn rescore(run: &Path, mode: Option<Mode>, dtw: Option<Dtw>, out: &Path) -> 
             "settings": settings,
             "dataset_hash": files.run.get("dataset_hash"),
             "scene_inputs": files.run.get("scene_inputs"),
+            "status": UNFINISHED,
             "rescored_from": {
                 "run": from_run,
                 "mode": from.mode.as_str(),
@@ -177,6 +223,13 @@ pub fn rescore(run: &Path, mode: Option<Mode>, dtw: Option<Dtw>, out: &Path) -> 
             },
         }),
     )?;
+    sage_io::files::write_atomic(&out.join(RECORDS_FILE), |w| {
+        lines.iter().try_for_each(|l| {
+            w.write_all(l.as_bytes())?;
+            w.write_all(b"\n")
+        })
+    })?;
+    sage_io::files::write_json(&out.join(SUMMARY_FILE), &summary)?;
     let faulted = records.iter().filter(|r| r.metrics.is_none()).count();
     Ok(Rescored {
         from,

@@ -2,7 +2,7 @@
 //! same agent in the new mode: every episode's metrics and the summary are equal, whichever
 //! mode the run was scored in; GN-Bench's distances are only in a `gnbench` run, so only such a
 //! run rescores in `gnbench`; the run rescored is left as it was, and a rescoring never writes
-//! into it or over another run.
+//! into it or over another run; a rescoring killed part-way is its rerun's to write again.
 
 mod common;
 
@@ -229,4 +229,81 @@ fn a_rescoring_is_refused_before_it_writes_anything() {
         "{e}"
     );
     assert_eq!(read_tree(&run).unwrap(), before);
+}
+
+/// What a rescoring killed part-way leaves in `out`, copied from the finished rescoring in
+/// `whole`: its run record marked unfinished and `files` of its outputs.
+fn killed_rescoring(whole: &Path, out: &Path, files: &[&str]) {
+    std::fs::create_dir_all(out).unwrap();
+    for name in files {
+        std::fs::copy(whole.join(name), out.join(name)).unwrap();
+    }
+    let mut record = sage_eval::folder::run_record(whole).unwrap();
+    record["status"] = sage_io::run::UNFINISHED.into();
+    sage_io::files::write_json(&out.join(sage_io::run::RUN_RECORD), &record).unwrap();
+}
+
+#[test]
+fn a_rescoring_killed_part_way_is_written_again_by_its_rerun_and_by_nothing_else() {
+    let f = fixture();
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("sage");
+    evaluate(Mode::Sage, Dtw::Exact, &run);
+    let job = sage_eval::report::ReportJob::new(&f.scenes);
+    let rescore = |out: &Path, mode: Mode, force: bool| {
+        let _lock = sage_eval::claim(out, force)?;
+        sage_eval::rescore_with_report(&run, Some(mode), None, out, &job)
+    };
+    let whole = dir.path().join("whole");
+    rescore(&whole, Mode::Vlnce, false).unwrap();
+    let record = sage_eval::folder::run_record(&whole).unwrap();
+    assert_eq!(record["status"], "finished");
+    let files = |run: &Path| {
+        let mut tree = read_tree(run).unwrap();
+        tree.retain(|name, _| !name.starts_with("report"));
+        tree
+    };
+    // Killed after its records and summary (before its report), and killed after its first
+    // file: a reader says what to rerun, and the rerun — with `force` too — writes it all.
+    let mut killed = Vec::new();
+    for (k, (outputs, force)) in [
+        (&["episodes.jsonl", "summary.json"][..], false),
+        (&["episodes.jsonl"][..], false),
+        (&[][..], true),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = dir.path().join(format!("killed{k}"));
+        killed_rescoring(&whole, &out, outputs);
+        let e = read_run(&out).unwrap_err().to_string();
+        assert!(
+            e.contains("the rescoring in this folder was not finished")
+                && e.contains(&format!(
+                    "rerun the same rescoring (`sage3d report {} --mode vlnce --dtw exact --out {}`)",
+                    std::fs::canonicalize(&run).unwrap().display(),
+                    out.display()
+                )),
+            "{e}"
+        );
+        rescore(&out, Mode::Vlnce, force).unwrap();
+        assert_eq!(files(&out), files(&whole), "{outputs:?}");
+        assert!(out.join("report.html").is_file());
+        killed.push(out);
+    }
+    // A finished rescoring is a run: refused, as is an unfinished rescoring in another mode
+    // and an evaluation killed half-way.
+    let held = |e: sage_core::Error| {
+        let e = e.to_string();
+        assert!(e.contains("the folder holds a run already"), "{e}");
+    };
+    held(rescore(&killed[0], Mode::Vlnce, false).unwrap_err());
+    let other_mode = dir.path().join("other_mode");
+    killed_rescoring(&whole, &other_mode, &["episodes.jsonl"]);
+    let before = read_tree(&other_mode).unwrap();
+    held(rescore(&other_mode, Mode::SageOfficial, true).unwrap_err());
+    assert_eq!(read_tree(&other_mode).unwrap(), before);
+    let eval = dir.path().join("eval");
+    killed_rescoring(&run, &eval, &["episodes.jsonl"]);
+    held(rescore(&eval, Mode::Vlnce, true).unwrap_err());
 }

@@ -3,7 +3,7 @@
 //! a render through the agent's camera at the pose (compared with a direct render); the
 //! agent's marker on the map is where the record puts it; the same inputs give the same
 //! bytes, with any thread count; and the report writes the videos it is asked for and shows
-//! them.
+//! them, and removes those an earlier report wrote that it no longer shows.
 
 mod common;
 
@@ -412,4 +412,54 @@ fn the_report_writes_the_videos_asked_for_in_gallery_order_and_shows_them() {
     let outcome = write_report(&run, 1000);
     assert_eq!(outcome.videos, maps.len());
     assert_eq!(std::fs::read_dir(&videos_dir).unwrap().count(), maps.len());
+}
+
+#[test]
+fn a_rewritten_report_removes_the_videos_it_no_longer_shows_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = copy_run(dir.path());
+    let videos_dir = run.join("report").join(video::VIDEOS_DIR);
+    let gifs = || {
+        let mut names: Vec<String> = std::fs::read_dir(&videos_dir)
+            .map(|d| {
+                d.map(|e| e.unwrap().file_name().into_string().unwrap())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        names
+    };
+    let shown = |outcome: &report::ReportOutcome| {
+        let html = std::fs::read_to_string(&outcome.html).unwrap();
+        let mut names: Vec<String> = html
+            .match_indices("src=\"report/videos/")
+            .map(|(at, m)| {
+                let rest = &html[at + m.len()..];
+                rest[..rest.find('"').unwrap()].to_string()
+            })
+            .collect();
+        names.sort();
+        names
+    };
+    let three = write_report(&run, 3);
+    assert_eq!(three.videos, 3.min(records().len()));
+    assert_eq!(gifs(), shown(&three));
+    // Files of the user's beside them: another GIF, another kind of file.
+    std::fs::write(videos_dir.join("mine.gif"), "GIF89a").unwrap();
+    std::fs::write(videos_dir.join("notes.txt"), "keep").unwrap();
+    let one = write_report(&run, 1);
+    let mut expected = shown(&one);
+    assert_eq!(expected.len(), 1);
+    expected.extend(["mine.gif".to_string(), "notes.txt".to_string()]);
+    expected.sort();
+    assert_eq!(gifs(), expected);
+    let none = write_report(&run, 0);
+    assert!(shown(&none).is_empty());
+    assert_eq!(gifs(), ["mine.gif", "notes.txt"]);
+    // Without files of the user's, the folder goes with the last video.
+    std::fs::remove_file(videos_dir.join("mine.gif")).unwrap();
+    std::fs::remove_file(videos_dir.join("notes.txt")).unwrap();
+    write_report(&run, 1);
+    write_report(&run, 0);
+    assert!(!videos_dir.exists());
 }

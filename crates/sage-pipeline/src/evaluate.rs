@@ -5,7 +5,7 @@ use sage_agents::AgentKind;
 use sage_core::Result;
 use sage_dataset::folder::scenes_folder;
 use sage_eval::folder::COMMAND;
-use sage_eval::report::{self, ReportOptions, ReportOutcome};
+use sage_eval::report::{self, ReportJob, ReportOptions, ReportOutcome};
 use sage_eval::{EvalRecord, EvalSettings, RunOutcome, Runner, Summary};
 use sage_io::lock::FolderLock;
 use sage_metrics::{Dtw, Mode};
@@ -112,7 +112,7 @@ impl Callbacks<'_> {
 ///
 /// # Errors
 ///
-/// As [`sage_eval::claim`], [`sage_eval::run`] and [`report::write_with`].
+/// As [`sage_eval::claim`], [`sage_eval::run`] and [`sage_eval::run_with_report`].
 pub fn evaluate(
     settings: &EvalSettings,
     out: &Path,
@@ -120,9 +120,23 @@ pub fn evaluate(
     callbacks: Callbacks<'_>,
 ) -> Result<(RunOutcome, ReportOutcome)> {
     let _lock = sage_eval::claim(out, force)?;
-    let outcome = sage_eval::run(settings, out, callbacks.on_episode)?;
-    let report = report::write_with(out, &settings.scenes, callbacks.on_map)?;
-    Ok((outcome, report))
+    sage_eval::with_runner(settings, |runner| {
+        sage_eval::run_with_report(
+            settings,
+            runner,
+            out,
+            callbacks.on_episode,
+            &report_job(settings, callbacks),
+        )
+    })
+}
+
+/// The report an evaluation of `settings` writes at its end: with the run's scenes, no videos.
+fn report_job<'a>(settings: &'a EvalSettings, callbacks: Callbacks<'a>) -> ReportJob<'a> {
+    ReportJob {
+        on_map: callbacks.on_map,
+        ..ReportJob::new(&settings.scenes)
+    }
 }
 
 /// [`evaluate`] with a caller's runner (an agent written in Python, other environment
@@ -131,7 +145,7 @@ pub fn evaluate(
 ///
 /// # Errors
 ///
-/// As [`sage_eval::claim`], [`sage_eval::run_with`] and [`report::write_with`].
+/// As [`sage_eval::claim`], [`sage_eval::run_with`] and [`sage_eval::run_with_report`].
 pub fn evaluate_with(
     settings: &EvalSettings,
     runner: &Runner,
@@ -140,11 +154,15 @@ pub fn evaluate_with(
     callbacks: Callbacks<'_>,
 ) -> Result<(RunOutcome, Option<ReportOutcome>)> {
     let _lock = sage_eval::claim(out, false)?;
-    let outcome = sage_eval::run_with(settings, runner, out, callbacks.on_episode)?;
-    let report = report
-        .then(|| report::write_with(out, &settings.scenes, callbacks.on_map))
-        .transpose()?;
-    Ok((outcome, report))
+    if report {
+        let job = report_job(settings, callbacks);
+        let (outcome, report) =
+            sage_eval::run_with_report(settings, runner, out, callbacks.on_episode, &job)?;
+        Ok((outcome, Some(report)))
+    } else {
+        let outcome = sage_eval::run_with(settings, runner, out, callbacks.on_episode)?;
+        Ok((outcome, None))
+    }
 }
 
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into
@@ -154,8 +172,7 @@ pub fn evaluate_with(
 ///
 /// # Errors
 ///
-/// A folder that another command is writing, or as [`sage_eval::merge_shards`] and
-/// [`report::write_with`].
+/// A folder that another command is writing, or as [`sage_eval::merge_shards_with_report`].
 pub fn merge(
     settings: &EvalSettings,
     agent_name: &str,
@@ -165,9 +182,11 @@ pub fn merge(
 ) -> Result<(Summary, ReportOutcome)> {
     let lock = FolderLock::acquire(out, COMMAND)?;
     lock.remove_temporary();
-    let summary = sage_eval::merge_shards(settings, agent_name, shards, out)?;
-    let report = report::write_with(out, &settings.scenes, on_map)?;
-    Ok((summary, report))
+    let job = ReportJob {
+        on_map,
+        ..ReportJob::new(&settings.scenes)
+    };
+    sage_eval::merge_shards_with_report(settings, agent_name, shards, out, &job)
 }
 
 /// Writes (again) the report of the evaluation run in `run` with the scenes of `scenes`

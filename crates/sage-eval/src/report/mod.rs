@@ -88,16 +88,32 @@ fn read_text(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).map_err(|e| Error::io(path, e))
 }
 
-/// Reads a run folder: its run record, summary and episode records.
+/// Reads a finished run folder: its run record, summary and episode records.
 ///
 /// # Errors
 ///
 /// A folder that is not an evaluation run ([`crate::folder::run_record`]: none, a dataset,
-/// another command's), a missing or unreadable file, a bad line of `episodes.jsonl` (named by
-/// its line and field: [`EvalRecord::from_line`]), an episode recorded twice, or a summary
-/// that does not count the records (an unfinished run): each names the folder or file.
+/// another command's) or whose writer did not finish it
+/// ([`crate::folder::finished_run_record`]), a missing or unreadable file, a bad line of
+/// `episodes.jsonl` (named by its line and field: [`EvalRecord::from_line`]), an episode
+/// recorded twice, or a summary that does not count the records (an unfinished run): each
+/// names the folder or file.
 pub fn read_run(run_dir: &Path) -> Result<RunFiles> {
-    let run = crate::folder::run_record(run_dir)?;
+    read_files(run_dir, crate::folder::finished_run_record(run_dir)?)
+}
+
+/// [`read_run`] of the run folder its caller writes and has not marked finished yet (it
+/// writes the report before it does).
+///
+/// # Errors
+///
+/// As [`read_run`], whatever the run record's status.
+fn read_own_run(run_dir: &Path) -> Result<RunFiles> {
+    read_files(run_dir, crate::folder::run_record(run_dir)?)
+}
+
+/// The summary and records of the run folder `run_dir`, whose run record is `run`.
+fn read_files(run_dir: &Path, run: serde_json::Value) -> Result<RunFiles> {
     let summary_path = run_dir.join(SUMMARY_FILE);
     if !summary_path.is_file() {
         return Err(Error::invalid(
@@ -253,7 +269,9 @@ pub fn write_with(
 /// `on_video(episode_id, total)` after each.
 ///
 /// Every file is written atomically, the images first and the page last, so a page on disk
-/// always shows complete images.
+/// always shows complete images. Once the page is written, the videos an earlier report wrote
+/// that this one does not show are removed: the GIFs under `report/videos/` named for an
+/// episode of the run ([`video_file_name`]); any other file there is left as it is.
 ///
 /// # Errors
 ///
@@ -267,7 +285,68 @@ pub fn write_with_options(
     on_map: &(dyn Fn(&str, usize) + Sync),
     on_video: &(dyn Fn(&str, usize) + Sync),
 ) -> Result<ReportOutcome> {
-    let files = read_run(run_dir)?;
+    write_files(
+        run_dir,
+        read_run(run_dir)?,
+        scenes_dir,
+        options,
+        on_map,
+        on_video,
+    )
+}
+
+/// The report a command writes of the run folder it writes (an evaluation, a rescoring, a
+/// merge of shards) as its last output, before it marks the run finished: the run's
+/// [`ReportOptions`] and where its scenes are, with the callbacks of [`write_with_options`].
+#[derive(Clone, Copy)]
+pub struct ReportJob<'a> {
+    /// One scene folder or a folder of them, as for [`write_with_options`].
+    pub scenes: &'a Path,
+    /// The videos to write.
+    pub options: ReportOptions,
+    /// Called after each map: its episode id and the maps in all.
+    pub on_map: &'a (dyn Fn(&str, usize) + Sync),
+    /// Called after each video: its episode id and the videos in all.
+    pub on_video: &'a (dyn Fn(&str, usize) + Sync),
+}
+
+impl<'a> ReportJob<'a> {
+    /// The report of the run with its scenes in `scenes`: no videos, no callbacks.
+    pub fn new(scenes: &'a Path) -> ReportJob<'a> {
+        ReportJob {
+            scenes,
+            options: ReportOptions::default(),
+            on_map: &|_, _| {},
+            on_video: &|_, _| {},
+        }
+    }
+
+    /// Writes the report of the run its caller has written into `run_dir` (its run record
+    /// still marked unfinished), then marks the run finished
+    /// ([`crate::folder::mark_finished`]).
+    pub(crate) fn finish(&self, run_dir: &Path) -> Result<ReportOutcome> {
+        let outcome = write_files(
+            run_dir,
+            read_own_run(run_dir)?,
+            self.scenes,
+            &self.options,
+            self.on_map,
+            self.on_video,
+        )?;
+        crate::folder::mark_finished(run_dir)?;
+        Ok(outcome)
+    }
+}
+
+/// [`write_with_options`] of the run `files` read from `run_dir`.
+fn write_files(
+    run_dir: &Path,
+    files: RunFiles,
+    scenes_dir: &Path,
+    options: &ReportOptions,
+    on_map: &(dyn Fn(&str, usize) + Sync),
+    on_video: &(dyn Fn(&str, usize) + Sync),
+) -> Result<ReportOutcome> {
     let drawn: Vec<&EvalRecord> = files
         .records
         .iter()
@@ -357,6 +436,7 @@ pub fn write_with_options(
     sage_io::files::write_atomic(&html_path, |w| {
         std::io::Write::write_all(w, page.as_bytes())
     })?;
+    remove_stale_videos(run_dir, &files.records, &chosen)?;
     Ok(ReportOutcome {
         html: html_path,
         charts: chart_list.len(),
@@ -364,6 +444,39 @@ pub fn write_with_options(
         embedded,
         videos: videos.len(),
     })
+}
+
+/// Removes from `RUN/report/videos/` the videos an earlier report wrote that this one, which
+/// shows those of `shown`, does not: the GIFs named for an episode of `records`
+/// ([`video_file_name`]) other than those shown. Nothing else in the folder is touched (a
+/// file of the user's, another name); the folder goes once it is empty. Called after the page
+/// is written, so a page on disk never links a video that is gone.
+///
+/// # Errors
+///
+/// A video that cannot be removed, naming it.
+fn remove_stale_videos(
+    run_dir: &Path,
+    records: &[EvalRecord],
+    shown: &[&EvalRecord],
+) -> Result<()> {
+    let videos_dir = run_dir.join(REPORT_DIR).join(video::VIDEOS_DIR);
+    if !videos_dir.is_dir() {
+        return Ok(());
+    }
+    let kept: BTreeSet<String> = shown
+        .iter()
+        .map(|r| video_file_name(&r.episode_id))
+        .collect();
+    for name in records.iter().map(|r| video_file_name(&r.episode_id)) {
+        let path = videos_dir.join(&name);
+        if !kept.contains(&name) && path.is_file() {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    // Only an empty folder is removed; one holding other files stays as it is.
+    let _ = std::fs::remove_dir(&videos_dir);
+    Ok(())
 }
 
 /// The environment preset of the run record `run` (`settings.preset`): the agent's camera
