@@ -123,6 +123,35 @@ fn a_rebuild_with_other_settings_leaves_nothing_of_the_earlier_build() {
     assert!(!again.path().join("r2r/test_balanced").exists());
 }
 
+/// A scene built before with other settings that fails now leaves none of its old episodes in
+/// the dataset: its file of those settings goes before it is built again.
+#[test]
+fn a_scene_that_fails_on_a_rebuild_brings_no_old_episodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let copies: Vec<PathBuf> = scenes().1[..2]
+        .iter()
+        .map(|d| {
+            let to = dir.path().join(d.file_name().unwrap());
+            for (name, bytes) in read_tree(d).unwrap() {
+                std::fs::create_dir_all(to.join(&name).parent().unwrap()).unwrap();
+                std::fs::write(to.join(&name), bytes).unwrap();
+            }
+            to
+        })
+        .collect();
+    let out = dir.path().join("out");
+    let (mut p, a) = params();
+    build::build(&copies, &out, &p, &a, &|_| {}).unwrap();
+    assert!(all_episodes(&out).iter().any(|e| e.scene == "scene1"));
+    std::fs::write(copies[0].join("labels.json"), "{").unwrap();
+    p.nogoal = 2;
+    let (outcomes, _) = build::build(&copies, &out, &p, &a, &|_| {}).unwrap();
+    assert_eq!(outcomes[0].status, Status::Skipped);
+    let episodes = all_episodes(&out);
+    assert!(!episodes.is_empty());
+    assert!(episodes.iter().all(|e| e.scene != "scene1"));
+}
+
 #[test]
 fn episodes_are_complete_and_their_actions_reach_the_goal() {
     let out = tempfile::tempdir().unwrap();
