@@ -319,7 +319,7 @@ fn claim_run_folder(
         }
         rescored_from = old.get("rescored_from").cloned();
     }
-    mark_unfinished(out, settings, dataset_hash, scenes, rescored_from)
+    mark_unfinished(out, settings, &dataset_hash.into(), scenes, rescored_from)
 }
 
 /// The settings as the run record stores them: `settings` with the agent's recorded name.
@@ -337,7 +337,7 @@ pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<
 pub(crate) fn mark_unfinished(
     out: &Path,
     recorded: &serde_json::Value,
-    dataset_hash: &str,
+    dataset_hash: &serde_json::Value,
     scenes: &serde_json::Value,
     rescored_from: Option<serde_json::Value>,
 ) -> Result<()> {

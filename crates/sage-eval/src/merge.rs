@@ -96,7 +96,7 @@ fn merge_unfinished(
     mark_unfinished(
         out,
         &recorded,
-        &sage_io::hash::fnv1a64_hex(&bytes),
+        &sage_io::hash::fnv1a64_hex(&bytes).into(),
         &scenes,
         None,
     )?;

@@ -18,13 +18,14 @@
 //! scored in mode `gnbench`, so only such a run's records rescore in that mode; a record of
 //! another run says so ([`sage_metrics::evaluate`]'s error), before anything is written.
 
+use crate::evaluator::mark_unfinished;
 use crate::folder::{COMMAND, RECORDS_FILE, SUMMARY_FILE, finished_run_record, mark_finished};
 use crate::records::EvalRecord;
 use crate::report::{ReportJob, ReportOutcome, read_run};
 use crate::summary::Summary;
 use sage_core::{Error, Result, ResultExt};
 use sage_io::lock::FolderLock;
-use sage_io::run::{RUN_RECORD, UNFINISHED, read_record, unfinished_status};
+use sage_io::run::{RUN_RECORD, read_record, unfinished_status};
 use sage_metrics::{Dtw, Mode, Scoring};
 use std::io::Write;
 use std::path::Path;
@@ -207,21 +208,17 @@ fn rescore_unfinished(
     settings["dtw"] = scoring.dtw.as_str().into();
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     // The record first: a rescoring killed from here on leaves a folder its rerun takes.
-    sage_io::run::write_run_record(
+    let recorded = |key: &str| files.run.get(key).unwrap_or(&serde_json::Value::Null);
+    mark_unfinished(
         out,
-        COMMAND,
-        settings.get("seed").and_then(serde_json::Value::as_u64),
-        serde_json::json!({
-            "settings": settings,
-            "dataset_hash": files.run.get("dataset_hash"),
-            "scene_inputs": files.run.get("scene_inputs"),
-            "status": UNFINISHED,
-            "rescored_from": {
-                "run": from_run,
-                "mode": from.mode.as_str(),
-                "dtw": from.dtw.as_str(),
-            },
-        }),
+        &settings,
+        recorded("dataset_hash"),
+        recorded("scene_inputs"),
+        Some(serde_json::json!({
+            "run": from_run,
+            "mode": from.mode.as_str(),
+            "dtw": from.dtw.as_str(),
+        })),
     )?;
     sage_io::files::write_atomic(&out.join(RECORDS_FILE), |w| {
         lines.iter().try_for_each(|l| {
