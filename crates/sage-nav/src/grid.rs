@@ -11,15 +11,14 @@
 //! mesh is no body (SPEC §6). Objects with given convex parts (a published collision file, or
 //! parts recovered from their Gaussians) block with those parts, as physics does.
 //!
-//! That is source 2 of [`NavGrid::from_scene`], which prefers a scene's own occupancy map where
-//! it has no meshes or no rooms, and builds the grid from the Gaussians ([`crate::splat_grid`])
-//! where it has neither rooms nor a map (see [`GridSource`]).
+//! That is source 2 of [`NavGrid::from_scene`] ([`crate::source`]), which prefers a scene's own
+//! occupancy map where it has no meshes or no rooms, and builds the grid from the Gaussians
+//! where it has neither rooms nor a map.
 //!
 //! Internally column `i` covers world x in `[origin.x + i·cell, origin.x + (i+1)·cell)` and row
 //! `j` likewise in y. The InteriorGS `occupancy.png` mirrors x; [`NavGrid::to_occupancy`] and
 //! [`NavGrid::from_occupancy`] convert.
 
-use crate::splat_grid::{self, SplatGridParams};
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Result};
 use sage_scene::occupancy::{FREE, OCCUPIED, OccupancyMap, UNKNOWN};
@@ -76,33 +75,6 @@ impl GridParams {
     }
 }
 
-/// Where a grid's cells came from, in the order [`NavGrid::from_scene`] prefers them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum GridSource {
-    /// The scene's own `occupancy.png` (it has no meshes, or no rooms to tell free space by).
-    SceneOccupancy,
-    /// Rasterised from meshes, boxes and walls; free space is the rooms of `structure.json`.
-    Geometry,
-    /// Obstacles from meshes, boxes and walls and from the Gaussians; free space where the
-    /// Gaussians show floor (the scene has objects but no rooms).
-    GeometryGaussians,
-    /// The Gaussians alone ([`crate::splat_grid`]): the scene has no rooms, no objects and no
-    /// occupancy map.
-    Gaussians,
-}
-
-impl GridSource {
-    /// `scene-occupancy`, `geometry`, `geometry+gaussians` or `gaussians`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            GridSource::SceneOccupancy => "scene-occupancy",
-            GridSource::Geometry => "geometry",
-            GridSource::GeometryGaussians => "geometry+gaussians",
-            GridSource::Gaussians => "gaussians",
-        }
-    }
-}
-
 /// A top-down grid of free / occupied / unknown cells with the room of each cell.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NavGrid {
@@ -143,86 +115,6 @@ impl NavGrid {
             cells: vec![UNKNOWN; width * height],
             rooms: vec![NO_ROOM; width * height],
         })
-    }
-
-    /// Builds the grid of a scene from the best source it has, in this order:
-    ///
-    /// 1. its own occupancy map, when it has no meshes (its map was made with the geometry it
-    ///    does not ship) or no rooms (nothing else tells free space as well);
-    /// 2. its geometry, free space being the rooms of `structure.json`;
-    /// 3. with objects but no rooms: obstacles from the geometry and the Gaussians, free space
-    ///    where the Gaussians show floor ([`crate::splat_grid`]);
-    /// 4. with neither: the Gaussians alone.
-    ///
-    /// # Errors
-    ///
-    /// Bad parameters, or a scene with no rooms, no occupancy map and no Gaussians showing a
-    /// floor at z = 0.
-    pub fn from_scene(scene: &Scene, params: &GridParams) -> Result<(NavGrid, GridSource)> {
-        NavGrid::from_scene_with(scene, params, &SplatGridParams::default())
-    }
-
-    /// [`NavGrid::from_scene`] with the Gaussian evidence rules `splat` (used by sources 3 and
-    /// 4 only).
-    ///
-    /// # Errors
-    ///
-    /// As [`NavGrid::from_scene`].
-    pub fn from_scene_with(
-        scene: &Scene,
-        params: &GridParams,
-        splat: &SplatGridParams,
-    ) -> Result<(NavGrid, GridSource)> {
-        params.validate()?;
-        let has_meshes =
-            scene.structure_mesh.is_some() || scene.objects.iter().any(|o| o.mesh.is_some());
-        let has_rooms = !scene.floorplan.rooms.is_empty();
-        if (!has_meshes || !has_rooms)
-            && let Some(occ) = &scene.occupancy
-        {
-            let mut grid = NavGrid::from_occupancy(occ)?;
-            grid.mark_rooms(scene);
-            return Ok((grid, GridSource::SceneOccupancy));
-        }
-        if has_rooms {
-            return Ok((rasterize(scene, params)?, GridSource::Geometry));
-        }
-        if scene.gaussians.is_empty() {
-            return Err(Error::invalid(format!(
-                "scene {}: no rooms in structure.json, no occupancy map and no Gaussians, so free space is undefined",
-                scene.name
-            )));
-        }
-        let slab = (params.slab_bottom, params.agent_height);
-        let has_geometry = !scene.objects.is_empty()
-            || !scene.floorplan.walls.is_empty()
-            || scene.structure_mesh.is_some();
-        let extra = has_geometry.then(|| geometry_bounds(scene));
-        let mut grid = splat_grid::gaussian_grid_with(
-            &scene.gaussians,
-            params.cell,
-            slab,
-            params.margin,
-            splat,
-            extra,
-        )
-        .map_err(|e| {
-            // The extent is the Gaussians' and the geometry's: say where each reaches.
-            let g = scene.gaussians.bounds();
-            let mut parts = vec![ExtentPart {
-                name: "the Gaussians".to_string(),
-                lo: g.min.truncate(),
-                hi: g.max.truncate(),
-            }];
-            parts.extend(geometry_parts(scene));
-            Error::invalid(format!("scene {}: {e}{}", scene.name, farthest(&parts)))
-        })?;
-        if !has_geometry {
-            return Ok((grid, GridSource::Gaussians));
-        }
-        block_geometry(&mut grid, scene, slab);
-        splat_grid::drop_small_free(&mut grid, splat.min_free_area);
-        Ok((grid, GridSource::GeometryGaussians))
     }
 
     /// The flat index of cell (column, row).
@@ -318,7 +210,7 @@ impl NavGrid {
     }
 
     /// Gives every cell the room (smallest polygon) holding its centre.
-    fn mark_rooms(&mut self, scene: &Scene) {
+    pub(crate) fn mark_rooms(&mut self, scene: &Scene) {
         for (r, room) in scene.floorplan.rooms.iter().enumerate() {
             let (lo, hi) = room.profile.bounds();
             let Some((i0, j0, i1, j1)) = self.cell_range(lo, hi) else {
@@ -450,7 +342,7 @@ pub fn clip_to_slab(tri: [Vec3; 3], z0: f32, z1: f32) -> Vec<Vec2> {
 }
 
 /// The grid of a scene's geometry (see the module docs).
-fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
+pub(crate) fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
     let fp = &scene.floorplan;
     if fp.rooms.is_empty() {
         return Err(Error::invalid(format!(
@@ -481,13 +373,13 @@ fn rasterize(scene: &Scene, params: &GridParams) -> Result<NavGrid> {
 
 /// A part of a scene that a grid covers, named by the file and entry it comes from, with its
 /// floor-plane bounds: what an error about the grid's extent names.
-struct ExtentPart {
+pub(crate) struct ExtentPart {
     /// `structure.json rooms[2]`, `labels.json object 1003`, …
-    name: String,
+    pub(crate) name: String,
     /// Lower corner, metres.
-    lo: Vec2,
+    pub(crate) lo: Vec2,
     /// Upper corner, metres.
-    hi: Vec2,
+    pub(crate) hi: Vec2,
 }
 
 /// The rooms of `scene`, as parts of its extent.
@@ -515,7 +407,7 @@ fn wall_parts(scene: &Scene) -> impl Iterator<Item = ExtentPart> + '_ {
 }
 
 /// The walls, objects and structure mesh of `scene`, as parts of its extent.
-fn geometry_parts(scene: &Scene) -> Vec<ExtentPart> {
+pub(crate) fn geometry_parts(scene: &Scene) -> Vec<ExtentPart> {
     let mut parts: Vec<ExtentPart> = wall_parts(scene).collect();
     parts.extend(scene.objects.iter().map(|o| {
         let b = o.obb.aabb();
@@ -539,7 +431,7 @@ fn geometry_parts(scene: &Scene) -> Vec<ExtentPart> {
 /// `; it reaches farthest at NAME, which spans …` for the part of `parts` farthest from the
 /// median of their centres (the one that stretches the extent when one part is broken), or
 /// nothing without parts.
-fn farthest(parts: &[ExtentPart]) -> String {
+pub(crate) fn farthest(parts: &[ExtentPart]) -> String {
     let centres: Vec<Vec2> = parts.iter().map(|p| (p.lo + p.hi) * 0.5).collect();
     let median = |axis: fn(&Vec2) -> f32| {
         let mut v: Vec<f32> = centres.iter().map(axis).collect();
@@ -562,7 +454,7 @@ fn farthest(parts: &[ExtentPart]) -> String {
 
 /// The floor-plane bounds (lower, upper corner) of the walls, objects and structure mesh of
 /// `scene`.
-fn geometry_bounds(scene: &Scene) -> (Vec2, Vec2) {
+pub(crate) fn geometry_bounds(scene: &Scene) -> (Vec2, Vec2) {
     extent(&geometry_parts(scene))
 }
 
@@ -577,7 +469,7 @@ fn extent(parts: &[ExtentPart]) -> (Vec2, Vec2) {
 
 /// Blocks the cells of every wall, the structure mesh and every object body that reach into
 /// the slab (see the module docs).
-fn block_geometry(grid: &mut NavGrid, scene: &Scene, slab: (f32, f32)) {
+pub(crate) fn block_geometry(grid: &mut NavGrid, scene: &Scene, slab: (f32, f32)) {
     for w in &scene.floorplan.walls {
         for rect in wall_blocks(w, scene, slab) {
             grid.block_convex(&rect);
@@ -692,34 +584,53 @@ fn block_solid(grid: &mut NavGrid, m: &TriMesh, slab: (f32, f32)) {
         let (i, j) = (k % grid.width, k / grid.width);
         local[(j - j0 + 1) * w + (i - i0 + 1)] = 1;
     }
-    let mut stack = vec![0usize];
     local[0] = 2;
-    while let Some(k) = stack.pop() {
-        let (x, y) = (k % w, k / w);
-        let mut visit = |n: usize| {
-            if local[n] == 0 {
+    flood4(
+        w,
+        h,
+        &mut vec![0usize],
+        |n| {
+            let outside = local[n] == 0;
+            if outside {
                 local[n] = 2;
-                stack.push(n);
             }
-        };
-        if x > 0 {
-            visit(k - 1);
-        }
-        if x + 1 < w {
-            visit(k + 1);
-        }
-        if y > 0 {
-            visit(k - w);
-        }
-        if y + 1 < h {
-            visit(k + w);
-        }
-    }
+            outside
+        },
+        |_| {},
+    );
     for y in 1..h - 1 {
         for x in 1..w - 1 {
             if local[y * w + x] != 2 {
                 let k = grid.index(i0 + x - 1, j0 + y - 1);
                 grid.cells[k] = OCCUPIED;
+            }
+        }
+    }
+}
+
+/// Floods a 4-connected region of a `width`-column row-major raster of `height` rows from the
+/// cells on `stack` (each already taken), calling `reached(k)` on each cell of the region and
+/// `take(n)` on each neighbour of one: `true` takes the neighbour in, and `take` marks it so
+/// that it is not taken twice.
+pub(crate) fn flood4(
+    width: usize,
+    height: usize,
+    stack: &mut Vec<usize>,
+    mut take: impl FnMut(usize) -> bool,
+    mut reached: impl FnMut(usize),
+) {
+    while let Some(k) = stack.pop() {
+        reached(k);
+        let (x, y) = (k % width, k / width);
+        let neighbours = [
+            (x > 0).then(|| k - 1),
+            (x + 1 < width).then(|| k + 1),
+            (y > 0).then(|| k - width),
+            (y + 1 < height).then(|| k + width),
+        ];
+        for n in neighbours.into_iter().flatten() {
+            if take(n) {
+                stack.push(n);
             }
         }
     }

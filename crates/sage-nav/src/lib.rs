@@ -2,7 +2,7 @@
 //!
 //! From a [`sage_scene::Scene`] this crate builds the 2-D semantic top-down map
 //! ([`semantic_map`]), the occupancy grid of an agent's height slab ([`grid`]; from the
-//! Gaussians alone where a scene has no floorplan, [`splat_grid`]), its exact
+//! Gaussians where a scene has no floorplan, [`splat_grid`]; which of them, [`source`]), its exact
 //! Euclidean distance transform ([`edt`]), a clearance-aware cost ([`cost`]) and an array-based
 //! A* / Dijkstra ([`astar`]); [`pathfinder`] wraps them in a Habitat-like API, [`path`] turns grid
 //! paths into smooth, resampled trajectories, [`sampling`] draws start–goal pairs over rooms,
@@ -19,14 +19,16 @@ pub mod pathfinder;
 pub mod published_map;
 pub mod sampling;
 pub mod semantic_map;
+pub mod source;
 pub mod splat_grid;
 pub mod trajectory;
 
 pub use cost::CostParams;
-pub use grid::{GridParams, GridSource, NavGrid};
+pub use grid::{GridParams, NavGrid};
 pub use pathfinder::{NavPath, PathFinder};
 pub use published_map::PublishedMap;
 pub use sampling::{EndpointKind, SamplingParams};
 pub use semantic_map::{MapItem, SemanticMap};
+pub use source::GridSource;
 pub use splat_grid::SplatGridParams;
 pub use trajectory::{Trajectory, TrajectoryParams, TrajectorySet};

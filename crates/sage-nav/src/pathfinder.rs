@@ -8,9 +8,10 @@
 //! the 4-connected components of the navigable cells; with no corner cutting, two cells are
 //! mutually reachable exactly when they share an island.
 
+use crate::GridSource;
 use crate::astar::{DistanceField, Graph, Search};
 use crate::cost::{self, CostParams};
-use crate::grid::{GridParams, GridSource, NavGrid};
+use crate::grid::{GridParams, NavGrid};
 use crate::path;
 use glam::Vec2;
 use rand::Rng;

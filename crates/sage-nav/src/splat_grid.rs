@@ -22,7 +22,7 @@
 //! that no agent reaches). A dense surface gives a mass of about 2π·σ²·density ≈ 3 per cell
 //! whatever its sampling, so the thresholds hold across densities.
 
-use crate::grid::NavGrid;
+use crate::grid::{NavGrid, flood4};
 use glam::{Mat3, Vec2, Vec3};
 use sage_core::{Error, Result};
 use sage_scene::Gaussians;
@@ -291,28 +291,17 @@ pub(crate) fn drop_small_free(grid: &mut NavGrid, min_area: f32) {
         seen[start] = true;
         stack.push(start);
         component.clear();
-        while let Some(k) = stack.pop() {
-            component.push(k);
-            let (i, j) = (k % w, k / w);
-            let mut visit = |n: usize| {
-                if !seen[n] && grid.cells[n] == FREE {
-                    seen[n] = true;
-                    stack.push(n);
-                }
-            };
-            if i > 0 {
-                visit(k - 1);
-            }
-            if i + 1 < w {
-                visit(k + 1);
-            }
-            if j > 0 {
-                visit(k - w);
-            }
-            if j + 1 < h {
-                visit(k + w);
-            }
-        }
+        flood4(
+            w,
+            h,
+            &mut stack,
+            |n| {
+                let take = !seen[n] && grid.cells[n] == FREE;
+                seen[n] |= take;
+                take
+            },
+            |k| component.push(k),
+        );
         if component.len() < min_cells {
             for &k in &component {
                 grid.cells[k] = UNKNOWN;

@@ -5,9 +5,10 @@
 //! scene seed; each batch of candidates is planned in parallel, and acceptance runs in candidate
 //! order, so the output is the same byte for byte with any thread count.
 
+use crate::GridSource;
 use crate::astar::Search;
 use crate::cost::CostParams;
-use crate::grid::{GridParams, GridSource};
+use crate::grid::GridParams;
 use crate::path;
 use crate::pathfinder::PathFinder;
 use crate::sampling::{Endpoints, Pair, SamplingParams};
