@@ -15,8 +15,12 @@
 //!   around it, a bed and its nightstands, …): the objects of the anchor's room whose footprints
 //!   lie within `area_reach` of the anchor's; its polygon is the hull of their footprints, and it
 //!   stands like an object.
-//! - A **room** endpoint is any navigable cell of the room with clearance ≥ `room_clearance`
-//!   (all its navigable cells when none has that much), drawn uniformly.
+//! - A **room** endpoint stands at the room's centre, as instructions name it ("the center of
+//!   the kitchen"): a cell drawn uniformly among those within [`ROOM_CENTRE_RADIUS`] of the
+//!   room's central cell, the cell with clearance ≥ `room_clearance` nearest to the centroid of
+//!   the room's outline (of its navigable cells when none has that much clearance). An agent
+//!   that stops at the centre is then within the success distance of the goal, and a room
+//!   still gives trips many start and goal points.
 //!
 //! - A scene with neither rooms nor objects (an imported capture) has **regions** instead: its
 //!   navigable cells cut into [`REGION`]-metre squares, each with at least 1 m² of them a room
@@ -224,7 +228,7 @@ impl Endpoints {
         let mut list = Vec::new();
         for room in &map.rooms {
             let polygon = Polygon2::new(room.polygon.clone());
-            let stands = room_stands(pf, room.index, params.room_clearance);
+            let stands = room_stands(pf, room.index, polygon.centroid(), params.room_clearance);
             if !stands.is_empty() {
                 list.push(Endpoint {
                     kind: EndpointKind::Room,
@@ -462,8 +466,14 @@ fn region_endpoints(pf: &PathFinder, params: &SamplingParams) -> Vec<Endpoint> {
         .collect()
 }
 
-/// Stand cells of a room.
-fn room_stands(pf: &PathFinder, room: usize, clearance: f32) -> Vec<Stand> {
+/// How far from a room's central cell its stand cells lie, metres: half the default success
+/// distance, so that an agent stopping at the room's centre succeeds on a trip to the room
+/// whichever of them the trip ends at.
+pub const ROOM_CENTRE_RADIUS: f32 = 0.5;
+
+/// Stand cells of a room: those within [`ROOM_CENTRE_RADIUS`] of its central cell (the one
+/// nearest to `centre`, the centroid of its outline; first in index order on ties).
+fn room_stands(pf: &PathFinder, room: usize, centre: Vec2, clearance: f32) -> Vec<Stand> {
     let g = &pf.grid;
     let cells: Vec<usize> = pf
         .navigable_cells()
@@ -477,8 +487,19 @@ fn room_stands(pf: &PathFinder, room: usize, clearance: f32) -> Vec<Stand> {
         .filter(|&k| pf.clearance[k] >= clearance)
         .collect();
     let chosen = if roomy.is_empty() { cells } else { roomy };
+    let mut central: Option<(f32, Vec2)> = None;
+    for &k in &chosen {
+        let d = g.center_of(k).distance_squared(centre);
+        if central.is_none_or(|(best, _)| d < best) {
+            central = Some((d, g.center_of(k)));
+        }
+    }
+    let Some((_, middle)) = central else {
+        return Vec::new();
+    };
     chosen
         .into_iter()
+        .filter(|&k| g.center_of(k).distance(middle) <= ROOM_CENTRE_RADIUS)
         .map(|k| Stand {
             cell: k,
             point: g.center_of(k),

@@ -541,6 +541,52 @@ fn endpoints_stand_beside_their_objects_at_a_safe_distance() {
 }
 
 #[test]
+fn room_endpoints_stand_at_the_room_centre() {
+    let scene = small_synth(6);
+    let params = TrajectoryParams::default();
+    let prep = trajectory::prepare(&scene, &params).unwrap();
+    let pf = &prep.finder;
+    let radius = sage_nav::sampling::ROOM_CENTRE_RADIUS;
+    let rooms: Vec<_> = prep
+        .endpoints
+        .list
+        .iter()
+        .filter(|e| e.kind == sage_nav::EndpointKind::Room)
+        .collect();
+    assert!(!rooms.is_empty());
+    for e in rooms {
+        let room: usize = e.reference["room_".len()..].parse().unwrap();
+        // The roomy cells of the room, found here from the grid, and the one nearest the
+        // centroid of its outline: every stand lies within the radius of it, and every roomy
+        // cell within that radius is a stand.
+        let roomy: Vec<usize> = (0..pf.passable.len())
+            .filter(|&k| {
+                pf.passable[k]
+                    && pf.grid.rooms[k] as usize == room
+                    && pf.clearance[k] >= params.sampling.room_clearance
+            })
+            .collect();
+        let centre = e.polygon.centroid();
+        let middle = roomy
+            .iter()
+            .map(|&k| pf.grid.center_of(k))
+            .min_by(|a, b| a.distance(centre).total_cmp(&b.distance(centre)))
+            .unwrap();
+        let near = roomy
+            .iter()
+            .filter(|&&k| pf.grid.center_of(k).distance(middle) <= radius)
+            .count();
+        assert_eq!(e.stands.len(), near, "{}", e.reference);
+        for s in &e.stands {
+            assert!(s.point.distance(middle) <= radius + 1e-4, "{}", e.reference);
+            assert!(pf.clearance[s.cell] >= params.sampling.room_clearance);
+        }
+        // An agent that stops at the centre is within the success distance of every stand.
+        assert!(e.stands.iter().all(|s| s.point.distance(middle) < 1.0));
+    }
+}
+
+#[test]
 fn item_ids_count_every_object_per_category() {
     let scene = small_synth(7);
     let map = SemanticMap::build(&scene);
