@@ -42,7 +42,9 @@ pub enum SplatBodies {
     Auto,
     /// Every object, whatever else it has (to compare with the mesh's bodies).
     Always,
-    /// None: objects without a mesh or a published body stay their box.
+    /// None: objects without a mesh or a published body stay their box. A scene with no
+    /// structure at all (a capture) still gets its structure body from its loose Gaussians:
+    /// that is its walls, not an object's body, and without it nothing would stop an agent.
     Never,
 }
 
@@ -149,9 +151,6 @@ pub fn attach(
 ) -> Result<SplatBodyReport> {
     validate(params)?;
     let mut report = SplatBodyReport::default();
-    if choice == SplatBodies::Never {
-        return Ok(report);
-    }
     let members = members_by_instance(&scene.gaussians);
     let structure = Structure::of(scene);
     let gaussians = &scene.gaussians;

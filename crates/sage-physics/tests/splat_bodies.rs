@@ -190,13 +190,16 @@ fn a_bare_capture_gets_a_structure_body_with_its_air_left_free() {
     )
     .unwrap();
     assert!(bodies.bodies.iter().any(|b| b.kind == BodyKind::Structure));
-    // Never: nothing recovered.
+    // Never: no object's body comes from its Gaussians, but the capture keeps its walls (its
+    // structure body is not an object's): without them nothing would stop an agent.
     let mut never = Scene {
         structure_body: None,
         ..capture.clone()
     };
-    splat_bodies::attach(&mut never, SplatBodies::Never, &SplatBodyParams::default()).unwrap();
-    assert!(never.structure_body.is_none());
+    let r =
+        splat_bodies::attach(&mut never, SplatBodies::Never, &SplatBodyParams::default()).unwrap();
+    assert_eq!(r.recovered, 0);
+    assert_eq!(never.structure_body, capture.structure_body);
 }
 
 /// A ground agent at `(x, y)` of `world`, after turning in place: what it touched.
