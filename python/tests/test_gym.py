@@ -214,3 +214,21 @@ def test_bad_settings_are_clear_errors():
     # A misspelt field of `config` is named, not ignored.
     with pytest.raises(ValueError, match="sensors.widht: unknown field"):
         make(config={"sensors": {"widht": 3}})
+
+
+def test_splat_bodies_choose_the_bodies_the_scenes_are_loaded_with():
+    env = make(config={"splat_bodies": "never"})
+    assert env.config["splat_bodies"] == "never"
+    assert [s.splat_bodies for s in env.scenes] == ["never"]
+    env.reset(seed=0)
+    # The default is left out of the resolved config, as before the choice existed.
+    assert "splat_bodies" not in make().config
+    scene = sage3d.Scene.load(make().scenes[0].path)
+    assert scene.splat_bodies == "auto"
+    # A scene loaded with other bodies than the config asks for is refused, naming both.
+    with pytest.raises(ValueError, match="splat_bodies.*'never'.*'auto'"):
+        make(scene=scene, config={"splat_bodies": "never"})
+    with pytest.raises(ValueError, match="splat_bodies.*sometimes"):
+        sage3d.Scene.load(scene.path, splat_bodies="sometimes")
+    with pytest.raises(ValueError, match="splat_bodies"):
+        sage3d.evaluate("unused", agent="oracle", out="unused-run", config={"splat_bodies": "never"})

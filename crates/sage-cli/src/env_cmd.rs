@@ -10,6 +10,8 @@ use sage_core::{Error, Result};
 use sage_env::agents::run_episode;
 use sage_env::{Env, EnvConfig, SceneContext, SensorConfig};
 use sage_metrics::{Dtw, Mode, Scoring};
+use sage_physics::SplatBodies;
+use sage_scene::LoadOptions;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -36,7 +38,8 @@ pub struct RunArgs {
     /// Seed of the random agent.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Environment preset: sage, vlnce or gnbench.
+    /// Environment preset: sage, vlnce, gnbench or sage-harness (the published SAGE-Bench
+    /// harness's camera, steps and step limit).
     #[arg(long, default_value = "sage")]
     preset: String,
     /// Metric mode: sage, vlnce, sage-official or gnbench.
@@ -52,6 +55,10 @@ pub struct RunArgs {
     /// Hull cache folder (default: beside the scene).
     #[arg(long)]
     cache: Option<PathBuf>,
+    /// Which objects get bodies recovered from their Gaussians, as `physics build
+    /// --splat-bodies`: auto, always or never.
+    #[arg(long, value_name = "auto|always|never", default_value_t = SplatBodies::default())]
+    splat_bodies: SplatBodies,
     #[command(flatten)]
     device: crate::flags::DeviceFlag,
 }
@@ -69,6 +76,7 @@ fn run_one(a: RunArgs) -> Result<()> {
     };
     let mut config = EnvConfig::preset(&a.preset).map_err(|e| e.within("--preset"))?;
     config.device = a.device.device;
+    config.splat_bodies = a.splat_bodies;
     if !a.render {
         config.sensors = SensorConfig {
             rgb: false,
@@ -89,7 +97,12 @@ fn run_one(a: RunArgs) -> Result<()> {
     } else {
         eprintln!("renderer: {renderer} (not used: without --render no images are rendered)");
     }
-    let ctx = Arc::new(SceneContext::load(&a.scene, a.cache)?);
+    let ctx = Arc::new(SceneContext::load_with_bodies(
+        &a.scene,
+        a.cache,
+        &LoadOptions::default(),
+        config.splat_bodies,
+    )?);
     let episodes = sage_dataset::formats::jsonl::read(&a.episodes)?;
     let episode = episodes
         .iter()

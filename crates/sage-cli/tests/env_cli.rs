@@ -62,6 +62,15 @@ fn oracle_runs_a_dataset_episode_and_scores_it() {
     assert_eq!(last["mode"], "gnbench");
     assert!(last["metrics"]["osr"].as_f64().is_some(), "{out}");
     assert!(last["metrics"]["cr"].is_null(), "{out}");
+    // The bodies a user chose with `physics build --splat-bodies`: the scene's objects have
+    // meshes, so `never` (boxes only where nothing better exists) walks the same way.
+    assert_eq!(
+        run_ok(&["--episode", id, "--splat-bodies", "never"]),
+        rendered
+    );
+    let bad = run(&["--splat-bodies", "sometimes"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("sometimes"));
     let bad = run(&["--agent", "genius"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--agent 'genius'"));

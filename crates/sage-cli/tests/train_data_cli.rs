@@ -304,3 +304,58 @@ fn gvln_and_r2r_files_import_as_a_split_that_renders() {
     assert!(printed.contains("4 episodes"), "{printed}");
     assert!(out.join("dataset_info.json").is_file());
 }
+
+#[test]
+fn the_choice_of_splat_bodies_reaches_the_run_record_and_a_resume_must_keep_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, data) = dataset(dir.path());
+    let render = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "--threads",
+            "1",
+            "data",
+            "render",
+            s(&data),
+            "--scenes",
+            s(&scenes),
+            "--out",
+            s(out),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--format",
+            "frames",
+            "--limit",
+            "1",
+            "--keep-failed",
+        ];
+        args.extend_from_slice(extra);
+        sage3d(&args)
+    };
+    let settings = |out: &Path| {
+        let record: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("sage3d_run.json")).unwrap()).unwrap();
+        record["settings"].clone()
+    };
+    let default = dir.path().join("default");
+    assert!(render(&default, &[]).status.success());
+    // The default is not written: the records of earlier renders stay as they were.
+    assert!(settings(&default).get("splat_bodies").is_none());
+    let never = dir.path().join("never");
+    let run = render(&never, &["--splat-bodies", "never"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert_eq!(settings(&never)["splat_bodies"], "never");
+    // A rerun with other bodies is another render, not a resume of this one.
+    let other = render(&never, &[]);
+    assert!(!other.status.success());
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(err.contains("other settings"), "{err}");
+    let bad = render(&dir.path().join("bad"), &["--splat-bodies", "sometimes"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("sometimes"));
+}

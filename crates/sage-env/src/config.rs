@@ -4,7 +4,7 @@
 use glam::Vec3;
 use sage_core::{Error, MAX_COORDINATE, Pose, Result};
 use sage_physics::agent::{MAX_COMMAND_SECONDS, MAX_TURN};
-use sage_physics::{AgentProfile, Locomotion};
+use sage_physics::{AgentProfile, Locomotion, SplatBodies};
 use sage_splat::{Camera, Device, Intrinsics};
 use serde::{Deserialize, Serialize};
 
@@ -148,6 +148,17 @@ pub struct EnvConfig {
     /// Where the sensors' images are rendered (`cpu`, `gpu`, `auto`; the CPU by default).
     #[serde(default, deserialize_with = "device_field")]
     pub device: Device,
+    /// Which objects of the scenes the environment opens get collision bodies recovered from
+    /// their Gaussians (`auto`, `always`, `never`: `sage3d physics build --splat-bodies`).
+    /// Written only when not `auto`, so the configs and records of the default stay as they
+    /// were.
+    #[serde(default, skip_serializing_if = "is_auto")]
+    pub splat_bodies: SplatBodies,
+}
+
+/// True for the default choice of bodies (serde leaves it out).
+fn is_auto(choice: &SplatBodies) -> bool {
+    *choice == SplatBodies::Auto
 }
 
 /// Reads [`EnvConfig::device`], naming the field and the accepted names when the value is
@@ -168,6 +179,7 @@ impl Default for EnvConfig {
             sensors: SensorConfig::default(),
             task: TaskConfig::default(),
             device: Device::default(),
+            splat_bodies: SplatBodies::default(),
         }
     }
 }

@@ -34,6 +34,11 @@ pub struct SceneContext {
     /// `box`): the provenance run records keep, so that numbers made with different physics
     /// are not compared unknowingly.
     pub body_sources: BTreeMap<String, usize>,
+    /// The choice of bodies recovered from Gaussians the context was loaded with
+    /// ([`SceneContext::load_with_bodies`]); `None` for one assembled from bodies its caller
+    /// built ([`SceneContext::new`]). An environment whose configuration asks for another
+    /// choice is refused ([`crate::Env::new`]) rather than run on bodies it did not ask for.
+    pub splat_bodies: Option<SplatBodies>,
     /// The physics world at rest, built once; every episode starts from a copy.
     world: World,
     /// The navigable grid for geodesic distances (every agent profile is scored on it).
@@ -85,6 +90,7 @@ impl SceneContext {
         let world = World::new(&scene, bodies, &WorldOptions::default());
         Ok(SceneContext {
             body_sources,
+            splat_bodies: None,
             scene,
             semantic,
             published_boxes,
@@ -197,12 +203,30 @@ impl SceneContext {
         cache: Option<PathBuf>,
         options: &LoadOptions,
     ) -> Result<SceneContext> {
+        Self::load_with_bodies(dir, cache, options, SplatBodies::Auto)
+    }
+
+    /// [`SceneContext::load_with`] with `splat_bodies` choosing which objects get bodies
+    /// recovered from their Gaussians, as `sage3d physics build --splat-bodies` does (an
+    /// environment's [`crate::EnvConfig::splat_bodies`]).
+    ///
+    /// # Errors
+    ///
+    /// The scene, its collision file, its bodies or its navigation grid cannot be built.
+    pub fn load_with_bodies(
+        dir: &Path,
+        cache: Option<PathBuf>,
+        options: &LoadOptions,
+        splat_bodies: SplatBodies,
+    ) -> Result<SceneContext> {
         let (mut scene, _) = Scene::load_with(dir, options)?;
-        splat_bodies::attach(&mut scene, SplatBodies::Auto, &SplatBodyParams::default())?;
+        splat_bodies::attach(&mut scene, splat_bodies, &SplatBodyParams::default())?;
         let cache = HullCache::new(cache.unwrap_or_else(|| default_cache_dir(dir)));
         let (bodies, _) = SceneBodies::build(&scene, &Decomposer::default(), &cache)?;
         let params = TrajectoryParams::default();
-        SceneContext::new(scene, bodies, &params.grid, params.cost)
+        let mut ctx = SceneContext::new(scene, bodies, &params.grid, params.cost)?;
+        ctx.splat_bodies = Some(splat_bodies);
+        Ok(ctx)
     }
 
     /// How many uploads of the scene are resident on GPUs: one per device asked for (`gpu`,

@@ -123,10 +123,22 @@ impl Env {
     ///
     /// # Errors
     ///
-    /// A bad configuration, naming the field, or a device that cannot render (`gpu` without
-    /// a usable adapter).
+    /// A bad configuration, naming the field, a device that cannot render (`gpu` without
+    /// a usable adapter), or a [`EnvConfig::splat_bodies`] other than the one `ctx` was loaded
+    /// with.
     pub fn new(ctx: Arc<SceneContext>, config: EnvConfig) -> Result<Env> {
         config.validate()?;
+        // The bodies were built when the scene was loaded: a configuration asking for other
+        // ones would run on physics it did not choose, and its numbers be compared unknowingly.
+        if let Some(loaded) = ctx.splat_bodies
+            && loaded != config.splat_bodies
+        {
+            return Err(Error::invalid(format!(
+                "splat_bodies: the environment asks for '{}' but scene {} was loaded with '{}'; \
+                 load it with the same choice",
+                config.splat_bodies, ctx.scene.name, loaded
+            )));
+        }
         let profile = config.profile()?;
         let renderer = if config.sensors.renders() {
             Some(ctx.renderer(config.device)?)

@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use sage_core::{Error, Result, ResultExt};
 use sage_dataset::build::{SceneParams, scene_episodes};
 use sage_env::SceneContext;
+use sage_physics::SplatBodies;
 use sage_scene::{LoadOptions, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig};
 use std::path::{Path, PathBuf};
@@ -63,6 +64,7 @@ arg_extractors! {
     load_path: PathBuf = "Scene.load: path";
     load_cache: Option<PathBuf> = "Scene.load: cache";
     load_collision: Option<PathBuf> = "Scene.load: collision";
+    load_splat_bodies: String = "Scene.load: splat_bodies";
     synth_cache: PathBuf = "Scene.synth: cache";
     synth_seed: u64 = "Scene.synth: seed";
     synth_kind: String = "Scene.synth: kind";
@@ -78,18 +80,28 @@ impl PyScene {
     /// Loads a scene folder (InteriorGS layout) with its collision bodies (hulls cached in
     /// `cache`, by default beside the scene) and path finder. `collision` names a published
     /// collision file (SAGE-Bench `{scene}_collision.usd`) to use as the physics layer; by
-    /// default one in the folder by that name is used when present.
+    /// default one in the folder by that name is used when present. `splat_bodies` chooses
+    /// which objects get bodies recovered from their Gaussians, as `sage3d physics build
+    /// --splat-bodies`: `auto`, `always` or `never`.
     #[staticmethod]
-    #[pyo3(signature = (path, cache=None, collision=None))]
+    #[pyo3(
+        signature = (path, cache=None, collision=None, splat_bodies="auto".to_string()),
+        text_signature = "(path, cache=None, collision=None, splat_bodies='auto')"
+    )]
     fn load(
         py: Python<'_>,
         #[pyo3(from_py_with = load_path)] path: PathBuf,
         #[pyo3(from_py_with = load_cache)] cache: Option<PathBuf>,
         #[pyo3(from_py_with = load_collision)] collision: Option<PathBuf>,
+        #[pyo3(from_py_with = load_splat_bodies)] splat_bodies: String,
     ) -> PyResult<PyScene> {
         let options = LoadOptions { collision };
+        let splat_bodies: SplatBodies = splat_bodies
+            .parse()
+            .map_err(|e: String| Error::invalid(format!("splat_bodies: {e}")))
+            .py()?;
         let ctx = py
-            .detach(|| SceneContext::load_with(&path, cache, &options))
+            .detach(|| SceneContext::load_with_bodies(&path, cache, &options, splat_bodies))
             .py()?;
         Ok(PyScene {
             ctx: Arc::new(ctx),
@@ -135,6 +147,17 @@ impl PyScene {
             ctx: Arc::new(ctx),
             dir,
         })
+    }
+
+    /// The choice of bodies recovered from Gaussians the scene was loaded with (`auto`,
+    /// `always`, `never`).
+    #[getter]
+    fn splat_bodies(&self) -> String {
+        self.ctx
+            .splat_bodies
+            .unwrap_or_default()
+            .as_str()
+            .to_string()
     }
 
     /// The scene's name.

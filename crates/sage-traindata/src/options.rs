@@ -10,7 +10,7 @@ use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS, PresetName};
 use crate::run::{Sensors, Settings};
 use sage_core::{Error, Result};
 use sage_dataset::folder::scenes_folder;
-use sage_physics::AgentProfile;
+use sage_physics::{AgentProfile, SplatBodies};
 use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -95,6 +95,14 @@ pub struct Options {
         arg(long, value_name = "cpu|gpu|auto", default_value_t = Options::default().device)
     )]
     pub device: Device,
+    /// Which objects get bodies recovered from their Gaussians for the walks, as `sage3d
+    /// physics build --splat-bodies`: auto (those with neither a published body nor a mesh),
+    /// always (every object) or never (boxes instead).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "auto|always|never", default_value_t = Options::default().splat_bodies)
+    )]
+    pub splat_bodies: SplatBodies,
 }
 
 impl Default for Options {
@@ -124,6 +132,7 @@ impl Default for Options {
             keep_failed: false,
             preview: 0,
             device: Device::default(),
+            splat_bodies: SplatBodies::default(),
         }
     }
 }
@@ -192,6 +201,7 @@ impl Options {
             keep_failed: self.keep_failed,
             preview: self.preview,
             device: self.device,
+            splat_bodies: self.splat_bodies,
         })
     }
 }
@@ -303,5 +313,20 @@ mod tests {
             cpu.recorded().get("device").is_none(),
             "CPU records stay as they were"
         );
+        assert!(
+            cpu.recorded().get("splat_bodies").is_none(),
+            "records of the default bodies stay as they were"
+        );
+        let never: Options = serde_json::from_str(r#"{"splat_bodies": "never"}"#).unwrap();
+        let settings = never.settings_with(Path::new("s")).unwrap();
+        assert_eq!(settings.recorded()["splat_bodies"], "never");
+        assert_eq!(
+            settings.env_config().unwrap().splat_bodies,
+            SplatBodies::Never
+        );
+        let e = serde_json::from_str::<Options>(r#"{"splat_bodies": "sometimes"}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sometimes"), "{e}");
     }
 }

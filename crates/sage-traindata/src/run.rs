@@ -13,6 +13,8 @@ use sage_env::{ActionSpace, Env, EnvConfig, Pending, SceneContext, SensorConfig}
 use sage_io::files::{read_json, write_json};
 use sage_io::hash::fnv1a64_hex;
 use sage_io::lock::FolderLock;
+use sage_physics::SplatBodies;
+use sage_scene::LoadOptions;
 use sage_splat::{Device, RenderOutput, Rendering};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -126,11 +128,21 @@ pub struct Settings {
     /// record is as it always was), and a render resumes only on the device it started on.
     #[serde(default, skip_serializing_if = "is_cpu")]
     pub device: Device,
+    /// Which objects get bodies recovered from their Gaussians. Recorded only when not `auto`
+    /// (so the record of the default is as it always was); a render resumes only with the
+    /// bodies it started with.
+    #[serde(default, skip_serializing_if = "is_auto")]
+    pub splat_bodies: SplatBodies,
 }
 
 /// True for the default device (serde leaves it out of the settings).
 fn is_cpu(device: &Device) -> bool {
     *device == Device::Cpu
+}
+
+/// True for the default choice of bodies (serde leaves it out of the settings).
+fn is_auto(choice: &SplatBodies) -> bool {
+    *choice == SplatBodies::Auto
 }
 
 impl Settings {
@@ -155,6 +167,7 @@ impl Settings {
         let mut config = EnvConfig {
             agent: self.agent.clone(),
             device: self.device,
+            splat_bodies: self.splat_bodies,
             ..EnvConfig::default()
         };
         config.actions = ActionSpace::Discrete {
@@ -463,9 +476,14 @@ pub fn render_scene(
         walk,
         error,
     };
-    let ctx = SceneContext::load(&plan.scene_dirs[scene], None)
-        .within(format!("scene {scene}"))
-        .map(Arc::new);
+    let ctx = SceneContext::load_with_bodies(
+        &plan.scene_dirs[scene],
+        None,
+        &LoadOptions::default(),
+        plan.env.splat_bodies,
+    )
+    .within(format!("scene {scene}"))
+    .map(Arc::new);
     let ctx = match ctx {
         Ok(ctx) => ctx,
         Err(err) => {

@@ -67,7 +67,12 @@ __version__: str
 @final
 class Scene:
     @staticmethod
-    def load(path: _Path, cache: _Path | None = None, collision: _Path | None = None) -> Scene: ...
+    def load(
+        path: _Path,
+        cache: _Path | None = None,
+        collision: _Path | None = None,
+        splat_bodies: str = "auto",
+    ) -> Scene: ...
     @staticmethod
     def synth(
         cache: _Path,
@@ -81,6 +86,8 @@ class Scene:
     def name(self) -> str: ...
     @property
     def path(self) -> Path: ...
+    @property
+    def splat_bodies(self) -> str: ...
     @property
     def num_objects(self) -> int: ...
     @property

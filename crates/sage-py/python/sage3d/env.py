@@ -130,9 +130,11 @@ def config_overrides(width: int | None = None, height: int | None = None,
 
 def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", episodes=None,
                  task: str | None = None, filters: dict | None = None, num_episodes: int = 8,
-                 seed: int = 0, synth: dict | None = None):
+                 seed: int = 0, synth: dict | None = None, splat_bodies: str = "auto"):
     """The scenes and episodes an environment draws from: ``(scenes, episodes, scene_of)``,
-    episode ``i`` running in ``scenes[scene_of[i]]``."""
+    episode ``i`` running in ``scenes[scene_of[i]]``. Scene folders are loaded with
+    ``splat_bodies`` (the config's choice of bodies recovered from Gaussians); a
+    :class:`sage3d.Scene` given must have been loaded with it."""
     filters = {} if filters is None else _args.mapping("filters", filters, "of episode filters")
     if task is not None:
         filters["task"] = task
@@ -157,14 +159,21 @@ def episode_pool(scene=None, dataset=None, scenes=None, split: str = "train", ep
         missing = [n for n in names if n not in dirs]
         if missing:
             raise ValueError(f"scenes {missing} of the dataset are not in {scenes!r}")
-        loaded = [_sage3d.Scene.load(dirs[n]) for n in names]
+        loaded = [_sage3d.Scene.load(dirs[n], splat_bodies=splat_bodies) for n in names]
         index = {n: i for i, n in enumerate(names)}
         scene_of = [index[e["scene"]] for e in eps]
     else:
         if scene is None:
             scene = synth_scene(**synth)
+            if splat_bodies != "auto":
+                scene = _sage3d.Scene.load(scene.path, splat_bodies=splat_bodies)
         elif not isinstance(scene, _sage3d.Scene):
-            scene = _sage3d.Scene.load(scene)
+            scene = _sage3d.Scene.load(scene, splat_bodies=splat_bodies)
+        if scene.splat_bodies != splat_bodies:
+            # Its bodies were built as it was loaded: the config cannot change them.
+            raise ValueError(f"splat_bodies: the config asks for {splat_bodies!r} but scene "
+                             f"{scene.name!r} was loaded with {scene.splat_bodies!r}; load it "
+                             f"with Scene.load(..., splat_bodies={splat_bodies!r})")
         eps = episodes if episodes is not None else scene.episodes(
             count=whole("num_episodes", num_episodes, 1), seed=seed)
         eps = filter_episodes(eps, **filters)
@@ -257,7 +266,8 @@ class _Prepared:
         if render_mode == "rgb_array" and not self.config["sensors"]["rgb"]:
             raise ValueError("render_mode='rgb_array' renders the rgb sensor, which config turns off")
         pool_scenes, eps, scene_of = episode_pool(scene, dataset, scenes, split, episodes, task,
-                                                  filters, num_episodes, seed, synth)
+                                                  filters, num_episodes, seed, synth,
+                                                  self.config.get("splat_bodies", "auto"))
         self.scenes = pool_scenes
         return overrides, pool_scenes, eps, scene_of
 

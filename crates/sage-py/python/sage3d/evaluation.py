@@ -54,7 +54,13 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
     for none (then built-in agents run blind, as in ``sage3d eval``)."""
     if all(v is None for v in (width, height, sensors, config)):
         return None
-    return _json(config_overrides(width, height, sensors, config=config))
+    over = config_overrides(width, height, sensors, config=config)
+    if over.get("splat_bodies", "auto") != "auto":
+        # The evaluator loads its scenes with the default bodies and its run record has no
+        # field for another choice: refused here rather than failing every episode.
+        raise ValueError(f"config: splat_bodies: evaluate runs with the default bodies ('auto'), "
+                         f"not {over['splat_bodies']!r}")
+    return _json(over)
 
 
 def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = None,
