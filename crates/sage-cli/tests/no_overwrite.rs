@@ -574,3 +574,44 @@ fn no_output_file_replaces_a_file_of_its_input_scene_or_dataset() {
     ok(&["export", "usd", s(&scene), s(&usd)]);
     ok(&["export", "usd", s(&scene), s(&usd), "--force"]);
 }
+
+#[test]
+fn a_mesh_objects_json_names_outside_meshes_is_never_written_over() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home1");
+    small_scene(&scene, "1", "3000");
+    let with_mesh = || {
+        let info = ok(&["scene", "info", s(&scene), "--json"]);
+        serde_json::from_str::<serde_json::Value>(&info).unwrap()["summary"]["objects_with_mesh"]
+            .clone()
+    };
+    let before_move = with_mesh();
+    // One object's mesh moved out of `meshes/`, named by its entry in objects.json.
+    let objects_path = scene.join("objects.json");
+    let mut objects: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&objects_path).unwrap()).unwrap();
+    let entry = objects["objects"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .find(|e| e["mesh"].is_string())
+        .expect("an object with a mesh");
+    let old = scene.join(entry["mesh"].as_str().unwrap());
+    std::fs::create_dir_all(scene.join("assets")).unwrap();
+    let moved = scene.join("assets").join("chair.obj");
+    std::fs::rename(&old, &moved).unwrap();
+    entry["mesh"] = "assets/chair.obj".into();
+    std::fs::write(&objects_path, objects.to_string()).unwrap();
+    // The scene loads with the moved mesh …
+    assert_eq!(with_mesh(), before_move);
+    // … and a command's output file is never that mesh, not even with --force.
+    let before = std::fs::read(&moved).unwrap();
+    let refused = sage3d(&["export", "usd", s(&scene), s(&moved), "--force"]);
+    let e = stderr(&refused);
+    assert!(!refused.status.success(), "{e}");
+    assert!(
+        e.contains(s(&moved)) && e.contains("the output is ") && e.contains("write to another"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&moved).unwrap(), before);
+}

@@ -67,7 +67,8 @@ pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
 }
 
 /// The paths of the files navigation reads in scene folder `dir` (labels, structure, objects,
-/// occupancy, and whatever `meshes/` holds), whether or not each exists.
+/// occupancy, whatever `meshes/` holds, and the mesh files `objects.json` names elsewhere in
+/// the folder: [`named_mesh_files`]), whether or not each exists.
 pub fn input_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = [
         "labels.json",
@@ -84,7 +85,42 @@ pub fn input_files(dir: &Path) -> Vec<PathBuf> {
         meshes.sort();
         files.extend(meshes);
     }
+    // Named meshes already listed (those in `meshes/`) keep their one entry, so the hashes of
+    // scenes whose meshes all live there are what they always were.
+    for named in named_mesh_files(dir) {
+        if !files.contains(&named) {
+            files.push(named);
+        }
+    }
     files
+}
+
+/// The mesh files the entries of scene folder `dir`'s `objects.json` name (`objects[i].mesh`,
+/// relative to `dir`), which the loader reads wherever in the folder they are. A file that is
+/// missing, too large or not JSON, and a path that would leave the folder, name none here: the
+/// loader refuses those itself, naming the field.
+pub fn named_mesh_files(dir: &Path) -> Vec<PathBuf> {
+    let path = dir.join("objects.json");
+    let Ok(text) = crate::files::read_text(&path, &crate::limits::SCENE_JSON_MB) else {
+        return Vec::new();
+    };
+    let Ok(root) = serde_json::from_str::<serde_json::Value>(&text) else {
+        return Vec::new();
+    };
+    let Some(entries) = root.get("objects").and_then(serde_json::Value::as_array) else {
+        return Vec::new();
+    };
+    let mut found: Vec<PathBuf> = entries
+        .iter()
+        .filter_map(|e| e.get("mesh")?.as_str())
+        .filter(|rel| crate::names::check_relative("mesh", rel).is_ok())
+        // Joined as the loader joins it; paths compare by component, so `meshes/7.obj` is the
+        // entry `meshes/` lists.
+        .map(|rel| dir.join(rel))
+        .collect();
+    found.sort();
+    found.dedup();
+    found
 }
 
 /// FNV-1a 64 hashes (hex) of those of `files` that are readable files, keyed by their path
@@ -129,5 +165,46 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("neither a scene folder"), "{e}");
+    }
+
+    #[test]
+    fn meshes_objects_json_names_outside_meshes_are_inputs_and_those_inside_are_listed_once() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path();
+        std::fs::create_dir_all(dir.join("meshes")).unwrap();
+        std::fs::create_dir_all(dir.join("assets/chairs")).unwrap();
+        std::fs::write(dir.join("meshes/1.obj"), "v 0 0 0").unwrap();
+        std::fs::write(dir.join("assets/chairs/2.obj"), "v 1 0 0").unwrap();
+        std::fs::write(dir.join("3.ply"), "ply").unwrap();
+        let objects = serde_json::json!({"objects": [
+            {"ins_id": "1", "mesh": "meshes/1.obj"},
+            {"ins_id": "2", "mesh": "assets/chairs/2.obj"},
+            {"ins_id": "3", "mesh": "3.ply"},
+            {"ins_id": "4", "mesh": "../outside.obj"},
+            {"ins_id": "5"},
+        ]});
+        std::fs::write(dir.join("objects.json"), objects.to_string()).unwrap();
+        let files = input_files(dir);
+        for named in ["meshes/1.obj", "assets/chairs/2.obj", "3.ply"] {
+            let n = files.iter().filter(|p| **p == dir.join(named)).count();
+            assert_eq!(n, 1, "{named}: {files:?}");
+        }
+        assert!(
+            !files.iter().any(|p| p.ends_with("outside.obj")),
+            "{files:?}"
+        );
+        let hashes = input_hashes(dir);
+        assert_eq!(
+            hashes.keys().collect::<Vec<_>>(),
+            [
+                "3.ply",
+                "assets/chairs/2.obj",
+                "meshes/1.obj",
+                "objects.json"
+            ]
+        );
+        // A file the loader refuses names no mesh here (and is no panic).
+        std::fs::write(dir.join("objects.json"), "{not json").unwrap();
+        assert!(named_mesh_files(dir).is_empty());
     }
 }
