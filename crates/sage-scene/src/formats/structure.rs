@@ -124,9 +124,24 @@ fn parse_hole(v: &Value) -> Result<Hole> {
             })?)
         }
     };
+    // Bounded as a wall's thickness is: the hole is cut through its wall, and its thickness
+    // sizes the door leaf's body.
+    let thickness = optional_number(v, "thickness", 0.0)?;
+    if thickness < 0.0 {
+        return Err(Error::format(
+            "thickness",
+            format!("{thickness} m: must not be negative"),
+        ));
+    }
+    if thickness > MAX_COORDINATE {
+        return Err(Error::format(
+            "thickness",
+            format!("{thickness} m: beyond {MAX_COORDINATE} m"),
+        ));
+    }
     Ok(Hole {
         profile,
-        thickness: optional_number(v, "thickness", 0.0)?,
+        thickness,
         kind,
         state,
     })
@@ -240,6 +255,31 @@ mod tests {
             e.to_string().starts_with("walls[0].thickness/height: "),
             "{e}"
         );
+        // A hole's thickness is held to a wall's rules, its index and field named.
+        let hole = |t: &str| {
+            format!(
+                r#"{{"holes":[{{"profile":[[0,0,0],[1,0,0],[1,0,1]],"type":"DOOR"}},
+                   {{"profile":[[0,0,0],[1,0,0],[1,0,1]],"type":"DOOR","thickness":{t}}}]}}"#
+            )
+        };
+        let e = parse(&hole("-0.1")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "holes[1].thickness: -0.1 m: must not be negative"
+        );
+        let e = parse(&hole("1e9")).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("holes[1].thickness: 1000000000 m: beyond 10000 m"),
+            "{e}"
+        );
+        let e = parse(&hole("1e300")).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("holes[1].thickness: expected a finite number"),
+            "{e}"
+        );
+        assert_eq!(parse(&hole("0.3")).unwrap().holes[1].thickness, 0.3);
         let e = parse(r#"{"rooms":[{"profile":[[0,0],[1,"x"],[1,1]]}]}"#).unwrap_err();
         assert!(
             e.to_string()
