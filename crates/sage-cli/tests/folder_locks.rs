@@ -101,3 +101,81 @@ fn a_folder_inside_one_another_command_writes_is_refused_naming_it() {
     ok(&small_build_args(&scenes, &dataset));
     assert!(dataset.join("splits.json").is_file());
 }
+
+#[test]
+fn a_fit_holds_the_recon_folder_it_reads_so_a_render_or_export_into_it_is_refused_naming_it() {
+    use sage_pipeline::recon::{FitSettings, fit};
+    use std::sync::Mutex;
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("scene");
+    small_scene(&scene, "2", "1000");
+    let dir = tmp.path().join("recon");
+    ok(&[
+        "recon",
+        "plan",
+        s(&scene),
+        "--budget",
+        "18",
+        "--seed",
+        "3",
+        "--out",
+        s(&dir),
+    ]);
+    let render = ["recon", "render", s(&dir), "--size", "24x16"];
+    let export = ["recon", "export", s(&dir), "--points", "50"];
+    ok(&render);
+    let views = sage_io::files::read_tree(&dir.join("views")).unwrap();
+    // A second fit reading the same folder beside the first, into a folder beside it.
+    let beside = tmp.path().join("beside");
+    let fit_beside = [
+        "recon",
+        "fit",
+        s(&dir),
+        "--iterations",
+        "2",
+        "--points",
+        "200",
+        "--out",
+        s(&beside),
+    ];
+    // While the fit runs (its first iteration), the steps that write its folder are run
+    // beside it; the fit's output folder is inside the folder it reads.
+    let during: Mutex<Option<[Output; 3]>> = Mutex::new(None);
+    let settings = FitSettings {
+        iterations: 2,
+        points: 200,
+        seed: None,
+    };
+    let out = dir.join("fit");
+    fit(&dir, None, &settings, &out, false, &|_, _| {
+        let mut during = during.lock().unwrap();
+        if during.is_none() {
+            *during = Some([sage3d(&render), sage3d(&export), sage3d(&fit_beside)]);
+        }
+    })
+    .unwrap();
+    let [rendered, exported, beside_fit] = during.into_inner().unwrap().expect("iterations ran");
+    for refusal in [&rendered, &exported] {
+        let err = stderr(refusal);
+        assert_eq!(refusal.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains(&format!(
+                "being read by the `recon fit` run of process {}",
+                std::process::id()
+            )),
+            "{err}"
+        );
+    }
+    // Readers share the folder.
+    assert!(beside_fit.status.success(), "{}", stderr(&beside_fit));
+    assert!(beside.join("3dgs_compressed.ply").is_file());
+    // Nothing of the recon folder changed, the fit wrote its scene, and the lock is gone.
+    assert_eq!(
+        sage_io::files::read_tree(&dir.join("views")).unwrap(),
+        views
+    );
+    assert!(!dir.join("transforms.json").exists());
+    assert!(out.join("3dgs_compressed.ply").is_file());
+    assert!(!dir.join(LOCK_FILE).exists());
+    ok(&export);
+}

@@ -15,6 +15,11 @@
 //!
 //! Holding the lock also makes every [temporary file](crate::files::is_temporary) in the folder
 //! a leftover of an interrupted earlier run, which [`FolderLock::remove_temporary`] removes.
+//!
+//! A command that only reads a folder while other commands could write it (`recon fit` reading
+//! the views `recon render` writes) holds a shared lock on the same file
+//! ([`FolderLock::acquire_shared`]): readers run side by side, a writer is refused while one
+//! reads (told which), and a reader is refused while a writer writes.
 
 use crate::files::is_temporary;
 use sage_core::{Error, Result};
@@ -50,6 +55,8 @@ pub struct FolderLock {
     dir: PathBuf,
     /// The folders made to hold the lock file, deepest first.
     made: Vec<PathBuf>,
+    /// A reader's shared lock ([`FolderLock::acquire_shared`]) rather than a writer's.
+    shared: bool,
 }
 
 impl FolderLock {
@@ -65,7 +72,30 @@ impl FolderLock {
     /// it, with that command, its process id and command line when they can be read; an I/O
     /// error when the folder or its lock file cannot be made or locked.
     pub fn acquire(dir: &Path, command: &str) -> Result<FolderLock> {
-        let lock = FolderLock::lock(dir, command)?;
+        FolderLock::acquire_as(dir, command, false)
+    }
+
+    /// Locks the existing folder `dir` for `command`, which reads it: a shared lock, which
+    /// other readers share, while a command writing `dir` ([`FolderLock::acquire`]) is refused
+    /// until the last reader lets go, naming a reader. The folders above are checked as for
+    /// [`FolderLock::acquire`]. The guard removes the lock file only when it is the last
+    /// holder, and never removes the folder.
+    ///
+    /// # Errors
+    ///
+    /// An `invalid` error naming the folder when it does not exist, or when another command
+    /// writes it or a folder above it, naming that command as [`FolderLock::acquire`] does; an
+    /// I/O error when its lock file cannot be made or locked.
+    pub fn acquire_shared(dir: &Path, command: &str) -> Result<FolderLock> {
+        if !dir.is_dir() {
+            return Err(Error::invalid("no such folder to read").in_file(dir));
+        }
+        FolderLock::acquire_as(dir, command, true)
+    }
+
+    /// [`FolderLock::acquire`] (`shared` false) or [`FolderLock::acquire_shared`].
+    fn acquire_as(dir: &Path, command: &str, shared: bool) -> Result<FolderLock> {
+        let lock = FolderLock::lock(dir, command, shared)?;
         // Only now: an outer command that starts later finds `dir` itself held when one of its
         // steps comes to write there.
         if let Err(e) = outer_writers(dir) {
@@ -76,8 +106,9 @@ impl FolderLock {
         Ok(lock)
     }
 
-    /// Takes the lock of `dir` itself ([`FolderLock::acquire`] without the folders above).
-    fn lock(dir: &Path, command: &str) -> Result<FolderLock> {
+    /// Takes the lock of `dir` itself ([`FolderLock::acquire`] without the folders above),
+    /// shared or exclusive.
+    fn lock(dir: &Path, command: &str, shared: bool) -> Result<FolderLock> {
         let path = dir.join(LOCK_FILE);
         for _ in 0..ATTEMPTS {
             let made = missing_folders(dir);
@@ -94,7 +125,12 @@ impl FolderLock {
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => continue,
                 Err(e) => return Err(Error::io(&path, e)),
             };
-            match file.try_lock() {
+            let locked = if shared {
+                file.try_lock_shared()
+            } else {
+                file.try_lock()
+            };
+            match locked {
                 Ok(()) => {}
                 Err(TryLockError::WouldBlock) => return Err(held(dir, &path)),
                 Err(TryLockError::Error(e)) => return Err(Error::io(&path, e)),
@@ -107,6 +143,7 @@ impl FolderLock {
                 file,
                 dir: dir.to_path_buf(),
                 made,
+                shared,
             };
             lock.write_holder(command)
                 .map_err(|e| Error::io(&path, e))?;
@@ -120,11 +157,15 @@ impl FolderLock {
 
     /// Writes who holds the lock into the lock file, replacing an earlier holder's lines.
     fn write_holder(&self, command: &str) -> std::io::Result<()> {
-        let holder = serde_json::json!({
+        let mut holder = serde_json::json!({
             "command": command,
             "pid": std::process::id(),
             "process": std::env::args().collect::<Vec<_>>().join(" "),
         });
+        if self.shared {
+            // Only the message reads it: a writer refused is told the folder is being read.
+            holder["reads"] = true.into();
+        }
         self.file.set_len(0)?;
         (&self.file).write_all(format!("{holder}\n").as_bytes())
     }
@@ -162,6 +203,11 @@ impl Drop for FolderLock {
     /// makes a new one), then the folders [`FolderLock::acquire`] made if they are empty; the
     /// lock itself goes when the file is closed, right after.
     fn drop(&mut self) {
+        // A reader removes the file only as the last holder: taking the lock for itself alone
+        // proves no other reader shares it (this process lets go of it either way).
+        if self.shared && self.file.try_lock().is_err() {
+            return;
+        }
         let _ = std::fs::remove_file(self.dir.join(LOCK_FILE));
         for dir in &self.made {
             if std::fs::remove_dir(dir).is_err() {
@@ -275,9 +321,16 @@ fn describe(holder: Option<&serde_json::Value>) -> String {
 
 /// The error for folder `dir` held by another command, naming it from its lock file `path`.
 fn held(dir: &Path, path: &Path) -> Error {
+    let holder = read_holder(path);
+    let reads = holder
+        .as_ref()
+        .and_then(|h| h.get("reads"))
+        .and_then(serde_json::Value::as_bool)
+        == Some(true);
     Error::invalid(format!(
-        "the folder is being written by {}; wait for it to finish, or choose another folder",
-        describe(read_holder(path).as_ref())
+        "the folder is being {} by {}; wait for it to finish, or choose another folder",
+        if reads { "read" } else { "written" },
+        describe(holder.as_ref())
     ))
     .in_file(dir)
 }
@@ -429,5 +482,53 @@ mod tests {
             "a folder is never removed"
         );
         drop(lock);
+    }
+
+    #[test]
+    fn readers_share_a_folder_that_a_writer_is_refused_until_the_last_reader_lets_go() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("recon");
+        assert!(
+            FolderLock::acquire_shared(&dir, "recon fit")
+                .unwrap_err()
+                .to_string()
+                .contains("no such folder")
+        );
+        std::fs::create_dir(&dir).unwrap();
+        let first = FolderLock::acquire_shared(&dir, "recon fit").unwrap();
+        let second = FolderLock::acquire_shared(&dir, "recon fit").unwrap();
+        let pid = std::process::id();
+        let e = FolderLock::acquire(&dir, "recon render")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!(
+                "being read by the `recon fit` run of process {pid}"
+            )),
+            "{e}"
+        );
+        // The first reader to let go leaves the file to the other.
+        drop(first);
+        assert!(dir.join(LOCK_FILE).is_file());
+        assert!(FolderLock::acquire(&dir, "recon render").is_err());
+        drop(second);
+        assert!(dir.is_dir() && !dir.join(LOCK_FILE).exists());
+        // A reader is refused while a writer holds the folder, and the writer is named.
+        let writer = FolderLock::acquire(&dir, "recon render").unwrap();
+        let e = FolderLock::acquire_shared(&dir, "recon fit")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!(
+                "being written by the `recon render` run of process {pid}"
+            )),
+            "{e}"
+        );
+        drop(writer);
+        // A folder inside one being read may be written (a fit's output inside its recon
+        // folder): readers do not change what is under them.
+        let reading = FolderLock::acquire_shared(&dir, "recon fit").unwrap();
+        drop(FolderLock::acquire(&dir.join("fit"), "recon fit").unwrap());
+        drop(reading);
     }
 }

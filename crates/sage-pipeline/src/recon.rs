@@ -159,6 +159,25 @@ fn lock_folder(dir: &Path, command: &str) -> Result<(FolderLock, Plan)> {
     Ok((lock, plan))
 }
 
+/// Holds the reconstruction folder `dir` that `command` reads ([`FolderLock::acquire_shared`]):
+/// a `recon render`, `recon export` or `recon plan` into it would change the views under the
+/// reader, and is refused naming it, while other readers share it. `None` when `dir` is the
+/// reader's own output folder `out`, which its claim already holds, or does not exist (reading
+/// its plan then says what is missing).
+fn read_lock(dir: &Path, out: &Path, command: &str) -> Result<Option<FolderLock>> {
+    if !dir.is_dir() {
+        return Ok(None);
+    }
+    let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    };
+    if same(dir, out) {
+        return Ok(None);
+    }
+    FolderLock::acquire_shared(dir, command).map(Some)
+}
+
 /// The files of reconstruction folder `dir` a fit reads: the plan and the rendered views,
 /// sorted.
 fn recon_inputs(dir: &Path) -> Vec<PathBuf> {
@@ -325,8 +344,10 @@ pub struct FitReport {
 ///
 /// # Errors
 ///
-/// An output folder holding files the command did not write, no plan or rendered views, no
-/// points asked for, the scene cannot be loaded, the fit fails, or a write error.
+/// An output folder holding files the command did not write, a reconstruction folder another
+/// command is writing (the fit holds it while it runs, [`FolderLock::acquire_shared`]), no plan
+/// or rendered views, no points asked for, the scene cannot be loaded, the fit fails, or a
+/// write error.
 pub fn fit(
     dir: &Path,
     scene: Option<&Path>,
@@ -338,6 +359,7 @@ pub fn fit(
     let mut names = sage_scene::scene::files::WRITTEN.to_vec();
     names.extend([FIT_REPORT, sage_io::RUN_RECORD]);
     let _lock = sage_io::run::claim_folder(out, &[FIT_COMMAND], &names, force)?;
+    let _reading = read_lock(dir, out, FIT_COMMAND)?;
     let plan = Plan::load(&dir.join(PLAN_FILE))?;
     let exported = views::export_views(dir, &plan)?;
     let manifest = views::read_manifest(dir)?
