@@ -133,6 +133,29 @@ pub fn gnbench_hfov_deg() -> f32 {
     (2.0 * half.atan()).to_degrees() as f32
 }
 
+/// The image size `[width, height]` the published SAGE-Bench harness sends a model
+/// (`SimpleVLNEnv`'s default; research notes sage3d_interiorgs.md §5).
+pub const HARNESS_SIZE: [u32; 2] = [640, 480];
+/// The published harness's camera: focal length 8.0 over USD's default horizontal aperture
+/// 20.955 (the same unit), so hfov = 2·atan(20.955 / 16) ≈ 105.3°.
+pub const HARNESS_FOCAL_LENGTH: f64 = 8.0;
+/// USD's default horizontal aperture, which the published harness's camera keeps.
+pub const HARNESS_APERTURE: f64 = 20.955;
+/// The most a command moves in the published harness, metres (a forward step of 0.20 m).
+pub const HARNESS_STEP: f32 = 0.20;
+/// A turn command of the published harness without an angle, degrees.
+pub const HARNESS_TURN_DEG: f32 = 30.0;
+/// The published harness's step limit (`run_benchmark.py --max-steps`).
+pub const HARNESS_MAX_STEPS: usize = 200;
+
+/// The horizontal field of view of the published harness's camera, degrees (≈ 105.3°).
+pub fn harness_hfov_deg() -> f32 {
+    (2.0 * (HARNESS_APERTURE / (2.0 * HARNESS_FOCAL_LENGTH)).atan()).to_degrees() as f32
+}
+
+/// The names [`EnvConfig::preset`] knows, in the order errors and help list them.
+pub const PRESETS: [&str; 4] = ["sage", "vlnce", "gnbench", "sage-harness"];
+
 /// Everything an [`crate::Env`] is set up with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -229,10 +252,12 @@ impl EnvConfig {
         Ok(config)
     }
 
-    /// A named preset: `sage` (the default), `vlnce` (224×224 RGB, 256×256 depth, HFOV 90,
-    /// 0.25 m / 15°, 500 steps, camera at 1.25 m as in VLN-CE's agent) or `gnbench` (GN-Bench's
-    /// camera: 480×360 RGB only, vertical field of view 70° (see [`gnbench_hfov_deg`]), eye at
-    /// 1.3 m; 0.25 m / 15°, 500 steps).
+    /// A named preset ([`PRESETS`]): `sage` (the default), `vlnce` (224×224 RGB, 256×256
+    /// depth, HFOV 90, 0.25 m / 15°, 500 steps, camera at 1.25 m as in VLN-CE's agent),
+    /// `gnbench` (GN-Bench's camera: 480×360 RGB only, vertical field of view 70° (see
+    /// [`gnbench_hfov_deg`]), eye at 1.3 m; 0.25 m / 15°, 500 steps) or `sage-harness` (the
+    /// published SAGE-Bench harness's setting: 640×480 RGB and depth at HFOV ≈ 105.3° (see
+    /// [`harness_hfov_deg`]), 0.20 m / 30° steps, 200 steps; camera at 1.2 m as in `sage`).
     ///
     /// # Errors
     ///
@@ -259,8 +284,28 @@ impl EnvConfig {
                 },
                 ..EnvConfig::default()
             }),
+            "sage-harness" => Ok(EnvConfig {
+                actions: ActionSpace::Discrete {
+                    forward: HARNESS_STEP,
+                    turn_deg: HARNESS_TURN_DEG,
+                    look_deg: 30.0,
+                    seconds: 1.0,
+                },
+                sensors: SensorConfig {
+                    width: HARNESS_SIZE[0],
+                    height: HARNESS_SIZE[1],
+                    hfov_deg: harness_hfov_deg(),
+                    ..SensorConfig::default()
+                },
+                task: TaskConfig {
+                    max_steps: HARNESS_MAX_STEPS,
+                    ..TaskConfig::default()
+                },
+                ..EnvConfig::default()
+            }),
             _ => Err(Error::invalid(format!(
-                "unknown environment preset '{name}' (expected sage, vlnce or gnbench)"
+                "unknown environment preset '{name}' (expected {})",
+                PRESETS.join(", ")
             ))),
         }
     }
@@ -425,6 +470,23 @@ mod tests {
         let fy = 240.0 / (f64::from(g.sensors.hfov_deg).to_radians() / 2.0).tan();
         let vfov = 2.0 * (180.0 / fy).atan().to_degrees();
         assert!((vfov - 70.0).abs() < 1e-4, "{vfov}");
+        let h = EnvConfig::preset("sage-harness").unwrap();
+        h.validate().unwrap();
+        assert_eq!((h.sensors.width, h.sensors.height), (640, 480));
+        // Focal length 8.0 over an aperture of 20.955: fx = 640 · 8.0 / 20.955 px.
+        let fx = 320.0 / (f64::from(h.sensors.hfov_deg).to_radians() / 2.0).tan();
+        assert!((fx - 640.0 * 8.0 / 20.955).abs() < 1e-3, "{fx}");
+        assert_eq!(h.task.max_steps, 200);
+        assert!(matches!(
+            h.actions,
+            ActionSpace::Discrete { forward, turn_deg, .. } if forward == 0.2 && turn_deg == 30.0
+        ));
+        assert_eq!(h.sensors.camera_height, d.sensors.camera_height);
+        for name in PRESETS {
+            EnvConfig::preset(name).unwrap().validate().unwrap();
+        }
+        let err = EnvConfig::preset("habitat").unwrap_err().to_string();
+        assert!(err.contains("sage, vlnce, gnbench, sage-harness"), "{err}");
         let mut c = EnvConfig::default();
         c.sensors.hfov_deg = 180.0;
         assert!(c.validate().unwrap_err().message().contains("hfov_deg"));

@@ -25,7 +25,7 @@ pub struct EvalSettings {
     pub dtw: Dtw,
     /// Seed of the agent (each episode mixes in its id).
     pub seed: u64,
-    /// Environment preset (`sage` or `vlnce`).
+    /// Environment preset (`sage_env::config::PRESETS`).
     pub preset: String,
     /// Where the images of agents that read them are rendered; recorded only when not the
     /// CPU, so the records of CPU runs are as they always were.
