@@ -84,8 +84,9 @@ pub struct ImportArgs {
     gn_bench: bool,
     /// The folder of the episodes' scenes (or one scene folder): every episode's scene must be
     /// there, and a dataset that records no scenes folder records this one for `eval` and
-    /// `data render`. A GN-Bench import checks its rows against it (default: the one the
-    /// dataset records).
+    /// `data render`. Episodes of a file without sage3d's asset slices (the published GVLN and
+    /// R2R-VLNCE files) take their scene's from it (else `medium`). A GN-Bench import checks
+    /// its rows against it (default: the one the dataset records).
     #[arg(long)]
     scenes: Option<PathBuf>,
     /// Which text of a GN-Bench row the agent gets (the other is kept in the episode).
@@ -196,6 +197,12 @@ fn data_import(a: ImportArgs) -> Result<()> {
             r.episodes,
             r.rejected.len(),
             report.display()
+        );
+    }
+    if r.assets_unknown > 0 {
+        eprintln!(
+            "asset slice `medium` for {} episodes: the file holds no asset slices and no --scenes was given to count their scenes' objects",
+            r.assets_unknown
         );
     }
     println!(

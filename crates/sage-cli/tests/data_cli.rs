@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{ok, s, sage3d, small_scene};
+use common::{ok, s, sage3d, small_scene, stderr};
 use sage_io::files::read_tree;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -369,4 +369,81 @@ fn a_killed_build_is_refused_until_rerun_finishes_it() {
         "--out",
         s(&run),
     ]);
+}
+
+/// A GVLN file as SAGE-Bench publishes it (no `frame`, none of sage3d's instruction keys) holds
+/// no asset counts: imported with `--scenes`, its episodes take their scene's asset slice
+/// (`many`: more than 376 objects in `labels.json`); without, they stay `medium` and the import
+/// says so.
+#[test]
+fn a_published_gvln_file_takes_its_scenes_asset_slice() {
+    use sage_dataset::formats::gvln::encode_rotation;
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    ok(&[
+        "scene",
+        "synth",
+        "--seed",
+        "3",
+        "--rooms",
+        "24",
+        "--objects",
+        "450",
+        "--gaussians",
+        "1000",
+        "--out",
+        s(&scenes.join("big")),
+    ]);
+    // A walk along +x in S (offset 0), every point 0.5 m up as the published files put them.
+    let points: Vec<serde_json::Value> = (0..5)
+        .map(|i| {
+            let rotation = if i == 4 {
+                [0.0, 0.0, 0.0, 1.0]
+            } else {
+                encode_rotation(0.0)
+            };
+            let x = 1.0 + 0.25 * i as f32;
+            serde_json::json!({"point": i.to_string(), "position": [x, 0.5, 0.5],
+                "rotation": rotation, "action": [], "camera_images": []})
+        })
+        .collect();
+    let file = dir.path().join("published.json");
+    let published = serde_json::json!({"scenes": [{"scene_id": "big", "scene_name": "big",
+        "samples": [{"trajectory_id": "0", "instructions": [{"instruction_type": "Scenario_Driven",
+            "start": "sofa_1", "end": "table_1", "generated_instruction": "Walk to the table.",
+            "scene_id": "big"}], "points": points}]}]});
+    std::fs::write(&file, published.to_string()).unwrap();
+    let assets = |data: &Path| -> Vec<String> {
+        std::fs::read_to_string(data.join("episodes/train.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| {
+                let e: serde_json::Value = serde_json::from_str(l).unwrap();
+                e["slices"]["assets"].as_str().unwrap().to_string()
+            })
+            .collect()
+    };
+    let with = dir.path().join("with");
+    let out = sage3d(&[
+        "data",
+        "import",
+        s(&file),
+        "--out",
+        s(&with),
+        "--scenes",
+        s(&scenes),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("asset slice"), "{}", stderr(&out));
+    assert_eq!(assets(&with), ["many"]);
+    let without = dir.path().join("without");
+    let out = sage3d(&["data", "import", s(&file), "--out", s(&without)]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("asset slice `medium` for 1 episodes")
+            && stderr(&out).contains("no --scenes"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(assets(&without), ["medium"]);
 }

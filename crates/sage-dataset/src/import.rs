@@ -3,11 +3,13 @@
 //! like a built dataset.
 
 use crate::formats::gnbench::{self, InstructionChoice, Rejected};
-use crate::formats::{gvln, jsonl, r2r};
+use crate::formats::{ReadEpisodes, gvln, jsonl, r2r};
+use crate::slices::scene_assets_slice;
 use crate::{Episode, build, folder};
 use glam::Vec2;
 use sage_core::{Error, Result, ResultExt};
 use sage_lang::StepSizes;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// Where the episodes come from.
@@ -49,6 +51,10 @@ pub struct Imported {
     pub rejected: Vec<Rejected>,
     /// The report file listing them (GN-Bench only).
     pub report: Option<PathBuf>,
+    /// Episodes whose asset slice is the `medium` placeholder: the source gave none (the
+    /// published GVLN and R2R-VLNCE files do not) and no scenes folder was given to count
+    /// their scenes' objects.
+    pub assets_unknown: usize,
 }
 
 /// The command, as the run record of a dataset folder it made names it.
@@ -93,8 +99,11 @@ fn provenance(source: &Source) -> serde_json::Value {
 ///
 /// `scenes` (a scene folder or a folder of them) is the folder the episodes' scenes are in:
 /// every episode's scene must be there, and a dataset that records no scenes folder yet records
-/// it, so that `eval` and `data render` find it. A GN-Bench import checks its rows against
-/// those scenes and so needs one: `scenes`, else the one the dataset records
+/// it, so that `eval` and `data render` find it. Episodes whose source gives no asset slice
+/// (the published GVLN and R2R-VLNCE files) take their scene's there
+/// ([`crate::slices::scene_assets_slice`]); without `scenes` they keep the `medium`
+/// placeholder, counted in [`Imported::assets_unknown`]. A GN-Bench import checks its rows
+/// against those scenes and so needs one: `scenes`, else the one the dataset records
 /// ([`folder::scenes_folder`]).
 ///
 /// A GN-Bench import also writes `dataset/import_reports/{split}.json`: the source, the
@@ -107,7 +116,8 @@ fn provenance(source: &Source) -> serde_json::Value {
 /// dataset command did not write, a build that did not finish, a bad source file (naming
 /// the file and field), a GN-Bench file none of whose rows could be imported (naming the first
 /// row and column), a GN-Bench import without a scenes folder, an episode whose scene is not
-/// in `scenes`, an existing split without `force`, a write error.
+/// in `scenes`, a scene whose `labels.json` cannot be read for an episode's asset slice, an
+/// existing split without `force`, a write error.
 pub fn import(
     source: &Source,
     dataset: &Path,
@@ -127,9 +137,12 @@ pub fn import(
     folder::check_finished(dataset)?;
     let space = StepSizes::default();
     let mut gn = None;
-    let episodes = match source {
-        Source::Gvln { file, offset } => gvln::read(file, *offset, &space)?,
-        Source::R2r { dir, split } => r2r::read(dir, split, &space)?,
+    let ReadEpisodes {
+        mut episodes,
+        mut assets_unknown,
+    } = match source {
+        Source::Gvln { file, offset } => gvln::read_episodes(file, *offset, &space)?,
+        Source::R2r { dir, split } => r2r::read_episodes(dir, split, &space)?,
         Source::GnBench { file, instruction } => {
             let scenes = match scenes {
                 Some(s) => s.to_path_buf(),
@@ -147,7 +160,11 @@ pub fn import(
             }
             let episodes = std::mem::take(&mut read.episodes);
             gn = Some((file, *instruction, read));
-            episodes
+            // Tagged from their scenes as they were read.
+            ReadEpisodes {
+                episodes,
+                assets_unknown: Vec::new(),
+            }
         }
     };
     if let Some(scenes) = scenes {
@@ -161,6 +178,26 @@ pub fn import(
             ))
             .in_file(scenes));
         }
+        // The source gave no asset slice for these (the published files hold no object
+        // counts); their scenes, now at hand, do. Each scene is read once.
+        let mut slices: HashMap<&str, &'static str> = HashMap::new();
+        for &k in &assets_unknown {
+            let e = &mut episodes[k];
+            let slice = match slices.get(e.scene.as_str()) {
+                Some(s) => *s,
+                None => {
+                    let (name, dir) = dirs.get_key_value(&e.scene).expect("checked above");
+                    let s = scene_assets_slice(dir).within(format!(
+                        "the asset slice of episode {} (scene '{}')",
+                        e.episode_id, e.scene
+                    ))?;
+                    slices.insert(name.as_str(), s);
+                    s
+                }
+            };
+            e.slices.assets = slice.into();
+        }
+        assets_unknown.clear();
     }
     let dir = dataset.join("episodes");
     let file = dir.join(format!("{split}.jsonl"));
@@ -199,6 +236,7 @@ pub fn import(
         episodes,
         rejected: Vec::new(),
         report: None,
+        assets_unknown: assets_unknown.len(),
     };
     if let Some((source_file, instruction, read)) = gn {
         let reports = dataset.join(REPORTS_DIR);

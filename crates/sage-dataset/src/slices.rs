@@ -1,7 +1,10 @@
 //! Episode complexity slices with the paper's thresholds (SPEC §9): scene assets `many` > 376,
 //! `few` < 184; path `long` > 29.0 m, `short` < 8.4 m; `medium` in between (bounds included).
 
+use sage_core::{Result, ResultExt};
+use sage_scene::Object;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 /// More assets than this: `many`.
 pub const ASSETS_MANY: usize = 376;
@@ -30,6 +33,31 @@ pub fn assets_slice(assets: usize) -> &'static str {
     } else {
         "medium"
     }
+}
+
+/// The objects of scene folder `dir` as its `labels.json` lists them (none without the file):
+/// the scene's assets, whose count is its asset slice ([`scene_assets_slice`]). Every reader
+/// that tags an episode by its scene's folder counts them here, so all tag a scene alike.
+///
+/// # Errors
+///
+/// A `labels.json` that cannot be read or parsed, naming it.
+pub fn scene_objects(dir: &Path) -> Result<Vec<Object>> {
+    let path = dir.join("labels.json");
+    if !path.is_file() {
+        return Ok(Vec::new());
+    }
+    let text = sage_io::files::read_text(&path, &sage_io::limits::SCENE_JSON_MB)?;
+    Ok(sage_scene::formats::labels::parse(&text).in_file(&path)?.0)
+}
+
+/// The asset slice of scene folder `dir`: [`assets_slice`] of its [`scene_objects`].
+///
+/// # Errors
+///
+/// Those of [`scene_objects`].
+pub fn scene_assets_slice(dir: &Path) -> Result<&'static str> {
+    Ok(assets_slice(scene_objects(dir)?.len()))
 }
 
 /// The path slice of a path `length` metres long.

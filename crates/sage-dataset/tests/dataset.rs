@@ -842,3 +842,167 @@ fn a_build_stopped_before_it_finished_is_no_dataset_until_rerun() {
         ["test_instruction_unseen", "train"]
     );
 }
+
+/// A walk of 1 m along +x in `scene` whose file says its asset slice is `assets`.
+fn walk_in(scene: &str, assets: &str) -> Episode {
+    let path = [[1.0, 0.5, 0.0], [1.5, 0.5, 0.0], [2.0, 0.5, 0.0]];
+    let flat: Vec<Vec2> = path.iter().map(|p| Vec2::new(p[0], p[1])).collect();
+    let actions = follow(&flat, 0.0, None, &StepSizes::default()).unwrap();
+    let mut e: Episode = serde_json::from_value(serde_json::json!({
+        "episode_id": format!("{scene}-t0-0"), "scene": scene, "task": "vln", "trajectory_id": 0,
+        "instruction": "Walk to the table.", "level": "low", "instruction_type": "Single-Goal",
+        "source": "template",
+        "start": {"position": path[0], "yaw": 0.0},
+        "goal": {"ref": "table_1", "kind": "object", "position": path[2]},
+        "reference_path": path, "actions": [], "path_length": 1.0, "geodesic_distance": 1.0,
+        "slices": {"assets": assets, "path": "short"}}))
+    .unwrap();
+    e.actions = actions;
+    e
+}
+
+/// The asset slice of each scene's episodes in split `split` of `data`, as written.
+fn assets_by_scene(data: &Path, split: &str) -> BTreeMap<String, String> {
+    jsonl::read(&data.join(format!("episodes/{split}.jsonl")))
+        .unwrap()
+        .into_iter()
+        .map(|e| (e.scene, e.slices.assets))
+        .collect()
+}
+
+/// The published GVLN and R2R-VLNCE files hold none of sage3d's keys, so no asset counts: an
+/// import given the scenes tags each such episode with its scene's slice (`many` above 376
+/// objects of `labels.json`, `few` below 184), one without them leaves `medium` and counts
+/// those episodes; a file sage3d wrote keeps the slices it holds either way.
+#[test]
+fn imports_tag_published_episodes_with_their_scenes_asset_slice() {
+    use sage_dataset::import::{Source, import};
+    let space = StepSizes::default();
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    for (name, rooms, objects) in [("big", 24, 450), ("small", 2, 20)] {
+        generate(&SynthConfig {
+            seed: 3,
+            rooms,
+            objects,
+            gaussians: 1000,
+            ..SynthConfig::default()
+        })
+        .unwrap()
+        .save(&scenes.join(name), sage_scene::SplatLayout::Compressed)
+        .unwrap();
+    }
+    let count = |name: &str| sage_dataset::slices::scene_objects(&scenes.join(name)).unwrap();
+    assert!(count("big").len() > 376, "{}", count("big").len());
+    assert!(count("small").len() < 184, "{}", count("small").len());
+    // What the files of ours say is the other way round, so that keeping it shows.
+    let ours = [walk_in("big", "few"), walk_in("small", "many")];
+    let tagged = BTreeMap::from([
+        ("big".into(), "many".into()),
+        ("small".into(), "few".into()),
+    ]);
+    let kept = BTreeMap::from([
+        ("big".into(), "few".into()),
+        ("small".into(), "many".into()),
+    ]);
+    let medium = BTreeMap::from([
+        ("big".into(), "medium".into()),
+        ("small".into(), "medium".into()),
+    ]);
+    // A published GVLN file: in S, no `frame`, `base_z` or instruction keys of ours.
+    let ours_gvln = dir.path().join("ours.json");
+    gvln::write(&ours_gvln, &ours, GvlnFrame::World, &space).unwrap();
+    let published_gvln = dir.path().join("published.json");
+    let s = GvlnFrame::Sage(SageFrame { offset: Vec2::ZERO });
+    gvln::write(&published_gvln, &ours, s, &space).unwrap();
+    let mut root: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&published_gvln).unwrap()).unwrap();
+    root["dataset_metadata"] = serde_json::json!({"name": "GVLN"});
+    for scene in root["scenes"].as_array_mut().unwrap() {
+        for sample in scene["samples"].as_array_mut().unwrap() {
+            for ins in sample["instructions"].as_array_mut().unwrap() {
+                let ins = ins.as_object_mut().unwrap();
+                for key in [
+                    "episode_id",
+                    "level",
+                    "subtype",
+                    "source",
+                    "task",
+                    "start_yaw",
+                    "goal_yaw",
+                    "goal_kind",
+                    "path_length",
+                    "geodesic_distance",
+                    "slices",
+                    "actions",
+                ] {
+                    ins.remove(key);
+                }
+            }
+        }
+    }
+    std::fs::write(&published_gvln, root.to_string()).unwrap();
+    // A published R2R-VLNCE split: no `sage3d` object.
+    let (ours_r2r, published_r2r) = (dir.path().join("r2r_ours"), dir.path().join("r2r"));
+    r2r::write(&ours_r2r, "val", &ours, &space).unwrap();
+    r2r::write(&published_r2r, "val", &ours, &space).unwrap();
+    let main = r2r::paths(&published_r2r, "val").0;
+    let mut text = String::new();
+    std::io::Read::read_to_string(
+        &mut flate2::read::GzDecoder::new(std::fs::File::open(&main).unwrap()),
+        &mut text,
+    )
+    .unwrap();
+    let mut root: serde_json::Value = serde_json::from_str(&text).unwrap();
+    for e in root["episodes"].as_array_mut().unwrap() {
+        assert!(e.as_object_mut().unwrap().remove("sage3d").is_some());
+    }
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    std::io::Write::write_all(&mut gz, root.to_string().as_bytes()).unwrap();
+    std::fs::write(&main, gz.finish().unwrap()).unwrap();
+
+    let gvln_source = |file: &Path| Source::Gvln {
+        file: file.to_path_buf(),
+        offset: Vec2::ZERO,
+    };
+    let r2r_source = |dir: &Path| Source::R2r {
+        dir: dir.to_path_buf(),
+        split: "val".into(),
+    };
+    for (name, source, published) in [
+        ("gvln", gvln_source(&published_gvln), true),
+        ("gvln_ours", gvln_source(&ours_gvln), false),
+        ("r2r", r2r_source(&published_r2r), true),
+        ("r2r_ours", r2r_source(&ours_r2r), false),
+    ] {
+        let with = dir.path().join(format!("{name}_with_scenes"));
+        let imported = import(&source, &with, "s", Some(&scenes), false).unwrap();
+        assert_eq!(imported.assets_unknown, 0, "{name}");
+        let want = if published { &tagged } else { &kept };
+        assert_eq!(&assets_by_scene(&with, "s"), want, "{name} with scenes");
+        let without = dir.path().join(format!("{name}_without_scenes"));
+        let imported = import(&source, &without, "s", None, false).unwrap();
+        let (want, unknown) = if published { (&medium, 2) } else { (&kept, 0) };
+        assert_eq!(imported.assets_unknown, unknown, "{name}");
+        assert_eq!(
+            &assets_by_scene(&without, "s"),
+            want,
+            "{name} without scenes"
+        );
+    }
+    // A scene whose labels cannot be read is named, with the episode it was read for.
+    std::fs::write(scenes.join("small/labels.json"), "{").unwrap();
+    let e = import(
+        &gvln_source(&published_gvln),
+        &dir.path().join("broken"),
+        "s",
+        Some(&scenes),
+        false,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("labels.json") && e.contains("small-t0-0") && e.contains("asset slice"),
+        "{e}"
+    );
+}

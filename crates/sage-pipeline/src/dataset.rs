@@ -233,6 +233,9 @@ pub struct ImportReport {
     pub rejected: Vec<sage_dataset::formats::gnbench::Rejected>,
     /// The report listing them (GN-Bench imports).
     pub report: Option<PathBuf>,
+    /// Episodes left at the `medium` asset slice for want of a scenes folder
+    /// ([`sage_dataset::import::Imported::assets_unknown`]).
+    pub assets_unknown: usize,
 }
 
 /// Imports the episodes of `source` (a SAGE-Bench GVLN file, an R2R-VLNCE split or a GN-Bench
@@ -257,6 +260,7 @@ pub fn import(
         file: out.join("episodes").join(format!("{split}.jsonl")),
         rejected: imported.rejected,
         report: imported.report,
+        assets_unknown: imported.assets_unknown,
     })
 }
 

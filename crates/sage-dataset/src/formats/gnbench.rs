@@ -27,7 +27,7 @@
 
 use crate::episode::{Episode, Goal, StartPose, Task};
 use crate::formats::gvln::{goal_kind, planar};
-use crate::slices::{Slices, assets_slice, path_slice};
+use crate::slices::{Slices, assets_slice, path_slice, scene_objects};
 use arrow_array::cast::AsArray;
 use arrow_array::types::{Float32Type, Float64Type, Int16Type, Int32Type, Int64Type};
 use arrow_array::{Array, ArrayRef, Float64Array, Int64Array, ListArray, RecordBatch, StringArray};
@@ -220,23 +220,13 @@ impl SceneInfo {
             .in_file(dir));
         }
         let frame = GnFrame::of_map(&OccupancyMap::load(dir)?);
-        let read = |name: &str| -> Result<Option<String>> {
-            let p = dir.join(name);
-            p.is_file()
-                .then(|| sage_io::files::read_text(&p, &sage_io::limits::SCENE_JSON_MB))
-                .transpose()
-        };
-        let mut objects = match read("labels.json")? {
-            Some(t) => {
-                sage_scene::formats::labels::parse(&t)
-                    .in_file(dir.join("labels.json"))?
-                    .0
-            }
-            None => Vec::new(),
-        };
-        if let Some(t) = read("objects.json")? {
-            sage_scene::formats::objects_json::apply(&t, &mut objects)
-                .in_file(dir.join("objects.json"))?;
+        // The objects the other importers count for the asset slice, so a scene gets the
+        // same slice whichever file its episodes came from.
+        let mut objects = scene_objects(dir)?;
+        let categories = dir.join("objects.json");
+        if categories.is_file() {
+            let t = sage_io::files::read_text(&categories, &sage_io::limits::SCENE_JSON_MB)?;
+            sage_scene::formats::objects_json::apply(&t, &mut objects).in_file(&categories)?;
         }
         let ids = sage_nav::semantic_map::item_ids(&objects);
         let objects = objects

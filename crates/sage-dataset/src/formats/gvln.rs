@@ -32,10 +32,12 @@
 //!   are recomputed from the points (turning at the end to `goal_yaw` when only that key is
 //!   there, else to the last point's heading), the headings come from the points, the goal's
 //!   kind from its `end` name ([`goal_kind`]), both lengths are the path's and the asset slice
-//!   is `medium`; the type `Default` (the published generator's failure text) reads as
-//!   Single-Goal.
+//!   is `medium` ([`read_episodes`] names those episodes, which an import with a scenes folder
+//!   re-tags by their scene's object count); the type `Default` (the published generator's
+//!   failure text) reads as Single-Goal.
 
 use crate::episode::{Episode, Goal, StartPose, Task, check_point, check_unique_ids};
+use crate::formats::ReadEpisodes;
 use crate::slices::{Slices, path_slice};
 use glam::{Vec2, Vec3};
 use sage_core::frame::SageFrame;
@@ -314,8 +316,23 @@ fn text(v: &Value, key: &str) -> String {
 
 /// Reads a GVLN file; `sage_offset` is the S-frame offset for files that do not state their frame.
 /// Files without our `slices` key (the published ones) hold no asset count: their asset slices
-/// read as `medium` unless the caller re-tags them.
+/// read as `medium` unless the caller re-tags them ([`read_episodes`] says which).
+///
+/// # Errors
+///
+/// Those of [`read_episodes`].
 pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Episode>> {
+    read_episodes(path, sage_offset, space).map(|r| r.episodes)
+}
+
+/// [`read`], also naming the episodes whose instruction has no `slices` key of ours: their
+/// asset slice is the `medium` placeholder, for the caller to re-tag from their scenes.
+///
+/// # Errors
+///
+/// A file that cannot be read or is not GVLN, or an episode that fails [`Episode::check`],
+/// naming the file and the place in it.
+pub fn read_episodes(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<ReadEpisodes> {
     let text_in = sage_io::files::read_text(path, &sage_io::limits::JSON_MB)?;
     let root: Value = sage_io::files::parse_json(&text_in, path)?;
     let meta = root.get("dataset_metadata").cloned().unwrap_or(Value::Null);
@@ -359,6 +376,7 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
         .in_file(path)?;
     let mut out = Vec::new();
     let mut places = Vec::new();
+    let mut assets_unknown = Vec::new();
     for (si, scene) in scenes.iter().enumerate() {
         let ctx = format!("scenes[{si}]");
         // The scene's own name, for instructions without a `scene_id` of their own.
@@ -379,7 +397,8 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
             .in_file(path)?;
         for (ti, sample) in samples.iter().enumerate() {
             let ctx = format!("{ctx}.samples[{ti}]");
-            let read_sample = || -> Result<Vec<Episode>> {
+            // Each episode with whether its file gave its asset slice.
+            let read_sample = || -> Result<Vec<(Episode, bool)>> {
                 let pts = field(sample, "points")?
                     .as_array()
                     .ok_or_else(|| Error::format("points", "expected an array"))?;
@@ -488,6 +507,7 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                             ));
                         }
                     };
+                    let tagged = !matches!(ins.get("slices"), None | Some(Value::Null));
                     let slices = match ins.get("slices") {
                         None | Some(Value::Null) => Slices {
                             assets: "medium".into(),
@@ -544,17 +564,25 @@ pub fn read(path: &Path, sage_offset: Vec2, space: &StepSizes) -> Result<Vec<Epi
                     // The same check as our JSONL reader's, so an import writes no episode
                     // that `eval` would refuse.
                     episode.check().within(format!("instructions[{ii}]"))?;
-                    eps.push(episode);
+                    eps.push((episode, tagged));
                 }
                 Ok(eps)
             };
             let read = read_sample().within(&ctx).in_file(path)?;
             places.extend((0..read.len()).map(|k| format!("{ctx}.instructions[{k}]")));
-            out.extend(read);
+            for (episode, tagged) in read {
+                if !tagged {
+                    assets_unknown.push(out.len());
+                }
+                out.push(episode);
+            }
         }
     }
     check_unique_ids(&out, |k| places[k].clone()).in_file(path)?;
-    Ok(out)
+    Ok(ReadEpisodes {
+        episodes: out,
+        assets_unknown,
+    })
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@
 //! so the bytes depend only on the episodes.
 
 use crate::episode::{Episode, Goal, StartPose, Task, check_point, check_unique_ids};
+use crate::formats::ReadEpisodes;
 use crate::slices::Slices;
 use flate2::Compression;
 use flate2::read::GzDecoder;
@@ -266,8 +267,24 @@ pub fn write(dir: &Path, split: &str, episodes: &[Episode], space: &StepSizes) -
 
 /// Reads split `split` under `dir` back into episodes (W frame). Actions come from the
 /// ground-truth file when it is there, else from following the reference path. Episodes without
-/// our `sage3d` object (other R2R files) read as imported Single-Goal episodes.
+/// our `sage3d` object (other R2R files) read as imported Single-Goal episodes, their asset
+/// slice `medium` unless the caller re-tags them ([`read_episodes`] says which).
+///
+/// # Errors
+///
+/// Those of [`read_episodes`].
 pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> {
+    read_episodes(dir, split, space).map(|r| r.episodes)
+}
+
+/// [`read`], also naming the episodes without our `sage3d` object: their asset slice is the
+/// `medium` placeholder, for the caller to re-tag from their scenes.
+///
+/// # Errors
+///
+/// A split name that leaves `dir`, a file that cannot be read or is not R2R-VLNCE, or an
+/// episode that fails [`Episode::check`], naming the file and the episode.
+pub fn read_episodes(dir: &Path, split: &str, space: &StepSizes) -> Result<ReadEpisodes> {
     sage_io::names::check_plain("split", split)?;
     let (main, gt_path) = paths(dir, split);
     let file: R2rFile = read_gz(&main)?;
@@ -276,6 +293,11 @@ pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> 
     } else {
         BTreeMap::new()
     };
+    // One episode per file entry, in order, so the entries' indices are the episodes'.
+    let assets_unknown = (file.episodes.iter().enumerate())
+        .filter(|(_, r)| r.sage3d.is_none())
+        .map(|(i, _)| i)
+        .collect();
     let episodes = file
         .episodes
         .into_iter()
@@ -388,5 +410,8 @@ pub fn read(dir: &Path, split: &str, space: &StepSizes) -> Result<Vec<Episode>> 
         })
         .collect::<Result<Vec<_>>>()?;
     check_unique_ids(&episodes, |k| format!("episodes[{k}]")).in_file(&main)?;
-    Ok(episodes)
+    Ok(ReadEpisodes {
+        episodes,
+        assets_unknown,
+    })
 }
