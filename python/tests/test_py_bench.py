@@ -88,6 +88,23 @@ def test_metric_mode_and_dtw_from_python_equal_the_cli(data, sage3d, tmp_path):
         sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", seed=-1)
 
 
+def test_the_bodies_choice_from_python_equals_the_cli(data, sage3d, tmp_path):
+    scenes, dataset = data
+    expected = cli_eval(sage3d, data, "forward", tmp_path / "cli", "train", "--splat-bodies", "always")
+    sg.evaluate(dataset, scenes, "forward", tmp_path / "py", split="train", splat_bodies="always")
+    got = sorted(jsonl(tmp_path / "py" / "episodes.jsonl"), key=lambda r: r["episode_id"])
+    assert got == expected
+    # The scenes' objects have meshes: only "always" gives them bodies from their Gaussians.
+    assert all(r["bodies"].get("gaussians", 0) > 0 for r in got)
+    record = json.loads((tmp_path / "py" / "sage3d_run.json").read_text())
+    assert record["settings"]["splat_bodies"] == "always"
+    with pytest.raises(ValueError, match="splat_bodies: always recorded, auto asked"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "py", split="train")
+    with pytest.raises(ValueError, match="evaluate's own option"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train",
+                    config={"splat_bodies": "never"})
+
+
 def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):
     scenes, dataset = data
     expected = cli_eval(sage3d, data, "oracle", tmp_path / "cli")

@@ -26,6 +26,8 @@ use sage_env::{Env, EnvConfig, EpisodeTrace, SensorConfig};
 use sage_io::lock::FolderLock;
 use sage_io::run::{RUN_RECORD, UNFINISHED};
 use sage_metrics::{Dtw, Scoring};
+use sage_physics::SplatBodies;
+use sage_scene::LoadOptions;
 use sage_splat::Device;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -70,14 +72,16 @@ impl RunOutcome {
     }
 }
 
-/// The environment of an evaluation: the preset with RGB only (at the preset's size, rendered
-/// on `device`) for agents that read images (remote models), without images for the others,
-/// which do not read them (rendering does not change the motion); and the action space the
-/// agent needs (ground velocities for pose replays), else the preset's.
-pub fn env_config(preset: &str, agent: &AgentMaker, device: Device) -> Result<EnvConfig> {
-    let config = EnvConfig::preset(preset)?;
+/// The environment of an evaluation of `settings`: its preset with RGB only (at the preset's
+/// size, rendered on its device) for agents that read images (remote models), without images
+/// for the others, which do not read them (rendering does not change the motion); the action
+/// space the agent needs (ground velocities for pose replays), else the preset's; and its
+/// choice of bodies.
+pub fn env_config(settings: &EvalSettings, agent: &AgentMaker) -> Result<EnvConfig> {
+    let config = EnvConfig::preset(&settings.preset)?;
     Ok(EnvConfig {
-        device,
+        device: settings.device,
+        splat_bodies: settings.splat_bodies,
         sensors: SensorConfig {
             rgb: agent.reads_images(),
             depth: false,
@@ -246,6 +250,9 @@ fn changed_settings(old: Option<&serde_json::Value>, new: &serde_json::Value) ->
         fields
             .entry("device")
             .or_insert_with(|| Device::Cpu.to_string().into());
+        fields
+            .entry("splat_bodies")
+            .or_insert_with(|| SplatBodies::Auto.as_str().into());
         fields
     };
     let (old, new) = (run_of(old), run_of(Some(new)));
@@ -457,7 +464,7 @@ pub fn with_runner<T>(settings: &EvalSettings, f: impl FnOnce(&Runner) -> Result
     }
     let maker = settings.agent.maker()?;
     let runner = Runner {
-        config: env_config(&settings.preset, &maker, settings.device).within("preset")?,
+        config: env_config(settings, &maker).within("preset")?,
         agent_name: settings.agent.to_string(),
         agent: &|| maker.build(settings.seed),
         shard: None,
@@ -527,9 +534,14 @@ fn run_unfinished(
     let writer = Mutex::new(records::Appender::open(&records_path)?);
     let run_scene = |scene: &str, eps: &[&Episode]| {
         // A scene that cannot be loaded fails its episodes, with the reason; the run goes on.
-        let ctx = SceneContext::load(&dirs[scene], None)
-            .within(format!("scene {scene}"))
-            .map(Arc::new);
+        let ctx = SceneContext::load_with_bodies(
+            &dirs[scene],
+            None,
+            &LoadOptions::default(),
+            settings.splat_bodies,
+        )
+        .within(format!("scene {scene}"))
+        .map(Arc::new);
         let record_episode = |e: &&Episode| {
             if runner.stop.is_some_and(|s| s.load(Ordering::Relaxed)) {
                 return Err(Error::invalid(

@@ -122,11 +122,7 @@ impl HumanRun {
     ///
     /// An unknown preset.
     pub fn env_config(&self) -> Result<EnvConfig> {
-        env_config(
-            &self.settings.preset,
-            &self.settings.agent.maker()?,
-            self.settings.device,
-        )
+        env_config(&self.settings, &self.settings.agent.maker()?)
     }
 
     /// Scores the finished episode `id` from its `trace` in `ctx` (its scene), records it with

@@ -3,6 +3,7 @@
 
 use sage_agents::AgentKind;
 use sage_metrics::{Dtw, Mode, Scoring};
+use sage_physics::SplatBodies;
 use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -31,6 +32,16 @@ pub struct EvalSettings {
     /// CPU, so the records of CPU runs are as they always were.
     #[serde(default, skip_serializing_if = "is_cpu")]
     pub device: Device,
+    /// Which objects of the scenes get collision bodies recovered from their Gaussians
+    /// (`sage3d physics build --splat-bodies`); recorded only when not `auto`, so the records
+    /// of default runs are as they always were.
+    #[serde(default, skip_serializing_if = "is_auto")]
+    pub splat_bodies: SplatBodies,
+}
+
+/// True for the default bodies (serde leaves them out of the run record).
+fn is_auto(choice: &SplatBodies) -> bool {
+    *choice == SplatBodies::Auto
 }
 
 /// True for the default device (serde leaves it out of the run record).

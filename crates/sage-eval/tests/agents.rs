@@ -48,6 +48,7 @@ fn settings(agent: &str) -> EvalSettings {
         seed: 0,
         preset: "sage".into(),
         device: Default::default(),
+        splat_bodies: Default::default(),
     }
 }
 

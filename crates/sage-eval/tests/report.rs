@@ -56,6 +56,7 @@ fn settings(data: &Path, scenes: &Path) -> EvalSettings {
         seed: 0,
         preset: "sage".into(),
         device: Default::default(),
+        splat_bodies: Default::default(),
     }
 }
 

@@ -47,6 +47,7 @@ fn settings(mode: Mode, dtw: Dtw) -> EvalSettings {
         seed: 3,
         preset: "sage".into(),
         device: Default::default(),
+        splat_bodies: Default::default(),
     }
 }
 

@@ -49,6 +49,7 @@ fn settings(data: &Path, scenes: &Path) -> EvalSettings {
         seed: 0,
         preset: "sage".into(),
         device: Default::default(),
+        splat_bodies: Default::default(),
     }
 }
 
@@ -94,7 +95,7 @@ fn a_stopped_evaluation_is_unfinished_until_its_rerun_which_ends_as_an_uninterru
     let maker = settings.agent.maker().unwrap();
     let stop = AtomicBool::new(false);
     let runner = Runner {
-        config: sage_eval::env_config("sage", &maker, settings.device).unwrap(),
+        config: sage_eval::env_config(&settings, &maker).unwrap(),
         agent_name: settings.agent.to_string(),
         agent: &|| maker.build(settings.seed),
         shard: None,
@@ -211,7 +212,7 @@ fn a_human_run_is_finished_once_an_episode_is_played() {
         .unwrap()
         .maker()
         .unwrap();
-    let config = sage_eval::env_config("sage", &oracle, Default::default()).unwrap();
+    let config = sage_eval::env_config(run.settings(), &oracle).unwrap();
     let mut env = Env::new(ctx.clone(), config).unwrap();
     let mut agent = oracle.build(0).unwrap();
     let trace = run_episode(&mut env, agent.as_mut(), &episode.env_episode()).unwrap();
@@ -266,6 +267,15 @@ fn a_folder_of_another_run_is_refused_naming_its_record_and_what_differs() {
             "other settings (agent: oracle recorded, random asked; mode: sage recorded, vlnce asked; seed: 0 recorded, 7 asked)"
         )
     );
+    // A run recorded without the bodies ran with the default ones.
+    let boxes = EvalSettings {
+        splat_bodies: sage_physics::SplatBodies::Never,
+        ..oracle.clone()
+    };
+    assert_eq!(
+        refused(&boxes),
+        message("other settings (splat_bodies: auto recorded, never asked)")
+    );
     // The split's episodes file changed since the run (a line added at its end).
     let split = data.join("episodes/train.jsonl");
     let mut text = std::fs::read_to_string(&split).unwrap();
@@ -290,5 +300,41 @@ fn a_folder_of_another_run_is_refused_naming_its_record_and_what_differs() {
     assert_eq!(
         refused(&oracle),
         message("other settings (split: val recorded, train asked)")
+    );
+}
+
+#[test]
+fn a_run_loads_its_scenes_with_the_bodies_it_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, _, data) = common::small_dataset(dir.path(), 0);
+    let bodies_of = |run: &Path| -> Vec<serde_json::Value> {
+        std::fs::read_to_string(run.join("episodes.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["bodies"].clone())
+            .collect()
+    };
+    let default = dir.path().join("default");
+    sage_eval::run(&settings(&data, &scenes), &default, &|_, _| {}).unwrap();
+    assert!(record(&default)["settings"].get("splat_bodies").is_none());
+    let always = dir.path().join("always");
+    let from_gaussians = EvalSettings {
+        splat_bodies: sage_physics::SplatBodies::Always,
+        ..settings(&data, &scenes)
+    };
+    sage_eval::run(&from_gaussians, &always, &|_, _| {}).unwrap();
+    assert_eq!(record(&always)["settings"]["splat_bodies"], "always");
+    // The synthetic scene's objects have meshes: by default none is recovered from its
+    // Gaussians; asked for always, every episode ran among bodies from the Gaussians.
+    let (by_default, asked) = (bodies_of(&default), bodies_of(&always));
+    assert!(!asked.is_empty());
+    assert!(
+        by_default
+            .iter()
+            .all(|b| b.get("gaussians").is_none_or(|n| n == 0))
+    );
+    assert!(
+        asked.iter().all(|b| b["gaussians"].as_u64().unwrap() > 0),
+        "{asked:?}"
     );
 }

@@ -45,6 +45,7 @@ fn fixture() -> &'static Fixture {
             seed: 0,
             preset: "sage".into(),
             device: Default::default(),
+            splat_bodies: Default::default(),
         };
         sage_eval::run(&settings, &run, &|_, _| {}).unwrap();
         let ctx = SceneContext::load(&home, None).unwrap();

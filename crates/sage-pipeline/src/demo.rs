@@ -372,6 +372,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
                 seed: s.seed,
                 preset: "sage".into(),
                 device: Default::default(),
+                splat_bodies: Default::default(),
             },
             out: s.run_folder(agent),
         });

@@ -9,6 +9,7 @@ use sage_eval::report::{self, ReportJob, ReportOptions, ReportOutcome};
 use sage_eval::{EvalRecord, EvalSettings, RunOutcome, Runner, Summary};
 use sage_io::lock::FolderLock;
 use sage_metrics::{Dtw, Mode};
+use sage_physics::SplatBodies;
 use sage_splat::Device;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -48,6 +49,13 @@ pub struct EvalOptions {
         arg(long, value_name = "cpu|gpu|auto", default_value_t = EvalOptions::default().device)
     )]
     pub device: Device,
+    /// Which objects get collision bodies recovered from their Gaussians, as `physics build
+    /// --splat-bodies`: auto, always or never (recorded in the run when not auto).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "auto|always|never", default_value_t = SplatBodies::default())
+    )]
+    pub splat_bodies: SplatBodies,
 }
 
 impl Default for EvalOptions {
@@ -62,6 +70,7 @@ impl Default for EvalOptions {
             seed: 0,
             preset: "sage".into(),
             device: Device::default(),
+            splat_bodies: SplatBodies::default(),
         }
     }
 }
@@ -83,6 +92,7 @@ impl EvalOptions {
             seed: self.seed,
             preset: self.preset.clone(),
             device: self.device,
+            splat_bodies: self.splat_bodies,
         })
     }
 }

@@ -145,11 +145,12 @@ pub fn evaluate<'py>(
     let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
     let config = match (&maker, overrides) {
         // A built-in agent sees what it sees under `sage3d eval`.
-        (Some(maker), None) => sage_eval::env_config(preset, maker, settings.device)
+        (Some(maker), None) => sage_eval::env_config(&settings, maker)
             .map_err(|e| e.within("preset"))
             .py()?,
         _ => sage_env::EnvConfig {
             device: settings.device,
+            splat_bodies: settings.splat_bodies,
             ..sage_env::EnvConfig::with_overrides(
                 preset,
                 &from_json(overrides.unwrap_or("{}"), "overrides")?,

@@ -162,6 +162,7 @@ pub fn open(opts: &ViewOptions) -> Result<(Subject, BTreeMap<String, PathBuf>)> 
                 seed: 0,
                 preset: opts.preset.clone(),
                 device: opts.device,
+                splat_bodies: Default::default(),
             };
             let run = HumanRun::open(settings, out, opts.force).within("human play")?;
             let dirs = scene_dirs(&scenes)?;

@@ -494,6 +494,7 @@ fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
         seed: 0,
         preset: "sage".into(),
         device: Default::default(),
+        splat_bodies: Default::default(),
     };
     sage_eval::run(&settings, &out, &|_, _| {}).unwrap();
     let evaluated = records(&out);

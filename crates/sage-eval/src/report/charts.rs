@@ -492,6 +492,7 @@ mod tests {
             seed: 0,
             preset: "sage".into(),
             device: Default::default(),
+            splat_bodies: Default::default(),
         };
         let mut s = Summary::of(&settings, &[]);
         s.overall = agg(4, &[("cr", 0.4), ("ne", 2.0), ("sr", 0.5)]);

@@ -55,11 +55,11 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
     if all(v is None for v in (width, height, sensors, config)):
         return None
     over = config_overrides(width, height, sensors, config=config)
-    if over.get("splat_bodies", "auto") != "auto":
-        # The evaluator loads its scenes with the default bodies and its run record has no
-        # field for another choice: refused here rather than failing every episode.
-        raise ValueError(f"config: splat_bodies: evaluate runs with the default bodies ('auto'), "
-                         f"not {over['splat_bodies']!r}")
+    if "splat_bodies" in over:
+        # The run record keeps the bodies as one of the run's settings, as `sage3d eval
+        # --splat-bodies` does: evaluate takes them as its own option, not in `config`.
+        raise ValueError("config: splat_bodies: give the bodies as evaluate's own option "
+                         f"(splat_bodies={over['splat_bodies']!r}), which the run record keeps")
     return _json(over)
 
 
@@ -88,7 +88,9 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     raises ``ValueError`` after the run folder is written, as ``sage3d eval --strict`` exits
     non-zero, and a run in which every episode failed warns (``RuntimeWarning``). ``device``
     (``"cpu"``, ``"gpu"`` or ``"auto"``, as ``sage3d eval --device``) is where the images of
-    agents that read them are rendered, whatever ``config`` says.
+    agents that read them are rendered, whatever ``config`` says; ``splat_bodies``
+    (``"auto"``, ``"always"`` or ``"never"``, as ``sage3d eval --splat-bodies``) which objects'
+    collision bodies are recovered from their Gaussians.
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
