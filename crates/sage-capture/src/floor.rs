@@ -13,15 +13,23 @@
 //! 3. **Which axis is up.** Along each axis, the planes of the Gaussians facing it are the
 //!    peaks of a 1.5 cm histogram of their heights; the axis whose two outermost planes (the
 //!    lowest and the highest with at least a tenth of the largest peak's weight) hold the most
-//!    weight is vertical: floor and ceiling span the whole capture, the outermost walls only
-//!    its sides. [`Up`] names the axis instead, when the heuristic is not wanted.
-//! 4. **Which end is the floor.** Furniture stands on the floor, so the opaque Gaussians between
-//!    the two planes lie nearer the floor: the plane on the side of their median height is the
-//!    floor.
+//!    weight is vertical: floor and ceiling (or, without one, the furniture tops) span much of
+//!    the capture, the outermost walls only its sides. [`Up`] names the axis instead, when the
+//!    heuristic is not wanted.
+//! 4. **Which end is the floor** ([`FloorSide`]). Nothing was seen below a floor: where only
+//!    one of the two outermost planes bounds the opaque Gaussians (the other has walls and
+//!    furniture rising past it, as the highest table top of a capture whose ceiling was cut
+//!    away has), that one is the floor. Where both bound them (floor and ceiling), furniture
+//!    stands on the floor, so the opaque Gaussians between the two planes lie nearer the floor:
+//!    the plane on the side of their median height is the floor. A given up axis is taken as
+//!    given, and the same evidence only says whether it looks upside down.
 //! 5. **Fit.** The floor plane is refined by principal components of its Gaussians' centres
 //!    within [`FloorSettings::tolerance`], three times; its normal is gravity's up. A plane
 //!    covering less than [`FloorSettings::min_area`] is no floor.
-//! 6. **Heading.** Walls are turned onto the x and y axes (the mean of 4θ of the wall normals'
+//! 6. **Ceiling.** The highest plane facing up at least [`MIN_CEILING_M`] above the floor that
+//!    covers at least [`CEILING_AREA_SHARE`] of the floor's area; a capture without one (its
+//!    ceiling cut away or never seen) has none (0), rather than a table top taken for it.
+//! 7. **Heading.** Walls are turned onto the x and y axes (the mean of 4θ of the wall normals'
 //!    headings) when they agree on a right-angled layout, so that grids follow them.
 
 use glam::{DMat3, DVec3, Quat, Vec3};
@@ -180,6 +188,39 @@ impl FloorSettings {
     }
 }
 
+/// The least floor-to-ceiling height of a ceiling, metres: a large plane facing up lower than
+/// this is a furniture top (a bed, a table), since no room people walk in is lower.
+pub const MIN_CEILING_M: f32 = 1.8;
+
+/// The highest floor-to-ceiling height that is plausible indoors, metres (halls and atria
+/// reach it rarely); the import warns above it, as a sign of a wrong scale.
+pub const MAX_CEILING_M: f32 = 8.0;
+
+/// The least share of the floor's area a ceiling covers: a ceiling spans the room as the floor
+/// does (and is less hidden by furniture), while the tops of tall furniture cover a few
+/// percent of it.
+pub const CEILING_AREA_SHARE: f32 = 0.25;
+
+/// How the floor's end of the up axis was told (see the module docs, step 4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FloorSide {
+    /// Only one of the two outermost planes bounds the opaque Gaussians: it is the floor.
+    Extreme,
+    /// Both bound them (floor and ceiling): the floor is the end their median lies nearer.
+    Median,
+}
+
+impl FloorSide {
+    /// `extreme` or `median`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FloorSide::Extreme => "extreme",
+            FloorSide::Median => "median",
+        }
+    }
+}
+
 /// What was found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FloorFit {
@@ -196,11 +237,25 @@ pub struct FloorFit {
     pub rms: f32,
     /// Angle between `up` and the nearest axis of the capture, degrees (the capture's tilt).
     pub tilt_deg: f32,
-    /// The share of the opaque Gaussians between floor and ceiling that lie in the lower half
-    /// (more than 0.5 is what picked the floor's end; 1 for a given up axis).
+    /// The share of the opaque Gaussians between the two outermost planes along up that lie
+    /// in the half nearer the floor (more than 0.5 is what picks the floor's end when both
+    /// planes bound the Gaussians; measured for a given up axis too).
     pub lower_share: f32,
-    /// Floor-to-ceiling height, metres (the highest plane facing up; 0 when there is none).
+    /// How the floor's end of the up axis was told (for a given up axis: how the evidence that
+    /// [`FloorFit::side_doubtful`] weighs was read).
+    pub side: FloorSide,
+    /// A given up axis that the Gaussians clearly contradict: they put the floor at the other
+    /// end, so the capture is likely imported upside down (always false for [`Up::Auto`]).
+    pub side_doubtful: bool,
+    /// Floor-to-ceiling height, metres: the highest plane facing up at least
+    /// [`MIN_CEILING_M`] above the floor and covering at least [`CEILING_AREA_SHARE`] of the
+    /// floor's area; 0 when there is none.
     pub ceiling: f32,
+    /// Height above the floor of the highest plane facing up (the ceiling where there is one,
+    /// else a furniture top or a ceiling too low to be one), metres; 0 when there is none.
+    pub top_plane: f32,
+    /// The area of that plane (its Gaussians' 10 cm cells), m².
+    pub top_plane_area: f32,
     /// The turn about the up axis that puts the walls on x and y, radians (0 when the walls do
     /// not agree on a right-angled layout).
     pub yaw: f32,
@@ -217,7 +272,12 @@ impl FloorFit {
     /// The rotation that turns the capture's axes into W's: `up` onto +Z, then the walls onto
     /// x and y.
     pub fn rotation(&self) -> Quat {
-        (Quat::from_rotation_z(self.yaw) * Quat::from_rotation_arc(self.up, Vec3::Z)).normalize()
+        // The arc in f64: glam's f32 arc snaps a turn under about 1e-4 rad to none, which the
+        // floor's height, measured along the true normal, then misses by that angle times the
+        // capture's distance from its origin (a metre at 10 km).
+        let level = glam::DQuat::from_rotation_arc(self.up.as_dvec3().normalize(), DVec3::Z);
+        let yaw = glam::DQuat::from_rotation_z(f64::from(self.yaw));
+        (yaw * level).normalize().as_quat()
     }
 }
 
@@ -225,6 +285,7 @@ impl FloorFit {
 const MAX_SAMPLES: usize = 300_000;
 
 /// A flat Gaussian: centre (metres), unit normal, weight (opacity).
+#[derive(Clone, Copy)]
 struct Sample {
     p: Vec3,
     n: Vec3,
@@ -291,17 +352,21 @@ pub fn find_floor(
             axis.x, axis.y, axis.z
         )));
     };
-    // Which end is the floor: the side where the opaque Gaussians between the planes gather.
-    let (up, lower_share) = match settings.up.axis() {
-        Some(h) => (if axis.dot(h) >= 0.0 { axis } else { -axis }, 1.0),
-        None => {
-            let share = lower_share(&centres, axis, lo, hi);
-            if share >= 0.5 {
-                (axis, share)
+    // Which end is the floor. The evidence is read the same way for a given axis, which it
+    // may only doubt, never overrule.
+    let side = floor_side(&centres, axis, lo, hi);
+    let (up, lower_share, side_doubtful) = match settings.up.axis() {
+        Some(h) => {
+            let up = if axis.dot(h) >= 0.0 { axis } else { -axis };
+            let share = if up == axis {
+                side.lower_share
             } else {
-                (-axis, 1.0 - share)
-            }
+                1.0 - side.lower_share
+            };
+            (up, share, side.clear && side.lo_is_floor != (up == axis))
         }
+        None if side.lo_is_floor => (axis, side.lower_share, false),
+        None => (-axis, 1.0 - side.lower_share, false),
     };
     let start = if up == axis { lo } else { -hi };
     let (up, offset, inliers, rms) = fit_plane(&samples, up, start, settings.tolerance)?;
@@ -312,8 +377,12 @@ pub fn find_floor(
             settings.min_area
         )));
     }
-    let ceiling =
-        outer_planes(&samples, up, settings.tolerance).map_or(0.0, |(_, h)| (h - offset).max(0.0));
+    let (top_plane, top_plane_area) = outer_planes(&samples, up, settings.tolerance)
+        .filter(|&(_, h)| h > offset + settings.tolerance)
+        .map_or((0.0, 0.0), |(_, h)| {
+            (h - offset, floor_area(&samples, up, h, settings.tolerance))
+        });
+    let ceiling = find_ceiling(&samples, up, offset, area, settings.tolerance);
     let tilt_deg = [Vec3::X, Vec3::Y, Vec3::Z]
         .iter()
         .map(|a| up.dot(*a).abs())
@@ -331,7 +400,11 @@ pub fn find_floor(
         rms,
         tilt_deg,
         lower_share,
+        side: side.how,
+        side_doubtful,
         ceiling,
+        top_plane,
+        top_plane_area,
         yaw: if wall_agreement >= 0.3 { yaw } else { 0.0 },
         wall_agreement,
         axes,
@@ -511,6 +584,90 @@ fn outer_planes_weight(samples: &[Sample], axis: Vec3, tol: f32) -> f32 {
         })
         .map(|s| s.w)
         .sum()
+}
+
+/// The evidence for which end of an axis the floor is at ([`floor_side`]).
+struct SideEvidence {
+    /// The lower plane (`lo`, along the axis) is the floor.
+    lo_is_floor: bool,
+    /// How that was told.
+    how: FloorSide,
+    /// Whether the evidence is clear enough to doubt a given up axis with.
+    clear: bool,
+    /// [`lower_share`] along the axis.
+    lower_share: f32,
+}
+
+/// The least share of the opaque Gaussians beyond an outermost plane for it to be open (walls
+/// and furniture rising past it), and the most for it to bound them (noise, stray Gaussians).
+const OPEN_SHARE: f32 = 0.1;
+const BOUNDING_SHARE: f32 = 0.02;
+
+/// Which end of `axis`, with its outermost planes facing it at `lo` and `hi`, is the floor.
+///
+/// A capture's floor bounds what was seen: nothing lies under it. Its ceiling bounds it too,
+/// but a ceiling is often missing (cut away, or never looked at by a handheld capture), and
+/// then the highest plane is a furniture top that the walls rise past. So where exactly one
+/// plane bounds the opaque Gaussians (at most [`BOUNDING_SHARE`] of them more than 10 cm
+/// beyond it) and the other is open (at least [`OPEN_SHARE`] beyond), the bounding one is the
+/// floor. This needs no ceiling and only the centres already collected; the median test it
+/// falls back on (furniture stands on the floor, so the Gaussians between the planes gather
+/// at the floor's end) needs both planes to be floor and ceiling, as they are when both bound.
+fn floor_side(centres: &[Vec3], axis: Vec3, lo: f32, hi: f32) -> SideEvidence {
+    let (mut below, mut above) = (0usize, 0usize);
+    for p in centres {
+        let t = p.dot(axis);
+        below += usize::from(t < lo - 0.1);
+        above += usize::from(t > hi + 0.1);
+    }
+    let n = centres.len().max(1) as f32;
+    let (below, above) = (below as f32 / n, above as f32 / n);
+    let share = lower_share(centres, axis, lo, hi);
+    if below <= BOUNDING_SHARE && above >= OPEN_SHARE {
+        SideEvidence {
+            lo_is_floor: true,
+            how: FloorSide::Extreme,
+            clear: true,
+            lower_share: share,
+        }
+    } else if above <= BOUNDING_SHARE && below >= OPEN_SHARE {
+        SideEvidence {
+            lo_is_floor: false,
+            how: FloorSide::Extreme,
+            clear: true,
+            lower_share: share,
+        }
+    } else {
+        SideEvidence {
+            lo_is_floor: share >= 0.5,
+            how: FloorSide::Median,
+            // An even split says little; the synthetic homes measure 0.6-0.65.
+            clear: (share - 0.5).abs() >= 0.08,
+            lower_share: share,
+        }
+    }
+}
+
+/// The ceiling's height above the floor at `offset` along `up`, whose area is `floor` m² (see
+/// the module docs, step 6); 0 when there is none.
+fn find_ceiling(samples: &[Sample], up: Vec3, offset: f32, floor: f32, tol: f32) -> f32 {
+    // Only planes high enough to be a ceiling compete, so that the tops of furniture, which
+    // hold more weight than a sparsely seen ceiling, do not set what counts as a peak there.
+    let high: Vec<Sample> = samples
+        .iter()
+        .filter(|s| s.p.dot(up) - offset >= MIN_CEILING_M - tol)
+        .copied()
+        .collect();
+    let Some((lo, hi)) = outer_planes(&high, up, tol) else {
+        return 0.0;
+    };
+    [hi, lo]
+        .into_iter()
+        .find(|&h| {
+            h - offset >= MIN_CEILING_M
+                && floor_area(samples, up, h, tol) >= CEILING_AREA_SHARE * floor
+        })
+        .map_or(0.0, |h| h - offset)
 }
 
 /// The share of `centres` strictly between the planes at `lo` and `hi` along `axis` (10 cm

@@ -12,7 +12,11 @@
 //! 4. applies one similarity ([`transform`]): scale, the rotation that puts up on +Z (and the
 //!    walls on x and y), and the translation that puts the floor at z = 0. Each Gaussian's
 //!    orientation turns, its scales grow, and its spherical harmonics of degrees 1–3 turn
-//!    ([`sh`]), so that it looks the same from the same (turned) viewpoint.
+//!    ([`sh`]), so that it looks the same from the same (turned) viewpoint. A capture whose
+//!    Gaussians would reach beyond ±[`sage_core::MAX_COORDINATE`] m (one kept in a
+//!    georeferenced or SLAM frame) is also moved in x and y, by whole metres, so that its
+//!    median stands at the origin ([`Aligned::recentred`]); one that spans more than that is
+//!    refused. Captures within the bound keep their x and y, so their imports do not change.
 //!
 //! Writing the scene folder and its map is the pipeline's (`sage_pipeline::capture`).
 
@@ -22,7 +26,9 @@ pub mod sh;
 pub mod transform;
 
 pub use floaters::FloaterSettings;
-pub use floor::{FloorFit, FloorSettings, Up};
+pub use floor::{
+    CEILING_AREA_SHARE, FloorFit, FloorSettings, FloorSide, MAX_CEILING_M, MIN_CEILING_M, Up,
+};
 pub use transform::Similarity;
 
 use glam::Vec3;
@@ -128,6 +134,10 @@ pub struct Aligned {
     pub input: usize,
     /// Floaters removed.
     pub floaters: usize,
+    /// The shift in x and y, metres, that brought a capture reaching beyond
+    /// ±[`sage_core::MAX_COORDINATE`] m back to the origin (part of `transform`'s translation);
+    /// `None` for a capture within the bound, which keeps its x and y.
+    pub recentred: Option<[f32; 2]>,
 }
 
 /// Puts the capture `g` in W (see the crate docs).
@@ -148,12 +158,13 @@ pub fn align(g: &Gaussians, settings: &CaptureSettings) -> Result<Aligned> {
         .collect();
     let removed = g.len() - keep.len();
     let fit = floor::find_floor(g, &keep, scale, &settings.floor)?;
-    let transform = Similarity {
+    let mut transform = Similarity {
         scale,
         rotation: fit.rotation(),
         translation: Vec3::new(0.0, 0.0, -fit.offset),
     };
-    let gaussians = transform::transform(g, &keep, &transform)?;
+    let mut gaussians = transform::transform(g, &keep, &transform)?;
+    let recentred = recentre(&mut gaussians, &mut transform)?;
     Ok(Aligned {
         gaussians,
         kept: keep,
@@ -161,7 +172,57 @@ pub fn align(g: &Gaussians, settings: &CaptureSettings) -> Result<Aligned> {
         floor: fit,
         input: g.len(),
         floaters: removed,
+        recentred,
     })
+}
+
+/// Moves Gaussians `g` (in W, by `transform`) in x and y so that their median stands at the
+/// origin, when any reaches beyond ±[`sage_core::MAX_COORDINATE`] m: every reader of the
+/// scene's positions (episodes, maps) refuses coordinates beyond it. The shift is rounded to
+/// whole metres, so that the translation in `capture.json` reads as the offset it undoes, and
+/// added to `transform`. The median, not the bounds' centre, so a few stray Gaussians far
+/// out cannot move the room off the origin.
+///
+/// # Errors
+///
+/// Gaussians that span more than the bound allows, even moved (or reach beyond it along z,
+/// which stays measured from the floor), naming the capture's extent and the bound.
+fn recentre(g: &mut Gaussians, transform: &mut Similarity) -> Result<Option<[f32; 2]>> {
+    let limit = sage_core::MAX_COORDINATE;
+    let within = |g: &Gaussians| {
+        g.positions
+            .iter()
+            .all(|p| p.iter().all(|v| v.abs() <= limit))
+    };
+    if within(g) {
+        return Ok(None);
+    }
+    let median = |axis: usize| {
+        let mut v: Vec<f32> = g.positions.iter().map(|p| p[axis]).collect();
+        let mid = v.len() / 2;
+        let (_, m, _) = v.select_nth_unstable_by(mid, f32::total_cmp);
+        f64::from(*m).round()
+    };
+    let shift = [-median(0), -median(1)];
+    for p in &mut g.positions {
+        // In f64: the sum of two large, nearly opposite numbers keeps what f32 held of each.
+        p[0] = (f64::from(p[0]) + shift[0]) as f32;
+        p[1] = (f64::from(p[1]) + shift[1]) as f32;
+    }
+    let shift = shift.map(|v| v as f32);
+    transform.translation += Vec3::new(shift[0], shift[1], 0.0);
+    if !within(g) {
+        let b = g.bounds();
+        let (lo, hi) = (
+            b.min - Vec3::new(shift[0], shift[1], 0.0),
+            b.max - Vec3::new(shift[0], shift[1], 0.0),
+        );
+        return Err(Error::invalid(format!(
+            "the capture spans x {:.0}..{:.0}, y {:.0}..{:.0}, z {:.0}..{:.0} m above the floor (after scaling), more than a scene may (every coordinate within ±{limit} m, even centred on the origin); a capture that large is no room: check the scale (`scale`, or `scale_points` with `scale_distance`) and remove stray Gaussians far from it",
+            lo.x, hi.x, lo.y, hi.y, lo.z, hi.z
+        )));
+    }
+    Ok(Some(shift))
 }
 
 #[cfg(test)]

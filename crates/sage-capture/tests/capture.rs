@@ -252,3 +252,151 @@ fn a_named_up_axis_is_followed_and_a_cloud_without_floor_is_refused() {
         .to_string();
     assert!(e.contains("no floor found"), "{e}");
 }
+
+/// The capture of a synthetic home (seed `seed`) by `to_capture`, keeping only the Gaussians
+/// below `cut` metres in W (a ceiling cut away, as handheld captures often miss it).
+fn cut_capture(seed: u64, to_capture: &Similarity, cut: f32) -> Gaussians {
+    let scene = generate(&SynthConfig {
+        seed,
+        kind: SceneKind::Home,
+        rooms: 3,
+        objects: 25,
+        gaussians: 60_000,
+        ..SynthConfig::default()
+    })
+    .unwrap();
+    let g = &scene.gaussians;
+    let keep: Vec<u32> = (0..g.len() as u32)
+        .filter(|&i| g.positions[i as usize][2] < cut)
+        .collect();
+    transform::transform(g, &keep, to_capture).unwrap()
+}
+
+#[test]
+fn a_capture_without_its_ceiling_keeps_its_floor_and_up_and_records_no_ceiling() {
+    let wall = SynthConfig::default().wall_height;
+    for (seed, up_axis, tilt, yaw) in [(1, "y", 4.0, 0.3), (2, "z", 3.0, -0.6), (5, "-y", 6.0, 1.0)]
+    {
+        let c2 = to_capture(up_axis, tilt, 0.5, yaw);
+        let settings = |up: Up| CaptureSettings {
+            scale: Scale::Given { value: 0.5 },
+            floor: sage_capture::FloorSettings {
+                up,
+                ..Default::default()
+            },
+            ..CaptureSettings::default()
+        };
+        let whole = align(&cut_capture(seed, &c2, f32::INFINITY), &settings(Up::Auto)).unwrap();
+        assert!(
+            (whole.floor.ceiling - wall).abs() < 0.05,
+            "seed {seed}: ceiling {}",
+            whole.floor.ceiling
+        );
+        let named = match up_axis {
+            "y" => Up::Y,
+            "-y" => Up::NegY,
+            _ => Up::Z,
+        };
+        // The ceiling plane cut away (walls kept to full height), and the top of the rooms.
+        for cut in [wall - 0.1, 2.0] {
+            let capture = cut_capture(seed, &c2, cut);
+            for up in [Up::Auto, named] {
+                let out = align(&capture, &settings(up)).unwrap();
+                let turned = c2.then(&out.transform).rotation * Vec3::Z;
+                let tilt_err = turned.angle_between(Vec3::Z).to_degrees();
+                let same_up = out.floor.up.angle_between(whole.floor.up).to_degrees();
+                println!(
+                    "seed {seed} ({up_axis} up), cut at {cut} m, --up {up}: up off by {tilt_err:.3} deg \
+                     ({same_up:.3} deg from the whole capture's), floor {:.4} vs {:.4}, ceiling {}, \
+                     highest plane {:.2} m ({:.1} m2 of {:.1}), side {:?}, lower share {:.2}",
+                    out.floor.offset,
+                    whole.floor.offset,
+                    out.floor.ceiling,
+                    out.floor.top_plane,
+                    out.floor.top_plane_area,
+                    out.floor.area,
+                    out.floor.side,
+                    out.floor.lower_share,
+                );
+                assert!(
+                    tilt_err < 1.0,
+                    "seed {seed}, cut {cut}, {up}: upside down or tilted by {tilt_err} deg"
+                );
+                assert!(same_up < 0.5, "seed {seed}, cut {cut}, {up}: {same_up} deg");
+                assert!(
+                    (out.floor.offset - whole.floor.offset).abs() < 0.01,
+                    "seed {seed}, cut {cut}, {up}: floor at {} instead of {}",
+                    out.floor.offset,
+                    whole.floor.offset
+                );
+                assert_eq!(out.floor.ceiling, 0.0, "seed {seed}, cut {cut}, {up}");
+                assert!(!out.floor.side_doubtful, "seed {seed}, cut {cut}, {up}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_named_up_axis_upside_down_is_doubted() {
+    let c2 = to_capture("y", 2.0, 1.0, 0.0);
+    let cap = make_capture(4, &c2, 0);
+    for (up, doubtful) in [(Up::Y, false), (Up::NegY, true)] {
+        let settings = CaptureSettings {
+            floor: sage_capture::FloorSettings {
+                up,
+                ..Default::default()
+            },
+            ..CaptureSettings::default()
+        };
+        let out = align(&cap.gaussians, &settings).unwrap();
+        assert_eq!(out.floor.side_doubtful, doubtful, "{up}: {:?}", out.floor);
+    }
+}
+
+#[test]
+fn a_capture_far_from_the_origin_is_brought_back_and_one_too_large_refused() {
+    // A capture kept in a georeferenced frame: 20 km east, 5 km below its frame's origin.
+    let far = Similarity {
+        scale: 1.0,
+        rotation: Quat::IDENTITY,
+        translation: Vec3::new(20_000.0, 0.0, -5_000.0),
+    };
+    let cap = make_capture(6, &far, 0);
+    let out = align(&cap.gaussians, &CaptureSettings::default()).unwrap();
+    let shift = out.recentred.expect("moved back to the origin");
+    assert!(
+        (shift[0] + 20_000.0).abs() < 20.0 && shift[1].abs() < 20.0,
+        "{shift:?}"
+    );
+    assert_eq!(shift.map(f32::fract), [0.0, 0.0], "whole metres");
+    let b = out.gaussians.bounds();
+    assert!(b.min.abs().max(b.max.abs()).max_element() < 50.0, "{b:?}");
+    // The recorded transform is the one applied.
+    let back = far.then(&out.transform);
+    let p = back.apply(Vec3::new(1.0, 2.0, 0.0));
+    assert!(p.z.abs() < 0.02 && p.x.abs() < 50.0, "{p}");
+
+    // Near the origin nothing moves: existing imports stay as they were.
+    let near = make_capture(6, &Similarity::IDENTITY, 0);
+    assert_eq!(
+        align(&near.gaussians, &CaptureSettings::default())
+            .unwrap()
+            .recentred,
+        None
+    );
+
+    // Two far stray Gaussians 30 km apart: no shift brings both within ±10 km.
+    let mut g = near.gaussians.clone();
+    for x in [-15_000.0, 15_000.0] {
+        g.push(&Gaussian {
+            position: Vec3::new(x, 0.0, 1.0),
+            log_scale: Vec3::splat(-3.0),
+            opacity_logit: 3.0,
+            ..Gaussian::default()
+        });
+    }
+    let e = align(&g, &CaptureSettings::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("10000") && e.contains("-15000..15000"), "{e}");
+}

@@ -229,9 +229,19 @@ fn import(a: &ImportArgs) -> Result<()> {
         if r.ceiling > 0.0 {
             format!("{:.2} m above it", r.ceiling)
         } else {
-            "not found".to_string()
+            format!(
+                "none (no plane covering {:.0} % of the floor's area lies {} m or more above it); physics caps the scene at the top of its Gaussians",
+                100.0 * sage_pipeline::capture::CEILING_AREA_SHARE,
+                sage_pipeline::capture::MIN_CEILING_M
+            )
         }
     );
+    if let Some([x, y]) = r.recentred {
+        println!(
+            "recentred   moved {x:.0} m in x and {y:.0} m in y: the capture lay beyond the +-{} m a scene may reach (in capture.json's transform)",
+            sage_core::MAX_COORDINATE
+        );
+    }
     println!(
         "walls       turned {:.1} deg about up onto x and y",
         r.yaw_deg
@@ -244,6 +254,20 @@ fn import(a: &ImportArgs) -> Result<()> {
         "occupancy   {:.1} m2 free, {:.1} m2 occupied (from the Gaussians)",
         r.free_m2, r.occupied_m2
     );
+    if r.losses.is_empty() {
+        println!("written     {}: every value as computed", r.splat_file);
+    } else {
+        println!(
+            "written     {}, lossy (--layout standard keeps every value):",
+            r.splat_file
+        );
+        for loss in &r.losses {
+            println!("  lost: {loss}");
+        }
+    }
+    for w in &r.warnings {
+        eprintln!("warning: {w}");
+    }
     eprintln!(
         "wrote {} in {:.1} s",
         r.out.display(),

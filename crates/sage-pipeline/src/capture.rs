@@ -9,7 +9,7 @@
 //! folder behind and an interrupted one no folder that looks complete.
 
 use glam::Vec3;
-use sage_capture::{Aligned, CaptureSettings, FloaterSettings, FloorSettings, Scale, Up};
+use sage_capture::{Aligned, CaptureSettings, FloaterSettings, FloorFit, FloorSettings, Scale, Up};
 use sage_core::{Error, Result};
 use sage_nav::GridParams;
 use sage_nav::splat_grid::{SplatGridParams, gaussian_grid};
@@ -19,6 +19,8 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
+
+pub use sage_capture::{CEILING_AREA_SHARE, MAX_CEILING_M, MIN_CEILING_M};
 
 /// The command that imports captures, as its run record names it.
 pub const IMPORT_COMMAND: &str = sage_scene::scene::writers::IMPORT;
@@ -118,7 +120,12 @@ pub struct ImportSettings {
     /// Metres per capture unit (default: the capture is taken to be in metres).
     #[cfg_attr(
         feature = "clap",
-        arg(long, conflicts_with = "scale_points", allow_hyphen_values = true)
+        arg(
+            long,
+            conflicts_with = "scale_points",
+            allow_hyphen_values = true,
+            value_parser = positive
+        )
     )]
     pub scale: Option<f32>,
     /// Two points in the capture's own coordinates, x1,y1,z1:x2,y2,z2, whose true distance
@@ -131,12 +138,20 @@ pub struct ImportSettings {
     /// The true distance between the scale points, metres.
     #[cfg_attr(
         feature = "clap",
-        arg(long, requires = "scale_points", allow_hyphen_values = true)
+        arg(
+            long,
+            requires = "scale_points",
+            allow_hyphen_values = true,
+            value_parser = positive
+        )
     )]
     pub scale_distance: Option<f32>,
     /// Which way is up in the capture: auto (found from floor, ceiling and walls), x, -x, y,
     /// -y, z or -z.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = Up::Auto))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = Up::Auto, allow_hyphen_values = true)
+    )]
     pub up: Up,
     /// Gaussians fainter than this opacity may be floaters.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = FloaterSettings::default().max_opacity))]
@@ -153,7 +168,10 @@ pub struct ImportSettings {
     #[cfg_attr(feature = "clap", arg(long, default_value_t = OutputLayout::Compressed))]
     pub layout: OutputLayout,
     /// Occupancy cell, metres.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = GridParams::default().cell))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = GridParams::default().cell, value_parser = cell_size)
+    )]
     pub cell: f32,
     /// Top of the agent's slab in the occupancy map, metres.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = GridParams::default().agent_height))]
@@ -230,7 +248,16 @@ impl ImportSettings {
             },
         };
         settings.floaters.validate()?;
-        self.grid_params().validate()?;
+        // Named here as the flags and keys the import takes, which the grid's own check
+        // cannot know.
+        let grid = self.grid_params();
+        if !(grid.agent_height.is_finite() && grid.agent_height > grid.slab_bottom) {
+            return Err(Error::invalid(format!(
+                "`agent_height` must exceed the {} m the occupancy map's slab starts at, got {}",
+                grid.slab_bottom, grid.agent_height
+            )));
+        }
+        grid.validate()?;
         Ok(settings)
     }
 
@@ -240,6 +267,28 @@ impl ImportSettings {
             agent_height: self.agent_height,
             ..GridParams::default()
         }
+    }
+}
+
+/// A finite number > 0, for the command line's parser, so that a value out of range is
+/// refused as a malformed one is (exit status 2); [`ImportSettings::capture_settings`] checks
+/// the same for settings from elsewhere.
+#[cfg(feature = "clap")]
+fn positive(s: &str) -> std::result::Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!("must be a finite number > 0, got {v}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// An occupancy cell size within the grid's range (0.005-1 m), for the command line's parser.
+#[cfg(feature = "clap")]
+fn cell_size(s: &str) -> std::result::Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if (0.005..=1.0).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("must be 0.005-1 m, got {v}")),
+        Err(e) => Err(e.to_string()),
     }
 }
 
@@ -283,12 +332,26 @@ pub struct ImportReport {
     pub floor_rms: f32,
     /// Floor-to-ceiling height found, metres (0: no ceiling).
     pub ceiling: f32,
+    /// The highest plane facing up, metres above the floor (the ceiling, or what was too low
+    /// or too small to be one; 0: none).
+    pub top_plane: f32,
+    /// The shift in x and y, metres, that brought a capture far from its origin back to it
+    /// (`None`: x and y kept).
+    pub recentred: Option<[f32; 2]>,
     /// The turn about up that put the walls on x and y, degrees.
     pub yaw_deg: f32,
     /// Free area of the occupancy map, m².
     pub free_m2: f32,
     /// Occupied area of the occupancy map, m².
     pub occupied_m2: f32,
+    /// The Gaussian file written (`3dgs_compressed.ply` or `3dgs.ply`).
+    pub splat_file: String,
+    /// What that file does not hold of the Gaussians as computed (the compressed layout
+    /// quantises every value; the standard one loses nothing: empty).
+    pub losses: Vec<String>,
+    /// What looks wrong with the result, each with its likely cause and what to try (see
+    /// [`plausibility`]); the import went through.
+    pub warnings: Vec<String>,
     /// The scene folder written.
     pub out: PathBuf,
 }
@@ -300,8 +363,10 @@ pub struct ImportReport {
 ///
 /// # Errors
 ///
-/// Bad settings, an unreadable, empty or malformed capture, no floor found, an output folder
-/// that holds anything else, or a write error (after which the files written are removed).
+/// Bad settings, an unreadable, empty or malformed capture, no floor found, a capture too
+/// large for a scene, an occupancy map without one free cell (with its likely causes), an
+/// output folder that holds anything else, or a write error (after which the files written
+/// are removed).
 pub fn import(
     input: &Path,
     out: &Path,
@@ -328,6 +393,7 @@ pub fn import(
         floor,
         input: gaussians_in,
         floaters,
+        recentred,
         ..
     } = aligned;
     scene_gaussians.sort_morton();
@@ -350,6 +416,12 @@ pub fn import(
         Scale::Given { .. } => "given",
         Scale::Points { .. } => "points",
     };
+    let warnings = plausibility(&floor, capture.scale, settings.up);
+    if free == 0 {
+        // A map without one free cell gives no trajectory, episode or start pose: every
+        // command after the import would fail on it, far from the cause. Nothing is written.
+        return Err(no_free_floor(&floor, capture.scale, settings, &warnings).in_file(input));
+    }
     let input_hash =
         sage_io::hash::fnv1a64_hex(&std::fs::read(input).map_err(|e| Error::io(input, e))?);
     let input_name = input
@@ -372,6 +444,7 @@ pub fn import(
             "rotation_wxyz": rotation_wxyz,
             "translation": transform.translation.to_array().map(r6),
             "matrix": transform.rows().map(|row| row.map(r6)),
+            "recentred": recentred.map(|v| v.map(r6)),
         },
         "scale": {
             "source": scale_source,
@@ -388,7 +461,11 @@ pub fn import(
             "rms_m": r6(floor.rms),
             "gaussians": floor.inliers,
             "lower_share": r6(floor.lower_share),
+            "floor_side": floor.side.as_str(),
+            "up_doubtful": floor.side_doubtful,
             "ceiling_m": r6(floor.ceiling),
+            "top_plane_m": r6(floor.top_plane),
+            "top_plane_area_m2": r6(floor.top_plane_area),
             "yaw_deg": r6(floor.yaw.to_degrees()),
             "wall_agreement": r6(floor.wall_agreement),
             "surface_samples": floor.samples,
@@ -408,6 +485,7 @@ pub fn import(
             "free_m2": r6(free as f32 * cell_area),
             "occupied_m2": r6(occupied as f32 * cell_area),
         },
+        "warnings": warnings,
     });
     on_stage(Stage::Writing);
     let splat_file = settings.layout.file();
@@ -424,8 +502,7 @@ pub fn import(
     let written = write_folder(
         out,
         &scene_gaussians,
-        settings.layout.layout(),
-        splat_file,
+        settings.layout,
         &occupancy,
         &record,
         settings,
@@ -451,11 +528,128 @@ pub fn import(
         floor_area: floor.area,
         floor_rms: floor.rms,
         ceiling: floor.ceiling,
+        top_plane: floor.top_plane,
+        recentred,
         yaw_deg: floor.yaw.to_degrees(),
         free_m2: free as f32 * cell_area,
         occupied_m2: occupied as f32 * cell_area,
+        splat_file: splat_file.to_string(),
+        losses: sage_scene::splats::convert::losses(
+            sage_scene::splats::Format::Ply(settings.layout.layout()),
+            scene_gaussians.sh_degree(),
+            scene_gaussians.sh_degree(),
+        ),
+        warnings,
         out: out.to_path_buf(),
     })
+}
+
+/// What to try about the scale, naming the one used.
+fn scale_hint(scale: Scale) -> String {
+    let used = match scale {
+        Scale::None => "none was given, so the capture's units were taken as metres".to_string(),
+        Scale::Given { value } => format!("`--scale {value}` was given"),
+        Scale::Points { distance, .. } => {
+            format!("`--scale-points` {distance} m apart were given")
+        }
+    };
+    format!(
+        "the scale is likely wrong ({used}): give `--scale` (metres per capture unit) or two points of the capture with `--scale-points` and their true distance with `--scale-distance`"
+    )
+}
+
+/// What to try about the up axis given as `up`.
+fn up_hint(up: Up) -> String {
+    let opposite = match up {
+        Up::Auto => None,
+        Up::X => Some(Up::NegX),
+        Up::NegX => Some(Up::X),
+        Up::Y => Some(Up::NegY),
+        Up::NegY => Some(Up::Y),
+        Up::Z => Some(Up::NegZ),
+        Up::NegZ => Some(Up::Z),
+    };
+    match opposite {
+        Some(o) => format!("try `--up={o}` or `--up auto`"),
+        None => "name the axis that points up in the capture with `--up` (x, -x, y, -y, z or -z)"
+            .to_string(),
+    }
+}
+
+/// What looks wrong with a capture levelled by `floor`, scaled by `scale`, with `up` given:
+/// each entry names what was seen, its likely cause and what to try. Empty when the result is
+/// plausible. A capture may have no ceiling: that alone is no warning.
+///
+/// - A given up axis that the Gaussians contradict ([`FloorFit::side_doubtful`]): upside down.
+/// - A ceiling higher than [`MAX_CEILING_M`]: a scale too large.
+/// - No ceiling, but a plane facing up that spans at least half the floor's area and stands
+///   lower than [`MIN_CEILING_M`] above it: a ceiling scaled too small, or the capture upside
+///   down (its floor under a table-high "ceiling"). Furniture tops span far less than half
+///   a floor, so they give no warning.
+pub fn plausibility(floor: &FloorFit, scale: Scale, up: Up) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if floor.side_doubtful {
+        warnings.push(format!(
+            "the capture looks upside down: the Gaussians put the floor at the other end of the up axis given (`--up={up}`): {}",
+            up_hint(up)
+        ));
+    }
+    if floor.ceiling > MAX_CEILING_M {
+        warnings.push(format!(
+            "the ceiling found is {:.2} m above the floor, higher than rooms are ({MAX_CEILING_M} m at most): {}",
+            floor.ceiling,
+            scale_hint(scale)
+        ));
+    }
+    if floor.ceiling == 0.0
+        && floor.top_plane > 0.0
+        && floor.top_plane < MIN_CEILING_M
+        && floor.top_plane_area >= 0.5 * floor.area
+    {
+        warnings.push(format!(
+            "a plane as large as a ceiling ({:.1} m2 against the floor's {:.1} m2) lies only {:.2} m above the floor, lower than a ceiling ({MIN_CEILING_M} m at least), so no ceiling was recorded: if it is the ceiling, {}; if it is the floor, the capture is upside down: {}",
+            floor.top_plane_area,
+            floor.area,
+            floor.top_plane,
+            scale_hint(scale),
+            up_hint(up)
+        ));
+    }
+    warnings
+}
+
+/// The error of an import whose occupancy map has no free cell, with its likely causes.
+fn no_free_floor(
+    floor: &FloorFit,
+    scale: Scale,
+    settings: &ImportSettings,
+    warnings: &[String],
+) -> Error {
+    let mut causes = vec![
+        format!(
+            "the floor found ({:.1} m2) is not the floor: {}",
+            floor.area,
+            up_hint(settings.up)
+        ),
+        scale_hint(scale),
+    ];
+    if settings.cell > 0.2 {
+        causes.push(format!(
+            "`--cell {}` is coarser than the gaps between furniture: try the default {} m",
+            settings.cell,
+            GridParams::default().cell
+        ));
+    }
+    let mut message = format!(
+        "the occupancy map derived from the capture has no free cell (no floor seen clear of obstacles from {} to {} m above it), so the scene would have nowhere to place an agent; nothing was written. Likely causes: {}",
+        GridParams::default().slab_bottom,
+        settings.agent_height,
+        causes.join("; or ")
+    );
+    for w in warnings {
+        message.push_str(&format!(". Also: {w}"));
+    }
+    Error::invalid(message)
 }
 
 /// `v` rounded to 6 decimals, so the file reads 0.15 where the f32 holds 0.150000006.
@@ -490,14 +684,24 @@ fn refuse_filled(out: &Path) -> Result<()> {
 fn write_folder(
     out: &Path,
     gaussians: &sage_scene::Gaussians,
-    layout: SplatLayout,
-    splat_file: &str,
+    layout: OutputLayout,
     occupancy: &OccupancyMap,
     record: &serde_json::Value,
     settings: &ImportSettings,
 ) -> Result<()> {
     sage_io::run::mark_unfinished(out, IMPORT_COMMAND, None)?;
-    sage_scene::ply::write_splats_file(&out.join(splat_file), gaussians, layout)?;
+    // The folder is empty or an import that did not finish (`refuse_filled`), so a Gaussian
+    // file of the other layout is that import's own. Left there, the loader, which reads
+    // `3dgs_compressed.ply` before `3dgs.ply`, could take the old Gaussians with the new map.
+    let other = match layout {
+        OutputLayout::Compressed => OutputLayout::Standard,
+        OutputLayout::Standard => OutputLayout::Compressed,
+    };
+    let stale = out.join(other.file());
+    if std::fs::symlink_metadata(&stale).is_ok_and(|m| m.is_file()) {
+        std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
+    }
+    sage_scene::ply::write_splats_file(&out.join(layout.file()), gaussians, layout.layout())?;
     occupancy.save(out)?;
     sage_io::files::write_json(&out.join(CAPTURE_FILE), record)?;
     sage_io::run::write_run_record(

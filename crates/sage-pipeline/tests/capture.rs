@@ -3,9 +3,12 @@
 //! bad input refused with its reason and nothing written.
 
 use glam::{Quat, Vec2, Vec3};
+use sage_capture::Up;
 use sage_capture::transform::{self, Similarity};
 use sage_nav::{CostParams, GridParams, GridSource, NavGrid, PathFinder};
-use sage_pipeline::capture::{CAPTURE_FILE, IMPORT_COMMAND, ImportSettings, ScalePoints, import};
+use sage_pipeline::capture::{
+    CAPTURE_FILE, IMPORT_COMMAND, ImportSettings, OutputLayout, ScalePoints, import,
+};
 use sage_scene::splats::Format;
 use sage_scene::{Gaussians, Scene, SplatLayout};
 use sage_synth::{SceneKind, SynthConfig, generate};
@@ -25,6 +28,12 @@ fn to_capture() -> Similarity {
 
 /// The capture of a small synthetic scene, written to `dir/name` in `format`.
 fn write_capture(dir: &Path, name: &str, format: Format) -> PathBuf {
+    write_cut_capture(dir, name, format, f32::INFINITY)
+}
+
+/// [`write_capture`] keeping only the Gaussians below `cut` metres (in the scene's frame):
+/// a capture whose ceiling was cut away, as handheld captures often miss it.
+fn write_cut_capture(dir: &Path, name: &str, format: Format, cut: f32) -> PathBuf {
     let scene = generate(&SynthConfig {
         seed: 11,
         kind: SceneKind::Home,
@@ -35,7 +44,10 @@ fn write_capture(dir: &Path, name: &str, format: Format) -> PathBuf {
     })
     .unwrap();
     let g = &scene.gaussians;
-    let moved = transform::transform(g, &transform::all(g), &to_capture()).unwrap();
+    let keep: Vec<u32> = (0..g.len() as u32)
+        .filter(|&i| g.positions[i as usize][2] < cut)
+        .collect();
+    let moved = transform::transform(g, &keep, &to_capture()).unwrap();
     let path = dir.join(name);
     sage_scene::splats::write_file(&path, &moved, format).unwrap();
     path
@@ -289,4 +301,174 @@ fn an_imported_capture_keeps_the_ceiling_height_its_import_measured() {
     record["floor"]["ceiling_m"] = serde_json::json!(0.0);
     std::fs::write(&path, record.to_string()).unwrap();
     assert_eq!(Scene::load(&out).unwrap().0.floorplan.ceiling, None);
+}
+
+/// Capture units are half metres.
+fn metric() -> ImportSettings {
+    ImportSettings {
+        scale: Some(0.5),
+        ..ImportSettings::default()
+    }
+}
+
+#[test]
+fn a_capture_without_its_ceiling_keeps_its_floor_and_gets_no_ceiling_slab_at_furniture_height() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = write_capture(dir.path(), "whole.spz", Format::Spz);
+    let cut = write_cut_capture(dir.path(), "cut.spz", Format::Spz, 2.7);
+    let with = import(&whole, &dir.path().join("with"), &metric(), &noop).unwrap();
+    assert!((with.ceiling - 2.8).abs() < 0.05, "{}", with.ceiling);
+    for up in [Up::Auto, Up::Y] {
+        let out = dir.path().join(format!("without_{up}"));
+        let settings = ImportSettings { up, ..metric() };
+        let without = import(&cut, &out, &settings, &noop).unwrap();
+        let same_up = Vec3::from_array(without.up).angle_between(Vec3::from_array(with.up));
+        assert!(
+            same_up.to_degrees() < 0.5,
+            "{up}: up {:?} vs {:?}",
+            without.up,
+            with.up
+        );
+        assert_eq!(without.ceiling, 0.0, "{up}");
+        assert!(without.warnings.is_empty(), "{up}: {:?}", without.warnings);
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join(CAPTURE_FILE)).unwrap())
+                .unwrap();
+        assert_eq!(record["floor"]["ceiling_m"], 0.0);
+        assert_eq!(record["floor"]["floor_side"], "extreme");
+        // The same floor: the two imports agree on the scene's height, up to the cut.
+        let (scene, _) = Scene::load(&out).unwrap();
+        assert_eq!(scene.floorplan.ceiling, None);
+        let top = scene.gaussians.bounds().max.z;
+        assert!(
+            (top - 2.7).abs() < 0.05,
+            "{up}: top of the Gaussians at {top}"
+        );
+        let cache = tempfile::tempdir().unwrap();
+        let (bodies, _) = sage_physics::SceneBodies::build(
+            &scene,
+            &sage_physics::Decomposer::default(),
+            &sage_physics::HullCache::new(cache.path()),
+        )
+        .unwrap();
+        // No slab at a table top's height: it caps the Gaussians.
+        assert!(
+            bodies.ceiling_height >= top,
+            "{up}: ceiling slab at {}",
+            bodies.ceiling_height
+        );
+    }
+}
+
+#[test]
+fn implausible_results_warn_and_an_import_without_free_floor_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_capture(dir.path(), "cap.spz", Format::Spz);
+    // Upside down: the up axis given is the capture's down.
+    let report = import(
+        &input,
+        &dir.path().join("down"),
+        &ImportSettings {
+            up: Up::NegY,
+            ..metric()
+        },
+        &noop,
+    )
+    .unwrap();
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("upside down") && w.contains("--up=y")),
+        "{:?}",
+        report.warnings
+    );
+    // The right way up: no warning.
+    let right = ImportSettings {
+        up: Up::Y,
+        ..metric()
+    };
+    let report = import(&input, &dir.path().join("up"), &right, &noop).unwrap();
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    // Scaled too small: the 2.8 m ceiling stands 1.68 m high, too low for a ceiling.
+    let low = ImportSettings {
+        scale: Some(0.3),
+        ..ImportSettings::default()
+    };
+    let report = import(&input, &dir.path().join("low"), &low, &noop).unwrap();
+    assert_eq!(report.ceiling, 0.0);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("1.68 m above the floor") && w.contains("--scale")),
+        "{:?}",
+        report.warnings
+    );
+    // Scaled too large: a 14 m ceiling.
+    let high = ImportSettings {
+        scale: Some(2.5),
+        ..ImportSettings::default()
+    };
+    let report = import(&input, &dir.path().join("high"), &high, &noop).unwrap();
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("higher than rooms") && w.contains("--scale")),
+        "{:?}",
+        report.warnings
+    );
+    // Scaled so small that the whole home fits in the agent's slab: no free cell. Refused,
+    // and nothing written.
+    let out = dir.path().join("tiny");
+    let tiny = ImportSettings {
+        scale: Some(0.2),
+        ..ImportSettings::default()
+    };
+    let e = import(&input, &out, &tiny, &noop).unwrap_err().to_string();
+    assert!(
+        e.contains("no free cell") && e.contains("--scale") && e.contains("cap.spz"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_rerun_with_the_other_layout_removes_the_killed_imports_gaussians() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = write_capture(dir.path(), "cap.spz", Format::Spz);
+    let out = dir.path().join("scene");
+    import(&input, &out, &metric(), &noop).unwrap();
+    // Killed: its run record marked unfinished, its compressed Gaussians left.
+    sage_io::run::mark_unfinished(&out, IMPORT_COMMAND, None).unwrap();
+    let notes = out.join("notes.txt");
+    std::fs::write(&notes, "mine").unwrap();
+    let standard = ImportSettings {
+        layout: OutputLayout::Standard,
+        // Another scale: other Gaussians, to tell which file the scene is read from.
+        scale: Some(0.55),
+        ..ImportSettings::default()
+    };
+    let report = import(&input, &out, &standard, &noop).unwrap();
+    assert!(report.losses.is_empty());
+    assert!(out.join("3dgs.ply").is_file());
+    assert!(!out.join("3dgs_compressed.ply").exists());
+    assert_eq!(std::fs::read_to_string(&notes).unwrap(), "mine");
+    let (scene, loaded) = Scene::load(&out).unwrap();
+    assert_eq!(
+        loaded.splat_format,
+        Some(Format::Ply(SplatLayout::Standard))
+    );
+    let top = scene.gaussians.bounds().max.z;
+    assert!(
+        (top - report.ceiling).abs() < 0.1,
+        "{top} vs {}",
+        report.ceiling
+    );
+    // And back: the standard file goes when the compressed one is written.
+    sage_io::run::mark_unfinished(&out, IMPORT_COMMAND, None).unwrap();
+    let report = import(&input, &out, &metric(), &noop).unwrap();
+    assert!(!report.losses.is_empty());
+    assert!(!out.join("3dgs.ply").exists() && out.join("3dgs_compressed.ply").is_file());
 }
