@@ -18,7 +18,8 @@
 //! - A **room** endpoint stands at the room's centre, as instructions name it ("the center of
 //!   the kitchen"): a cell drawn uniformly among those within [`ROOM_CENTRE_RADIUS`] of the
 //!   room's central cell, the cell with clearance ≥ `room_clearance` nearest to the centroid of
-//!   the room's outline (of its navigable cells when none has that much clearance). An agent
+//!   the room's outline (of its navigable cells when none has that much clearance), on the
+//!   island holding most of the room. An agent
 //!   that stops at the centre is then within the success distance of the goal, and a room
 //!   still gives trips many start and goal points.
 //!
@@ -472,7 +473,8 @@ fn region_endpoints(pf: &PathFinder, params: &SamplingParams) -> Vec<Endpoint> {
 pub const ROOM_CENTRE_RADIUS: f32 = 0.5;
 
 /// Stand cells of a room: those within [`ROOM_CENTRE_RADIUS`] of its central cell (the one
-/// nearest to `centre`, the centroid of its outline; first in index order on ties).
+/// nearest to `centre`, the centroid of its outline; first in index order on ties), all on the
+/// island that holds most of the room's cells.
 fn room_stands(pf: &PathFinder, room: usize, centre: Vec2, clearance: f32) -> Vec<Stand> {
     let g = &pf.grid;
     let cells: Vec<usize> = pf
@@ -487,6 +489,23 @@ fn room_stands(pf: &PathFinder, room: usize, centre: Vec2, clearance: f32) -> Ve
         .filter(|&k| pf.clearance[k] >= clearance)
         .collect();
     let chosen = if roomy.is_empty() { cells } else { roomy };
+    // The centre is sought on the island holding most of the room (the first on ties): a
+    // central cell walled in by furniture would make every trip to the room unreachable.
+    let mut by_island: BTreeMap<u32, usize> = BTreeMap::new();
+    for &k in &chosen {
+        *by_island.entry(pf.island_of_cell(k)).or_default() += 1;
+    }
+    let Some(island) = by_island
+        .iter()
+        .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(a.0)))
+        .map(|(&id, _)| id)
+    else {
+        return Vec::new();
+    };
+    let chosen: Vec<usize> = chosen
+        .into_iter()
+        .filter(|&k| pf.island_of_cell(k) == island)
+        .collect();
     let mut central: Option<(f32, Vec2)> = None;
     for &k in &chosen {
         let d = g.center_of(k).distance_squared(centre);

@@ -566,6 +566,17 @@ fn room_endpoints_stand_at_the_room_centre() {
                     && pf.clearance[k] >= params.sampling.room_clearance
             })
             .collect();
+        // Only the island holding most of the room counts.
+        let mut sizes = std::collections::BTreeMap::new();
+        for &k in &roomy {
+            *sizes.entry(pf.island_of_cell(k)).or_insert(0) += 1;
+        }
+        let most = *sizes.values().max().unwrap();
+        let island = *sizes.iter().find(|(_, n)| **n == most).unwrap().0;
+        let roomy: Vec<usize> = roomy
+            .into_iter()
+            .filter(|&k| pf.island_of_cell(k) == island)
+            .collect();
         let centre = e.polygon.centroid();
         let middle = roomy
             .iter()

@@ -144,7 +144,7 @@ fn env_steps_a_vector_environment_over_the_scenes_renderers() {
     use sage_perf::env::{self, EnvSettings};
     let cache = tempfile::tempdir().unwrap();
     let settings = EnvSettings {
-        objects: 40,
+        objects: 56,
         gaussians: 20_000,
         steps: 100,
         render_steps: 6,
