@@ -115,6 +115,7 @@ CASES = [
     ("Scene.load", "path", lambda fx: sage3d.Scene.load(5)),
     ("Scene.load", "cache", lambda fx: sage3d.Scene.load(NOWHERE, cache=5)),
     ("Scene.load", "collision", lambda fx: sage3d.Scene.load(NOWHERE, collision=5)),
+    ("Scene.load", "splat_bodies", lambda fx: sage3d.Scene.load(NOWHERE, splat_bodies=5)),
     ("Scene.synth", "cache", lambda fx: sage3d.Scene.synth(5)),
     ("Scene.synth", "seed", lambda fx: sage3d.Scene.synth(fx.tmp, seed="1")),
     ("Scene.synth", "kind", lambda fx: sage3d.Scene.synth(fx.tmp, kind=1)),
