@@ -282,14 +282,18 @@ fn positive(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
-/// An occupancy cell size within the grid's range (0.005-1 m), for the command line's parser.
+/// An occupancy cell size within the grid's range ([`GridParams::validate`]), for the command
+/// line's parser.
 #[cfg(feature = "clap")]
 fn cell_size(s: &str) -> std::result::Result<f32, String> {
-    match s.trim().parse::<f32>() {
-        Ok(v) if (0.005..=1.0).contains(&v) => Ok(v),
-        Ok(v) => Err(format!("must be 0.005-1 m, got {v}")),
-        Err(e) => Err(e.to_string()),
+    let cell = s.trim().parse::<f32>().map_err(|e| e.to_string())?;
+    GridParams {
+        cell,
+        ..GridParams::default()
     }
+    .validate()
+    .map(|()| cell)
+    .map_err(|e| e.message().to_string())
 }
 
 /// The stages of [`import`], as they start.
