@@ -124,9 +124,22 @@ pub fn apply<C: CommandFactory>(
         argv: argv.to_vec(),
         origins: Vec::new(),
     };
+    let leaf = path
+        .iter()
+        .try_fold(cmd.clone(), |c, name| c.find_subcommand(name).cloned());
+    let typed: Vec<&str> = argv
+        .iter()
+        .filter_map(|a| a.strip_prefix("--"))
+        .map(|a| a.split('=').next().unwrap_or(a))
+        .collect();
+    // A flag the command line gives, or one it gives that cannot go with this flag (the
+    // typed `--scale-points` overrides a file's `scale`, as the typed flag wins anywhere).
     let given = |flag: &str| {
-        argv.iter()
-            .any(|a| a == flag || a.starts_with(&format!("{flag}=")))
+        let name = flag.trim_start_matches('-');
+        typed.contains(&name)
+            || leaf
+                .as_ref()
+                .is_some_and(|leaf| typed.iter().any(|t| conflict(leaf, name, t)))
     };
     let mut add = |table: &toml::Table, name: &str| -> Result<()> {
         for (key, value) in table {
@@ -157,6 +170,25 @@ pub fn apply<C: CommandFactory>(
     }
     add(&root, "")?;
     Ok(applied)
+}
+
+/// Whether flags `a` and `b` of `cmd` (long names) cannot be given together, declared on
+/// either. Global flags conflict with none.
+fn conflict(cmd: &clap::Command, a: &str, b: &str) -> bool {
+    let arg = |name: &str| {
+        cmd.get_arguments()
+            .find(|x| x.get_long() == Some(name) && !x.is_global_set())
+    };
+    let (Some(a), Some(b)) = (arg(a), arg(b)) else {
+        return false;
+    };
+    let ids = |x: &clap::Arg| {
+        cmd.get_arg_conflicts_with(x)
+            .into_iter()
+            .map(|c| c.get_id().clone())
+            .collect::<Vec<_>>()
+    };
+    ids(a).contains(b.get_id()) || ids(b).contains(a.get_id())
 }
 
 /// Checks `table`, the table of the command `cmd` at `at` (empty: the file's top level): each
@@ -253,6 +285,35 @@ mod tests {
                 .argv,
             nav
         );
+    }
+
+    #[test]
+    fn a_typed_flag_overrides_the_file_flags_it_cannot_go_with() {
+        let text = "[scene.import]\nscale = 0.5\n[render]\nyaw = 30\nwidth = 320\n";
+        let argv =
+            args("sage3d scene import C --out S --scale-points 0,0,0:1,0,0 --scale-distance 2");
+        let path = subcommand_path::<crate::Cli>(&argv);
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert_eq!(
+            applied.argv, argv,
+            "the file's scale goes with neither typed flag"
+        );
+        let argv = args("sage3d scene import C --out S --scale-distance 2");
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert_eq!(
+            applied.argv, argv,
+            "the typed --scale-distance, alone, still wins"
+        );
+        let argv = args("sage3d render S --out R --camera cam.json");
+        let path = subcommand_path::<crate::Cli>(&argv);
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert_eq!(
+            applied.argv, argv,
+            "a camera file sets the pose and size itself"
+        );
+        let argv = args("sage3d render S --out R");
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert_eq!(applied.argv[argv.len()..], args("--width 320 --yaw 30")[..]);
     }
 
     #[test]

@@ -141,6 +141,7 @@ pub struct ImportSettings {
         arg(
             long,
             requires = "scale_points",
+            conflicts_with = "scale",
             allow_hyphen_values = true,
             value_parser = positive
         )
