@@ -2,9 +2,8 @@
 //! §13).
 
 use glam::Vec3;
-use sage_core::{Error, MAX_COORDINATE, Pose, Result};
-use sage_physics::agent::{MAX_COMMAND_SECONDS, MAX_TURN};
-use sage_physics::{AgentProfile, Locomotion, SplatBodies};
+use sage_core::{Error, Pose, Result, ResultExt};
+use sage_physics::{AgentProfile, Command, Locomotion, SplatBodies};
 use sage_splat::{Camera, Device, Intrinsics};
 use serde::{Deserialize, Serialize};
 
@@ -403,29 +402,36 @@ impl EnvConfig {
                         "discrete steps and seconds must be finite and >= 0",
                     );
                 }
-                // The commands the steps become are checked again as they are carried out
-                // (`Command::validate`); refused here, a bad preset fails before an episode.
-                if forward > MAX_COORDINATE
-                    || turn_deg.to_radians() > MAX_TURN
-                    || seconds > MAX_COMMAND_SECONDS
-                {
-                    return bad(
-                        "actions",
-                        &format!(
-                            "a discrete step is at most {MAX_COORDINATE} m forward, {}° of turn \
-                             and {MAX_COMMAND_SECONDS} s",
-                            MAX_TURN.to_degrees().round()
-                        ),
-                    );
+                // The commands the steps become, checked as they will be when carried out
+                // (`Command::validate`, whose limits these are): refused here, a bad preset
+                // fails before an episode.
+                let longest = Command::Ground {
+                    vx: 0.0,
+                    vy: 0.0,
+                    wz: 0.0,
+                    dt: seconds,
+                };
+                for command in [
+                    Command::Forward { distance: forward },
+                    Command::Turn {
+                        angle: turn_deg.to_radians(),
+                    },
+                    longest,
+                ] {
+                    command.validate().within("actions")?;
                 }
             }
             ActionSpace::Ground { max_dt } | ActionSpace::Uav { max_dt } => {
-                if !(max_dt.is_finite() && max_dt > 0.0 && max_dt <= MAX_COMMAND_SECONDS) {
-                    return bad(
-                        "actions.max_dt",
-                        &format!("expected a time > 0 and <= {MAX_COMMAND_SECONDS} s"),
-                    );
+                if !(max_dt > 0.0) {
+                    return bad("actions.max_dt", "expected a time > 0 s");
                 }
+                let longest = Command::Ground {
+                    vx: 0.0,
+                    vy: 0.0,
+                    wz: 0.0,
+                    dt: max_dt,
+                };
+                longest.validate().within("actions.max_dt")?;
                 let wants_uav = matches!(self.actions, ActionSpace::Uav { .. });
                 if wants_uav != uav {
                     return bad(
@@ -502,12 +508,26 @@ mod tests {
         // Steps that the agent's commands would refuse are refused here first.
         c.agent = "uav".into();
         c.actions = ActionSpace::Uav { max_dt: 1e6 };
-        assert!(c.validate().unwrap_err().message().contains("max_dt"));
+        let e = c.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("actions.max_dt") && e.contains("dt 1000000.0"),
+            "{e}"
+        );
         let mut c = EnvConfig::default();
         if let ActionSpace::Discrete { forward, .. } = &mut c.actions {
             *forward = 1e20;
         }
-        assert!(c.validate().unwrap_err().message().contains("at most"));
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("actions") && e.contains("out of range"), "{e}");
+        let mut c = EnvConfig::default();
+        if let ActionSpace::Discrete { seconds, .. } = &mut c.actions {
+            *seconds = 1e9;
+        }
+        let e = c.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("actions") && e.contains("dt 1000000000.0"),
+            "{e}"
+        );
     }
 
     #[test]
