@@ -422,7 +422,7 @@ impl EnvConfig {
                 }
             }
             ActionSpace::Ground { max_dt } | ActionSpace::Uav { max_dt } => {
-                if !(max_dt > 0.0) {
+                if max_dt <= 0.0 {
                     return bad("actions.max_dt", "expected a time > 0 s");
                 }
                 let longest = Command::Ground {
