@@ -5,7 +5,7 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 26] = [
+const NAMED_SETTINGS: [&str; 27] = [
     "jpeg_quality",
     "objects",
     "seed",
@@ -32,6 +32,7 @@ const NAMED_SETTINGS: [&str; 26] = [
     "floater_radius",
     "keep_failed",
     "sensors",
+    "agent_height",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

@@ -62,10 +62,19 @@ impl GridParams {
                 self.cell
             )));
         }
-        if !(self.slab_bottom >= 0.0 && self.agent_height > self.slab_bottom) {
+        if !(self.slab_bottom >= 0.0 && self.slab_bottom.is_finite()) {
             return Err(Error::invalid(format!(
-                "agent height ({}) must exceed the slab bottom ({}) >= 0",
-                self.agent_height, self.slab_bottom
+                "the slab bottom must be a finite height >= 0 m, got {}",
+                self.slab_bottom
+            )));
+        }
+        // Finite: the slab is what an agent of this height meets (an infinite one would take
+        // in the ceiling, and a recorded height must be a JSON number).
+        if !(self.agent_height.is_finite() && self.agent_height > self.slab_bottom) {
+            return Err(Error::invalid(format!(
+                "`agent_height` must be a finite height above the {} m the occupancy map's slab \
+                 starts at, got {}",
+                self.slab_bottom, self.agent_height
             )));
         }
         if !(self.margin >= 0.0 && self.margin.is_finite()) {

@@ -855,3 +855,30 @@ fn a_map_of_an_object_reaching_kilometres_away_is_drawn_within_the_grid() {
         "the footprint is drawn in the colour of its category, the only one"
     );
 }
+
+#[test]
+fn grid_params_refuse_heights_that_make_no_slab() {
+    GridParams::default().validate().unwrap();
+    for height in [f32::INFINITY, f32::NAN, 0.03, 0.0, -1.0] {
+        let params = GridParams {
+            agent_height: height,
+            ..GridParams::default()
+        };
+        let e = params.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("`agent_height` must be a finite height"),
+            "{height}: {e}"
+        );
+    }
+    let params = GridParams {
+        slab_bottom: f32::INFINITY,
+        ..GridParams::default()
+    };
+    assert!(
+        params
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("slab bottom")
+    );
+}

@@ -249,16 +249,7 @@ impl ImportSettings {
             },
         };
         settings.floaters.validate()?;
-        // Named here as the flags and keys the import takes, which the grid's own check
-        // cannot know.
-        let grid = self.grid_params();
-        if !(grid.agent_height.is_finite() && grid.agent_height > grid.slab_bottom) {
-            return Err(Error::invalid(format!(
-                "`agent_height` must exceed the {} m the occupancy map's slab starts at, got {}",
-                grid.slab_bottom, grid.agent_height
-            )));
-        }
-        grid.validate()?;
+        self.grid_params().validate()?;
         Ok(settings)
     }
 
