@@ -68,10 +68,16 @@ impl FolderLock {
     ///
     /// # Errors
     ///
-    /// An `invalid` error naming the folder when another command holds it or a folder above
-    /// it, with that command, its process id and command line when they can be read; an I/O
-    /// error when the folder or its lock file cannot be made or locked.
+    /// An `invalid` error naming the folder when it is a file, or when another command holds
+    /// it or a folder above it, with that command, its process id and command line when they
+    /// can be read; an I/O error when the folder or its lock file cannot be made or locked.
     pub fn acquire(dir: &Path, command: &str) -> Result<FolderLock> {
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::invalid(format!(
+                "the output folder is a file; `sage3d {command}` writes a folder there, choose a new or empty one"
+            ))
+            .in_file(dir));
+        }
         FolderLock::acquire_as(dir, command, false)
     }
 
@@ -338,6 +344,22 @@ fn held(dir: &Path, path: &Path) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_where_the_folder_should_be_is_refused_and_left_as_it_is() {
+        let root = tempfile::tempdir().unwrap();
+        let file = root.path().join("run.log");
+        std::fs::write(&file, "mine").unwrap();
+        let e = FolderLock::acquire(&file, "data render")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("run.log")
+                && e.contains("the output folder is a file; `sage3d data render`"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "mine");
+    }
 
     #[test]
     fn a_held_folder_is_refused_naming_its_holder_until_the_guard_is_dropped() {

@@ -130,12 +130,6 @@ pub fn claim_folder(
     force: bool,
 ) -> Result<FolderLock> {
     let command = commands.first().copied().unwrap_or("");
-    if dir.exists() && !dir.is_dir() {
-        return Err(Error::invalid(format!(
-            "the output folder is a file; `sage3d {command}` writes a folder there, choose a new or empty one"
-        ))
-        .in_file(dir));
-    }
     let lock = FolderLock::acquire(dir, command)?;
     let held = entries(dir)?;
     let recorded = recorded_command(dir);
