@@ -5,7 +5,7 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 27] = [
+const NAMED_SETTINGS: [&str; 28] = [
     "jpeg_quality",
     "objects",
     "seed",
@@ -33,6 +33,7 @@ const NAMED_SETTINGS: [&str; 27] = [
     "keep_failed",
     "sensors",
     "agent_height",
+    "limit",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

@@ -263,6 +263,17 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not a ground agent"), "{e}");
+        let none = Options {
+            limit: Some(0),
+            ..Options::new(PathBuf::from("d"), Some(PathBuf::from("s")))
+        };
+        let e = none
+            .settings()
+            .unwrap()
+            .env_config()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`limit` 0 renders nothing"), "{e}");
     }
 
     #[test]

@@ -191,6 +191,11 @@ impl Settings {
         if self.shard_size == 0 {
             return Err(Error::invalid("shard size: must be at least 1"));
         }
+        if self.limit == Some(0) {
+            return Err(Error::invalid(
+                "`limit` 0 renders nothing: give at least 1, or leave it out for every episode",
+            ));
+        }
         if self.format == Layout::Lerobot && (self.sensors.semantic || self.sensors.instance) {
             return Err(Error::invalid(format!(
                 "the LeRobot layout holds RGB and depth images only, not `sensors` {}; \
