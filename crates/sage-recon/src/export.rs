@@ -11,6 +11,7 @@
 //! multiple of [`HELDOUT_EVERY`] are held out (`val_filenames` and `test_filenames`); the rest
 //! are `train_filenames` — the same views gsplat's `test_every = 8` holds out.
 
+use crate::plan::PLAN_FILE;
 use glam::{Mat3, Mat4, Vec4};
 use sage_core::{Error, Result, ResultExt};
 use sage_splat::{Camera, Intrinsics};
@@ -210,9 +211,44 @@ pub fn write_points_ply(path: &Path, points: &[(glam::Vec3, [f32; 3], glam::Vec3
     })
 }
 
-/// Writes `transforms.json` (atomically).
+/// Writes `transforms.json` (atomically). When `t` names no point cloud, the [`POINTS_FILE`]
+/// beside `path` goes too if the export owns it: the file `path` replaces referenced it, or the
+/// folder is a reconstruction folder (it holds [`PLAN_FILE`], whose `recon plan` claimed the
+/// folder with [`POINTS_FILE`] among the files the reconstruction writes). Otherwise an export
+/// with `--points 0` would leave the points of an earlier one beside it, and a reader that
+/// looks for them there (splatfacto's `--load-3D-points`) would start from stale points. The
+/// file is removed after the new `transforms.json` is in place, so the index never names a
+/// missing file; any other `points3d.ply` (a user's, in a folder that is no reconstruction's)
+/// is left alone.
+///
+/// # Errors
+///
+/// A write error, or an owned point cloud that cannot be removed (naming it).
 pub fn write_transforms(path: &Path, t: &Transforms) -> Result<()> {
-    sage_io::files::write_json(path, t)
+    // Read before the write replaces it: only the old file tells whether it named the points.
+    let referenced = previous_points_reference(path);
+    sage_io::files::write_json(path, t)?;
+    if t.ply_file_path.is_some() {
+        return Ok(());
+    }
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let owned = referenced || dir.join(PLAN_FILE).is_file();
+    let points = dir.join(POINTS_FILE);
+    if owned && points.is_file() {
+        std::fs::remove_file(&points).map_err(|e| Error::io(&points, e))?;
+    }
+    Ok(())
+}
+
+/// Whether the `transforms.json` at `path` names [`POINTS_FILE`] beside it as its
+/// `ply_file_path` (false when it is missing or unreadable: then nothing shows the export
+/// wrote the points). Only that exact name counts: a hand-edited file may name any point cloud,
+/// which is then the user's.
+fn previous_points_reference(path: &Path) -> bool {
+    std::fs::read(path)
+        .ok()
+        .and_then(|bytes| serde_json::from_slice::<serde_json::Value>(&bytes).ok())
+        .is_some_and(|v| v.get("ply_file_path").and_then(|p| p.as_str()) == Some(POINTS_FILE))
 }
 
 /// Reads a `transforms.json` written by [`write_transforms`] (or any file with its fields).

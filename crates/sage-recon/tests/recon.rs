@@ -7,8 +7,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sage_core::{InstanceId, Obb, Polygon2};
 use sage_recon::bvh::{point_triangle_distance_sq, ray_triangle};
-use sage_recon::export::{ExportView, read_transforms, transforms_for, write_transforms};
-use sage_recon::plan::{PlanSettings, Policy, make_plan};
+use sage_recon::export::{
+    ExportView, POINTS_FILE, TRANSFORMS_FILE, Transforms, read_transforms, transforms_for,
+    write_points_ply, write_transforms,
+};
+use sage_recon::plan::{PLAN_FILE, PlanSettings, Policy, make_plan};
 use sage_recon::raster::{pixel_ray, render_view, to_u8};
 use sage_recon::surfaces::{SceneSurfaces, SurfaceKind, shade};
 use sage_recon::sweep::{Baseline, SweepParams, Tier, perimeter, sweep};
@@ -428,6 +431,74 @@ fn transforms_json_round_trips_cameras_exactly() {
     bad.frames[3].transform_matrix[0][0] = 2.0;
     let e = bad.cameras().unwrap_err().to_string();
     assert!(e.contains("frames[3].transform_matrix"), "{e}");
+}
+
+#[test]
+fn an_export_without_points_removes_the_points_it_owns_and_no_others() {
+    let k = Intrinsics::from_hfov(32, 24, 90.0).unwrap();
+    let views: Vec<ExportView> = (0..3)
+        .map(|i| ExportView {
+            camera: Camera::from_yaw_pitch(k, Vec3::new(i as f32, 0.0, 1.2), 0.0, 0.0),
+            rgb: format!("views/rgb_{i:04}.png"),
+            depth: None,
+        })
+        .collect();
+    let without = transforms_for(&views).unwrap();
+    let with = Transforms {
+        ply_file_path: Some(POINTS_FILE.to_string()),
+        ..without.clone()
+    };
+    let samples = [(Vec3::ZERO, [0.5; 3], Vec3::Z)];
+    let names_points = |path: &std::path::Path| {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        v.get("ply_file_path").is_some()
+    };
+
+    // An export with points, then one without (`--points 0`): the old points go, and the new
+    // index names none.
+    let dir = tempfile::tempdir().unwrap();
+    let (path, points) = (
+        dir.path().join(TRANSFORMS_FILE),
+        dir.path().join(POINTS_FILE),
+    );
+    write_points_ply(&points, &samples).unwrap();
+    write_transforms(&path, &with).unwrap();
+    assert!(points.is_file() && names_points(&path));
+    // Rewritten with its points, they stay.
+    write_transforms(&path, &with).unwrap();
+    assert!(points.is_file());
+    write_transforms(&path, &without).unwrap();
+    assert!(
+        !points.exists(),
+        "stale points beside an export without them"
+    );
+    assert!(!names_points(&path));
+    assert_eq!(read_transforms(&path).unwrap(), without);
+
+    // A reconstruction folder (it holds the plan, whose claim reserves the points for the
+    // export) whose last export was cut short after its points, before its index: they go too.
+    let recon = tempfile::tempdir().unwrap();
+    std::fs::write(recon.path().join(PLAN_FILE), "{}").unwrap();
+    write_points_ply(&recon.path().join(POINTS_FILE), &samples).unwrap();
+    write_transforms(&recon.path().join(TRANSFORMS_FILE), &without).unwrap();
+    assert!(!recon.path().join(POINTS_FILE).exists());
+
+    // Elsewhere, points that no index of the export named are the user's and stay.
+    let user = tempfile::tempdir().unwrap();
+    let (path, points) = (
+        user.path().join(TRANSFORMS_FILE),
+        user.path().join(POINTS_FILE),
+    );
+    write_points_ply(&points, &samples).unwrap();
+    write_transforms(&path, &without).unwrap();
+    let elsewhere = Transforms {
+        ply_file_path: Some("../points3d.ply".to_string()),
+        ..without.clone()
+    };
+    write_transforms(&path, &elsewhere).unwrap();
+    write_transforms(&path, &without).unwrap();
+    assert!(points.is_file());
 }
 
 #[test]
