@@ -21,7 +21,8 @@ pub struct RenderArgs {
     force: bool,
     /// Camera JSON: width, height, hfov_deg (or fx, fy, cx, cy), position with yaw_deg and
     /// pitch_deg (or c2w: 4x4, row-major, OpenCV axes), near, far. Without it the camera
-    /// stands at 1.2 m in the middle of the largest room, set by the flags below.
+    /// stands at 1.2 m over the free floor nearest the middle of the largest room (or of the
+    /// Gaussians), set by the flags below.
     #[arg(
         long,
         conflicts_with_all = ["width", "height", "hfov", "position", "yaw", "pitch"]
@@ -44,7 +45,7 @@ pub struct RenderArgs {
     /// Horizontal field of view, degrees (without --camera).
     #[arg(long, default_value_t = CameraPose::DEFAULT.hfov_deg)]
     hfov: f32,
-    /// Camera position x,y,z in metres (without --camera; default: largest room, 1.2 m).
+    /// Camera position x,y,z in metres (without --camera; default: free floor nearest the middle of the largest room, 1.2 m).
     #[arg(
         long,
         value_delimiter = ',',
@@ -135,6 +136,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     });
     bar.finish_and_clear();
     let report = rendered.map_err(name_the_flag)?;
+    if let Some(warning) = report.default_eye.as_ref().and_then(|e| e.warning.as_ref()) {
+        eprintln!("warning: {warning}");
+    }
     let splats = report
         .splats
         .map_or(String::new(), |n| format!(" ({n} splats)"));

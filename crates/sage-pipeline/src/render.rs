@@ -6,6 +6,8 @@ use glam::Vec3;
 use sage_core::{Error, Result};
 use sage_io::files::{write_json, write_npy_f32, write_png, write_rgb_png};
 use sage_io::gif::GifWriter;
+use sage_nav::sampling::SamplingParams;
+use sage_nav::{CostParams, GridParams, NavGrid};
 use sage_scene::{InstanceKind, Scene};
 use sage_splat::camera::default_eye;
 use sage_splat::{
@@ -26,8 +28,9 @@ pub struct CameraPose {
     pub height: u32,
     /// Horizontal field of view, degrees.
     pub hfov_deg: f32,
-    /// Position in metres; `None` stands the camera at 1.2 m in the middle of the largest
-    /// room ([`default_eye`]), which needs the scene, so it is resolved at render time.
+    /// Position in metres; `None` stands the camera at 1.2 m over the free cell nearest to the
+    /// middle of the largest room ([`free_default_eye`]), which needs the scene, so it is
+    /// resolved at render time.
     pub position: Option<Vec3>,
     /// Heading, degrees counter-clockwise from +X.
     pub yaw_deg: f32,
@@ -53,15 +56,135 @@ impl CameraPose {
     ///
     /// A size or field of view that makes no camera.
     pub fn camera(&self, scene: &Scene) -> Result<Camera> {
-        let eye = self.position.unwrap_or_else(|| default_eye(scene));
+        self.resolve(scene).map(|(camera, _)| camera)
+    }
+
+    /// The camera in `scene`, with how its eye was chosen when no position was given.
+    ///
+    /// # Errors
+    ///
+    /// A size or field of view that makes no camera.
+    pub fn resolve(&self, scene: &Scene) -> Result<(Camera, Option<DefaultEye>)> {
+        // Checked before the eye: a bad size should not cost a navigation grid.
+        let intrinsics = Intrinsics::from_hfov(self.width, self.height, self.hfov_deg)?;
+        let (eye, chosen) = match self.position {
+            Some(p) => (p, None),
+            None => {
+                let chosen = free_default_eye(scene);
+                (Vec3::from(chosen.position), Some(chosen))
+            }
+        };
         let camera = Camera::from_yaw_pitch(
-            Intrinsics::from_hfov(self.width, self.height, self.hfov_deg)?,
+            intrinsics,
             eye,
             self.yaw_deg.to_radians(),
             self.pitch_deg.to_radians(),
         );
         camera.validate()?;
-        Ok(camera)
+        Ok((camera, chosen))
+    }
+}
+
+/// Height of a default eye above the floor, metres: that of [`default_eye`], the SAGE-Bench
+/// camera.
+const EYE_HEIGHT: f32 = 1.2;
+
+/// How a render given no camera position chose its eye ([`free_default_eye`]), as `render.json`
+/// records it under `default_eye`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DefaultEye {
+    /// Where the camera stands, metres.
+    pub position: [f32; 3],
+    /// The point it was sought near, metres: [`default_eye`], the middle of the largest room at
+    /// 1.2 m, else the middle of the Gaussians.
+    pub target: [f32; 3],
+    /// The source of the navigation grid whose free cell it stands over
+    /// ([`sage_nav::GridSource::as_str`]); `None` when it stands at `target`.
+    pub grid: Option<&'static str>,
+    /// Why it stands at `target`: the scene has no usable navigation grid.
+    pub warning: Option<String>,
+}
+
+/// The eye of `sage3d render` given no camera position: 1.2 m over the free stand cell of the
+/// scene's navigation grid ([`NavGrid::from_scene`] with the default [`GridParams`]) nearest to
+/// [`default_eye`]. A stand cell is navigable (free, with the clearance of the default agent,
+/// [`CostParams::navigable_clearance`]) and its eye lies outside every object's box, which also
+/// covers bodies the grid lets through (an open door leaf). In a scene with rooms the cell is
+/// sought as `sage-nav` seeks a room's central cell: among the largest room's cells with the
+/// clearance a room centre prefers ([`SamplingParams::room_clearance`]), else its other stand
+/// cells (without the island rule, which is about reaching the centre, not seeing from it);
+/// then anywhere. Ties go to the lower cell index, so the choice is stable.
+///
+/// [`default_eye`] itself can sit inside furniture (a table in the middle of the room) or
+/// outside the free space (a captured scene with no rooms, whose fallback is the middle of the
+/// Gaussians), and the default image would then show the inside of an object. `sage3d bench
+/// render` keeps [`default_eye`] unchanged, so that its figures compare across history. A scene
+/// with no usable grid, or no such cell, keeps [`default_eye`] and says why in
+/// [`DefaultEye::warning`] rather than failing the render.
+pub fn free_default_eye(scene: &Scene) -> DefaultEye {
+    let target = default_eye(scene);
+    let at_target = |warning: String| DefaultEye {
+        position: target.to_array(),
+        target: target.to_array(),
+        grid: None,
+        warning: Some(warning),
+    };
+    let (grid, source) = match NavGrid::from_scene(scene, &GridParams::default()) {
+        Ok(built) => built,
+        Err(e) => {
+            return at_target(format!(
+                "no navigation grid ({}); the camera stands at the middle of the largest room or of the Gaussians, which may be inside an object",
+                e.message()
+            ));
+        }
+    };
+    let clearance = sage_nav::cost::clearance(&grid);
+    let navigable = sage_nav::cost::navigable(
+        &grid,
+        &clearance,
+        CostParams::default().navigable_clearance(),
+    );
+    let roomy = SamplingParams::default().room_clearance;
+    // The room `default_eye` stands in (the same choice, ties included).
+    let room = scene
+        .floorplan
+        .rooms
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.profile.area().total_cmp(&b.1.profile.area()))
+        .map(|(i, _)| i);
+    // Tier 0: roomy cells of that room, 1: its other stand cells, 2: stand cells elsewhere. The
+    // roomy preference stays inside the room: elsewhere a roomy cell may be rooms away.
+    let tier = |k: usize| {
+        if room != Some(grid.rooms[k] as usize) {
+            2u8
+        } else if clearance[k] >= roomy {
+            0
+        } else {
+            1
+        }
+    };
+    let to = target.truncate();
+    let mut cells: Vec<(u8, f32, usize)> = (0..grid.cells.len())
+        .filter(|&k| navigable[k])
+        .map(|k| (tier(k), grid.center_of(k).distance_squared(to), k))
+        .collect();
+    cells.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let eye = cells
+        .iter()
+        .map(|&(_, _, k)| grid.center_of(k).extend(EYE_HEIGHT))
+        .find(|&p| !scene.objects.iter().any(|o| o.obb.contains(p, 0.0)));
+    match eye {
+        Some(p) => DefaultEye {
+            position: p.to_array(),
+            target: target.to_array(),
+            grid: Some(source.as_str()),
+            warning: None,
+        },
+        None => at_target(format!(
+            "the navigation grid ({}) has no free cell with room for the agent; the camera stands at the middle of the largest room or of the Gaussians, which may be inside an object",
+            source.as_str()
+        )),
     }
 }
 
@@ -88,14 +211,25 @@ impl CameraSource {
     ///
     /// An unreadable or malformed camera file (naming it), or a pose that makes no camera.
     pub fn camera(&self, scene: &Scene) -> Result<Camera> {
+        self.resolve(scene).map(|(camera, _)| camera)
+    }
+
+    /// The camera in `scene`, with how its eye was chosen when a pose gave no position
+    /// ([`CameraPose::resolve`]; a camera file always places its camera).
+    ///
+    /// # Errors
+    ///
+    /// As [`CameraSource::camera`].
+    pub fn resolve(&self, scene: &Scene) -> Result<(Camera, Option<DefaultEye>)> {
         match self {
             CameraSource::File(path) => {
                 let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
                 CameraSpec::parse(&text)
                     .and_then(|s| s.camera())
+                    .map(|camera| (camera, None))
                     .map_err(|e| e.in_file(path))
             }
-            CameraSource::Pose(pose) => pose.camera(scene),
+            CameraSource::Pose(pose) => pose.resolve(scene),
         }
     }
 }
@@ -190,6 +324,9 @@ pub struct RenderReport {
     pub splats: Option<usize>,
     /// Turntable frames written.
     pub turntable: Option<usize>,
+    /// How the eye was chosen, when no camera position was given (its warning, if any, is one
+    /// to show).
+    pub default_eye: Option<DefaultEye>,
     /// The files written, relative to the output folder, in the order written.
     pub files: Vec<PathBuf>,
 }
@@ -253,7 +390,7 @@ pub fn render_to_folder(
 ) -> Result<RenderReport> {
     settings.validate()?;
     let (scene, _) = Scene::load_for_rendering(&settings.scene)?;
-    let camera = settings.camera.camera(&scene)?;
+    let (camera, default_eye) = settings.camera.resolve(&scene)?;
     let options = RenderOptions {
         background: settings.background,
         ..RenderOptions::default()
@@ -291,6 +428,9 @@ pub fn render_to_folder(
             "semantic.png": "category of that instance, colour-coded (legend.json)",
         },
     });
+    if let Some(eye) = &default_eye {
+        record["default_eye"] = serde_json::json!(eye);
+    }
     let (frame_ms, splats) = match stats {
         Some(stats) => {
             record["stats_ms"] = serde_json::json!({"cull": stats.cull_ms, "project": stats.project_ms, "sort": stats.sort_ms, "raster": stats.raster_ms});
@@ -337,6 +477,7 @@ pub fn render_to_folder(
         frame_ms,
         splats,
         turntable: settings.turntable,
+        default_eye,
         files,
     })
 }

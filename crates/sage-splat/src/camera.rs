@@ -278,8 +278,11 @@ impl CameraSpec {
     }
 }
 
-/// The default eye of `sage3d render` and `sage3d bench render`: the middle of the largest room
-/// at 1.2 m, else the middle of the Gaussians.
+/// The eye of `sage3d bench render` (kept as it is, so that its figures compare across
+/// history): the middle of the largest room at 1.2 m, else the middle of the Gaussians. That
+/// point may be inside furniture or outside the free space, so `sage3d render` given no camera
+/// position stands instead over the free cell of the scene's navigation grid nearest to it
+/// (`sage_pipeline::render::free_default_eye`; this crate sits below the navigation layer).
 pub fn default_eye(scene: &sage_scene::Scene) -> Vec3 {
     let room = scene
         .floorplan

@@ -251,8 +251,9 @@ pub fn explore_episode(start: Vec3, yaw: f32) -> EnvEpisode {
     }
 }
 
-/// Where an explore session of `loaded` starts: navigable floor nearest the middle of the
-/// largest room (as `sage3d render` stands its default camera), else the first navigable cell.
+/// Where an explore session of `loaded` starts: the agent's navigable floor nearest the middle
+/// of the largest room ([`sage_splat::camera::default_eye`], which `sage3d render` also moves to
+/// free floor), else the first navigable cell.
 ///
 /// # Errors
 ///
