@@ -5,6 +5,7 @@ CPU or the GPU."""
 
 import json
 import os
+import re
 import signal
 import threading
 
@@ -120,6 +121,33 @@ def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):
     assert maps(tmp_path / "py") == maps(tmp_path / "cli")
     again = sg.evaluate(dataset, scenes, "oracle", tmp_path / "py", split="train")
     assert again["resumed"] == len(expected) and again["ran"] == 0
+    # Both record the environment they ran in, the same one.
+    env = lambda run: json.loads((run / "sage3d_run.json").read_text())["env"]  # noqa: E731
+    assert env(tmp_path / "py") == env(tmp_path / "cli") and env(tmp_path / "cli")["task"]["max_steps"] == 500
+
+
+def test_a_run_folder_resumes_only_the_environment_it_ran_in(data, tmp_path):
+    scenes, dataset = data
+    out = tmp_path / "run"
+    ran = sg.evaluate(dataset, scenes, "forward", out, split="train", sensors=[],
+                      config={"task": {"max_steps": 9}})
+    record = json.loads((out / "sage3d_run.json").read_text())
+    assert record["env"]["task"]["max_steps"] == 9 and record["settings"]["preset"] == "sage"
+    files = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    # Other overrides are another environment: refused, naming what differs, nothing written.
+    with pytest.raises(ValueError, match=re.escape(
+            "this run folder holds a run with another environment "
+            "(env.task.max_steps: 9 recorded, 12 asked); use a new run folder")):
+        sg.evaluate(dataset, scenes, "forward", out, split="train", sensors=[],
+                    config={"task": {"max_steps": 12}})
+    # So is the preset's own (`sage3d eval`'s) environment.
+    with pytest.raises(ValueError, match=re.escape("env.task.max_steps: 9 recorded, 500 asked")):
+        sg.evaluate(dataset, scenes, "forward", out, split="train")
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == files
+    # The same overrides resume.
+    again = sg.evaluate(dataset, scenes, "forward", out, split="train", sensors=[],
+                        config={"task": {"max_steps": 9}})
+    assert again["resumed"] == ran["total"] and again["ran"] == 0
 
 
 class Forward:

@@ -253,9 +253,53 @@ fn changed_settings(old: Option<&serde_json::Value>, new: &serde_json::Value) ->
         fields
             .entry("splat_bodies")
             .or_insert_with(|| SplatBodies::Auto.as_str().into());
+        fields.into_iter().collect()
+    };
+    differences(&run_of(old), &run_of(Some(new)))
+}
+
+/// The differences between the environment a run folder recorded (`old`, its `env`) and the
+/// one asked (`new`), field by field as `env.sensors.width: OLD recorded, NEW asked` (as
+/// [`changed_settings`] words them), in key order. A record without `env` (written before it
+/// was recorded) has none to compare. The device and the bodies are left to
+/// [`changed_settings`]: every front end takes them from the settings, which record them, so
+/// a difference is named once.
+fn changed_env(old: Option<&serde_json::Value>, new: &serde_json::Value) -> Vec<String> {
+    let Some(old) = old else {
+        return Vec::new();
+    };
+    let fields_of = |v: &serde_json::Value| {
+        let mut fields = BTreeMap::new();
+        leaves("env", v, &mut fields);
+        fields.remove("env.device");
+        fields.remove("env.splat_bodies");
         fields
     };
-    let (old, new) = (run_of(old), run_of(Some(new)));
+    differences(&fields_of(old), &fields_of(new))
+}
+
+/// The leaves of `v` by their dotted path under `path` (`env.sensors.width`), into `out`: an
+/// object's fields one by one, so a difference names the field; any other value whole.
+fn leaves(path: &str, v: &serde_json::Value, out: &mut BTreeMap<String, serde_json::Value>) {
+    match v.as_object() {
+        Some(fields) => {
+            for (k, field) in fields {
+                leaves(&format!("{path}.{k}"), field, out);
+            }
+        }
+        None => {
+            out.insert(path.to_string(), v.clone());
+        }
+    }
+}
+
+/// The keys whose values differ between `old` (recorded) and `new` (asked), each as `key: OLD
+/// recorded, NEW asked` (a string without its quotes, a missing value as `none`), in key
+/// order.
+fn differences(
+    old: &BTreeMap<String, serde_json::Value>,
+    new: &BTreeMap<String, serde_json::Value>,
+) -> Vec<String> {
     let shown = |v: Option<&serde_json::Value>| match v {
         None => "none".to_string(),
         Some(serde_json::Value::String(s)) => s.clone(),
@@ -274,12 +318,14 @@ fn changed_settings(old: Option<&serde_json::Value>, new: &serde_json::Value) ->
         .collect()
 }
 
-/// Checks a run folder's earlier settings against `settings` (a folder resumes only the same
-/// run, on the same data and scenes; `split_file` is the split's episodes file, whose hash is
-/// `dataset_hash`) and writes the run record, marked unfinished until the run is written.
+/// Checks a run folder's earlier settings and environment against `settings` and `env` (a
+/// folder resumes only the same run, in the same environment, on the same data and scenes;
+/// `split_file` is the split's episodes file, whose hash is `dataset_hash`) and writes the run
+/// record, marked unfinished until the run is written.
 fn claim_run_folder(
     out: &Path,
     settings: &serde_json::Value,
+    env: &serde_json::Value,
     split_file: &Path,
     dataset_hash: &str,
     scenes: &serde_json::Value,
@@ -293,23 +339,29 @@ fn claim_run_folder(
         let old: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| Error::format("sage3d_run.json", e.to_string()).in_file(&path))?;
         let changed = changed_settings(old.get("settings"), settings);
+        let other_env = changed_env(old.get("env"), env);
         // Another split is another file: its hash differing says nothing more.
         let other_data = old.get("dataset_hash").and_then(|h| h.as_str()) != Some(dataset_hash)
             && !changed.iter().any(|c| c.starts_with("split:"));
-        let dataset = format!(
-            "another dataset (its split file {} changed since the run)",
-            split_file.display()
-        );
-        let why = match (changed.is_empty(), other_data) {
-            (true, false) => None,
-            (true, true) => Some(dataset),
-            (false, false) => Some(format!("other settings ({})", changed.join("; "))),
-            (false, true) => Some(format!(
-                "other settings ({}) and {dataset}",
-                changed.join("; ")
-            )),
-        };
-        if let Some(why) = why {
+        let mut why = Vec::new();
+        if !changed.is_empty() {
+            why.push(format!("other settings ({})", changed.join("; ")));
+        }
+        if !other_env.is_empty() {
+            why.push(format!("another environment ({})", other_env.join("; ")));
+        }
+        if other_data {
+            why.push(format!(
+                "another dataset (its split file {} changed since the run)",
+                split_file.display()
+            ));
+        }
+        if let Some((last, first)) = why.split_last() {
+            let why = if first.is_empty() {
+                last.clone()
+            } else {
+                format!("{} and {last}", first.join(", "))
+            };
             return Err(Error::invalid(format!(
                 "this run folder holds a run with {why}; use a new run folder (`out`)"
             ))
@@ -326,7 +378,16 @@ fn claim_run_folder(
         }
         rescored_from = old.get("rescored_from").cloned();
     }
-    mark_unfinished(out, settings, &dataset_hash.into(), scenes, rescored_from)
+    mark_unfinished(
+        out,
+        &RecordedRun {
+            settings,
+            env: Some(env),
+            dataset_hash: &dataset_hash.into(),
+            scenes,
+        },
+        rescored_from,
+    )
 }
 
 /// The settings as the run record stores them: `settings` with the agent's recorded name.
@@ -337,30 +398,59 @@ pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<
     Ok(recorded)
 }
 
+/// The environment as the run record stores it (its `env`): `config` serialized, each float
+/// written as the `f32` it is (`1.2`, where the `f64` it widens to would read
+/// `1.2000000476837158`), so the record reads as the config was given and reads back as the
+/// same config; objects' keys sorted, so the same config is the same bytes.
+///
+/// # Errors
+///
+/// A config serde cannot write (a float that is not finite).
+pub(crate) fn recorded_env(config: &EnvConfig) -> Result<serde_json::Value> {
+    let text =
+        serde_json::to_string(config).map_err(|e| Error::invalid(format!("environment: {e}")))?;
+    serde_json::from_str(&text).map_err(|e| Error::invalid(format!("environment: {e}")))
+}
+
+/// What an evaluation's run record says of its run besides its status: the recorded settings
+/// ([`recorded_settings`]), the environment it ran in ([`recorded_env`]; `None` for a
+/// rescoring of a run recorded before the environment was), the split file's hash and the
+/// hashes of its scenes' files ([`scene_inputs`]).
+pub(crate) struct RecordedRun<'a> {
+    /// `settings`.
+    pub(crate) settings: &'a serde_json::Value,
+    /// `env`, when known.
+    pub(crate) env: Option<&'a serde_json::Value>,
+    /// `dataset_hash`.
+    pub(crate) dataset_hash: &'a serde_json::Value,
+    /// `scene_inputs`.
+    pub(crate) scenes: &'a serde_json::Value,
+}
+
 /// Writes an evaluation's run record marked unfinished (`"status": "unfinished"`, the first
-/// write of a run: [`crate::folder::mark_finished`] is its last): its recorded settings, the
-/// split file's hash, the hashes of its scenes' files ([`scene_inputs`]) and, for a folder a
-/// rescoring wrote, the run it was rescored from.
+/// write of a run: [`crate::folder::mark_finished`] is its last): what `run` holds and, for a
+/// folder a rescoring wrote, the run it was rescored from.
 pub(crate) fn mark_unfinished(
     out: &Path,
-    recorded: &serde_json::Value,
-    dataset_hash: &serde_json::Value,
-    scenes: &serde_json::Value,
+    run: &RecordedRun,
     rescored_from: Option<serde_json::Value>,
 ) -> Result<()> {
     let mut record = serde_json::json!({
-        "settings": recorded,
-        "dataset_hash": dataset_hash,
-        "scene_inputs": scenes,
+        "settings": run.settings,
+        "dataset_hash": run.dataset_hash,
+        "scene_inputs": run.scenes,
         "status": UNFINISHED,
     });
+    if let Some(env) = run.env {
+        record["env"] = env.clone();
+    }
     if let Some(from) = rescored_from {
         record["rescored_from"] = from;
     }
     sage_io::run::write_run_record(
         out,
         COMMAND,
-        recorded.get("seed").and_then(serde_json::Value::as_u64),
+        run.settings.get("seed").and_then(serde_json::Value::as_u64),
         record,
     )
 }
@@ -376,16 +466,18 @@ pub(crate) struct Split {
 }
 
 /// Reads the split of `settings` (the episodes `shard` keeps), checks that every episode's
-/// scene is present, and claims `out` for a run of `agent` with these settings: its run record
-/// written (or checked against an earlier one) and its records file ready to resume.
+/// scene is present, and claims `out` for a run of `agent` with these settings in the
+/// environment `env`: its run record written (or checked against an earlier one) and its
+/// records file ready to resume.
 ///
 /// # Errors
 ///
-/// An empty or unknown split, a scene missing, a run folder of another run, a corrupt records
-/// file.
+/// An empty or unknown split, a scene missing, a run folder of another run (other settings or
+/// another environment), a corrupt records file.
 pub(crate) fn open_split(
     settings: &EvalSettings,
     agent: &str,
+    env: &EnvConfig,
     shard: Option<&(dyn Fn(&Episode) -> bool + Sync)>,
     out: &Path,
 ) -> Result<Split> {
@@ -421,7 +513,14 @@ pub(crate) fn open_split(
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let recorded = recorded_settings(settings, agent)?;
-    claim_run_folder(out, &recorded, &file, &dataset_hash, &scenes)?;
+    claim_run_folder(
+        out,
+        &recorded,
+        &recorded_env(env)?,
+        &file,
+        &dataset_hash,
+        &scenes,
+    )?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let done = records::resume(&out.join(RECORDS_FILE), &ids)?;
     Ok(Split {
@@ -520,7 +619,13 @@ fn run_unfinished(
         episodes,
         dirs,
         done,
-    } = open_split(settings, &runner.agent_name, runner.shard, out)?;
+    } = open_split(
+        settings,
+        &runner.agent_name,
+        &runner.config,
+        runner.shard,
+        out,
+    )?;
     let records_path = out.join(RECORDS_FILE);
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let mut groups: BTreeMap<&str, Vec<&Episode>> = BTreeMap::new();

@@ -1,7 +1,9 @@
 //! Merging the records of an evaluation run in shards (one per node or scene group) into the
 //! run folder one evaluation over the union would have written.
 
-use crate::evaluator::{mark_unfinished, recorded_settings, scene_inputs};
+use crate::evaluator::{
+    RecordedRun, env_config, mark_unfinished, recorded_env, recorded_settings, scene_inputs,
+};
 use crate::folder::{RECORDS_FILE, SUMMARY_FILE, mark_finished};
 use crate::records::EvalRecord;
 use crate::report::{ReportJob, ReportOutcome};
@@ -9,6 +11,7 @@ use crate::settings::EvalSettings;
 use crate::summary::Summary;
 use sage_core::{Error, Result};
 use sage_dataset::folder::split_episodes;
+use sage_env::EnvConfig;
 use sage_io::files::{write_atomic, write_json};
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -20,6 +23,11 @@ use std::path::Path;
 /// ends with its records in episode-id order). Returns the summary. Callers hold the lock on
 /// `out` ([`sage_io::lock::FolderLock`]) while it and the report are written.
 ///
+/// The run record's environment (`env`) is `env`, the one the shards ran in (their runner's
+/// [`crate::Runner::config`]); given none, it is the one `sage3d eval` runs `agent` in
+/// ([`env_config`]) when `agent` is the settings' own agent, and none for another name (a
+/// Python agent's): the records do not say which environment they ran in.
+///
 /// # Errors
 ///
 /// A line that is not a record or holds a bad field ([`EvalRecord::from_line`]), an episode
@@ -27,10 +35,11 @@ use std::path::Path;
 pub fn merge_shards(
     settings: &EvalSettings,
     agent: &str,
+    env: Option<&EnvConfig>,
     shards: &[String],
     out: &Path,
 ) -> Result<Summary> {
-    let summary = merge_unfinished(settings, agent, shards, out)?;
+    let summary = merge_unfinished(settings, agent, env, shards, out)?;
     mark_finished(out)?;
     Ok(summary)
 }
@@ -44,18 +53,33 @@ pub fn merge_shards(
 pub fn merge_shards_with_report(
     settings: &EvalSettings,
     agent: &str,
+    env: Option<&EnvConfig>,
     shards: &[String],
     out: &Path,
     report: &ReportJob,
 ) -> Result<(Summary, ReportOutcome)> {
-    let summary = merge_unfinished(settings, agent, shards, out)?;
+    let summary = merge_unfinished(settings, agent, env, shards, out)?;
     Ok((summary, report.finish(out)?))
 }
 
-/// [`merge_shards`] up to its summary: the run record, written first, stays marked unfinished.
+/// The environment `sage3d eval` runs `agent` in under `settings`, when `agent` is the
+/// settings' own agent (a built-in one); `None` for any other name (a Python agent's), or an
+/// agent that cannot be made here (a replay file missing where the shards are merged): the
+/// merge cannot tell which environment those ran in.
+fn plain_env(settings: &EvalSettings, agent: &str) -> Option<EnvConfig> {
+    if agent != settings.agent.to_string() {
+        return None;
+    }
+    let maker = settings.agent.maker().ok()?;
+    env_config(settings, &maker).ok()
+}
+
+/// [`merge_shards`] up to its summary, recording `env` as the run's environment: the run
+/// record, written first, stays marked unfinished.
 fn merge_unfinished(
     settings: &EvalSettings,
     agent: &str,
+    env: Option<&EnvConfig>,
     shards: &[String],
     out: &Path,
 ) -> Result<Summary> {
@@ -92,12 +116,21 @@ fn merge_unfinished(
     // The scenes as they are where the shards are merged; without them there, none.
     let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes).unwrap_or_default();
     let scenes = scene_inputs(&episodes, &dirs);
+    let env = match env {
+        Some(env) => Some(recorded_env(env)?),
+        None => plain_env(settings, agent)
+            .map(|e| recorded_env(&e))
+            .transpose()?,
+    };
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     mark_unfinished(
         out,
-        &recorded,
-        &sage_io::hash::fnv1a64_hex(&bytes).into(),
-        &scenes,
+        &RecordedRun {
+            settings: &recorded,
+            env: env.as_ref(),
+            dataset_hash: &sage_io::hash::fnv1a64_hex(&bytes).into(),
+            scenes: &scenes,
+        },
         None,
     )?;
     write_atomic(&out.join(RECORDS_FILE), |w| {

@@ -18,7 +18,7 @@
 //! scored in mode `gnbench`, so only such a run's records rescore in that mode; a record of
 //! another run says so ([`sage_metrics::evaluate`]'s error), before anything is written.
 
-use crate::evaluator::mark_unfinished;
+use crate::evaluator::{RecordedRun, mark_unfinished};
 use crate::folder::{COMMAND, RECORDS_FILE, SUMMARY_FILE, finished_run_record, mark_finished};
 use crate::records::EvalRecord;
 use crate::report::{ReportJob, ReportOutcome, read_run};
@@ -107,8 +107,9 @@ fn unfinished_rescoring(out: &Path, from_run: &Path, scoring: Scoring) -> bool {
 /// `dtw` (`None`: as the run was scored) into the new run folder `out`:
 /// `episodes.jsonl` with every scored episode's metrics computed again from its stored record
 /// (faulted episodes copied), `summary.json` in the new mode, and `sage3d_run.json` holding the
-/// run's settings with the new mode and alignment, its dataset and scene hashes, and
-/// `rescored_from` (the run's folder and how it was scored). `run` is only read, under its lock
+/// run's settings with the new mode and alignment, its environment (`env`, when the run records
+/// one), its dataset and scene hashes, and `rescored_from` (the run's folder and how it was
+/// scored). `run` is only read, under its lock
 /// so no evaluation writes it meanwhile. Callers claim `out` first ([`crate::claim`]) and hold
 /// its lock while this and the new folder's report are written. Every record is scored before
 /// anything is written, so a refused rescoring leaves `out` as it was.
@@ -211,9 +212,14 @@ fn rescore_unfinished(
     let recorded = |key: &str| files.run.get(key).unwrap_or(&serde_json::Value::Null);
     mark_unfinished(
         out,
-        &settings,
-        recorded("dataset_hash"),
-        recorded("scene_inputs"),
+        &RecordedRun {
+            settings: &settings,
+            // The run's episodes ran in its environment; a run recorded before the environment
+            // was has none to copy, and its rescoring none to claim.
+            env: files.run.get("env"),
+            dataset_hash: recorded("dataset_hash"),
+            scenes: recorded("scene_inputs"),
+        },
         Some(serde_json::json!({
             "run": from_run,
             "mode": from.mode.as_str(),

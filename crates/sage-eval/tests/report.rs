@@ -675,6 +675,7 @@ fn positions_out_of_bounds_in_records_are_refused_naming_line_and_field() {
         let e = sage_eval::merge_shards(
             &settings(&f.data, &f.scenes),
             "forward",
+            None,
             &[text],
             &dir.path().join("merged"),
         )

@@ -3,12 +3,14 @@
 //! stopped half-way is refused by every reader, naming what to rerun, and its rerun ends with
 //! the bytes of an uninterrupted run; runs recorded before the status existed read as
 //! finished; human play is finished once an episode is recorded; a folder of another run is
-//! refused naming the settings that differ.
+//! refused naming the settings that differ; a run records the environment it ran in
+//! (`env`), resumes only in it, and its rescoring and merge carry it through, while a run
+//! recorded before the environment was still resumes, rescores and reports.
 
 mod common;
 
 use sage_env::agents::run_episode;
-use sage_env::{Env, SceneContext};
+use sage_env::{Env, EnvConfig, SceneContext};
 use sage_eval::report::{self, ReportJob};
 use sage_eval::{EvalSettings, HumanRun, Runner};
 use sage_io::run::RUN_RECORD;
@@ -168,7 +170,7 @@ fn a_merge_and_a_rescoring_record_themselves_finished_only_at_their_end() {
     let shards = [std::fs::read_to_string(run.join("episodes.jsonl")).unwrap()];
     let merged = dir.path().join("merged");
     let job = ReportJob::new(&f.scenes);
-    sage_eval::merge_shards_with_report(&settings, "oracle", &shards, &merged, &job).unwrap();
+    sage_eval::merge_shards_with_report(&settings, "oracle", None, &shards, &merged, &job).unwrap();
     assert_eq!(outputs(&merged), outputs(&run));
     let rescored = dir.path().join("rescored");
     let _lock = sage_eval::claim(&rescored, false).unwrap();
@@ -336,5 +338,152 @@ fn a_run_loads_its_scenes_with_the_bodies_it_records() {
     assert!(
         asked.iter().all(|b| b["gaussians"].as_u64().unwrap() > 0),
         "{asked:?}"
+    );
+}
+
+/// An oracle runner in `config` (the stand-in for a front end's own environment: the Python
+/// package's `overrides`).
+fn run_in(settings: &EvalSettings, config: &EnvConfig, out: &Path) -> sage_core::Result<()> {
+    let maker = settings.agent.maker().unwrap();
+    let runner = Runner {
+        config: config.clone(),
+        agent_name: settings.agent.to_string(),
+        agent: &|| maker.build(settings.seed),
+        shard: None,
+        serial: false,
+        stop: None,
+    };
+    sage_eval::run_with(settings, &runner, out, &|_, _| {}).map(|_| ())
+}
+
+#[test]
+fn a_run_records_its_environment_and_resumes_only_in_it() {
+    let f = fixture();
+    let oracle = settings(&f.data, &f.scenes);
+    let plain = sage_eval::env_config(&oracle, &oracle.agent.maker().unwrap()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    sage_eval::run(&oracle, &run, &|_, _| {}).unwrap();
+    let recorded: EnvConfig = serde_json::from_value(record(&run)["env"].clone()).unwrap();
+    assert_eq!(recorded, plain);
+
+    // A front end's own environment is recorded as it ran, each float as the f32 it is.
+    let own = EnvConfig {
+        sensors: sage_env::SensorConfig {
+            camera_height: Some(1.1),
+            ..plain.sensors
+        },
+        task: sage_env::TaskConfig {
+            max_steps: 9,
+            ..plain.task
+        },
+        ..plain.clone()
+    };
+    let custom = dir.path().join("custom");
+    run_in(&oracle, &own, &custom).unwrap();
+    let env = &record(&custom)["env"];
+    assert_eq!(env["sensors"]["camera_height"], serde_json::json!(1.1));
+    assert_eq!(env["task"]["max_steps"], 9);
+    assert_eq!(
+        serde_json::from_value::<EnvConfig>(env.clone()).unwrap(),
+        own
+    );
+    // The same environment resumes; the record is the same bytes.
+    let bytes = std::fs::read(custom.join(RUN_RECORD)).unwrap();
+    run_in(&oracle, &own, &custom).unwrap();
+    assert_eq!(std::fs::read(custom.join(RUN_RECORD)).unwrap(), bytes);
+
+    // Another one is refused, naming each field that differs, before anything is written.
+    let before = sage_io::files::read_tree(&custom).unwrap();
+    let file = custom.join(RUN_RECORD);
+    let message = |why: &str| {
+        format!(
+            "{}: this run folder holds a run with {why}; use a new run folder (`out`)",
+            file.display()
+        )
+    };
+    assert_eq!(
+        run_in(&oracle, &plain, &custom).unwrap_err().to_string(),
+        message(
+            "another environment (env.sensors.camera_height: 1.1 recorded, none asked; env.task.max_steps: 9 recorded, 500 asked)"
+        )
+    );
+    assert_eq!(
+        sage_eval::run(&oracle, &custom, &|_, _| {})
+            .unwrap_err()
+            .to_string(),
+        message(
+            "another environment (env.sensors.camera_height: 1.1 recorded, none asked; env.task.max_steps: 9 recorded, 500 asked)"
+        )
+    );
+    let seed = EvalSettings {
+        seed: 7,
+        ..oracle.clone()
+    };
+    let longer = EnvConfig {
+        task: sage_env::TaskConfig {
+            max_steps: 12,
+            ..own.task
+        },
+        ..own.clone()
+    };
+    assert_eq!(
+        run_in(&seed, &longer, &custom).unwrap_err().to_string(),
+        message(
+            "other settings (seed: 0 recorded, 7 asked) and another environment (env.task.max_steps: 9 recorded, 12 asked)"
+        )
+    );
+    assert_eq!(sage_io::files::read_tree(&custom).unwrap(), before);
+
+    // A rescoring and a merge carry the environment through.
+    let rescored = dir.path().join("rescored");
+    sage_eval::rescore(&custom, Some(Mode::Vlnce), None, &rescored).unwrap();
+    assert_eq!(record(&rescored)["env"], record(&custom)["env"]);
+    let shards = [std::fs::read_to_string(custom.join("episodes.jsonl")).unwrap()];
+    let merged = dir.path().join("merged");
+    sage_eval::merge_shards(&oracle, "oracle", Some(&own), &shards, &merged).unwrap();
+    assert_eq!(record(&merged)["env"], record(&custom)["env"]);
+    assert_eq!(record(&merged)["status"], "finished");
+    // A merge that is not told, of an agent that is not the settings' own (a Python agent's
+    // records), claims no environment.
+    let python = dir.path().join("python");
+    sage_eval::merge_shards(&oracle, "my-agent", None, &shards, &python).unwrap();
+    assert!(record(&python).get("env").is_none());
+}
+
+#[test]
+fn a_run_recorded_before_the_environment_still_resumes_rescores_and_reports() {
+    let f = fixture();
+    let oracle = settings(&f.data, &f.scenes);
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    sage_eval::run(&oracle, &run, &|_, _| {}).unwrap();
+    let mut old = record(&run);
+    let env = old.as_object_mut().unwrap().remove("env").unwrap();
+    sage_io::files::write_json(&run.join(RUN_RECORD), &old).unwrap();
+    // Read as it always was: its report, and a rescoring, which has no environment to claim.
+    report::write(&run, &f.scenes).unwrap();
+    let rescored = dir.path().join("rescored");
+    sage_eval::rescore(&run, Some(Mode::Vlnce), None, &rescored).unwrap();
+    assert!(record(&rescored).get("env").is_none());
+    // Nothing recorded to compare: it resumes (every episode already run), and its record now
+    // holds the environment this run asked for.
+    let maker = oracle.agent.maker().unwrap();
+    let other = EnvConfig {
+        task: sage_env::TaskConfig {
+            max_steps: 9,
+            ..Default::default()
+        },
+        ..sage_eval::env_config(&oracle, &maker).unwrap()
+    };
+    let records = std::fs::read(run.join("episodes.jsonl")).unwrap();
+    sage_eval::run(&oracle, &run, &|_, _| {}).unwrap();
+    assert_eq!(record(&run)["env"], env);
+    assert_eq!(std::fs::read(run.join("episodes.jsonl")).unwrap(), records);
+    // From then on it resumes only in that environment.
+    let e = run_in(&oracle, &other, &run).unwrap_err().to_string();
+    assert!(
+        e.contains("another environment (env.task.max_steps: 500 recorded, 9 asked)"),
+        "{e}"
     );
 }

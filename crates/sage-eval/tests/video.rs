@@ -3,7 +3,9 @@
 //! a render through the agent's camera at the pose (compared with a direct render); the
 //! agent's marker on the map is where the record puts it; the same inputs give the same
 //! bytes, with any thread count; and the report writes the videos it is asked for and shows
-//! them, and removes those an earlier report wrote that it no longer shows.
+//! them, through the camera of the environment the run recorded (its preset's for a run
+//! recorded before the environment was), and removes those an earlier report wrote that it no
+//! longer shows.
 
 mod common;
 
@@ -463,4 +465,92 @@ fn a_rewritten_report_removes_the_videos_it_no_longer_shows_and_nothing_else() {
     write_report(&run, 1);
     write_report(&run, 0);
     assert!(!videos_dir.exists());
+}
+
+#[test]
+fn the_videos_show_the_camera_the_run_recorded_and_the_presets_for_older_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = copy_run(dir.path());
+    let record_path = run.join("sage3d_run.json");
+    let mut record: serde_json::Value = sage_io::files::read_json(&record_path).unwrap();
+    // A run in an environment of its own (a Python run's overrides): a lower, narrower camera,
+    // recorded as rendered on the GPU, which the report does not use.
+    let own = EnvConfig {
+        sensors: sage_env::SensorConfig {
+            hfov_deg: 60.0,
+            camera_height: Some(0.5),
+            ..config().sensors
+        },
+        device: Device::Gpu,
+        ..config()
+    };
+    record["env"] = serde_json::to_value(&own).unwrap();
+    sage_io::files::write_json(&record_path, &record).unwrap();
+    write_report(&run, 1);
+    let files = report::read_run(&run).unwrap();
+    let maps: Vec<report::MapFile> = files
+        .records
+        .iter()
+        .filter(|r| r.record.is_some())
+        .map(|r| report::MapFile {
+            record: r,
+            rel_path: String::new(),
+        })
+        .collect();
+    let first = report::gallery_order(&maps)[0].record;
+    let instructions = report::read_instructions(&files.run, &files.summary.split).unwrap();
+    let gif_in = |config: &EnvConfig| {
+        let f = fixture();
+        video::episode_gif(
+            &f.ctx,
+            config,
+            &f.ctx.semantic,
+            &f.ctx.pathfinder.grid,
+            first,
+            &instructions[&first.episode_id],
+            VideoSize::default(),
+        )
+        .unwrap()
+    };
+    let written = || {
+        std::fs::read(
+            run.join("report")
+                .join(video::VIDEOS_DIR)
+                .join(report::video_file_name(&first.episode_id)),
+        )
+        .unwrap()
+    };
+    let on_cpu = EnvConfig {
+        device: Device::Cpu,
+        ..own
+    };
+    let recorded = written();
+    assert_eq!(recorded, gif_in(&on_cpu));
+    assert_ne!(recorded, gif_in(&config()));
+
+    // A run recorded before the environment was: the preset its settings name.
+    record.as_object_mut().unwrap().remove("env");
+    sage_io::files::write_json(&record_path, &record).unwrap();
+    write_report(&run, 1);
+    assert_eq!(written(), gif_in(&config()));
+
+    // An environment the record holds but no config reads is named.
+    record["env"] = serde_json::json!({"agent": "wheeled", "lens": 3});
+    sage_io::files::write_json(&record_path, &record).unwrap();
+    let e = report::write_with_options(
+        &run,
+        &fixture().scenes,
+        &ReportOptions {
+            videos: 1,
+            ..ReportOptions::default()
+        },
+        &|_, _| {},
+        &|_, _| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("sage3d_run.json: env") && e.contains("lens"),
+        "{e}"
+    );
 }

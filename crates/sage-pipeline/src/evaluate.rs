@@ -4,6 +4,7 @@
 use sage_agents::AgentKind;
 use sage_core::Result;
 use sage_dataset::folder::scenes_folder;
+use sage_env::EnvConfig;
 use sage_eval::folder::COMMAND;
 use sage_eval::report::{self, ReportJob, ReportOptions, ReportOutcome};
 use sage_eval::{EvalRecord, EvalSettings, RunOutcome, Runner, Summary};
@@ -176,8 +177,10 @@ pub fn evaluate_with(
     }
 }
 
-/// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into
-/// the run folder `out`, as one evaluation over their union writes it, then writes its report,
+/// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`), run in
+/// `env` (`None`: the environment `sage3d eval` runs `agent_name` in, see
+/// [`sage_eval::merge_shards`]), into the run folder `out`, as one evaluation over their union
+/// writes it, then writes its report,
 /// holding the lock on `out` ([`FolderLock`]) meanwhile; temporary files that an interrupted
 /// earlier merge left there are removed first.
 ///
@@ -187,6 +190,7 @@ pub fn evaluate_with(
 pub fn merge(
     settings: &EvalSettings,
     agent_name: &str,
+    env: Option<&EnvConfig>,
     shards: &[String],
     out: &Path,
     on_map: &(dyn Fn(&str, usize) + Sync),
@@ -197,7 +201,7 @@ pub fn merge(
         on_map,
         ..ReportJob::new(&settings.scenes)
     };
-    sage_eval::merge_shards_with_report(settings, agent_name, shards, out, &job)
+    sage_eval::merge_shards_with_report(settings, agent_name, env, shards, out, &job)
 }
 
 /// Writes (again) the report of the evaluation run in `run` with the scenes of `scenes`

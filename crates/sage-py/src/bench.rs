@@ -140,24 +140,10 @@ pub fn evaluate<'py>(
     // `Runner::agent_name` overrides in every file.
     let kind = builtin.clone().unwrap_or(AgentKind::Forward);
     let settings = options.settings(&dataset, kind).py()?;
-    let (preset, seed) = (settings.preset.as_str(), settings.seed);
+    let seed = settings.seed;
     let factory = agent.clone().unbind();
     let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
-    let config = match (&maker, overrides) {
-        // A built-in agent sees what it sees under `sage3d eval`.
-        (Some(maker), None) => sage_eval::env_config(&settings, maker)
-            .map_err(|e| e.within("preset"))
-            .py()?,
-        _ => sage_env::EnvConfig {
-            device: settings.device,
-            splat_bodies: settings.splat_bodies,
-            ..sage_env::EnvConfig::with_overrides(
-                preset,
-                &from_json(overrides.unwrap_or("{}"), "overrides")?,
-            )
-            .py()?
-        },
-    };
+    let config = run_config(&settings, maker.as_ref(), overrides)?;
     let make = || -> Result<Box<dyn Agent>> {
         match &maker {
             Some(maker) => maker.build(seed),
@@ -273,14 +259,40 @@ struct Evaluated {
     table: String,
 }
 
+/// The environment [`evaluate`] runs in: a built-in agent's (`maker`) without `overrides` is
+/// the one it has under `sage3d eval`; otherwise `settings`' preset with `overrides` (JSON),
+/// rendered on `settings`' device with its bodies.
+fn run_config(
+    settings: &sage_eval::EvalSettings,
+    maker: Option<&AgentMaker>,
+    overrides: Option<&str>,
+) -> PyResult<sage_env::EnvConfig> {
+    match (maker, overrides) {
+        (Some(maker), None) => sage_eval::env_config(settings, maker)
+            .map_err(|e| e.within("preset"))
+            .py(),
+        _ => Ok(sage_env::EnvConfig {
+            device: settings.device,
+            splat_bodies: settings.splat_bodies,
+            ..sage_env::EnvConfig::with_overrides(
+                &settings.preset,
+                &from_json(overrides.unwrap_or("{}"), "overrides")?,
+            )
+            .py()?
+        }),
+    }
+}
+
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
 /// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
 /// `sage3d_run.json`, the same bytes as one `sage3d eval` over the union writes them, then
 /// its report.
 /// Returns the summary. An episode recorded by two shards is an error. `device` is the one the
-/// shards rendered on (their run records name it when it is not the CPU).
+/// shards rendered on (their run records name it when it is not the CPU); `overrides` those
+/// they ran with ([`evaluate`]'s), so that the run record holds their environment.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent_name, shards, **options))]
+#[pyo3(signature = (dataset, scenes, out, agent_name, shards, overrides=None, **options))]
+#[allow(clippy::too_many_arguments)]
 pub fn merge_eval<'py>(
     py: Python<'py>,
     dataset: PathBuf,
@@ -288,15 +300,30 @@ pub fn merge_eval<'py>(
     out: PathBuf,
     agent_name: String,
     shards: Vec<String>,
+    overrides: Option<&str>,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let kind = agent_name.parse().unwrap_or(AgentKind::Forward);
+    // A built-in agent's records bear its name; any other name is a Python agent's.
+    let builtin = agent_name
+        .parse::<AgentKind>()
+        .ok()
+        .filter(|k| k.to_string() == agent_name);
+    let kind = builtin.clone().unwrap_or(AgentKind::Forward);
     let settings = eval_options(py, scenes, options)?
         .settings(&dataset, kind)
         .py()?;
+    let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
+    let env = run_config(&settings, maker.as_ref(), overrides)?;
     let (summary, _) = py
         .detach(|| {
-            sage_pipeline::evaluate::merge(&settings, &agent_name, &shards, &out, &|_, _| {})
+            sage_pipeline::evaluate::merge(
+                &settings,
+                &agent_name,
+                Some(&env),
+                &shards,
+                &out,
+                &|_, _| {},
+            )
         })
         .py()?;
     to_py(py, &summary)

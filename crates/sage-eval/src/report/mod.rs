@@ -276,8 +276,8 @@ pub fn write_with(
 /// # Errors
 ///
 /// A bad run folder ([`read_run`]), a scene of a record that is not among the scenes or cannot
-/// be loaded, a run record without the preset the videos are rendered with, a video that
-/// cannot be made, or a write error.
+/// be loaded, a run record without the environment (or, recorded before it was, the preset)
+/// the videos are rendered with, a video that cannot be made, or a write error.
 pub fn write_with_options(
     run_dir: &Path,
     scenes_dir: &Path,
@@ -479,16 +479,33 @@ fn remove_stale_videos(
     Ok(())
 }
 
-/// The environment preset of the run record `run` (`settings.preset`): the agent's camera
-/// in the videos. Only that field is read, so runs of agents this build cannot name (written
-/// from Python) get videos too.
-fn recorded_preset(run: &serde_json::Value) -> Result<EnvConfig> {
-    let preset = run
-        .get("settings")
-        .and_then(|s| s.get("preset"))
-        .and_then(|p| p.as_str())
-        .ok_or_else(|| Error::invalid(format!("{RUN_RECORD} has no settings.preset")))?;
-    let config = EnvConfig::preset(preset).within(format!("{RUN_RECORD}: settings.preset"))?;
+/// The environment of the run record `run`, whose agent camera and profile the videos show:
+/// its `env`, the environment the run's episodes ran in (overrides of a Python run included);
+/// for a run recorded before the environment was, the preset its settings name
+/// (`settings.preset`, the only field read then, so runs of agents this build cannot name get
+/// videos too). Rendered on the CPU whatever the run used.
+///
+/// # Errors
+///
+/// An `env` that is not an environment config or one the validation refuses, or (without
+/// `env`) no preset or an unknown one, naming the run record's field.
+fn recorded_env(run: &serde_json::Value) -> Result<EnvConfig> {
+    let config = match run.get("env") {
+        Some(env) => {
+            let config: EnvConfig = serde_json::from_value(env.clone())
+                .map_err(|e| Error::format(format!("{RUN_RECORD}: env"), e.to_string()))?;
+            config.validate().within(format!("{RUN_RECORD}: env"))?;
+            config
+        }
+        None => {
+            let preset = run
+                .get("settings")
+                .and_then(|s| s.get("preset"))
+                .and_then(|p| p.as_str())
+                .ok_or_else(|| Error::invalid(format!("{RUN_RECORD} has no settings.preset")))?;
+            EnvConfig::preset(preset).within(format!("{RUN_RECORD}: settings.preset"))?
+        }
+    };
     // The CPU renderer: its frames do not depend on the machine or the thread count, so a
     // report's videos are the same bytes wherever it is written.
     Ok(EnvConfig {
@@ -511,7 +528,7 @@ fn write_videos<'a>(
     if chosen.is_empty() {
         return Ok(Vec::new());
     }
-    let config = recorded_preset(run)?;
+    let config = recorded_env(run)?;
     let videos_dir = run_dir.join(REPORT_DIR).join(video::VIDEOS_DIR);
     std::fs::create_dir_all(&videos_dir).map_err(|e| Error::io(&videos_dir, e))?;
     let instruction = |id: &str| match instructions {

@@ -171,6 +171,7 @@ def merge_eval(
     out: _Path,
     agent_name: str,
     shards: Sequence[str],
+    overrides: str | None = None,
     **options: Any,
 ) -> _Json: ...
 def run_records(run: _Path) -> str: ...
