@@ -168,8 +168,8 @@ pub fn serve(
 fn open_app(opts: &ViewOptions) -> Result<App> {
     let (subject, dirs) = subject::open(opts)?;
     let (config, play_config, title) = match &subject {
-        Subject::Run { settings, .. } => (
-            EnvConfig::preset(&settings.preset)?,
+        Subject::Run { settings, env, .. } => (
+            (**env).clone(),
             None,
             format!("run: {} on {}", settings.agent, settings.split),
         ),

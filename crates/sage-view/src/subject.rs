@@ -4,7 +4,8 @@
 use sage_core::{Error, Result, ResultExt};
 use sage_dataset::Episode;
 use sage_dataset::folder::{non_empty_splits, scenes_folder, split_episodes};
-use sage_eval::report::{read_instructions, read_run};
+use sage_env::EnvConfig;
+use sage_eval::report::{read_instructions, read_run, recorded_env};
 use sage_eval::{EvalRecord, EvalSettings, HumanRun};
 use sage_io::run::recorded_command;
 use sage_metrics::{Dtw, Mode};
@@ -80,6 +81,8 @@ pub enum Subject {
     Run {
         /// The run's settings.
         settings: Box<EvalSettings>,
+        /// The environment its episodes ran in ([`sage_eval::report::recorded_env`]).
+        env: Box<EnvConfig>,
         /// Its records, by episode id order.
         records: Vec<EvalRecord>,
         /// The instruction of each episode (empty when the dataset is gone).
@@ -136,6 +139,7 @@ pub fn open(opts: &ViewOptions) -> Result<(Subject, BTreeMap<String, PathBuf>)> 
         let instructions = read_instructions(&files.run, &settings.split).unwrap_or_default();
         return Ok((
             Subject::Run {
+                env: Box::new(recorded_env(&files.run).in_file(path)?),
                 settings: Box::new(settings),
                 records: files.records,
                 instructions,

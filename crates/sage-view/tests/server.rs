@@ -521,3 +521,34 @@ fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
     assert!(human[&played[0].0].notes.is_empty());
     assert_eq!(human[&played[1].0].notes, vec!["map shown".to_string()]);
 }
+
+#[test]
+fn a_run_is_viewed_in_the_environment_it_recorded() {
+    let (dir, scenes, data) = fixture();
+    let out = dir.path().join("run-in-its-env");
+    let settings = EvalSettings {
+        dataset: data.clone(),
+        scenes: scenes.clone(),
+        split: "train".into(),
+        agent: "forward".parse().unwrap(),
+        mode: Default::default(),
+        dtw: Default::default(),
+        seed: 0,
+        preset: "sage".into(),
+        device: Default::default(),
+        splat_bodies: Default::default(),
+    };
+    sage_eval::run(&settings, &out, &|_, _| {}).unwrap();
+    // The environment a Python run with overrides records: not the preset's.
+    let record_path = out.join(sage_io::run::RUN_RECORD);
+    let mut record: Value =
+        serde_json::from_str(&std::fs::read_to_string(&record_path).unwrap()).unwrap();
+    record["env"]["task"]["max_steps"] = json!(77);
+    record["env"]["sensors"]["hfov_deg"] = json!(70.0);
+    std::fs::write(&record_path, record.to_string()).unwrap();
+    let v = start(options(&out));
+    let info = get_json(&v, "/api/info");
+    assert_eq!(info["kind"], "run");
+    assert_eq!(info["preset"]["max_steps"], 77, "{info}");
+    assert_eq!(info["preset"]["hfov_deg"], 70.0, "{info}");
+}

@@ -479,7 +479,8 @@ fn remove_stale_videos(
     Ok(())
 }
 
-/// The environment of the run record `run`, whose agent camera and profile the videos show:
+/// The environment of the run record `run` (its parsed `sage3d_run.json`), whose agent camera
+/// and profile the videos and the viewer show:
 /// its `env`, the environment the run's episodes ran in (overrides of a Python run included);
 /// for a run recorded before the environment was, the preset its settings name
 /// (`settings.preset`, the only field read then, so runs of agents this build cannot name get
@@ -489,7 +490,7 @@ fn remove_stale_videos(
 ///
 /// An `env` that is not an environment config or one the validation refuses, or (without
 /// `env`) no preset or an unknown one, naming the run record's field.
-fn recorded_env(run: &serde_json::Value) -> Result<EnvConfig> {
+pub fn recorded_env(run: &serde_json::Value) -> Result<EnvConfig> {
     let config = match run.get("env") {
         Some(env) => {
             let config: EnvConfig = serde_json::from_value(env.clone())
