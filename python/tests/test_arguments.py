@@ -196,6 +196,8 @@ KEYWORD_CASES = [
     ("evaluate", "split", lambda fx: evaluate(fx, split=3)),
     ("render_training_data", "width",
      lambda fx: sage3d.render_training_data(fx.dataset, None, NOWHERE, width="x")),
+    ("render_training_data", "answers",
+     lambda fx: sage3d.render_training_data(fx.dataset, None, NOWHERE, answers=5)),
 ]
 
 

@@ -113,6 +113,16 @@ def test_settings_are_checked(data, tmp_path):
                                                         format="webdataset", step=0.4))
     assert settings["shard_size"] == 100 and settings["sensors"]["depth"]
     assert settings["preset"]["name"] == "custom" and settings["preset"]["step_m"] == pytest.approx(0.4)
+    # NaVILA's wording is recorded with the preset; a step it cannot say in whole centimetres is
+    # refused, naming the setting, before any work.
+    navila = json.loads(sg._sage3d.training_settings(dataset, scenes, answers="navila"))
+    assert navila["preset"]["answers"] == "navila"
+    assert "answers" not in json.loads(sg._sage3d.training_settings(dataset, scenes))["preset"]
+    with pytest.raises(ValueError, match="`answers` navila words the step in whole centimetres"):
+        sg.render_training_data(dataset, scenes, tmp_path / "c", answers="navila", step=0.255)
+    with pytest.raises(ValueError, match="unknown `answers` wording 'cm'"):
+        sg.render_training_data(dataset, scenes, tmp_path / "c", answers="cm")
+    assert not (tmp_path / "c").exists()
 
 
 @pytest.mark.parametrize("fmt", FORMATS)

@@ -56,7 +56,10 @@ arg_extractors! {
 /// `scenes=None`: the scenes folder the dataset records, as without `--scenes`). The keyword
 /// arguments are the command's flags by name, with the same defaults: `split` (`"train"`),
 /// `preset` (`"navila_small"`; `vlnce`, `navila_large`, `custom_small`), `step` and `turn`
-/// (override the preset's), `max_actions` (50), `width`/`height` (224), `hfov` (90),
+/// (override the preset's), `max_actions` (50), `answers` (`"sage"`: `move forward 0.35 meter`
+/// as SAGE-3D wrote them; `"navila"`: `move forward 35 cm` as stock NaVILA and its evaluator
+/// speak, a step or turn not whole in centimetres or degrees refused), `width`/`height` (224),
+/// `hfov` (90),
 /// `sensors` (`"rgb"`, `"rgb,depth"` or a list of `rgb`, `depth`, `semantic`, `instance`),
 /// `format` (`"navila"`, `"webdataset"` or `"frames"`), `shard_size` (samples per NaVILA part,
 /// 10000, or episodes per WebDataset shard, 100), `limit`, `seed` (0), `agent` (`"wheeled"`),

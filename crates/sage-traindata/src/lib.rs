@@ -5,7 +5,8 @@
 //! trajectory share a walk, [`replay::routes`]); each route is walked once through the
 //! environment's physics by a [`follow::PathFollower`] that cuts the reference path into a
 //! preset's discrete actions ([`preset::ActionPreset`]: `vlnce`, `navila_small`,
-//! `navila_large`, `custom_small`); the camera's frame before each action is rendered and
+//! `navila_large`, `custom_small`, answering in SAGE-3D's or NaVILA's words,
+//! [`preset::Answers`]); the camera's frame before each action is rendered and
 //! encoded ([`encode`]); and the samples are written as NaVILA's annotation parts, WebDataset
 //! shards, a plain folder tree ([`output`]) or a LeRobot v3.0 dataset ([`lerobot`]), with a
 //! manifest last ([`run`]). A route is
@@ -27,7 +28,7 @@ pub mod sample;
 pub use encode::ImageType;
 pub use options::Options;
 pub use output::Layout;
-pub use preset::{ActionPreset, PresetName};
+pub use preset::{ActionPreset, Answers, PresetName};
 pub use run::{
     Manifest, Plan, Progress, RouteDone, SceneProgress, Sensors, Settings, claim, finish, lock,
     render, render_scene,

@@ -6,7 +6,7 @@
 
 use crate::encode::ImageType;
 use crate::output::Layout;
-use crate::preset::{ActionPreset, DEFAULT_MAX_ACTIONS, PresetName};
+use crate::preset::{ActionPreset, Answers, DEFAULT_MAX_ACTIONS, PresetName};
 use crate::run::{Sensors, Settings};
 use sage_core::{Error, Result};
 use sage_dataset::folder::scenes_folder;
@@ -43,6 +43,14 @@ pub struct Options {
     /// Motions per trajectory at most; past it the walk calls STOP where it stands.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().max_actions))]
     pub max_actions: usize,
+    /// How answers word the actions: sage (SAGE-3D's, `move forward 0.35 meter`) or navila
+    /// (stock NaVILA's and its evaluator's, `move forward 35 cm`: a step of whole centimetres
+    /// and a turn of whole degrees, else refused).
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, value_name = "sage|navila", default_value_t = Options::default().answers)
+    )]
+    pub answers: Answers,
     /// Image width in pixels (the published pipeline rendered 1024×768).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().width))]
     pub width: u32,
@@ -106,7 +114,7 @@ pub struct Options {
 }
 
 impl Default for Options {
-    /// The published defaults: split `train`, `navila_small`, the wheeled robot (camera
+    /// The published defaults: split `train`, `navila_small` in SAGE-3D's words, the wheeled robot (camera
     /// 1.2 m), 224×224 RGB at 90° HFOV as JPEG quality 90, the NaVILA layout, seed 0, failed
     /// walks dropped, on the CPU. No dataset is named.
     fn default() -> Self {
@@ -118,6 +126,7 @@ impl Default for Options {
             step: None,
             turn: None,
             max_actions: DEFAULT_MAX_ACTIONS,
+            answers: Answers::default(),
             width: 224,
             height: 224,
             hfov: 90.0,
@@ -162,7 +171,8 @@ impl Options {
     ///
     /// # Errors
     ///
-    /// A step, turn, cap or JPEG quality out of range.
+    /// A step, turn, cap or JPEG quality out of range; a step or turn the `answers` wording
+    /// cannot say exactly.
     pub fn settings_with(&self, scenes: &Path) -> Result<Settings> {
         if !(1..=100).contains(&self.jpeg_quality) {
             return Err(Error::invalid(format!(
@@ -175,7 +185,8 @@ impl Options {
             self.step,
             self.turn,
             Some(self.max_actions),
-        )?;
+        )?
+        .worded(self.answers)?;
         Ok(Settings {
             dataset: self.dataset.clone(),
             scenes: scenes.to_path_buf(),
@@ -339,5 +350,54 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("sometimes"), "{e}");
+    }
+
+    #[test]
+    fn the_answers_wording_is_recorded_when_not_the_default_and_checked_up_front() {
+        let sage = Options::default().settings_with(Path::new("s")).unwrap();
+        assert!(
+            sage.recorded()["preset"].get("answers").is_none(),
+            "records of SAGE-3D's wording stay as they were"
+        );
+        let navila: Options =
+            serde_json::from_str(r#"{"preset": "navila_large", "answers": "navila"}"#).unwrap();
+        let settings = navila.settings_with(Path::new("s")).unwrap();
+        assert_eq!(settings.recorded()["preset"]["answers"], "navila");
+        assert_eq!(
+            settings.preset.words(sage_env::Action::MoveForward),
+            "move forward 75 cm"
+        );
+        // The settings a Python step reads back are the same settings.
+        let text = serde_json::to_string(&settings).unwrap();
+        assert_eq!(serde_json::from_str::<Settings>(&text).unwrap(), settings);
+        // A step NaVILA's words cannot say is refused before any file is read.
+        let odd = Options {
+            step: Some(0.255),
+            ..navila.clone()
+        };
+        let e = odd.settings_with(Path::new("s")).unwrap_err().to_string();
+        assert!(e.contains("`answers`") && e.contains("25.5 cm"), "{e}");
+        let e = Options {
+            turn: Some(7.5),
+            ..navila.clone()
+        }
+        .settings_with(Path::new("s"))
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("`answers`") && e.contains("whole degrees"),
+            "{e}"
+        );
+        // Settings made without the options are checked where a render starts.
+        let mut direct = settings;
+        direct.preset.turn_deg = 22.5;
+        let e = direct.env_config().unwrap_err().to_string();
+        assert!(e.contains("`answers`"), "{e}");
+        for bad in [r#"{"answers": "cm"}"#, r#"{"answers": 5}"#] {
+            let e = serde_json::from_str::<Options>(bad)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("cm") || e.contains("string"), "{bad}: {e}");
+        }
     }
 }

@@ -92,7 +92,7 @@ pub struct NavilaSample {
     pub video_id: String,
     /// The instruction.
     pub q: String,
-    /// `The next action is move forward 0.35 meter.`
+    /// `The next action is move forward 0.35 meter.` (or `… 35 cm.` in NaVILA's words).
     pub a: String,
     /// The RGB frames from the start to this step, relative to the images folder.
     pub frames: Vec<String>,
@@ -151,14 +151,15 @@ pub fn write_navila(
         "samples_per_part": shard_size,
         "part_files": parts,
         "data_format": {
-            "move_distance": format!("{} meter", preset.step_m),
-            "turn_angle": format!("{} degree", preset.turn_deg),
+            "move_distance": preset.distance_words(),
+            "turn_angle": preset.angle_words(),
             "action_format": "The next action is {action}.",
         },
         "conversion_params": {
             "images_dir": IMAGES_DIR,
             "preset": preset.name,
             "max_actions": preset.max_actions,
+            "answers": preset.answers,
             "seed": seed,
         },
     });

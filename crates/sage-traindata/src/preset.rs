@@ -1,5 +1,6 @@
 //! Action presets: the step and turn of the discrete actions a trajectory is cut into, and the
-//! text NaVILA is trained to answer with.
+//! text NaVILA is trained to answer with ([`Answers`]: SAGE-3D's metres or stock NaVILA's
+//! centimetres).
 
 use sage_core::{Error, Result};
 use sage_env::Action;
@@ -22,6 +23,66 @@ pub struct ActionPreset {
     /// Motions (every action but STOP) at most; past it the replay calls STOP where it
     /// stands.
     pub max_actions: usize,
+    /// How the answers word the step and the turn. Recorded only when not `sage` (so the
+    /// record of the default is as it always was); a render resumes only with the wording it
+    /// started with.
+    #[serde(default, skip_serializing_if = "Answers::is_sage")]
+    pub answers: Answers,
+}
+
+/// How a sample's answer words the step and the turn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum Answers {
+    /// SAGE-3D's `create_navila_dataset.py`: metres and degrees as the preset holds them
+    /// (`move forward 0.35 meter`, `turn left 30 degree`).
+    #[default]
+    Sage,
+    /// Stock NaVILA's (its R2R data, and the replies its evaluator parses with
+    /// `move forward (\d+) cm` and `turn left (\d+) degree`): whole centimetres and whole
+    /// degrees (`move forward 35 cm`, `turn left 30 degree`). A step or turn that is not
+    /// whole in those units is refused ([`ActionPreset::check_answers`]), never rounded.
+    Navila,
+}
+
+impl Answers {
+    /// Every wording's name.
+    pub const NAMES: [&'static str; 2] = ["sage", "navila"];
+
+    /// The wording's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Answers::Sage => "sage",
+            Answers::Navila => "navila",
+        }
+    }
+
+    /// True for the default wording (serde leaves it out of the settings).
+    pub fn is_sage(&self) -> bool {
+        *self == Answers::Sage
+    }
+}
+
+impl std::fmt::Display for Answers {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for Answers {
+    type Err = Error;
+
+    /// A wording by its name.
+    fn from_str(name: &str) -> Result<Answers> {
+        match name {
+            "sage" => Ok(Answers::Sage),
+            "navila" => Ok(Answers::Navila),
+            other => Err(Error::invalid(format!(
+                "unknown `answers` wording '{other}' (known: {})",
+                Answers::NAMES.join(", ")
+            ))),
+        }
+    }
 }
 
 /// A published action preset, by name.
@@ -71,6 +132,7 @@ impl PresetName {
             step_m,
             turn_deg,
             max_actions: DEFAULT_MAX_ACTIONS,
+            answers: Answers::default(),
         }
     }
 }
@@ -150,13 +212,73 @@ impl ActionPreset {
         Ok(p)
     }
 
-    /// The action in NaVILA's words: `move forward 0.35 meter`, `turn left 30 degree`,
-    /// `turn right 30 degree`, `stop` (numbers as the published pipeline prints them).
+    /// `self` answering in `answers`' words.
+    ///
+    /// # Errors
+    ///
+    /// As [`ActionPreset::check_answers`].
+    pub fn worded(self, answers: Answers) -> Result<ActionPreset> {
+        let p = ActionPreset { answers, ..self };
+        p.check_answers()?;
+        Ok(p)
+    }
+
+    /// Checks that the wording can say the step and the turn exactly: NaVILA's words have
+    /// whole centimetres and whole degrees, and a rounded number would teach a model a step
+    /// the walk did not take.
+    ///
+    /// # Errors
+    ///
+    /// A step or turn that is not whole in the wording's units, naming `answers`.
+    pub fn check_answers(&self) -> Result<()> {
+        if self.answers != Answers::Navila {
+            return Ok(());
+        }
+        // f32 holds 0.35 as 0.3499999940…: whole within a thousandth is whole.
+        let whole = |v: f64| (v - v.round()).abs() < 1e-3;
+        let cm = f64::from(self.step_m) * 100.0;
+        if !whole(cm) {
+            return Err(Error::invalid(format!(
+                "`answers` navila words the step in whole centimetres, but {} m is {} cm: give a \
+                 step of whole centimetres (`step`) or keep `answers` sage",
+                self.step_m,
+                (cm * 1000.0).round() / 1000.0
+            )));
+        }
+        if !whole(f64::from(self.turn_deg)) {
+            return Err(Error::invalid(format!(
+                "`answers` navila words the turn in whole degrees, but it is {} degrees: give a \
+                 turn of whole degrees (`turn`) or keep `answers` sage",
+                self.turn_deg
+            )));
+        }
+        Ok(())
+    }
+
+    /// The step in the answers' words: `0.35 meter` (SAGE-3D's), `35 cm` (NaVILA's).
+    pub fn distance_words(&self) -> String {
+        match self.answers {
+            Answers::Sage => format!("{} meter", self.step_m),
+            Answers::Navila => format!("{} cm", (f64::from(self.step_m) * 100.0).round()),
+        }
+    }
+
+    /// The turn in the answers' words: `30 degree` (`22.5 degree` in SAGE-3D's words only).
+    pub fn angle_words(&self) -> String {
+        match self.answers {
+            Answers::Sage => format!("{} degree", self.turn_deg),
+            Answers::Navila => format!("{} degree", f64::from(self.turn_deg).round()),
+        }
+    }
+
+    /// The action in the answers' words: `move forward 0.35 meter` (or `move forward 35 cm`),
+    /// `turn left 30 degree`, `turn right 30 degree`, `stop` (SAGE-3D's numbers as the
+    /// published pipeline prints them).
     pub fn words(&self, action: Action) -> String {
         match action {
-            Action::MoveForward => format!("move forward {} meter", self.step_m),
-            Action::TurnLeft => format!("turn left {} degree", self.turn_deg),
-            Action::TurnRight => format!("turn right {} degree", self.turn_deg),
+            Action::MoveForward => format!("move forward {}", self.distance_words()),
+            Action::TurnLeft => format!("turn left {}", self.angle_words()),
+            Action::TurnRight => format!("turn right {}", self.angle_words()),
             _ => "stop".to_string(),
         }
     }
@@ -189,6 +311,7 @@ pub fn action_from_name(name: &str) -> Action {
 }
 
 sage_core::named_by_string!(PresetName);
+sage_core::named_by_string!(Answers);
 
 #[cfg(test)]
 mod tests {
@@ -230,5 +353,57 @@ mod tests {
         assert!(ActionPreset::with(base.clone(), Some(0.0), None, None).is_err());
         assert!(ActionPreset::with(base.clone(), None, Some(200.0), None).is_err());
         assert!(ActionPreset::with(base, None, None, Some(0)).is_err());
+    }
+
+    #[test]
+    fn navila_answers_speak_whole_centimetres_and_refuse_fractions() {
+        for (name, forward, left) in [
+            ("navila_small", "move forward 35 cm", "turn left 30 degree"),
+            ("navila_large", "move forward 75 cm", "turn left 15 degree"),
+            ("vlnce", "move forward 25 cm", "turn left 15 degree"),
+            ("custom_small", "move forward 50 cm", "turn left 30 degree"),
+        ] {
+            let p = ActionPreset::named(name)
+                .unwrap()
+                .worded(Answers::Navila)
+                .unwrap();
+            assert_eq!(p.words(Action::MoveForward), forward);
+            assert_eq!(p.words(Action::TurnLeft), left);
+            assert_eq!(p.answer(Action::Stop), "The next action is stop.");
+        }
+        let p = ActionPreset::named("navila_large")
+            .unwrap()
+            .worded(Answers::Navila)
+            .unwrap();
+        assert_eq!(
+            p.answer(Action::MoveForward),
+            "The next action is move forward 75 cm."
+        );
+        assert_eq!(p.words(Action::TurnRight), "turn right 15 degree");
+        // What NaVILA's `(\d+) cm` and `(\d+) degree` cannot read is refused, not rounded.
+        let base = ActionPreset::named("vlnce").unwrap();
+        let odd = ActionPreset::with(base.clone(), Some(0.355), None, None).unwrap();
+        let e = odd.clone().worded(Answers::Navila).unwrap_err().to_string();
+        assert!(e.contains("`answers`") && e.contains("35.5 cm"), "{e}");
+        assert_eq!(
+            odd.worded(Answers::Sage)
+                .unwrap()
+                .words(Action::MoveForward),
+            "move forward 0.355 meter"
+        );
+        let half = ActionPreset::with(base.clone(), None, Some(22.5), None).unwrap();
+        let e = half
+            .clone()
+            .worded(Answers::Navila)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`answers`") && e.contains("22.5 degrees"), "{e}");
+        assert_eq!(half.words(Action::TurnLeft), "turn left 22.5 degree");
+        // Names parse the same way from a flag and from JSON; a bad one is named.
+        assert_eq!("navila".parse::<Answers>().unwrap(), Answers::Navila);
+        let read: Answers = serde_json::from_str("\"sage\"").unwrap();
+        assert_eq!(read, Answers::Sage);
+        let e = "cm".parse::<Answers>().unwrap_err().to_string();
+        assert!(e.contains("`answers`") && e.contains("'cm'"), "{e}");
     }
 }

@@ -161,8 +161,8 @@ impl Settings {
     ///
     /// # Errors
     ///
-    /// A bad profile, size, field of view or preset, naming the field; sensors the layout
-    /// cannot hold.
+    /// A bad profile, size, field of view or preset, naming the field; a step or turn the
+    /// answers' wording cannot say; sensors the layout cannot hold.
     pub fn env_config(&self) -> Result<EnvConfig> {
         let mut config = EnvConfig {
             agent: self.agent.clone(),
@@ -188,6 +188,7 @@ impl Settings {
             instance: self.sensors.instance,
         };
         config.task.max_steps = config.task.max_steps.max(self.preset.max_actions + 1);
+        self.preset.check_answers()?;
         if self.shard_size == 0 {
             return Err(Error::invalid("shard size: must be at least 1"));
         }
@@ -390,7 +391,8 @@ pub struct RouteDone {
     pub scene: String,
     /// The route.
     pub route: String,
-    /// Frames written.
+    /// Frames rendered (a walk whose episodes are not written has its frames removed once it
+    /// ends: they count here, as rendering work, all the same).
     pub frames: usize,
     /// Routes in the whole render (all scenes).
     pub of: usize,
@@ -427,6 +429,34 @@ pub fn route_dir(out: &Path, route: &Route) -> PathBuf {
     out.join(IMAGES_DIR).join(&route.scene).join(&route.name)
 }
 
+/// True when the episodes of the route `record` is of are written: its walk ended clean, or
+/// failed walks are kept.
+fn writes_episodes(settings: &Settings, record: &RouteRecord) -> bool {
+    record
+        .walk
+        .as_ref()
+        .is_some_and(|w| w.verdict == Verdict::Clean || settings.keep_failed)
+}
+
+/// Removes every file of a route folder but its record: the frames of a route whose episodes
+/// are not written (a dropped walk, or one that could not be walked), which no annotation,
+/// shard or manifest would name. Its record stays: it says the route is done (a resume does
+/// not walk it again) and why its episodes are left out.
+fn drop_frames(dir: &Path) -> Result<()> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(Error::io(dir, e)),
+    };
+    for entry in entries {
+        let path = entry.map_err(|e| Error::io(dir, e))?.path();
+        if path.is_file() && path.file_name().is_none_or(|n| n != ROUTE_FILE) {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    Ok(())
+}
+
 /// True when `route` has a complete record under `out` (a walk, not an error).
 fn is_done(out: &Path, route: &Route) -> bool {
     read_json::<RouteRecord>(&route_dir(out, route).join(ROUTE_FILE))
@@ -434,7 +464,9 @@ fn is_done(out: &Path, route: &Route) -> bool {
 }
 
 /// Renders the routes of `scene` that are not done under `out` (in parallel): per route its
-/// frames, then its `route.json`. A route that cannot be walked gets a record with the reason
+/// frames, then its `route.json`. A walk whose episodes will not be written (not clean, and
+/// failed walks not kept) has its frames removed before its record is written, so a dropped
+/// walk leaves only its record. A route that cannot be walked gets a record with the reason
 /// (retried by the next run); a scene that cannot be loaded gives every route that record.
 /// Returns the routes rendered.
 ///
@@ -533,6 +565,10 @@ pub fn render_scene(
                 ),
             ),
         };
+        // Before the record: a crash in between leaves a route without one, walked again.
+        if !writes_episodes(s, &rec) {
+            drop_frames(dir)?;
+        }
         write_json(&dir.join(ROUTE_FILE), &rec)?;
         on_route(&RouteDone {
             scene: scene.into(),
@@ -811,7 +847,8 @@ impl Manifest {
 
 /// Writes the format's files from the rendered routes, the preview when asked for, then the
 /// manifest, then (WebDataset, LeRobot) removes the frames folder the shards or Parquet files
-/// now hold.
+/// now hold. Frames of routes whose episodes are not written (left by a render made before
+/// [`render_scene`] removed them) are removed first.
 ///
 /// # Errors
 ///
@@ -844,6 +881,10 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
             )));
         }
         let rec: RouteRecord = read_json(&path)?;
+        // Rendered before dropped walks left no frames (or copied in from such a render).
+        if !writes_episodes(s, &rec) {
+            drop_frames(&route_dir(out, route))?;
+        }
         match &rec.walk {
             None => skipped.extend(route.episodes.iter().map(|e| Skip {
                 episode_id: e.episode_id.clone(),

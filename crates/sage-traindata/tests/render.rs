@@ -1,11 +1,16 @@
 //! Training-data renders on a small generated home: the formats' contents against the walks,
-//! determinism over thread counts, resumption of a broken render, and bad input.
+//! determinism over thread counts, resumption of a broken render, dropped walks leaving no
+//! frames, NaVILA's wording of the answers, and bad input.
 
 mod common;
 
 use sage_traindata::encode::RgbCodec;
+use sage_traindata::output::NavilaSample;
+use sage_traindata::preset::Answers;
+use sage_traindata::replay::Verdict;
+use sage_traindata::sample::{EpisodeSample, RouteRecord};
 use sage_traindata::{Layout, Settings};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -471,4 +476,142 @@ fn a_gpu_render_walks_in_lockstep_and_each_walk_is_what_it_gives_alone() {
         }
     }
     assert!(frames > 20, "{frames} frames compared");
+}
+
+/// The frame files under `out/images` (every file but the routes' records).
+fn frame_files(out: &Path) -> BTreeSet<String> {
+    tree(&out.join("images"))
+        .into_keys()
+        .filter(|k| !k.ends_with("/route.json"))
+        .collect()
+}
+
+/// The frame files the annotations of `out` name: the NaVILA parts' frames, or every file of
+/// `episodes.jsonl`.
+fn named_frames(out: &Path, format: Layout) -> BTreeSet<String> {
+    match format {
+        Layout::Navila => {
+            let info: serde_json::Value =
+                sage_io::files::read_json(&out.join("dataset_info.json")).unwrap();
+            let parts: Vec<String> = serde_json::from_value(info["part_files"].clone()).unwrap();
+            parts
+                .iter()
+                .flat_map(|p| sage_io::files::read_json::<Vec<NavilaSample>>(&out.join(p)).unwrap())
+                .flat_map(|x| x.frames)
+                .collect()
+        }
+        _ => std::fs::read_to_string(out.join("episodes.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<EpisodeSample>(l).unwrap())
+            .flat_map(|e| e.files.into_iter().flatten())
+            .collect(),
+    }
+}
+
+#[test]
+fn a_dropped_walk_leaves_no_frame_that_no_annotation_names() {
+    // Six motions at most: most walks stop far from their goal and are dropped.
+    for format in [Layout::Navila, Layout::Frames] {
+        let mut s = Settings {
+            keep_failed: false,
+            ..settings(format)
+        };
+        s.preset.max_actions = 6;
+        let out = tempfile::tempdir().unwrap();
+        let m = render_with_threads(&s, out.path(), 2);
+        let dropped: usize = m.counts.dropped.values().sum();
+        assert!(m.counts.kept > 0 && dropped > 0, "{:?}", m.counts);
+        assert_eq!(
+            frame_files(out.path()),
+            named_frames(out.path(), format),
+            "{format}"
+        );
+        // A dropped route keeps its record: it is done, and says why its episodes are left out.
+        let records: Vec<PathBuf> = tree(&out.path().join("images"))
+            .into_keys()
+            .filter(|k| k.ends_with("/route.json"))
+            .map(|k| out.path().join("images").join(k))
+            .collect();
+        let failed: Vec<&PathBuf> = records
+            .iter()
+            .filter(|p| {
+                let r: RouteRecord = sage_io::files::read_json(p).unwrap();
+                r.walk.unwrap().verdict != Verdict::Clean
+            })
+            .collect();
+        assert!(!failed.is_empty());
+        for record in &failed {
+            let folder: Vec<_> = std::fs::read_dir(record.parent().unwrap())
+                .unwrap()
+                .collect();
+            assert_eq!(folder.len(), 1, "{}", record.display());
+        }
+        let whole = tree(out.path());
+
+        // A crash before the layout was written, in a folder whose dropped route still has a
+        // frame (rendered before dropped walks left none): the resume walks nothing again and
+        // removes the frame.
+        let stray = failed[0].with_file_name("0000.jpg");
+        std::fs::write(&stray, b"\xff\xd8").unwrap();
+        std::fs::remove_file(out.path().join("manifest.json")).unwrap();
+        let walked = std::sync::atomic::AtomicUsize::new(0);
+        sage_traindata::render(&s, out.path(), false, &|p| {
+            if let sage_traindata::Progress::Route(_) = p {
+                walked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
+        })
+        .unwrap();
+        assert_eq!(walked.into_inner(), 0);
+        assert!(!stray.exists());
+        assert_eq!(tree(out.path()), whole);
+    }
+}
+
+#[test]
+fn navila_answers_speak_centimetres_and_a_resume_must_keep_the_wording() {
+    let mut s = Settings {
+        limit: Some(4),
+        ..settings(Layout::Navila)
+    };
+    s.preset = s.preset.worded(Answers::Navila).unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let m = render_with_threads(&s, out.path(), 2);
+    assert!(m.counts.samples > 0, "{:?}", m.counts);
+    let info: serde_json::Value =
+        sage_io::files::read_json(&out.path().join("dataset_info.json")).unwrap();
+    assert_eq!(info["data_format"]["move_distance"], "35 cm");
+    assert_eq!(info["data_format"]["turn_angle"], "30 degree");
+    assert_eq!(info["conversion_params"]["answers"], "navila");
+    assert_eq!(m.settings["preset"]["answers"], "navila");
+    let allowed = [
+        "The next action is move forward 35 cm.",
+        "The next action is turn left 30 degree.",
+        "The next action is turn right 30 degree.",
+        "The next action is stop.",
+    ];
+    let parts: Vec<String> = serde_json::from_value(info["part_files"].clone()).unwrap();
+    for p in &parts {
+        for x in sage_io::files::read_json::<Vec<NavilaSample>>(&out.path().join(p)).unwrap() {
+            assert!(allowed.contains(&x.a.as_str()), "{}", x.a);
+        }
+    }
+    // The same folder with SAGE-3D's wording is another render, not a resume.
+    let sage = Settings {
+        preset: s.preset.clone().worded(Answers::Sage).unwrap(),
+        ..s.clone()
+    };
+    let e = sage_traindata::render(&sage, out.path(), false, &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("other settings"), "{e}");
+    // A turn NaVILA's words cannot say is refused before the folder is touched.
+    let mut half = s.clone();
+    half.preset.turn_deg = 22.5;
+    let fresh = tempfile::tempdir().unwrap();
+    let e = sage_traindata::render(&half, &fresh.path().join("out"), false, &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("`answers`") && e.contains("22.5"), "{e}");
+    assert!(!fresh.path().join("out").exists());
 }
