@@ -38,8 +38,9 @@ pub struct RunArgs {
     /// Seed of the random agent.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Environment preset: sage, vlnce, gnbench or sage-harness (the published SAGE-Bench
-    /// harness's camera, steps and step limit).
+    /// Environment preset: sage, vlnce, gnbench, sage-harness (the published SAGE-Bench
+    /// harness's camera, steps and step limit), or navila_small, navila_large or custom_small
+    /// (sage moving with that training-data preset's steps).
     #[arg(long, default_value = "sage")]
     preset: String,
     /// Metric mode: sage, vlnce, sage-official or gnbench.

@@ -25,8 +25,8 @@ pub struct ViewArgs {
     /// Write the human run into a folder holding other files (never replacing one of them).
     #[arg(long)]
     force: bool,
-    /// Environment preset the agent moves with: sage, vlnce, gnbench or sage-harness (a run
-    /// uses its own).
+    /// Environment preset the agent moves with: sage, vlnce, gnbench, sage-harness,
+    /// navila_small, navila_large or custom_small (a run uses its own).
     #[arg(long, default_value = "sage")]
     preset: String,
     /// Metric mode human play is scored in: sage, vlnce, sage-official or gnbench.

@@ -153,7 +153,24 @@ pub fn harness_hfov_deg() -> f32 {
 }
 
 /// The names [`EnvConfig::preset`] knows, in the order errors and help list them.
-pub const PRESETS: [&str; 4] = ["sage", "vlnce", "gnbench", "sage-harness"];
+pub const PRESETS: [&str; 7] = [
+    "sage",
+    "vlnce",
+    "gnbench",
+    "sage-harness",
+    "navila_small",
+    "navila_large",
+    "custom_small",
+];
+
+/// The steps of SAGE-3D's training-data presets (`generate_actions.py`) beyond `vlnce`'s:
+/// (name, forward metres, turn degrees). The training-data render walks with them, and an
+/// evaluation of a model trained on such data moves with them (`sage` otherwise).
+pub const TRAINING_STEPS: [(&str, f32, f32); 3] = [
+    ("navila_small", 0.35, 30.0),
+    ("navila_large", 0.75, 15.0),
+    ("custom_small", 0.50, 30.0),
+];
 
 /// Everything an [`crate::Env`] is set up with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -256,7 +273,8 @@ impl EnvConfig {
     /// `gnbench` (GN-Bench's camera: 480×360 RGB only, vertical field of view 70° (see
     /// [`gnbench_hfov_deg`]), eye at 1.3 m; 0.25 m / 15°, 500 steps) or `sage-harness` (the
     /// published SAGE-Bench harness's setting: 640×480 RGB and depth at HFOV ≈ 105.3° (see
-    /// [`harness_hfov_deg`]), 0.20 m / 30° steps, 200 steps; camera at 1.2 m as in `sage`).
+    /// [`harness_hfov_deg`]), 0.20 m / 30° steps, 200 steps; camera at 1.2 m as in `sage`), or
+    /// one of [`TRAINING_STEPS`] (`sage` moving with that training-data preset's steps).
     ///
     /// # Errors
     ///
@@ -302,10 +320,21 @@ impl EnvConfig {
                 },
                 ..EnvConfig::default()
             }),
-            _ => Err(Error::invalid(format!(
-                "unknown environment preset '{name}' (expected {})",
-                PRESETS.join(", ")
-            ))),
+            other => match TRAINING_STEPS.iter().find(|(n, _, _)| *n == other) {
+                Some(&(_, forward, turn_deg)) => Ok(EnvConfig {
+                    actions: ActionSpace::Discrete {
+                        forward,
+                        turn_deg,
+                        look_deg: 30.0,
+                        seconds: 1.0,
+                    },
+                    ..EnvConfig::default()
+                }),
+                None => Err(Error::invalid(format!(
+                    "unknown environment preset '{name}' (expected {})",
+                    PRESETS.join(", ")
+                ))),
+            },
         }
     }
 
@@ -492,7 +521,20 @@ mod tests {
             EnvConfig::preset(name).unwrap().validate().unwrap();
         }
         let err = EnvConfig::preset("habitat").unwrap_err().to_string();
-        assert!(err.contains("sage, vlnce, gnbench, sage-harness"), "{err}");
+        assert!(
+            err.contains("sage, vlnce, gnbench, sage-harness, navila_small"),
+            "{err}"
+        );
+        let n = EnvConfig::preset("navila_small").unwrap();
+        n.validate().unwrap();
+        assert_eq!(
+            (n.sensors, n.task),
+            (EnvConfig::default().sensors, EnvConfig::default().task)
+        );
+        assert!(matches!(
+            n.actions,
+            ActionSpace::Discrete { forward, turn_deg, .. } if forward == 0.35 && turn_deg == 30.0
+        ));
         let mut c = EnvConfig::default();
         c.sensors.hfov_deg = 180.0;
         assert!(c.validate().unwrap_err().message().contains("hfov_deg"));

@@ -38,8 +38,9 @@ pub struct EvalOptions {
     /// Seed of the agent (each episode mixes in its id).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().seed))]
     pub seed: u64,
-    /// Environment preset: sage, vlnce, gnbench or sage-harness (the published SAGE-Bench
-    /// harness's camera, steps and step limit).
+    /// Environment preset: sage, vlnce, gnbench, sage-harness (the published SAGE-Bench
+    /// harness's camera, steps and step limit), or navila_small, navila_large or custom_small
+    /// (sage moving with that training-data preset's steps).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = EvalOptions::default().preset))]
     pub preset: String,
     /// Where images are rendered for agents that read them: cpu; gpu (any GPU adapter, a

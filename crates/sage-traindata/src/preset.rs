@@ -3,7 +3,7 @@
 //! centimetres).
 
 use sage_core::{Error, Result};
-use sage_env::Action;
+use sage_env::{Action, ActionSpace, EnvConfig};
 use serde::{Deserialize, Serialize};
 
 /// Motions per trajectory at most, the published default: the published action generator
@@ -119,13 +119,17 @@ impl PresetName {
         }
     }
 
-    /// The preset, with the published cap of 50 motions.
+    /// The preset, with the published cap of 50 motions: the steps of the environment preset
+    /// of the same name ([`sage_env::config::TRAINING_STEPS`]; `vlnce`'s), so that a model
+    /// trained on the data is evaluated moving as it was taught (`sage3d eval --preset`).
     pub fn preset(self) -> ActionPreset {
-        let (step_m, turn_deg) = match self {
-            PresetName::Vlnce => (0.25, 15.0),
-            PresetName::NavilaSmall => (0.35, 30.0),
-            PresetName::NavilaLarge => (0.75, 15.0),
-            PresetName::CustomSmall => (0.50, 30.0),
+        let (step_m, turn_deg) = match EnvConfig::preset(self.as_str()).map(|c| c.actions) {
+            Ok(ActionSpace::Discrete {
+                forward, turn_deg, ..
+            }) => (forward, turn_deg),
+            other => unreachable!(
+                "every training-data preset is a discrete environment preset: {other:?}"
+            ),
         };
         ActionPreset {
             name: self.as_str().to_string(),
