@@ -352,6 +352,18 @@ fn write_report(run: &Path, videos: usize) -> report::ReportOutcome {
     outcome
 }
 
+/// The scored records of a run as the report's gallery takes them.
+fn scored_maps(records: &[EvalRecord]) -> Vec<report::MapFile<'_>> {
+    records
+        .iter()
+        .filter(|r| r.record.is_some())
+        .map(|r| report::MapFile {
+            record: r,
+            rel_path: String::new(),
+        })
+        .collect()
+}
+
 #[test]
 fn the_report_writes_the_videos_asked_for_in_gallery_order_and_shows_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -368,15 +380,7 @@ fn the_report_writes_the_videos_asked_for_in_gallery_order_and_shows_them() {
     assert_eq!(outcome.videos, 2);
     let html = std::fs::read_to_string(&outcome.html).unwrap();
     let files = report::read_run(&run).unwrap();
-    let maps: Vec<report::MapFile> = files
-        .records
-        .iter()
-        .filter(|r| r.record.is_some())
-        .map(|r| report::MapFile {
-            record: r,
-            rel_path: String::new(),
-        })
-        .collect();
+    let maps = scored_maps(&files.records);
     let order = report::gallery_order(&maps);
     let section = &html[html.find("<h2 id=\"videos\">Episode videos</h2>").unwrap()..];
     let section = &section[..section.find("<h2>").unwrap()];
@@ -488,15 +492,7 @@ fn the_videos_show_the_camera_the_run_recorded_and_the_presets_for_older_runs() 
     sage_io::files::write_json(&record_path, &record).unwrap();
     write_report(&run, 1);
     let files = report::read_run(&run).unwrap();
-    let maps: Vec<report::MapFile> = files
-        .records
-        .iter()
-        .filter(|r| r.record.is_some())
-        .map(|r| report::MapFile {
-            record: r,
-            rel_path: String::new(),
-        })
-        .collect();
+    let maps = scored_maps(&files.records);
     let first = report::gallery_order(&maps)[0].record;
     let instructions = report::read_instructions(&files.run, &files.summary.split).unwrap();
     let gif_in = |config: &EnvConfig| {

@@ -364,6 +364,23 @@ fn a_public_viewer_needs_its_token_and_other_addresses_need_the_flag() {
 }
 
 /// The records of a run folder by episode id.
+/// The evaluation of `agent` over the fixture's train split, as `sage3d eval` runs it.
+fn train_settings(agent: &str) -> EvalSettings {
+    let (_, scenes, data) = fixture();
+    EvalSettings {
+        dataset: data.clone(),
+        scenes: scenes.clone(),
+        split: "train".into(),
+        agent: agent.parse().unwrap(),
+        mode: Default::default(),
+        dtw: Default::default(),
+        seed: 0,
+        preset: "sage".into(),
+        device: Default::default(),
+        splat_bodies: Default::default(),
+    }
+}
+
 fn records(run: &Path) -> std::collections::BTreeMap<String, EvalRecord> {
     std::fs::read_to_string(run.join("episodes.jsonl"))
         .unwrap()
@@ -484,18 +501,7 @@ fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
         .collect();
     std::fs::write(&replay, lines.join("\n") + "\n").unwrap();
     let out = dir.path().join("replayed");
-    let settings = EvalSettings {
-        dataset: data.clone(),
-        scenes: scenes.clone(),
-        split: "train".into(),
-        agent: format!("replay:{}", replay.display()).parse().unwrap(),
-        mode: Default::default(),
-        dtw: Default::default(),
-        seed: 0,
-        preset: "sage".into(),
-        device: Default::default(),
-        splat_bodies: Default::default(),
-    };
+    let settings = train_settings(&format!("replay:{}", replay.display()));
     sage_eval::run(&settings, &out, &|_, _| {}).unwrap();
     let evaluated = records(&out);
     for (id, _) in &played {
@@ -524,20 +530,9 @@ fn human_play_is_recorded_and_scored_as_eval_scores_the_same_actions() {
 
 #[test]
 fn a_run_is_viewed_in_the_environment_it_recorded() {
-    let (dir, scenes, data) = fixture();
+    let (dir, _, _) = fixture();
     let out = dir.path().join("run-in-its-env");
-    let settings = EvalSettings {
-        dataset: data.clone(),
-        scenes: scenes.clone(),
-        split: "train".into(),
-        agent: "forward".parse().unwrap(),
-        mode: Default::default(),
-        dtw: Default::default(),
-        seed: 0,
-        preset: "sage".into(),
-        device: Default::default(),
-        splat_bodies: Default::default(),
-    };
+    let settings = train_settings("forward");
     sage_eval::run(&settings, &out, &|_, _| {}).unwrap();
     // The environment a Python run with overrides records: not the preset's.
     let record_path = out.join(sage_io::run::RUN_RECORD);
