@@ -89,7 +89,11 @@ fn out_of_range_values_are_the_parsers_refusals() {
         "0.02",
     ]);
     assert_eq!(run.status.code(), Some(1));
-    assert!(stderr(&run).contains("--agent-height must be a finite height"), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("--agent-height must be a finite height"),
+        "{}",
+        stderr(&run)
+    );
 }
 
 #[test]
