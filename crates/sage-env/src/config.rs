@@ -338,6 +338,48 @@ impl EnvConfig {
         }
     }
 
+    /// The environment in a line, as a report shows it: `wheeled; 224x224 rgb, depth at HFOV
+    /// 90° (camera at the profile's height); 0.25 m / 15° steps; 500 steps, success within
+    /// 1 m`.
+    pub fn summary(&self) -> String {
+        let s = &self.sensors;
+        let images: Vec<&str> = [
+            (s.rgb, "rgb"),
+            (s.depth, "depth"),
+            (s.semantic, "semantic"),
+            (s.instance, "instance"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|&(_, name)| name)
+        .collect();
+        let images = if images.is_empty() {
+            "no images".to_string()
+        } else {
+            images.join(", ")
+        };
+        let camera = match s.camera_height {
+            Some(h) => format!("camera at {h} m"),
+            None => "camera at the profile's height".to_string(),
+        };
+        let actions = match self.actions {
+            ActionSpace::Discrete {
+                forward, turn_deg, ..
+            } => format!("{forward} m / {turn_deg}° steps"),
+            ActionSpace::Ground { max_dt } => format!("ground velocities, up to {max_dt} s each"),
+            ActionSpace::Uav { max_dt } => format!("UAV velocities, up to {max_dt} s each"),
+        };
+        format!(
+            "{}; {}x{} {images} at HFOV {}° ({camera}); {actions}; {} steps, success within {} m",
+            self.agent,
+            s.width,
+            s.height,
+            s.hfov_deg,
+            self.task.max_steps,
+            self.task.success_distance
+        )
+    }
+
     /// The agent profile named by [`EnvConfig::agent`].
     ///
     /// # Errors
@@ -524,6 +566,11 @@ mod tests {
         assert!(
             err.contains("sage, vlnce, gnbench, sage-harness, navila_small"),
             "{err}"
+        );
+        assert_eq!(
+            EnvConfig::default().summary(),
+            "wheeled; 224x224 rgb, depth at HFOV 90° (camera at the profile's height); \
+             0.25 m / 15° steps; 500 steps, success within 1 m"
         );
         let n = EnvConfig::preset("navila_small").unwrap();
         n.validate().unwrap();

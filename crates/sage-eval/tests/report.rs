@@ -126,6 +126,8 @@ fn page_holds_every_summary_number_as_the_text_table_writes_it() {
         "agent</th><td>forward",
         "split</th><td>train",
         "dataset hash",
+        // The forward agent reads no images, so its environment renders none.
+        "environment</th><td>wheeled; 224x224 no images at HFOV 90° (camera at the profile&#39;s height); 0.25 m / 15° steps; 500 steps",
         "sage3d version (run)",
         &format!("episodes recorded</th><td>{}", s.episodes),
         &format!("episodes faulted</th><td>{}", s.failed.len()),

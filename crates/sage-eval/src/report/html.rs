@@ -152,6 +152,16 @@ fn ending(r: &EvalRecord) -> String {
     r.termination.map_or_else(|| "faulted".to_string(), name_of)
 }
 
+/// The environment the run recorded (`env`) in a line ([`sage_env::EnvConfig::summary`]); for a
+/// run recorded before that field, that its preset's is assumed.
+fn environment(run: &serde_json::Value) -> String {
+    match run.get("env") {
+        Some(env) => serde_json::from_value::<sage_env::EnvConfig>(env.clone())
+            .map_or_else(|e| format!("unreadable ({e})"), |c| c.summary()),
+        None => "not recorded (a run of an earlier version): the preset's".to_string(),
+    }
+}
+
 /// The scored episodes per termination, as text: `3 collision, 1 max_steps` (`none`).
 fn termination_counts(records: &[EvalRecord]) -> String {
     let mut counts: BTreeMap<String, usize> = BTreeMap::new();
@@ -265,6 +275,7 @@ pub fn page(input: &PageInput) -> Result<String> {
         ("agent", s.agent.clone()),
         ("split", s.split.clone()),
         ("preset", setting("preset")),
+        ("environment", environment(run)),
         ("seed", setting("seed")),
         ("dataset", setting("dataset")),
         ("scenes", setting("scenes")),
