@@ -11,6 +11,7 @@
 
 use clap::CommandFactory;
 use sage_core::{Error, Result};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The value of `--config` in a raw command line, if any.
@@ -70,13 +71,29 @@ fn flag_value(v: &toml::Value) -> Option<String> {
 /// per_scene in c.toml`), so that clap's refusal of its value can say so.
 pub type Origins = Vec<(String, String)>;
 
-/// A command line with a config file's flags added.
+/// A config file's flags for a command line.
 #[derive(Debug)]
 pub struct Applied {
-    /// The command line with the added flags after the typed ones.
-    pub argv: Vec<String>,
+    /// The flags to add, each `--flag=value` (a bare `--flag` for a boolean `true`), so that a
+    /// value starting with `-` stays a value.
+    pub added: Vec<String>,
     /// Where each added flag came from.
     pub origins: Origins,
+}
+
+impl Applied {
+    /// `argv` with the added flags after the typed ones, before a typed `--` (after which
+    /// every word is a positional argument).
+    pub fn argv<T: Clone + From<String> + AsRef<std::ffi::OsStr>>(&self, argv: &[T]) -> Vec<T> {
+        let at = argv
+            .iter()
+            .position(|a| a.as_ref() == "--")
+            .unwrap_or(argv.len());
+        let mut out = argv[..at].to_vec();
+        out.extend(self.added.iter().cloned().map(T::from));
+        out.extend_from_slice(&argv[at..]);
+        out
+    }
 }
 
 /// Where the flag of a clap error's argument (`--yaw <YAW>`) came from, when a config file gave
@@ -89,15 +106,19 @@ pub fn origin_of<'a>(origins: &'a [(String, String)], arg: &str) -> Option<&'a s
         .map(|(_, origin)| origin.as_str())
 }
 
-/// `argv` with the flags of `text`'s table for `path` and its keys outside every table (the
-/// global flags) added where the command line does not give them. A boolean `true` adds the
-/// bare flag, `false` nothing.
+/// The flags of `text`'s tables for `path` that `argv` does not give: the command's own table,
+/// then the global flags of its groups' tables (`[data] threads = 1` for every `data`
+/// command), then the keys outside every table (the global flags); the first to give a flag
+/// wins. A boolean `true` adds the bare flag and `false` nothing, on flags that take no
+/// value; a flag that takes one gets the word. A flag the command line gives, or one that
+/// cannot go with a flag it gives, is not added.
 ///
 /// # Errors
 ///
-/// The text is not TOML (the error names the line); a table that names no command of `C`, or a
-/// key that names no flag of its table's command (each named with the file, wherever it is in
-/// the file); a value that is a table or date.
+/// The text is not TOML (the error names the line); a table that names no command of `C`, a
+/// key that names no flag of its table's command, the same flag spelt two ways in one table,
+/// or a value that is a table, a date or an array of tables (each named with the file,
+/// wherever it is in the file).
 pub fn apply<C: CommandFactory>(
     text: &str,
     file: &Path,
@@ -114,40 +135,59 @@ pub fn apply<C: CommandFactory>(
         .filter_map(|a| a.get_long().map(str::to_string))
         .collect();
     check_table(&root, &cmd, &globals, &[]).map_err(|e| e.in_file(file))?;
-    let mut table = Some(&root);
-    for name in path {
-        table = table
-            .and_then(|t| t.get(name.as_str()))
-            .and_then(toml::Value::as_table);
+    // The tables along the path, the command's own first.
+    let mut tables = vec![(&root, String::new())];
+    for (k, name) in path.iter().enumerate() {
+        let Some(t) = tables
+            .last()
+            .and_then(|(t, _)| t.get(name.as_str()))
+            .and_then(toml::Value::as_table)
+        else {
+            break;
+        };
+        tables.push((t, format!("[{}] ", path[..=k].join("."))));
     }
-    let mut applied = Applied {
-        argv: argv.to_vec(),
-        origins: Vec::new(),
-    };
+    let (root_table, root_name) = tables.remove(0);
+    tables.reverse();
+    tables.push((root_table, root_name));
     let leaf = path
         .iter()
         .try_fold(cmd.clone(), |c, name| c.find_subcommand(name).cloned());
-    let typed: Vec<&str> = argv
+    // Only the words before a typed `--` are flags.
+    let flags_end = argv.iter().position(|a| a == "--").unwrap_or(argv.len());
+    let typed: Vec<&str> = argv[..flags_end]
         .iter()
         .filter_map(|a| a.strip_prefix("--"))
         .map(|a| a.split('=').next().unwrap_or(a))
         .collect();
     // A flag the command line gives, or one it gives that cannot go with this flag (the
     // typed `--scale-points` overrides a file's `scale`, as the typed flag wins anywhere).
-    let given = |flag: &str| {
-        let name = flag.trim_start_matches('-');
+    let given = |name: &str| {
         typed.contains(&name)
             || leaf
                 .as_ref()
                 .is_some_and(|leaf| typed.iter().any(|t| conflict(leaf, name, t)))
     };
-    let mut add = |table: &toml::Table, name: &str| -> Result<()> {
-        for (key, value) in table {
+    // Whether the command's flag `name` takes a value (a global one: the root's).
+    let takes_value = |name: &str| {
+        leaf.iter()
+            .chain(std::iter::once(&cmd))
+            .flat_map(|c| c.get_arguments())
+            .find(|a| a.get_long() == Some(name))
+            .is_some_and(|a| a.get_action().takes_values())
+    };
+    let mut applied = Applied {
+        added: Vec::new(),
+        origins: Vec::new(),
+    };
+    for (table, name) in &tables {
+        for (key, value) in *table {
             if value.is_table() {
                 continue;
             }
-            let flag = format!("--{}", key.replace('_', "-"));
-            if given(&flag) || applied.origins.iter().any(|(f, _)| *f == flag) {
+            let flag_name = key.replace('_', "-");
+            let flag = format!("--{flag_name}");
+            if given(&flag_name) || applied.origins.iter().any(|(f, _)| *f == flag) {
                 continue;
             }
             let origin = format!("{name}{key}");
@@ -155,20 +195,18 @@ pub fn apply<C: CommandFactory>(
                 Error::format(&origin, "expected a string, number, boolean or list").in_file(file)
             })?;
             match value {
-                toml::Value::Boolean(true) => applied.argv.push(flag.clone()),
-                toml::Value::Boolean(false) => {}
-                _ => applied.argv.extend([flag.clone(), text]),
+                toml::Value::Boolean(on) if !takes_value(&flag_name) => {
+                    if *on {
+                        applied.added.push(flag.clone());
+                    }
+                }
+                _ => applied.added.push(format!("{flag}={text}")),
             }
             applied
                 .origins
                 .push((flag, format!("{origin} in {}", file.display())));
         }
-        Ok(())
-    };
-    if let Some(table) = table.filter(|_| !path.is_empty()) {
-        add(table, &format!("[{}] ", path.join(".")))?;
     }
-    add(&root, "")?;
     Ok(applied)
 }
 
@@ -204,7 +242,29 @@ fn check_table(
         .chain(at.iter().map(String::as_str))
         .collect::<Vec<_>>()
         .join(" ");
+    let mut spelt: BTreeMap<String, &str> = BTreeMap::new();
     for (key, value) in table {
+        let place = || {
+            if at.is_empty() {
+                key.clone()
+            } else {
+                format!("[{}] {key}", at.join("."))
+            }
+        };
+        if !value.is_table() {
+            if let Some(other) = spelt.insert(key.replace('_', "-"), key) {
+                return Err(Error::format(
+                    place(),
+                    format!("the same flag as `{other}`: give it once"),
+                ));
+            }
+            if flag_value(value).is_none() {
+                return Err(Error::format(
+                    place(),
+                    "expected a string, number, boolean or list",
+                ));
+            }
+        }
         if let Some(inner) = value.as_table() {
             let inner_at = [at, std::slice::from_ref(key)].concat();
             let Some(sub) = cmd.find_subcommand(key) else {
@@ -251,6 +311,7 @@ fn check_table(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Parser;
 
     fn args(s: &str) -> Vec<String> {
         s.split_whitespace().map(str::to_string).collect()
@@ -263,26 +324,26 @@ mod tests {
         assert_eq!(config_path(&argv).as_deref(), Some("c.toml"));
         let path = subcommand_path::<crate::Cli>(&argv);
         assert_eq!(path, ["data", "build"]);
-        let out = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv)
-            .unwrap()
-            .argv;
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
         assert_eq!(
-            out[argv.len()..],
-            args("--per-scene 20 --val 0.2")[..],
+            applied.added,
+            args("--per-scene=20 --val=0.2"),
             "the command line's --seed wins"
         );
         let demo = args("sage3d demo");
-        let out = apply::<crate::Cli>(text, Path::new("c.toml"), &["demo".into()], &demo)
-            .unwrap()
-            .argv;
-        assert_eq!(out[1..], args("demo --agents oracle,random")[..]);
+        let applied =
+            apply::<crate::Cli>(text, Path::new("c.toml"), &["demo".into()], &demo).unwrap();
+        assert_eq!(
+            applied.argv(&demo),
+            args("sage3d demo --agents=oracle,random")
+        );
         // No table for the command: nothing added.
         let nav = args("sage3d nav map S");
         let path = subcommand_path::<crate::Cli>(&nav);
         assert_eq!(
             apply::<crate::Cli>(text, Path::new("c.toml"), &path, &nav)
                 .unwrap()
-                .argv,
+                .argv(&nav),
             nav
         );
     }
@@ -295,25 +356,28 @@ mod tests {
         let path = subcommand_path::<crate::Cli>(&argv);
         let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
         assert_eq!(
-            applied.argv, argv,
+            applied.added,
+            Vec::<String>::new(),
             "the file's scale goes with neither typed flag"
         );
         let argv = args("sage3d scene import C --out S --scale-distance 2");
         let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
         assert_eq!(
-            applied.argv, argv,
+            applied.added,
+            Vec::<String>::new(),
             "the typed --scale-distance, alone, still wins"
         );
         let argv = args("sage3d render S --out R --camera cam.json");
         let path = subcommand_path::<crate::Cli>(&argv);
         let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
         assert_eq!(
-            applied.argv, argv,
+            applied.added,
+            Vec::<String>::new(),
             "a camera file sets the pose and size itself"
         );
         let argv = args("sage3d render S --out R");
         let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
-        assert_eq!(applied.argv[argv.len()..], args("--width 320 --yaw 30")[..]);
+        assert_eq!(applied.added, args("--width=320 --yaw=30"));
     }
 
     #[test]
@@ -344,7 +408,7 @@ mod tests {
         let argv = args("sage3d render S --out R");
         let path = subcommand_path::<crate::Cli>(&argv);
         let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
-        assert_eq!(applied.argv[argv.len()..], args("--yaw 30 --threads 2")[..]);
+        assert_eq!(applied.added, args("--yaw=30 --threads=2"));
         assert_eq!(
             origin_of(&applied.origins, "--yaw <YAW>"),
             Some("[render] yaw in c.toml")
@@ -387,5 +451,83 @@ mod tests {
             let e = check(text).unwrap_err();
             assert!(e.contains("c.toml") && e.contains(says), "{text:?}: {e}");
         }
+    }
+
+    #[test]
+    fn file_flags_go_before_a_typed_double_dash_and_keep_values_that_start_with_a_dash() {
+        let text = "[render]\nyaw = -30\nout = \"-dash dir\"\nforce = true\n";
+        let argv = args("sage3d render -- -dashscene");
+        let path = subcommand_path::<crate::Cli>(&argv);
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert_eq!(
+            applied.argv(&argv),
+            [
+                "sage3d",
+                "render",
+                "--force",
+                "--out=-dash dir",
+                "--yaw=-30",
+                "--",
+                "-dashscene"
+            ]
+        );
+        assert!(crate::Cli::try_parse_from(applied.argv(&argv)).is_ok());
+        // A word after `--` is a positional, not a typed flag.
+        let argv = args("sage3d render -- --yaw");
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert!(applied.added.contains(&"--yaw=-30".to_string()));
+    }
+
+    #[test]
+    fn a_boolean_on_a_flag_that_takes_a_value_is_its_word_for_clap_to_judge() {
+        let argv = args("sage3d render S --out R");
+        let path = subcommand_path::<crate::Cli>(&argv);
+        let applied =
+            apply::<crate::Cli>("[render]\nyaw = false\n", Path::new("c.toml"), &path, &argv)
+                .unwrap();
+        assert_eq!(applied.added, args("--yaw=false"));
+        let e = crate::Cli::try_parse_from(applied.argv(&argv))
+            .err()
+            .unwrap();
+        assert_eq!(e.kind(), clap::error::ErrorKind::ValueValidation);
+    }
+
+    #[test]
+    fn a_group_table_gives_its_commands_the_global_flags() {
+        let text = "threads = 4\n[data]\nthreads = 1\n[data.render]\nlimit = 2\n";
+        let argv = args("sage3d data render D --out O");
+        let path = subcommand_path::<crate::Cli>(&argv);
+        let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();
+        assert_eq!(applied.added, args("--limit=2 --threads=1"));
+        assert_eq!(
+            origin_of(&applied.origins, "--threads <THREADS>"),
+            Some("[data] threads in c.toml")
+        );
+    }
+
+    #[test]
+    fn one_flag_spelt_twice_and_values_no_flag_takes_are_errors_wherever_they_are() {
+        let check = |text: &str| {
+            apply::<crate::Cli>(
+                text,
+                Path::new("c.toml"),
+                &["demo".into()],
+                &args("sage3d demo"),
+            )
+            .unwrap_err()
+            .to_string()
+        };
+        let e = check("[data.build]\nper_scene = 1\nper-scene = 2\n");
+        assert!(
+            e.contains("[data.build] per_scene") && e.contains("give it once"),
+            "{e}"
+        );
+        let e = check("[render]\nyaw = 1979-05-27\n");
+        assert!(
+            e.contains("[render] yaw") && e.contains("expected a string"),
+            "{e}"
+        );
+        let e = check("[[render]]\nyaw = 1\n");
+        assert!(e.contains("render: expected a string"), "{e}");
     }
 }

@@ -102,11 +102,7 @@ fn command_line() -> sage_core::Result<(Vec<OsString>, config::Origins)> {
     let toml = std::fs::read_to_string(&file).map_err(|e| sage_core::Error::io(&file, e))?;
     let path = config::subcommand_path::<Cli>(&text);
     let applied = config::apply::<Cli>(&toml, &file, &path, &text)?;
-    let argv = raw
-        .into_iter()
-        .chain(applied.argv[text.len()..].iter().map(Into::into))
-        .collect();
-    Ok((argv, applied.origins))
+    Ok((applied.argv(&raw), applied.origins))
 }
 
 /// The parsed command line; clap's refusal of a flag the config file gave says where it came
@@ -129,9 +125,11 @@ fn main() -> ExitCode {
     quiet_on_closed_pipe();
     let cli = match command_line() {
         Ok((argv, origins)) => parse(argv, &origins),
+        // A config file is part of the command line: what is wrong with it is a usage error,
+        // as clap's are (exit status 2).
         Err(e) => {
             eprintln!("error: {e}");
-            return ExitCode::FAILURE;
+            return ExitCode::from(2);
         }
     };
     if let Some(n) = cli.threads

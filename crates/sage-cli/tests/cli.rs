@@ -499,7 +499,24 @@ fn a_config_file_supplies_flags_and_the_command_line_wins() {
     let out = sage3d(&["--config", s(&config), "scene", "synth", "--out", s(&scene)]);
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(
-        !out.status.success() && e.contains("sage3d.toml") && e.contains("line 2"),
+        out.status.code() == Some(2) && e.contains("sage3d.toml") && e.contains("line 2"),
         "{e}"
     );
+    // File flags go before a typed `--` (after it they would be positionals).
+    std::fs::write(
+        &config,
+        "[scene.synth]\nrooms = 2\nobjects = 8\ngaussians = 3000\n",
+    )
+    .unwrap();
+    let dashed = dir.path().join("dashed");
+    ok(&[
+        "--config",
+        s(&config),
+        "scene",
+        "synth",
+        "--out",
+        s(&dashed),
+        "--",
+    ]);
+    assert!(dashed.join("sage3d_run.json").is_file());
 }
