@@ -5,7 +5,7 @@ use sage_splat::Device;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 28] = [
+const NAMED_SETTINGS: [&str; 31] = [
     "jpeg_quality",
     "objects",
     "seed",
@@ -34,6 +34,9 @@ const NAMED_SETTINGS: [&str; 28] = [
     "sensors",
     "agent_height",
     "limit",
+    "answers",
+    "step",
+    "turn",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

@@ -358,4 +358,15 @@ fn the_choice_of_splat_bodies_reaches_the_run_record_and_a_resume_must_keep_it()
     let bad = render(&dir.path().join("bad"), &["--splat-bodies", "sometimes"]);
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("sometimes"));
+    // NaVILA's words cannot say 22.5 degrees: refused before anything is written, in flags.
+    let halves = dir.path().join("halves");
+    let run = render(&halves, &["--answers", "navila", "--turn", "22.5"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{err}");
+    assert!(
+        err.contains("--answers navila words the turn in whole degrees")
+            && err.contains("(--turn)"),
+        "{err}"
+    );
+    assert!(!halves.exists());
 }
