@@ -79,6 +79,9 @@ pub struct Applied {
     pub added: Vec<String>,
     /// Where each added flag came from.
     pub origins: Origins,
+    /// The file's flags left out because a typed flag cannot go with them, each said in words
+    /// (the typed flag wins, and the user should know what it displaced).
+    pub left_out: Vec<String>,
 }
 
 impl Applied {
@@ -110,8 +113,8 @@ pub fn origin_of<'a>(origins: &'a [(String, String)], arg: &str) -> Option<&'a s
 /// then the global flags of its groups' tables (`[data] threads = 1` for every `data`
 /// command), then the keys outside every table (the global flags); the first to give a flag
 /// wins. A boolean `true` adds the bare flag and `false` nothing, on flags that take no
-/// value; a flag that takes one gets the word. A flag the command line gives, or one that
-/// cannot go with a flag it gives, is not added.
+/// value; a flag that takes one gets the word. A flag the command line gives is not added, nor
+/// one that cannot go with a flag it gives ([`Applied::left_out`] says which).
 ///
 /// # Errors
 ///
@@ -162,11 +165,10 @@ pub fn apply<C: CommandFactory>(
         .collect();
     // A flag the command line gives, or one it gives that cannot go with this flag (the
     // typed `--scale-points` overrides a file's `scale`, as the typed flag wins anywhere).
-    let given = |name: &str| {
-        typed.contains(&name)
-            || leaf
-                .as_ref()
-                .is_some_and(|leaf| typed.iter().any(|t| conflict(leaf, name, t)))
+    let conflicting = |name: &str| {
+        leaf.as_ref()
+            .and_then(|leaf| typed.iter().find(|t| conflict(leaf, name, t)))
+            .copied()
     };
     // Whether the command's flag `name` takes a value (a global one: the root's).
     let takes_value = |name: &str| {
@@ -179,6 +181,7 @@ pub fn apply<C: CommandFactory>(
     let mut applied = Applied {
         added: Vec::new(),
         origins: Vec::new(),
+        left_out: Vec::new(),
     };
     for (table, name) in &tables {
         for (key, value) in *table {
@@ -187,10 +190,19 @@ pub fn apply<C: CommandFactory>(
             }
             let flag_name = key.replace('_', "-");
             let flag = format!("--{flag_name}");
-            if given(&flag_name) || applied.origins.iter().any(|(f, _)| *f == flag) {
+            if typed.contains(&flag_name.as_str())
+                || applied.origins.iter().any(|(f, _)| *f == flag)
+            {
                 continue;
             }
             let origin = format!("{name}{key}");
+            if let Some(typed) = conflicting(&flag_name) {
+                applied.left_out.push(format!(
+                    "{origin} in {} is left out: it cannot go with the command line's --{typed}",
+                    file.display()
+                ));
+                continue;
+            }
             let text = flag_value(value).ok_or_else(|| {
                 Error::format(&origin, "expected a string, number, boolean or list").in_file(file)
             })?;
@@ -374,6 +386,13 @@ mod tests {
             applied.added,
             Vec::<String>::new(),
             "a camera file sets the pose and size itself"
+        );
+        assert_eq!(
+            applied.left_out,
+            [
+                "[render] width in c.toml is left out: it cannot go with the command line's --camera",
+                "[render] yaw in c.toml is left out: it cannot go with the command line's --camera",
+            ]
         );
         let argv = args("sage3d render S --out R");
         let applied = apply::<crate::Cli>(text, Path::new("c.toml"), &path, &argv).unwrap();

@@ -102,6 +102,9 @@ fn command_line() -> sage_core::Result<(Vec<OsString>, config::Origins)> {
     let toml = std::fs::read_to_string(&file).map_err(|e| sage_core::Error::io(&file, e))?;
     let path = config::subcommand_path::<Cli>(&text);
     let applied = config::apply::<Cli>(&toml, &file, &path, &text)?;
+    for left_out in &applied.left_out {
+        eprintln!("note: {left_out}");
+    }
     Ok((applied.argv(&raw), applied.origins))
 }
 

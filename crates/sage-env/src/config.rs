@@ -163,10 +163,12 @@ pub const PRESETS: [&str; 7] = [
     "custom_small",
 ];
 
-/// The steps of SAGE-3D's training-data presets (`generate_actions.py`) beyond `vlnce`'s:
-/// (name, forward metres, turn degrees). The training-data render walks with them, and an
-/// evaluation of a model trained on such data moves with them (`sage` otherwise).
-pub const TRAINING_STEPS: [(&str, f32, f32); 3] = [
+/// The steps of SAGE-3D's training-data presets (`generate_actions.py`): (name, forward
+/// metres, turn degrees). The training-data render walks with them, and an evaluation of a
+/// model trained on such data moves with them: the environment presets of those names, `vlnce`
+/// (whose steps are the default ones) among them.
+pub const TRAINING_STEPS: [(&str, f32, f32); 4] = [
+    ("vlnce", 0.25, 15.0),
     ("navila_small", 0.35, 30.0),
     ("navila_large", 0.75, 15.0),
     ("custom_small", 0.50, 30.0),
@@ -572,6 +574,17 @@ mod tests {
             "wheeled; 224x224 rgb, depth at HFOV 90° (camera at the profile's height); \
              0.25 m / 15° steps; 500 steps, success within 1 m"
         );
+        // Every training-data preset's steps are those of the environment preset of its name.
+        for (name, step, turn) in TRAINING_STEPS {
+            let c = EnvConfig::preset(name).unwrap();
+            assert!(
+                matches!(
+                    c.actions,
+                    ActionSpace::Discrete { forward, turn_deg, .. } if forward == step && turn_deg == turn
+                ),
+                "{name}"
+            );
+        }
         let n = EnvConfig::preset("navila_small").unwrap();
         n.validate().unwrap();
         assert_eq!(

@@ -94,6 +94,33 @@ pub fn env_config(settings: &EvalSettings, agent: &AgentMaker) -> Result<EnvConf
     })
 }
 
+/// The environment an evaluation of `settings` runs in: a built-in agent's (`maker`) without
+/// `overrides` is the one `sage3d eval` runs it in ([`env_config`]); otherwise the preset with
+/// `overrides` (a JSON object, as [`EnvConfig::with_overrides`] takes them; an agent of the
+/// caller's sees the preset's images), rendered on the settings' device with its bodies. The
+/// Python front end runs its evaluations in this, and merges their shards with it.
+///
+/// # Errors
+///
+/// An unknown preset; overrides that name no field or make an invalid environment.
+pub fn evaluation_env(
+    settings: &EvalSettings,
+    maker: Option<&AgentMaker>,
+    overrides: Option<&serde_json::Value>,
+) -> Result<EnvConfig> {
+    match (maker, overrides) {
+        (Some(maker), None) => env_config(settings, maker).within("preset"),
+        _ => Ok(EnvConfig {
+            device: settings.device,
+            splat_bodies: settings.splat_bodies,
+            ..EnvConfig::with_overrides(
+                &settings.preset,
+                overrides.unwrap_or(&serde_json::json!({})),
+            )?
+        }),
+    }
+}
+
 /// What [`run_with`] takes from its caller instead of deriving it from the settings: the
 /// environment, the agents and the episodes of the split to run. [`run`] fills it from the
 /// settings; other front ends (the Python package) bring their own agents or run one shard.
@@ -401,19 +428,22 @@ pub(crate) fn recorded_settings(settings: &EvalSettings, agent: &str) -> Result<
 /// The environment as the run record stores it (its `env`): `config` serialized, each float
 /// written as the `f32` it is (`1.2`, where the `f64` it widens to would read
 /// `1.2000000476837158`), so the record reads as the config was given and reads back as the
-/// same config; objects' keys sorted, so the same config is the same bytes.
+/// same config; objects' keys sorted, so the same config is the same bytes. Only a valid
+/// config is recorded ([`EnvConfig::validate`]: a non-finite float would be written `null`,
+/// which no reader of the record takes back).
 ///
 /// # Errors
 ///
-/// A config serde cannot write (a float that is not finite).
-pub(crate) fn recorded_env(config: &EnvConfig) -> Result<serde_json::Value> {
+/// A config the validation refuses, naming the field.
+pub(crate) fn env_record(config: &EnvConfig) -> Result<serde_json::Value> {
+    config.validate().within("environment")?;
     let text =
         serde_json::to_string(config).map_err(|e| Error::invalid(format!("environment: {e}")))?;
     serde_json::from_str(&text).map_err(|e| Error::invalid(format!("environment: {e}")))
 }
 
 /// What an evaluation's run record says of its run besides its status: the recorded settings
-/// ([`recorded_settings`]), the environment it ran in ([`recorded_env`]; `None` for a
+/// ([`recorded_settings`]), the environment it ran in ([`env_record`]; `None` for a
 /// rescoring of a run recorded before the environment was), the split file's hash and the
 /// hashes of its scenes' files ([`scene_inputs`]).
 pub(crate) struct RecordedRun<'a> {
@@ -511,16 +541,11 @@ pub(crate) fn open_split(
         ))
         .in_file(&settings.scenes));
     }
+    // Checked before the folder is made: a bad environment leaves no record to resume.
+    let env = env_record(env)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let recorded = recorded_settings(settings, agent)?;
-    claim_run_folder(
-        out,
-        &recorded,
-        &recorded_env(env)?,
-        &file,
-        &dataset_hash,
-        &scenes,
-    )?;
+    claim_run_folder(out, &recorded, &env, &file, &dataset_hash, &scenes)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let done = records::resume(&out.join(RECORDS_FILE), &ids)?;
     Ok(Split {

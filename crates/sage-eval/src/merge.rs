@@ -2,7 +2,7 @@
 //! run folder one evaluation over the union would have written.
 
 use crate::evaluator::{
-    RecordedRun, env_config, mark_unfinished, recorded_env, recorded_settings, scene_inputs,
+    RecordedRun, env_config, env_record, mark_unfinished, recorded_settings, scene_inputs,
 };
 use crate::folder::{RECORDS_FILE, SUMMARY_FILE, mark_finished};
 use crate::records::EvalRecord;
@@ -117,9 +117,9 @@ fn merge_unfinished(
     let dirs = sage_io::scenes::scene_dirs_by_name(&settings.scenes).unwrap_or_default();
     let scenes = scene_inputs(&episodes, &dirs);
     let env = match env {
-        Some(env) => Some(recorded_env(env)?),
+        Some(env) => Some(env_record(env)?),
         None => plain_env(settings, agent)
-            .map(|e| recorded_env(&e))
+            .map(|e| env_record(&e))
             .transpose()?,
     };
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;

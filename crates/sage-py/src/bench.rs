@@ -143,7 +143,8 @@ pub fn evaluate<'py>(
     let seed = settings.seed;
     let factory = agent.clone().unbind();
     let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
-    let config = run_config(&settings, maker.as_ref(), overrides)?;
+    let overrides = overrides.map(|o| from_json(o, "overrides")).transpose()?;
+    let config = sage_eval::evaluation_env(&settings, maker.as_ref(), overrides.as_ref()).py()?;
     let make = || -> Result<Box<dyn Agent>> {
         match &maker {
             Some(maker) => maker.build(seed),
@@ -259,39 +260,17 @@ struct Evaluated {
     table: String,
 }
 
-/// The environment [`evaluate`] runs in: a built-in agent's (`maker`) without `overrides` is
-/// the one it has under `sage3d eval`; otherwise `settings`' preset with `overrides` (JSON),
-/// rendered on `settings`' device with its bodies.
-fn run_config(
-    settings: &sage_eval::EvalSettings,
-    maker: Option<&AgentMaker>,
-    overrides: Option<&str>,
-) -> PyResult<sage_env::EnvConfig> {
-    match (maker, overrides) {
-        (Some(maker), None) => sage_eval::env_config(settings, maker)
-            .map_err(|e| e.within("preset"))
-            .py(),
-        _ => Ok(sage_env::EnvConfig {
-            device: settings.device,
-            splat_bodies: settings.splat_bodies,
-            ..sage_env::EnvConfig::with_overrides(
-                &settings.preset,
-                &from_json(overrides.unwrap_or("{}"), "overrides")?,
-            )
-            .py()?
-        }),
-    }
-}
-
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one
 /// run folder `out`: `episodes.jsonl` sorted by episode id, `summary.json` and
 /// `sage3d_run.json`, the same bytes as one `sage3d eval` over the union writes them, then
 /// its report.
 /// Returns the summary. An episode recorded by two shards is an error. `device` is the one the
 /// shards rendered on (their run records name it when it is not the CPU); `overrides` those
-/// they ran with ([`evaluate`]'s), so that the run record holds their environment.
+/// they ran with ([`evaluate`]'s) and `python_agent` whether the agent was a Python one (not a
+/// built-in agent named `agent_name`), so that the run record holds their environment
+/// ([`sage_eval::evaluation_env`]).
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent_name, shards, overrides=None, **options))]
+#[pyo3(signature = (dataset, scenes, out, agent_name, shards, overrides=None, python_agent=false, **options))]
 #[allow(clippy::too_many_arguments)]
 pub fn merge_eval<'py>(
     py: Python<'py>,
@@ -301,25 +280,29 @@ pub fn merge_eval<'py>(
     agent_name: String,
     shards: Vec<String>,
     overrides: Option<&str>,
+    python_agent: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    // A built-in agent's records bear its name; any other name is a Python agent's.
-    let builtin = agent_name
-        .parse::<AgentKind>()
-        .ok()
-        .filter(|k| k.to_string() == agent_name);
+    // A built-in agent's records bear its name (`AgentKind`'s words).
+    let builtin: Option<AgentKind> = (!python_agent).then(|| agent_name.parse().ok()).flatten();
     let kind = builtin.clone().unwrap_or(AgentKind::Forward);
     let settings = eval_options(py, scenes, options)?
         .settings(&dataset, kind)
         .py()?;
-    let maker = builtin.as_ref().map(AgentKind::maker).transpose().py()?;
-    let env = run_config(&settings, maker.as_ref(), overrides)?;
+    let overrides = overrides.map(|o| from_json(o, "overrides")).transpose()?;
+    // A built-in agent that cannot be made here (its replay file is where the shards ran)
+    // and ran without overrides leaves the environment to the merge, which records none.
+    let maker = builtin.as_ref().and_then(|k| k.maker().ok());
+    let env = (python_agent || maker.is_some() || overrides.is_some())
+        .then(|| sage_eval::evaluation_env(&settings, maker.as_ref(), overrides.as_ref()))
+        .transpose()
+        .py()?;
     let (summary, _) = py
         .detach(|| {
             sage_pipeline::evaluate::merge(
                 &settings,
                 &agent_name,
-                Some(&env),
+                env.as_ref(),
                 &shards,
                 &out,
                 &|_, _| {},

@@ -3,7 +3,8 @@
 //! centimetres).
 
 use sage_core::{Error, Result};
-use sage_env::{Action, ActionSpace, EnvConfig};
+use sage_env::Action;
+use sage_env::config::TRAINING_STEPS;
 use serde::{Deserialize, Serialize};
 
 /// Motions per trajectory at most, the published default: the published action generator
@@ -120,17 +121,10 @@ impl PresetName {
     }
 
     /// The preset, with the published cap of 50 motions: the steps of the environment preset
-    /// of the same name ([`sage_env::config::TRAINING_STEPS`]; `vlnce`'s), so that a model
-    /// trained on the data is evaluated moving as it was taught (`sage3d eval --preset`).
+    /// of the same name ([`TRAINING_STEPS`], in the order of [`PresetName::ALL`]), so that a
+    /// model trained on the data is evaluated moving as it was taught (`sage3d eval --preset`).
     pub fn preset(self) -> ActionPreset {
-        let (step_m, turn_deg) = match EnvConfig::preset(self.as_str()).map(|c| c.actions) {
-            Ok(ActionSpace::Discrete {
-                forward, turn_deg, ..
-            }) => (forward, turn_deg),
-            other => unreachable!(
-                "every training-data preset is a discrete environment preset: {other:?}"
-            ),
-        };
+        let (_, step_m, turn_deg) = TRAINING_STEPS[self as usize];
         ActionPreset {
             name: self.as_str().to_string(),
             step_m,
@@ -239,20 +233,21 @@ impl ActionPreset {
             return Ok(());
         }
         // f32 holds 0.35 as 0.3499999940…: whole within a thousandth is whole.
-        let whole = |v: f64| (v - v.round()).abs() < 1e-3;
+        // Whole and at least one: a step of 0.004 cm would read "move forward 0 cm".
+        let whole = |v: f64| (v - v.round()).abs() < 1e-3 && v.round() >= 1.0;
         let cm = f64::from(self.step_m) * 100.0;
         if !whole(cm) {
             return Err(Error::invalid(format!(
-                "`answers` navila words the step in whole centimetres, but {} m is {} cm: give a \
-                 step of whole centimetres (`step`) or keep `answers` sage",
+                "`answers` navila words the step in whole centimetres (at least 1), but {} m is {} \
+                 cm: give a step of whole centimetres (`step`) or keep `answers` sage",
                 self.step_m,
                 (cm * 1000.0).round() / 1000.0
             )));
         }
         if !whole(f64::from(self.turn_deg)) {
             return Err(Error::invalid(format!(
-                "`answers` navila words the turn in whole degrees, but it is {} degrees: give a \
-                 turn of whole degrees (`turn`) or keep `answers` sage",
+                "`answers` navila words the turn in whole degrees (at least 1), but it is {} \
+                 degrees: give a turn of whole degrees (`turn`) or keep `answers` sage",
                 self.turn_deg
             )));
         }
@@ -360,6 +355,16 @@ mod tests {
     }
 
     #[test]
+    fn the_presets_are_the_environment_table_in_order() {
+        for (p, (name, step, turn)) in PresetName::ALL.iter().zip(TRAINING_STEPS) {
+            assert_eq!(p.as_str(), name);
+            let preset = p.preset();
+            assert_eq!((preset.step_m, preset.turn_deg), (step, turn));
+        }
+        assert_eq!(PresetName::ALL.len(), TRAINING_STEPS.len());
+    }
+
+    #[test]
     fn navila_answers_speak_whole_centimetres_and_refuse_fractions() {
         for (name, forward, left) in [
             ("navila_small", "move forward 35 cm", "turn left 30 degree"),
@@ -403,6 +408,12 @@ mod tests {
             .to_string();
         assert!(e.contains("`answers`") && e.contains("22.5 degrees"), "{e}");
         assert_eq!(half.words(Action::TurnLeft), "turn left 22.5 degree");
+        // Nor a step or turn that would read as 0.
+        for (step, turn) in [(Some(0.000_004), None), (None, Some(0.0004))] {
+            let tiny = ActionPreset::with(base.clone(), step, turn, None).unwrap();
+            let e = tiny.worded(Answers::Navila).unwrap_err().to_string();
+            assert!(e.contains("(at least 1)"), "{e}");
+        }
         // Names parse the same way from a flag and from JSON; a bad one is named.
         assert_eq!("navila".parse::<Answers>().unwrap(), Answers::Navila);
         let read: Answers = serde_json::from_str("\"sage\"").unwrap();

@@ -33,7 +33,7 @@ use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sage_core::{Error, Result};
-use sage_env::EnvConfig;
+use sage_env::{ActionSpace, EnvConfig};
 use sage_eval::EvalRecord;
 use sage_physics::AgentProfile;
 use serde::Deserialize;
@@ -164,12 +164,26 @@ pub fn serve(
     })
 }
 
+/// The environment a run is viewed in: the one it recorded (camera, profile, task), moving with
+/// its steps; a run that moved by velocities (a pose replay, a Python run's ground actions)
+/// has no step for the keys, so explore sessions take its preset's steps.
+fn explorable(env: &EnvConfig, preset: &str) -> Result<EnvConfig> {
+    let actions = match env.actions {
+        ActionSpace::Discrete { .. } => env.actions,
+        _ => EnvConfig::preset(preset)?.actions,
+    };
+    Ok(EnvConfig {
+        actions,
+        ..env.clone()
+    })
+}
+
 /// The state of a viewer of `opts`.
 fn open_app(opts: &ViewOptions) -> Result<App> {
     let (subject, dirs) = subject::open(opts)?;
     let (config, play_config, title) = match &subject {
         Subject::Run { settings, env, .. } => (
-            (**env).clone(),
+            explorable(env, &settings.preset)?,
             None,
             format!("run: {} on {}", settings.agent, settings.split),
         ),

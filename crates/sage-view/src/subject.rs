@@ -5,7 +5,7 @@ use sage_core::{Error, Result, ResultExt};
 use sage_dataset::Episode;
 use sage_dataset::folder::{non_empty_splits, scenes_folder, split_episodes};
 use sage_env::EnvConfig;
-use sage_eval::report::{read_instructions, read_run, recorded_env};
+use sage_eval::report::{read_instructions, read_run, run_env};
 use sage_eval::{EvalRecord, EvalSettings, HumanRun};
 use sage_io::run::recorded_command;
 use sage_metrics::{Dtw, Mode};
@@ -81,7 +81,7 @@ pub enum Subject {
     Run {
         /// The run's settings.
         settings: Box<EvalSettings>,
-        /// The environment its episodes ran in ([`sage_eval::report::recorded_env`]).
+        /// The environment its episodes ran in ([`sage_eval::report::run_env`]).
         env: Box<EnvConfig>,
         /// Its records, by episode id order.
         records: Vec<EvalRecord>,
@@ -139,7 +139,7 @@ pub fn open(opts: &ViewOptions) -> Result<(Subject, BTreeMap<String, PathBuf>)> 
         let instructions = read_instructions(&files.run, &settings.split).unwrap_or_default();
         return Ok((
             Subject::Run {
-                env: Box::new(recorded_env(&files.run).in_file(path)?),
+                env: Box::new(run_env(&files.run).in_file(path)?),
                 settings: Box::new(settings),
                 records: files.records,
                 instructions,

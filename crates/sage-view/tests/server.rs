@@ -546,4 +546,13 @@ fn a_run_is_viewed_in_the_environment_it_recorded() {
     assert_eq!(info["kind"], "run");
     assert_eq!(info["preset"]["max_steps"], 77, "{info}");
     assert_eq!(info["preset"]["hfov_deg"], 70.0, "{info}");
+    drop(v);
+    // A run that moved by velocities has no step for the keys: its preset's steps drive
+    // exploring, its camera and task stay.
+    record["env"]["actions"] = json!({"kind": "ground", "max_dt": 0.5});
+    std::fs::write(&record_path, record.to_string()).unwrap();
+    let v = start(options(&out));
+    let info = get_json(&v, "/api/info");
+    assert_eq!(info["preset"]["forward"], 0.25, "{info}");
+    assert_eq!(info["preset"]["max_steps"], 77, "{info}");
 }

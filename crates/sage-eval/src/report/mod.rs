@@ -490,7 +490,7 @@ fn remove_stale_videos(
 ///
 /// An `env` that is not an environment config or one the validation refuses, or (without
 /// `env`) no preset or an unknown one, naming the run record's field.
-pub fn recorded_env(run: &serde_json::Value) -> Result<EnvConfig> {
+pub fn run_env(run: &serde_json::Value) -> Result<EnvConfig> {
     let config = match run.get("env") {
         Some(env) => {
             let config: EnvConfig = serde_json::from_value(env.clone())
@@ -529,7 +529,7 @@ fn write_videos<'a>(
     if chosen.is_empty() {
         return Ok(Vec::new());
     }
-    let config = recorded_env(run)?;
+    let config = run_env(run)?;
     let videos_dir = run_dir.join(REPORT_DIR).join(video::VIDEOS_DIR);
     std::fs::create_dir_all(&videos_dir).map_err(|e| Error::io(&videos_dir, e))?;
     let instruction = |id: &str| match instructions {

@@ -172,6 +172,7 @@ def merge_eval(
     agent_name: str,
     shards: Sequence[str],
     overrides: str | None = None,
+    python_agent: bool = False,
     **options: Any,
 ) -> _Json: ...
 def run_records(run: _Path) -> str: ...

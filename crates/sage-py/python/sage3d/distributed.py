@@ -252,7 +252,8 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
         tasks.close()
     tasks.raise_failed("distributed evaluation", len(names), os.path.join(out, "shards"))
     return _sage3d.merge_eval(dataset, scenes, out, name, [texts[n] for n in names],
-                              overrides=overrides, **options)
+                              overrides=overrides, python_agent=not isinstance(agent, str),
+                              **options)
 
 
 def _render_training_scene(settings_json, scene, done):
