@@ -203,9 +203,8 @@ pub fn apply<C: CommandFactory>(
                 ));
                 continue;
             }
-            let text = flag_value(value).ok_or_else(|| {
-                Error::format(&origin, "expected a string, number, boolean or list").in_file(file)
-            })?;
+            // `check_table` has refused, file-wide, every value no flag takes.
+            let text = flag_value(value).unwrap_or_default();
             match value {
                 toml::Value::Boolean(on) if !takes_value(&flag_name) => {
                     if *on {
