@@ -185,9 +185,8 @@ fn material_colors(
     ins_id: &str,
     expected: usize,
 ) -> Result<Option<Vec<Option<[f32; 3]>>>> {
-    let path = dir
-        .join(sage_scene::scene::files::MESHES)
-        .join(format!("{ins_id}.obj"));
+    let path =
+        sage_scene::scene::object_file(&dir.join(sage_scene::scene::files::MESHES), ins_id, "obj")?;
     if !path.is_file() {
         return Ok(None);
     }

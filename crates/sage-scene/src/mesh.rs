@@ -137,12 +137,9 @@ impl TriMesh {
             .unwrap_or("")
             .to_ascii_lowercase();
         let mesh = match ext.as_str() {
-            "obj" => load_obj(path),
+            "obj" => file_size(path).and_then(|_| load_obj(path)),
             "gltf" | "glb" => load_gltf(path),
-            "ply" => {
-                let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-                read_ply(&bytes)
-            }
+            "ply" => read_file(path).and_then(|bytes| read_ply(&bytes)),
             _ => Err(Error::invalid(format!(
                 "unknown mesh format '.{ext}' (expected .obj, .gltf, .glb or .ply)"
             ))),
@@ -151,6 +148,154 @@ impl TriMesh {
         mesh.validate().in_file(path)?;
         Ok(mesh)
     }
+}
+
+/// The size limit on a mesh file and on each external glTF buffer, checked before either is
+/// read: the size and variable of [`MESH_MB`], so that one setting raises both, named for what
+/// it limits here. Without it a huge file (or a buffer declaring one) takes memory without end.
+const MESH_FILE_MB: Limit = Limit {
+    what: "a mesh file",
+    ..MESH_MB
+};
+
+/// The size of the mesh file `path`, checked: it must be a regular file (not a device or a pipe,
+/// which never end) of at most [`MESH_FILE_MB`].
+///
+/// # Errors
+///
+/// No such file, not a regular file, or over the limit; the caller names the file.
+fn file_size(path: &Path) -> Result<u64> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::invalid("not a regular file"));
+    }
+    MESH_FILE_MB.check(meta.len(), "file size")?;
+    Ok(meta.len())
+}
+
+/// The bytes of the mesh file `path`, its size checked first ([`file_size`]).
+fn read_file(path: &Path) -> Result<Vec<u8>> {
+    let size = file_size(path)?;
+    read_at_most(path, size).map_err(|e| Error::io(path, e))
+}
+
+/// The first `len` bytes of the file `path` (fewer when it is shorter), read into a buffer of
+/// that size: a file that grows while it is read cannot make it larger.
+fn read_at_most(path: &Path, len: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path)?;
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+    file.take(len).read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// Why the buffer `uri` of a glTF file may not be read, or `None`: it must be a relative path
+/// that stays in the glTF file's folder. Refused: an empty uri, an absolute path, a scheme or a
+/// drive (`file:`, `http:`, `C:`; any `:`), a `..` component (`\` counted as a separator, as
+/// Windows-made files use it) and control characters. The uri is not percent-decoded (this
+/// reader never has), so `%2e%2e` is a literal name, not `..`.
+fn buffer_uri_problem(uri: &str) -> Option<&'static str> {
+    if uri.is_empty() {
+        Some("is empty")
+    } else if uri.starts_with(['/', '\\']) {
+        Some("is an absolute path")
+    } else if uri.contains(':') {
+        Some("names a scheme or a drive (only files beside the glTF file are read)")
+    } else if uri.split(['/', '\\']).any(|part| part == "..") {
+        Some("has a '..' component")
+    } else if uri.chars().any(char::is_control) {
+        Some("holds a control character")
+    } else {
+        None
+    }
+}
+
+/// A buffer `uri` as error messages show it: escaped, and cut short.
+fn shown_uri(uri: &str) -> String {
+    uri.chars()
+        .take(200)
+        .collect::<String>()
+        .escape_debug()
+        .to_string()
+}
+
+/// Checks the external buffers of a glTF file before any is read: each uri
+/// ([`buffer_uri_problem`]; `data:` ones are left to the reader, which refuses them), and the
+/// declared `byteLength`s against [`MESH_FILE_MB`], each alone and all together (two buffers
+/// naming the same large file would otherwise each pass).
+///
+/// # Errors
+///
+/// Each names `buffers[i].uri` or `buffers[i].byteLength`; the caller names the glTF file.
+fn check_buffers(gltf: &gltf::Gltf) -> Result<()> {
+    let mut declared = 0u64;
+    for (i, buffer) in gltf.buffers().enumerate() {
+        let gltf::buffer::Source::Uri(uri) = buffer.source() else {
+            continue;
+        };
+        if uri.starts_with("data:") {
+            continue;
+        }
+        if let Some(problem) = buffer_uri_problem(uri) {
+            return Err(Error::format(
+                format!("buffers[{i}].uri"),
+                format!(
+                    "'{}' {problem}: a buffer must be a file in the glTF file's folder or below \
+                     it, named by a relative path",
+                    shown_uri(uri)
+                ),
+            ));
+        }
+        let length = buffer.length() as u64;
+        MESH_FILE_MB.check(length, &format!("buffers[{i}].byteLength"))?;
+        declared = declared.saturating_add(length);
+    }
+    MESH_FILE_MB.check(
+        declared,
+        "buffers[*].byteLength (the external buffers together)",
+    )
+}
+
+/// The bytes of buffer `i` of the glTF file in `dir`, external at `uri` (checked by
+/// [`check_buffers`]) and declared `byte_length` long. The file must be a regular file holding
+/// at least that many bytes, which is checked before any byte is read; then exactly
+/// `byte_length` bytes are read.
+///
+/// # Errors
+///
+/// Each names `buffers[i].uri`; the caller names the glTF file.
+fn read_buffer(dir: &Path, i: usize, uri: &str, byte_length: u64) -> Result<Vec<u8>> {
+    let at = format!("buffers[{i}].uri");
+    let shown = || shown_uri(uri);
+    let p = dir.join(uri);
+    let unreadable =
+        |e: std::io::Error| format!("'{}' cannot be read ({}): {e}", shown(), p.display());
+    let short = |found: u64| {
+        format!(
+            "'{}' holds {found} bytes; its byteLength declares {byte_length}",
+            shown()
+        )
+    };
+    let meta = std::fs::metadata(&p).map_err(|e| Error::format(&at, unreadable(e)))?;
+    if !meta.is_file() {
+        return Err(Error::format(
+            at,
+            format!(
+                "'{}' is not a regular file ({}): a device or a pipe may never end",
+                shown(),
+                p.display()
+            ),
+        ));
+    }
+    if meta.len() < byte_length {
+        return Err(Error::format(at, short(meta.len())));
+    }
+    let data = read_at_most(&p, byte_length).map_err(|e| Error::format(&at, unreadable(e)))?;
+    if (data.len() as u64) < byte_length {
+        // The file shrank between the check and the read.
+        return Err(Error::format(at, short(data.len() as u64)));
+    }
+    Ok(data)
 }
 
 /// Reads a PLY mesh (`vertex` x y z, `face` `vertex_indices`/`vertex_index` lists; polygons
@@ -403,10 +548,11 @@ fn check_position_accessors(bytes: &[u8]) -> Result<()> {
 }
 
 fn load_gltf(path: &Path) -> Result<TriMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = read_file(path)?;
     check_position_accessors(&bytes)?;
     let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| Error::format("gltf", e.to_string()))?;
     let dir = path.parent().unwrap_or(Path::new("."));
+    check_buffers(&gltf)?;
     let mut buffers = Vec::new();
     for (i, buffer) in gltf.buffers().enumerate() {
         let data = match buffer.source() {
@@ -420,10 +566,7 @@ fn load_gltf(path: &Path) -> Result<TriMesh> {
                     "embedded data: URIs are not supported; use .glb or an external .bin",
                 ));
             }
-            gltf::buffer::Source::Uri(uri) => {
-                let p = dir.join(uri);
-                std::fs::read(&p).map_err(|e| Error::io(&p, e))?
-            }
+            gltf::buffer::Source::Uri(uri) => read_buffer(dir, i, uri, buffer.length() as u64)?,
         };
         if data.len() < buffer.length() {
             return Err(Error::format(

@@ -144,13 +144,9 @@ impl OccupancyMap {
     }
 }
 
-fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<[f64; 3]> {
-    let (key, value) = keys
-        .iter()
-        .find_map(|k| v.get(*k).map(|x| (*k, x)))
-        .ok_or_else(|| {
-            Error::format(keys.join("/"), "missing (expected a 2- or 3-number array)")
-        })?;
+/// A corner given as a 2- or 3-number array under `key` (a missing z reads as 0), with the
+/// number of values the file gave.
+fn corner_at(key: &str, value: &Value) -> Result<([f64; 3], usize)> {
     let arr = value
         .as_array()
         .filter(|a| a.len() == 2 || a.len() == 3)
@@ -163,11 +159,55 @@ fn vec3_field(v: &Value, keys: [&str; 2]) -> Result<[f64; 3]> {
             .filter(|f| (*f as f32).is_finite())
             .ok_or_else(|| Error::format(format!("{key}[{i}]"), "expected a finite number"))?;
     }
-    Ok(out)
+    Ok((out, arr.len()))
+}
+
+/// A corner of the box, under either of its two spellings `keys` (`min`/`lower`,
+/// `max`/`upper`), with the key it was read from and the number of values it has. Where the
+/// file gives both they must agree (at the single precision the map holds them at, on the axes
+/// both give): a file whose two spellings disagree has no one box, and taking either would
+/// place the map silently wrong.
+///
+/// # Errors
+///
+/// Neither key, a value that is not 2 or 3 finite numbers, or two that disagree, naming both.
+fn corner(v: &Value, keys: [&'static str; 2]) -> Result<(&'static str, [f64; 3], usize)> {
+    let mut found = Vec::new();
+    for key in keys {
+        if let Some(value) = v.get(key) {
+            found.push((key, corner_at(key, value)?));
+        }
+    }
+    match found[..] {
+        [] => Err(Error::format(
+            keys.join("/"),
+            "missing (expected a 2- or 3-number array)",
+        )),
+        [(key, (p, n))] => Ok((key, p, n)),
+        [(a, (p, n)), (b, (q, m)), ..] => {
+            if let Some(i) = (0..n.min(m)).find(|&i| p[i] as f32 != q[i] as f32) {
+                return Err(Error::format(
+                    format!("{a}[{i}]/{b}[{i}]"),
+                    format!(
+                        "{a}[{i}] is {} but {b}[{i}] is {}: the two spellings of one corner \
+                         disagree (keep one, or make them equal)",
+                        p[i], q[i]
+                    ),
+                ));
+            }
+            Ok((a, p, n))
+        }
+    }
 }
 
 /// Reads `scale` and the bounds (accepting `min`/`lower` and `max`/`upper`), at the file's
 /// precision.
+///
+/// # Errors
+///
+/// Beyond those of its fields: a lower corner above the upper one on an axis both give (the
+/// cells of an inverted box would lie outside the box the file names, from `upper.x` down and
+/// from `lower.y` up), and two spellings of one corner that disagree.
 pub fn parse_placement(text: &str) -> Result<(f64, [f64; 3], [f64; 3])> {
     let v: Value = serde_json::from_str(sage_io::files::strip_bom(text))
         .map_err(|e| Error::format(format!("line {}", e.line()), e.to_string()))?;
@@ -176,16 +216,26 @@ pub fn parse_placement(text: &str) -> Result<(f64, [f64; 3], [f64; 3])> {
         .and_then(Value::as_f64)
         .filter(|s| *s > 0.0 && (*s as f32) > 0.0 && (*s as f32).is_finite())
         .ok_or_else(|| Error::format("scale", "missing or not a positive number"))?;
-    Ok((
-        scale,
-        vec3_field(&v, ["min", "lower"])?,
-        vec3_field(&v, ["max", "upper"])?,
-    ))
+    let (lo_key, lower, lo_n) = corner(&v, ["min", "lower"])?;
+    let (hi_key, upper, hi_n) = corner(&v, ["max", "upper"])?;
+    // A z the file does not give is no bound to compare.
+    if let Some(k) = (0..lo_n.min(hi_n)).find(|&k| lower[k] > upper[k]) {
+        return Err(Error::format(
+            format!("{lo_key}[{k}]/{hi_key}[{k}]"),
+            format!(
+                "{lo_key}[{k}] is {} but {hi_key}[{k}] is {}: the box is inverted ({lo_key} is \
+                 its lower corner, {hi_key} its upper)",
+                lower[k], upper[k]
+            ),
+        ));
+    }
+    Ok((scale, lower, upper))
 }
 
-/// The cells (columns, rows) that the box `lower`…`upper` needs at `scale` metres per cell.
+/// The cells (columns, rows) that the box `lower`…`upper` needs at `scale` metres per cell; the
+/// box is ordered ([`parse_placement`] refuses one that is not).
 fn cells_for(lower: [f64; 3], upper: [f64; 3], scale: f64) -> [f64; 2] {
-    [0, 1].map(|k| ((upper[k] - lower[k]).abs() / scale).ceil())
+    [0, 1].map(|k| ((upper[k] - lower[k]) / scale).ceil())
 }
 
 /// How much larger than its box an occupancy image may be, per side: twice the box plus this

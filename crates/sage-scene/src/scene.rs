@@ -365,13 +365,14 @@ impl Scene {
                     }
                     TriMesh::load(&p).map(Some)
                 }
-                None => first_present(
-                    MESH_EXTENSIONS
+                None => {
+                    let named = MESH_EXTENSIONS
                         .iter()
-                        .map(|e| mesh_dir.join(format!("{}.{e}", o.ins_id))),
-                )?
-                .map(|p| TriMesh::load(&p))
-                .transpose(),
+                        .map(|e| object_file(&mesh_dir, &o.ins_id, e))
+                        .collect::<Result<Vec<_>>>()
+                        .in_file(&labels_path)?;
+                    first_present(named)?.map(|p| TriMesh::load(&p)).transpose()
+                }
             })
             .collect::<Result<Vec<_>>>()?;
         for (o, m) in objects.iter_mut().zip(meshes) {
@@ -450,7 +451,28 @@ impl Scene {
 
     /// Writes the scene folder (creating it): Gaussians in `layout`, `labels.json`,
     /// `structure.json`, `objects.json`, the occupancy map if any, and meshes as OBJ.
+    ///
+    /// # Errors
+    ///
+    /// An object whose `ins_id` cannot name its mesh file
+    /// ([`labels::ins_id_problem`]), refused before anything is written: a scene built in
+    /// memory (the synthesizer, reconstruction, the Python API) has not been through the
+    /// loader's check, and `meshes/{ins_id}.obj` must not land outside `dir`. Then those of
+    /// writing the files.
     pub fn save(&self, dir: &Path, layout: SplatLayout) -> Result<()> {
+        // Every object, not only those with meshes: labels.json with such an id is a folder
+        // the loader refuses.
+        for (k, o) in self.objects.iter().enumerate() {
+            if let Some(problem) = labels::ins_id_problem(&o.ins_id) {
+                return Err(Error::invalid(format!(
+                    "cannot save the scene: objects[{k}] (label '{}'): ins_id {}; nothing \
+                     was written",
+                    o.label.escape_debug(),
+                    labels::ins_id_message(&o.ins_id, &problem)
+                ))
+                .in_file(dir));
+            }
+        }
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let splat_name = match layout {
             SplatLayout::Compressed => files::COMPRESSED_PLY,
@@ -477,7 +499,7 @@ impl Scene {
         }
         for o in &self.objects {
             if let Some(m) = &o.mesh {
-                let p = mesh_dir.join(format!("{}.obj", o.ins_id));
+                let p = object_file(&mesh_dir, &o.ins_id, "obj")?;
                 sage_io::files::write_atomic(&p, |w| m.write_obj(w, &o.category))?;
             }
         }
@@ -507,6 +529,23 @@ pub fn is_present(path: &Path) -> Result<bool> {
         Ok(_) => Err(Error::invalid("not a regular file").in_file(path)),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
         Err(e) => Err(Error::io(path, e)),
+    }
+}
+
+/// The file `{ins_id}.{ext}` in `folder` (an object's mesh), refusing an `ins_id` that is not
+/// one plain file name ([`labels::ins_id_problem`]) so that no id read from a file or set in
+/// memory joins `folder` to a path outside it.
+///
+/// # Errors
+///
+/// A format error at `ins_id` saying why the id cannot name a file.
+pub fn object_file(folder: &Path, ins_id: &str, ext: &str) -> Result<PathBuf> {
+    match labels::ins_id_problem(ins_id) {
+        Some(problem) => Err(Error::format(
+            "ins_id",
+            labels::ins_id_message(ins_id, &problem),
+        )),
+        None => Ok(folder.join(format!("{ins_id}.{ext}"))),
     }
 }
 

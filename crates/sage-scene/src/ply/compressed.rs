@@ -15,7 +15,7 @@
 use super::header::{Element, Header, Rows, Scalar, element_rows};
 use super::standard::MAX_LOGIT;
 use crate::gaussians::{Gaussian, Gaussians, SH_C0, sh_degree_for_rest_len, sh_rest_count};
-use crate::splats::{BlockDecoder, SplatSource};
+use crate::splats::{BlockDecoder, SplatSource, check_finite};
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
 use sage_core::{Error, Result};
@@ -202,7 +202,7 @@ impl<'a> CompressedDecoder<'a> {
                 )
             })?,
         };
-        Ok(CompressedDecoder {
+        let decoder = CompressedDecoder {
             n,
             degree,
             chunk_bytes,
@@ -213,7 +213,35 @@ impl<'a> CompressedDecoder<'a> {
             vert_stride,
             packed_off,
             sh,
-        })
+        };
+        decoder.check_bounds()?;
+        Ok(decoder)
+    }
+
+    /// Checks that every bound of the chunks the vertices use is finite: a NaN bound would
+    /// decode to a NaN for every Gaussian of its chunk, and an infinite one to infinities.
+    ///
+    /// # Errors
+    ///
+    /// The first non-finite bound, naming its chunk and property.
+    fn check_bounds(&self) -> Result<()> {
+        let names = CHUNK_POS.iter().zip(&self.chunk_off).chain(
+            self.color_off
+                .iter()
+                .flat_map(|o| CHUNK_COLOR.iter().zip(o)),
+        );
+        for c in 0..self.n.div_ceil(CHUNK) {
+            let cb = &self.chunk_bytes[c * self.chunk_stride..];
+            for (name, &o) in names.clone() {
+                if !f32_at(cb, o).is_finite() {
+                    return Err(Error::format(
+                        format!("chunk[{c}].{name}"),
+                        "value is not finite (NaN or infinity)",
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The position, log-scale and colour bounds of chunk `c`.
@@ -382,8 +410,11 @@ pub fn header_text(n: usize, degree: u8) -> String {
     h + "end_header\n"
 }
 
-/// Encodes one chunk: its 18 floats, its packed vertices and its SH bytes.
-fn encode_chunk(items: &[Gaussian], k: usize) -> ([f32; 18], Vec<u8>, Vec<u8>) {
+/// One encoded chunk: its 18 floats, its packed vertices and its SH bytes.
+type EncodedChunk = ([f32; 18], Vec<u8>, Vec<u8>);
+
+/// Encodes one chunk.
+fn encode_chunk(items: &[Gaussian], k: usize) -> EncodedChunk {
     let b = chunk_bounds(items);
     let v3 = |i: usize| Vec3::new(b[i], b[i + 1], b[i + 2]);
     let (pl, ph, sl, sh, cl, ch) = (v3(0), v3(3), v3(6), v3(9), v3(12), v3(15));
@@ -411,18 +442,29 @@ fn encode_chunk(items: &[Gaussian], k: usize) -> ([f32; 18], Vec<u8>, Vec<u8>) {
 }
 
 /// Writes the compressed layout, in the source's order.
+///
+/// # Errors
+///
+/// A value the scene store refuses ([`check_finite`]: a NaN would otherwise be written as its
+/// chunk's minimum, an infinity stretch the chunk's bounds), or the write error.
 pub fn write(w: &mut impl Write, g: &impl SplatSource) -> std::io::Result<()> {
     let n = g.len();
     let k = sh_rest_count(g.sh_degree());
-    let chunks: Vec<([f32; 18], Vec<u8>, Vec<u8>)> = (0..n.div_ceil(CHUNK))
+    let chunks: Vec<Result<EncodedChunk>> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             let items: Vec<Gaussian> = (c * CHUNK..((c + 1) * CHUNK).min(n))
                 .map(|i| g.get(i))
                 .collect();
-            encode_chunk(&items, k)
+            check_finite(c * CHUNK, &items)?;
+            Ok(encode_chunk(&items, k))
         })
         .collect();
+    // The first failing chunk, whatever the threads' order.
+    let chunks = chunks
+        .into_iter()
+        .collect::<Result<Vec<_>>>()
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e.to_string()))?;
     w.write_all(header_text(n, g.sh_degree()).as_bytes())?;
     for (bounds, _, _) in &chunks {
         for f in bounds {

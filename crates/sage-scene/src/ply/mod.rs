@@ -92,7 +92,8 @@ pub fn read_splats(bytes: &[u8]) -> Result<(Gaussians, SplatLayout)> {
     Ok((g, layout))
 }
 
-/// Reads a Gaussian file (memory-mapped); errors name the file.
+/// Reads a Gaussian file (memory-mapped); errors name the file, and a directory is refused as
+/// one.
 pub fn read_splats_file(path: &Path) -> Result<(Gaussians, SplatLayout)> {
     with_mapped_file(path, read_splats)
 }

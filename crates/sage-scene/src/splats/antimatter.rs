@@ -44,19 +44,40 @@ impl<'a> SplatDecoder<'a> {
     ///
     /// # Errors
     ///
-    /// The length is zero or not a multiple of 32 bytes.
+    /// As [`check_length`].
     pub fn open(bytes: &'a [u8]) -> Result<SplatDecoder<'a>> {
-        if bytes.is_empty() || !bytes.len().is_multiple_of(RECORD) {
-            return Err(Error::format(
-                "file length",
-                format!(
-                    "{} bytes is not a non-zero multiple of the {RECORD}-byte .splat record",
-                    bytes.len()
-                ),
-            ));
-        }
+        check_length(bytes)?;
         Ok(SplatDecoder { bytes })
     }
+}
+
+/// Checks that `bytes` are a whole, non-zero number of records.
+///
+/// # Errors
+///
+/// An empty file, or one that ends inside a record (`truncated: expected N bytes …, got M`).
+pub fn check_length(bytes: &[u8]) -> Result<()> {
+    let len = bytes.len();
+    if len == 0 {
+        return Err(Error::format(
+            "file length",
+            format!("empty: a .splat holds {RECORD}-byte records"),
+        ));
+    }
+    if !len.is_multiple_of(RECORD) {
+        let records = len.div_ceil(RECORD);
+        return Err(Error::format(
+            "file length",
+            format!(
+                "truncated: {len} bytes is not a whole number of {RECORD}-byte .splat records \
+                 (expected {} bytes for {records} records, got {len}; the last record has {} of \
+                 its {RECORD} bytes)",
+                records * RECORD,
+                len % RECORD
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn f32_at(r: &[u8; RECORD], at: usize) -> f32 {
@@ -142,22 +163,51 @@ impl BlockDecoder for SplatDecoder<'_> {
 /// multiple of 32 and the first records look like Gaussians (finite positions within 10⁷,
 /// scales in \[0, 10⁶), rotation bytes of a unit quaternion within 8-bit rounding).
 pub fn sniff(bytes: &[u8]) -> bool {
-    if bytes.is_empty() || !bytes.len().is_multiple_of(RECORD) {
-        return false;
-    }
+    check(bytes).is_ok()
+}
+
+/// Why `bytes` are not a `.splat` by [`sniff`]'s test, for a file whose name says it is one
+/// (`.splat` has no magic, so the test that tells it from other files is also what is wrong
+/// with a damaged one).
+///
+/// # Errors
+///
+/// As [`check_length`], or the first of the leading records that does not look like a
+/// Gaussian, naming it and the field (a non-finite value with the decoder's own message).
+pub fn check(bytes: &[u8]) -> Result<()> {
+    check_length(bytes)?;
     let (chunks, _) = bytes.as_chunks::<RECORD>();
-    chunks.iter().take(SNIFF_RECORDS).all(|r| {
+    for (i, r) in chunks.iter().take(SNIFF_RECORDS).enumerate() {
+        // Non-finite and negative values, as decoding refuses them.
+        decode_record(i, r)?;
+        let bad = |field: &str, why: String| {
+            Err(Error::format(
+                format!("record[{i}].{field}"),
+                format!("{why}: not a .splat record"),
+            ))
+        };
         let position = Vec3::new(f32_at(r, 0), f32_at(r, 4), f32_at(r, 8));
+        if position.abs().max_element() >= 1e7 {
+            return bad("position", format!("{position} is beyond ±10⁷"));
+        }
         let scale = Vec3::new(f32_at(r, 12), f32_at(r, 16), f32_at(r, 20));
-        let q = [r[28], r[29], r[30], r[31]].map(|b| (f32::from(b) - 128.0) / 128.0);
-        let norm2: f32 = q.iter().map(|v| v * v).sum();
-        position.is_finite()
-            && position.abs().max_element() < 1e7
-            && scale.is_finite()
-            && scale.min_element() >= 0.0
-            && scale.max_element() < 1e6
-            && (0.8..=1.2).contains(&norm2)
-    })
+        if scale.max_element() >= 1e6 {
+            return bad("scale", format!("{scale} is 10⁶ or more"));
+        }
+        let bytes = [r[28], r[29], r[30], r[31]];
+        let norm2: f32 = bytes
+            .map(|b| (f32::from(b) - 128.0) / 128.0)
+            .iter()
+            .map(|v| v * v)
+            .sum();
+        if !(0.8..=1.2).contains(&norm2) {
+            return bad(
+                "rotation",
+                format!("bytes {bytes:?} hold no unit quaternion (squared length {norm2})"),
+            );
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -239,7 +289,10 @@ mod tests {
     fn lengths_and_ranges() {
         assert!(SplatDecoder::open(&[]).is_err());
         let e = SplatDecoder::open(&[0; 33]).unwrap_err().to_string();
-        assert!(e.contains("multiple of the 32-byte"), "{e}");
+        assert!(
+            e.contains("truncated") && e.contains("expected 64 bytes for 2 records, got 33"),
+            "{e}"
+        );
         let (ply, _) = read_ply("random_3k_sh0.ply");
         let bytes = write_splat(&ply[..10]);
         let d = SplatDecoder::open(&bytes).unwrap();

@@ -2,11 +2,11 @@
 //! with a statement of what the target format cannot hold. Standard PLY output is streamed
 //! block by block from the decoder; the other writers take the whole table.
 
-use super::{BLOCK, BlockDecoder, Format, SplatTable, open, write_file};
+use super::format::open_named;
+use super::{BlockDecoder, Format, SplatTable, decode_blocks, write_file};
 use crate::gaussians::{Gaussian, sh_rest_count};
-use crate::mapped::with_mapped_file;
+use crate::mapped::{refuse_non_file, with_mapped_file};
 use crate::ply::{SplatLayout, standard};
-use rayon::prelude::*;
 use sage_core::{Error, Result};
 use std::io::Write;
 use std::path::Path;
@@ -40,28 +40,37 @@ pub struct ConvertReport {
 /// Converts `input` (any format sage3d reads) to `output` (standard PLY, compressed PLY or SPZ,
 /// from its name), passing every value at full precision from reader to writer.
 ///
+/// A value the scene loaders refuse (a NaN or infinite position, scale, opacity or colour:
+/// [`super::check_finite`], the loaders' own check and message) is refused here too, for every
+/// input and output format, and nothing is written: a conversion never hands on a file that
+/// sage3d would not load, nor quantises a NaN into some other value.
+///
 /// # Errors
 ///
-/// An output name that names no writable format, an existing output without `force`, the
-/// input and output being one file, an SH degree above the input's, or the reader's and
-/// writer's errors (naming the file).
+/// An output name that names no writable format, an input that is a directory, an existing
+/// output without `force`, the input and output being one file, an SH degree above the
+/// input's, a value that is not finite (naming the input, the Gaussian and the field), or the
+/// reader's and writer's errors (naming the file).
 pub fn convert(input: &Path, output: &Path, options: ConvertOptions) -> Result<ConvertReport> {
     let output_format = Format::from_output_name(output)?;
+    // Refused before the output is claimed, as reading it would refuse it.
+    refuse_non_file(input)?;
     sage_io::run::claim_output_file(output, &[input.to_path_buf()], "the input", options.force)?;
     // Errors of the input name it; the output's name the output already.
     with_mapped_file(input, |bytes| {
-        convert_bytes(bytes, output, output_format, options.sh_degree)
+        convert_bytes(bytes, input, output, output_format, options.sh_degree)
     })
 }
 
-/// [`convert`] of the input's bytes.
+/// [`convert`] of the bytes of the file `input`.
 fn convert_bytes(
     bytes: &[u8],
+    input: &Path,
     output: &Path,
     output_format: Format,
     sh_degree: Option<u8>,
 ) -> Result<ConvertReport> {
-    let (decoder, input_format) = open(bytes)?;
+    let (decoder, input_format) = open_named(bytes, Some(input))?;
     let sh_degree_in = decoder.sh_degree();
     let sh_degree_out = match sh_degree {
         Some(d) if d > sh_degree_in => {
@@ -75,6 +84,7 @@ fn convert_bytes(
     if output_format == Format::Ply(SplatLayout::Standard) {
         stream_standard(decoder.as_ref(), sh_degree_out, output)?;
     } else {
+        // Every value checked before anything is written.
         let mut table = decoder.to_table()?;
         drop_sh_bands(&mut table, sh_degree_out);
         write_file(output, &table, output_format)?;
@@ -90,8 +100,9 @@ fn convert_bytes(
 }
 
 /// Writes the standard PLY of `decoder` block by block (never the whole file at full
-/// precision in memory), with SH up to `degree`; a decoding error is returned as it is and
-/// leaves no output.
+/// precision in memory), with SH up to `degree`; a decoding error or a value that is not
+/// finite ([`decode_blocks`]) is returned as it is and leaves no output (the file is written
+/// under a temporary name, removed on error).
 fn stream_standard(decoder: &dyn BlockDecoder, degree: u8, output: &Path) -> Result<()> {
     const STREAM: usize = 1 << 16;
     let failure = std::cell::RefCell::new(None);
@@ -100,11 +111,7 @@ fn stream_standard(decoder: &dyn BlockDecoder, degree: u8, output: &Path) -> Res
         let mut rows = vec![Gaussian::default(); STREAM.min(decoder.len())];
         for start in (0..decoder.len()).step_by(STREAM) {
             let rows = &mut rows[..STREAM.min(decoder.len() - start)];
-            let decoded = rows
-                .par_chunks_mut(BLOCK)
-                .enumerate()
-                .try_for_each(|(b, out)| decoder.decode(start + b * BLOCK, out));
-            if let Err(e) = decoded {
+            if let Err(e) = decode_blocks(decoder, start, rows) {
                 *failure.borrow_mut() = Some(e);
                 return Err(std::io::Error::other("the input could not be decoded"));
             }

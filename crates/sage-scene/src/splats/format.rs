@@ -60,8 +60,23 @@ impl Format {
     ///
     /// # Errors
     ///
-    /// None of them fits (the message lists what was tried), or a PLY header is damaged.
+    /// None of them fits, or a PLY header is damaged. When none fits, a zip or gzip signature
+    /// says which format the file means to be (SOG, SPZ), and that format's reader says what is
+    /// wrong (a truncated archive …); otherwise the message lists what was tried.
     pub fn detect(bytes: &[u8]) -> Result<Format> {
+        Format::detect_named(bytes, None)
+    }
+
+    /// [`Format::detect`] of the bytes of the file `name`. The content decides, as there; the
+    /// name only explains a failure: when no format fits and the content has no signature that
+    /// names one, the format the name's extension names (`.ply`, `.spz`, `.sog`, `.glb`,
+    /// `.gltf`, `.splat`) says what is wrong — for `.splat`, which has no magic, the length that
+    /// is no whole number of records (truncated) or the record that is no Gaussian (a NaN).
+    ///
+    /// # Errors
+    ///
+    /// As [`Format::detect`], with the named format's reason.
+    pub fn detect_named(bytes: &[u8], name: Option<&Path>) -> Result<Format> {
         if bytes.starts_with(b"ply") {
             let header = ply::header::parse_header(bytes)?;
             return Ok(Format::Ply(ply::detect_layout(&header)?));
@@ -78,10 +93,22 @@ impl Format {
         if antimatter::sniff(bytes) {
             return Ok(Format::Splat);
         }
-        Err(Error::format(
-            "file",
-            "not a 3DGS file sage3d reads (tried PLY, SPZ, SOG, glTF/GLB and .splat)",
-        ))
+        Err(why_not(bytes, name))
+    }
+
+    /// The format a file's name says it holds, from its extension (`.ply`, `.spz`, `.sog`,
+    /// `.glb` or `.gltf`, `.splat`; any case), if any. Reading never relies on it (see
+    /// [`Format::detect_named`]).
+    pub fn from_input_name(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "ply" => Format::Ply(SplatLayout::Standard),
+            "spz" => Format::Spz,
+            "sog" => Format::Sog,
+            "glb" | "gltf" => Format::Gltf,
+            "splat" => Format::Splat,
+            _ => return None,
+        })
     }
 
     /// The format a file name asks for when writing: `*.compressed.ply` / `*_compressed.ply`
@@ -107,6 +134,39 @@ impl Format {
             )))
         }
     }
+}
+
+/// Why `bytes`, which no format's test fits, are not a 3DGS file: the reason of the format
+/// their signature (a zip is SOG, a gzip SPZ) or else `name`'s extension names, when that
+/// format's reader finds one; otherwise what was tried.
+fn why_not(bytes: &[u8], name: Option<&Path>) -> Error {
+    if bytes.is_empty() {
+        return Error::format("file", "empty (0 bytes)");
+    }
+    let meant = if bytes.starts_with(b"PK\x03\x04") {
+        Some(Format::Sog)
+    } else if bytes.starts_with(&[0x1f, 0x8b]) {
+        Some(Format::Spz)
+    } else {
+        name.and_then(Format::from_input_name)
+    };
+    let reason = match meant {
+        Some(Format::Sog) => sog::SogDecoder::open(bytes).err(),
+        Some(Format::Spz) => spz::SpzDecoder::open(bytes).err(),
+        Some(Format::Gltf) => gltf::GltfDecoder::open(bytes).err(),
+        Some(Format::Splat) => antimatter::check(bytes).err(),
+        Some(Format::Ply(_)) => Some(Error::format(
+            "header",
+            "does not start with 'ply': not a PLY file",
+        )),
+        None => None,
+    };
+    reason.unwrap_or_else(|| {
+        Error::format(
+            "file",
+            "not a 3DGS file sage3d reads (tried PLY, SPZ, SOG, glTF/GLB and .splat)",
+        )
+    })
 }
 
 impl std::str::FromStr for Format {
@@ -140,7 +200,20 @@ impl fmt::Display for Format {
 ///
 /// As [`Format::detect`], and the format's own checks.
 pub fn open(bytes: &[u8]) -> Result<(Box<dyn BlockDecoder + '_>, Format)> {
-    let format = Format::detect(bytes)?;
+    open_named(bytes, None)
+}
+
+/// [`open`] of the bytes of the file `name`, whose extension explains a failure to detect a
+/// format ([`Format::detect_named`]).
+///
+/// # Errors
+///
+/// As [`Format::detect_named`], and the format's own checks.
+pub fn open_named<'a>(
+    bytes: &'a [u8],
+    name: Option<&Path>,
+) -> Result<(Box<dyn BlockDecoder + 'a>, Format)> {
+    let format = Format::detect_named(bytes, name)?;
     let decoder: Box<dyn BlockDecoder + '_> = match format {
         Format::Ply(layout) => {
             let header = ply::header::parse_header(bytes)?;
@@ -165,10 +238,11 @@ pub fn open(bytes: &[u8]) -> Result<(Box<dyn BlockDecoder + '_>, Format)> {
 ///
 /// # Errors
 ///
-/// As [`open`] and [`BlockDecoder::to_gaussians`], naming the file.
+/// `path` is missing, a directory or no regular file, or cannot be read; otherwise as
+/// [`open_named`] and [`BlockDecoder::to_gaussians`], naming the file.
 pub fn read_gaussians_file(path: &Path) -> Result<(Gaussians, Format)> {
     with_mapped_file(path, |bytes| {
-        let (decoder, format) = open(bytes)?;
+        let (decoder, format) = open_named(bytes, Some(path))?;
         Ok((decoder.to_gaussians()?, format))
     })
 }
@@ -177,10 +251,11 @@ pub fn read_gaussians_file(path: &Path) -> Result<(Gaussians, Format)> {
 ///
 /// # Errors
 ///
-/// As [`open`] and [`BlockDecoder::to_table`], naming the file.
+/// `path` is missing, a directory or no regular file, or cannot be read; otherwise as
+/// [`open_named`] and [`BlockDecoder::to_table`], naming the file.
 pub fn read_table_file(path: &Path) -> Result<(SplatTable, Format)> {
     with_mapped_file(path, |bytes| {
-        let (decoder, format) = open(bytes)?;
+        let (decoder, format) = open_named(bytes, Some(path))?;
         Ok((decoder.to_table()?, format))
     })
 }

@@ -19,7 +19,7 @@
 
 use crate::gaussians::{Gaussian, Gaussians};
 use rayon::prelude::*;
-use sage_core::Result;
+use sage_core::{Error, Result};
 
 /// Gaussians decoded in blocks of this many, one block per task.
 pub const BLOCK: usize = 4096;
@@ -50,17 +50,26 @@ pub trait BlockDecoder: Sync {
     /// A value the format cannot hold or a damaged record, naming the Gaussian and field.
     fn decode(&self, start: usize, out: &mut [Gaussian]) -> Result<()>;
 
-    /// Every Gaussian at full precision.
+    /// [`BlockDecoder::decode`], then [`check_finite`]: refuses what the scene store refuses
+    /// ([`BlockDecoder::to_gaussians`]), with the same message.
     ///
     /// # Errors
     ///
-    /// As [`BlockDecoder::decode`].
+    /// As [`BlockDecoder::decode`] and [`check_finite`].
+    fn decode_finite(&self, start: usize, out: &mut [Gaussian]) -> Result<()> {
+        self.decode(start, out)?;
+        check_finite(start, out)
+    }
+
+    /// Every Gaussian at full precision, refusing a value the scene store refuses (so that a
+    /// file is read as a table exactly when it loads as a scene).
+    ///
+    /// # Errors
+    ///
+    /// As [`BlockDecoder::decode_finite`]: the error of the first block that fails.
     fn to_table(&self) -> Result<SplatTable> {
         let mut gaussians = vec![Gaussian::default(); self.len()];
-        gaussians
-            .par_chunks_mut(BLOCK)
-            .enumerate()
-            .try_for_each(|(b, out)| self.decode(b * BLOCK, out))?;
+        decode_blocks(self, 0, &mut gaussians)?;
         Ok(SplatTable {
             gaussians,
             sh_degree: self.sh_degree(),
@@ -93,6 +102,53 @@ pub trait BlockDecoder: Sync {
         store.validate()?;
         Ok(store)
     }
+}
+
+/// Decodes Gaussians `start ..` into `out` with [`BlockDecoder::decode_finite`], in parallel
+/// blocks of [`BLOCK`] (counted from `start`, which callers keep a multiple of it); of several
+/// failing blocks the first is reported, so the error does not depend on thread timing.
+///
+/// # Errors
+///
+/// The first failing block's.
+pub fn decode_blocks(
+    decoder: &(impl BlockDecoder + ?Sized),
+    start: usize,
+    out: &mut [Gaussian],
+) -> Result<()> {
+    let results: Vec<Result<()>> = out
+        .par_chunks_mut(BLOCK)
+        .enumerate()
+        .map(|(b, block)| decoder.decode_finite(start + b * BLOCK, block))
+        .collect();
+    results.into_iter().collect()
+}
+
+/// Checks decoded Gaussians `start .. start + rows.len()` with the scene store's own check,
+/// [`Gaussians::validate`] (position, scale, opacity and `f_dc` finite, and `f_dc` within
+/// `f16`), and its message, `vertex[i].field: value is not finite (NaN or infinity)`, with `i`
+/// the Gaussian's index in the file: what a scene loader refuses, a conversion refuses too.
+/// (Rotations and higher SH are checked by the decoders of the formats that store them as
+/// floats.)
+///
+/// # Errors
+///
+/// The first Gaussian that fails, naming it and the field.
+pub fn check_finite(start: usize, rows: &[Gaussian]) -> Result<()> {
+    // One Gaussian at a time through a one-Gaussian store, so the store's message names the
+    // index within the file instead of within the block.
+    let mut one = Gaussians::with_len(1, 0)?;
+    for (j, g) in rows.iter().enumerate() {
+        one.set(0, g);
+        if let Err(e) = one.validate() {
+            let location = e.location();
+            return Err(match location.strip_prefix("vertex[0]") {
+                Some(field) => Error::format(format!("vertex[{}]{field}", start + j), e.message()),
+                None => e,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Gaussians at full precision, as a file held them: what conversions pass from reader to
@@ -157,7 +213,7 @@ pub mod gltf;
 pub mod sog;
 pub mod spz;
 
-pub use format::{Format, open, read_gaussians_file, read_table_file, write_file};
+pub use format::{Format, open, open_named, read_gaussians_file, read_table_file, write_file};
 
 #[cfg(test)]
 pub(crate) mod test_files;

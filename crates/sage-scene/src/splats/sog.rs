@@ -112,6 +112,30 @@ pub fn sniff(bytes: &[u8]) -> bool {
         && ZipArchive::new(Cursor::new(bytes)).is_ok_and(|zip| zip.index_for_name(META).is_some())
 }
 
+/// The end-of-central-directory signature, in the last record of every zip archive.
+const END_MAGIC: &[u8; 4] = b"PK\x05\x06";
+/// The end record's fixed size; a comment of at most 65 535 bytes may follow it.
+const END_RECORD: usize = 22;
+
+/// True when the tail of `bytes`, where a zip's end record sits, holds a whole one: its
+/// signature followed by its 22 bytes and the comment they announce. A zip cut short has lost
+/// it (zips record nothing of their size at the start, so this is the sign of a cut).
+fn has_end_record(bytes: &[u8]) -> bool {
+    let from = bytes
+        .len()
+        .saturating_sub(END_RECORD + usize::from(u16::MAX));
+    bytes[from..]
+        .windows(END_MAGIC.len())
+        .enumerate()
+        .any(|(i, w)| {
+            let at = from + i;
+            w == END_MAGIC
+                && bytes.get(at + 20..at + 22).is_some_and(|c| {
+                    at + END_RECORD + usize::from(u16::from_le_bytes([c[0], c[1]])) <= bytes.len()
+                })
+        })
+}
+
 /// One channel's byte codes resolved to values at open time, so that decoding is a lookup.
 #[derive(Debug, Clone)]
 struct Table {
@@ -696,8 +720,20 @@ impl SogDecoder {
                 "not a SOG file: no zip signature (PK\\x03\\x04)",
             ));
         }
-        let mut zip = ZipArchive::new(Cursor::new(bytes))
-            .map_err(|e| Error::format("zip", format!("unreadable archive: {e}")))?;
+        let mut zip = ZipArchive::new(Cursor::new(bytes)).map_err(|e| {
+            if has_end_record(bytes) {
+                Error::format("zip", format!("unreadable archive: {e}"))
+            } else {
+                Error::format(
+                    "zip",
+                    format!(
+                        "truncated: the archive's end record (end of central directory, which \
+                         every whole zip ends with) is missing from its {} bytes",
+                        bytes.len()
+                    ),
+                )
+            }
+        })?;
         let meta_bytes = read_entry(&mut zip, META, META_MAX_BYTES)?;
         let meta: Value = serde_json::from_slice(&meta_bytes)
             .map_err(|e| Error::format(META, format!("not valid JSON: {e}")))?;
@@ -1359,7 +1395,14 @@ mod tests {
     fn damaged_containers_are_named() {
         assert_err(b"not a zip at all", "zip", "zip signature");
         assert!(!sniff(b"PK\x03\x04 but not really"));
-        assert_err(b"PK\x03\x04 but not really", "zip", "unreadable archive");
+        assert_err(b"PK\x03\x04 but not really", "zip", "truncated");
+        // A whole end record whose central directory is not there: damaged, not cut short.
+        let mut bogus_end = b"PK\x03\x04 but not reallyPK\x05\x06\0\0\0\0\x01\0\x01\0".to_vec();
+        bogus_end.extend_from_slice(&100u32.to_le_bytes());
+        bogus_end.extend_from_slice(&1000u32.to_le_bytes());
+        bogus_end.extend_from_slice(&[0, 0]);
+        assert_err(&bogus_end, "zip", "unreadable archive");
+        assert_err(&bogus_end[..bogus_end.len() - 1], "zip", "truncated");
         let no_meta = zip_of(&[("other.json".to_owned(), b"{}".to_vec())]);
         assert!(!sniff(&no_meta));
         assert_err(&no_meta, "meta.json", "missing from the archive");

@@ -81,7 +81,7 @@
 //! `< 0`). Neither rule changes the code of any other input.
 
 use crate::gaussians::Gaussian;
-use crate::splats::{BLOCK, BlockDecoder, SplatSource};
+use crate::splats::{BLOCK, BlockDecoder, SplatSource, check_finite};
 use glam::{Quat, Vec3};
 use half::f16;
 use rayon::prelude::*;
@@ -651,7 +651,8 @@ pub fn sniff(bytes: &[u8]) -> bool {
 /// # Errors
 ///
 /// More Gaussians than SPZ counts (2³² − 1), a position that is not finite or beyond ±8·10⁶ m,
-/// a rotation that is zero or not finite, or the write error.
+/// a rotation that is zero or not finite, another value the scene store refuses
+/// ([`check_finite`]), or the write error.
 pub fn write(w: &mut impl Write, src: &impl SplatSource) -> io::Result<()> {
     write_version(w, src, WRITE_VERSION)
 }
@@ -800,18 +801,23 @@ fn pack(src: &impl SplatSource, version: u32) -> io::Result<(Header, [Vec<u8>; 6
         flags: 0,
     };
     let strides = header.strides();
-    let blocks = (0..n.div_ceil(BLOCK))
+    let blocks: Vec<io::Result<[Vec<u8>; 6]>> = (0..n.div_ceil(BLOCK))
         .into_par_iter()
         .map(|b| {
             let range = b * BLOCK..((b + 1) * BLOCK).min(n);
+            let rows: Vec<Gaussian> = range.clone().map(|i| src.get(i)).collect();
+            // What the scene store refuses is refused here too, not quantised to some byte.
+            check_finite(range.start, &rows).map_err(|e| invalid(e.to_string()))?;
             let mut arrays: [Vec<u8>; 6] =
                 std::array::from_fn(|a| Vec::with_capacity(range.len() * strides[a]));
-            for i in range {
-                encode(&src.get(i), i, &header, &mut arrays)?;
+            for (i, g) in range.zip(&rows) {
+                encode(g, i, &header, &mut arrays)?;
             }
             Ok(arrays)
         })
-        .collect::<io::Result<Vec<_>>>()?;
+        .collect();
+    // The first failing block, whatever the threads' order.
+    let blocks = blocks.into_iter().collect::<io::Result<Vec<_>>>()?;
     let mut arrays: [Vec<u8>; 6] = std::array::from_fn(|a| Vec::with_capacity(n * strides[a]));
     for block in blocks {
         for (all, part) in arrays.iter_mut().zip(block) {
@@ -828,18 +834,14 @@ fn fractional_bits(src: &impl SplatSource) -> io::Result<u8> {
         .into_par_iter()
         .map(|i| {
             let p = src.get(i).position;
-            // The stored (RUB) coordinates.
-            let v = [p.x, -p.y, -p.z];
-            if v.iter().all(|c| c.is_finite()) {
-                Ok((
-                    v.iter().fold(0.0f32, |a, &c| a.min(c)),
-                    v.iter().fold(0.0f32, |a, &c| a.max(c)),
-                ))
-            } else {
-                Err(invalid(format!("Gaussian {i}: position {p} is not finite")))
-            }
+            // The stored (RUB) coordinates. A non-finite one is left out of the span: `pack`
+            // refuses it, with the scene store's message.
+            [p.x, -p.y, -p.z]
+                .into_iter()
+                .filter(|c| c.is_finite())
+                .fold((0.0f32, 0.0f32), |(a, b), c| (a.min(c), b.max(c)))
         })
-        .try_reduce(|| (0.0, 0.0), |a, b| Ok((a.0.min(b.0), a.1.max(b.1))))?;
+        .reduce(|| (0.0, 0.0), |a, b| (a.0.min(b.0), a.1.max(b.1)));
     (0..=FRACTIONAL_BITS)
         .rev()
         .find(|&bits| {
