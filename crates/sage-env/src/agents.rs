@@ -302,7 +302,8 @@ impl Agent for ForwardAgent {
 
 /// Follows the shortest path to the goal point with discrete actions: turn toward the next
 /// waypoint until it is within half a turn step, else move forward; STOP within `stop_radius`
-/// of the goal point. When a forward move makes no progress it replans from where it stands;
+/// of the goal point, or nearer than any one step could bring it (with steps longer than twice
+/// `stop_radius` no step may land within it). When a forward move makes no progress it replans from where it stands;
 /// with no path to the goal (at reset or after replanning) it calls STOP.
 #[derive(Clone, Default)]
 pub struct OracleAgent {
@@ -433,7 +434,10 @@ impl Agent for OracleAgent {
             Some(_) => self.stop_radius.min(POSE_SUCCESS_DISTANCE as f32),
             None => self.stop_radius,
         };
-        if self.approaching || at.distance(self.goal) <= arrival {
+        if self.approaching
+            || at.distance(self.goal) <= arrival
+            || self.no_step_closer(at, obs.pose.yaw)
+        {
             self.approaching = true;
             if let Some(heading) = self.heading {
                 return Ok(self.steer(wrap_angle(heading - obs.pose.yaw), Action::Stop));
@@ -513,6 +517,22 @@ pub fn step_leaves_navigable(pf: &PathFinder, at: Vec2, yaw: f32, length: f32) -
 }
 
 impl OracleAgent {
+    /// True when no forward step, on any heading the agent can turn to (its yaw plus whole
+    /// turn steps), would end nearer the goal point than `at`: there the oracle has arrived.
+    /// Steps of twice the stop radius or more would otherwise step back and forth across the
+    /// goal until the step limit (0.75 m steps around a 0.25 m stop radius).
+    fn no_step_closer(&self, at: Vec2, yaw: f32) -> bool {
+        let d = at.distance(self.goal);
+        if d > self.forward {
+            return false;
+        }
+        let steps = (std::f32::consts::PI / self.turn).round() as i32;
+        (-steps..steps).all(|k| {
+            let heading = yaw + k as f32 * self.turn;
+            (at + Vec2::from_angle(heading) * self.forward).distance(self.goal) >= d
+        })
+    }
+
     /// Turns towards `target` until it is within half a turn step, else moves forward.
     fn head_for(&mut self, target: Vec2, at: Vec2, yaw: f32) -> Action {
         let d = target - at;

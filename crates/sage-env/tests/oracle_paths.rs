@@ -6,7 +6,7 @@
 
 use sage_env::agents::{OracleAgent, run_episode};
 use sage_env::scoring::score;
-use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig};
+use sage_env::{Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig, Termination};
 use sage_metrics::Mode;
 use sage_nav::TrajectoryParams;
 use sage_physics::{AgentProfile, Decomposer, HullCache, SceneBodies};
@@ -114,5 +114,40 @@ fn the_oracle_of_every_ground_profile_reaches_every_goal_and_almost_never_touche
         eprintln!("{profile}: SR {sr:.3} CR {cr:.3} {touched:?}");
         assert_eq!(sr, 1.0, "{profile}: SR {sr}: {touched:?}");
         assert!(cr <= 0.02, "{profile}: CR {cr}: {touched:?}");
+    }
+}
+
+/// With the training-data presets' longer steps the oracle still calls STOP at its goals: a
+/// step of 0.75 m cannot land within the 0.25 m stop radius, and an oracle that waited for it
+/// stepped back and forth across the goal until the step limit.
+#[test]
+fn the_oracle_stops_at_its_goals_with_every_training_presets_steps() {
+    let scenes = scenes();
+    for preset in ["navila_small", "navila_large", "custom_small"] {
+        let (mut total, mut success, mut unstopped) = (0, 0.0, Vec::new());
+        for (scene, bodies, seed) in &scenes[..2] {
+            let (ctx, episodes) = episodes(scene, bodies, *seed, 0.25);
+            let config = EnvConfig {
+                sensors: SensorConfig {
+                    rgb: false,
+                    depth: false,
+                    ..SensorConfig::default()
+                },
+                ..EnvConfig::preset(preset).unwrap()
+            };
+            let mut env = Env::new(ctx.clone(), config).unwrap();
+            for e in &episodes {
+                let trace = run_episode(&mut env, &mut OracleAgent::new(0.25), e).unwrap();
+                total += 1;
+                success += score(&ctx, &trace, Mode::Sage).unwrap().sr.unwrap();
+                if trace.termination != Some(Termination::Stop) {
+                    unstopped.push(format!("{} ({:?})", e.id, trace.termination));
+                }
+            }
+        }
+        let sr = success / total as f64;
+        eprintln!("{preset}: SR {sr:.3}, not stopped: {unstopped:?}");
+        assert!(unstopped.is_empty(), "{preset}: {unstopped:?}");
+        assert!(sr >= 0.9, "{preset}: SR {sr}");
     }
 }
