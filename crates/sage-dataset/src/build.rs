@@ -451,7 +451,8 @@ pub struct SceneOutcome {
     pub reason: Option<String>,
 }
 
-/// Builds (or resumes) one scene's file.
+/// Builds (or resumes) one scene's file: an earlier file is kept only when it was made with
+/// `params` from the scene's input files as they are now and no LLM request of it failed.
 pub fn run_scene(
     dir: &Path,
     out: &Path,
@@ -460,10 +461,15 @@ pub fn run_scene(
 ) -> SceneOutcome {
     let name = sage_io::scenes::scene_name(dir);
     let file = scene_file(out, &name);
+    // Complete: made with these settings from the scene's files as they are now, and every
+    // LLM request answered (a failed one is retried by the next run, not kept for good).
     let complete = || {
         let text = std::fs::read_to_string(&file).ok()?;
         let done = serde_json::from_str::<SceneEpisodes>(&text).ok()?;
-        (done.settings == *params).then_some(done.episodes.len())
+        (done.settings == *params
+            && done.report.llm_failures == 0
+            && done.inputs == sage_io::scenes::input_hashes(dir))
+        .then_some(done.episodes.len())
     };
     let outcome = resume_or_run(complete, || {
         // An earlier build's file of other settings goes first: were this scene to fail now,

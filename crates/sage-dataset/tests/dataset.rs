@@ -98,6 +98,73 @@ fn same_bytes_with_one_and_two_threads_and_resume_redoes_only_missing_scenes() {
     assert!(outcomes.iter().all(|o| o.status == Status::Done));
 }
 
+/// A scene whose input files changed since its file was made is built again, the others kept:
+/// its episodes must come from the scene as it is now.
+#[test]
+fn a_rebuild_redoes_a_scene_whose_input_files_changed() {
+    let (out, own) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let dirs: Vec<PathBuf> = (1..=2)
+        .map(|seed| {
+            let d = own.path().join(format!("scene{seed}"));
+            generate(&SynthConfig {
+                seed,
+                rooms: 3,
+                objects: 20,
+                gaussians: 1000,
+                ..SynthConfig::default()
+            })
+            .unwrap()
+            .save(&d, sage_scene::SplatLayout::Compressed)
+            .unwrap();
+            d
+        })
+        .collect();
+    let (p, a) = params();
+    let statuses = || -> Vec<Status> {
+        build::build(&dirs, out.path(), &p, &a, &|_| {})
+            .unwrap()
+            .0
+            .iter()
+            .map(|o| o.status)
+            .collect()
+    };
+    assert_eq!(statuses(), [Status::Done, Status::Done]);
+    assert_eq!(statuses(), [Status::Resumed, Status::Resumed]);
+    // Edited labels (here only a byte that changes nothing read, so the bytes can be compared).
+    let labels = dirs[0].join("labels.json");
+    let mut text = std::fs::read_to_string(&labels).unwrap();
+    text.push('\n');
+    std::fs::write(&labels, text).unwrap();
+    assert_eq!(statuses(), [Status::Done, Status::Resumed]);
+    let file: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(build::scene_file(out.path(), "scene1")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        file["inputs"],
+        serde_json::to_value(sage_io::scenes::input_hashes(&dirs[0])).unwrap()
+    );
+
+    // LLM requests that failed (no server listens at the port): the scenes' files say so, and
+    // the next run asks again instead of keeping the gap for good.
+    let closed = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap();
+    let mut with_llm = p.clone();
+    with_llm.llm = Some(sage_lang::llm::LlmConfig {
+        base_url: format!("http://{closed}/v1"),
+        max_retries: 0,
+        timeout_s: 5,
+        ..Default::default()
+    });
+    for _ in 0..2 {
+        let (outcomes, summary) = build::build(&dirs, out.path(), &with_llm, &a, &|_| {}).unwrap();
+        assert!(summary.llm_failures > 0);
+        assert!(outcomes.iter().all(|o| o.status == Status::Done));
+    }
+}
+
 /// A rebuild over fewer scenes and without a balanced selection leaves the folder as a fresh
 /// build with those settings makes it: nothing of the earlier build's scenes or its
 /// `test_balanced` stays behind for outside loaders to read.
