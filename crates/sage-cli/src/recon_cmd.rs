@@ -51,7 +51,7 @@ pub struct PlanArgs {
     #[arg(long)]
     force: bool,
     /// Horizontal field of view of the views, degrees.
-    #[arg(long, default_value_t = PlanSettings::default().hfov_deg)]
+    #[arg(long, default_value_t = PlanSettings::default().hfov_deg, value_parser = crate::flags::parse_hfov)]
     hfov: f32,
     /// Least distance from a camera to the nearest mesh surface, metres.
     #[arg(long, default_value_t = PlanSettings::default().safety_threshold)]
@@ -212,6 +212,12 @@ fn export(a: ExportArgs) -> Result<()> {
         r.height,
         r.points.as_deref().unwrap_or("none")
     );
+    if let Some(stale) = &r.removed_points {
+        println!(
+            "removed {} (an earlier export's points; this one wrote none)",
+            stale.display()
+        );
+    }
     Ok(())
 }
 

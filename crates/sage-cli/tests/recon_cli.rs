@@ -88,6 +88,15 @@ fn plan_render_export_resume_and_project() {
         t["val_filenames"],
         serde_json::json!(["views/rgb_0000.png", "views/rgb_0008.png"])
     );
+    // An export without points removes the earlier one's, and says so; then they come back.
+    let without = ok(&["recon", "export", s(&dir), "--points", "0"]);
+    assert!(
+        without.contains("removed") && without.contains("points3d.ply"),
+        "{without}"
+    );
+    assert!(!dir.join("points3d.ply").exists());
+    let again = ok(&["recon", "export", s(&dir), "--points", "300"]);
+    assert!(!again.contains("removed"), "{again}");
 
     // The point 2 m ahead of view 4 lands on its principal point.
     let v = &small["views"][4];

@@ -271,6 +271,9 @@ pub struct ExportReport {
     pub height: u32,
     /// The point cloud's file name, if one was written.
     pub points: Option<String>,
+    /// An earlier export's point cloud, removed since this one wrote none (a reader looking
+    /// beside `transforms.json` would otherwise start from stale points).
+    pub removed_points: Option<PathBuf>,
 }
 
 /// Writes `dir/transforms.json` for the rendered views, and `points3d.ply` of `points` surface
@@ -292,7 +295,7 @@ pub fn export(dir: &Path, scene: Option<&Path>, points: usize) -> Result<ExportR
         transforms.ply_file_path = Some(POINTS_FILE.to_string());
     }
     let path = dir.join(TRANSFORMS_FILE);
-    write_transforms(&path, &transforms)?;
+    let removed_points = write_transforms(&path, &transforms)?;
     Ok(ExportReport {
         path,
         frames: transforms.frames.len(),
@@ -301,6 +304,7 @@ pub fn export(dir: &Path, scene: Option<&Path>, points: usize) -> Result<ExportR
         width: transforms.w,
         height: transforms.h,
         points: transforms.ply_file_path,
+        removed_points,
     })
 }
 

@@ -17,7 +17,7 @@ use sage_core::{Error, Result, ResultExt};
 use sage_splat::{Camera, Intrinsics};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Every `HELDOUT_EVERY`-th view (0, 8, 16, …) is held out of training.
 pub const HELDOUT_EVERY: usize = 8;
@@ -221,23 +221,26 @@ pub fn write_points_ply(path: &Path, points: &[(glam::Vec3, [f32; 3], glam::Vec3
 /// missing file; any other `points3d.ply` (a user's, in a folder that is no reconstruction's)
 /// is left alone.
 ///
+/// Returns the point cloud it removed, if any, for the caller to say so.
+///
 /// # Errors
 ///
 /// A write error, or an owned point cloud that cannot be removed (naming it).
-pub fn write_transforms(path: &Path, t: &Transforms) -> Result<()> {
+pub fn write_transforms(path: &Path, t: &Transforms) -> Result<Option<PathBuf>> {
     // Read before the write replaces it: only the old file tells whether it named the points.
     let referenced = previous_points_reference(path);
     sage_io::files::write_json(path, t)?;
     if t.ply_file_path.is_some() {
-        return Ok(());
+        return Ok(None);
     }
     let dir = path.parent().unwrap_or(Path::new(""));
     let owned = referenced || dir.join(PLAN_FILE).is_file();
     let points = dir.join(POINTS_FILE);
-    if owned && points.is_file() {
-        std::fs::remove_file(&points).map_err(|e| Error::io(&points, e))?;
+    if !(owned && points.is_file()) {
+        return Ok(None);
     }
-    Ok(())
+    std::fs::remove_file(&points).map_err(|e| Error::io(&points, e))?;
+    Ok(Some(points))
 }
 
 /// Whether the `transforms.json` at `path` names [`POINTS_FILE`] beside it as its

@@ -463,12 +463,16 @@ fn an_export_without_points_removes_the_points_it_owns_and_no_others() {
         dir.path().join(POINTS_FILE),
     );
     write_points_ply(&points, &samples).unwrap();
-    write_transforms(&path, &with).unwrap();
+    assert_eq!(write_transforms(&path, &with).unwrap(), None);
     assert!(points.is_file() && names_points(&path));
     // Rewritten with its points, they stay.
-    write_transforms(&path, &with).unwrap();
+    assert_eq!(write_transforms(&path, &with).unwrap(), None);
     assert!(points.is_file());
-    write_transforms(&path, &without).unwrap();
+    assert_eq!(
+        write_transforms(&path, &without).unwrap().as_deref(),
+        Some(points.as_path()),
+        "the removal is reported"
+    );
     assert!(
         !points.exists(),
         "stale points beside an export without them"
@@ -481,7 +485,11 @@ fn an_export_without_points_removes_the_points_it_owns_and_no_others() {
     let recon = tempfile::tempdir().unwrap();
     std::fs::write(recon.path().join(PLAN_FILE), "{}").unwrap();
     write_points_ply(&recon.path().join(POINTS_FILE), &samples).unwrap();
-    write_transforms(&recon.path().join(TRANSFORMS_FILE), &without).unwrap();
+    assert!(
+        write_transforms(&recon.path().join(TRANSFORMS_FILE), &without)
+            .unwrap()
+            .is_some()
+    );
     assert!(!recon.path().join(POINTS_FILE).exists());
 
     // Elsewhere, points that no index of the export named are the user's and stay.
@@ -497,7 +505,7 @@ fn an_export_without_points_removes_the_points_it_owns_and_no_others() {
         ..without.clone()
     };
     write_transforms(&path, &elsewhere).unwrap();
-    write_transforms(&path, &without).unwrap();
+    assert_eq!(write_transforms(&path, &without).unwrap(), None);
     assert!(points.is_file());
 }
 
