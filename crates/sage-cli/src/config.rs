@@ -25,6 +25,51 @@ pub fn config_path(argv: &[String]) -> Option<String> {
     })
 }
 
+/// Whether a raw command line asks for help or the version: `-h`, `--help`, `-V` or
+/// `--version` before a typed `--`, or `help` straight after its subcommands (`sage3d help`,
+/// `sage3d data help build`; global flags may stand between).
+pub fn asks_for_help<C: CommandFactory>(argv: &[String]) -> bool {
+    let flags_end = argv.iter().position(|a| a == "--").unwrap_or(argv.len());
+    let words = argv.get(1..flags_end).unwrap_or_default();
+    if words
+        .iter()
+        .any(|a| matches!(a.as_str(), "-h" | "--help" | "-V" | "--version"))
+    {
+        return true;
+    }
+    let mut cmd = C::command();
+    let mut words = words.iter();
+    while let Some(w) = words.next() {
+        if w == "--threads" || w == "--config" {
+            words.next();
+            continue;
+        }
+        if w.starts_with("--threads=") || w.starts_with("--config=") {
+            continue;
+        }
+        match cmd.find_subcommand(w) {
+            Some(sub) if w != "help" => cmd = sub.clone(),
+            _ => return w == "help",
+        }
+    }
+    false
+}
+
+/// The flags a config file gave (`origins` as in [`Applied::origins`]) that `message` names
+/// as whole flags (`--step`, not the `--step` of `--step-size`), with where each came from.
+pub fn named_in<'a>(origins: &'a [(String, String)], message: &str) -> Vec<(&'a str, &'a str)> {
+    origins
+        .iter()
+        .filter(|(flag, _)| {
+            message.match_indices(flag.as_str()).any(|(at, _)| {
+                !message[at + flag.len()..]
+                    .starts_with(|c: char| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+            })
+        })
+        .map(|(flag, origin)| (flag.as_str(), origin.as_str()))
+        .collect()
+}
+
 /// The subcommand path of a raw command line (`["data", "build"]`), found by walking the
 /// command tree of `C` over the words that name subcommands.
 pub fn subcommand_path<C: CommandFactory>(argv: &[String]) -> Vec<String> {
@@ -547,5 +592,43 @@ mod tests {
         );
         let e = check("[[render]]\nyaw = 1\n");
         assert!(e.contains("render: expected a string"), "{e}");
+    }
+
+    #[test]
+    fn help_is_asked_for_by_its_flags_or_word_and_not_by_a_value() {
+        let asks = |s: &str| asks_for_help::<crate::Cli>(&args(s));
+        for yes in [
+            "sage3d --config c.toml --help",
+            "sage3d --config c.toml data build -h",
+            "sage3d --config c.toml help",
+            "sage3d --threads 2 --config=c.toml data help build",
+            "sage3d --config c.toml -V",
+        ] {
+            assert!(asks(yes), "{yes}");
+        }
+        for no in [
+            "sage3d --config c.toml data build S --out help",
+            "sage3d --config help data build S",
+            "sage3d --config c.toml render S -- --help",
+            "sage3d --config c.toml demo",
+        ] {
+            assert!(!asks(no), "{no}");
+        }
+    }
+
+    #[test]
+    fn an_error_naming_a_file_flag_is_told_where_it_came_from() {
+        let origins = vec![
+            (
+                "--step".to_string(),
+                "[data.render] step in c.toml".to_string(),
+            ),
+            ("--seed".to_string(), "seed in c.toml".to_string()),
+        ];
+        assert_eq!(
+            named_in(&origins, "--answers navila needs --step in whole cm"),
+            [("--step", "[data.render] step in c.toml")]
+        );
+        assert!(named_in(&origins, "--step-size and --seeds are wrong").is_empty());
     }
 }

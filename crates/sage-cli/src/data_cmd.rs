@@ -4,6 +4,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use sage_core::Result;
 use sage_io::runner::{Status, Tally};
 use sage_pipeline::dataset::{BuildSettings, DatasetReport};
+use sage_pipeline::traindata::TrainDataReport;
 use sage_traindata::Progress;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -15,7 +16,8 @@ pub enum DataCommand {
     Build(BuildArgs),
     /// Render a training set from a dataset split: each trajectory cut into a preset's
     /// discrete actions, walked through physics, a frame rendered before every action, written
-    /// as NaVILA annotations, WebDataset shards or a folder tree (parallel, resumable).
+    /// as NaVILA annotations, WebDataset shards, a LeRobot dataset or a folder tree (parallel,
+    /// resumable).
     Render(RenderArgs),
     /// Read episodes from a SAGE-Bench GVLN file, an R2R-VLNCE split or a GN-Bench Parquet
     /// split into a dataset folder's split (DATASET/episodes/SPLIT.jsonl, listed in
@@ -155,6 +157,12 @@ fn data_build(a: BuildArgs) -> Result<()> {
             report.outcomes.len()
         )));
     }
+    let failed = report.summary.llm_failures;
+    if failed > 0 {
+        return Err(sage_core::Error::invalid(format!(
+            "{failed} LLM requests failed after their retries: the dataset lacks their high-level instructions, and a rerun asks again"
+        )));
+    }
     Ok(())
 }
 
@@ -262,12 +270,8 @@ fn data_render(a: RenderArgs) -> Result<()> {
     });
     bar.finish_and_clear();
     let report = report?;
-    if report.already_complete {
-        println!("already complete: {}", a.out.display());
-    }
-    let secs = start.elapsed().as_secs_f64();
+    print_render(&report, &a.out, start.elapsed().as_secs_f64());
     let manifest = &report.manifest;
-    print_render(manifest, &a.out, report.rendered_frames, secs);
     if a.options.preview > 0 {
         println!(
             "preview: {}",
@@ -284,9 +288,13 @@ fn data_render(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Prints what a training-data render did: skipped episodes with their reasons, the counts
-/// and the rate.
-pub fn print_render(m: &sage_traindata::Manifest, out: &Path, rendered: usize, secs: f64) {
+/// Prints what a training-data render did: whether it had finished before, skipped episodes
+/// with their reasons, the counts and the rate of the frames this run rendered.
+pub fn print_render(report: &TrainDataReport, out: &Path, secs: f64) {
+    if report.already_complete {
+        println!("already complete: {}", out.display());
+    }
+    let (m, rendered) = (&report.manifest, report.rendered_frames);
     for s in &m.skipped {
         eprintln!("skipped {}: {}", s.episode_id, s.reason);
     }

@@ -118,8 +118,8 @@ fn print_step(step: &Step, report: &StepReport, secs: f64) {
         (Step::Eval { out, .. }, StepReport::Eval(r)) => {
             crate::eval_cmd::print_eval(&r.0, &r.1, out, secs);
         }
-        (Step::TrainData { out, .. }, StepReport::TrainData(Some(m))) => {
-            crate::data_cmd::print_render(m, out, m.counts.frames, secs);
+        (Step::TrainData { out, .. }, StepReport::TrainData(Some(r))) => {
+            crate::data_cmd::print_render(r, out, secs);
         }
         (_, StepReport::TrainData(None)) => println!("the train split is empty: nothing to render"),
         (_, StepReport::Dataset(_) | StepReport::Eval(_) | StepReport::TrainData(_)) => {}

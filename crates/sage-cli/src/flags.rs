@@ -53,6 +53,24 @@ pub fn in_flags(message: &str) -> String {
         })
 }
 
+/// A whole-number flag's parser that refuses values outside `range`, so that clap names the
+/// flag and the command exits 2 as for any value the command line cannot take.
+pub fn count_in(
+    range: std::ops::RangeInclusive<usize>,
+) -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::new().range(*range.start() as u64..=*range.end() as u64)
+}
+
+/// A horizontal field of view in degrees, in (0, 180) as every camera takes it (`--hfov`).
+pub fn parse_hfov(s: &str) -> std::result::Result<f32, String> {
+    let v: f32 = s.trim().parse().map_err(|e| format!("{e}"))?;
+    if v > 0.0 && v < 180.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in (0, 180) degrees"))
+    }
+}
+
 /// A `WxH` image size (`--size`, `--sizes`) as (width, height).
 pub fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (w, h) = s

@@ -28,8 +28,8 @@ use std::process::ExitCode;
 #[derive(Parser)]
 #[command(name = "sage3d", version)]
 struct Cli {
-    /// Worker threads (default: all cores).
-    #[arg(long, global = true)]
+    /// Worker threads, 1-1024 (default: all cores).
+    #[arg(long, global = true, value_parser = flags::count_in(1..=1024))]
     threads: Option<usize>,
     /// Settings from a TOML file: a table per subcommand (`[data.build]`, `[eval]`) of
     /// `flag = value`; flags given on the command line win.
@@ -98,6 +98,11 @@ fn command_line() -> sage_core::Result<(Vec<OsString>, config::Origins)> {
     let Some(file) = config::config_path(&text) else {
         return Ok((raw, Vec::new()));
     };
+    // Help and the version never run a command, so they need no config file: a missing or
+    // broken one must not hide how to write it.
+    if config::asks_for_help::<Cli>(&text) {
+        return Ok((raw, Vec::new()));
+    }
     let file = std::path::PathBuf::from(file);
     let toml = std::fs::read_to_string(&file).map_err(|e| sage_core::Error::io(&file, e))?;
     let path = config::subcommand_path::<Cli>(&text);
@@ -126,8 +131,8 @@ fn parse(argv: Vec<OsString>, origins: &[(String, String)]) -> Cli {
 
 fn main() -> ExitCode {
     quiet_on_closed_pipe();
-    let cli = match command_line() {
-        Ok((argv, origins)) => parse(argv, &origins),
+    let (cli, origins) = match command_line() {
+        Ok((argv, origins)) => (parse(argv, &origins), origins),
         // A config file is part of the command line: what is wrong with it is a usage error,
         // as clap's are (exit status 2).
         Err(e) => {
@@ -137,7 +142,7 @@ fn main() -> ExitCode {
     };
     if let Some(n) = cli.threads
         && let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n)
             .build_global()
     {
         eprintln!("error: cannot set up {n} threads: {e}");
@@ -146,7 +151,12 @@ fn main() -> ExitCode {
     match dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", flags::in_flags(&e.to_string()));
+            let message = flags::in_flags(&e.to_string());
+            eprintln!("error: {message}");
+            // The message names flags; one the config file gave was never typed.
+            for (flag, origin) in config::named_in(&origins, &message) {
+                eprintln!("note: {flag} is {origin}");
+            }
             ExitCode::FAILURE
         }
     }

@@ -192,12 +192,30 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         report.out.display(),
         start.elapsed().as_secs_f64()
     );
+    // Fewer than asked is a property of the scene (too small for the distances asked), said
+    // but not a failure; none at all is.
+    for o in outcomes
+        .iter()
+        .filter(|o| o.status != Status::Skipped && o.trajectories < params.count)
+    {
+        eprintln!(
+            "note: {}: {} of {} trajectories; the report in its trajectories file counts the candidates rejected (a smaller --min-distance allows more)",
+            o.scene.display(),
+            o.trajectories,
+            params.count
+        );
+    }
     if tally.skipped > 0 {
         return Err(Error::invalid(format!(
             "{} of {} scenes were skipped (listed above); they have no trajectories, and a rerun retries them",
             tally.skipped,
             outcomes.len()
         )));
+    }
+    if total == 0 && params.count > 0 {
+        return Err(Error::invalid(
+            "no trajectory was made in any scene (see the notes above)",
+        ));
     }
     Ok(())
 }

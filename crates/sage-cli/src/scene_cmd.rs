@@ -54,13 +54,13 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = SynthConfig::default().kind)]
     kind: SceneKind,
     /// Target number of rooms.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::flags::count_in(sage_synth::ROOMS))]
     rooms: Option<usize>,
     /// Target number of objects.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::flags::count_in(sage_synth::OBJECTS))]
     objects: Option<usize>,
     /// Gaussian budget.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::flags::count_in(sage_synth::GAUSSIANS))]
     gaussians: Option<usize>,
     /// Gaussian file layout.
     #[arg(long, value_enum, default_value = "compressed")]

@@ -267,7 +267,11 @@ fn demo_runs_the_whole_pipeline_and_resumes() {
     }
     // A second run keeps everything: no episode is run twice.
     let records = std::fs::read_to_string(out.join("runs/oracle/episodes.jsonl")).unwrap();
-    ok(&[&args[..], &["--split", "train"]].concat());
+    let again = ok(&[&args[..], &["--split", "train"]].concat());
+    assert!(
+        again.contains("already complete") && again.contains("rendered 0 frames"),
+        "{again}"
+    );
     assert_eq!(
         std::fs::read_to_string(out.join("runs/oracle/episodes.jsonl")).unwrap(),
         records
@@ -519,4 +523,96 @@ fn a_config_file_supplies_flags_and_the_command_line_wins() {
         "--",
     ]);
     assert!(dashed.join("sage3d_run.json").is_file());
+    // A library's refusal names the flag; one the file gave is told where it came from.
+    std::fs::write(&config, "[nav.map]\ncell = 5.0\n").unwrap();
+    let out = sage3d(&["--config", s(&config), "nav", "map", s(&dashed)]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && e.contains("--cell")
+            && e.contains("note: --cell is [nav.map] cell in")
+            && e.contains("sage3d.toml"),
+        "{e}"
+    );
+    // Help needs no config file, even a missing one; a command does.
+    let missing = dir.path().join("missing.toml");
+    for help in [&["scene", "synth", "--help"][..], &["help"][..]] {
+        let out = sage3d(&[&["--config", s(&missing)][..], help].concat());
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success() && text.contains("Usage"), "{text}");
+    }
+    let out = sage3d(&[
+        "--config",
+        s(&missing),
+        "scene",
+        "synth",
+        "--out",
+        s(&scene),
+    ]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code() == Some(2) && e.contains("missing.toml"),
+        "{e}"
+    );
+}
+
+/// Values out of a flag's range are the parser's to refuse: exit status 2, naming the flag,
+/// before any work (the library's own checks still stand behind them).
+#[test]
+fn values_out_of_a_flags_range_exit_2_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x");
+    for (args, flag) in [
+        (vec!["--threads", "0", "scene", "info", "x"], "--threads"),
+        (
+            vec!["--threads", "100000", "scene", "info", "x"],
+            "--threads",
+        ),
+        (
+            vec!["scene", "synth", "--rooms", "0", "--out", s(&out)],
+            "--rooms",
+        ),
+        (
+            vec!["scene", "synth", "--gaussians", "10", "--out", s(&out)],
+            "--gaussians",
+        ),
+        (
+            vec!["render", "x", "--hfov", "200", "--out", s(&out)],
+            "--hfov",
+        ),
+        (
+            vec![
+                "data",
+                "render",
+                "x",
+                "--jpeg-quality",
+                "0",
+                "--out",
+                s(&out),
+            ],
+            "--jpeg-quality",
+        ),
+        (
+            vec!["data", "render", "x", "--width", "9000", "--out", s(&out)],
+            "--width",
+        ),
+        (
+            vec![
+                "data",
+                "render",
+                "x",
+                "--max-actions",
+                "0",
+                "--out",
+                s(&out),
+            ],
+            "--max-actions",
+        ),
+    ] {
+        let o = sage3d(&args);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(e.contains(flag), "{args:?}: {e}");
+    }
+    assert!(!out.exists());
 }

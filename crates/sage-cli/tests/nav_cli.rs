@@ -206,3 +206,38 @@ fn a_skipped_scene_is_named_and_the_exit_status_says_so() {
     let again = ok(&args);
     assert!(again.contains("1 done, 1 already complete"), "{again}");
 }
+
+#[test]
+fn a_scene_with_fewer_trajectories_than_asked_is_noted_and_none_at_all_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    small_scene(&scene, "1", "2000");
+    let three = |out: &str, more: &[&str]| {
+        let out = dir.path().join(out);
+        let mut args = vec![
+            "nav",
+            "trajectories",
+            s(&scene),
+            "--count",
+            "3",
+            "--out",
+            s(&out),
+        ];
+        args.extend(more);
+        sage3d(&args)
+    };
+    // No two stand points of a small home are 500 m apart: every candidate is rejected.
+    let far = three("far", &["--min-distance", "500"]);
+    assert_eq!(far.status.code(), Some(1));
+    let err = stderr(&far);
+    assert!(err.contains("0 of 3 trajectories"), "{err}");
+    assert!(err.contains("no trajectory was made"), "{err}");
+    // The default distances fill the count: no note, success.
+    let near = three("near", &[]);
+    assert!(near.status.success(), "{}", stderr(&near));
+    assert!(
+        !stderr(&near).contains("trajectories;"),
+        "{}",
+        stderr(&near)
+    );
+}

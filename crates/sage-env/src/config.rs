@@ -174,6 +174,9 @@ pub const TRAINING_STEPS: [(&str, f32, f32); 4] = [
     ("custom_small", 0.50, 30.0),
 ];
 
+/// The image widths and heights a sensor may have, pixels.
+pub const IMAGE_SIDE: std::ops::RangeInclusive<u32> = 1..=8192;
+
 /// Everything an [`crate::Env`] is set up with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -430,11 +433,11 @@ impl EnvConfig {
         let profile = self.profile()?;
         let bad = |field: &str, why: &str| Err(Error::invalid(format!("{field}: {why}")));
         let s = &self.sensors;
-        if !(1..=8192).contains(&s.width) || !(1..=8192).contains(&s.height) {
+        if !IMAGE_SIDE.contains(&s.width) || !IMAGE_SIDE.contains(&s.height) {
             return bad("sensors.width/height", "expected 1–8192 pixels");
         }
         if let Some([w, h]) = s.depth_size
-            && (!(1..=8192).contains(&w) || !(1..=8192).contains(&h))
+            && (!IMAGE_SIDE.contains(&w) || !IMAGE_SIDE.contains(&h))
         {
             return bad("sensors.depth_size", "expected 1–8192 pixels");
         }

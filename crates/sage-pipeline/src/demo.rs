@@ -162,8 +162,8 @@ pub enum StepReport {
     Physics(Box<(Scene, SceneBodies, BuildReport)>),
     /// The dataset built.
     Dataset(Box<DatasetReport>),
-    /// The training set's manifest (`None`: the train split had no episode to render).
-    TrainData(Option<Box<sage_traindata::Manifest>>),
+    /// The training-data render (`None`: the train split had no episode to render).
+    TrainData(Option<Box<crate::traindata::TrainDataReport>>),
     /// The evaluation and its report.
     Eval(Box<(RunOutcome, ReportOutcome)>),
 }
@@ -242,7 +242,7 @@ impl Step {
                             tick(r.of, "walks");
                         }
                     })?;
-                    Some(Box::new(report.manifest))
+                    Some(Box::new(report))
                 })
             }
             Step::Eval { settings, out } => {

@@ -410,6 +410,7 @@ pub fn render_to_folder(
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let stats = backend.as_cpu().map(RendererPool::stats);
     sage_io::run::mark_unfinished(out, RENDER_COMMAND, None)?;
+    remove_turntable(out)?;
     write_images(out, &image)?;
     write_legend(&out.join("legend.json"), &scene, &image)?;
     let mut files: Vec<PathBuf> = IMAGES.iter().map(PathBuf::from).collect();
@@ -561,6 +562,36 @@ fn write_legend(path: &Path, scene: &Scene, image: &RenderOutput) -> Result<()> 
 /// Turntable frames rendered per [`Backend::render_batch`] call: one GPU submission each,
 /// while the images held at once stay small.
 const TURNTABLE_BATCH: usize = 32;
+
+/// Removes an earlier render's turntable from the render folder `out` (claimed, so what
+/// stands under the turntable's names is a render's): its frames (files named as
+/// [`frame_name`] names them; anything else in the folder stays, and keeps the folder) and
+/// its animation. A rerun with fewer frames, or none, would otherwise leave frames of another
+/// size or camera beside its own.
+fn remove_turntable(out: &Path) -> Result<()> {
+    let gif = out.join(TURNTABLE_GIF);
+    if gif.is_file() {
+        std::fs::remove_file(&gif).map_err(|e| Error::io(&gif, e))?;
+    }
+    let folder = out.join(TURNTABLE_DIR);
+    let Ok(entries) = std::fs::read_dir(&folder) else {
+        return Ok(());
+    };
+    for entry in entries {
+        let path = entry.map_err(|e| Error::io(&folder, e))?.path();
+        let is_frame = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(|n| n.strip_prefix("rgb_")?.strip_suffix(".png"))
+            .is_some_and(|f| f.len() >= 3 && f.bytes().all(|b| b.is_ascii_digit()));
+        if is_frame && path.is_file() {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+    }
+    // Left where anything else is in it.
+    let _ = std::fs::remove_dir(&folder);
+    Ok(())
+}
 
 /// The file of turntable frame `f` inside [`TURNTABLE_DIR`].
 fn frame_name(f: usize) -> String {
@@ -727,6 +758,29 @@ mod tests {
         for name in sage_io::run::entries(&out).unwrap() {
             assert!(OUTPUTS.contains(&name.as_str()), "{name}");
         }
+        // A rerun with a shorter turntable, then none, leaves no frame of the earlier ones;
+        // a file of the user's in the turntable folder stays.
+        std::fs::write(out.join(TURNTABLE_DIR).join("notes.txt"), "mine").unwrap();
+        let fewer = RenderSettings {
+            turntable: Some(2),
+            ..settings.clone()
+        };
+        render_to_folder(&fewer, &out, false, &mut |_| {}).unwrap();
+        let listed = |dir: &Path| sage_io::run::entries(dir).unwrap();
+        assert_eq!(
+            listed(&out.join(TURNTABLE_DIR)),
+            ["notes.txt", "rgb_000.png", "rgb_001.png"]
+        );
+        let none = RenderSettings {
+            turntable: None,
+            ..settings.clone()
+        };
+        render_to_folder(&none, &out, false, &mut |_| {}).unwrap();
+        assert_eq!(listed(&out.join(TURNTABLE_DIR)), ["notes.txt"]);
+        assert!(!out.join(TURNTABLE_GIF).exists());
+        std::fs::remove_file(out.join(TURNTABLE_DIR).join("notes.txt")).unwrap();
+        render_to_folder(&none, &out, false, &mut |_| {}).unwrap();
+        assert!(!out.join(TURNTABLE_DIR).exists());
         // A bad setting fails before the folder is claimed.
         let bad = RenderSettings {
             turntable: Some(0),

@@ -122,6 +122,13 @@ impl Default for SynthConfig {
     }
 }
 
+/// Rooms a synthetic scene may have.
+pub const ROOMS: std::ops::RangeInclusive<usize> = 1..=64;
+/// Objects a synthetic scene may have.
+pub const OBJECTS: std::ops::RangeInclusive<usize> = 0..=5000;
+/// Gaussian budgets a synthetic scene may have.
+pub const GAUSSIANS: std::ops::RangeInclusive<usize> = 1000..=20_000_000;
+
 impl SynthConfig {
     /// Checks every field against its documented range.
     ///
@@ -130,18 +137,24 @@ impl SynthConfig {
     /// An `invalid` error naming the first field out of range.
     pub fn validate(&self) -> Result<()> {
         let check = |ok: bool, msg: String| if ok { Ok(()) } else { Err(Error::invalid(msg)) };
+        let range = |r: &std::ops::RangeInclusive<usize>| format!("{}-{}", r.start(), r.end());
         check(
-            (1..=64).contains(&self.rooms),
-            format!("synth: rooms must be 1-64, got {}", self.rooms),
+            ROOMS.contains(&self.rooms),
+            format!("synth: rooms must be {}, got {}", range(&ROOMS), self.rooms),
         )?;
         check(
-            self.objects <= 5000,
-            format!("synth: objects must be at most 5000, got {}", self.objects),
-        )?;
-        check(
-            (1000..=20_000_000).contains(&self.gaussians),
+            OBJECTS.contains(&self.objects),
             format!(
-                "synth: gaussians must be 1000-20000000, got {}",
+                "synth: objects must be {}, got {}",
+                range(&OBJECTS),
+                self.objects
+            ),
+        )?;
+        check(
+            GAUSSIANS.contains(&self.gaussians),
+            format!(
+                "synth: gaussians must be {}, got {}",
+                range(&GAUSSIANS),
                 self.gaussians
             ),
         )?;

@@ -41,7 +41,14 @@ pub struct Options {
     #[cfg_attr(feature = "clap", arg(long))]
     pub turn: Option<f32>,
     /// Motions per trajectory at most; past it the walk calls STOP where it stands.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().max_actions))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(
+            long,
+            default_value_t = Options::default().max_actions,
+            value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..)
+        )
+    )]
     pub max_actions: usize,
     /// How answers word the actions: sage (SAGE-3D's, `move forward 0.35 meter`) or navila
     /// (stock NaVILA's and its evaluator's, `move forward 35 cm`: a step of whole centimetres
@@ -52,10 +59,16 @@ pub struct Options {
     )]
     pub answers: Answers,
     /// Image width in pixels (the published pipeline rendered 1024×768).
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().width))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = Options::default().width, value_parser = image_side())
+    )]
     pub width: u32,
     /// Image height in pixels.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().height))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = Options::default().height, value_parser = image_side())
+    )]
     pub height: u32,
     /// Horizontal field of view in degrees.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().hfov))]
@@ -85,7 +98,14 @@ pub struct Options {
     #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().image))]
     pub image: ImageType,
     /// JPEG quality (1–100).
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().jpeg_quality))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(
+            long,
+            default_value_t = Options::default().jpeg_quality,
+            value_parser = clap::value_parser!(u8).range(1..=100)
+        )
+    )]
     pub jpeg_quality: u8,
     /// Keep episodes whose walk collided or ended farther than 1 m from the goal (dropped by
     /// default; counted either way).
@@ -111,6 +131,13 @@ pub struct Options {
         arg(long, value_name = "auto|always|never", default_value_t = Options::default().splat_bodies)
     )]
     pub splat_bodies: SplatBodies,
+}
+
+/// The parser of `--width` and `--height`: the sensors' sizes ([`sage_env::config::IMAGE_SIDE`]).
+#[cfg(feature = "clap")]
+fn image_side() -> clap::builder::RangedI64ValueParser<u32> {
+    let side = sage_env::config::IMAGE_SIDE;
+    clap::value_parser!(u32).range(i64::from(*side.start())..=i64::from(*side.end()))
 }
 
 impl Default for Options {
