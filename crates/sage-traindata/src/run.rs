@@ -617,8 +617,13 @@ pub fn render_scene(
     Ok(pending.len())
 }
 
-/// Walks at once in a lockstep render: each step renders one frame of each in one batch.
+/// Walks at once in a lockstep render, over all cohorts.
 const LOCKSTEP_WALKS: usize = 128;
+
+/// Cohorts of a lockstep render, each with a batch of its own in flight: while the GPU renders
+/// one cohort's frames, the host steps the other's walks through physics and encodes and
+/// writes their frames of the step before.
+const COHORTS: usize = 2;
 
 /// Encodes frame `k` of a walk into `dir`: the encoding's error is the walk's (outer `Ok`), a
 /// file that cannot be written stops the run (inner `Err`).
@@ -654,10 +659,29 @@ struct Stepping<'r> {
     failed: Option<Error>,
 }
 
+/// The walks of one cohort of a lockstep render and its batch in flight.
+#[derive(Default)]
+struct Cohort<'r> {
+    active: Vec<Stepping<'r>>,
+    in_flight: Option<Rendering>,
+}
+
+/// What every cohort of a lockstep render shares: the routes not yet started, the
+/// environments of walks that ended, and what begins and ends a route.
+struct Lockstep<'a, 'r> {
+    plan: &'a Plan,
+    ctx: &'a Arc<SceneContext>,
+    queue: std::slice::Iter<'r, &'r Route>,
+    spare: Vec<Env>,
+    begin: &'a (dyn Fn(&Route) -> Result<PathBuf> + Sync),
+    end: &'a EndRoute<'a>,
+}
+
 /// Renders `routes` on a GPU that every environment over the scene shares, up to
-/// [`LOCKSTEP_WALKS`] walks at once in lockstep: each step renders the next frame of every
-/// walk in one batch, and while the GPU renders it, the frames of the step before are
-/// encoded and written. Walks start as others end, in `routes` order; each walk's frames and
+/// [`LOCKSTEP_WALKS`] walks at once in [`COHORTS`] cohorts taking turns: each turn of a cohort
+/// renders the next frame of every walk of it in one batch, and while the GPU renders it, the
+/// host steps the other cohort's walks through physics and encodes and writes the frames of
+/// the step before. Walks start as others end, in `routes` order; each walk's frames and
 /// record are those [`replay::walk`] gives it alone.
 fn lockstep(
     plan: &Plan,
@@ -667,14 +691,45 @@ fn lockstep(
     begin: &(dyn Fn(&Route) -> Result<PathBuf> + Sync),
     end: &EndRoute<'_>,
 ) -> Result<()> {
-    let s = &plan.settings;
-    let mut queue = routes.iter();
-    let mut spare = vec![first];
-    let mut active: Vec<Stepping> = Vec::new();
-    let mut in_flight: Option<Rendering> = None;
+    let mut shared = Lockstep {
+        plan,
+        ctx,
+        queue: routes.iter(),
+        spare: vec![first],
+        begin,
+        end,
+    };
+    let mut cohorts: Vec<Cohort> = (0..COHORTS).map(|_| Cohort::default()).collect();
     loop {
+        for c in 0..COHORTS {
+            // Routes are shared out evenly while fewer remain than the cohorts hold, so that
+            // each cohort's batch renders while the other's walks are stepped.
+            let busy: usize = cohorts.iter().map(|c| walking(&c.active)).sum();
+            let places =
+                (LOCKSTEP_WALKS / COHORTS).min((busy + shared.queue.len()).div_ceil(COHORTS));
+            shared.turn(&mut cohorts[c], places)?;
+        }
+        let idle = |c: &Cohort| c.active.is_empty() && c.in_flight.is_none();
+        if cohorts.iter().all(idle) && shared.queue.len() == 0 {
+            return Ok(());
+        }
+    }
+}
+
+/// The walks of `active` with a frame to render.
+fn walking(active: &[Stepping]) -> usize {
+    active.iter().filter(|w| w.pending.is_some()).count()
+}
+
+impl<'r> Lockstep<'_, 'r> {
+    /// One turn of `cohort`: its last batch's frames observed and its walks' next actions
+    /// stepped, new walks in the places of those that ended (up to `places` walking), its next
+    /// batch submitted, the frames observed written, and the records of walks that ended.
+    fn turn(&mut self, cohort: &mut Cohort<'r>, places: usize) -> Result<()> {
+        let s = &self.plan.settings;
+        let active = &mut cohort.active;
         // The last batch's frames: observed, then the next actions (physics, in parallel).
-        if let Some(rendering) = in_flight.take() {
+        if let Some(rendering) = cohort.in_flight.take() {
             let mut outputs = rendering.wait()?.into_iter();
             let per_walk: Vec<Vec<RenderOutput>> = active
                 .iter()
@@ -706,14 +761,16 @@ fn lockstep(
             });
         }
         // New walks take the places of those that ended.
-        while active.iter().filter(|w| w.pending.is_some()).count() < LOCKSTEP_WALKS {
-            let Some(route) = queue.next() else { break };
-            let dir = begin(route)?;
-            let mut env = match spare.pop() {
-                Some(env) => env,
-                None => Env::new(ctx.clone(), plan.env.clone())?,
+        while walking(active) < places {
+            let Some(route) = self.queue.next() else {
+                break;
             };
-            match Walker::start(&mut env, route, &s.preset, plan.dataset_turn_deg) {
+            let dir = (self.begin)(route)?;
+            let mut env = match self.spare.pop() {
+                Some(env) => env,
+                None => Env::new(self.ctx.clone(), self.plan.env.clone())?,
+            };
+            match Walker::start(&mut env, route, &s.preset, self.plan.dataset_turn_deg) {
                 Ok((walker, pending)) => active.push(Stepping {
                     route,
                     dir,
@@ -724,19 +781,20 @@ fn lockstep(
                     failed: None,
                 }),
                 Err(e) => {
-                    end(route, &dir, Err(e))?;
-                    spare.push(env);
+                    (self.end)(route, &dir, Err(e))?;
+                    self.spare.push(env);
                 }
             }
         }
-        // The next batch renders while this step's frames are written.
+        // The next batch renders while this step's frames are written (and the other cohort
+        // takes its turn).
         let cameras: Vec<_> = active
             .iter()
             .filter_map(|w| w.pending.as_ref())
             .flat_map(|p| p.cameras().iter().copied())
             .collect();
         if let Some(lead) = active.iter_mut().find(|w| w.pending.is_some()) {
-            in_flight = Some(lead.env.submit(&cameras)?);
+            cohort.in_flight = Some(lead.env.submit(&cameras)?);
         }
         let failures: Vec<Result<()>> = active
             .par_iter_mut()
@@ -770,12 +828,10 @@ fn lockstep(
                 Some(e) => Err(e),
                 None => Ok(w.walker.finish(&w.env, w.route)),
             };
-            end(w.route, &w.dir, walked)?;
-            spare.push(w.env);
+            (self.end)(w.route, &w.dir, walked)?;
+            self.spare.push(w.env);
         }
-        if active.is_empty() && in_flight.is_none() && queue.len() == 0 {
-            return Ok(());
-        }
+        Ok(())
     }
 }
 

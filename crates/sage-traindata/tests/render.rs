@@ -445,6 +445,12 @@ fn a_gpu_render_walks_in_lockstep_and_each_walk_is_what_it_gives_alone() {
     assert_eq!(manifest.counts, cpu_manifest.counts);
     // Every route walked alone on the GPU writes the frames the lockstep render wrote.
     let plan = Plan::new(&s).unwrap();
+    // Routes of one scene are shared between the two cohorts of the lockstep render.
+    assert!(
+        plan.routes.values().any(|r| r.len() >= 2),
+        "{:?}",
+        plan.routes.keys()
+    );
     let mut frames = 0;
     for (scene, routes) in &plan.routes {
         let ctx = std::sync::Arc::new(
