@@ -179,7 +179,7 @@ fn normal(t: &[Vec3; 3]) -> Vec3 {
 
 /// Per-triangle `Kd` colours of `meshes/{ins_id}.obj` when its models name materials that
 /// define one, `None` when the file has no materials (or is not an OBJ). Triangles come in the
-/// order `TriMesh::load` reads them (the same tobj options), so indices match `expected`.
+/// order `TriMesh::load` reads them, so indices match `expected`.
 fn material_colors(
     dir: &Path,
     ins_id: &str,
@@ -190,40 +190,20 @@ fn material_colors(
     if !path.is_file() {
         return Ok(None);
     }
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
-    let (models, materials) = tobj::load_obj(&path, &options)
-        .map_err(|e| Error::format("obj", e.to_string()).in_file(&path))?;
-    // A missing .mtl is not fatal: the mesh keeps its object colour.
-    let Ok(materials) = materials else {
+    let Some(colors) = sage_scene::mesh::obj_material_colors(&path)? else {
         return Ok(None);
     };
-    if materials.is_empty() {
-        return Ok(None);
-    }
-    let mut out = Vec::with_capacity(expected);
-    for m in &models {
-        let kd = m
-            .mesh
-            .material_id
-            .and_then(|id| materials.get(id))
-            .and_then(|mat| mat.diffuse);
-        out.extend(std::iter::repeat_n(kd, m.mesh.indices.len() / 3));
-    }
-    if out.len() != expected {
+    if colors.len() != expected {
         return Err(Error::format(
             "obj",
             format!(
                 "materials cover {} triangles but the mesh has {expected}",
-                out.len()
+                colors.len()
             ),
         )
         .in_file(&path));
     }
-    Ok(Some(out))
+    Ok(Some(colors))
 }
 
 /// `n` points on the scene's surfaces, area-weighted, each with the colour the renderer gives

@@ -397,6 +397,54 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
     Ok(mesh)
 }
 
+/// The diffuse (`Kd`) colour of each triangle of the OBJ mesh `path`, in the order
+/// [`TriMesh::load`] reads them, where its models name a material that defines one; `None`
+/// when it names no material file, or none that can be read (the mesh keeps its object's
+/// colour). A material file is read only from beside the OBJ, as a glTF buffer is: a relative
+/// name without `..`, a scheme or a drive, naming a regular file within the mesh file size
+/// limit (`SAGE3D_MAX_MESH_MB`); any other is treated as missing, never opened.
+///
+/// # Errors
+///
+/// The OBJ file itself: missing, over the size limit, or not OBJ; naming the file.
+pub fn obj_material_colors(path: &Path) -> Result<Option<Vec<Option<[f32; 3]>>>> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let bytes = read_file(path).in_file(path)?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+    let load_mtl = |name: &Path| {
+        let refused = || tobj::LoadError::OpenFileFailed;
+        let name = name.to_str().ok_or_else(refused)?;
+        if buffer_uri_problem(name).is_some() {
+            return Err(refused());
+        }
+        let bytes = read_file(&folder.join(name)).map_err(|_| refused())?;
+        tobj::load_mtl_buf(&mut bytes.as_slice())
+    };
+    let mut reader = LineCounter::new(bytes.as_slice());
+    let loaded = tobj::load_obj_buf(&mut reader, &options, load_mtl);
+    let (models, materials) = loaded
+        .map_err(|e| obj_error(e, reader.line()))
+        .in_file(path)?;
+    let materials = match materials {
+        Ok(m) if !m.is_empty() => m,
+        _ => return Ok(None),
+    };
+    let mut colors = Vec::new();
+    for m in &models {
+        let kd = m
+            .mesh
+            .material_id
+            .and_then(|id| materials.get(id))
+            .and_then(|mat| mat.diffuse);
+        colors.extend(std::iter::repeat_n(kd, m.mesh.indices.len() / 3));
+    }
+    Ok(Some(colors))
+}
+
 /// Why vertex `p` is refused.
 fn vertex_out_of_bounds(p: Vec3) -> String {
     format!(

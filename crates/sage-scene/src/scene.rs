@@ -99,7 +99,8 @@ pub mod files {
     pub const OBJECTS: &str = "objects.json";
     /// Mesh folder.
     pub const MESHES: &str = "meshes";
-    /// Structure mesh inside the mesh folder.
+    /// Structure mesh inside the mesh folder (its stem is
+    /// [`crate::formats::labels::STRUCTURE_STEM`], which no object's `ins_id` may be).
     pub const STRUCTURE_MESH: &str = "structure.obj";
     /// What `sage3d scene import` did to a capture (its transform, scale and floor fit); the
     /// loader reads the ceiling height it measured.
@@ -505,7 +506,7 @@ impl Scene {
         }
         if let Some(m) = &self.structure_mesh {
             sage_io::files::write_atomic(&mesh_dir.join(files::STRUCTURE_MESH), |w| {
-                m.write_obj(w, "structure")
+                m.write_obj(w, labels::STRUCTURE_STEM)
             })?;
         }
         Ok(())

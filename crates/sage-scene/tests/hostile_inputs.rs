@@ -48,6 +48,8 @@ fn an_ins_id_that_is_not_one_file_name_is_refused_naming_the_entry() {
         ("x\0y", "holds '\\0'"),
         ("line\nbreak", "holds '\\n'"),
         (long.as_str(), "is longer than 128 bytes"),
+        ("structure", "is the structure mesh's name"),
+        ("Structure", "is the structure mesh's name"),
     ];
     for (id, why) in cases {
         let text = labels_with(&[json!("1"), json!(id)]);
@@ -71,6 +73,7 @@ fn ins_ids_that_are_one_file_name_stay_accepted() {
         json!("Chair 1"),
         json!("椅子"),
         json!("v1.2"),
+        json!("structure_2"),
         json!("7".repeat(labels::MAX_INS_ID)),
     ];
     let (objects, skipped) = labels::parse(&labels_with(&ids)).unwrap();
@@ -409,5 +412,37 @@ fn placements_sage3d_and_interiorgs_write_still_load() {
     ] {
         let (scale, lower, upper) = parse_placement(text).unwrap();
         assert_eq!((scale, lower[0], upper[1]), (0.05, -5.7, 4.325), "{text}");
+    }
+}
+
+/// An OBJ's material file is read only from beside it: a `mtllib` naming a path outside the
+/// folder, an absolute one or a device is treated as missing (never opened), and the one beside
+/// the mesh gives each triangle its `Kd`.
+#[test]
+fn an_obj_reads_its_material_file_only_from_beside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let meshes = dir.path().join("meshes");
+    std::fs::create_dir(&meshes).unwrap();
+    let red = "newmtl red\nKd 1 0 0\n";
+    std::fs::write(meshes.join("red.mtl"), red).unwrap();
+    std::fs::write(dir.path().join("outside.mtl"), red).unwrap();
+    let obj = |mtllib: &str| {
+        let path = meshes.join("m.obj");
+        std::fs::write(
+            &path,
+            format!("mtllib {mtllib}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nusemtl red\nf 1 2 3\nf 1 3 4\n"),
+        )
+        .unwrap();
+        sage_scene::mesh::obj_material_colors(&path).unwrap()
+    };
+    assert_eq!(obj("red.mtl"), Some(vec![Some([1.0, 0.0, 0.0]); 2]));
+    let outside = dir.path().join("outside.mtl");
+    for refused in [
+        "../outside.mtl",
+        outside.to_str().unwrap(),
+        "/dev/zero",
+        "missing.mtl",
+    ] {
+        assert_eq!(obj(refused), None, "{refused}");
     }
 }

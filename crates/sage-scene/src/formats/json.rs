@@ -25,9 +25,22 @@ pub fn number(v: &Value, at: &str) -> Result<f32> {
         Value::String(s) => s.trim().parse::<f64>().ok(),
         _ => None,
     };
-    f.map(|f| f as f32)
-        .filter(|f| f.is_finite())
-        .ok_or_else(|| Error::format(at, format!("expected a finite number, found {}", short(v))))
+    match f.filter(|f| f.is_finite()) {
+        Some(f) if (f as f32).is_finite() => Ok(f as f32),
+        // Finite in the file's double precision: the error says which range it leaves.
+        Some(_) => Err(Error::format(
+            at,
+            format!(
+                "{} is out of the single-precision (f32) range of ±{:e}",
+                short(v),
+                f32::MAX
+            ),
+        )),
+        None => Err(Error::format(
+            at,
+            format!("expected a finite number, found {}", short(v)),
+        )),
+    }
 }
 
 /// A string (numbers are accepted and written out, as ids often are).

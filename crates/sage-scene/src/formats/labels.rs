@@ -6,10 +6,9 @@
 //! An object's `ins_id` names its mesh file (`meshes/{ins_id}.obj`), so it must be a plain file
 //! name ([`ins_id_problem`]): an id read from a data file never becomes a path unchecked.
 
-use super::json::{array, field, parse_text, point3, short, string};
+use super::json::{array, field, parse_text, point3, string};
 use crate::object::{Attributes, Object, PhysicsRole, RigidBody, normalize_category};
-use glam::Vec3;
-use sage_core::{Error, InstanceId, MAX_COORDINATE, Obb, Result, ResultExt};
+use sage_core::{Error, InstanceId, Obb, Result, ResultExt};
 use sage_io::files::strip_bom;
 use sage_io::limits::LABELS;
 use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
@@ -24,12 +23,17 @@ const BOX_TOLERANCE: f32 = 0.01;
 /// systems allow 255 bytes a name, extension included.
 pub const MAX_INS_ID: usize = sage_io::names::MAX_NAME;
 
+/// The stem of the structure mesh's file (`meshes/structure.obj`), which no object's mesh may
+/// take: the structure would load as that object's mesh, and a save would write both to one file.
+pub const STRUCTURE_STEM: &str = "structure";
+
 /// Why `ins_id` cannot name an object's files (`meshes/{ins_id}.obj`), or `None` when it can.
 ///
 /// The rule is that of a single path component that stays in its folder: not empty, at most
 /// [`MAX_INS_ID`] bytes, no `/` or `\` (a separator on some system) nor `:` (`C:x` leaves its
-/// folder on Windows), no control character (NUL included), and not starting with `.` (which
-/// refuses `.` and `..` and hidden files). It is looser than [`sage_io::names::check_plain`] on
+/// folder on Windows), no control character (NUL included), not starting with `.` (which
+/// refuses `.` and `..` and hidden files), and not the structure mesh's [`STRUCTURE_STEM`] in
+/// any case. It is looser than [`sage_io::names::check_plain`] on
 /// purpose: a space or a non-ASCII letter is harmless in a file name, and refusing it would
 /// refuse scenes that load today.
 pub fn ins_id_problem(ins_id: &str) -> Option<String> {
@@ -44,6 +48,10 @@ pub fn ins_id_problem(ins_id: &str) -> Option<String> {
         Some(format!("holds {c:?}"))
     } else if ins_id.starts_with('.') {
         Some("starts with '.'".to_string())
+    } else if ins_id.eq_ignore_ascii_case(STRUCTURE_STEM) {
+        Some(format!(
+            "is the structure mesh's name (meshes/{STRUCTURE_STEM}.obj)"
+        ))
     } else {
         None
     }
@@ -54,8 +62,8 @@ pub fn ins_id_message(ins_id: &str, problem: &str) -> String {
     let shown: String = ins_id.chars().take(MAX_INS_ID).collect();
     format!(
         "'{}' {problem}: an object's ins_id names its mesh file (meshes/{{ins_id}}.obj), so it \
-         must be one file name: no '/', '\\', ':' or control characters, not starting with '.', at \
-         most {MAX_INS_ID} bytes",
+         must be one file name: no '/', '\\', ':' or control characters, not starting with '.', \
+         not '{STRUCTURE_STEM}', at most {MAX_INS_ID} bytes",
         shown.escape_debug()
     )
 }
@@ -169,7 +177,7 @@ fn parse_entry(e: &Value) -> Result<Option<Object>> {
     let corners = array(bb, "bounding_box")?
         .iter()
         .enumerate()
-        .map(|(k, c)| corner(c, &format!("bounding_box[{k}]")))
+        .map(|(k, c)| point3(c, &format!("bounding_box[{k}]")))
         .collect::<Result<Vec<_>>>()?;
     let obb = Obb::from_corners(&corners, BOX_TOLERANCE)?;
     Ok(Some(Object {
@@ -185,47 +193,6 @@ fn parse_entry(e: &Value) -> Result<Option<Object>> {
         mesh: None,
         body: None,
     }))
-}
-
-/// A box corner ([`point3`]), whose error, where the value at fault is a number too large for
-/// single precision (1e300: finite in the file's double precision), says so instead of calling
-/// it not finite.
-fn corner(c: &Value, at: &str) -> Result<Vec3> {
-    point3(c, at).map_err(|e| f32_overflow(c, at).unwrap_or(e))
-}
-
-/// The error for the first coordinate of `c` that overflows f32, when that is the coordinate
-/// [`point3`] stopped at: coordinates are walked in its order and with its checks, and any other
-/// fault first leaves its error as it is. Only called on an error, so the good path pays nothing.
-fn f32_overflow(c: &Value, at: &str) -> Option<Error> {
-    let comps: Vec<&Value> = match c {
-        Value::Array(a) if a.len() == 2 || a.len() == 3 => a.iter().collect(),
-        Value::Object(o) => ["x", "y", "z"].iter().filter_map(|k| o.get(*k)).collect(),
-        _ => return None,
-    };
-    for (i, v) in comps.iter().enumerate() {
-        let f = match v {
-            Value::Number(n) => n.as_f64(),
-            Value::String(s) => s.trim().parse::<f64>().ok(),
-            _ => None,
-        }
-        .filter(|f| f.is_finite())?;
-        if (f as f32).is_infinite() {
-            return Some(Error::format(
-                format!("{at}[{i}]"),
-                format!(
-                    "{} is out of the single-precision (f32) range of ±{:e}, and far beyond \
-                     ±{MAX_COORDINATE} m (coordinates are metres)",
-                    short(v),
-                    f32::MAX
-                ),
-            ));
-        }
-        if (f as f32).abs() > MAX_COORDINATE {
-            return None;
-        }
-    }
-    None
 }
 
 /// The objects as `labels.json`.
