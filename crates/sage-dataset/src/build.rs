@@ -477,6 +477,9 @@ pub fn run_scene(
         if file.is_file() {
             std::fs::remove_file(&file).map_err(|e| Error::io(&file, e))?;
         }
+        // Hashed before the scene is read: a file edited while this scene builds then differs
+        // from what is recorded, and the next run builds the scene again.
+        let inputs = sage_io::scenes::input_hashes(dir);
         let (mut scene, _) = Scene::load(dir)?;
         scene.name = name.clone();
         let (report, episodes) = scene_episodes(&scene, params, client)?;
@@ -488,7 +491,7 @@ pub fn run_scene(
             &SceneEpisodes {
                 scene: name.clone(),
                 settings: params.clone(),
-                inputs: sage_io::scenes::input_hashes(dir),
+                inputs,
                 report,
                 episodes,
             },

@@ -38,6 +38,16 @@ pub enum Source {
     },
 }
 
+impl Source {
+    /// The file the episodes come from (for R2R-VLNCE, the split's main file).
+    pub fn path(&self) -> PathBuf {
+        match self {
+            Source::Gvln { file, .. } | Source::GnBench { file, .. } => file.clone(),
+            Source::R2r { dir, split } => r2r::paths(dir, split).0,
+        }
+    }
+}
+
 /// The folder of a dataset where a GN-Bench import writes its report,
 /// `import_reports/{split}.json`.
 pub const REPORTS_DIR: &str = "import_reports";
@@ -167,6 +177,14 @@ pub fn import(
             }
         }
     };
+    if episodes.is_empty() {
+        // An empty split is no benchmark: refused before anything is written, as a GN-Bench
+        // file without an importable row is above.
+        return Err(
+            Error::invalid("the source holds no episode; nothing was imported")
+                .in_file(source.path()),
+        );
+    }
     if let Some(scenes) = scenes {
         let dirs = sage_io::scenes::scene_dirs_by_name(scenes)?;
         if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {

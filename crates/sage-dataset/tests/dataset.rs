@@ -162,6 +162,17 @@ fn a_rebuild_redoes_a_scene_whose_input_files_changed() {
         let (outcomes, summary) = build::build(&dirs, out.path(), &with_llm, &a, &|_| {}).unwrap();
         assert!(summary.llm_failures > 0);
         assert!(outcomes.iter().all(|o| o.status == Status::Done));
+        let failures: u64 = ["scene1", "scene2"]
+            .iter()
+            .map(|name| {
+                let file: serde_json::Value = serde_json::from_str(
+                    &std::fs::read_to_string(build::scene_file(out.path(), name)).unwrap(),
+                )
+                .unwrap();
+                file["report"]["llm_failures"].as_u64().unwrap()
+            })
+            .sum();
+        assert_eq!(failures as usize, summary.llm_failures);
     }
 }
 
@@ -1072,4 +1083,29 @@ fn imports_tag_published_episodes_with_their_scenes_asset_slice() {
         e.contains("labels.json") && e.contains("small-t0-0") && e.contains("asset slice"),
         "{e}"
     );
+}
+
+/// A source without an episode is refused by name before any file of the dataset is written:
+/// an empty split is no benchmark.
+#[test]
+fn an_import_of_no_episode_is_refused_and_writes_no_split() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("empty.json");
+    gvln::write(&file, &[], GvlnFrame::World, &StepSizes::default()).unwrap();
+    let source = sage_dataset::import::Source::Gvln {
+        file: file.clone(),
+        offset: Vec2::ZERO,
+    };
+    let data = dir.path().join("data");
+    let err = sage_dataset::import::import(&source, &data, "mine", None, false).unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        format!(
+            "{}: the source holds no episode; nothing was imported",
+            file.display()
+        )
+    );
+    assert!(!data.join("episodes").exists());
+    assert!(!data.join(sage_dataset::folder::SPLITS_FILE).exists());
+    assert!(!data.join(sage_io::RUN_RECORD).exists());
 }
