@@ -311,6 +311,8 @@ def test_same_bytes_on_two_threads_and_after_a_cut(ds, data, sage3d, tmp_path):
     assert tree(two) == tree(ds)
     again = render(sage3d, data, two)
     assert "already complete" in again.stdout + again.stderr
+    # The command's count of rows is info.json's.
+    assert f"{info(two)['total_frames']} LeRobot rows (total_frames)" in again.stdout
     assert tree(two) == tree(ds)
 
 

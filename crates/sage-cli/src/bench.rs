@@ -71,8 +71,8 @@ pub struct ViewBenchArgs {
     #[arg(long, default_value_t = ViewSettings::default().steps)]
     steps: usize,
     /// Frame size, WxH.
-    #[arg(long, default_value = "640x480")]
-    size: String,
+    #[arg(long, default_value = "640x480", value_parser = parse_size)]
+    size: (u32, u32),
 }
 
 impl ViewBenchArgs {
@@ -82,7 +82,7 @@ impl ViewBenchArgs {
             objects: self.objects,
             seed: self.seed,
             steps: self.steps,
-            size: crate::flags::parse_size(&self.size)?,
+            size: self.size,
         })
     }
 }
@@ -102,8 +102,8 @@ pub struct TrainDataBenchArgs {
     #[arg(long, default_value_t = 40)]
     trajectories: usize,
     /// Resolutions as WxH.
-    #[arg(long, value_delimiter = ',', default_value = "224x224,384x384,640x480")]
-    sizes: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_value = "224x224,384x384,640x480", value_parser = parse_size)]
+    sizes: Vec<(u32, u32)>,
     /// Action preset.
     #[arg(long, default_value_t = TrainDataSettings::default().preset)]
     preset: sage_traindata::PresetName,
@@ -118,7 +118,7 @@ impl TrainDataBenchArgs {
             gaussians: self.gaussians,
             seed: self.seed,
             trajectories: self.trajectories,
-            sizes: sizes(&self.sizes)?,
+            sizes: self.sizes.clone(),
             preset: self.preset,
             device: self.device.device,
         })
@@ -131,8 +131,8 @@ pub struct FitBenchArgs {
     #[arg(long, default_value_t = 300)]
     iterations: usize,
     /// Image size as WxH.
-    #[arg(long, default_value = "128x96")]
-    size: String,
+    #[arg(long, default_value = "128x96", value_parser = parse_size)]
+    size: (u32, u32),
     /// Gaussians in the generated room (the initialisation keeps every fourth).
     #[arg(long, default_value_t = 20_000)]
     gaussians: usize,
@@ -159,8 +159,8 @@ pub struct RenderBenchArgs {
     #[arg(long, default_value_t = 24)]
     frames: usize,
     /// Resolutions as WxH (default: 224x224,640x480, and 1024x768 when the GPU renders).
-    #[arg(long, value_delimiter = ',')]
-    sizes: Option<Vec<String>>,
+    #[arg(long, value_delimiter = ',', value_parser = parse_size)]
+    sizes: Option<Vec<(u32, u32)>>,
     /// Camera pitch in degrees (0: level, as the SAGE-Bench camera).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pitch: f32,
@@ -174,8 +174,8 @@ pub struct RenderBenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,16,64,256,1024")]
     batches: Vec<usize>,
     /// Resolution of the batched cameras as WxH.
-    #[arg(long, default_value = "224x224")]
-    batch_size: String,
+    #[arg(long, default_value = "224x224", value_parser = parse_size)]
+    batch_size: (u32, u32),
     /// The images each frame renders out, as `RenderOutput` fields: all, or some of rgb,
     /// rgb_f32, alpha, depth_expected, depth_median, instance, semantic (on the GPU only
     /// these are read back; an RGB-D agent's sensors are rgb,depth_median).
@@ -325,8 +325,8 @@ pub struct EnvBenchArgs {
     #[arg(long, default_value_t = 200)]
     render_steps: usize,
     /// Resolutions as WxH (RGB + depth each).
-    #[arg(long, value_delimiter = ',', default_value = "224x224,640x480")]
-    sizes: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_value = "224x224,640x480", value_parser = parse_size)]
+    sizes: Vec<(u32, u32)>,
     /// Hull cache folder.
     #[arg(long)]
     cache: Option<PathBuf>,
@@ -356,12 +356,12 @@ impl RenderBenchArgs {
             scene: self.scene.clone(),
             gaussians: self.gaussians,
             frames: self.frames,
-            sizes: self.sizes.as_deref().map(sizes).transpose()?,
+            sizes: self.sizes.clone(),
             pitch: self.pitch,
             sh3: self.sh3,
             device: self.device.device,
             batches: self.batches.clone(),
-            batch_size: parse_size(&self.batch_size)?,
+            batch_size: self.batch_size,
             channels: self.channels.parse()?,
             slabs: self.slabs,
             blending: self.blending.parse()?,
@@ -402,7 +402,7 @@ impl EnvBenchArgs {
             seed: self.seed,
             steps: self.steps,
             render_steps: self.render_steps,
-            sizes: sizes(&self.sizes)?,
+            sizes: self.sizes.clone(),
             cache: self.cache.clone(),
             device: self.device.device,
             envs: self.envs,
@@ -414,7 +414,7 @@ impl FitBenchArgs {
     fn settings(&self) -> Result<FitSettings> {
         Ok(FitSettings {
             iterations: self.iterations,
-            size: parse_size(&self.size)?,
+            size: self.size,
             gaussians: self.gaussians,
             views: self.views,
             heldout: self.heldout,
@@ -489,11 +489,6 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         }
         BenchCommand::View(a) => print_report(&sage_perf::view::run(&a.settings()?)?, false),
     }
-}
-
-/// The `--sizes` values as (width, height).
-fn sizes(flags: &[String]) -> Result<Vec<(u32, u32)>> {
-    flags.iter().map(|s| parse_size(s)).collect()
 }
 
 /// Prints a report: its lines, or with `json` one line of JSON.
@@ -583,12 +578,24 @@ mod tests {
         }
     }
 
+    /// Sizes are refused by the parser, naming the flag, before any work.
     #[test]
     fn sizes_are_checked_before_any_work() {
-        let BenchCommand::Render(a) = parse(&["render", "--sizes", "32x24,10"]) else {
+        for (size, why) in [
+            ("32x24,10", "'10' is not WxH"),
+            ("32x0", "0 is not in 1..=16384 pixels"),
+            ("16385x8", "16385 is not in 1..=16384 pixels"),
+        ] {
+            let e = Bench::try_parse_from(["bench", "render", "--sizes", size])
+                .err()
+                .unwrap_or_else(|| panic!("{size} was taken"));
+            assert_eq!(e.kind(), clap::error::ErrorKind::ValueValidation);
+            let e = e.to_string();
+            assert!(e.contains("--sizes") && e.contains(why), "{e}");
+        }
+        let BenchCommand::Render(a) = parse(&["render", "--sizes", "32x24,1x16384"]) else {
             unreachable!()
         };
-        let e = a.settings().unwrap_err().to_string();
-        assert!(e.contains("size '10' is not WxH"), "{e}");
+        assert_eq!(a.sizes, Some(vec![(32, 24), (1, 16384)]));
     }
 }

@@ -26,8 +26,9 @@ pub fn config_path(argv: &[String]) -> Option<String> {
 }
 
 /// Whether a raw command line asks for help or the version: `-h`, `--help`, `-V` or
-/// `--version` before a typed `--`, or `help` straight after its subcommands (`sage3d help`,
-/// `sage3d data help build`; global flags may stand between).
+/// `--version` before a typed `--`, or `help` straight after its subcommands where another
+/// subcommand could stand (`sage3d help`, `sage3d data help build`; global flags may stand
+/// between; not `sage3d scene info help`, a path).
 pub fn asks_for_help<C: CommandFactory>(argv: &[String]) -> bool {
     let flags_end = argv.iter().position(|a| a == "--").unwrap_or(argv.len());
     let words = argv.get(1..flags_end).unwrap_or_default();
@@ -49,7 +50,9 @@ pub fn asks_for_help<C: CommandFactory>(argv: &[String]) -> bool {
         }
         match cmd.find_subcommand(w) {
             Some(sub) if w != "help" => cmd = sub.clone(),
-            _ => return w == "help",
+            // `help` is clap's word only where a subcommand could stand: after `scene info`
+            // it is a path.
+            _ => return w == "help" && cmd.has_subcommands(),
         }
     }
     false
@@ -611,6 +614,7 @@ mod tests {
             "sage3d --config help data build S",
             "sage3d --config c.toml render S -- --help",
             "sage3d --config c.toml demo",
+            "sage3d --config c.toml scene info help",
         ] {
             assert!(!asks(no), "{no}");
         }

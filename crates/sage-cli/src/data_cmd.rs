@@ -319,9 +319,12 @@ pub fn print_render(report: &TrainDataReport, out: &Path, secs: f64) {
         c.ignored.values().sum::<usize>(),
         listed(&c.ignored)
     );
-    // Samples are NaVILA's (one per step); the other layouts hold episodes of frames.
+    // Samples are NaVILA's (one per step); LeRobot's rows are the same count (its info.json's
+    // `total_frames`: episodes of one walk repeat its frames); the other layouts hold episodes
+    // of the walks' frames.
     let samples = match m.settings.get("format").and_then(|f| f.as_str()) {
         Some("navila") => format!("{} NaVILA samples, ", c.samples),
+        Some("lerobot") => format!("{} LeRobot rows (total_frames) from ", c.samples),
         _ => String::new(),
     };
     println!(

@@ -1,7 +1,8 @@
 //! Flag values that several commands parse the same way.
 
-use sage_core::{Error, Result};
+use sage_core::Result;
 use sage_splat::Device;
+use sage_splat::MAX_IMAGE_SIDE;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
@@ -61,27 +62,23 @@ pub fn count_in(
     clap::builder::RangedU64ValueParser::new().range(*range.start() as u64..=*range.end() as u64)
 }
 
-/// A horizontal field of view in degrees, in (0, 180) as every camera takes it (`--hfov`).
-pub fn parse_hfov(s: &str) -> std::result::Result<f32, String> {
-    let v: f32 = s.trim().parse().map_err(|e| format!("{e}"))?;
-    if v > 0.0 && v < 180.0 {
-        Ok(v)
-    } else {
-        Err(format!("{v} is not in (0, 180) degrees"))
-    }
-}
-
-/// A `WxH` image size (`--size`, `--sizes`) as (width, height).
-pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+/// A `WxH` image size (`--size`, `--sizes`) as (width, height), each side 1 to
+/// [`MAX_IMAGE_SIDE`] pixels as every camera takes it: clap's parser of those flags, so that a
+/// bad size exits 2 naming its flag.
+///
+/// # Errors
+///
+/// Not `WxH` of whole numbers, or a side out of range.
+pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     let (w, h) = s
         .split_once('x')
-        .ok_or_else(|| Error::invalid(format!("size '{s}' is not WxH")))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .map_err(|_| Error::invalid(format!("size '{s}' is not WxH")))
+        .ok_or_else(|| format!("'{s}' is not WxH"))?;
+    let side = |v: &str| match v.trim().parse::<u32>() {
+        Ok(n) if (1..=MAX_IMAGE_SIDE).contains(&n) => Ok(n),
+        Ok(n) => Err(format!("{n} is not in 1..={MAX_IMAGE_SIDE} pixels")),
+        Err(_) => Err(format!("'{s}' is not WxH")),
     };
-    Ok((parse(w)?, parse(h)?))
+    Ok((side(w)?, side(h)?))
 }
 
 /// `--device`, the same on every command that renders.

@@ -199,7 +199,7 @@ fn trajectories(a: TrajectoriesArgs) -> Result<()> {
         .filter(|o| o.status != Status::Skipped && o.trajectories < params.count)
     {
         eprintln!(
-            "note: {}: {} of {} trajectories; the report in its trajectories file counts the candidates rejected (a smaller --min-distance allows more)",
+            "note: {}: {} of {} trajectories; its trajectories.json counts the candidates rejected, by reason",
             o.scene.display(),
             o.trajectories,
             params.count

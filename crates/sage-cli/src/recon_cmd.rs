@@ -51,7 +51,7 @@ pub struct PlanArgs {
     #[arg(long)]
     force: bool,
     /// Horizontal field of view of the views, degrees.
-    #[arg(long, default_value_t = PlanSettings::default().hfov_deg, value_parser = crate::flags::parse_hfov)]
+    #[arg(long, default_value_t = PlanSettings::default().hfov_deg, value_parser = sage_env::config::parse_hfov)]
     hfov: f32,
     /// Least distance from a camera to the nearest mesh surface, metres.
     #[arg(long, default_value_t = PlanSettings::default().safety_threshold)]
@@ -72,8 +72,8 @@ pub struct RenderArgs {
     #[arg(long)]
     scene: Option<PathBuf>,
     /// Image size as WxH.
-    #[arg(long, default_value = "640x480")]
-    size: String,
+    #[arg(long, default_value = "640x480", value_parser = crate::flags::parse_size)]
+    size: (u32, u32),
 }
 
 #[derive(Args)]
@@ -168,7 +168,7 @@ fn plan(a: PlanArgs) -> Result<()> {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
-    let (w, h) = crate::flags::parse_size(&a.size)?;
+    let (w, h) = a.size;
     let progress = crate::progress::bar("{bar:30} {pos}/{len} views {elapsed} (eta {eta})");
     let start = Instant::now();
     let r = recon::render(&a.dir, a.scene.as_deref(), w, h, &|_, todo| {

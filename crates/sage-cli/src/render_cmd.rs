@@ -43,7 +43,7 @@ pub struct RenderArgs {
     )]
     height: u32,
     /// Horizontal field of view, degrees (without --camera).
-    #[arg(long, default_value_t = CameraPose::DEFAULT.hfov_deg, value_parser = crate::flags::parse_hfov)]
+    #[arg(long, default_value_t = CameraPose::DEFAULT.hfov_deg, value_parser = sage_env::config::parse_hfov)]
     hfov: f32,
     /// Camera position x,y,z in metres (without --camera; default: free floor nearest the middle of the largest room, 1.2 m).
     #[arg(

@@ -608,6 +608,15 @@ fn values_out_of_a_flags_range_exit_2_naming_the_flag() {
             ],
             "--max-actions",
         ),
+        (
+            vec!["data", "render", "x", "--hfov", "0", "--out", s(&out)],
+            "--hfov",
+        ),
+        (vec!["recon", "render", "x", "--size", "0x480"], "--size"),
+        (
+            vec!["bench", "render", "--sizes", "224x224,99999x9"],
+            "--sizes",
+        ),
     ] {
         let o = sage3d(&args);
         let e = String::from_utf8_lossy(&o.stderr);

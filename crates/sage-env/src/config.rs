@@ -177,6 +177,21 @@ pub const TRAINING_STEPS: [(&str, f32, f32); 4] = [
 /// The image widths and heights a sensor may have, pixels.
 pub const IMAGE_SIDE: std::ops::RangeInclusive<u32> = 1..=8192;
 
+/// A horizontal field of view in degrees as a flag gives it (`--hfov`), in (0, 180) as every
+/// camera takes it; the error says why, for the command line to show beside the flag.
+///
+/// # Errors
+///
+/// Not a number, or not strictly between 0 and 180.
+pub fn parse_hfov(s: &str) -> std::result::Result<f32, String> {
+    let v: f32 = s.trim().parse().map_err(|e| format!("{e}"))?;
+    if v > 0.0 && v < 180.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not in (0, 180) degrees"))
+    }
+}
+
 /// Everything an [`crate::Env`] is set up with.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -46,7 +46,7 @@ pub struct Options {
         arg(
             long,
             default_value_t = Options::default().max_actions,
-            value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..)
+            value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1_000_000)
         )
     )]
     pub max_actions: usize,
@@ -71,7 +71,10 @@ pub struct Options {
     )]
     pub height: u32,
     /// Horizontal field of view in degrees.
-    #[cfg_attr(feature = "clap", arg(long, default_value_t = Options::default().hfov))]
+    #[cfg_attr(
+        feature = "clap",
+        arg(long, default_value_t = Options::default().hfov, value_parser = sage_env::config::parse_hfov)
+    )]
     pub hfov: f32,
     /// Images per frame, comma-separated: rgb and any of depth, semantic, instance (depth: 16-bit
     /// PNG millimetres).
