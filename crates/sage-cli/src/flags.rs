@@ -6,8 +6,9 @@ use sage_splat::MAX_IMAGE_SIDE;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 31] = [
+const NAMED_SETTINGS: [&str; 32] = [
     "jpeg_quality",
+    "min_distance",
     "objects",
     "seed",
     "cell",

@@ -20,7 +20,7 @@ pub enum NavCommand {
     Trajectories(TrajectoriesArgs),
 }
 
-/// Grid and robot settings shared by the commands.
+/// Grid settings shared by the commands.
 #[derive(Args, Clone)]
 pub struct GridArgs {
     /// Cell size, metres.
@@ -29,9 +29,6 @@ pub struct GridArgs {
     /// Agent height: the top of the obstacle slab, metres.
     #[arg(long, default_value_t = GridParams::default().agent_height)]
     agent_height: f32,
-    /// Robot radius, metres (navigable cells keep a further 0.05 m safety margin).
-    #[arg(long, default_value_t = TrajectoryParams::default().cost.robot_radius)]
-    radius: f32,
 }
 
 impl GridArgs {
@@ -80,6 +77,9 @@ pub struct TrajectoriesArgs {
     /// Resampling step, metres.
     #[arg(long, default_value_t = TrajectoryParams::default().step)]
     step: f32,
+    /// Robot radius, metres (navigable cells keep a further 0.05 m safety margin).
+    #[arg(long, default_value_t = TrajectoryParams::default().cost.robot_radius)]
+    radius: f32,
     /// Narrow-passage penalty weight (0: off).
     #[arg(long, default_value_t = TrajectoryParams::default().cost.narrow_weight)]
     narrow_weight: f32,
@@ -149,7 +149,7 @@ fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {
         grid: a.grid.grid(),
         ..TrajectoryParams::default()
     };
-    p.cost.robot_radius = a.grid.radius;
+    p.cost.robot_radius = a.radius;
     p.cost.narrow_weight = a.narrow_weight;
     p.sampling.min_distance = a.min_distance;
     p.sampling.length_mix = a.length_mix.clone();

@@ -249,3 +249,25 @@ fn a_scene_with_fewer_trajectories_than_asked_is_noted_and_none_at_all_fails() {
         "{err}"
     );
 }
+
+#[test]
+fn a_min_distance_that_is_no_distance_is_refused_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("home");
+    small_scene(&scene, "1", "2000");
+    let out = dir.path().join("out");
+    for v in ["-1", "nan", "inf"] {
+        let flag = format!("--min-distance={v}");
+        let o = sage3d(&["nav", "trajectories", s(&scene), &flag, "--out", s(&out)]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{v}: {err}");
+        assert!(
+            err.contains("--min-distance must be a finite distance >= 0 m"),
+            "{v}: {err}"
+        );
+        assert!(!out.exists(), "{v}");
+    }
+    // The robot radius is a setting of the trajectories' planner; the map has none.
+    let o = sage3d(&["nav", "map", s(&scene), "--radius", "0.3"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

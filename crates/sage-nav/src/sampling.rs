@@ -173,6 +173,12 @@ impl SamplingParams {
                 self.length_edges.len() + 1
             ));
         }
+        if !(self.min_distance >= 0.0 && self.min_distance.is_finite()) {
+            return bad(format!(
+                "`min_distance` must be a finite distance >= 0 m, got {}",
+                self.min_distance
+            ));
+        }
         if self.attempts_per_trajectory == 0 {
             return bad("attempts_per_trajectory must be >= 1".into());
         }
