@@ -350,12 +350,19 @@ pub fn read_ply(bytes: &[u8]) -> Result<TriMesh> {
     })
 }
 
-fn load_obj(path: &Path) -> Result<TriMesh> {
-    let options = tobj::LoadOptions {
+/// How OBJ files are read, by [`TriMesh::load`] and [`obj_material_colors`] alike, so that the
+/// triangles of the one match the colours of the other: faces fanned into triangles, one index
+/// per vertex.
+fn obj_options() -> tobj::LoadOptions {
+    tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ..Default::default()
-    };
+    }
+}
+
+fn load_obj(path: &Path) -> Result<TriMesh> {
+    let options = obj_options();
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut reader = LineCounter::new(std::io::BufReader::new(file));
     // Materials are not read: a missing or bad `.mtl` is no error of the mesh.
@@ -408,11 +415,7 @@ fn load_obj(path: &Path) -> Result<TriMesh> {
 ///
 /// The OBJ file itself: missing, over the size limit, or not OBJ; naming the file.
 pub fn obj_material_colors(path: &Path) -> Result<Option<Vec<Option<[f32; 3]>>>> {
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
+    let options = obj_options();
     let bytes = read_file(path).in_file(path)?;
     let folder = path.parent().unwrap_or(Path::new(""));
     let load_mtl = |name: &Path| {

@@ -704,7 +704,7 @@ fn lockstep(
         for c in 0..COHORTS {
             // Routes are shared out evenly while fewer remain than the cohorts hold, so that
             // each cohort's batch renders while the other's walks are stepped.
-            let busy: usize = cohorts.iter().map(|c| walking(&c.active)).sum();
+            let busy: usize = cohorts.iter().map(|other| walking(&other.active)).sum();
             let places =
                 (LOCKSTEP_WALKS / COHORTS).min((busy + shared.queue.len()).div_ceil(COHORTS));
             shared.turn(&mut cohorts[c], places)?;
