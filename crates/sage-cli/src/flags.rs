@@ -6,7 +6,7 @@ use sage_splat::MAX_IMAGE_SIDE;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 32] = [
+const NAMED_SETTINGS: [&str; 38] = [
     "jpeg_quality",
     "min_distance",
     "objects",
@@ -39,6 +39,12 @@ const NAMED_SETTINGS: [&str; 32] = [
     "answers",
     "step",
     "turn",
+    "narrow_weight",
+    "yaw",
+    "pitch",
+    "position",
+    "offsets",
+    "baseline",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

@@ -398,6 +398,21 @@ fn render_writes_every_channel_and_a_turntable() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // A pose given by flags that makes no camera is refused naming the flag, nothing written.
+    let fresh = dir.path().join("fresh");
+    for (flag, value) in [
+        ("--pitch", "400"),
+        ("--pitch", "nan"),
+        ("--yaw", "inf"),
+        ("--position", "0,nan,1.2"),
+    ] {
+        let arg = format!("{flag}={value}");
+        let o = sage3d(&["render", s(&scene), &arg, "--out", s(&fresh)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{arg}: {err}");
+        assert!(err.contains(&format!("{flag} must be")), "{arg}: {err}");
+        assert!(!fresh.exists(), "{arg}");
+    }
 }
 
 #[test]

@@ -56,6 +56,40 @@ fn share(n: usize, s: f32, at_least_one: bool) -> usize {
     if at_least_one { k.max(1) } else { k }.min(n)
 }
 
+/// How many of `scenes` scenes the split rule holds out whole for test and for validation,
+/// and how many train scenes donate trajectories (as many again donate instructions).
+fn scene_counts(scenes: usize, params: &SplitParams) -> (usize, usize, usize) {
+    let n_test = share(scenes, params.scene_unseen, scenes >= 3);
+    let n_val = share(scenes - n_test, params.val, scenes >= 4);
+    let train = scenes - n_test - n_val;
+    (n_test, n_val, share(train, params.donor_share, train >= 2))
+}
+
+/// The splits that the rule ([`assign`]) can give episodes when it deals out `scenes` scenes:
+/// `train` from one scene, the others only from as many scenes as their shares need (one or
+/// two scenes leave `val` empty, one scene every test split), [`TEST_BALANCED`] with any test
+/// split. Whether a split that can hold episodes does also depends on the trajectories.
+pub fn splits_possible(scenes: usize, params: &SplitParams) -> Vec<&'static str> {
+    let (n_test, n_val, n_donor) = scene_counts(scenes, params);
+    let train = scenes - n_test - n_val;
+    let possible = [
+        train > 0,
+        n_val > 0,
+        n_test > 0,
+        n_donor > 0,
+        train > n_donor && n_donor > 0,
+    ];
+    let mut splits: Vec<&'static str> = SPLITS
+        .iter()
+        .zip(possible)
+        .filter_map(|(name, can)| can.then_some(*name))
+        .collect();
+    if splits.iter().any(|s| s.starts_with("test_")) {
+        splits.push(TEST_BALANCED);
+    }
+    splits
+}
+
 /// The split of every episode (by id).
 pub fn assign(
     episodes: &[Episode],
@@ -71,11 +105,8 @@ pub fn assign(
         .into_iter()
         .collect();
     scenes.shuffle(&mut rng);
-    let n = scenes.len();
-    let n_test = share(n, params.scene_unseen, n >= 3);
-    let n_val = share(n - n_test, params.val, n >= 4);
+    let (n_test, n_val, n_donor) = scene_counts(scenes.len(), params);
     let train: Vec<&str> = scenes[n_test + n_val..].to_vec();
-    let n_donor = share(train.len(), params.donor_share, train.len() >= 2);
     let traj_donors: BTreeSet<&str> = train.iter().take(n_donor).copied().collect();
     let instr_donors: BTreeSet<&str> = train.iter().skip(n_donor).take(n_donor).copied().collect();
     let scene_split: BTreeMap<&str, &'static str> = scenes
@@ -134,4 +165,61 @@ pub fn assign(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Episodes of `scenes` scenes, each of six trajectories with three instructions.
+    fn episodes(scenes: usize) -> Vec<Episode> {
+        let template: Episode = serde_json::from_str(
+            r#"{"episode_id":"","scene":"","task":"vln","instruction":"Walk to the sofa.","level":"high","instruction_type":"Single-Goal","source":"template","start":{"position":[0.0,0.0,0.0],"yaw":0.0},"goal":{"ref":"room_0","kind":"room","position":[2.0,0.0,0.0]},"reference_path":[[0.0,0.0,0.0],[2.0,0.0,0.0]],"actions":[1,0],"path_length":2.0,"geodesic_distance":2.0,"slices":{"assets":"few","path":"short"}}"#,
+        )
+        .unwrap();
+        let mut out = Vec::new();
+        for s in 0..scenes {
+            for t in 0..6 {
+                for k in 0..3 {
+                    let mut e = template.clone();
+                    e.scene = format!("scene_{s}");
+                    e.episode_id = format!("scene_{s}-t{t}-{k}");
+                    e.trajectory_id = Some(t);
+                    out.push(e);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_splits_said_possible_are_those_the_rule_fills() {
+        for params in [
+            SplitParams::default(),
+            SplitParams {
+                scene_unseen: 0.0,
+                val: 0.5,
+                donor_share: 0.0,
+            },
+        ] {
+            for scenes in 1..=9 {
+                let filled: BTreeSet<&str> = assign(&episodes(scenes), &params, 7)
+                    .into_values()
+                    .collect();
+                let possible = splits_possible(scenes, &params);
+                let said: BTreeSet<&str> = possible
+                    .iter()
+                    .copied()
+                    .filter(|s| *s != TEST_BALANCED)
+                    .collect();
+                assert_eq!(said, filled, "{scenes} scenes, {params:?}");
+                assert_eq!(
+                    possible.contains(&TEST_BALANCED),
+                    filled.iter().any(|s| s.starts_with("test_")),
+                );
+            }
+        }
+        // One scene: everything is train.
+        assert_eq!(splits_possible(1, &SplitParams::default()), ["train"]);
+    }
 }

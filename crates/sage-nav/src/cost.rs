@@ -111,30 +111,30 @@ impl CostParams {
     pub fn validate(&self) -> Result<()> {
         let bad = |what: &str, v: f32| Error::invalid(format!("cost: {what} out of range: {v}"));
         if !(self.robot_radius >= 0.0 && self.robot_radius < 10.0) {
-            return Err(bad("robot_radius (0-10 m)", self.robot_radius));
+            return Err(bad("`robot_radius` (0-10 m)", self.robot_radius));
         }
         if !(self.narrow_weight >= 0.0 && self.narrow_weight.is_finite()) {
-            return Err(bad("narrow_weight (>= 0)", self.narrow_weight));
+            return Err(bad("`narrow_weight` (>= 0)", self.narrow_weight));
         }
         if !(self.tight_weight >= 0.0 && self.tight_weight.is_finite()) {
-            return Err(bad("tight_weight (>= 0)", self.tight_weight));
+            return Err(bad("`tight_weight` (>= 0)", self.tight_weight));
         }
         if !(self.narrow_distance > 0.0 && self.narrow_distance.is_finite()) {
-            return Err(bad("narrow_distance (> 0)", self.narrow_distance));
+            return Err(bad("`narrow_distance` (> 0)", self.narrow_distance));
         }
         for (k, &w) in &self.area_weights {
             if !(w > 0.0 && w.is_finite()) {
-                return Err(bad(&format!("area_weights[{k}] (> 0)"), w));
+                return Err(bad(&format!("`area_weights`[{k}] (> 0)"), w));
             }
         }
         if !(self.default_area_weight > 0.0 && self.default_area_weight.is_finite()) {
-            return Err(bad("default_area_weight (> 0)", self.default_area_weight));
+            return Err(bad("`default_area_weight` (> 0)", self.default_area_weight));
         }
         if !(self.shortcut_margin >= 0.0 && self.shortcut_margin < 10.0) {
-            return Err(bad("shortcut_margin (0-10 m)", self.shortcut_margin));
+            return Err(bad("`shortcut_margin` (0-10 m)", self.shortcut_margin));
         }
         if !(self.safety_margin >= 0.0 && self.safety_margin < 10.0) {
-            return Err(bad("safety_margin (0-10 m)", self.safety_margin));
+            return Err(bad("`safety_margin` (0-10 m)", self.safety_margin));
         }
         Ok(())
     }

@@ -101,7 +101,7 @@ impl TrajectoryParams {
     pub fn validate(&self) -> Result<()> {
         if !(self.step > 0.0 && self.step.is_finite()) {
             return Err(Error::invalid(format!(
-                "step must be > 0 m, got {}",
+                "`step` must be > 0 m, got {}",
                 self.step
             )));
         }

@@ -17,6 +17,7 @@ use crate::nav::MapReport;
 use crate::physics::BodyOptions;
 use sage_agents::AgentKind;
 use sage_core::{Error, Result};
+use sage_dataset::split::{SPLITS, SplitParams, TEST_BALANCED, splits_possible};
 use sage_eval::folder::SUMMARY_FILE;
 use sage_eval::report::ReportOutcome;
 use sage_eval::{EvalSettings, RunOutcome, Summary};
@@ -321,6 +322,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
             .map(|k| (scene_name(k).0, scenes.join(scene_name(k).0)))
             .collect(),
     };
+    check_split_possible(s, dirs.len())?;
     for (k, (name, dir)) in dirs.into_iter().enumerate() {
         // A scene is kept once its run record is there and not marked unfinished: one killed
         // half-way is synthesised again.
@@ -378,6 +380,35 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
         });
     }
     Ok(steps)
+}
+
+/// Refuses, before any work, a split to evaluate that `scenes` scenes cannot fill: the split
+/// rule deals out whole scenes, so one scene leaves every episode in train.
+fn check_split_possible(s: &DemoSettings, scenes: usize) -> Result<()> {
+    let build = build_settings(s);
+    let params = SplitParams {
+        scene_unseen: build.scene_unseen,
+        val: build.val,
+        ..SplitParams::default()
+    };
+    let possible = splits_possible(scenes, &params);
+    if possible.contains(&s.split.as_str()) {
+        return Ok(());
+    }
+    let known = SPLITS.contains(&s.split.as_str()) || s.split == TEST_BALANCED;
+    Err(Error::invalid(if known {
+        format!(
+            "with {scenes} scene(s) the {} split gets no episode (the split rule deals out whole scenes); evaluate `split` {}, or use more `scenes`",
+            s.split,
+            possible.join(" or ")
+        )
+    } else {
+        format!(
+            "`split` '{}' is none of {}, {TEST_BALANCED}",
+            s.split,
+            SPLITS.join(", ")
+        )
+    }))
 }
 
 /// Fails early, with what to do, when the split to evaluate holds no episode (with few
@@ -523,9 +554,32 @@ mod tests {
         assert!(plan(&none).unwrap_err().to_string().contains("scenes"));
         let bad = DemoSettings {
             agents: vec!["genius".into()],
-            ..s
+            ..s.clone()
         };
         assert!(plan(&bad).unwrap_err().to_string().contains("genius"));
+        // One scene leaves every episode in train: evaluating a test split is refused before
+        // any work, saying what would do; evaluating train is planned.
+        let one = DemoSettings {
+            scenes: 1,
+            ..s.clone()
+        };
+        let e = plan(&one).unwrap_err().to_string();
+        assert!(e.contains("test_balanced split gets no episode") && e.contains("`split` train"));
+        let train = DemoSettings {
+            split: "train".into(),
+            ..one
+        };
+        assert!(plan(&train).is_ok());
+        let unknown = DemoSettings {
+            split: "tset".into(),
+            ..s
+        };
+        assert!(
+            plan(&unknown)
+                .unwrap_err()
+                .to_string()
+                .contains("'tset' is none of")
+        );
     }
 
     /// The demo's balanced test split holds every value of both slices: few, medium and many

@@ -3,7 +3,7 @@
 //! frames about the camera with its GIF.
 
 use glam::Vec3;
-use sage_core::{Error, Result};
+use sage_core::{Error, MAX_COORDINATE, Result, within_bounds};
 use sage_io::files::{write_json, write_npy_f32, write_png, write_rgb_png};
 use sage_io::gif::GifWriter;
 use sage_nav::sampling::SamplingParams;
@@ -65,7 +65,8 @@ impl CameraPose {
     ///
     /// A size or field of view that makes no camera.
     pub fn resolve(&self, scene: &Scene) -> Result<(Camera, Option<DefaultEye>)> {
-        // Checked before the eye: a bad size should not cost a navigation grid.
+        // Checked before the eye: a bad camera should not cost a navigation grid.
+        self.validate()?;
         let intrinsics = Intrinsics::from_hfov(self.width, self.height, self.hfov_deg)?;
         let (eye, chosen) = match self.position {
             Some(p) => (p, None),
@@ -82,6 +83,35 @@ impl CameraPose {
         );
         camera.validate()?;
         Ok((camera, chosen))
+    }
+}
+
+impl CameraPose {
+    /// Checks the pose as given, naming the setting at fault: a position within
+    /// ±[`MAX_COORDINATE`] metres, a finite heading, and a pitch from straight down to straight
+    /// up (past ±90° the camera would face backwards, upside down: a heading in disguise).
+    fn validate(&self) -> Result<()> {
+        if let Some(p) = self.position
+            && !within_bounds(p)
+        {
+            return Err(Error::invalid(format!(
+                "`position` must be finite and within ±{MAX_COORDINATE} m, got {}, {}, {}",
+                p.x, p.y, p.z
+            )));
+        }
+        if !self.yaw_deg.is_finite() {
+            return Err(Error::invalid(format!(
+                "`yaw` must be a finite angle in degrees, got {}",
+                self.yaw_deg
+            )));
+        }
+        if !(-90.0..=90.0).contains(&self.pitch_deg) {
+            return Err(Error::invalid(format!(
+                "`pitch` must be -90 to 90 degrees, got {}",
+                self.pitch_deg
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -711,6 +741,33 @@ mod tests {
         assert!(
             (turn.rem_euclid(std::f32::consts::TAU) - std::f32::consts::FRAC_PI_2).abs() < 1e-4
         );
+    }
+
+    #[test]
+    fn a_pose_out_of_range_is_refused_naming_its_setting() {
+        let pose = |position: Option<Vec3>, yaw_deg: f32, pitch_deg: f32| CameraPose {
+            position,
+            yaw_deg,
+            pitch_deg,
+            ..CameraPose::DEFAULT
+        };
+        let refused = |p: CameraPose| p.validate().unwrap_err().message().to_string();
+        assert!(
+            pose(Some(Vec3::new(1e4, -1e4, 0.0)), -720.0, 90.0)
+                .validate()
+                .is_ok()
+        );
+        assert!(pose(None, 0.0, -90.0).validate().is_ok());
+        for bad in [f32::NAN, f32::INFINITY, 1.0001e4] {
+            let message = refused(pose(Some(Vec3::new(0.0, bad, 1.2)), 0.0, 0.0));
+            assert!(message.contains("`position`"), "{message}");
+        }
+        for bad in [f32::NAN, f32::NEG_INFINITY] {
+            assert!(refused(pose(None, bad, 0.0)).contains("`yaw`"));
+        }
+        for bad in [f32::NAN, 90.01, -400.0, f32::INFINITY] {
+            assert!(refused(pose(None, 0.0, bad)).contains("`pitch`"));
+        }
     }
 
     #[test]

@@ -206,7 +206,10 @@ pub fn make_plan(
         return Err(Error::invalid("hfov must be in (0, 180) degrees"));
     }
     if !(settings.safety_threshold.is_finite() && settings.safety_threshold >= 0.0) {
-        return Err(Error::invalid("safety threshold must be >= 0"));
+        return Err(Error::invalid(format!(
+            "the safety threshold must be >= 0 m, got {}",
+            settings.safety_threshold
+        )));
     }
     let (poses, rings): (Vec<ViewPose>, Vec<PlannedRing>) = match settings.policy {
         Policy::Sweep => {

@@ -120,12 +120,16 @@ impl SweepParams {
             || self.offsets.iter().any(|d| !(d.is_finite() && *d > 0.0))
             || self.offsets.windows(2).any(|w| w[1] <= w[0])
         {
-            return Err(Error::invalid(
-                "sweep: offsets must be positive, increasing, and at least one",
-            ));
+            return Err(Error::invalid(format!(
+                "sweep: `offsets` must be positive, increasing, and at least one, got {:?}",
+                self.offsets
+            )));
         }
         if !(self.baseline.is_finite() && self.baseline >= 0.0) {
-            return Err(Error::invalid("sweep: baseline must be >= 0"));
+            return Err(Error::invalid(format!(
+                "sweep: `baseline` must be >= 0 m, got {}",
+                self.baseline
+            )));
         }
         Ok(())
     }
