@@ -391,8 +391,8 @@ pub struct RouteDone {
     pub scene: String,
     /// The route.
     pub route: String,
-    /// Frames rendered (a walk whose episodes are not written has its frames removed once it
-    /// ends: they count here, as rendering work, all the same).
+    /// Frames rendered and kept: 0 for a walk whose episodes are not written, which physics
+    /// alone tells before any frame is rendered.
     pub frames: usize,
     /// Routes in the whole render (all scenes).
     pub of: usize,
@@ -429,13 +429,10 @@ pub fn route_dir(out: &Path, route: &Route) -> PathBuf {
     out.join(IMAGES_DIR).join(&route.scene).join(&route.name)
 }
 
-/// True when the episodes of the route `record` is of are written: its walk ended clean, or
-/// failed walks are kept.
-fn writes_episodes(settings: &Settings, record: &RouteRecord) -> bool {
-    record
-        .walk
-        .as_ref()
-        .is_some_and(|w| w.verdict == Verdict::Clean || settings.keep_failed)
+/// True when the episodes of a route with `walk` are written: it was walked, and its walk
+/// ended clean or failed walks are kept.
+fn writes_episodes(settings: &Settings, walk: Option<&Walk>) -> bool {
+    walk.is_some_and(|w| w.verdict == Verdict::Clean || settings.keep_failed)
 }
 
 /// Removes every file of a route folder but its record: the frames of a route whose episodes
@@ -464,11 +461,11 @@ fn is_done(out: &Path, route: &Route) -> bool {
 }
 
 /// Renders the routes of `scene` that are not done under `out` (in parallel): per route its
-/// frames, then its `route.json`. A walk whose episodes will not be written (not clean, and
-/// failed walks not kept) has its frames removed before its record is written, so a dropped
-/// walk leaves only its record. A route that cannot be walked gets a record with the reason
-/// (retried by the next run); a scene that cannot be loaded gives every route that record.
-/// Returns the routes rendered.
+/// frames, then its `route.json`. Every route is first walked through physics alone
+/// ([`triage`]): a walk whose episodes will not be written (not clean, and failed walks not
+/// kept) leaves only its record, without a frame rendered. A route that cannot be walked gets a
+/// record with the reason (retried by the next run); a scene that cannot be loaded gives every
+/// route that record. Returns the routes done.
 ///
 /// # Errors
 ///
@@ -552,7 +549,10 @@ pub fn render_scene(
     // The route's record (its walk, or why it has none) and its progress.
     let end = |route: &Route, dir: &Path, walked: Result<Walk>| -> Result<()> {
         let (frames, rec) = match walked {
-            Ok(walk) => (walk.steps.len(), record(route, Some(walk), None)),
+            Ok(walk) if writes_episodes(s, Some(&walk)) => {
+                (walk.steps.len(), record(route, Some(walk), None))
+            }
+            Ok(walk) => (0, record(route, Some(walk), None)),
             Err(err) => (
                 0,
                 record(
@@ -566,7 +566,7 @@ pub fn render_scene(
             ),
         };
         // Before the record: a crash in between leaves a route without one, walked again.
-        if !writes_episodes(s, &rec) {
+        if !writes_episodes(s, rec.walk.as_ref()) {
             drop_frames(dir)?;
         }
         write_json(&dir.join(ROUTE_FILE), &rec)?;
@@ -579,9 +579,14 @@ pub fn render_scene(
         });
         Ok(())
     };
+    let done = pending.len();
+    let pending = triage(plan, &ctx, pending, &begin, &end)?;
+    if pending.is_empty() {
+        return Ok(done);
+    }
     let first = Env::new(ctx.clone(), plan.env.clone())?;
     if first.renders_in_scene_batches() {
-        return lockstep(plan, &ctx, &pending, first, &begin, &end).map(|()| pending.len());
+        return lockstep(plan, &ctx, &pending, first, &begin, &end).map(|()| done);
     }
     // One worker walks with the environment opened above; the others open their own.
     let spare = Mutex::new(Some(first));
@@ -614,7 +619,52 @@ pub fn render_scene(
             },
         )
         .collect::<Result<Vec<()>>>()?;
-    Ok(pending.len())
+    Ok(done)
+}
+
+/// Walks `routes` through physics alone (an environment without sensors, in parallel) and
+/// ends there, with its record, each route that cannot be walked or whose episodes will not be
+/// written; returns the others, in order, to be walked again with their frames. The second
+/// walk is the same: the walk takes its actions from the poses physics gives, never from the
+/// images, and physics runs the same steps from the same start (tested). A dropped walk so
+/// costs its physics, about a thousandth of its frames' rendering.
+fn triage<'r>(
+    plan: &Plan,
+    ctx: &Arc<SceneContext>,
+    routes: Vec<&'r Route>,
+    begin: &(dyn Fn(&Route) -> Result<PathBuf> + Sync),
+    end: &EndRoute<'_>,
+) -> Result<Vec<&'r Route>> {
+    let s = &plan.settings;
+    let mut config = plan.env.clone();
+    config.sensors = SensorConfig {
+        rgb: false,
+        depth: false,
+        semantic: false,
+        instance: false,
+        ..config.sensors
+    };
+    let kept = routes
+        .into_par_iter()
+        .map_init(
+            || Env::new(ctx.clone(), config.clone()),
+            |env, route| {
+                let env = env.as_mut().map_err(|e| Error::invalid(e.to_string()))?;
+                let walked =
+                    replay::walk(env, route, &s.preset, plan.dataset_turn_deg, |_, _| Ok(()));
+                if walked
+                    .as_ref()
+                    .is_ok_and(|walk| writes_episodes(s, Some(walk)))
+                {
+                    return Ok(Some(route));
+                }
+                let dir = begin(route)?;
+                end(route, &dir, walked)?;
+                Ok(None)
+            },
+        )
+        .collect::<Result<Vec<Option<&Route>>>>()?;
+    Ok(kept.into_iter().flatten().collect())
 }
 
 /// Walks at once in a lockstep render, over all cohorts.
@@ -938,7 +988,7 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
         }
         let rec: RouteRecord = read_json(&path)?;
         // Rendered before dropped walks left no frames (or copied in from such a render).
-        if !writes_episodes(s, &rec) {
+        if !writes_episodes(s, rec.walk.as_ref()) {
             drop_frames(&route_dir(out, route))?;
         }
         match &rec.walk {

@@ -525,9 +525,22 @@ fn a_dropped_walk_leaves_no_frame_that_no_annotation_names() {
         };
         s.preset.max_actions = 6;
         let out = tempfile::tempdir().unwrap();
-        let m = render_with_threads(&s, out.path(), 2);
+        let rendered = std::sync::atomic::AtomicUsize::new(0);
+        let m = sage_traindata::render(&s, out.path(), false, &|p| {
+            if let sage_traindata::Progress::Route(r) = p {
+                rendered.fetch_add(r.frames, std::sync::atomic::Ordering::Relaxed);
+            }
+        })
+        .unwrap();
         let dropped: usize = m.counts.dropped.values().sum();
         assert!(m.counts.kept > 0 && dropped > 0, "{:?}", m.counts);
+        // The frames reported are the frames kept: a dropped walk is known from physics alone,
+        // before any frame of it is rendered.
+        let kept_frames = frame_files(out.path())
+            .iter()
+            .filter(|f| f.ends_with(".jpg"))
+            .count();
+        assert_eq!(rendered.into_inner(), kept_frames, "{format}");
         assert_eq!(
             frame_files(out.path()),
             named_frames(out.path(), format),
@@ -547,6 +560,22 @@ fn a_dropped_walk_leaves_no_frame_that_no_annotation_names() {
             })
             .collect();
         assert!(!failed.is_empty());
+        // Those walks are the walks a render that keeps failed walks records after rendering
+        // their frames.
+        let all = tempfile::tempdir().unwrap();
+        let keep = Settings {
+            keep_failed: true,
+            ..s.clone()
+        };
+        render_with_threads(&keep, all.path(), 2);
+        for record in &records {
+            let twin = all.path().join(record.strip_prefix(out.path()).unwrap());
+            let (a, b): (RouteRecord, RouteRecord) = (
+                sage_io::files::read_json(record).unwrap(),
+                sage_io::files::read_json(&twin).unwrap(),
+            );
+            assert_eq!(a.walk, b.walk, "{}", record.display());
+        }
         for record in &failed {
             let folder: Vec<_> = std::fs::read_dir(record.parent().unwrap())
                 .unwrap()
