@@ -8,7 +8,7 @@ use clap::{Args, Subcommand};
 use sage_agents::AgentKind;
 use sage_core::{Error, Result};
 use sage_env::agents::run_episode;
-use sage_env::{Env, EnvConfig, SceneContext, SensorConfig};
+use sage_env::{Env, EnvConfig, SceneContext};
 use sage_metrics::{Dtw, Mode, Scoring};
 use sage_physics::SplatBodies;
 use sage_scene::LoadOptions;
@@ -79,13 +79,7 @@ fn run_one(a: RunArgs) -> Result<()> {
     config.device = a.device.device;
     config.splat_bodies = a.splat_bodies;
     if !a.render {
-        config.sensors = SensorConfig {
-            rgb: false,
-            depth: false,
-            semantic: false,
-            instance: false,
-            ..config.sensors
-        };
+        config.sensors = config.sensors.without_images();
     }
     let mut agent = a
         .agent

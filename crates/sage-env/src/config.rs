@@ -93,6 +93,17 @@ impl SensorConfig {
     pub fn renders(&self) -> bool {
         self.rgb || self.depth || self.semantic || self.instance
     }
+
+    /// The same camera with no image requested: an environment of it steps physics alone.
+    pub fn without_images(self) -> SensorConfig {
+        SensorConfig {
+            rgb: false,
+            depth: false,
+            semantic: false,
+            instance: false,
+            ..self
+        }
+    }
 }
 
 /// Task limits (SPEC §10).

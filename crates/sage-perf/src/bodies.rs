@@ -236,11 +236,7 @@ fn walk(scene: Scene, bodies: SceneBodies, episodes: &[EnvEpisode], seed: u64) -
         TrajectoryParams::default().cost,
     )?);
     let config = EnvConfig {
-        sensors: SensorConfig {
-            rgb: false,
-            depth: false,
-            ..SensorConfig::default()
-        },
+        sensors: SensorConfig::default().without_images(),
         ..EnvConfig::default()
     };
     let mut env = Env::new(ctx.clone(), config)?;

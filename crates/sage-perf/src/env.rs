@@ -338,11 +338,7 @@ pub fn run(settings: &EnvSettings) -> Result<EnvReport> {
         params.cost.clone(),
     )?);
     let blind = EnvConfig {
-        sensors: SensorConfig {
-            rgb: false,
-            depth: false,
-            ..SensorConfig::default()
-        },
+        sensors: SensorConfig::default().without_images(),
         ..EnvConfig::default()
     };
     let machine = machine::describe();

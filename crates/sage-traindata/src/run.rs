@@ -637,13 +637,7 @@ fn triage<'r>(
 ) -> Result<Vec<&'r Route>> {
     let s = &plan.settings;
     let mut config = plan.env.clone();
-    config.sensors = SensorConfig {
-        rgb: false,
-        depth: false,
-        semantic: false,
-        instance: false,
-        ..config.sensors
-    };
+    config.sensors = config.sensors.without_images();
     let kept = routes
         .into_par_iter()
         .map_init(

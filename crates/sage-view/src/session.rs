@@ -12,7 +12,7 @@ use crate::player::num;
 use crate::scenes::LoadedScene;
 use glam::{Vec2, Vec3};
 use sage_core::{Error, Pose, Result, Task};
-use sage_env::{Action, Env, EnvConfig, EnvEpisode, EnvGoal, SensorConfig, StepInfo};
+use sage_env::{Action, Env, EnvConfig, EnvEpisode, EnvGoal, StepInfo};
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -65,13 +65,7 @@ impl Session {
         purpose: Purpose,
     ) -> Result<Session> {
         let mut config = EnvConfig {
-            sensors: SensorConfig {
-                rgb: false,
-                depth: false,
-                semantic: false,
-                instance: false,
-                ..config.sensors
-            },
+            sensors: config.sensors.without_images(),
             ..config.clone()
         };
         if purpose == Purpose::Explore {
