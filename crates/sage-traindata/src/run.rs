@@ -249,7 +249,8 @@ pub struct Plan {
     /// Episodes whose scene is not among the scenes.
     pub skipped: Vec<Skip>,
     /// Episodes of the split with nothing to walk, by reason: `no_goal` (no-goal episodes)
-    /// and `no_motion` (a reference path of one point and no net turn).
+    /// and `no_motion` (a reference path of one point and no net turn); with a `limit`, those
+    /// before the last episode it takes.
     pub ignored: BTreeMap<String, usize>,
     /// Degrees of one turn of the dataset's ground-truth actions (its run record's action
     /// space; 15, VLN-CE's, for datasets without one): how far a rotation in place turns.
@@ -278,23 +279,23 @@ impl Plan {
         let (file, episodes) =
             sage_dataset::folder::split_episodes(&settings.dataset, &settings.split)?;
         let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+        // Read in split order up to the `limit`-th goal-directed episode: the episodes past it
+        // are neither rendered nor counted as ignored.
         let mut ignored: BTreeMap<String, usize> = BTreeMap::new();
-        let mut goal: Vec<_> = episodes
-            .into_iter()
-            .filter(|e| {
-                let why = if e.task != Task::Vln {
-                    "no_goal"
-                } else if e.reference_path.len() < 2 && replay::net_turns(e) == 0 {
-                    "no_motion"
-                } else {
-                    return true;
-                };
-                *ignored.entry(why.into()).or_default() += 1;
-                false
-            })
-            .collect();
-        if let Some(n) = settings.limit {
-            goal.truncate(n);
+        let mut goal = Vec::new();
+        for e in episodes {
+            if settings.limit.is_some_and(|n| goal.len() >= n) {
+                break;
+            }
+            let why = if e.task != Task::Vln {
+                "no_goal"
+            } else if e.reference_path.len() < 2 && replay::net_turns(&e) == 0 {
+                "no_motion"
+            } else {
+                goal.push(e);
+                continue;
+            };
+            *ignored.entry(why.into()).or_default() += 1;
         }
         if goal.is_empty() {
             return Err(Error::invalid(format!(

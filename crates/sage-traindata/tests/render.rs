@@ -421,6 +421,61 @@ fn episodes_of_a_missing_scene_are_skipped_with_the_reason_and_the_rest_rendered
 }
 
 #[test]
+fn a_limit_counts_as_ignored_only_the_episodes_it_reads() {
+    use sage_traindata::run::Plan;
+    // The split: an episode with nothing to walk, two goal-directed ones, another with
+    // nothing to walk.
+    let (scenes, dataset) = data();
+    let text = std::fs::read_to_string(dataset.join("episodes/train.jsonl")).unwrap();
+    let goal: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|e| e["goal"].is_object() && e["reference_path"].as_array().unwrap().len() >= 2)
+        .take(2)
+        .collect();
+    let still = |id: &str| {
+        let mut e = goal[0].clone();
+        e["episode_id"] = id.into();
+        e["reference_path"] = serde_json::json!([e["reference_path"][0]]);
+        e["actions"] = serde_json::json!([0]);
+        e
+    };
+    let lines: Vec<String> = [
+        still("still_a"),
+        goal[0].clone(),
+        goal[1].clone(),
+        still("still_b"),
+    ]
+    .iter()
+    .map(|e| e.to_string())
+    .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("data");
+    std::fs::create_dir_all(copy.join("episodes")).unwrap();
+    std::fs::write(copy.join("episodes/train.jsonl"), lines.join("\n")).unwrap();
+    let plan = |limit: Option<usize>| {
+        let s = Settings {
+            limit,
+            ..Settings::new(&copy, scenes).unwrap()
+        };
+        let plan = Plan::new(&s).unwrap();
+        let episodes: usize = plan
+            .routes
+            .values()
+            .flatten()
+            .map(|r| r.episodes.len())
+            .sum();
+        (
+            episodes,
+            plan.ignored.get("no_motion").copied().unwrap_or(0),
+        )
+    };
+    assert_eq!(plan(None), (2, 2));
+    assert_eq!(plan(Some(2)), (2, 1));
+    assert_eq!(plan(Some(1)), (1, 1));
+}
+
+#[test]
 fn a_gpu_render_walks_in_lockstep_and_each_walk_is_what_it_gives_alone() {
     use sage_splat::Device;
     use sage_traindata::replay::{self, Walk};
