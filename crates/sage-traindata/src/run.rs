@@ -463,7 +463,7 @@ fn is_done(out: &Path, route: &Route) -> bool {
 
 /// Renders the routes of `scene` that are not done under `out` (in parallel): per route its
 /// frames, then its `route.json`. Every route is first walked through physics alone
-/// ([`triage`]): a walk whose episodes will not be written (not clean, and failed walks not
+/// (`triage`): a walk whose episodes will not be written (not clean, and failed walks not
 /// kept) leaves only its record, without a frame rendered. A route that cannot be walked gets a
 /// record with the reason (retried by the next run); a scene that cannot be loaded gives every
 /// route that record. Returns the routes done.
