@@ -227,14 +227,16 @@ fn demo_runs_the_whole_pipeline_and_resumes() {
         "--agents",
         "oracle,forward",
     ];
-    // One scene lands in train: the default split is empty, and the demo says what to do.
+    // One scene lands in train: the default split would be empty, and the demo says what to
+    // do before it makes anything.
     let empty = sage3d(&args);
     assert!(!empty.status.success());
     let e = String::from_utf8_lossy(&empty.stderr);
     assert!(
-        e.contains("split is empty") && e.contains("--split train"),
+        e.contains("split gets no episode") && e.contains("--split train"),
         "{e}"
     );
+    assert!(!out.join("scenes").exists());
     // The failed demo's folder says it is not complete, and is still the demo's to resume.
     assert_eq!(
         sage_io::run::unfinished_command(&out).as_deref(),
