@@ -442,13 +442,15 @@ const OUTPUTS: [&str; 6] = [
 /// ([`finish`]): the folder must be new, empty or a demo's, finished or not (a rerun, which
 /// resumes); with `force`, a folder of other files is written into, provided none of them
 /// would be replaced ([`sage_io::run::claim_folder`]). Returns the folder's lock, to hold
-/// while [`run`] writes there. Each step claims its own sub-folder in turn.
+/// while [`run`] writes there. Each step claims its own sub-folder in turn. Settings that make
+/// no demo ([`plan`]'s errors) are refused first, before the folder is made.
 ///
 /// # Errors
 ///
-/// A folder that another command is writing, one holding files the demo did not write, or a
-/// write error.
+/// As [`plan`]; a folder that another command is writing, one holding files the demo did not
+/// write, or a write error.
 pub fn claim(s: &DemoSettings, force: bool) -> Result<FolderLock> {
+    plan(s)?;
     let lock = sage_io::run::claim_folder(&s.out, &[COMMAND], &OUTPUTS, force)?;
     write_record(s, UNFINISHED)?;
     Ok(lock)
