@@ -441,28 +441,23 @@ fn the_demo_refuses_a_folder_of_other_files_before_it_writes() {
     std::fs::create_dir_all(&out).unwrap();
     let notes = out.join("notes.txt");
     std::fs::write(&notes, MINE).unwrap();
-    let refused = sage3d(&[
-        "demo",
-        "--out",
-        s(&out),
-        "--scenes",
-        "1",
-        "--split",
-        "train",
-    ]);
+    let demo = |force: &[&str]| {
+        let args = [
+            "demo",
+            "--out",
+            s(&out),
+            "--scenes",
+            "1",
+            "--split",
+            "train",
+        ];
+        sage3d(&[&args[..], force].concat())
+    };
+    let refused = demo(&[]);
     let e = stderr(&refused);
     assert!(!refused.status.success() && e.contains("notes.txt") && e.contains(s(&out)));
     std::fs::create_dir_all(out.join("dataset")).unwrap();
-    let refused = sage3d(&[
-        "demo",
-        "--out",
-        s(&out),
-        "--scenes",
-        "1",
-        "--split",
-        "train",
-        "--force",
-    ]);
+    let refused = demo(&["--force"]);
     let e = stderr(&refused);
     assert!(!refused.status.success() && e.contains("'dataset'"), "{e}");
     assert_eq!(

@@ -462,9 +462,9 @@ fn is_done(out: &Path, route: &Route) -> bool {
 }
 
 /// Renders the routes of `scene` that are not done under `out` (in parallel): per route its
-/// frames, then its `route.json`. Every route is first walked through physics alone
-/// (`triage`): a walk whose episodes will not be written (not clean, and failed walks not
-/// kept) leaves only its record, without a frame rendered. A route that cannot be walked gets a
+/// frames, then its `route.json`. Unless failed walks are kept, every route is first walked
+/// through physics alone (`triage`): a walk whose episodes will not be written (not clean)
+/// leaves only its record, without a frame rendered. A route that cannot be walked gets a
 /// record with the reason (retried by the next run); a scene that cannot be loaded gives every
 /// route that record. Returns the routes done.
 ///
@@ -550,10 +550,13 @@ pub fn render_scene(
     // The route's record (its walk, or why it has none) and its progress.
     let end = |route: &Route, dir: &Path, walked: Result<Walk>| -> Result<()> {
         let (frames, rec) = match walked {
-            Ok(walk) if writes_episodes(s, Some(&walk)) => {
-                (walk.steps.len(), record(route, Some(walk), None))
+            Ok(walk) => {
+                let kept = writes_episodes(s, Some(&walk));
+                (
+                    if kept { walk.steps.len() } else { 0 },
+                    record(route, Some(walk), None),
+                )
             }
-            Ok(walk) => (0, record(route, Some(walk), None)),
             Err(err) => (
                 0,
                 record(
@@ -581,7 +584,12 @@ pub fn render_scene(
         Ok(())
     };
     let done = pending.len();
-    let pending = triage(plan, &ctx, pending, &begin, &end)?;
+    // With failed walks kept every walk is rendered: the physics pass would only repeat it.
+    let pending = if s.keep_failed {
+        pending
+    } else {
+        triage(plan, &ctx, pending, &begin, &end)?
+    };
     if pending.is_empty() {
         return Ok(done);
     }
