@@ -161,7 +161,9 @@ fn trajectory_params(a: &TrajectoriesArgs) -> Result<TrajectoryParams> {
             )));
         }
     };
-    p.validate()?;
+    // The planner's setting is `robot_radius`; this command line calls it --radius.
+    p.validate()
+        .map_err(|e| Error::invalid(e.to_string().replace("`robot_radius`", "--radius")))?;
     Ok(p)
 }
 

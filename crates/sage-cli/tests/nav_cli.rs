@@ -267,6 +267,19 @@ fn a_min_distance_that_is_no_distance_is_refused_naming_the_flag() {
         );
         assert!(!out.exists(), "{v}");
     }
+    // The planner's settings out of range are refused naming their flags, nothing written.
+    for (flag, shown) in [
+        ("--radius=-1", "--radius (0-10 m)"),
+        ("--radius=nan", "--radius (0-10 m)"),
+        ("--narrow-weight=-2", "--narrow-weight (>= 0)"),
+        ("--step=0", "--step"),
+    ] {
+        let o = sage3d(&["nav", "trajectories", s(&scene), flag, "--out", s(&out)]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{flag}: {err}");
+        assert!(err.contains(shown) && !err.contains('`'), "{flag}: {err}");
+        assert!(!out.exists(), "{flag}");
+    }
     // The robot radius is a setting of the trajectories' planner; the map has none.
     let o = sage3d(&["nav", "map", s(&scene), "--radius", "0.3"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));

@@ -566,11 +566,7 @@ impl AssembleParams {
     pub fn new(seed: u64, balanced: usize, scene_unseen: f32, val: f32) -> AssembleParams {
         AssembleParams {
             seed,
-            split: SplitParams {
-                scene_unseen,
-                val,
-                ..SplitParams::default()
-            },
+            split: SplitParams::holding_out(scene_unseen, val),
             balanced,
         }
     }

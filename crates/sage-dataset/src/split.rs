@@ -51,6 +51,18 @@ impl Default for SplitParams {
     }
 }
 
+impl SplitParams {
+    /// The split rule holding out the shares `scene_unseen` and `val` of the scenes (test and
+    /// validation), the donors at their default share.
+    pub fn holding_out(scene_unseen: f32, val: f32) -> SplitParams {
+        SplitParams {
+            scene_unseen,
+            val,
+            ..SplitParams::default()
+        }
+    }
+}
+
 fn share(n: usize, s: f32, at_least_one: bool) -> usize {
     let k = (n as f32 * s).round() as usize;
     if at_least_one { k.max(1) } else { k }.min(n)

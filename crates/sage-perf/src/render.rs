@@ -329,8 +329,8 @@ impl fmt::Display for RenderReport {
 ///
 /// # Errors
 ///
-/// The scene cannot be loaded, generated or written, a size or a batch is empty, the device
-/// cannot be opened, or `fresh` fails.
+/// The pitch is past ±90°, the scene cannot be loaded, generated or written, a size or a batch
+/// is empty, the device cannot be opened, or `fresh` fails.
 pub fn run(
     settings: &RenderSettings,
     fresh: &dyn Fn(&RenderSettings) -> Result<RenderReport>,
@@ -340,6 +340,7 @@ pub fn run(
             "batches: a batch needs at least 1 camera",
         ));
     }
+    sage_splat::camera::check_pitch_deg(settings.pitch)?;
     settings.device.check_slabs(settings.slabs)?;
     settings.device.check_blending(settings.blending)?;
     if let (Some(dir), false) = (&settings.scene, settings.sh3) {

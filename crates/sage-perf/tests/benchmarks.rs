@@ -92,7 +92,7 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
 }
 
 #[test]
-fn render_refuses_an_empty_batch_before_any_work() {
+fn render_refuses_an_empty_batch_or_no_pitch_before_any_work() {
     let settings = RenderSettings {
         batches: vec![16, 0],
         ..RenderSettings::default()
@@ -101,6 +101,20 @@ fn render_refuses_an_empty_batch_before_any_work() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("at least 1 camera"), "{e}");
+    // A pitch past straight up or down (or none at all) is no camera either.
+    for pitch in [90.5, -120.0, f32::NAN] {
+        let settings = RenderSettings {
+            pitch,
+            ..RenderSettings::default()
+        };
+        let e = render::run(&settings, &|_| unreachable!("nothing is measured"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`pitch` must be -90 to 90 degrees"),
+            "{pitch}: {e}"
+        );
+    }
 }
 
 #[test]

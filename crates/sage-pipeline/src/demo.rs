@@ -386,11 +386,7 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
 /// rule deals out whole scenes, so one scene leaves every episode in train.
 fn check_split_possible(s: &DemoSettings, scenes: usize) -> Result<()> {
     let build = build_settings(s);
-    let params = SplitParams {
-        scene_unseen: build.scene_unseen,
-        val: build.val,
-        ..SplitParams::default()
-    };
+    let params = SplitParams::holding_out(build.scene_unseen, build.val);
     let possible = splits_possible(scenes, &params);
     if possible.contains(&s.split.as_str()) {
         return Ok(());

@@ -9,7 +9,7 @@ use sage_io::gif::GifWriter;
 use sage_nav::sampling::SamplingParams;
 use sage_nav::{CostParams, GridParams, NavGrid};
 use sage_scene::{InstanceKind, Scene};
-use sage_splat::camera::default_eye;
+use sage_splat::camera::{check_pitch_deg, default_eye};
 use sage_splat::{
     Backend, Camera, CameraSpec, Channels, Device, Intrinsics, RenderOptions, RenderOutput,
     RendererPool,
@@ -88,8 +88,7 @@ impl CameraPose {
 
 impl CameraPose {
     /// Checks the pose as given, naming the setting at fault: a position within
-    /// ±[`MAX_COORDINATE`] metres, a finite heading, and a pitch from straight down to straight
-    /// up (past ±90° the camera would face backwards, upside down: a heading in disguise).
+    /// ±[`MAX_COORDINATE`] metres, a finite heading, and a pitch [`check_pitch_deg`] takes.
     fn validate(&self) -> Result<()> {
         if let Some(p) = self.position
             && !within_bounds(p)
@@ -105,13 +104,7 @@ impl CameraPose {
                 self.yaw_deg
             )));
         }
-        if !(-90.0..=90.0).contains(&self.pitch_deg) {
-            return Err(Error::invalid(format!(
-                "`pitch` must be -90 to 90 degrees, got {}",
-                self.pitch_deg
-            )));
-        }
-        Ok(())
+        check_pitch_deg(self.pitch_deg)
     }
 }
 

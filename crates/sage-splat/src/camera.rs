@@ -69,6 +69,22 @@ impl Intrinsics {
     }
 }
 
+/// Checks a pitch in degrees, named `pitch`: from straight down to straight up (past ±90° the
+/// camera would face backwards, upside down: a heading in disguise).
+///
+/// # Errors
+///
+/// Outside -90–90 degrees, NaN included.
+pub fn check_pitch_deg(pitch_deg: f32) -> Result<()> {
+    if (-90.0..=90.0).contains(&pitch_deg) {
+        Ok(())
+    } else {
+        Err(Error::invalid(format!(
+            "`pitch` must be -90 to 90 degrees, got {pitch_deg}"
+        )))
+    }
+}
+
 /// The camera rotation (columns right, down, forward) for heading ψ and pitch φ (up positive).
 pub fn rotation_from_yaw_pitch(yaw: f32, pitch: f32) -> Mat3 {
     let forward = Vec3::new(
