@@ -76,22 +76,39 @@ impl RgbCodec {
     }
 }
 
+/// The suffixes of a frame's depth, semantic and instance images.
+const IMAGE_SUFFIXES: [&str; 3] = ["depth.png", "semantic.png", "instance.png"];
+
 /// The suffixes (after `NNNN.`) of a frame's files, RGB first, in the order they are written.
 pub fn suffixes(images: &Images, codec: RgbCodec) -> Vec<&'static str> {
+    let [depth, semantic, instance] = IMAGE_SUFFIXES;
     let mut s = Vec::new();
     if images.rgb.is_some() {
         s.push(codec.extension());
     }
     if images.depth.is_some() {
-        s.push("depth.png");
+        s.push(depth);
     }
     if images.semantic.is_some() {
-        s.push("semantic.png");
+        s.push(semantic);
     }
     if images.instance.is_some() {
-        s.push("instance.png");
+        s.push(instance);
     }
     s
+}
+
+/// True for the name of a frame's file as a render writes it: the frame's number (four digits
+/// or more) and one of the [`suffixes`] any frame may have.
+pub fn is_frame_file(name: &str) -> bool {
+    name.split_once('.').is_some_and(|(number, suffix)| {
+        number.len() >= 4
+            && number.bytes().all(|b| b.is_ascii_digit())
+            && (IMAGE_SUFFIXES.contains(&suffix)
+                || [ImageType::Jpg, ImageType::Png]
+                    .iter()
+                    .any(|t| t.codec(0).extension() == suffix))
+    })
 }
 
 /// Encodes every image of `images`: `(suffix, bytes)` in the order of [`suffixes`].

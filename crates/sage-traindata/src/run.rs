@@ -3,6 +3,7 @@
 //! files and the manifest last.
 
 use crate::encode::{self, RgbCodec};
+use crate::lerobot;
 use crate::output::{self, Layout};
 use crate::preset::ActionPreset;
 use crate::replay::{self, Route, Verdict, Walk, Walker};
@@ -1153,8 +1154,8 @@ const COMMAND: &str = "data render";
 /// The files a render may have written in an output folder (nothing else is ever touched).
 const OWN: [&str; 9] = [
     IMAGES_DIR,
-    crate::lerobot::META_DIR,
-    crate::lerobot::DATA_DIR,
+    lerobot::META_DIR,
+    lerobot::DATA_DIR,
     output::SHARDS_DIR,
     output::EPISODES_FILE,
     "dataset_info.json",
@@ -1165,6 +1166,54 @@ const OWN: [&str; 9] = [
 
 fn is_own(name: &str) -> bool {
     OWN.contains(&name) || (name.starts_with("annotations_part_") && name.ends_with(".json"))
+}
+
+/// True when a render may have written the file at `path` (relative to the output folder, by
+/// components, inside one of the folders of [`OWN`]): a frame or route record at
+/// `images/{scene}/{route}/`, a WebDataset shard, a LeRobot data, episodes or meta file, or
+/// a temporary file of any of them.
+fn render_writes(path: &[&str]) -> bool {
+    let numbered = |name: &str, prefix: &str, suffix: &str| {
+        name.strip_prefix(prefix)
+            .and_then(|n| n.strip_suffix(suffix))
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+    };
+    let chunk_file = |chunk: &str, file: &str| {
+        numbered(chunk, "chunk-", "") && numbered(file, "file-", ".parquet")
+    };
+    match path {
+        [.., name] if sage_io::files::is_temporary(name) => true,
+        [IMAGES_DIR, _, _, name] => *name == ROUTE_FILE || encode::is_frame_file(name),
+        [output::SHARDS_DIR, name] => name.ends_with(".tar"),
+        [lerobot::DATA_DIR, chunk, file] | [lerobot::META_DIR, "episodes", chunk, file] => {
+            chunk_file(chunk, file)
+        }
+        [lerobot::META_DIR, _] => [lerobot::INFO_FILE, lerobot::STATS_FILE, lerobot::TASKS_FILE]
+            .contains(&path.join("/").as_str()),
+        _ => false,
+    }
+}
+
+/// The first file under the folder `out/name` (one of [`OWN`]) that a render would not have
+/// written ([`render_writes`]), relative to `out`: [`claim`] refuses the output folder then,
+/// so that neither `force` nor a render's own clean-up of its folders removes a user's file.
+fn foreign_within(out: &Path, name: &str) -> Result<Option<String>> {
+    let mut stack = vec![vec![name.to_string()]];
+    while let Some(parts) = stack.pop() {
+        let dir = parts.iter().fold(out.to_path_buf(), |p, c| p.join(c));
+        for entry in std::fs::read_dir(&dir).map_err(|e| Error::io(&dir, e))? {
+            let entry = entry.map_err(|e| Error::io(&dir, e))?;
+            let mut path = parts.clone();
+            path.push(entry.file_name().to_string_lossy().into_owned());
+            // A link is judged by its own name, as removing the folder removes only the link.
+            if entry.file_type().is_ok_and(|t| t.is_dir()) {
+                stack.push(path);
+            } else if !render_writes(&path.iter().map(String::as_str).collect::<Vec<_>>()) {
+                return Ok(Some(path.join("/")));
+            }
+        }
+    }
+    Ok(None)
 }
 
 /// Locks `out` for a render ([`FolderLock`]): no other command writes it while the guard is
@@ -1193,7 +1242,15 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<(FolderLock, Option
     let settings = plan.settings.recorded();
     let lock = lock(out)?;
     let names = sage_io::run::entries(out)?;
-    if let Some(foreign) = names.iter().find(|n| !is_own(n)) {
+    let foreign = match names.iter().find(|n| !is_own(n)) {
+        Some(name) => Some(name.clone()),
+        None => names
+            .iter()
+            .filter(|n| out.join(n).is_dir())
+            .find_map(|n| foreign_within(out, n).transpose())
+            .transpose()?,
+    };
+    if let Some(foreign) = foreign {
         return Err(Error::invalid(format!(
             "the output folder holds '{foreign}', which a training-data render did not write; choose an empty or new folder"
         ))

@@ -319,6 +319,53 @@ fn other_settings_or_foreign_files_in_the_output_are_refused() {
         std::fs::read_to_string(foreign.path().join("notes.txt")).unwrap(),
         "mine"
     );
+    // Nor is a file of the user's inside a render's own folders, which `force` would remove
+    // with the folder: the frames, a route's, the WebDataset shards, LeRobot's data and meta.
+    let rendered = tempfile::tempdir().unwrap();
+    render_with_threads(&s, rendered.path(), 2);
+    let route = std::fs::read_dir(rendered.path().join("images"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let route = std::fs::read_dir(route)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let route = route
+        .strip_prefix(rendered.path())
+        .unwrap()
+        .to_str()
+        .unwrap()
+        .to_string();
+    for mine in [
+        "images/notes.txt".to_string(),
+        "images/mine/keep.txt".to_string(),
+        format!("{route}/notes.json"),
+        format!("{route}/0000.jpg.bak"),
+        format!("{route}/deeper/0000.jpg"),
+        "shards/readme.md".to_string(),
+        "meta/extra.json".to_string(),
+        "data/chunk-000/mine.parquet".to_string(),
+    ] {
+        let path = rendered.path().join(&mine);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, "mine").unwrap();
+        for force in [false, true] {
+            let err = sage_traindata::render(&other, rendered.path(), force, &|_| {})
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(&format!("'{mine}'")), "{mine}: {err}");
+        }
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "mine", "{mine}");
+        std::fs::remove_file(&path).unwrap();
+    }
+    // Without them, the same folder is the render's again.
+    sage_traindata::render(&other, rendered.path(), true, &|_| {}).unwrap();
+
     // Files with a render's names in another command's folder are not a render's either.
     let eval = tempfile::tempdir().unwrap();
     sage_io::run::write_run_record(eval.path(), "eval", Some(0), serde_json::json!({})).unwrap();
@@ -333,6 +380,39 @@ fn other_settings_or_foreign_files_in_the_output_are_refused() {
         std::fs::read_to_string(eval.path().join("episodes.jsonl")).unwrap(),
         "{}\n"
     );
+}
+
+/// Every file a render writes, in any layout and with every image, is one `force` may replace:
+/// a render with other settings takes the folder over.
+#[test]
+fn force_replaces_a_render_of_any_layout() {
+    let every_image = sage_traindata::Sensors {
+        rgb: true,
+        depth: true,
+        semantic: true,
+        instance: true,
+    };
+    for (format, sensors, codec) in [
+        (Layout::Frames, every_image, RgbCodec::Png),
+        (
+            Layout::Webdataset,
+            every_image,
+            RgbCodec::Jpeg { quality: 80 },
+        ),
+        (Layout::Lerobot, Default::default(), RgbCodec::Png),
+    ] {
+        let s = Settings {
+            sensors,
+            rgb_codec: codec,
+            limit: Some(4),
+            ..settings(format)
+        };
+        let out = tempfile::tempdir().unwrap();
+        render_with_threads(&s, out.path(), 2);
+        let other = Settings { seed: 5, ..s };
+        let replaced = sage_traindata::render(&other, out.path(), true, &|_| {});
+        assert!(replaced.is_ok(), "{format:?}: {:?}", replaced.err());
+    }
 }
 
 #[test]
