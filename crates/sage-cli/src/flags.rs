@@ -6,7 +6,7 @@ use sage_splat::MAX_IMAGE_SIDE;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 38] = [
+const NAMED_SETTINGS: [&str; 44] = [
     "jpeg_quality",
     "min_distance",
     "objects",
@@ -45,6 +45,12 @@ const NAMED_SETTINGS: [&str; 38] = [
     "position",
     "offsets",
     "baseline",
+    "count",
+    "per_scene",
+    "base_actions",
+    "nogoal",
+    "high_per_type",
+    "budget",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

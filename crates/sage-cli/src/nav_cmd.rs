@@ -60,7 +60,7 @@ pub struct MapArgs {
 pub struct TrajectoriesArgs {
     /// A scene folder, or a folder of scene folders.
     scenes: PathBuf,
-    /// Trajectories per scene.
+    /// Trajectories per scene (at most 100,000).
     #[arg(long, default_value_t = TrajectoryParams::default().count)]
     count: usize,
     /// Seed (each scene mixes in a hash of its name).
@@ -74,7 +74,8 @@ pub struct TrajectoriesArgs {
     /// Write into a folder holding other files (never replacing one of them).
     #[arg(long)]
     force: bool,
-    /// Resampling step, metres.
+    /// Resampling step, metres (at most 0.5: points further apart are joined around corners
+    /// by chords through walls).
     #[arg(long, default_value_t = TrajectoryParams::default().step)]
     step: f32,
     /// Robot radius, metres (navigable cells keep a further 0.05 m safety margin).

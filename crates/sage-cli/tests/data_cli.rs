@@ -245,6 +245,37 @@ fn build_plans_for_the_agent_profile_asked_for() {
 }
 
 #[test]
+fn build_refuses_counts_past_its_bounds_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = dir.path().join("scenes");
+    common::small_scene(&scenes.join("home1"), "1", "1000");
+    let out = dir.path().join("o");
+    for flag in [
+        "--per-scene",
+        "--nogoal",
+        "--base-actions",
+        "--high-per-type",
+    ] {
+        let o = sage3d(&[
+            "data",
+            "build",
+            s(&scenes),
+            "--out",
+            s(&out),
+            flag,
+            "100001",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{flag}: {err}");
+        assert!(
+            err.contains(&format!("{flag} must be at most 100000 per scene")),
+            "{flag}: {err}"
+        );
+        assert!(!out.exists(), "{flag}");
+    }
+}
+
+#[test]
 fn build_never_writes_over_files_it_did_not_write() {
     let dir = tempfile::tempdir().unwrap();
     let scenes = dir.path().join("scenes");

@@ -273,6 +273,9 @@ fn a_min_distance_that_is_no_distance_is_refused_naming_the_flag() {
         ("--radius=nan", "--radius (0-10 m)"),
         ("--narrow-weight=-2", "--narrow-weight (>= 0)"),
         ("--step=0", "--step"),
+        ("--step=0.6", "--step must be > 0 and at most 0.5 m"),
+        ("--step=1e30", "--step must be > 0 and at most 0.5 m"),
+        ("--count=100001", "--count must be at most 100000"),
     ] {
         let o = sage3d(&["nav", "trajectories", s(&scene), flag, "--out", s(&out)]);
         let err = stderr(&o);

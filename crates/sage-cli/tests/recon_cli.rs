@@ -214,6 +214,24 @@ fn volume_plans_are_the_same_for_a_seed_and_export_needs_rendered_views() {
     let out = sage3d(&["recon", "export", s(&a)]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("recon render"));
+    // Counts past what any machine holds are refused naming their flags, before any work.
+    let huge = tmp.path().join("huge");
+    let o = sage3d(&[
+        "recon",
+        "plan",
+        s(&scene),
+        "--budget",
+        "100001",
+        "--out",
+        s(&huge),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--budget must be at most 100000"), "{err}");
+    assert!(!huge.exists());
+    let o = sage3d(&["recon", "export", s(&a), "--points", "999999999999"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--points must be at most"), "{err}");
     let bad = sage3d(&[
         "recon",
         "plan",

@@ -120,8 +120,22 @@ impl SceneParams {
         Ok(self)
     }
 
-    /// Checks the settings.
+    /// Checks the settings: counts per scene of at most [`trajectory::MAX_TRAJECTORIES`], a usable action
+    /// space, and the trajectory settings.
     pub fn validate(&self) -> Result<()> {
+        for (name, count) in [
+            ("per_scene", self.per_scene),
+            ("base_actions", self.base_actions),
+            ("nogoal", self.nogoal),
+            ("high_per_type", self.high_per_type),
+        ] {
+            if count > trajectory::MAX_TRAJECTORIES {
+                return Err(Error::invalid(format!(
+                    "`{name}` must be at most {} per scene, got {count}",
+                    trajectory::MAX_TRAJECTORIES
+                )));
+            }
+        }
         if !(self.space.forward > 0.0 && self.space.turn_deg > 0.0 && self.space.turn_deg <= 180.0)
         {
             return Err(Error::invalid(format!(

@@ -34,7 +34,7 @@ pub fn select_balanced(episodes: &[&Episode], n: usize, seed: u64) -> Vec<String
         ids.sort_unstable();
         ids.shuffle(&mut rng);
     }
-    let mut out = Vec::with_capacity(n);
+    let mut out = Vec::with_capacity(n.min(episodes.len()));
     let mut round = 0;
     while out.len() < n {
         let before = out.len();

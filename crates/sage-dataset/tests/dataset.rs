@@ -322,7 +322,7 @@ fn balanced_selection_is_even_over_strata() {
     for e in &refs {
         *sizes.entry(stratum(e)).or_default() += 1;
     }
-    for n in [1, 7, 25, refs.len() + 5] {
+    for n in [1, 7, 25, refs.len() + 5, usize::MAX] {
         let picked = select_balanced(&refs, n, 3);
         assert_eq!(picked.len(), n.min(refs.len()));
         assert_eq!(picked, select_balanced(&refs, n, 3));

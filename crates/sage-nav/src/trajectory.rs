@@ -32,6 +32,16 @@ pub const TRAJECTORIES_PNG: &str = "trajectories.png";
 /// Candidates planned per parallel batch.
 const BATCH: usize = 256;
 
+/// The most trajectories a scene may be asked for.
+pub const MAX_TRAJECTORIES: usize = 100_000;
+
+/// The farthest apart a trajectory's points may be, metres. The points are taken at equal
+/// distances along the planned path, so two points on either side of a corner are joined by a
+/// chord that leaves the path by up to half the step: at 0.5 m that stays within the 0.25 m
+/// the planner keeps between the default robot and the walls, where a longer step would draw
+/// reference paths through walls.
+pub const MAX_STEP: f32 = 0.5;
+
 /// Everything that decides a scene's trajectories.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrajectoryParams {
@@ -99,10 +109,16 @@ mod grid_params_serde {
 impl TrajectoryParams {
     /// Checks every part.
     pub fn validate(&self) -> Result<()> {
-        if !(self.step > 0.0 && self.step.is_finite()) {
+        if !(self.step > 0.0 && self.step <= MAX_STEP) {
             return Err(Error::invalid(format!(
-                "`step` must be > 0 m, got {}",
+                "`step` must be > 0 and at most {MAX_STEP} m (points further apart cut corners through walls), got {}",
                 self.step
+            )));
+        }
+        if self.count > MAX_TRAJECTORIES {
+            return Err(Error::invalid(format!(
+                "`count` must be at most {MAX_TRAJECTORIES} trajectories per scene, got {}",
+                self.count
             )));
         }
         self.grid.validate()?;

@@ -285,6 +285,7 @@ pub struct ExportReport {
 /// A folder that another command is writing, no plan or views, the scene cannot be loaded, or
 /// a write error.
 pub fn export(dir: &Path, scene: Option<&Path>, points: usize) -> Result<ExportReport> {
+    sage_recon::surfaces::check_points(points)?;
     let (_lock, plan) = lock_folder(dir, EXPORT_COMMAND)?;
     let views = views::export_views(dir, &plan)?;
     let mut transforms = transforms_for(&views)?;
@@ -371,6 +372,7 @@ pub fn fit(
     if settings.points == 0 {
         return Err(Error::invalid("`points` must be at least 1"));
     }
+    sage_recon::surfaces::check_points(settings.points)?;
     let seed = settings.seed.unwrap_or(plan.seed);
     let scene_dir = scene_of(&plan, scene);
     let (scene, surfaces) = load_mesh_scene(&scene_dir)?;

@@ -156,6 +156,9 @@ pub struct Plan {
     pub dropped: Vec<PlannedView>,
 }
 
+/// The most cameras a plan may be asked for.
+pub const MAX_VIEWS: usize = 100_000;
+
 /// How a plan is made.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanSettings {
@@ -200,6 +203,12 @@ pub fn make_plan(
         return Err(Error::invalid(format!(
             "scene {} has no rooms in structure.json: nothing to sample cameras in",
             scene.name
+        )));
+    }
+    if settings.budget > MAX_VIEWS {
+        return Err(Error::invalid(format!(
+            "`budget` must be at most {MAX_VIEWS} cameras, got {}",
+            settings.budget
         )));
     }
     if !(settings.hfov_deg > 0.0 && settings.hfov_deg < 180.0) {

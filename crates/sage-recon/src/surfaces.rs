@@ -206,6 +206,24 @@ fn material_colors(
     Ok(Some(colors))
 }
 
+/// The most surface points a reconstruction may start from (or export): ten times the
+/// Gaussians of a large InteriorGS scene.
+pub const MAX_POINTS: usize = 10_000_000;
+
+/// Checks a count of surface points asked for, named `points`.
+///
+/// # Errors
+///
+/// More than [`MAX_POINTS`].
+pub fn check_points(points: usize) -> Result<()> {
+    if points > MAX_POINTS {
+        return Err(Error::invalid(format!(
+            "`points` must be at most {MAX_POINTS}, got {points}"
+        )));
+    }
+    Ok(())
+}
+
 /// `n` points on the scene's surfaces, area-weighted, each with the colour the renderer gives
 /// its triangle and the triangle's unit normal: where the fitted Gaussians start.
 ///
