@@ -94,7 +94,8 @@ impl EvalRecord {
         Ok(rec)
     }
 
-    /// Checks a record read from a file: every position of its episode record (start, steps,
+    /// Checks a record read from a file: its metrics within their ranges
+    /// ([`EpisodeMetrics::check`]), every position of its episode record (start, steps,
     /// reference path, goal point and footprint, the published goal box) finite and within
     /// ±[`MAX_COORDINATE`] m, every heading, time, length, intensity and distance of its f32
     /// fields finite (a number too large for f32 reads as infinity; JSON holds no other
@@ -104,6 +105,9 @@ impl EvalRecord {
     ///
     /// The first bad field, named (`record.steps[0].position`).
     pub fn check(&self) -> Result<()> {
+        if let Some(m) = &self.metrics {
+            m.check().within("metrics")?;
+        }
         let Some(r) = &self.record else {
             return Ok(());
         };
@@ -371,6 +375,14 @@ mod tests {
         }
     }
 
+    /// `lines` with the first record's metrics replaced by `metrics` (JSON).
+    fn with_metrics(lines: &str, metrics: &str) -> String {
+        let first = lines.lines().next().unwrap();
+        let mut rec: serde_json::Value = serde_json::from_str(first).unwrap();
+        rec["metrics"] = serde_json::from_str(metrics).unwrap();
+        lines.replacen(first, &rec.to_string(), 1)
+    }
+
     #[test]
     fn a_cut_last_line_is_dropped_and_other_damage_is_an_error() {
         let dir = tempfile::tempdir().unwrap();
@@ -408,6 +420,18 @@ mod tests {
                 "line 3: episode b is recorded twice",
             ),
             (whole.replace("\"a\"", "\"z\""), "not in this split"),
+            (
+                with_metrics(&whole, r#"{"sr":7.0}"#),
+                "metrics.sr: 7: no episode scores this (expected within 0-1)",
+            ),
+            (
+                with_metrics(&whole, r#"{"spl":1e30}"#),
+                "metrics.spl: 1000000000000000000000000000000",
+            ),
+            (
+                with_metrics(&whole, r#"{"ne":-4.0}"#),
+                "metrics.ne: -4: no episode scores this (expected finite and at least 0)",
+            ),
         ] {
             std::fs::write(&path, &text).unwrap();
             let e = resume(&path, &ids).map(|_| ()).unwrap_err().to_string();

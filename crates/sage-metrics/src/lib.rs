@@ -250,7 +250,43 @@ pub struct EpisodeMetrics {
     pub steps: Option<f64>,
 }
 
+/// The metrics that are shares of an episode or of its steps, each within 0–1; every other is
+/// a distance, a count, a time or an area, at least 0.
+const SHARES: [&str; 9] = [
+    "sr", "osr", "spl", "csr", "icp", "ps", "ndtw", "sdtw", "coverage",
+];
+
 impl EpisodeMetrics {
+    /// Checks metrics read from a file against what [`evaluate`] can give: the shares
+    /// (SR, OSR, SPL, CSR, ICP, PS, nDTW, SDTW, coverage) within 0–1, every other metric
+    /// finite and at least 0.
+    ///
+    /// # Errors
+    ///
+    /// The first metric out of its range, named.
+    pub fn check(&self) -> Result<()> {
+        for (name, v) in self.named() {
+            let Some(v) = v else { continue };
+            let ok = if SHARES.contains(&name) {
+                (0.0..=1.0).contains(&v)
+            } else {
+                v >= 0.0 && v.is_finite()
+            };
+            if !ok {
+                let range = if SHARES.contains(&name) {
+                    "within 0-1"
+                } else {
+                    "finite and at least 0"
+                };
+                return Err(Error::format(
+                    name,
+                    format!("{v}: no episode scores this (expected {range})"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The metrics by name, in a fixed order (names as in the paper's tables, lower case).
     pub fn named(&self) -> [(&'static str, Option<f64>); 16] {
         [
