@@ -125,6 +125,16 @@ fn plan_render_export_resume_and_project() {
     assert!((hit["u"].as_f64().unwrap() - 12.0).abs() < 1e-3);
     assert!((hit["v"].as_f64().unwrap() - 8.0).abs() < 1e-3);
     assert!((hit["depth"].as_f64().unwrap() - 2.0).abs() < 1e-4);
+    // A point that is nowhere is refused naming the flag, not answered with no view.
+    for nowhere in ["nan,0,0", "inf,0,0", "1e30,0,0"] {
+        let o = sage3d(&["recon", "project", s(&dir), &format!("--point={nowhere}")]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{nowhere}: {err}");
+        assert!(
+            err.contains("--point must be finite and within"),
+            "{nowhere}: {err}"
+        );
+    }
 
     // A short fit: a scene folder with the fitted Gaussians and the original labels, and its
     // report (sage-train's own tests judge how well it fits).

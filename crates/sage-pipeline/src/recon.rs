@@ -452,8 +452,18 @@ pub fn fit(
 ///
 /// # Errors
 ///
-/// No plan, or no rendered views (the image size is set by rendering).
+/// A point not finite or past ±[`sage_core::MAX_COORDINATE`] m, no plan, or no rendered views
+/// (the image size is set by rendering).
 pub fn project(dir: &Path, p: Vec3) -> Result<Vec<serde_json::Value>> {
+    if !sage_core::within_bounds(p) {
+        return Err(Error::invalid(format!(
+            "`point` must be finite and within ±{} m, got {}, {}, {}",
+            sage_core::MAX_COORDINATE,
+            p.x,
+            p.y,
+            p.z
+        )));
+    }
     let plan = Plan::load(&dir.join(PLAN_FILE))?;
     let manifest = views::read_manifest(dir)?.ok_or_else(|| {
         Error::invalid("no views/render.json: the image size is set by `sage3d recon render`")
