@@ -17,7 +17,7 @@ use crate::mesh::TriMesh;
 use crate::object::{BodyParts, BodySource, Object};
 use glam::{DMat4, DQuat, DVec3, Vec3};
 use openusd::{sdf, usd};
-use sage_core::{Aabb, Error, Obb, Result};
+use sage_core::{Aabb, Error, MAX_COORDINATE, Obb, Result, within_bounds};
 use sage_io::limits::{COLLISION_MB, MESH_MB};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -341,10 +341,12 @@ fn compose(stage: &usd::Stage) -> Result<CollisionFile> {
         }
         let m = (stage_to_world * world).as_mat4();
         let mesh = mesh.transformed(&m);
-        if let Some(i) = mesh.positions.iter().position(|v| !v.is_finite()) {
+        if let Some(i) = mesh.positions.iter().position(|v| !within_bounds(*v)) {
             return Err(Error::format(
                 format!("{name}.points[{i}]"),
-                "not finite once transformed (a degenerate or huge xformOp)",
+                format!(
+                    "not finite or past ±{MAX_COORDINATE} m once transformed (a huge point, or a degenerate or huge xformOp)"
+                ),
             ));
         }
         file.prims.push(CollisionPrim { path: name, mesh });
@@ -1131,6 +1133,12 @@ mod tests {
         let e = read_text(&nan).unwrap_err().to_string();
         assert!(
             e.contains("/wall.points[1]") && e.contains("not finite"),
+            "{e}"
+        );
+        let far = nan.replace("(nan,0,0)", "(1e30,0,0)");
+        let e = read_text(&far).unwrap_err().to_string();
+        assert!(
+            e.contains("/wall.points[1]") && e.contains("past ±10000 m"),
             "{e}"
         );
         let none = stage("", "def Xform \"World\"\n{\n}\n");
