@@ -151,7 +151,11 @@ fn main() -> ExitCode {
     match dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let message = flags::in_flags(&e.to_string());
+            // A file's content names the file's own fields, which are no flags.
+            let message = match e.kind() {
+                sage_core::ErrorKind::Format => e.to_string(),
+                _ => flags::in_flags(&e.to_string()),
+            };
             eprintln!("error: {message}");
             // The message names flags; one the config file gave was never typed.
             for (flag, origin) in config::named_in(&origins, &message) {

@@ -395,6 +395,18 @@ fn render_writes_every_channel_and_a_turntable() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // A camera file's fields are named as the file names them, not as flags.
+    std::fs::write(
+        &bad,
+        r#"{"width": 40, "height": 30, "hfov_deg": 90, "position": [0, 0, 1], "bogus": 1}"#,
+    )
+    .unwrap();
+    let o = sage3d(&["render", s(&scene), "--camera", s(&bad), "--out", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("unknown field `bogus`") && err.contains("`position`") && !err.contains("--"),
+        "{err}"
+    );
     // A pose given by flags that makes no camera is refused naming the flag, nothing written.
     let fresh = dir.path().join("fresh");
     for (flag, value) in [

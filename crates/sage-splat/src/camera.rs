@@ -125,12 +125,12 @@ impl Camera {
                 .any(|v| v.abs() > 1e-3)
         {
             return Err(Error::invalid(
-                "c2w: the 3x3 part must be a rotation (orthonormal, no scale)",
+                "the camera-to-world matrix's 3x3 part must be a rotation (orthonormal, no scale)",
             ));
         }
         if (m.determinant() - 1.0).abs() > 1e-3 {
             return Err(Error::invalid(
-                "c2w: the 3x3 part must be a proper rotation (determinant +1)",
+                "the camera-to-world matrix's 3x3 part must be a proper rotation (determinant +1)",
             ));
         }
         let forward = m.z_axis.normalize();
