@@ -6,7 +6,7 @@ use sage_splat::MAX_IMAGE_SIDE;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 45] = [
+const NAMED_SETTINGS: [&str; 46] = [
     "jpeg_quality",
     "min_distance",
     "objects",
@@ -52,6 +52,7 @@ const NAMED_SETTINGS: [&str; 45] = [
     "high_per_type",
     "budget",
     "point",
+    "offset",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

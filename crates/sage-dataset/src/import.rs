@@ -7,7 +7,7 @@ use crate::formats::{ReadEpisodes, gvln, jsonl, r2r};
 use crate::slices::scene_assets_slice;
 use crate::{Episode, build, folder};
 use glam::Vec2;
-use sage_core::{Error, Result, ResultExt};
+use sage_core::{Error, MAX_COORDINATE, Result, ResultExt};
 use sage_lang::StepSizes;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -122,7 +122,8 @@ fn provenance(source: &Source) -> serde_json::Value {
 ///
 /// # Errors
 ///
-/// A split name that would name a file outside the dataset, an output folder holding files a
+/// A split name that would name a file outside the dataset, a GVLN offset not finite or past
+/// ±[`MAX_COORDINATE`] m, an output folder holding files a
 /// dataset command did not write, a build that did not finish, a bad source file (naming
 /// the file and field), a GN-Bench file none of whose rows could be imported (naming the first
 /// row and column), a GN-Bench import without a scenes folder, an episode whose scene is not
@@ -136,6 +137,14 @@ pub fn import(
     force: bool,
 ) -> Result<Imported> {
     sage_io::names::check_plain("split", split).within("`split`")?;
+    if let Source::Gvln { offset, .. } = source
+        && !offset.abs().cmple(Vec2::splat(MAX_COORDINATE)).all()
+    {
+        return Err(Error::invalid(format!(
+            "`offset` must be finite and within ±{MAX_COORDINATE} m, got {}, {}",
+            offset.x, offset.y
+        )));
+    }
     let names = [
         "episodes",
         folder::SPLITS_FILE,

@@ -1068,6 +1068,22 @@ fn imports_tag_published_episodes_with_their_scenes_asset_slice() {
             "{name} without scenes"
         );
     }
+    // An offset that is no place is refused, whether or not the file states its frame.
+    for file in [&published_gvln, &ours_gvln] {
+        for offset in [Vec2::new(f32::NAN, 0.0), Vec2::new(0.0, 1e9)] {
+            let out = dir.path().join("nowhere");
+            let source = Source::Gvln {
+                file: file.clone(),
+                offset,
+            };
+            let e = import(&source, &out, "s", Some(&scenes), false).unwrap_err();
+            assert!(
+                e.to_string().contains("`offset` must be finite and within"),
+                "{e}"
+            );
+            assert!(!out.exists());
+        }
+    }
     // A scene whose labels cannot be read is named, with the episode it was read for.
     std::fs::write(scenes.join("small/labels.json"), "{").unwrap();
     let e = import(
