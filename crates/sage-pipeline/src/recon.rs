@@ -225,7 +225,14 @@ pub fn render(
     on_view: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RenderReport> {
     let (_lock, plan) = lock_folder(dir, RENDER_COMMAND)?;
-    let manifest = Manifest::new(&plan, width, height)?;
+    let scene_dir = scene_of(&plan, scene);
+    let manifest = Manifest {
+        scene: Some(scene_dir.file_name().map_or_else(
+            || scene_dir.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        )),
+        ..Manifest::new(&plan, width, height)?
+    };
     views::prepare(dir, &manifest)?;
     let todo = views::pending(dir, &plan);
     if todo.is_empty() {
@@ -236,7 +243,7 @@ pub fn render(
             other_scene: None,
         });
     }
-    let (scene, surfaces) = load_mesh_scene(&scene_of(&plan, scene))?;
+    let (scene, surfaces) = load_mesh_scene(&scene_dir)?;
     let other_scene = (scene.name != plan.scene).then(|| (plan.scene.clone(), scene.name));
     let bvh = surfaces.bvh();
     let k = manifest.intrinsics();

@@ -47,6 +47,10 @@ pub struct Manifest {
     /// FNV-1a hash (hex) of the plan's kept views: images rendered for one plan are never
     /// taken for another's.
     pub plan_views_hash: String,
+    /// The folder name of the scene the views were rendered from (absent in folders rendered
+    /// before it was recorded, which any scene resumes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<String>,
 }
 
 impl Manifest {
@@ -64,6 +68,7 @@ impl Manifest {
             views: plan.views.len(),
             depth_unit: "mm".to_string(),
             plan_views_hash: views_hash(plan)?,
+            scene: None,
         })
     }
 
@@ -111,21 +116,35 @@ pub fn read_manifest(dir: &Path) -> Result<Option<Manifest>> {
 }
 
 /// Prepares `dir/views` for `manifest`: writes the manifest, or checks that the one already
-/// there matches (views of two sizes must not mix in one folder).
+/// there matches (views of two sizes, or of two scenes, must not mix in one folder).
 pub fn prepare(dir: &Path, manifest: &Manifest) -> Result<()> {
     let views = dir.join(VIEWS_DIR);
     std::fs::create_dir_all(&views).map_err(|e| Error::io(&views, e))?;
-    match read_manifest(dir)? {
-        Some(m) if m == *manifest => Ok(()),
-        Some(m) if m.plan_views_hash != manifest.plan_views_hash => {
-            Err(Error::invalid(OTHER_PLAN).in_file(views.join(MANIFEST)))
-        }
-        Some(m) => Err(Error::invalid(format!(
+    let Some(m) = read_manifest(dir)? else {
+        return write_json(&views.join(MANIFEST), manifest);
+    };
+    let refused = |why: String| Err(Error::invalid(why).in_file(views.join(MANIFEST)));
+    let same_size = Manifest {
+        scene: m.scene.clone(),
+        ..manifest.clone()
+    } == m;
+    if m.plan_views_hash != manifest.plan_views_hash {
+        refused(OTHER_PLAN.to_string())
+    } else if !same_size {
+        refused(format!(
             "views already rendered at {}x{} (hfov {}°, {} views); render with the same size or remove the views folder",
             m.width, m.height, m.hfov_deg, m.views
         ))
-        .in_file(views.join(MANIFEST))),
-        None => write_json(&views.join(MANIFEST), manifest),
+    } else if let Some(old) = m
+        .scene
+        .as_ref()
+        .filter(|old| manifest.scene.as_ref() != Some(*old))
+    {
+        refused(format!(
+            "views already rendered from scene '{old}'; render that scene, or remove the views folder to render another"
+        ))
+    } else {
+        Ok(())
     }
 }
 

@@ -686,4 +686,22 @@ fn views_of_a_replaced_plan_are_refused_with_the_same_advice_everywhere() {
         views::read_manifest(dir.path()).unwrap(),
         Some(Manifest::new(&old, 24, 16).unwrap())
     );
+    // Views rendered from one scene are not taken for another's; a folder rendered before the
+    // scene was recorded resumes with any.
+    let from = |scene: &str| Manifest {
+        scene: Some(scene.into()),
+        ..Manifest::new(&old, 24, 16).unwrap()
+    };
+    views::prepare(dir.path(), &from("home")).unwrap();
+    let recorded = tempfile::tempdir().unwrap();
+    views::prepare(recorded.path(), &from("home")).unwrap();
+    views::prepare(recorded.path(), &from("home")).unwrap();
+    let e = views::prepare(recorded.path(), &from("fitted"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("views already rendered from scene 'home'")
+            && e.contains("remove the views folder"),
+        "{e}"
+    );
 }
