@@ -7,7 +7,7 @@ use crate::formats::{ReadEpisodes, gvln, jsonl, r2r};
 use crate::slices::scene_assets_slice;
 use crate::{Episode, build, folder};
 use glam::Vec2;
-use sage_core::{Error, MAX_COORDINATE, Result, ResultExt};
+use sage_core::{Error, MAX_COORDINATE, Result, ResultExt, within_bounds};
 use sage_lang::StepSizes;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -138,7 +138,7 @@ pub fn import(
 ) -> Result<Imported> {
     sage_io::names::check_plain("split", split).within("`split`")?;
     if let Source::Gvln { offset, .. } = source
-        && !offset.abs().cmple(Vec2::splat(MAX_COORDINATE)).all()
+        && !within_bounds(offset.extend(0.0))
     {
         return Err(Error::invalid(format!(
             "`offset` must be finite and within ±{MAX_COORDINATE} m, got {}, {}",

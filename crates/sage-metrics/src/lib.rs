@@ -267,17 +267,12 @@ impl EpisodeMetrics {
     pub fn check(&self) -> Result<()> {
         for (name, v) in self.named() {
             let Some(v) = v else { continue };
-            let ok = if SHARES.contains(&name) {
-                (0.0..=1.0).contains(&v)
+            let (ok, range) = if SHARES.contains(&name) {
+                ((0.0..=1.0).contains(&v), "within 0-1")
             } else {
-                v >= 0.0 && v.is_finite()
+                (v >= 0.0 && v.is_finite(), "finite and at least 0")
             };
             if !ok {
-                let range = if SHARES.contains(&name) {
-                    "within 0-1"
-                } else {
-                    "finite and at least 0"
-                };
                 return Err(Error::format(
                     name,
                     format!("{v}: no episode scores this (expected {range})"),
