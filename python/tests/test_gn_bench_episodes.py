@@ -243,6 +243,10 @@ def test_export_reads_in_pyarrow_and_reimports_equal(tmp_path, sage3d, scenes, i
     # An existing file is kept unless --force.
     again = sage3d("data", "export", data, "--split", "test", "--out", out, check=False)
     assert again.returncode != 0 and "exists" in again.stderr
+    # A name that says another format is refused: readers tell the format by it.
+    csv = sage3d("data", "export", data, "--split", "test", "--out", tmp_path / "out.csv", check=False)
+    assert csv.returncode != 0 and "must end in .parquet" in csv.stderr, csv.stderr
+    assert not (tmp_path / "out.csv").exists()
     sage3d("data", "import", out, "--gn-bench", "--scenes", scenes, "--out", tmp_path / "re",
            "--split", "test")
     assert (tmp_path / "re" / "episodes" / "test.jsonl").read_text() == \

@@ -115,6 +115,7 @@ def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):
     assert (tmp_path / "py" / "summary.json").read_bytes() == (tmp_path / "cli" / "summary.json").read_bytes()
     assert result["summary"] == json.loads((tmp_path / "cli" / "summary.json").read_text())
     assert result["ran"] == result["total"] == len(expected) and "agent oracle" in result["table"]
+    assert result["scene_changes"] == []
     # The report too, with a map per episode as `sage3d eval` draws them.
     assert (tmp_path / "py" / "report.html").is_file()
     maps = lambda run: sorted(p.name for p in (run / "report" / "maps").iterdir())  # noqa: E731
@@ -124,6 +125,19 @@ def test_builtin_agents_from_python_equal_the_cli(data, sage3d, tmp_path):
     # Both record the environment they ran in, the same one.
     env = lambda run: json.loads((run / "sage3d_run.json").read_text())["env"]  # noqa: E731
     assert env(tmp_path / "py") == env(tmp_path / "cli") and env(tmp_path / "cli")["task"]["max_steps"] == 500
+
+
+def test_scene_files_changed_since_the_dataset_was_built_are_named_with_a_warning(data, tmp_path):
+    import shutil
+
+    scenes, dataset = data
+    moved = tmp_path / "scenes"
+    shutil.copytree(scenes, moved)
+    structure = moved / "home7" / "structure.json"
+    structure.write_text(structure.read_text() + "\n")
+    with pytest.warns(RuntimeWarning, match=re.escape("home7/structure.json changed")):
+        result = sg.evaluate(dataset, moved, "forward", tmp_path / "run", split="train", sensors=[])
+    assert result["scene_changes"] == ["home7/structure.json changed"]
 
 
 def test_a_run_folder_resumes_only_the_environment_it_ran_in(data, tmp_path):

@@ -51,7 +51,8 @@ pub struct ExportArgs {
     /// The split to write.
     #[arg(long)]
     split: String,
-    /// The file to write (never a file of the dataset or of its scenes).
+    /// The file to write, named with the format's extension (`.parquet`); never a file of the
+    /// dataset or of its scenes.
     #[arg(long)]
     out: PathBuf,
     /// The format.
@@ -253,7 +254,20 @@ fn data_render(a: RenderArgs) -> Result<()> {
     let start = Instant::now();
     let frames = std::sync::atomic::AtomicUsize::new(0);
     let report = sage_pipeline::traindata::render(&a.options, &a.out, a.force, &|p| match p {
-        Progress::Planned { routes } => bar.set_length(routes as u64),
+        Progress::Planned {
+            routes,
+            scene_changes,
+        } => {
+            bar.set_length(routes as u64);
+            if !scene_changes.is_empty() {
+                bar.suspend(|| {
+                    eprintln!(
+                        "note: scene files changed since the dataset was built ({}): its reference paths were planned on the files as they were; build the dataset again (`sage3d data build`) to walk the scenes as they are",
+                        scene_changes.join(", ")
+                    )
+                });
+            }
+        }
         Progress::AlreadyComplete => {}
         Progress::Scene(scene) => bar.set_message(format!("loading {scene}")),
         Progress::Route(r) => {

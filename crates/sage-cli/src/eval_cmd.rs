@@ -91,4 +91,10 @@ pub fn print_eval(outcome: &RunOutcome, report: &ReportOutcome, out: &Path, secs
         out.display()
     );
     println!("{}", crate::report_cmd::describe(report));
+    if !outcome.scene_changes.is_empty() {
+        eprintln!(
+            "note: scene files changed since the dataset was built ({}): its goals and reference paths were planned on the files as they were; build the dataset again (`sage3d data build`) to score against the scenes as they are",
+            outcome.scene_changes.join(", ")
+        );
+    }
 }

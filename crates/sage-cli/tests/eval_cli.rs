@@ -409,3 +409,54 @@ fn eval_scores_as_gn_bench_with_its_preset() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("gnbench"));
 }
+
+#[test]
+fn a_run_finds_its_scenes_from_anywhere_and_notes_scenes_changed_since_the_dataset() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scenes, _) = small_dataset(dir.path());
+    // Folders named relative to where the evaluation runs.
+    let in_dir = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_sage3d"))
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap()
+    };
+    let args = |out: &'static str| {
+        [
+            "--threads",
+            "1",
+            "eval",
+            "data",
+            "--scenes",
+            "scenes",
+            "--split",
+            "train",
+            "--agent",
+            "forward",
+            "--out",
+            out,
+        ]
+    };
+    let first = in_dir(&args("run"));
+    assert!(first.status.success(), "{}", common::stderr(&first));
+    assert!(!common::stderr(&first).contains("note: scene files changed"));
+    // The report and the viewer's run, from another working directory, find the scenes.
+    let run = dir.path().join("run");
+    std::fs::remove_file(run.join("report.html")).unwrap();
+    common::ok(&["report", s(&run)]);
+    assert!(run.join("report.html").is_file());
+    // A scene file the dataset was built from, changed since: the evaluation says so.
+    let structure = scenes.join("home1").join("structure.json");
+    let text = read(&structure);
+    std::fs::write(&structure, format!("{text}\n")).unwrap();
+    let second = in_dir(&args("run2"));
+    assert!(second.status.success(), "{}", common::stderr(&second));
+    assert!(
+        common::stderr(&second).contains(
+            "note: scene files changed since the dataset was built (home1/structure.json changed)"
+        ),
+        "{}",
+        common::stderr(&second)
+    );
+}

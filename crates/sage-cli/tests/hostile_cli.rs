@@ -17,10 +17,16 @@ fn train_episodes(data: &Path) -> Vec<Value> {
         .collect()
 }
 
-/// Replaces the train split of `data` with `episodes` (splits.json keeps naming the split).
+/// Replaces the train split of `data` with `episodes`, listing their ids in splits.json as a
+/// split made by hand must be.
 fn write_train(data: &Path, episodes: &[Value]) {
     let text: String = episodes.iter().map(|e| format!("{e}\n")).collect();
     std::fs::write(data.join("episodes").join("train.jsonl"), text).unwrap();
+    let ids: Vec<&Value> = episodes.iter().map(|e| &e["episode_id"]).collect();
+    let listed = data.join("splits.json");
+    let mut splits: Value = serde_json::from_slice(&std::fs::read(&listed).unwrap()).unwrap();
+    splits["splits"]["train"] = serde_json::json!(ids);
+    std::fs::write(&listed, splits.to_string()).unwrap();
 }
 
 /// The indices of two train episodes of different walks (start or path differ).
@@ -175,6 +181,26 @@ fn a_damaged_dataset_is_refused_before_any_work() {
     let err = stderr(&out);
     assert!(
         err.contains("line 2") && err.contains("given twice (first at line 1)"),
+        "{err}"
+    );
+    assert!(!run.exists(), "nothing is written for a refused dataset");
+
+    // A split file cut short (its list in splits.json left as it was) is refused, not scored
+    // as if it were the split.
+    write_train(&data, &pristine);
+    let file = data.join("episodes").join("train.jsonl");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.lines().next().unwrap()).unwrap();
+    let out = eval_output("1", &data, &scenes, &run, &["--agent", "forward"]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("train.jsonl")
+            && err.contains(&format!(
+                "holds 1 episodes where splits.json lists {} for split 'train' ({} missing: ",
+                pristine.len(),
+                pristine.len() - 1
+            )),
         "{err}"
     );
     assert!(!run.exists(), "nothing is written for a refused dataset");

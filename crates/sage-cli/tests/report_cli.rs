@@ -122,8 +122,14 @@ fn bad_run_folders_name_the_file() {
         "{e}"
     );
     std::fs::write(run.join("summary.json"), "{\"agent\": 1}").unwrap();
-    let e = fails(&["report", s(run)]);
+    let e = fails(&["report", s(run), "--scenes", s(run)]);
     assert!(e.contains("summary.json"), "{e}");
+    // Without --scenes, a recorded scenes folder that is not there is named, with the advice.
+    let e = fails(&["report", s(run)]);
+    assert!(
+        e.contains("settings.scenes: nowhere") && e.contains("(--scenes)"),
+        "{e}"
+    );
     std::fs::remove_file(run.join("sage3d_run.json")).unwrap();
     let e = fails(&["report", s(run)]);
     assert!(

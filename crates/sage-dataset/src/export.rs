@@ -13,6 +13,16 @@ pub enum Format {
     GnBench,
 }
 
+impl Format {
+    /// The file extension of the format: readers (GN-Bench's loader, `pandas`, `datasets`)
+    /// tell a file's format by it.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::GnBench => "parquet",
+        }
+    }
+}
+
 /// What [`export`] did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Exported {
@@ -30,7 +40,8 @@ pub struct Exported {
 ///
 /// # Errors
 ///
-/// An existing `out` without `force`, a split the dataset does not list, no scenes folder, a
+/// An `out` not named with the format's extension ([`Format::extension`]), an existing `out`
+/// without `force`, a split the dataset does not list, no scenes folder, a
 /// split none of whose episodes the format can hold (naming the first and why), a write error.
 pub fn export(
     dataset: &Path,
@@ -40,6 +51,16 @@ pub fn export(
     out: &Path,
     force: bool,
 ) -> Result<Exported> {
+    let extension = format.extension();
+    if !out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case(extension))
+    {
+        return Err(Error::invalid(format!(
+            "the output must end in .{extension}: its format is told by its name"
+        ))
+        .in_file(out));
+    }
     sage_io::run::claim_file(out, force)?;
     let scenes = folder::scenes_folder(dataset, scenes)?;
     let (_, episodes) = folder::split_episodes(dataset, split)?;

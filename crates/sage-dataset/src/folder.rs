@@ -22,10 +22,11 @@
 //! absolute one (it still holds when the dataset alone moves).
 
 use crate::Episode;
-use sage_core::{Error, Result};
+use sage_core::{Error, Result, ResultExt};
 use sage_io::files::{read_json, write_json};
 use sage_io::run::RUN_RECORD;
 use serde_json::{Map, Value, json};
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Component, Path, PathBuf};
 
 /// The file listing a dataset's splits and their episode ids.
@@ -168,9 +169,10 @@ pub fn non_empty_splits(dataset: &Path) -> Result<Vec<String>> {
 ///
 /// A split that is not a plain name, an `invalid` error listing the dataset's splits when
 /// `split` is not one of them, an
-/// error naming the missing file of a listed split, or the file's read error.
+/// error naming the missing file of a listed split, the file's read error, or a file whose
+/// episode ids are not those `splits.json` lists for the split (some missing or not listed).
 pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episode>)> {
-    sage_io::names::check_plain("split", split)?;
+    sage_io::names::check_plain("split", split).within("`split`")?;
     let splits = splits(dataset)?;
     let file = dataset.join("episodes").join(format!("{split}.jsonl"));
     if !splits.iter().any(|s| s == split) {
@@ -188,7 +190,48 @@ pub fn split_episodes(dataset: &Path, split: &str) -> Result<(PathBuf, Vec<Episo
         .in_file(&file));
     }
     let episodes = crate::formats::jsonl::read(&file)?;
+    check_listed_ids(dataset, split, &file, &episodes)?;
     Ok((file, episodes))
+}
+
+/// Checks the episodes of `split`'s file against the ids `splits.json` lists for it, where it
+/// lists them: a file cut short (or edited without its list) would otherwise be evaluated,
+/// rendered or exported as if it were the split.
+fn check_listed_ids(dataset: &Path, split: &str, file: &Path, episodes: &[Episode]) -> Result<()> {
+    let Ok(value) = read_json::<Value>(&dataset.join(SPLITS_FILE)) else {
+        return Ok(());
+    };
+    let Some(listed) = value["splits"].get(split).and_then(Value::as_array) else {
+        return Ok(());
+    };
+    let listed: BTreeSet<&str> = listed.iter().filter_map(Value::as_str).collect();
+    let held: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
+    let some = |ids: Vec<&&str>| {
+        let shown: Vec<&str> = ids.iter().take(3).map(|id| **id).collect();
+        match ids.len() {
+            n if n > 3 => format!("{} and {} more", shown.join(", "), n - 3),
+            _ => shown.join(", "),
+        }
+    };
+    let missing: Vec<&&str> = listed.difference(&held).collect();
+    let unlisted: Vec<&&str> = held.difference(&listed).collect();
+    let mut differences = Vec::new();
+    if !missing.is_empty() {
+        differences.push(format!("{} missing: {}", missing.len(), some(missing)));
+    }
+    if !unlisted.is_empty() {
+        differences.push(format!("{} not listed: {}", unlisted.len(), some(unlisted)));
+    }
+    if differences.is_empty() {
+        return Ok(());
+    }
+    Err(Error::invalid(format!(
+        "holds {} episodes where {SPLITS_FILE} lists {} for split '{split}' ({}): the file was cut short or edited; build the dataset again, or list the split's episode ids in {SPLITS_FILE}",
+        held.len(),
+        listed.len(),
+        differences.join("; ")
+    ))
+    .in_file(file))
 }
 
 /// Lists `split` with the ids of `episodes` in `splits.json` (replacing its old ids), making
@@ -261,6 +304,53 @@ pub(crate) fn imported_splits(dataset: &Path) -> Result<Vec<(String, Value)>> {
         .collect())
 }
 
+/// The files navigation reads ([`sage_io::scenes::input_hashes`]) of the scenes `names` that
+/// differ from what `data build` read when it built `dataset` (the `inputs` of its run
+/// record), as `scene/file changed`, `added` or `removed`, in order. The dataset's goals and
+/// reference paths were planned on those files: after such a change, metrics against them
+/// (SPL, nDTW, the goal tests) and training data along them follow an episode the scene no
+/// longer holds.
+///
+/// `dirs` holds the scene folders by name. A dataset without a build's record (imported, made
+/// by hand or before the record held hashes), or a scene it does not list or `dirs` does not
+/// hold, has nothing to compare: none.
+pub fn scene_changes<'a>(
+    dataset: &Path,
+    names: impl IntoIterator<Item = &'a str>,
+    dirs: &BTreeMap<String, PathBuf>,
+) -> Vec<String> {
+    let Some(record) = sage_io::run::read_record(dataset) else {
+        return Vec::new();
+    };
+    if record.get("command").and_then(Value::as_str) != Some(COMMAND) {
+        return Vec::new();
+    }
+    let Some(built) = record.get("inputs").and_then(Value::as_object) else {
+        return Vec::new();
+    };
+    let names: BTreeSet<&str> = names.into_iter().collect();
+    let mut changes = Vec::new();
+    for scene in names {
+        let (Some(then), Some(dir)) =
+            (built.get(scene).and_then(Value::as_object), dirs.get(scene))
+        else {
+            continue;
+        };
+        let now = sage_io::scenes::input_hashes(dir);
+        let files: BTreeSet<&String> = then.keys().chain(now.keys()).collect();
+        for file in files {
+            let what = match (then.get(file).and_then(Value::as_str), now.get(file)) {
+                (Some(old), Some(new)) if old == new => continue,
+                (Some(_), Some(_)) => "changed",
+                (None, _) => "added",
+                (Some(_), None) => "removed",
+            };
+            changes.push(format!("{scene}/{file} {what}"));
+        }
+    }
+    changes
+}
+
 /// `path` made absolute: resolved through links when it exists, else joined to the working
 /// directory.
 pub(crate) fn absolute(path: &Path) -> PathBuf {
@@ -324,29 +414,82 @@ pub fn scenes_folder(dataset: &Path, given: Option<&Path>) -> Result<PathBuf> {
         )
         .in_file(dataset));
     };
-    let field = |name: &str| scenes.get(name).and_then(Value::as_str).map(PathBuf::from);
-    if let Some(rel) = field("relative") {
-        let dir = dataset.join(rel);
+    resolve_scenes_record(dataset, scenes, "scenes").in_file(&path)
+}
+
+/// The folder a [`scenes_record`] of folder `base` names: relative to `base` first (it still
+/// holds when `base` and the scenes move together), then absolute (when `base` alone moves).
+/// `field` is the record's name in its file, for the errors.
+///
+/// # Errors
+///
+/// A record naming a folder that exists neither way (telling to name the scenes folder), or
+/// one without its absolute path.
+pub fn resolve_scenes_record(base: &Path, scenes: &Value, field: &str) -> Result<PathBuf> {
+    let path = |name: &str| scenes.get(name).and_then(Value::as_str).map(PathBuf::from);
+    if let Some(rel) = path("relative") {
+        let dir = base.join(rel);
         if dir.is_dir() {
             return Ok(dir);
         }
     }
-    match field("absolute") {
+    match path("absolute") {
         Some(abs) if abs.is_dir() => Ok(abs),
         Some(abs) => Err(Error::invalid(format!(
             "the recorded scenes folder {} does not exist; name the scenes folder (`scenes`)",
             abs.display()
-        ))
-        .in_file(&path)),
-        None => Err(
-            Error::format("scenes.absolute", "expected the scenes folder's path").in_file(&path),
-        ),
+        ))),
+        None => Err(Error::format(
+            format!("{field}.absolute"),
+            "expected the scenes folder's path",
+        )),
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scene_changes_name_each_navigation_file_changed_added_or_removed_since_the_build() {
+        let root = tempfile::tempdir().unwrap();
+        let (dataset, scene) = (root.path().join("data"), root.path().join("home"));
+        std::fs::create_dir_all(&dataset).unwrap();
+        std::fs::create_dir_all(&scene).unwrap();
+        for file in ["labels.json", "structure.json", "3dgs_compressed.ply"] {
+            std::fs::write(scene.join(file), file).unwrap();
+        }
+        let dirs = BTreeMap::from([("home".to_string(), scene.clone())]);
+        let record = |command: &str| {
+            sage_io::run::write_run_record(
+                &dataset,
+                command,
+                None,
+                json!({"inputs": {"home": sage_io::scenes::input_hashes(&scene)}}),
+            )
+            .unwrap()
+        };
+        record(COMMAND);
+        assert!(scene_changes(&dataset, ["home"], &dirs).is_empty());
+        // The Gaussians are no file navigation reads.
+        std::fs::write(scene.join("3dgs_compressed.ply"), "other").unwrap();
+        assert!(scene_changes(&dataset, ["home"], &dirs).is_empty());
+        std::fs::write(scene.join("labels.json"), "edited").unwrap();
+        std::fs::write(scene.join("objects.json"), "{}").unwrap();
+        std::fs::remove_file(scene.join("structure.json")).unwrap();
+        assert_eq!(
+            scene_changes(&dataset, ["home", "home"], &dirs),
+            [
+                "home/labels.json changed",
+                "home/objects.json added",
+                "home/structure.json removed"
+            ]
+        );
+        // A scene the build did not read, or a dataset no build recorded, has nothing to compare.
+        assert!(scene_changes(&dataset, ["other"], &dirs).is_empty());
+        record("data import");
+        assert!(scene_changes(&dataset, ["home"], &dirs).is_empty());
+    }
 
     #[test]
     fn relative_paths_climb_to_the_common_folder() {

@@ -900,9 +900,14 @@ fn a_build_stopped_before_it_finished_is_no_dataset_until_rerun() {
     let e = folder::splits(&data).unwrap_err().to_string();
     assert!(e.contains("no splits.json"), "{e}");
     // A rerun killed after an earlier build had finished: the old splits.json is still there.
+    let ids: Vec<String> = jsonl::read(&data.join("episodes/train.jsonl"))
+        .unwrap()
+        .into_iter()
+        .map(|e| e.episode_id)
+        .collect();
     std::fs::write(
         data.join(folder::SPLITS_FILE),
-        r#"{"splits": {"train": []}}"#,
+        serde_json::json!({"splits": {"train": ids}}).to_string(),
     )
     .unwrap();
     record(false).unwrap();

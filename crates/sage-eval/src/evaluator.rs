@@ -45,6 +45,10 @@ pub struct RunOutcome {
     pub ran: usize,
     /// The aggregate written to `RUN/summary.json`.
     pub summary: Summary,
+    /// The files navigation reads of the run's scenes that changed since the dataset was
+    /// built, as `scene/file changed|added|removed` ([`sage_dataset::folder::scene_changes`]):
+    /// the episodes' goals and reference paths were planned on the files as they were.
+    pub scene_changes: Vec<String>,
 }
 
 impl RunOutcome {
@@ -348,15 +352,21 @@ fn differences(
 /// Checks a run folder's earlier settings and environment against `settings` and `env` (a
 /// folder resumes only the same run, in the same environment, on the same data and scenes;
 /// `split_file` is the split's episodes file, whose hash is `dataset_hash`) and writes the run
-/// record, marked unfinished until the run is written.
+/// record, marked unfinished until the run is written. `out_setting` is the setting that
+/// named `out` (`out`; a human run's `play`), which the advice of a refusal names.
 fn claim_run_folder(
     out: &Path,
-    settings: &serde_json::Value,
-    env: &serde_json::Value,
+    out_setting: &str,
+    run: &RecordedRun,
     split_file: &Path,
-    dataset_hash: &str,
-    scenes: &serde_json::Value,
 ) -> Result<()> {
+    let RecordedRun {
+        settings,
+        env,
+        dataset_hash,
+        scenes,
+        ..
+    } = *run;
     let path = out.join(RUN_RECORD);
     // A rescoring's folder resumed as the evaluation it equals keeps the word of where its
     // numbers came from.
@@ -366,9 +376,9 @@ fn claim_run_folder(
         let old: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| Error::format("sage3d_run.json", e.to_string()).in_file(&path))?;
         let changed = changed_settings(old.get("settings"), settings);
-        let other_env = changed_env(old.get("env"), env);
+        let other_env = env.map_or_else(Vec::new, |env| changed_env(old.get("env"), env));
         // Another split is another file: its hash differing says nothing more.
-        let other_data = old.get("dataset_hash").and_then(|h| h.as_str()) != Some(dataset_hash)
+        let other_data = old.get("dataset_hash") != Some(dataset_hash)
             && !changed.iter().any(|c| c.starts_with("split:"));
         let mut why = Vec::new();
         if !changed.is_empty() {
@@ -390,7 +400,7 @@ fn claim_run_folder(
                 format!("{} and {last}", first.join(", "))
             };
             return Err(Error::invalid(format!(
-                "this run folder holds a run with {why}; use a new run folder (`out`)"
+                "this run folder holds a run with {why}; use a new run folder (`{out_setting}`)"
             ))
             .in_file(&path));
         }
@@ -399,22 +409,13 @@ fn claim_run_folder(
             .and_then(|o| changed_scene_file(o, scenes))
         {
             return Err(Error::invalid(format!(
-                "this run folder holds a run on other scene files ({file} changed since); use a new run folder (`out`)"
+                "this run folder holds a run on other scene files ({file} changed since); use a new run folder (`{out_setting}`)"
             ))
             .in_file(&path));
         }
         rescored_from = old.get("rescored_from").cloned();
     }
-    mark_unfinished(
-        out,
-        &RecordedRun {
-            settings,
-            env: Some(env),
-            dataset_hash: &dataset_hash.into(),
-            scenes,
-        },
-        rescored_from,
-    )
+    mark_unfinished(out, run, rescored_from)
 }
 
 /// The settings as the run record stores them: `settings` with the agent's recorded name.
@@ -446,6 +447,7 @@ pub(crate) fn env_record(config: &EnvConfig) -> Result<serde_json::Value> {
 /// ([`recorded_settings`]), the environment it ran in ([`env_record`]; `None` for a
 /// rescoring of a run recorded before the environment was), the split file's hash and the
 /// hashes of its scenes' files ([`scene_inputs`]).
+#[derive(Clone, Copy)]
 pub(crate) struct RecordedRun<'a> {
     /// `settings`.
     pub(crate) settings: &'a serde_json::Value,
@@ -455,6 +457,11 @@ pub(crate) struct RecordedRun<'a> {
     pub(crate) dataset_hash: &'a serde_json::Value,
     /// `scene_inputs`.
     pub(crate) scenes: &'a serde_json::Value,
+    /// The scenes folder, when it is known to exist (`None`: the record names none beside
+    /// `settings.scenes`), recorded as `scenes_folder`: absolute and relative to the run
+    /// folder ([`sage_dataset::folder::scenes_record`]), so that the run's report and viewer
+    /// find it from any working directory ([`crate::folder::recorded_scenes`]).
+    pub(crate) scenes_folder: Option<&'a Path>,
 }
 
 /// Writes an evaluation's run record marked unfinished (`"status": "unfinished"`, the first
@@ -473,6 +480,9 @@ pub(crate) fn mark_unfinished(
     });
     if let Some(env) = run.env {
         record["env"] = env.clone();
+    }
+    if let Some(folder) = run.scenes_folder {
+        record["scenes_folder"] = sage_dataset::folder::scenes_record(out, folder);
     }
     if let Some(from) = rescored_from {
         record["rescored_from"] = from;
@@ -493,12 +503,15 @@ pub(crate) struct Split {
     pub(crate) dirs: BTreeMap<String, std::path::PathBuf>,
     /// The ids already recorded in the run folder.
     pub(crate) done: BTreeSet<String>,
+    /// [`RunOutcome::scene_changes`].
+    pub(crate) scene_changes: Vec<String>,
 }
 
 /// Reads the split of `settings` (the episodes `shard` keeps), checks that every episode's
 /// scene is present, and claims `out` for a run of `agent` with these settings in the
 /// environment `env`: its run record written (or checked against an earlier one) and its
-/// records file ready to resume.
+/// records file ready to resume. `out_setting` names the setting that named `out`
+/// ([`claim_run_folder`]).
 ///
 /// # Errors
 ///
@@ -510,6 +523,7 @@ pub(crate) fn open_split(
     env: &EnvConfig,
     shard: Option<&(dyn Fn(&Episode) -> bool + Sync)>,
     out: &Path,
+    out_setting: &str,
 ) -> Result<Split> {
     let (file, mut episodes) = split_episodes(&settings.dataset, &settings.split)?;
     if episodes.is_empty() {
@@ -534,6 +548,11 @@ pub(crate) fn open_split(
     // A shard hashes the scenes it runs (each node would otherwise read every scene's
     // Gaussians); the merge of the shards records the whole split's, as one run over it does.
     let scenes = scene_inputs(&episodes, &dirs);
+    let scene_changes = sage_dataset::folder::scene_changes(
+        &settings.dataset,
+        episodes.iter().map(|e| e.scene.as_str()),
+        &dirs,
+    );
     if let Some(e) = episodes.iter().find(|e| !dirs.contains_key(&e.scene)) {
         return Err(Error::invalid(format!(
             "scene '{}' of episode {} is not among the scenes",
@@ -545,13 +564,21 @@ pub(crate) fn open_split(
     let env = env_record(env)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let recorded = recorded_settings(settings, agent)?;
-    claim_run_folder(out, &recorded, &env, &file, &dataset_hash, &scenes)?;
+    let run = RecordedRun {
+        settings: &recorded,
+        env: Some(&env),
+        dataset_hash: &dataset_hash.into(),
+        scenes: &scenes,
+        scenes_folder: Some(settings.scenes.as_path()).filter(|p| p.is_dir()),
+    };
+    claim_run_folder(out, out_setting, &run, &file)?;
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
     let done = records::resume(&out.join(RECORDS_FILE), &ids)?;
     Ok(Split {
         episodes,
         dirs,
         done,
+        scene_changes,
     })
 }
 
@@ -644,12 +671,14 @@ fn run_unfinished(
         episodes,
         dirs,
         done,
+        scene_changes,
     } = open_split(
         settings,
         &runner.agent_name,
         &runner.config,
         runner.shard,
         out,
+        "out",
     )?;
     let records_path = out.join(RECORDS_FILE);
     let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
@@ -724,5 +753,6 @@ fn run_unfinished(
         resumed: done.len(),
         ran,
         summary,
+        scene_changes,
     })
 }

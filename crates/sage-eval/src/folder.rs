@@ -9,7 +9,7 @@
 //! that needs the run's numbers refuses it ([`finished_run_record`]). Records written before
 //! the status existed have none and read as finished.
 
-use sage_core::{Error, Result};
+use sage_core::{Error, Result, ResultExt};
 use sage_io::run::{FINISHED, RUN_RECORD, unfinished_status};
 use std::path::{Path, PathBuf};
 
@@ -137,16 +137,25 @@ pub(crate) fn mark_finished(dir: &Path) -> Result<()> {
     sage_io::files::write_json(&dir.join(RUN_RECORD), &record)
 }
 
-/// The scenes folder the evaluation run in `dir` was evaluated with, as its run record names it
-/// (`settings.scenes`): what its report and rescoring draw maps with unless told otherwise.
+/// The scenes folder the evaluation run in `dir` was evaluated with, as its run record names it:
+/// what its report, rescoring and viewer draw maps with unless told otherwise. The record's
+/// `scenes_folder` (absolute and relative to the run folder) is resolved relative to `dir`
+/// first, then absolute ([`sage_dataset::folder::resolve_scenes_record`]); a record written
+/// before it has only `settings.scenes`, as the command was given it (relative to where it
+/// ran).
 ///
 /// # Errors
 ///
-/// Not an evaluation run ([`run_record`]), or a record without `settings.scenes` (asking for
-/// the scenes folder).
+/// Not an evaluation run ([`run_record`]), or a record naming no scenes folder that exists
+/// (asking for the scenes folder).
 pub fn recorded_scenes(dir: &Path) -> Result<PathBuf> {
     let record = run_record(dir)?;
-    record
+    let path = dir.join(RUN_RECORD);
+    if let Some(folder) = record.get("scenes_folder") {
+        return sage_dataset::folder::resolve_scenes_record(dir, folder, "scenes_folder")
+            .in_file(&path);
+    }
+    let given = record
         .get("settings")
         .and_then(|s| s.get("scenes"))
         .and_then(serde_json::Value::as_str)
@@ -155,6 +164,14 @@ pub fn recorded_scenes(dir: &Path) -> Result<PathBuf> {
             Error::invalid(
                 "the run record names no scenes folder (settings.scenes); name it (`scenes`)",
             )
-            .in_file(dir.join(RUN_RECORD))
-        })
+            .in_file(&path)
+        })?;
+    if given.is_dir() {
+        return Ok(given);
+    }
+    Err(Error::invalid(format!(
+        "the scenes folder the run record names (settings.scenes: {}, as the evaluation was given it) does not exist from here; name the scenes folder (`scenes`)",
+        given.display()
+    ))
+    .in_file(&path))
 }

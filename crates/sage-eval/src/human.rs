@@ -59,8 +59,14 @@ impl HumanRun {
         let lock = claim(out, force)?;
         // The run record holds the environment the person plays in ([`HumanRun::env_config`]).
         let env = env_config(&settings, &settings.agent.maker()?)?;
-        let Split { episodes, dirs, .. } =
-            open_split(&settings, &settings.agent.to_string(), &env, None, out)?;
+        let Split { episodes, dirs, .. } = open_split(
+            &settings,
+            &settings.agent.to_string(),
+            &env,
+            None,
+            out,
+            "play",
+        )?;
         let ids: BTreeSet<&str> = episodes.iter().map(|e| e.episode_id.as_str()).collect();
         let played = records::sort(&out.join(RECORDS_FILE), &ids)?;
         // Opening marked the run unfinished; with episodes played it is a finished run again

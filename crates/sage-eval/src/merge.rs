@@ -130,6 +130,7 @@ fn merge_unfinished(
             env: env.as_ref(),
             dataset_hash: &sage_io::hash::fnv1a64_hex(&bytes).into(),
             scenes: &scenes,
+            scenes_folder: Some(settings.scenes.as_path()).filter(|p| p.is_dir()),
         },
         None,
     )?;

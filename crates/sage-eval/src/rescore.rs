@@ -219,6 +219,7 @@ fn rescore_unfinished(
             env: files.run.get("env"),
             dataset_hash: recorded("dataset_hash"),
             scenes: recorded("scene_inputs"),
+            scenes_folder: crate::folder::recorded_scenes(run).ok().as_deref(),
         },
         Some(serde_json::json!({
             "run": from_run,

@@ -233,6 +233,7 @@ pub fn evaluate<'py>(
             ran: outcome.ran,
             table: outcome.summary.table(),
             summary: outcome.summary,
+            scene_changes: outcome.scene_changes,
         },
     )
 }
@@ -258,6 +259,7 @@ struct Evaluated {
     ran: usize,
     summary: Summary,
     table: String,
+    scene_changes: Vec<String>,
 }
 
 /// Merges the records of evaluation shards (the text of each shard's `episodes.jsonl`) into one

@@ -5,7 +5,7 @@
 //! both, like the command line, turn them into settings with `sage_traindata::Options`.
 
 use crate::convert::{PyResultExt, arg_extractors, from_json, from_kwargs, to_py};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sage_traindata::{Options, Plan, RouteDone, SceneProgress, Settings};
@@ -78,9 +78,26 @@ pub fn render_training_data<'py>(
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = self::options(py, dataset, scenes, options)?;
+    let changes = std::sync::Mutex::new(Vec::new());
     let report = py
-        .detach(|| sage_pipeline::traindata::render(&options, &out, force, &|_| {}))
+        .detach(|| {
+            sage_pipeline::traindata::render(&options, &out, force, &|p| {
+                if let sage_traindata::Progress::Planned { scene_changes, .. } = p {
+                    *changes.lock().unwrap_or_else(|e| e.into_inner()) = scene_changes.to_vec();
+                }
+            })
+        })
         .py()?;
+    let changes = changes.into_inner().unwrap_or_else(|e| e.into_inner());
+    if !changes.is_empty() {
+        let message = format!(
+            "scene files changed since the dataset was built ({}): its reference paths were planned on the files as they were; build the dataset again to walk the scenes as they are",
+            changes.join(", ")
+        );
+        let message =
+            std::ffi::CString::new(message).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &message, 1)?;
+    }
     to_py(py, &report.manifest)
 }
 

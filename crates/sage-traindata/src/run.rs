@@ -191,7 +191,7 @@ impl Settings {
         config.task.max_steps = config.task.max_steps.max(self.preset.max_actions + 1);
         self.preset.check_answers()?;
         if self.shard_size == 0 {
-            return Err(Error::invalid("shard size: must be at least 1"));
+            return Err(Error::invalid("`shard_size`: must be at least 1"));
         }
         if self.limit == Some(0) {
             return Err(Error::invalid(
@@ -1311,6 +1311,10 @@ pub enum Progress<'a> {
     Planned {
         /// Routes of every scene.
         routes: usize,
+        /// The files navigation reads of the scenes walked that changed since the dataset was
+        /// built ([`sage_dataset::folder::scene_changes`]): the walks follow reference paths
+        /// planned on the files as they were.
+        scene_changes: &'a [String],
     },
     /// The same render already finished in the output folder: nothing is rendered.
     AlreadyComplete,
@@ -1333,8 +1337,14 @@ pub fn render(
     on_progress: &(dyn Fn(Progress<'_>) + Sync),
 ) -> Result<Manifest> {
     let plan = Plan::new(settings)?;
+    let scene_changes = sage_dataset::folder::scene_changes(
+        &settings.dataset,
+        plan.routes.keys().map(String::as_str),
+        &plan.scene_dirs,
+    );
     on_progress(Progress::Planned {
         routes: plan.route_count(),
+        scene_changes: &scene_changes,
     });
     let (_lock, done) = claim(&plan, out, force)?;
     if let Some(done) = done {

@@ -133,7 +133,10 @@ pub fn open(opts: &ViewOptions) -> Result<(Subject, BTreeMap<String, PathBuf>)> 
                 .unwrap_or(serde_json::Value::Null),
         )
         .map_err(|e| Error::format("settings", e.to_string()).in_file(path))?;
-        let scenes = opts.scenes.clone().unwrap_or(settings.scenes.clone());
+        let scenes = match &opts.scenes {
+            Some(scenes) => scenes.clone(),
+            None => sage_eval::folder::recorded_scenes(path)?,
+        };
         let dirs = scene_dirs(&scenes)?;
         // A run whose dataset moved still plays: its records hold every pose.
         let instructions = read_instructions(&files.run, &settings.split).unwrap_or_default();

@@ -67,7 +67,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
              height: int | None = None, sensors=None, config: dict | None = None,
              scenes_only: list[str] | None = None, strict: bool = False, **options) -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
-    resumed, ran, summary, table}``; the folder holds ``episodes.jsonl``, ``summary.json``,
+    resumed, ran, summary, table, scene_changes}``; the folder holds ``episodes.jsonl``, ``summary.json``,
     ``sage3d_run.json`` and the report (``report.html`` with its ``report/`` maps) as ``sage3d
     eval`` writes them. ``scenes=None`` uses the scenes folder
     the dataset records (as ``sage3d eval`` without ``--scenes``); ``agent`` and ``out`` are
@@ -90,7 +90,10 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     (``"cpu"``, ``"gpu"`` or ``"auto"``, as ``sage3d eval --device``) is where the images of
     agents that read them are rendered, whatever ``config`` says; ``splat_bodies``
     (``"auto"``, ``"always"`` or ``"never"``, as ``sage3d eval --splat-bodies``) which objects'
-    collision bodies are recovered from their Gaussians.
+    collision bodies are recovered from their Gaussians. ``scene_changes`` lists the files
+    navigation reads that changed since ``data build`` built the dataset (``"home/labels.json
+    changed"``, ``added`` or ``removed``), with a ``RuntimeWarning``: the episodes' goals and
+    reference paths were planned on those files as they were.
     """
     if agent is None or out is None:
         raise TypeError("evaluate() needs agent and out")
@@ -110,6 +113,10 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
         dataset, scenes, out, agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), overrides=overrides,
         scenes_only=scenes_only, strict=strict, **options)
+    if result["scene_changes"]:
+        warnings.warn(f"scene files changed since the dataset was built ({', '.join(result['scene_changes'])}): "
+                      "its goals and reference paths were planned on the files as they were; build the "
+                      "dataset again to score against the scenes as they are", RuntimeWarning, stacklevel=2)
     summary = result["summary"]
     if summary["episodes"] and len(summary["failed"]) == summary["episodes"]:
         warnings.warn(f"every episode of the run faulted ({summary['episodes']}); see the records' "
