@@ -10,7 +10,7 @@
 //! the profile's speed limits. A first pose within 1 cm and 1° of the start is the start
 //! itself and is skipped. After the sequence the agent calls STOP.
 
-use sage_core::{Error, Result, ResultExt, wrap_angle};
+use sage_core::{Error, MAX_COORDINATE, Result, ResultExt, within_bounds, wrap_angle};
 use sage_env::agents::Agent;
 use sage_env::{Action, ActionSpace, Env, EnvEpisode, Observation};
 use serde_json::Value;
@@ -62,8 +62,9 @@ impl ReplayFile {
     ///
     /// An unreadable file, or a bad line (naming the file, the line and the field): not JSON,
     /// no `episode_id`, neither `actions` nor `poses`, an unknown action, a pose that is not 3
-    /// or 4 finite numbers, an episode given twice, or discrete actions mixed with poses or
-    /// velocities (one action space per run).
+    /// or 4 finite numbers (x and y within ±[`MAX_COORDINATE`] m), an episode given twice,
+    /// or discrete motions mixed with poses or velocities (one action space per run; STOP fits
+    /// either).
     pub fn read(path: &Path) -> Result<ReplayFile> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let mut episodes = HashMap::new();
@@ -196,17 +197,22 @@ fn action(v: &Value) -> std::result::Result<Action, String> {
     }
 }
 
-/// A pose `[x, y, yaw]` or `[x, y, z, yaw]` (z is ignored: ground robots stay on the floor).
+/// A pose `[x, y, yaw]` or `[x, y, z, yaw]` (z is ignored: ground robots stay on the floor),
+/// its x and y within the world's bounds ([`sage_core::within_bounds`]): a pose further out
+/// would only fail mid-episode, as a velocity the robot cannot have.
 fn pose(v: &Value) -> std::result::Result<[f32; 3], String> {
     let nums: Option<Vec<f32>> = v
         .as_array()
         .and_then(|a| a.iter().map(|n| n.as_f64().map(|n| n as f32)).collect());
     match nums.as_deref() {
-        Some(&[x, y, yaw] | &[x, y, _, yaw]) if [x, y, yaw].iter().all(|n| n.is_finite()) => {
+        Some(&[x, y, yaw] | &[x, y, _, yaw])
+            if yaw.is_finite() && within_bounds(glam::Vec3::new(x, y, 0.0)) =>
+        {
             Ok([x, y, yaw])
         }
         _ => Err(format!(
-            "{v}: expected [x, y, yaw] or [x, y, z, yaw], finite numbers"
+            "{v}: expected [x, y, yaw] or [x, y, z, yaw], finite numbers, x and y within \
+             ±{MAX_COORDINATE} m"
         )),
     }
 }

@@ -411,4 +411,18 @@ fn huge_and_infinite_numbers_are_errors_naming_the_field() {
         e.to_string().contains("line 1.actions[0]") && e.to_string().contains("finite"),
         "{e}"
     );
+
+    // A finite pose far outside any scene is refused as it is read, naming the pose; it used
+    // to fail mid-episode as a velocity command the robot could not have.
+    std::fs::write(
+        &r,
+        "{\"episode_id\": \"a\", \"actions\": [\"stop\"]}\n{\"episode_id\": \"b\", \"poses\": [[0, 0, 0], [1e9, 0, 0]]}",
+    )
+    .unwrap();
+    let e = ReplayFile::read(&r).unwrap_err();
+    assert_names(&e, &r);
+    assert!(
+        e.to_string().contains("line 2.poses[1]") && e.to_string().contains("10000"),
+        "{e}"
+    );
 }

@@ -16,7 +16,7 @@ use crate::dataset::{BuildSettings, DatasetReport};
 use crate::nav::MapReport;
 use crate::physics::BodyOptions;
 use sage_agents::AgentKind;
-use sage_core::{Error, Result};
+use sage_core::{Error, Result, ResultExt};
 use sage_dataset::split::{SPLITS, SplitParams, TEST_BALANCED, splits_possible};
 use sage_eval::folder::SUMMARY_FILE;
 use sage_eval::report::ReportOutcome;
@@ -53,7 +53,10 @@ pub struct DemoSettings {
     /// Gaussians per five rooms of a synthetic scene (a scene gets its share by its rooms).
     #[cfg_attr(feature = "clap", arg(long, default_value_t = DemoSettings::default().gaussians))]
     pub gaussians: usize,
-    /// Agents to evaluate, comma-separated (any agent of `sage3d eval`).
+    /// Agents to evaluate, comma-separated (any agent of `sage3d eval`), each into
+    /// runs/{agent}/ (an agent string of other characters than lower-case letters, digits, `_`
+    /// and `-` as a file name with a hash suffix: `replay:r.jsonl` into
+    /// runs/replay_r_jsonl-…/).
     #[cfg_attr(
         feature = "clap",
         arg(long, value_delimiter = ',', default_value = sage_core::named::comma_list(&DemoSettings::default().agents))
@@ -95,9 +98,11 @@ impl DemoSettings {
         self.out.join("dataset")
     }
 
-    /// The run folder of `agent`.
+    /// The run folder of `agent`: `runs/` and the agent string as a file name
+    /// ([`sage_io::names::stem`]: `oracle` stays `oracle`, `replay:../r.jsonl` becomes
+    /// `replay____r_jsonl-` and a hash), so that no agent string names a folder elsewhere.
     pub fn run_folder(&self, agent: &str) -> PathBuf {
-        self.out.join("runs").join(agent)
+        self.out.join("runs").join(sage_io::names::stem(agent))
     }
 }
 
@@ -299,11 +304,13 @@ const ROOMS_PER_GAUSSIAN_SHARE: usize = 5;
 /// scenes have no long paths and give fewer trajectories; the large office gives its share.
 const LENGTH_MIX: [f32; 3] = [0.4, 0.4, 0.2];
 
-/// The steps of the demo, in order (pure: what runs is decided before anything runs).
+/// The steps of the demo, in order: what runs is decided (and the replay files that agents
+/// name read) before anything runs.
 ///
 /// # Errors
 ///
-/// No scenes or no agents asked for, an agent name that does not parse, or a `from` folder
+/// No scenes or no agents asked for, an agent name that does not parse (or names a replay
+/// file that cannot be read), two agents whose run folders would be one, or a `from` folder
 /// without scenes.
 pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     if s.scenes == 0 {
@@ -312,6 +319,8 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
     if s.agents.is_empty() {
         return Err(Error::invalid("`agents` names no agent"));
     }
+    sage_io::names::distinct_stems("agent", s.agents.iter().map(String::as_str))
+        .within("`agents`")?;
     let scenes = s.scenes_folder();
     let mut steps = Vec::new();
     let dirs: Vec<(String, PathBuf)> = match &s.from {
@@ -363,6 +372,8 @@ pub fn plan(s: &DemoSettings) -> Result<Vec<Step>> {
         let kind: AgentKind = agent
             .parse()
             .map_err(|e: Error| e.within(format!("`agents` '{agent}'")))?;
+        // A replay file is read now: a missing or bad one stops the demo before any work.
+        kind.maker().within(format!("`agents` '{agent}'"))?;
         steps.push(Step::Eval {
             settings: EvalSettings {
                 dataset: s.dataset(),
@@ -555,6 +566,36 @@ mod tests {
             ..s.clone()
         };
         assert!(plan(&bad).unwrap_err().to_string().contains("genius"));
+        // A replay file is read before any work; an agent string never names a folder
+        // outside `runs/`.
+        let missing = DemoSettings {
+            agents: vec!["replay:../nofile.jsonl".into()],
+            ..s.clone()
+        };
+        let e = plan(&missing).unwrap_err().to_string();
+        assert!(
+            e.contains("`agents` 'replay:../nofile.jsonl'") && e.contains("nofile.jsonl"),
+            "{e}"
+        );
+        let file = dir.path().join("one.jsonl");
+        std::fs::write(&file, "{\"episode_id\": \"e\", \"actions\": [\"stop\"]}\n").unwrap();
+        std::fs::create_dir_all(dir.path().join("sub")).unwrap();
+        let agent = format!("replay:{}/sub/../one.jsonl", dir.path().display());
+        let replay = DemoSettings {
+            agents: vec!["oracle".into(), agent.clone()],
+            ..s.clone()
+        };
+        let runs: Vec<PathBuf> = plan(&replay)
+            .unwrap()
+            .into_iter()
+            .filter_map(|st| match st {
+                Step::Eval { out, .. } => Some(out),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(runs[0], s.out.join("runs").join("oracle"));
+        assert_eq!(runs[1].parent(), Some(s.out.join("runs").as_path()));
+        assert!(runs[1].starts_with(&s.out) && !runs[1].to_string_lossy().contains(".."));
         // One scene leaves every episode in train: evaluating a test split is refused before
         // any work, saying what would do; evaluating train is planned.
         let one = DemoSettings {
