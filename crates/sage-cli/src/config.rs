@@ -125,7 +125,7 @@ pub struct Applied {
     /// The flags to add, each `--flag=value` (a bare `--flag` for a boolean `true`), so that a
     /// value starting with `-` stays a value.
     pub added: Vec<String>,
-    /// Where each added flag came from.
+    /// Where each added flag came from (a boolean flag set `false`, so not added, has none).
     pub origins: Origins,
     /// The file's flags left out because a typed flag cannot go with them, each said in words
     /// (the typed flag wins, and the user should know what it displaced).
@@ -231,6 +231,8 @@ pub fn apply<C: CommandFactory>(
         origins: Vec::new(),
         left_out: Vec::new(),
     };
+    // The flags some table gave, `false` included: the first table to give a flag wins.
+    let mut given = std::collections::BTreeSet::new();
     for (table, name) in &tables {
         for (key, value) in *table {
             if value.is_table() {
@@ -238,9 +240,7 @@ pub fn apply<C: CommandFactory>(
             }
             let flag_name = key.replace('_', "-");
             let flag = format!("--{flag_name}");
-            if typed.contains(&flag_name.as_str())
-                || applied.origins.iter().any(|(f, _)| *f == flag)
-            {
+            if typed.contains(&flag_name.as_str()) || !given.insert(flag.clone()) {
                 continue;
             }
             let origin = format!("{name}{key}");
@@ -254,10 +254,10 @@ pub fn apply<C: CommandFactory>(
             // `check_table` has refused, file-wide, every value no flag takes.
             let text = flag_value(value).unwrap_or_default();
             match value {
-                toml::Value::Boolean(on) if !takes_value(&flag_name) => {
-                    if *on {
-                        applied.added.push(flag.clone());
-                    }
+                // A `false` leaves the flag out: no message can be about it.
+                toml::Value::Boolean(false) if !takes_value(&flag_name) => continue,
+                toml::Value::Boolean(true) if !takes_value(&flag_name) => {
+                    applied.added.push(flag.clone());
                 }
                 _ => applied.added.push(format!("{flag}={text}")),
             }
@@ -480,6 +480,31 @@ mod tests {
             Some("[render] yaw in c.toml")
         );
         assert_eq!(origin_of(&applied.origins, "--out <OUT>"), None);
+    }
+
+    #[test]
+    fn a_flag_set_false_is_left_out_and_named_by_no_note() {
+        let argv = args("sage3d splat convert in.ply out.ply");
+        let path = subcommand_path::<crate::Cli>(&argv);
+        let applied = apply::<crate::Cli>(
+            "[splat.convert]\nforce = false\n",
+            Path::new("c.toml"),
+            &path,
+            &argv,
+        )
+        .unwrap();
+        assert!(applied.added.is_empty() && applied.origins.is_empty());
+        let message = "out.ply exists; set --force to replace it";
+        assert!(named_in(&applied.origins, message).is_empty());
+        let applied = apply::<crate::Cli>(
+            "[splat.convert]\nforce = true\n",
+            Path::new("c.toml"),
+            &path,
+            &argv,
+        )
+        .unwrap();
+        assert_eq!(applied.added, args("--force"));
+        assert_eq!(named_in(&applied.origins, message).len(), 1);
     }
 
     #[test]

@@ -32,7 +32,8 @@ pub struct RunArgs {
     /// Episode id (default: the first episode of this scene).
     #[arg(long)]
     episode: Option<String>,
-    /// Agent: oracle, forward or random.
+    /// Agent: any of `sage3d eval --agent` (oracle, forward, random, replay:FILE,
+    /// socket:HOST:PORT, …).
     #[arg(long, default_value = "oracle")]
     agent: String,
     /// Seed of the random agent.

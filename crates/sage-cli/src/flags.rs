@@ -6,7 +6,7 @@ use sage_splat::MAX_IMAGE_SIDE;
 
 /// The settings that library errors name in backticks (`` `force` ``) and that this command
 /// line takes as flags of the same name.
-const NAMED_SETTINGS: [&str; 46] = [
+const NAMED_SETTINGS: [&str; 50] = [
     "jpeg_quality",
     "min_distance",
     "objects",
@@ -53,6 +53,10 @@ const NAMED_SETTINGS: [&str; 46] = [
     "budget",
     "point",
     "offset",
+    "max_actions",
+    "shard_size",
+    "background",
+    "turntable",
 ];
 
 /// A library error's text as the command line says it: each setting the text names in

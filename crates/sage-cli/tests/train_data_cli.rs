@@ -181,6 +181,34 @@ fn skipped_episodes_are_named_and_the_exit_status_says_so() {
         "{err}"
     );
     assert!(!dir.path().join("bad").exists());
+    // Values out of range name the flag the user typed.
+    let refused = dir.path().join("bad");
+    for (flags, said) in [
+        (&["--step", "0"][..], "--step: 0 m is outside (0, 5]"),
+        (&["--turn", "0"], "--turn: 0 degrees is outside (0, 180]"),
+        (
+            &["--format", "webdataset", "--shard-size", "0"],
+            "--shard-size: must be at least 1",
+        ),
+    ] {
+        let mut args = vec![
+            "data",
+            "render",
+            s(&data),
+            "--scenes",
+            s(&scenes),
+            "--out",
+            s(&refused),
+        ];
+        args.extend_from_slice(flags);
+        let bad = sage3d(&args);
+        let err = String::from_utf8_lossy(&bad.stderr);
+        assert!(
+            !bad.status.success() && err.contains(said),
+            "{flags:?}: {err}"
+        );
+        assert!(!refused.exists());
+    }
 }
 
 #[test]

@@ -300,13 +300,13 @@ impl RenderSettings {
             return Err(Error::invalid(format!(
                 "each of r,g,b must be a linear colour in 0-1, got {v}"
             ))
-            .within("background"));
+            .within("`background`"));
         }
         match self.turntable {
             Some(n) if n == 0 || n > MAX_TURNTABLE_FRAMES => Err(Error::invalid(format!(
                 "must be 1-{MAX_TURNTABLE_FRAMES} frames, got {n}"
             ))
-            .within("turntable")),
+            .within("`turntable`")),
             _ => Ok(()),
         }
     }
@@ -856,8 +856,8 @@ mod tests {
             turntable: Some(n),
             ..RenderSettings::new("scene")
         };
-        let colour_error = Some("background: each of r,g,b");
-        let frames_error = Some("turntable: must be 1-3600");
+        let colour_error = Some("`background`: each of r,g,b");
+        let frames_error = Some("`turntable`: must be 1-3600");
         let cases = [
             (background(0.0), None),
             (background(1.0), None),

@@ -193,6 +193,11 @@ impl Default for PlanSettings {
 }
 
 /// Samples cameras for `scene` with `settings` and filters them against `surfaces`.
+///
+/// # Errors
+///
+/// A scene without rooms, settings out of range, or a plan that keeps no camera (the budget
+/// placed none, or the safety filter dropped every one).
 pub fn make_plan(
     scene: &Scene,
     scene_dir: &str,
@@ -248,6 +253,21 @@ pub fn make_plan(
     };
     let bvh = surfaces.bvh();
     let filtered = SafetyFilter::new(&bvh, settings.safety_threshold).split(&poses);
+    // A plan of no camera would only fail at the export or the fit, steps later.
+    if poses.is_empty() {
+        return Err(Error::invalid(format!(
+            "`budget` {} placed no camera in the scene's {} rooms: raise it",
+            settings.budget,
+            scene.floorplan.rooms.len()
+        )));
+    }
+    if filtered.kept.is_empty() {
+        return Err(Error::invalid(format!(
+            "every one of the {} cameras sampled lies within the safety threshold ({} m) of a surface: lower the threshold or raise `budget`",
+            poses.len(),
+            settings.safety_threshold
+        )));
+    }
     Ok(Plan {
         format: FORMAT.to_string(),
         scene: scene.name.clone(),

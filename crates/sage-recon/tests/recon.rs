@@ -705,3 +705,34 @@ fn views_of_a_replaced_plan_are_refused_with_the_same_advice_everywhere() {
         "{e}"
     );
 }
+
+#[test]
+fn a_plan_that_keeps_no_camera_is_an_error_naming_what_to_change() {
+    let plan = |policy, budget, safety_threshold| {
+        make_plan(
+            scene(),
+            "scene",
+            surfaces(),
+            &PlanSettings {
+                policy,
+                budget,
+                safety_threshold,
+                ..PlanSettings::default()
+            },
+        )
+    };
+    for policy in [Policy::Sweep, Policy::Volume] {
+        let e = plan(policy, 0, 0.1).unwrap_err().to_string();
+        assert!(
+            e.contains("`budget` 0 placed no camera") && e.contains("raise it"),
+            "{policy:?}: {e}"
+        );
+        // Every camera of a room is nearer a wall than 100 m.
+        let e = plan(policy, 60, 100.0).unwrap_err().to_string();
+        assert!(
+            e.contains("within the safety threshold (100 m)") && e.contains("`budget`"),
+            "{policy:?}: {e}"
+        );
+        assert!(!plan(policy, 60, 0.1).unwrap().views.is_empty());
+    }
+}

@@ -194,18 +194,18 @@ impl ActionPreset {
         p.max_actions = max_actions.unwrap_or(p.max_actions);
         if !(p.step_m > 0.0 && p.step_m <= 5.0) {
             return Err(Error::invalid(format!(
-                "step: {} m is outside (0, 5]",
+                "`step`: {} m is outside (0, 5]",
                 p.step_m
             )));
         }
         if !(p.turn_deg > 0.0 && p.turn_deg <= 180.0) {
             return Err(Error::invalid(format!(
-                "turn: {} degrees is outside (0, 180]",
+                "`turn`: {} degrees is outside (0, 180]",
                 p.turn_deg
             )));
         }
         if p.max_actions == 0 {
-            return Err(Error::invalid("max actions: must be at least 1"));
+            return Err(Error::invalid("`max_actions`: must be at least 1"));
         }
         Ok(p)
     }
