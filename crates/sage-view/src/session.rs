@@ -137,9 +137,9 @@ impl Session {
     }
 
     /// The session as the page shows it: the pose and camera pitch, the step, the last step's
-    /// contact (its intensity c(t) and the bodies touched) and distance to the goal, whether
-    /// the episode ended and why, the path walked so far, and an episode's reference path and
-    /// goal point.
+    /// contact (its intensity c(t) and the bodies touched) and, in an episode, distance to the
+    /// goal, whether the episode ended and why, the path walked so far, and an episode's
+    /// reference path and goal point.
     pub fn state(&self, id: u64) -> Value {
         let trace = self.env.trace();
         let pose = self.env.pose().unwrap_or(self.started.start);
@@ -154,6 +154,13 @@ impl Session {
         let last = self.last.as_ref();
         // A person playing sees what an agent sees: no goal, no way, no distance.
         let explore = self.purpose == Purpose::Explore;
+        // A walk through a scene without an episode has no goal (its episode's goal point is
+        // the start, which the environment needs): no distance to one either.
+        let goal = self
+            .episode
+            .as_ref()
+            .filter(|_| explore)
+            .and(self.started.goal.as_ref());
         json!({
             "session": id.to_string(),
             "scene": self.scene,
@@ -173,7 +180,7 @@ impl Session {
             "collision": last.is_some_and(|s| s.collision),
             "intensity": num(last.map_or(0.0, |s| s.intensity)),
             "touched": last.map(|s| s.touched.clone()).unwrap_or_default(),
-            "distance_to_goal": last.and_then(|s| s.distance_to_goal).filter(|_| explore).map(num),
+            "distance_to_goal": last.and_then(|s| s.distance_to_goal).filter(|_| goal.is_some()).map(num),
             "done": self.env.done(),
             "termination": trace.and_then(|t| t.termination),
             "path": path,
@@ -184,12 +191,7 @@ impl Session {
                 .filter(|_| explore)
                 .map(|p| [num(p.x), num(p.y)])
                 .collect::<Vec<_>>(),
-            "goal": self
-                .episode
-                .as_ref()
-                .filter(|_| explore)
-                .and(self.started.goal.as_ref())
-                .map(|g| [num(g.point.x), num(g.point.y)]),
+            "goal": goal.map(|g| [num(g.point.x), num(g.point.y)]),
         })
     }
 }

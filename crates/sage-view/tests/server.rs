@@ -191,6 +191,11 @@ fn scenes_map_frames_and_explore_sessions_through_physics() {
     assert!(moved <= 0.25 + 1e-4 && (moved > 0.2 || s2["contact"] == true));
     assert_eq!(s2["step"], 2);
     assert_eq!(s2["path"].as_array().unwrap().len(), 3);
+    // A walk without an episode has no goal, and so no distance to one.
+    assert!(
+        s2["goal"].is_null() && s2["distance_to_goal"].is_null(),
+        "{s2}"
+    );
     // Placing snaps to navigable floor; far off the map is refused with the reason.
     let p = post_json(
         &v,
