@@ -73,9 +73,21 @@ def test_wrong_batch_sizes_are_errors():
     first, _ = vec.reset(seed=np.int64(3))
     again, _ = vec.reset(seed=3)
     np.testing.assert_array_equal(first["pose"], again["pose"])
+    # A count no machine holds is named, not tried in an allocation.
+    with pytest.raises(ValueError, match="`num_envs` must be 1 to 16384"):
+        sage3d.make_vec_env(2**40, **SMALL)
     # Closed, it is not stepped or reset again, as Gymnasium's own vector environments.
     vec.close()
     with pytest.raises(gymnasium.error.ClosedEnvironmentError):
         vec.step(np.array([1, 1]))
     with pytest.raises(gymnasium.error.ClosedEnvironmentError):
         vec.reset(seed=0)
+
+
+def test_a_step_with_one_refused_action_moves_no_sub_environment():
+    vec = sage3d.make_vec_env(2, actions="ground", **{**SMALL, "sensors": []})
+    obs, _ = vec.reset(seed=0)
+    with pytest.raises(ValueError, match="sub-environment 1"):
+        vec.step([[0, 0.3, 0, 0, 0.5], [0, float("nan"), 0, 0, 0.5]])
+    obs, *_, info = vec.step([[0, 0, 0, 0, 0.0]] * 2)
+    np.testing.assert_array_equal(info["step"], [1, 1])

@@ -288,11 +288,7 @@ impl Env {
     ///
     /// As [`Env::step`], rendering aside.
     pub fn step_unrendered(&mut self, action: Action) -> Result<(Pending, StepInfo)> {
-        if self.done() {
-            return Err(Error::invalid(
-                "step called with no running episode (reset first, and not after the end)",
-            ));
-        }
+        self.check_running()?;
         let (command, seconds, tilt) = self.command(action)?;
         let task = self.config.task;
         let s = self.state.as_mut().expect("checked by done()");
@@ -366,6 +362,28 @@ impl Env {
                 .goal_distance(pose.position.truncate())
                 .is_some_and(|d| d <= self.config.task.success_distance),
         }
+    }
+
+    /// Checks that `action` may be stepped now, as [`Env::step`] checks it, without stepping:
+    /// a vector environment checks every sub-environment's action before it steps any.
+    ///
+    /// # Errors
+    ///
+    /// No running episode, an episode that has ended, an action outside the action space, a
+    /// non-finite or out-of-range velocity.
+    pub fn check_step(&self, action: Action) -> Result<()> {
+        self.check_running()?;
+        self.command(action).map(|_| ())
+    }
+
+    /// An error unless an episode is running.
+    fn check_running(&self) -> Result<()> {
+        if self.done() {
+            return Err(Error::invalid(
+                "step called with no running episode (reset first, and not after the end)",
+            ));
+        }
+        Ok(())
     }
 
     /// The physics command, simulated seconds and camera tilt of `action`.

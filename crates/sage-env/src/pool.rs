@@ -226,6 +226,24 @@ impl PooledEnv {
     }
 
     /// Runs `order` up to the rendering of its observation.
+    /// Checks that `order` can begin, as [`PooledEnv::begin`] checks it, without running it.
+    fn check(&self, order: &Order) -> Result<()> {
+        match *order {
+            Order::Reset(k) => match self.pool.episodes.get(k) {
+                Some(_) => Ok(()),
+                None => Err(Error::invalid(format!("episode index {k} out of range"))),
+            },
+            Order::Step(action) => {
+                let env = self
+                    .running
+                    .as_ref()
+                    .and_then(|(k, _)| self.envs[self.pool.episodes[*k].scene].as_ref())
+                    .ok_or_else(|| Error::invalid("reset before step"))?;
+                env.check_step(action)
+            }
+        }
+    }
+
     fn begin(&mut self, order: Order) -> Result<Begun> {
         match order {
             Order::Reset(k) => {
@@ -381,6 +399,11 @@ pub enum Order {
     Step(Action),
 }
 
+/// The most sub-environments a [`VecEnv`] holds: each keeps a physics world (and its images)
+/// per scene it runs, so a count far past what a machine holds would only fail in an
+/// allocation.
+pub const MAX_ENVS: usize = 16_384;
+
 /// Several [`PooledEnv`]s over one pool, run in parallel one batch at a time.
 pub struct VecEnv {
     envs: Vec<PooledEnv>,
@@ -391,10 +414,12 @@ impl VecEnv {
     ///
     /// # Errors
     ///
-    /// `n` is 0.
+    /// `n` is 0 or over [`MAX_ENVS`].
     pub fn new(n: usize, pool: Arc<Pool>, config: EnvConfig, mode: Mode) -> Result<VecEnv> {
-        if n == 0 {
-            return Err(Error::invalid("num_envs must be at least 1"));
+        if !(1..=MAX_ENVS).contains(&n) {
+            return Err(Error::invalid(format!(
+                "`num_envs` must be 1 to {MAX_ENVS}, got {n}"
+            )));
         }
         Ok(VecEnv {
             envs: (0..n)
@@ -428,7 +453,8 @@ impl VecEnv {
     /// # Errors
     ///
     /// Not one order per sub-environment, or the first failing order's error, naming its
-    /// sub-environment.
+    /// sub-environment. An order that cannot begin (an episode index out of range, a step
+    /// before a reset, an action outside the space) is found before any order runs.
     pub fn run(&mut self, orders: Vec<Order>) -> Result<Vec<Transition>> {
         if orders.len() != self.envs.len() {
             return Err(Error::invalid(format!(
@@ -438,6 +464,11 @@ impl VecEnv {
             )));
         }
         let within = |i: usize| move |e: Error| e.within(format!("sub-environment {i}"));
+        // Every order is checked before any runs: a refused batch leaves every
+        // sub-environment as it was, not some stepped.
+        for (i, (env, order)) in self.envs.iter().zip(&orders).enumerate() {
+            env.check(order).map_err(within(i))?;
+        }
         let begun: Vec<Begun> = first_error(
             self.envs
                 .par_iter_mut()

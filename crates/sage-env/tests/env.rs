@@ -466,6 +466,12 @@ fn pooled_environments_pay_habitat_rewards_and_vector_ones_equal_single_ones() {
 
     let mut vec_env = VecEnv::new(2, pool.clone(), blind(), Mode::Sage).unwrap();
     assert!(VecEnv::new(0, pool.clone(), blind(), Mode::Sage).is_err());
+    // A count no machine holds is refused, not tried in an allocation.
+    let e = VecEnv::new(1 << 40, pool.clone(), blind(), Mode::Sage)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("`num_envs` must be 1 to 16384"), "{e}");
     assert!(
         vec_env.run(vec![Order::Reset(0)]).is_err(),
         "one order per env"
@@ -477,6 +483,30 @@ fn pooled_environments_pay_habitat_rewards_and_vector_ones_equal_single_ones() {
             Order::Step(Action::TurnLeft),
         ])
         .unwrap();
+    // A batch with one action the space refuses changes no sub-environment: the one before
+    // it is not stepped either.
+    let nan = Action::Displace {
+        dx: f32::NAN,
+        dy: 0.0,
+        dyaw: 0.0,
+    };
+    let e = vec_env
+        .run(vec![Order::Step(Action::MoveForward), Order::Step(nan)])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("sub-environment 1"), "{e}");
+    let again = vec_env
+        .run(vec![
+            Order::Step(Action::TurnLeft),
+            Order::Step(Action::TurnLeft),
+        ])
+        .unwrap();
+    assert_eq!(
+        again[0].info.step,
+        step[0].info.step + 1,
+        "not stepped twice"
+    );
+    assert_eq!(again[0].info.pose[..3], step[0].info.pose[..3]);
     for (i, action) in [Action::MoveForward, Action::TurnLeft]
         .into_iter()
         .enumerate()
