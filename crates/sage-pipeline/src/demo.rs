@@ -459,8 +459,44 @@ const OUTPUTS: [&str; 6] = [
 pub fn claim(s: &DemoSettings, force: bool) -> Result<FolderLock> {
     plan(s)?;
     let lock = sage_io::run::claim_folder(&s.out, &[COMMAND], &OUTPUTS, force)?;
+    check_same_demo(s)?;
     write_record(s, UNFINISHED)?;
     Ok(lock)
+}
+
+/// Refuses a folder whose demo was made with other settings than `s` (agents aside: another
+/// agent is one more run over the same scenes and dataset). Its steps would otherwise rebuild
+/// some outputs with the new settings and refuse others, leaving the folder of neither demo.
+fn check_same_demo(s: &DemoSettings) -> Result<()> {
+    let Some(old) = sage_io::run::read_record(&s.out) else {
+        return Ok(());
+    };
+    if old.get("command").and_then(serde_json::Value::as_str) != Some(COMMAND) {
+        return Ok(());
+    }
+    let mut new = details(s, UNFINISHED);
+    // The seed stands beside the details in every run record.
+    new["seed"] = s.seed.into();
+    let differ: Vec<String> = ["seed", "scenes", "per_scene", "gaussians", "split", "from"]
+        .into_iter()
+        .filter(|k| old.get(*k) != new.get(*k))
+        .map(|k| {
+            let shown = |v: Option<&serde_json::Value>| v.map_or("none".into(), |v| v.to_string());
+            format!(
+                "{k}: {} recorded, {} asked",
+                shown(old.get(k)),
+                shown(new.get(k))
+            )
+        })
+        .collect();
+    if differ.is_empty() {
+        return Ok(());
+    }
+    Err(Error::invalid(format!(
+        "this folder holds a demo with other settings ({}); use a new output folder (`out`)",
+        differ.join("; ")
+    ))
+    .in_file(&s.out))
 }
 
 /// Marks the demo's run record finished ([`sage_io::run::FINISHED`]), once every step and the
@@ -476,20 +512,21 @@ pub fn finish(s: &DemoSettings) -> Result<()> {
 
 /// Writes the demo's run record in `s.out`: its settings and `status`.
 fn write_record(s: &DemoSettings, status: &str) -> Result<()> {
-    sage_io::run::write_run_record(
-        &s.out,
-        COMMAND,
-        Some(s.seed),
-        serde_json::json!({
-            "status": status,
-            "scenes": s.scenes,
-            "per_scene": s.per_scene,
-            "gaussians": s.gaussians,
-            "agents": s.agents,
-            "split": s.split,
-            "from": s.from.as_ref().map(|p| p.to_string_lossy()),
-        }),
-    )
+    sage_io::run::write_run_record(&s.out, COMMAND, Some(s.seed), details(s, status))
+}
+
+/// What the demo's run record says of it besides the tool and command: its settings and
+/// `status`.
+fn details(s: &DemoSettings, status: &str) -> serde_json::Value {
+    serde_json::json!({
+        "status": status,
+        "scenes": s.scenes,
+        "per_scene": s.per_scene,
+        "gaussians": s.gaussians,
+        "agents": s.agents,
+        "split": s.split,
+        "from": s.from.as_ref().map(|p| p.to_string_lossy()),
+    })
 }
 
 /// Runs the demo: every step of [`plan`] in order (`on_step(k, n, step)` before step `k` of
@@ -691,8 +728,26 @@ mod tests {
         drop(lock);
         let record = |d: &DemoSettings| std::fs::read(d.out.join(sage_io::RUN_RECORD)).unwrap();
         assert_eq!(record(&s), record(&whole));
-        // A finished demo is a demo's folder too: rerunning it resumes.
+        // A finished demo is a demo's folder too: rerunning it resumes, with another agent too.
         drop(claim(&s, false).unwrap());
+        let more = DemoSettings {
+            agents: vec!["oracle".into()],
+            ..s.clone()
+        };
+        drop(claim(&more, false).unwrap());
+        // Other settings are refused before any step, naming what differs, with or without
+        // `force`: the steps would remake some outputs and refuse others.
+        let other = DemoSettings {
+            seed: 3,
+            ..s.clone()
+        };
+        for force in [false, true] {
+            let e = claim(&other, force).err().unwrap().to_string();
+            assert!(
+                e.contains("other settings (seed: 0 recorded, 3 asked)") && e.contains("`out`"),
+                "{e}"
+            );
+        }
         // Another command may not take it over.
         assert!(sage_io::run::claim_folder(&s.out, &["eval"], &[], false).is_err());
     }
