@@ -145,6 +145,7 @@ CASES = [
     ("evaluate", "config", lambda fx: evaluate(fx, config="{}")),
     ("evaluate", "scenes_only", lambda fx: evaluate(fx, scenes_only=5)),
     ("evaluate", "strict", lambda fx: evaluate(fx, strict="yes")),
+    ("evaluate", "force", lambda fx: evaluate(fx, force="yes")),
     ("make_env", "task", lambda fx: sage3d.make_env(task=5, **SMALL_ENV)),
     ("make_env", "render_mode", lambda fx: sage3d.make_env(render_mode="human", **SMALL_ENV)),
     ("make_vec_env", "num_envs", lambda fx: sage3d.make_vec_env(2.0, **SMALL_ENV)),

@@ -162,11 +162,20 @@ def test_continuous_ground_actions():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="5 numbers"):
         env.step([0.0, 1.0])
+    # Closed, it frees what it holds and is not stepped or reset again.
+    env.close()
+    env.close()
+    with pytest.raises(gymnasium.error.ClosedEnvironmentError):
+        env.step([1.0, 0, 0, 0, 0])
+    with pytest.raises(gymnasium.error.ClosedEnvironmentError):
+        env.reset(seed=0)
 
 
 def test_bad_settings_are_clear_errors():
     with pytest.raises(ValueError, match="hfov"):
         make(hfov=190)
+    with pytest.raises(ValueError, match="`sensors.hfov_deg`: expected a finite number, got nan"):
+        make(hfov=float("nan"))
     with pytest.raises(ValueError, match="unknown sensors"):
         make(sensors=["lidar"])
     env = make()

@@ -85,6 +85,17 @@ def test_metric_mode_and_dtw_from_python_equal_the_cli(data, sage3d, tmp_path):
         sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", dtw="approx")
     with pytest.raises(ValueError, match="scenes_only: 'nosuch' has no episode in split 'train'"):
         sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", scenes_only=["nosuch"])
+    with pytest.raises(ValueError, match="scenes_only: names no scene"):
+        sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", scenes_only=[])
+    assert not (tmp_path / "bad").exists()
+    # A folder of the user's files is written beside only with force, as `sage3d eval --force`.
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match="did not write"):
+        sg.evaluate(dataset, scenes, "forward", mine, split="train", sensors=[])
+    sg.evaluate(dataset, scenes, "forward", mine, split="train", sensors=[], force=True)
+    assert (mine / "notes.txt").read_text() == "mine" and (mine / "summary.json").is_file()
     with pytest.raises(ValueError, match="`seed`: invalid value: integer `-1`"):
         sg.evaluate(dataset, scenes, "forward", tmp_path / "bad", split="train", seed=-1)
 

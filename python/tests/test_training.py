@@ -98,6 +98,9 @@ def test_settings_are_checked(data, tmp_path):
         sg.render_training_data(dataset, scenes, tmp_path / "a", preset="habitat")
     with pytest.raises(ValueError, match="unknown sensor"):
         sg.render_training_data(dataset, scenes, tmp_path / "a", sensors=["rgb", "lidar"])
+    # JSON has no NaN: the argument is named, not a parser's "expected value".
+    with pytest.raises(ValueError, match="`hfov`: expected finite numbers, got nan"):
+        sg.render_training_data(dataset, scenes, tmp_path / "a", hfov=float("nan"))
     with pytest.raises(ValueError, match="image"):
         sg.render_training_data(dataset, scenes, tmp_path / "a", image="webp")
     # Each bad value names its argument.

@@ -154,7 +154,8 @@ fn report_job<'a>(settings: &'a EvalSettings, callbacks: Callbacks<'a>) -> Repor
 
 /// [`evaluate`] with a caller's runner (an agent written in Python, other environment
 /// settings, or the episodes of some scenes only); without `report`, no report is written (a
-/// shard of a larger run, whose report is written once its shards are merged).
+/// shard of a larger run, whose report is written once its shards are merged). `force` as
+/// [`evaluate`]'s.
 ///
 /// # Errors
 ///
@@ -164,9 +165,10 @@ pub fn evaluate_with(
     runner: &Runner,
     out: &Path,
     report: bool,
+    force: bool,
     callbacks: Callbacks<'_>,
 ) -> Result<(RunOutcome, Option<ReportOutcome>)> {
-    let _lock = sage_eval::claim(out, false)?;
+    let _lock = sage_eval::claim(out, force)?;
     if report {
         let job = report_job(settings, callbacks);
         let (outcome, report) =

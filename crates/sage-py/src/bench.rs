@@ -103,7 +103,8 @@ pub fn evaluation_options<'py>(
 /// `report` is false: a shard of a distributed run) and returns `{total, resumed, ran,
 /// summary, table}`. `agent` is a built-in name (`random`, `forward`, `oracle`, …) or a Python
 /// factory called once per episode for a fresh agent object (see [`PyAgent`]) reported as
-/// `agent_name`. With a built-in agent and no `overrides` or `scenes_only`, this is exactly
+/// `agent_name`; `force` writes into a folder of other files (never replacing one), as `sage3d
+/// eval --force`. With a built-in agent and no `overrides` or `scenes_only`, this is exactly
 /// `sage3d eval` (the same pipeline function, the same files); otherwise the environment is
 /// `preset` with `overrides` (JSON; a Python agent sees the preset's images) and only the
 /// episodes of the scenes in `scenes_only` run. `scenes=None` runs in the scenes folder the
@@ -111,7 +112,7 @@ pub fn evaluation_options<'py>(
 /// defaults (`split`, `mode`, `dtw`, `seed`, `preset`, `device`); images are rendered on
 /// `device` whatever `overrides` say.
 #[pyfunction]
-#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, overrides=None, scenes_only=None, strict=false, report=true, **options))]
+#[pyo3(signature = (dataset, scenes, out, agent, agent_name=None, overrides=None, scenes_only=None, strict=false, report=true, force=false, **options))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -124,6 +125,7 @@ pub fn evaluate<'py>(
     scenes_only: Option<Vec<String>>,
     strict: bool,
     report: bool,
+    force: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let options = eval_options(py, scenes, options)?;
@@ -156,7 +158,12 @@ pub fn evaluate<'py>(
         }
     };
     if let Some(names) = &scenes_only {
-        // A name that matches nothing would run no episode and say nothing.
+        // A name that matches nothing, or no name, would run no episode and say nothing.
+        if names.is_empty() {
+            return Err(PyValueError::new_err(
+                "scenes_only: names no scene (None runs every scene of the split)",
+            ));
+        }
         let (_, episodes) =
             sage_dataset::folder::split_episodes(&settings.dataset, &settings.split).py()?;
         let present: std::collections::BTreeSet<&str> =
@@ -194,6 +201,7 @@ pub fn evaluate<'py>(
                     &runner,
                     &out,
                     report,
+                    force,
                     Callbacks::silent(),
                 )
             });

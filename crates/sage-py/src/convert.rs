@@ -73,6 +73,8 @@ pub fn from_kwargs<T: DeserializeOwned>(
     let dumps = py.import("json")?.getattr("dumps")?;
     let options = PyDict::new(py);
     options.set_item("default", py.import("os")?.getattr("fspath")?)?;
+    // JSON has no NaN or infinity: refused here, each is named with its argument.
+    options.set_item("allow_nan", false)?;
     let mut fields = Vec::new();
     for (k, v) in kwargs.into_iter().flat_map(|d| d.iter()) {
         if v.is_none() {
@@ -82,12 +84,22 @@ pub fn from_kwargs<T: DeserializeOwned>(
         // One value at a time, so that the one `json.dumps` refuses is named.
         let value: String = dumps
             .call((&v,), Some(&options))
-            .map_err(|_| {
-                PyTypeError::new_err(format!(
-                    "{what}: `{key}`: expected a JSON value (str, number, bool, list or dict) or \
-                     a path, got {}",
-                    type_name(&v)
-                ))
+            .map_err(|e| {
+                if e.is_instance_of::<PyValueError>(py)
+                    && e.to_string().contains("Out of range float")
+                {
+                    PyValueError::new_err(format!(
+                        "{what}: `{key}`: expected finite numbers, got {}",
+                        v.repr()
+                            .map_or_else(|_| "NaN or infinity".into(), |r| r.to_string())
+                    ))
+                } else {
+                    PyTypeError::new_err(format!(
+                        "{what}: `{key}`: expected a JSON value (str, number, bool, list or \
+                         dict) or a path, got {}",
+                        type_name(&v)
+                    ))
+                }
             })?
             .extract()?;
         let key = serde_json::to_string(&key).map_err(|e| PyValueError::new_err(e.to_string()))?;

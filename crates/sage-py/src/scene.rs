@@ -4,6 +4,7 @@
 use crate::convert::{PyResultExt, arg_extractors, array, to_py};
 use glam::Vec2;
 use numpy::ndarray::Ix1;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -203,6 +204,13 @@ impl PyScene {
         #[pyo3(from_py_with = episodes_count)] count: usize,
         #[pyo3(from_py_with = episodes_seed)] seed: u64,
     ) -> PyResult<Bound<'py, PyAny>> {
+        // Named here: the dataset's check speaks of its own setting (`per_scene`).
+        let most = sage_nav::trajectory::MAX_TRAJECTORIES;
+        if count > most {
+            return Err(PyValueError::new_err(format!(
+                "count: must be at most {most} trajectories, got {count}"
+            )));
+        }
         let params = SceneParams::new(count, seed);
         let (_, episodes) = py
             .detach(|| scene_episodes(&self.ctx.scene, &params, None))

@@ -162,6 +162,7 @@ def evaluate(
     scenes_only: Sequence[str] | None = None,
     strict: bool = False,
     report: bool = True,
+    force: bool = False,
     **options: Any,
 ) -> _Json: ...
 def agent_spec(spec: str) -> _Json: ...

@@ -8,6 +8,7 @@ a small synthetic home generated once and cached under :func:`cache_dir`.
 from __future__ import annotations
 
 import json
+import math
 import os
 import string
 import tempfile
@@ -312,14 +313,14 @@ class SageEnv(_Prepared, gym.Env):
     @property
     def episodes(self) -> list[dict]:
         """The episodes this environment draws from (dataset schema)."""
-        return self._sim.episodes()
+        return self._open_sim().episodes()
 
     @property
     def render_device(self) -> str | None:
         """Which renderer forms the images, in words: ``cpu (8 threads)``, ``gpu: NVIDIA H100
         (Vulkan, discrete)``, or the CPU with the reason ``device="auto"`` took no GPU;
         ``None`` when no image is configured."""
-        return self._sim.render_device
+        return self._open_sim().render_device
 
     #: The keys ``reset(options=...)`` accepts; any other is a ``ValueError``.
     RESET_OPTIONS = ("episode_id", "episode_index")
@@ -342,16 +343,31 @@ class SageEnv(_Prepared, gym.Env):
         options = check_options(options, self.RESET_OPTIONS)
         if "episode_id" in options and "episode_index" in options:
             raise ValueError("reset options: name the episode by episode_id or by episode_index, not both")
+        sim = self._open_sim()
         super().reset(seed=None if seed is None else whole("seed", seed))
-        obs, info = self._sim.reset(self._index(options))
+        obs, info = sim.reset(self._index(options))
         self._last = obs
         return obs, info
 
     def step(self, action):
+        sim = self._open_sim()
         check_discrete(self.action_space, action)
-        obs, reward, terminated, truncated, info = self._sim.step(action)
+        obs, reward, terminated, truncated, info = sim.step(action)
         self._last = obs
         return obs, float(reward), terminated, truncated, info
+
+    def close(self):
+        """Frees the scenes, physics and renderer the environment holds; a closed environment
+        is not reset or stepped again (``gymnasium.error.ClosedEnvironmentError``), as a
+        closed vector environment is not. Closing twice is harmless."""
+        self._sim = None
+        self._last = None
+        super().close()
+
+    def _open_sim(self):
+        if self._sim is None:
+            raise gym.error.ClosedEnvironmentError("the environment is closed")
+        return self._sim
 
     def render(self):
         """The last RGB observation (``render_mode="rgb_array"``), an ``(H, W, 3)`` uint8 array."""
@@ -362,7 +378,21 @@ class SageEnv(_Prepared, gym.Env):
 
 
 def _json(value) -> str:
+    """``value`` as JSON for the Rust side, refusing a NaN or infinite number with its place
+    (``sensors.hfov_deg``): JSON has none, and the parser would only say it expected a value."""
+    _check_finite(value, "")
     return json.dumps(value)
+
+
+def _check_finite(value, at: str) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"`{at}`: expected a finite number, got {value}")
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_finite(v, f"{at}.{k}" if at else str(k))
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _check_finite(v, f"{at}[{i}]")
 
 
 def make_env(task: str | None = None, render_mode: str | None = None, **kwargs) -> SageEnv:

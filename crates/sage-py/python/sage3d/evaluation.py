@@ -65,7 +65,8 @@ def overrides_json(width=None, height=None, sensors=None, config=None) -> str | 
 
 def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = None,
              height: int | None = None, sensors=None, config: dict | None = None,
-             scenes_only: list[str] | None = None, strict: bool = False, **options) -> dict:
+             scenes_only: list[str] | None = None, strict: bool = False, force: bool = False,
+             **options) -> dict:
     """Runs (or resumes) an evaluation into the run folder ``out`` and returns ``{total,
     resumed, ran, summary, table, scene_changes}``; the folder holds ``episodes.jsonl``, ``summary.json``,
     ``sage3d_run.json`` and the report (``report.html`` with its ``report/`` maps) as ``sage3d
@@ -90,7 +91,8 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     (``"cpu"``, ``"gpu"`` or ``"auto"``, as ``sage3d eval --device``) is where the images of
     agents that read them are rendered, whatever ``config`` says; ``splat_bodies``
     (``"auto"``, ``"always"`` or ``"never"``, as ``sage3d eval --splat-bodies``) which objects'
-    collision bodies are recovered from their Gaussians. ``scene_changes`` lists the files
+    collision bodies are recovered from their Gaussians. ``force=True`` writes into a folder
+    of other files, never replacing one (as ``sage3d eval --force``). ``scene_changes`` lists the files
     navigation reads that changed since ``data build`` built the dataset (``"home/labels.json
     changed"``, ``added`` or ``removed``), with a ``RuntimeWarning``: the episodes' goals and
     reference paths were planned on those files as they were.
@@ -108,11 +110,12 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
                 raise TypeError(f"evaluate: scenes_only: expected a list of scene names, got a list holding "
                                 f"{_args.got(name)}")
     strict = _args.flag("evaluate: strict", strict)
+    force = _args.flag("evaluate: force", force)
     overrides = overrides_json(width, height, sensors, config)
     result = _sage3d.evaluate(
         dataset, scenes, out, agent_factory(agent),
         agent_name=None if isinstance(agent, str) else agent_name(agent), overrides=overrides,
-        scenes_only=scenes_only, strict=strict, **options)
+        scenes_only=scenes_only, strict=strict, force=force, **options)
     if result["scene_changes"]:
         warnings.warn(f"scene files changed since the dataset was built ({', '.join(result['scene_changes'])}): "
                       "its goals and reference paths were planned on the files as they were; build the "
