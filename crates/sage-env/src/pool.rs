@@ -55,6 +55,17 @@ impl Pool {
         }
         Ok(Pool { scenes, episodes })
     }
+
+    /// Episode `k` of the pool.
+    ///
+    /// # Errors
+    ///
+    /// `k` out of range.
+    pub fn episode(&self, k: usize) -> Result<&PoolEpisode> {
+        self.episodes
+            .get(k)
+            .ok_or_else(|| Error::invalid(format!("episode index {k} out of range")))
+    }
 }
 
 /// What one reset or step produced.
@@ -225,14 +236,10 @@ impl PooledEnv {
         self.complete(begun, outputs)
     }
 
-    /// Runs `order` up to the rendering of its observation.
     /// Checks that `order` can begin, as [`PooledEnv::begin`] checks it, without running it.
     fn check(&self, order: &Order) -> Result<()> {
         match *order {
-            Order::Reset(k) => match self.pool.episodes.get(k) {
-                Some(_) => Ok(()),
-                None => Err(Error::invalid(format!("episode index {k} out of range"))),
-            },
+            Order::Reset(k) => self.pool.episode(k).map(|_| ()),
             Order::Step(action) => {
                 let env = self
                     .running
@@ -244,14 +251,12 @@ impl PooledEnv {
         }
     }
 
+    /// Runs `order` up to the rendering of its observation.
     fn begin(&mut self, order: Order) -> Result<Begun> {
         match order {
             Order::Reset(k) => {
                 let pool = self.pool.clone();
-                let entry = pool
-                    .episodes
-                    .get(k)
-                    .ok_or_else(|| Error::invalid(format!("episode index {k} out of range")))?;
+                let entry = pool.episode(k)?;
                 // A failed reset leaves no running episode (not the previous one, half
                 // replaced).
                 self.running = None;

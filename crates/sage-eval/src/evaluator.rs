@@ -286,7 +286,7 @@ fn changed_settings(old: Option<&serde_json::Value>, new: &serde_json::Value) ->
             .or_insert_with(|| SplatBodies::Auto.as_str().into());
         fields.into_iter().collect()
     };
-    differences(&run_of(old), &run_of(Some(new)))
+    sage_io::run::differences(&run_of(old), &run_of(Some(new)))
 }
 
 /// The differences between the environment a run folder recorded (`old`, its `env`) and the
@@ -306,7 +306,7 @@ fn changed_env(old: Option<&serde_json::Value>, new: &serde_json::Value) -> Vec<
         fields.remove("env.splat_bodies");
         fields
     };
-    differences(&fields_of(old), &fields_of(new))
+    sage_io::run::differences(&fields_of(old), &fields_of(new))
 }
 
 /// The leaves of `v` by their dotted path under `path` (`env.sensors.width`), into `out`: an
@@ -322,31 +322,6 @@ fn leaves(path: &str, v: &serde_json::Value, out: &mut BTreeMap<String, serde_js
             out.insert(path.to_string(), v.clone());
         }
     }
-}
-
-/// The keys whose values differ between `old` (recorded) and `new` (asked), each as `key: OLD
-/// recorded, NEW asked` (a string without its quotes, a missing value as `none`), in key
-/// order.
-fn differences(
-    old: &BTreeMap<String, serde_json::Value>,
-    new: &BTreeMap<String, serde_json::Value>,
-) -> Vec<String> {
-    let shown = |v: Option<&serde_json::Value>| match v {
-        None => "none".to_string(),
-        Some(serde_json::Value::String(s)) => s.clone(),
-        Some(v) => v.to_string(),
-    };
-    let keys: BTreeSet<&String> = old.keys().chain(new.keys()).collect();
-    keys.into_iter()
-        .filter(|k| old.get(*k) != new.get(*k))
-        .map(|k| {
-            format!(
-                "{k}: {} recorded, {} asked",
-                shown(old.get(k)),
-                shown(new.get(k))
-            )
-        })
-        .collect()
 }
 
 /// Checks a run folder's earlier settings and environment against `settings` and `env` (a

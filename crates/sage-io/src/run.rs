@@ -223,6 +223,31 @@ fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata) -> bool {
     false
 }
 
+/// The keys whose values differ between `old` (recorded) and `new` (asked), each as `key: OLD
+/// recorded, NEW asked` (a string without its quotes, a missing value as `none`), in key
+/// order: how a command says why a folder holds another run than the one asked.
+pub fn differences(
+    old: &std::collections::BTreeMap<String, serde_json::Value>,
+    new: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Vec<String> {
+    let shown = |v: Option<&serde_json::Value>| match v {
+        None => "none".to_string(),
+        Some(serde_json::Value::String(s)) => s.clone(),
+        Some(v) => v.to_string(),
+    };
+    let keys: std::collections::BTreeSet<&String> = old.keys().chain(new.keys()).collect();
+    keys.into_iter()
+        .filter(|k| old.get(*k) != new.get(*k))
+        .map(|k| {
+            format!(
+                "{k}: {} recorded, {} asked",
+                shown(old.get(k)),
+                shown(new.get(k))
+            )
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -477,18 +477,13 @@ fn check_same_demo(s: &DemoSettings) -> Result<()> {
     let mut new = details(s, UNFINISHED);
     // The seed stands beside the details in every run record.
     new["seed"] = s.seed.into();
-    let differ: Vec<String> = ["seed", "scenes", "per_scene", "gaussians", "split", "from"]
-        .into_iter()
-        .filter(|k| old.get(*k) != new.get(*k))
-        .map(|k| {
-            let shown = |v: Option<&serde_json::Value>| v.map_or("none".into(), |v| v.to_string());
-            format!(
-                "{k}: {} recorded, {} asked",
-                shown(old.get(k)),
-                shown(new.get(k))
-            )
-        })
-        .collect();
+    let compared = |record: &serde_json::Value| {
+        ["seed", "scenes", "per_scene", "gaussians", "split", "from"]
+            .into_iter()
+            .filter_map(|k| Some((k.to_string(), record.get(k)?.clone())))
+            .collect()
+    };
+    let differ = sage_io::run::differences(&compared(&old), &compared(&new));
     if differ.is_empty() {
         return Ok(());
     }
