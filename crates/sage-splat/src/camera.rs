@@ -44,6 +44,10 @@ pub struct Camera {
 /// The largest image side, in pixels, a camera may have.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
+/// Bits of a depth-sort key ([`Camera::depth_key`]); the GPU renderer puts a batch's camera in
+/// the byte above.
+pub const DEPTH_KEY_BITS: u32 = 24;
+
 impl Intrinsics {
     /// Square pixels from a horizontal field of view: fx = fy = (width/2)/tan(hfov/2), centred.
     pub fn from_hfov(width: u32, height: u32, hfov_deg: f32) -> Result<Intrinsics> {
@@ -197,6 +201,22 @@ impl Camera {
         }
         Ok(())
     }
+
+    /// The depth-sort key of a splat at depth `z` (between the near and far planes): `z`'s
+    /// place between them in [`DEPTH_KEY_BITS`] bits. Both renderers blend a tile's splats in
+    /// the order of this key, ties in the order of their Gaussians, so splats within a key of
+    /// each other (a flat wall seen square on holds many) blend in the same order on either.
+    /// Positive floats order as their bits, so the key is `z`'s bits less the near plane's,
+    /// shifted right just enough to fit: every float apart while the far plane is under four
+    /// times the near, and each doubling beyond costs a bit (depths 2⁻²⁰ apart still ordered
+    /// over 16 octaves, e.g. 0.1 to 100 m: a micrometre at a metre). A depth nearer than the
+    /// near plane keys as the near plane.
+    pub fn depth_key(&self, z: f32) -> u32 {
+        let near = self.near.to_bits();
+        let span = self.far.to_bits().saturating_sub(near);
+        let shift = (u32::BITS - span.leading_zeros()).max(DEPTH_KEY_BITS) - DEPTH_KEY_BITS;
+        z.to_bits().saturating_sub(near) >> shift
+    }
 }
 
 /// A camera as written in a JSON file (`sage3d render --camera`): a pose by `position` +
@@ -322,6 +342,44 @@ pub fn default_eye(scene: &sage_scene::Scene) -> Vec3 {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn depth_keys_keep_the_order_of_depths_and_fit_their_bits() {
+        let cam = |near: f32, far: f32| Camera {
+            near,
+            far,
+            ..Camera::from_yaw_pitch(
+                Intrinsics::from_hfov(8, 8, 90.0).unwrap(),
+                Vec3::ZERO,
+                0.0,
+                0.0,
+            )
+        };
+        for (near, far) in [(0.1, 100.0), (0.5, 1.0), (1e-3, 1e6), (2.0, 2.5)] {
+            let c = cam(near, far);
+            assert_eq!(c.depth_key(near), 0);
+            assert!(c.depth_key(far) < 1 << DEPTH_KEY_BITS, "{near}..{far}");
+            assert_eq!(c.depth_key(near * 0.5), 0, "nearer than the near plane");
+            let mut z = near;
+            let mut last = 0;
+            while z < far {
+                let k = c.depth_key(z);
+                assert!(k >= last, "{near}..{far}: key of {z} below the one before");
+                last = k;
+                z = z * 1.001 + 1e-6;
+            }
+        }
+        // Every float apart while the far plane is under four times the near.
+        let c = cam(0.5, 1.0);
+        let z = 0.75f32;
+        assert_eq!(
+            c.depth_key(f32::from_bits(z.to_bits() + 1)),
+            c.depth_key(z) + 1
+        );
+        // 0.1 to 100 m: a micrometre apart at a metre is apart.
+        let c = cam(0.1, 100.0);
+        assert!(c.depth_key(1.000_001) > c.depth_key(1.0));
+    }
 
     #[test]
     fn spec_axes_for_yaw_zero() {

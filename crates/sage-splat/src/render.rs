@@ -8,7 +8,8 @@
 //!      falls in it (chunks whose rectangle covers only finished tiles are skipped: every pixel
 //!      there already reached the transmittance floor, so nothing behind can show);
 //!    - **sort**: bin the splats into the unfinished 16×16 tiles they touch (exact
-//!      ellipse–tile test) and order each tile's list by depth;
+//!      ellipse–tile test) and order each tile's list by depth key
+//!      ([`Camera::depth_key`]), ties in Gaussian order, as the GPU renderer orders it;
 //!    - **raster**: blend each tile's list into its persistent per-pixel state.
 //!
 //! Because slabs partition depth and each tile is blended strictly front to back, the result is
@@ -479,7 +480,7 @@ impl Renderer {
         lo: f32,
         hi: f32,
     ) {
-        let candidates: Vec<u32> = self
+        let mut candidates: Vec<u32> = self
             .views
             .iter()
             .filter(|v| {
@@ -489,6 +490,9 @@ impl Renderer {
             })
             .map(|v| v.chunk)
             .collect();
+        // In chunk order, so the slab's splats are in the order of their Gaussians: the order
+        // in which splats of one depth key blend (`bin`), as on the GPU.
+        candidates.sort_unstable();
         let ctx = SlabProjection {
             g,
             camera,
@@ -531,8 +535,9 @@ impl Renderer {
         self.stats.splats += self.splats.len();
     }
 
-    /// Fills `tile_entries` with depth-bits << 32 | splat, grouped by unfinished tile, each tile sorted
-    /// front to back (ties by splat index), and `tile_start` with each tile's range.
+    /// Fills `tile_entries` with depth key ([`Camera::depth_key`]) << 32 | splat, grouped by
+    /// unfinished tile, each tile sorted front to back (ties by splat index), and `tile_start`
+    /// with each tile's range.
     fn bin(&mut self, camera: &Camera, grid: &TileGrid) {
         let (w, h) = (
             camera.intrinsics.width as f32,
@@ -596,9 +601,9 @@ impl Renderer {
         self.tile_entries.resize(total, 0);
         for &(t, s) in blocks.iter().flatten() {
             let slot = &mut cursor[t as usize];
-            // Depth bits high, splat index low: one integer sorts by depth, then index.
+            // Depth key high, splat index low: one integer sorts by depth, then index.
             self.tile_entries[*slot as usize] =
-                (self.splats[s as usize].depth.to_bits() as u64) << 32 | s as u64;
+                u64::from(camera.depth_key(self.splats[s as usize].depth)) << 32 | u64::from(s);
             *slot += 1;
         }
         let mut rest: &mut [u64] = &mut self.tile_entries;
@@ -609,7 +614,6 @@ impl Renderer {
             slices.push(head);
             rest = tail;
         }
-        // Depths are positive, so their bits sort like the values.
         slices.into_par_iter().for_each(|s| s.sort_unstable());
     }
 

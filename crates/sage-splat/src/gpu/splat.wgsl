@@ -800,12 +800,10 @@ fn project(
 }
 
 // The depth-sort key of a splat at depth z in camera c: the camera in the top byte, so the
-// batch sorts camera-major and its tile sort needs only the tiles of one camera; below, z's
-// place between the near and far planes in DEPTH_KEY_BITS (24) bits. Positive floats order as
-// their bits, so the key is z's bits less the near plane's, shifted right just enough to fit:
-// every float apart while the far plane is under four times the near, and each doubling
-// beyond costs a bit (depths 2^-20 apart still ordered under 16 octaves, e.g. 0.1 to 100 m: a
-// micrometre at a metre). It depends on the camera alone, not on the slab or the batch.
+// batch sorts camera-major and its tile sort needs only the tiles of one camera; below, the
+// CPU renderer's key (`Camera::depth_key`): z's place between the near and far planes in
+// DEPTH_KEY_BITS (24) bits, z's bits less the near plane's shifted right just enough to fit.
+// It depends on the camera alone, not on the slab or the batch.
 fn depth_key(c: u32, z: f32) -> u32 {
     let clip = cameras[c].clip;
     let near = bitcast<u32>(clip.x);

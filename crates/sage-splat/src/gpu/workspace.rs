@@ -63,7 +63,7 @@ pub(crate) const LIVE_OUT_PLANES: u32 = 4;
 const LIVE_FIXED: u32 = 5;
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
-pub(crate) const DEPTH_KEY_BITS: u32 = 24;
+pub(crate) use crate::camera::DEPTH_KEY_BITS;
 /// Bits of a (tile, splat) entry's value that hold the splat's place in the depth order; the
 /// four above them say which 8×8 blocks of the tile the splat's box reaches (`emit` writes
 /// them, the blending kernels read them with the splat).
