@@ -8,8 +8,8 @@
 //! | rotation (w, x, y, z), unit | `[i16; 4]` snorm16 | 8 | ≤ 1.6e-5 per component |
 //! | log-scale | `[i16; 3]` in steps of 1/2048, range ±16 | 6 | ±1/4096: scale within 0.025 % |
 //! | opacity logit | `i16` in steps of 1/1024, range ±32 | 2 | ±1/2048: opacity within 1.3e-4 |
-//! | SH degree 0 (`f_dc`) | `[f16; 3]` | 6 | relative 2⁻¹¹ (≪ 1/255 in colour) |
-//! | SH degrees 1–3 (`f_rest`) | `i8` codes × per-Gaussian `f16` step | 45 + 2 | ≤ ½ step, step = max\|coeff\| / 127 |
+//! | SH degree 0 (`f_dc`) | `[f16; 3]`, range ±65504 | 6 | relative 2⁻¹¹ (≪ 1/255 in colour) |
+//! | SH degrees 1–3 (`f_rest`) | `i8` codes × per-Gaussian `f16` step, range ±8.3e6 | 45 + 2 | ≤ ½ step, step = max\|coeff\| / 127 |
 //! | instance id | `u32` | 4 | exact |
 //!
 //! Higher-order SH are stored coefficient-major: for Gaussian `i`, coefficient `k` (1…15) and
@@ -17,7 +17,7 @@
 //! (3, 8 or 15). The Inria PLY stores them channel-major (`f_rest_{c*K + k-1}`); readers and
 //! writers convert.
 
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec3, Vec4};
 use half::f16;
 use rayon::prelude::*;
 use sage_core::{Error, Result};
@@ -110,6 +110,11 @@ pub const OPACITY_LOGIT_STEP: f32 = 1.0 / 1024.0;
 /// (`sage_nav::splat_grid`) and the collision body of a capture's loose Gaussians starts above it
 /// (`sage_physics::splat_bodies`), so that where the map is free an agent stands free.
 pub const FLOOR_BAND: f32 = 0.05;
+/// The farthest a Gaussian's centre may lie from the origin along any axis, metres: there a
+/// float's steps are a metre (f32 holds 24 bits), so nothing of a room can be drawn, and one
+/// such stray value would stretch whatever is built over the scene's bounds (chunk bounds,
+/// a compressed file's quantisation, previews) over it.
+pub const MAX_GAUSSIAN_COORDINATE: f32 = 1.0e7;
 /// The code stored for a value that was not finite, so that [`Gaussians::validate`] can name it.
 const NOT_FINITE: i16 = i16::MIN;
 
@@ -167,8 +172,33 @@ pub struct GaussiansSliceMut<'a> {
     instances: &'a mut [u32],
 }
 
+/// `q` as a unit quaternion, or `None` when it is zero or not finite. One of tiny or huge
+/// components (1e-30, 1e30), whose squared length underflows to zero or overflows, is scaled
+/// by its largest component first, so that it still normalises.
+pub fn unit_rotation(q: Quat) -> Option<Quat> {
+    if !q.is_finite() {
+        return None;
+    }
+    if q.length_squared().is_normal() {
+        return Some(q.normalize());
+    }
+    let largest = Vec4::from(q).abs().max_element();
+    if largest == 0.0 {
+        return None;
+    }
+    Some(Quat::from_vec4(Vec4::from(q) / largest).normalize())
+}
+
 fn snorm16(v: f32) -> i16 {
     (v.clamp(-1.0, 1.0) * 32767.0).round() as i16
+}
+
+/// An SH degree-0 coefficient as stored: a finite one beyond what f16 holds is clamped to
+/// ±65504 (its colour saturates either way), a NaN or infinity stays one for
+/// [`Gaussians::validate`] to name.
+fn dc_half(v: f32) -> f16 {
+    let max = f16::MAX.to_f32();
+    f16::from_f32(if v.is_finite() { v.clamp(-max, max) } else { v })
 }
 
 fn quantize_sh_rest(rest: &[[f32; 3]], codes: &mut [i8]) -> f16 {
@@ -177,9 +207,11 @@ fn quantize_sh_rest(rest: &[[f32; 3]], codes: &mut [i8]) -> f16 {
         codes.fill(0);
         return f16::ZERO;
     }
-    let mut step = f16::from_f32(max_abs / 127.0);
+    // Coefficients beyond 127 of the largest f16 step (8.3e6, whose colour saturates either
+    // way) clamp to it.
+    let mut step = f16::from_f32((max_abs / 127.0).min(f16::MAX.to_f32()));
     // Round the step up so the largest coefficient still fits in ±127.
-    while step.to_f32() * 127.0 < max_abs {
+    while step.to_f32() * 127.0 < max_abs && step < f16::MAX {
         step = f16::from_bits(step.to_bits() + 1);
     }
     let s = step.to_f32();
@@ -203,12 +235,11 @@ impl GaussiansSliceMut<'_> {
     /// Stores `g` at index `j` of the window.
     pub fn set(&mut self, j: usize, g: &Gaussian) {
         self.positions[j] = g.position.to_array();
-        let q = g.rotation.normalize();
-        let q = if q.is_finite() { q } else { Quat::IDENTITY };
+        let q = unit_rotation(g.rotation).unwrap_or(Quat::IDENTITY);
         self.rotations[j] = [snorm16(q.w), snorm16(q.x), snorm16(q.y), snorm16(q.z)];
         self.log_scales[j] = g.log_scale.to_array().map(|v| fixed16(v, LOG_SCALE_STEP));
         self.opacity_logits[j] = fixed16(g.opacity_logit, OPACITY_LOGIT_STEP);
-        self.sh_dc[j] = g.sh_dc.map(f16::from_f32);
+        self.sh_dc[j] = g.sh_dc.map(dc_half);
         self.instances[j] = g.instance;
         let k = sh_rest_count(self.sh_degree);
         if k > 0 {
@@ -441,7 +472,8 @@ impl Gaussians {
             + size_of_val(self.instances.as_slice())
     }
 
-    /// Checks that every value is finite and names the first Gaussian and field that is not.
+    /// Checks that every value is finite, and every position within
+    /// ±[`MAX_GAUSSIAN_COORDINATE`], and names the first Gaussian and field that is not.
     pub fn validate(&self) -> Result<()> {
         let bad = |i: usize, field: &str| {
             Err(Error::format(
@@ -450,8 +482,17 @@ impl Gaussians {
             ))
         };
         for i in 0..self.len() {
-            if !self.positions[i].iter().all(|v| v.is_finite()) {
+            let p = self.positions[i];
+            if !p.iter().all(|v| v.is_finite()) {
                 return bad(i, "position");
+            }
+            if p.iter().any(|v| v.abs() > MAX_GAUSSIAN_COORDINATE) {
+                return Err(Error::format(
+                    format!("vertex[{i}].position"),
+                    format!(
+                        "{p:?} lies beyond ±10⁷ m, where a float's steps are a metre: a stray value, not part of a scene"
+                    ),
+                ));
             }
             if self.log_scales[i].contains(&NOT_FINITE) {
                 return bad(i, "scale");
@@ -611,6 +652,34 @@ mod tests {
     }
 
     #[test]
+    fn rotations_of_tiny_or_huge_components_normalise_and_zero_ones_do_not() {
+        for (q, unit) in [
+            (Quat::from_xyzw(0.0, 0.0, 0.0, 1e-30), Quat::IDENTITY),
+            (
+                Quat::from_xyzw(1e30, 0.0, 0.0, 1e30),
+                Quat::from_xyzw(0.5f32.sqrt(), 0.0, 0.0, 0.5f32.sqrt()),
+            ),
+            (
+                Quat::from_xyzw(0.0, 3e38, 0.0, 0.0),
+                Quat::from_xyzw(0.0, 1.0, 0.0, 0.0),
+            ),
+        ] {
+            let got = unit_rotation(q).unwrap();
+            assert!(
+                (Vec4::from(got) - Vec4::from(unit)).abs().max_element() < 1e-6,
+                "{q}: {got}"
+            );
+        }
+        for q in [
+            Quat::from_xyzw(0.0, 0.0, 0.0, 0.0),
+            Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0),
+            Quat::from_xyzw(f32::INFINITY, 0.0, 0.0, 1.0),
+        ] {
+            assert_eq!(unit_rotation(q), None, "{q}");
+        }
+    }
+
+    #[test]
     fn values_beyond_the_fixed_range_clamp_and_non_finite_ones_are_reported() {
         let mut s = Gaussians::new(0).unwrap();
         s.push(&Gaussian {
@@ -622,12 +691,40 @@ mod tests {
         assert_eq!(s.log_scale(0).y, 32767.0 * LOG_SCALE_STEP);
         assert!(s.opacity_logit(0) > 31.9);
         s.validate().unwrap();
+        // Finite colours beyond f16 clamp, as do higher-order ones beyond the largest step.
+        let mut sh_rest = [[0.0; 3]; 15];
+        sh_rest[0] = [1e30, -1e9, 0.5];
+        let mut big = Gaussians::new(1).unwrap();
+        big.push(&Gaussian {
+            sh_dc: [1e5, -1e30, 0.25],
+            sh_rest,
+            ..Gaussian::default()
+        });
+        big.validate().unwrap();
+        let g = big.get(0);
+        assert_eq!(g.sh_dc, [65504.0, -65504.0, 0.25]);
+        assert!(
+            g.sh_rest[0][0] > 8e6 && g.sh_rest[0][1] < -8e6,
+            "{:?}",
+            g.sh_rest[0]
+        );
         s.push(&Gaussian {
             log_scale: Vec3::new(0.0, f32::NAN, 0.0),
             ..Gaussian::default()
         });
         let e = s.validate().unwrap_err().to_string();
         assert!(e.contains("vertex[1].scale"), "{e}");
+        let mut far = Gaussians::new(0).unwrap();
+        far.push(&Gaussian::default());
+        far.push(&Gaussian {
+            position: Vec3::new(0.0, -1e30, 0.0),
+            ..Gaussian::default()
+        });
+        let e = far.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("vertex[1].position") && e.contains("beyond ±10⁷ m"),
+            "{e}"
+        );
     }
 
     #[test]

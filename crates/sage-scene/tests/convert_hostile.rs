@@ -148,6 +148,45 @@ fn non_finite_rotations_and_higher_sh_are_refused_by_every_conversion() {
     }
 }
 
+#[test]
+fn a_stray_position_is_refused_and_extreme_finite_values_convert() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("stray.ply");
+    // One Gaussian 10³⁰ m away would stretch its compressed chunk's quantisation over that
+    // distance and collapse the other 255 of the chunk onto two points.
+    let mut bytes = read("random_3k_sh0.ply");
+    poke(&mut bytes, 1009, "y", 1e30);
+    std::fs::write(&input, &bytes).unwrap();
+    let loaded = splats::read_gaussians_file(&input).unwrap_err().to_string();
+    assert!(
+        loaded.starts_with(&format!("{}: vertex[1009].position: ", input.display()))
+            && loaded.contains("beyond ±10⁷ m"),
+        "{loaded}"
+    );
+    assert_every_conversion_refuses(&input, &loaded);
+    // A rotation of tiny components normalises (its squared length underflows in f32), a huge
+    // one too, and a colour beyond f16 saturates: each loads and converts to every format.
+    let input = dir.path().join("extreme.ply");
+    let mut bytes = read("random_3k_sh0.ply");
+    for (row, scale) in [(3, 1e-30), (4, 1e30)] {
+        for (k, v) in [1.0, 0.0, 0.0, 0.0].into_iter().enumerate() {
+            poke(&mut bytes, row, &format!("rot_{k}"), v * scale);
+        }
+    }
+    poke(&mut bytes, 5, "f_dc_0", 1e5);
+    std::fs::write(&input, &bytes).unwrap();
+    let g = splats::read_gaussians_file(&input).unwrap().0;
+    for row in [3, 4] {
+        let q = g.get(row).rotation;
+        assert!((q.w.abs() - 1.0).abs() < 1e-4, "row {row}: {q}");
+    }
+    assert_eq!(g.get(5).sh_dc[0], 65504.0);
+    for out in OUTPUTS {
+        let report = convert(&input, &dir.path().join(out), ConvertOptions::default()).unwrap();
+        assert_eq!(report.gaussians, 3000, "{out}");
+    }
+}
+
 /// `n` plain Gaussians spread along x.
 fn plain_table(n: usize) -> SplatTable {
     SplatTable {

@@ -175,7 +175,7 @@ impl BlockDecoder for StandardDecoder<'_> {
                     why.to_string(),
                 ))
             };
-            if !rotation.is_finite() || rotation.length_squared() == 0.0 {
+            if crate::gaussians::unit_rotation(rotation).is_none() {
                 return bad("rot_*", "rotation is not finite or is zero");
             }
             if !sh_rest.iter().flatten().all(|v| v.is_finite()) {

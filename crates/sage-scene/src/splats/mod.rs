@@ -125,8 +125,8 @@ pub fn decode_blocks(
 }
 
 /// Checks decoded Gaussians `start .. start + rows.len()` with the scene store's own check,
-/// [`Gaussians::validate`] (position, scale, opacity and `f_dc` finite, and `f_dc` within
-/// `f16`), and its message, `vertex[i].field: value is not finite (NaN or infinity)`, with `i`
+/// [`Gaussians::validate`] (position, scale, opacity and `f_dc` finite, positions within
+/// ±10⁷ m), and its message, `vertex[i].field: value is not finite (NaN or infinity)`, with `i`
 /// the Gaussian's index in the file: what a scene loader refuses, a conversion refuses too.
 /// (Rotations and higher SH are checked by the decoders of the formats that store them as
 /// floats.)

@@ -850,7 +850,8 @@ fn fractional_bits(src: &impl SplatSource) -> io::Result<u8> {
         })
         .ok_or_else(|| {
             invalid(format!(
-                "positions span {lo} … {hi} m; SPZ's 24-bit coordinates reach ±8388607 m"
+                "a Gaussian lies {} m from the origin along an axis; SPZ's 24-bit coordinates reach ±8388607 m",
+                lo.abs().max(hi)
             ))
         })
 }
@@ -885,14 +886,20 @@ fn encode(g: &Gaussian, i: usize, header: &Header, arrays: &mut [Vec<u8>; 6]) ->
     for s in g.log_scale.to_array() {
         arrays[SCALES].push(to_u8((s + 10.0) * 16.0));
     }
-    let [x, y, z, w] = g.rotation.to_array();
+    // One of tiny or huge components, whose squared length underflows or overflows, is
+    // normalised first.
+    let rotation = if g.rotation.length_squared().is_normal() {
+        g.rotation
+    } else {
+        crate::gaussians::unit_rotation(g.rotation).ok_or_else(|| {
+            invalid(format!(
+                "Gaussian {i}: rotation {} is zero or not finite",
+                g.rotation
+            ))
+        })?
+    };
+    let [x, y, z, w] = rotation.to_array();
     let norm = (x * x + y * y + z * z + w * w).sqrt();
-    if !(norm.is_finite() && norm > 0.0) {
-        return Err(invalid(format!(
-            "Gaussian {i}: rotation {} is zero or not finite",
-            g.rotation
-        )));
-    }
     // Normalised, then into RUB: y and z change sign, x and w do not.
     let q = [x / norm, -(y / norm), -(z / norm), w / norm];
     if header.version >= 3 {
