@@ -209,11 +209,14 @@ def test_bad_settings_are_clear_errors():
         make(num_episodes=-1)
     # Sizes and counts are whole numbers, named when not (never truncated, never an
     # OverflowError that names nothing).
-    for bad, match in (({"width": 1.5}, "width: expected a whole number"),
-                       ({"height": 0}, "height: expected a whole number >= 1"),
-                       ({"max_steps": -3}, "max_steps: expected")):
-        with pytest.raises(ValueError, match=match):
+    for bad, error, match in (({"width": 1.5}, TypeError, "width: expected a whole number"),
+                              ({"seed": "1"}, TypeError, "seed: expected a whole number"),
+                              ({"height": 0}, ValueError, "height: expected a whole number >= 1"),
+                              ({"max_steps": -3}, ValueError, "max_steps: expected")):
+        with pytest.raises(error, match=match):
             make(**bad)
+    with pytest.raises(TypeError, match="seed: expected a whole number"):
+        env.reset(seed="1")
     for bad in ({"seed": -1}, {"rooms": -2}, {"gaussians": 0}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             sage3d.synth_scene(**bad)

@@ -50,6 +50,16 @@ def test_dataset_splits_episodes_and_slice_filters(data):
         ds.episodes("train", colour="red")
 
 
+def test_filter_episodes_takes_hand_made_dicts_without_slices():
+    episodes = [{"id": "a", "task": "vln"},
+                {"id": "b", "task": "vln", "slices": {"assets": "many", "path": "long"}}]
+    assert [e["id"] for e in sg.filter_episodes(episodes, assets="many")] == ["b"]
+    assert [e["id"] for e in sg.filter_episodes(episodes, path=None)] == ["a"]
+    assert [e["id"] for e in sg.filter_episodes(episodes, task="vln")] == ["a", "b"]
+    with pytest.raises(TypeError, match="episode 'c': slices: expected a dict"):
+        sg.filter_episodes([{"id": "c", "slices": 3}], assets="many")
+
+
 def test_env_over_a_dataset_starts_where_the_episodes_start(data):
     scenes, out = data
     env = sg.make_env(dataset=out, scenes=scenes, split="train", task="vln", width=16, height=16)

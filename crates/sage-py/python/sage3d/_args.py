@@ -64,9 +64,12 @@ def mapping(what: str, value: Any, of: str) -> dict:
 
 def whole(what: str, value: Any, least: int = 0) -> int:
     """``value`` as an int of at least ``least`` (NumPy's integers too; not a bool, nor a float
-    that happens to be whole), else a ``ValueError``: a negative count would otherwise reach the
-    native module as an ``OverflowError`` that names nothing."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+    that happens to be whole): a ``TypeError`` for any other type, as the native module's
+    arguments give, and a ``ValueError`` below ``least``, where a negative count would otherwise
+    reach the native module as an ``OverflowError`` that names nothing."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{what}: expected a whole number >= {least}, got {got(value)}")
+    if value < least:
         raise ValueError(f"{what}: expected a whole number >= {least}, got {value!r}")
     return int(value)
 

@@ -14,7 +14,14 @@ FILTER_KEYS = ("task", "level", "instruction_type", "subtype", "source", "scene"
 
 def _value(episode: dict, key: str):
     if key in ("assets", "path"):
-        return episode["slices"][key]
+        # An episode dict made by hand may lack the slices: it matches the filter value None.
+        slices = episode.get("slices")
+        if slices is None:
+            return None
+        if not isinstance(slices, dict):
+            raise TypeError(f"episode {episode.get('id')!r}: slices: expected a dict of the "
+                            f"complexity slices, got {_args.got(slices)}")
+        return slices.get(key)
     return episode.get(key)
 
 
