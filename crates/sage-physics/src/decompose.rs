@@ -187,6 +187,18 @@ impl HullCache {
         &self.dir
     }
 
+    /// An error naming the cache when its path is a file (the system's own error, "not a
+    /// directory", would name an entry's path inside it).
+    fn check_folder(&self) -> Result<()> {
+        if self.dir.exists() && !self.dir.is_dir() {
+            return Err(Error::invalid(
+                "the hull cache is a file, not a folder: give a folder (or none, for the scene's own)",
+            )
+            .in_file(&self.dir));
+        }
+        Ok(())
+    }
+
     /// The file of `key`.
     pub fn path(&self, key: u128) -> PathBuf {
         self.dir.join(format!("{key:032x}.{EXTENSION}"))
@@ -198,6 +210,7 @@ impl HullCache {
     ///
     /// A format error naming the file when an entry exists but is damaged or holds another key.
     pub fn load(&self, key: u128) -> Result<Option<Vec<ConvexPart>>> {
+        self.check_folder()?;
         let path = self.path(key);
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
@@ -209,6 +222,7 @@ impl HullCache {
 
     /// Writes the entry of `key` atomically.
     pub fn store(&self, key: u128, parts: &[ConvexPart]) -> Result<()> {
+        self.check_folder()?;
         std::fs::create_dir_all(&self.dir).map_err(|e| Error::io(&self.dir, e))?;
         let bytes = encode(key, parts);
         write_atomic(&self.path(key), |w| w.write_all(&bytes))
@@ -368,6 +382,19 @@ mod tests {
         std::fs::copy(cache.path(7), cache.path(8)).unwrap();
         let e = cache.load(8).unwrap_err().to_string();
         assert!(e.contains("key") && e.contains(".hulls"), "{e}");
+        let file = dir.path().join("a file");
+        std::fs::write(&file, "x").unwrap();
+        let cache = HullCache::new(&file);
+        for e in [
+            cache.load(7).unwrap_err(),
+            cache.store(7, &parts).unwrap_err(),
+        ] {
+            let e = e.to_string();
+            assert!(
+                e.starts_with(&format!("{}: the hull cache is a file", file.display())),
+                "{e}"
+            );
+        }
     }
 
     #[test]
