@@ -11,6 +11,7 @@ use sage_env::{Action, Env, EnvConfig, EnvEpisode, SceneContext, SensorConfig, T
 use sage_nav::TrajectoryParams;
 use sage_physics::{Decomposer, HullCache, SceneBodies};
 use sage_synth::{SceneKind, SynthConfig, generate};
+use std::io::Write;
 use std::net::TcpListener;
 use std::sync::{Arc, Mutex, OnceLock};
 use tungstenite::protocol::CloseFrame;
@@ -111,6 +112,8 @@ enum Answer {
     Close,
     /// Bytes that are not msgpack.
     Garbage,
+    /// The header of a binary frame declaring 2⁶² bytes, and nothing after it.
+    HugeFrame,
 }
 
 struct Server {
@@ -304,6 +307,13 @@ fn serve(answer: impl Fn(usize) -> Answer + Send + Sync + 'static) -> Server {
                             break;
                         }
                         Answer::Garbage => ws.send(Message::binary(vec![0xc1, 0x00])).unwrap(),
+                        Answer::HugeFrame => {
+                            let mut header = vec![0x82, 0x7f];
+                            header.extend((1u64 << 62).to_be_bytes());
+                            let _ = ws.get_mut().write_all(&header);
+                            let _ = ws.get_mut().flush();
+                            break;
+                        }
                     }
                 }
                 violations.lock().unwrap().extend(viol);
@@ -525,6 +535,30 @@ fn faults_reconnect_reset_and_retry_and_are_never_moves() {
             (5, "reset", 0),
             (5, "infer", 3),
         ]
+    );
+}
+
+#[test]
+fn a_frame_declaring_more_than_the_reply_limit_is_a_fault_not_an_allocation() {
+    // The client once allocated what the header declared (2⁶² bytes: an abort).
+    let server = serve(|n| {
+        if n == 0 {
+            Answer::HugeFrame
+        } else {
+            Answer::Reply(discrete_reply(&[0]))
+        }
+    });
+    let mut env = env(50);
+    let mut a = agent(&format!("ws:127.0.0.1:{}?retries=1", server.port));
+    let trace = run_episode(&mut env, a.as_mut(), &fixture().episodes[0]).unwrap();
+    assert_eq!(trace.steps.last().map(|s| s.action), Some(Action::Stop));
+    let faults = a.take_faults();
+    assert_eq!(faults.len(), 1, "{faults:?}");
+    assert_eq!(faults[0].kind, FaultKind::Transport);
+    assert!(
+        faults[0].message.contains("too long"),
+        "{}",
+        faults[0].message
     );
 }
 

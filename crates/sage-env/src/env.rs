@@ -6,9 +6,10 @@ use crate::context::SceneContext;
 use crate::episode::{EnvEpisode, EpisodeTrace, StepInfo, Termination, TraceGeodesics};
 use glam::Vec2;
 use sage_core::Task;
-use sage_core::{Error, Polygon2, Pose, Result};
+use sage_core::{Error, MAX_COORDINATE, Polygon2, Pose, Result};
 use sage_metrics::distance::pose_reached;
 use sage_nav::PathFinder;
+use sage_physics::agent::MAX_TURN;
 use sage_physics::{AgentBody, AgentProfile, Command, Touch, World};
 use sage_splat::{Backend, Camera, Channels, RenderOptions, RenderOutput, Rendering};
 use std::sync::Arc;
@@ -420,7 +421,11 @@ impl Env {
                 }
                 // A preset whose steps take no simulated time still moves over 1 s of physics.
                 let dt = if seconds > 0.0 { seconds } else { 1.0 };
-                let (vx, vy, wz) = (dx / dt, dy / dt, dyaw / dt);
+                // A row beyond what a command may ask (a server's 20 km row) moves as far as
+                // the profile's limits allow, as any long row does: the limits clamp far below.
+                let speed = |v: f32| (v / dt).clamp(-MAX_COORDINATE, MAX_COORDINATE);
+                let (vx, vy) = (speed(dx), speed(dy));
+                let wz = (dyaw / dt).clamp(-MAX_TURN, MAX_TURN);
                 Ok((Command::Ground { vx, vy, wz, dt }, seconds, 0.0))
             }
             (

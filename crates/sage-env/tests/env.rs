@@ -344,6 +344,21 @@ fn displacements_are_one_step_through_physics() {
         })
         .unwrap();
     assert!(obs.pose.position.distance(e.start.position) <= 1.0 + 1e-4);
+    // So it does a row beyond what any command may ask (a server's 20 km, 10³⁰ rad): as far as
+    // the limits allow, as the 3 m row.
+    let far = obs.pose;
+    for (dx, dyaw) in [(20_000.0, 0.0), (1e30, 0.0)] {
+        env.reset(e).unwrap();
+        let (obs, _) = env.step(Action::Displace { dx, dy: 0.0, dyaw }).unwrap();
+        assert!(obs.pose.position.distance(far.position) < 1e-4, "{dx}");
+    }
+    env.reset(e).unwrap();
+    env.step(Action::Displace {
+        dx: 0.0,
+        dy: -1e30,
+        dyaw: 1e30,
+    })
+    .unwrap();
     let bad = Action::Displace {
         dx: f32::NAN,
         dy: 0.0,

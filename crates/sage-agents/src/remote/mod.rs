@@ -582,10 +582,14 @@ impl Agent for RemoteAgent {
         if let Some(cap) = self.spec.options.max_repeat
             && actions.len() > cap
         {
+            let asked = if actions.len() >= parse::MOST_ACTIONS {
+                format!("{} or more", parse::MOST_ACTIONS)
+            } else {
+                actions.len().to_string()
+            };
             self.notes.push(format!(
-                "step {}: the reply asked for {} actions; repeat={cap} carried out the first {cap}",
-                obs.step,
-                actions.len()
+                "step {}: the reply asked for {asked} actions; repeat={cap} carried out the first {cap}",
+                obs.step
             ));
             actions.truncate(cap);
         }

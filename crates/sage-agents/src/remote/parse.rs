@@ -25,6 +25,16 @@ pub struct Steps {
     pub bare_turn_deg: Option<f32>,
 }
 
+/// The most actions one reply is read as. A reply's count comes from the server ("turn left
+/// 10²³ degrees", a velocity of 10³⁰⁸ m/s): it is clamped here, before any list is built, to
+/// more than an episode takes (500 actions by default) and few enough to cost nothing.
+pub const MOST_ACTIONS: usize = 1024;
+
+/// `x` steps, rounded, at least `least` and at most [`MOST_ACTIONS`].
+fn step_count(x: f32, least: usize) -> usize {
+    (x.round().min(MOST_ACTIONS as f32) as usize).max(least)
+}
+
 /// Why a reply gives no action: the kind of fault and its details.
 pub type ReplyFault = (FaultKind, String);
 
@@ -80,9 +90,21 @@ pub fn parse_reply(reply: &Value, steps: &Steps) -> Result<Vec<Action>, ReplyFau
         }
         Value::Number(n) => n.as_u64().and_then(index_action).map(|a| vec![a]),
         Value::Array(items) => {
-            let all: Option<Vec<Vec<Action>>> =
-                items.iter().map(|v| parse_reply(v, steps).ok()).collect();
-            all.map(|v| v.concat()).filter(|v| !v.is_empty())
+            // Every item must parse; the list stops growing at MOST_ACTIONS.
+            let mut all = Vec::new();
+            items
+                .iter()
+                .try_for_each(|v| {
+                    if all.len() < MOST_ACTIONS {
+                        all.extend(parse_reply(v, steps).ok()?);
+                    }
+                    Some(())
+                })
+                .map(|()| {
+                    all.truncate(MOST_ACTIONS);
+                    all
+                })
+                .filter(|v| !v.is_empty())
         }
         Value::Object(o) => {
             if let Some(status) = o.get("status").and_then(Value::as_str)
@@ -178,8 +200,8 @@ fn nearest(distance: f32, angle: f32, steps: &Steps) -> Vec<Action> {
     let turn = steps.turn_deg.to_radians().max(1e-6);
     let fwd = steps.forward.max(1e-6);
     let (n_turn, n_fwd) = (
-        (angle.abs() / turn).round() as usize,
-        (distance.max(0.0) / fwd).round() as usize,
+        step_count(angle.abs() / turn, 0),
+        step_count(distance.max(0.0) / fwd, 0),
     );
     let side = if angle > 0.0 {
         Action::TurnLeft
@@ -196,7 +218,10 @@ fn nearest(distance: f32, angle: f32, steps: &Steps) -> Vec<Action> {
         };
     }
     let mut out = vec![side; n_turn];
-    out.extend(std::iter::repeat_n(Action::MoveForward, n_fwd));
+    out.extend(std::iter::repeat_n(
+        Action::MoveForward,
+        n_fwd.min(MOST_ACTIONS - n_turn),
+    ));
     out
 }
 
@@ -225,6 +250,22 @@ fn tokens(text: &str) -> Vec<Token> {
             while let Some(&c) = chars.peek().filter(|c| c.is_ascii_digit() || **c == '.') {
                 n.push(c);
                 chars.next();
+            }
+            // An exponent ("1e30", "2.5E-3") belongs to the number: "1e30 m" is not "30 m".
+            let mut ahead = chars.clone();
+            if ahead.next().is_some_and(|e| e == 'e' || e == 'E') {
+                let sign = ahead.peek().copied().filter(|c| *c == '+' || *c == '-');
+                if sign.is_some() {
+                    ahead.next();
+                }
+                if ahead.peek().is_some_and(char::is_ascii_digit) {
+                    n.push('e');
+                    n.extend(sign);
+                    while let Some(d) = ahead.next_if(char::is_ascii_digit) {
+                        n.push(d);
+                    }
+                    chars = ahead;
+                }
             }
             if let Ok(v) = n.trim_end_matches('.').parse() {
                 out.push(Token::Number(v));
@@ -283,7 +324,7 @@ pub fn parse_text(text: &str, steps: &Steps) -> Option<Vec<Action>> {
             ("deg", 1.0),
             ("degs", 1.0),
         ];
-        let turns = |deg: f32| ((deg / steps.turn_deg.max(1e-6)).round() as usize).max(1);
+        let turns = |deg: f32| step_count(deg / steps.turn_deg.max(1e-6), 1);
         let n = amount(window, &units)
             .or(steps.bare_turn_deg)
             .map_or(1, turns);
@@ -323,9 +364,8 @@ pub fn parse_text(text: &str, steps: &Steps) -> Option<Vec<Action>> {
                 ("step", steps.forward),
                 ("steps", steps.forward),
             ];
-            let n = amount(window, &units).map_or(1, |d| {
-                ((d / steps.forward.max(1e-6)).round() as usize).max(1)
-            });
+            let n =
+                amount(window, &units).map_or(1, |d| step_count(d / steps.forward.max(1e-6), 1));
             return Some(vec![Action::MoveForward; n]);
         }
     }
@@ -422,6 +462,31 @@ mod tests {
             [L]
         );
         assert_eq!(text("Move forward 25 cm and then stop").unwrap(), [F]);
+    }
+
+    #[test]
+    fn counts_a_reply_asks_for_are_clamped_before_any_list_is_built() {
+        // Each of these once built its whole list (10²³ turns: a capacity overflow, a panic).
+        for reply in [
+            json!("turn left 1e23 degrees"),
+            json!("move forward 1e23 cm"),
+            json!("turn right 100000000000 degrees"),
+            json!({"vx": 1e308, "yaw_rate": 0, "duration_s": 1}),
+            json!({"vx": 0, "yaw_rate": -1e308, "duration_s": 1}),
+            json!({"vx": 1e308, "yaw_rate": 1e308, "duration_s": 1}),
+            json!(vec!["move forward 1e23 m"; 1000]),
+            json!(vec![1; 100_000]),
+        ] {
+            let got = parse_reply(&reply, &STEPS).unwrap();
+            assert_eq!(got.len(), MOST_ACTIONS, "{reply}");
+        }
+        // An exponent belongs to its number.
+        assert_eq!(text("move forward 1e30 m").unwrap().len(), MOST_ACTIONS);
+        assert_eq!(text("move forward 2.5e-1 m").unwrap(), [F]);
+        assert_eq!(text("move forward 1E2 cm").unwrap(), [F, F, F, F]);
+        assert_eq!(text("turn left 3e1 degrees").unwrap(), [L, L]);
+        // A letter e after a number that is no exponent is a word.
+        assert_eq!(text("move forward 2 each").unwrap(), [F]);
     }
 
     #[test]

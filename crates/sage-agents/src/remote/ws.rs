@@ -18,8 +18,6 @@ use tungstenite::{Message, WebSocket};
 
 /// Largest message accepted from the server, bytes (as the WNM-3D server's own limit).
 const MAX_REPLY: usize = 64 << 20;
-/// Largest request sent, bytes (64 frames of 1080p RGB fit).
-const MAX_REQUEST: usize = 1 << 30;
 
 /// An open connection and what the server said on connect.
 pub struct WsConnection {
@@ -62,9 +60,11 @@ impl WsConnection {
             .set_read_timeout(Some(timeout))
             .and_then(|()| stream.set_write_timeout(Some(timeout)))
             .map_err(|e| transport(format!("socket: {e}")))?;
+        // Both limits are on what the server sends, checked against a frame's declared length
+        // before its payload is read: a header declaring 2⁶² bytes is refused, not allocated.
         let config = WebSocketConfig::default()
-            .max_message_size(Some(MAX_REQUEST))
-            .max_frame_size(None);
+            .max_message_size(Some(MAX_REPLY))
+            .max_frame_size(Some(MAX_REPLY));
         let (socket, _) = tungstenite::client::client_with_config(&url, stream, Some(config))
             .map_err(|e| transport(format!("WebSocket handshake with {url}: {e}")))?;
         let mut conn = WsConnection {
@@ -124,18 +124,15 @@ impl WsConnection {
             let Some(left) = left else {
                 return Ok(None);
             };
+            // The write timeout too: a read answers pings, and a server that floods pings
+            // and reads none of the pongs would otherwise hold each write for a whole timeout.
             self.socket
                 .get_mut()
                 .set_read_timeout(Some(left))
+                .and_then(|()| self.socket.get_mut().set_write_timeout(Some(left)))
                 .map_err(|e| (FaultKind::Transport, format!("socket: {e}")))?;
             match self.socket.read() {
                 Ok(Message::Binary(bytes)) => {
-                    if bytes.len() > MAX_REPLY {
-                        return Err((
-                            FaultKind::Transport,
-                            format!("a {} byte message exceeds {MAX_REPLY} bytes", bytes.len()),
-                        ));
-                    }
                     return msgpack_numpy::decode(&bytes)
                         .map(Some)
                         .map_err(|e| (FaultKind::Transport, e));
