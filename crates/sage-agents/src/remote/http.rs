@@ -180,11 +180,30 @@ impl Transport for ChatClient {
         )?;
         let reply: serde_json::Value =
             serde_json::from_str(&text).map_err(|e| format!("the reply is not JSON: {e}"))?;
-        reply
-            .pointer("/choices/0/message/content")
-            .and_then(|c| c.as_str())
-            .map(|c| serde_json::Value::String(c.to_string()))
-            .ok_or_else(|| "the reply has no choices[0].message.content".to_string())
+        Ok(chat_answer(reply))
+    }
+}
+
+/// What the parser reads of a chat completion: `choices[0].message.content`, as text (a
+/// content given as parts, their text parts joined). A reply that came through without it is
+/// handed on for the parser to call what it is, not made a transport fault: an `error` body
+/// (some servers answer errors with status 200) as a server error, anything else (no choices,
+/// a `null` content) as unparseable, quoted.
+fn chat_answer(reply: serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match reply.pointer("/choices/0/message/content") {
+        Some(Value::String(text)) => Value::String(text.clone()),
+        Some(Value::Array(parts)) => Value::String(
+            parts
+                .iter()
+                .filter_map(|p| p.get("text").and_then(Value::as_str))
+                .collect::<Vec<_>>()
+                .join(" "),
+        ),
+        _ => match reply.get("error") {
+            Some(error) => serde_json::json!({"status": "error", "error": error}),
+            None => reply,
+        },
     }
 }
 
@@ -205,6 +224,38 @@ mod tests {
         );
         assert_eq!(base_url("https://api.x/v1/").unwrap(), "https://api.x/v1");
         assert!(step_url("ftp://h").is_err());
+    }
+
+    #[test]
+    fn chat_replies_without_a_content_are_server_errors_or_unparseable() {
+        use crate::remote::parse::{Steps, parse_reply};
+        use sage_env::agents::FaultKind;
+        let steps = Steps {
+            forward: 0.25,
+            turn_deg: 15.0,
+            bare_turn_deg: None,
+        };
+        let content = |c: serde_json::Value| {
+            chat_answer(
+                serde_json::json!({"choices": [{"message": {"role": "assistant", "content": c}}]}),
+            )
+        };
+        assert_eq!(content(serde_json::json!("STOP")), "STOP");
+        let parts = serde_json::json!([{"type": "text", "text": "I will"}, {"type": "text", "text": "TURN_LEFT"}]);
+        assert_eq!(content(parts), "I will TURN_LEFT");
+        let error = chat_answer(
+            serde_json::json!({"error": {"message": "model overloaded", "type": "server_error"}}),
+        );
+        let (kind, why) = parse_reply(&error, &steps).unwrap_err();
+        assert_eq!(kind, FaultKind::ServerError, "{why}");
+        assert!(why.contains("model overloaded"), "{why}");
+        for empty in [
+            serde_json::json!({"choices": []}),
+            serde_json::json!({"choices": [{"message": {"content": null}}]}),
+        ] {
+            let (kind, why) = parse_reply(&chat_answer(empty.clone()), &steps).unwrap_err();
+            assert_eq!(kind, FaultKind::Unparseable, "{empty}: {why}");
+        }
     }
 
     #[test]
