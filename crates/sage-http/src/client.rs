@@ -123,9 +123,13 @@ impl Client {
     /// A client whose requests may each take `timeout` in all.
     pub fn new(timeout: Duration) -> Client {
         Client {
+            // A redirect is answered as the reply it is, not followed: a POST followed through
+            // a 301 or 302 arrives as a GET without its body, and an error there would name
+            // the first server.
             agent: ureq::Agent::config_builder()
                 .timeout_global(Some(timeout))
                 .http_status_as_error(false)
+                .max_redirects(0)
                 .build()
                 .into(),
         }
@@ -217,15 +221,17 @@ impl Reply {
         if self.status == 200 {
             return Ok(self.body);
         }
+        let redirect = header(&self.headers, "location")
+            .filter(|_| (300..400).contains(&self.status))
+            .map(|to| format!("a redirect to {to}, not followed (give that URL)"));
+        let quoted: String = self.body.chars().take(QUOTED_BODY_CHARS).collect();
+        let said = match redirect {
+            Some(r) if quoted.is_empty() => r,
+            Some(r) => format!("{r}; {quoted}"),
+            None => quoted,
+        };
         Err(Failure {
-            message: format!(
-                "HTTP {}: {}",
-                self.status,
-                self.body
-                    .chars()
-                    .take(QUOTED_BODY_CHARS)
-                    .collect::<String>()
-            ),
+            message: format!("HTTP {}: {said}", self.status),
             transient: self.is_transient(),
             retry_after: self.retry_after(),
         })

@@ -170,6 +170,26 @@ fn error_statuses_are_replies() {
         .unwrap_err();
     assert_eq!(failure.message, format!("HTTP 500: {}", &long[..200]));
     assert!(failure.transient);
+    // A redirect is a reply too, naming where it points: never followed (a POST would arrive
+    // there as a GET without its body), so the server is asked once.
+    let (url, received) = serve(vec![
+        reply(
+            "302 Found",
+            "Location: http://127.0.0.1:9/elsewhere\r\n",
+            "",
+        ),
+        reply("200 OK", "", "{}"),
+    ]);
+    let failure = client()
+        .post_json(&url, BODY, None)
+        .unwrap()
+        .into_ok()
+        .unwrap_err();
+    assert_eq!(
+        failure.message,
+        "HTTP 302: a redirect to http://127.0.0.1:9/elsewhere, not followed (give that URL)"
+    );
+    assert_eq!(received.lock().unwrap().len(), 1);
 }
 
 #[test]

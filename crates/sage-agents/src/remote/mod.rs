@@ -193,7 +193,7 @@ impl RemoteOptions {
                     .parse::<f64>()
                     .ok()
                     .filter(|t| t.is_finite() && *t > 0.0 && *t <= 86_400.0)
-                    .ok_or_else(|| bad("seconds > 0"))?;
+                    .ok_or_else(|| bad("seconds, more than 0 and at most 86400 (a day)"))?;
             }
             "retries" => self.retries = int(0, 100)? as u32,
             "quality" => self.quality = int(1, 100)? as u8,
