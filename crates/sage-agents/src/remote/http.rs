@@ -4,7 +4,7 @@
 //! word out). Requests go through `sage-http`: plain HTTP; HTTPS when the `tls` feature
 //! (rustls) is built in.
 
-use super::Transport;
+use super::{Transport, parse};
 use sage_core::{Error, Result};
 use sage_http::{Client, Stage};
 use std::time::Duration;
@@ -104,9 +104,24 @@ impl Transport for StepClient {
             "instruction": instruction,
             "current_yaw": 0.0,
         });
-        let text = post(&self.client, &self.url, &body, None)?;
-        // A body that is not JSON is handed to the text parser as it is.
-        Ok(serde_json::from_str(&text).unwrap_or(serde_json::Value::String(text)))
+        step_answer(post(&self.client, &self.url, &body, None)?)
+    }
+}
+
+/// A `/vln_step` reply body as the parser reads it: its JSON, or, for a body that is not JSON,
+/// the text as it is (a Python dict literal included, which the parser reads as one). A body
+/// that begins as an object or array and parses as neither is one cut short or broken
+/// (`{"result": "MOVE_FOR`), not free text: read as text, its words would become moves.
+fn step_answer(text: String) -> std::result::Result<serde_json::Value, String> {
+    match serde_json::from_str(&text) {
+        Ok(value) => Ok(value),
+        Err(e)
+            if text.trim_start().starts_with(['{', '['])
+                && parse::dict_value(text.trim()).is_none() =>
+        {
+            Err(format!("the reply is JSON cut short or broken: {e}"))
+        }
+        Err(_) => Ok(serde_json::Value::String(text)),
     }
 }
 
@@ -224,6 +239,24 @@ mod tests {
         );
         assert_eq!(base_url("https://api.x/v1/").unwrap(), "https://api.x/v1");
         assert!(step_url("ftp://h").is_err());
+    }
+
+    #[test]
+    fn a_step_reply_is_json_or_text_but_never_json_cut_short() {
+        assert_eq!(
+            step_answer(r#"{"result": "STOP"}"#.into()).unwrap(),
+            serde_json::json!({"result": "STOP"})
+        );
+        for text in [
+            "move forward 75 cm",
+            "{'status': 'success', 'result': 'STOP'}",
+        ] {
+            assert_eq!(step_answer(text.into()).unwrap(), text);
+        }
+        for cut in [r#"{"result": "MOVE_FOR"#, "  [1, 2", "{'result': 'STOP'"] {
+            let e = step_answer(cut.into()).unwrap_err();
+            assert!(e.contains("cut short"), "{cut}: {e}");
+        }
     }
 
     #[test]

@@ -374,7 +374,7 @@ pub fn parse_text(text: &str, steps: &Steps) -> Option<Vec<Action>> {
 
 /// A JSON object, or a Python dict literal as `str(dict)` writes it (single quotes,
 /// `True`/`False`/`None`).
-fn dict_value(text: &str) -> Option<Value> {
+pub(crate) fn dict_value(text: &str) -> Option<Value> {
     if let Ok(v) = serde_json::from_str(text) {
         return Some(v);
     }
