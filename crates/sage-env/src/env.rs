@@ -423,8 +423,18 @@ impl Env {
                 let dt = if seconds > 0.0 { seconds } else { 1.0 };
                 // A row beyond what a command may ask (a server's 20 km row) moves as far as
                 // the profile's limits allow, as any long row does: the limits clamp far below.
-                let speed = |v: f32| (v / dt).clamp(-MAX_COORDINATE, MAX_COORDINATE);
-                let (vx, vy) = (speed(dx), speed(dy));
+                let v = Vec2::new(dx, dy) / dt;
+                let most = MAX_COORDINATE.min(MAX_COORDINATE / dt);
+                // Its direction from the vector over its largest component, whose square
+                // cannot overflow as a 10³⁰ m row's would.
+                let largest = v.abs().max_element();
+                let direction = v / largest;
+                let v = if largest * direction.length() > most {
+                    direction.normalize() * most
+                } else {
+                    v
+                };
+                let (vx, vy) = (v.x, v.y);
                 let wz = (dyaw / dt).clamp(-MAX_TURN, MAX_TURN);
                 Ok((Command::Ground { vx, vy, wz, dt }, seconds, 0.0))
             }

@@ -353,12 +353,10 @@ fn displacements_are_one_step_through_physics() {
         assert!(obs.pose.position.distance(far.position) < 1e-4, "{dx}");
     }
     env.reset(e).unwrap();
-    env.step(Action::Displace {
-        dx: 0.0,
-        dy: -1e30,
-        dyaw: 1e30,
-    })
-    .unwrap();
+    for (dx, dy, dyaw) in [(0.0, -1e30, 1e30), (1e30, 1e30, 1e30), (3e38, -3e38, -3e38)] {
+        env.reset(e).unwrap();
+        env.step(Action::Displace { dx, dy, dyaw }).unwrap();
+    }
     let bad = Action::Displace {
         dx: f32::NAN,
         dy: 0.0,

@@ -92,9 +92,14 @@ impl WsConnection {
         self.socket
             .send(Message::binary(request.to_vec()))
             .map_err(|e| {
+                let what = if timed_out(&e) {
+                    format!("timed out after {:.1} s", timeout.as_secs_f64())
+                } else {
+                    e.to_string()
+                };
                 (
                     FaultKind::Transport,
-                    format!("sending to {}: {e}", self.url),
+                    format!("sending to {}: {what}", self.url),
                 )
             })?;
         let left = deadline
@@ -164,14 +169,7 @@ impl WsConnection {
                     ));
                 }
                 Ok(_) => {}
-                Err(tungstenite::Error::Io(e))
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                    ) =>
-                {
-                    return Ok(None);
-                }
+                Err(e) if timed_out(&e) => return Ok(None),
                 Err(e) => {
                     return Err((
                         FaultKind::Transport,
@@ -181,4 +179,12 @@ impl WsConnection {
             }
         }
     }
+}
+
+/// Whether `e` is a socket's timeout (which a read or write reports as "would block").
+fn timed_out(e: &tungstenite::Error) -> bool {
+    matches!(e, tungstenite::Error::Io(io) if matches!(
+        io.kind(),
+        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+    ))
 }
