@@ -66,7 +66,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
     sage_view::serve(
         &opts,
         |server| {
-            println!("sage3d view: open {}", server.url);
+            println!("{}", server.announcement());
             eprintln!("(Ctrl-C stops the server; every finished episode is already recorded)");
         },
         || true,

@@ -92,7 +92,7 @@ pub fn view(
                             keep(e);
                         }
                     }
-                    None => println!("sage3d view: open {}", server.url),
+                    None => println!("{}", server.announcement()),
                 })
             },
             || {

@@ -2,7 +2,9 @@
 //! [`Renderer`]s as have rendered at once, not one per holder. A CPU renderer's memory is
 //! mostly its frame buffers (splats, tile lists, per-tile state: about 10 MB at 224×224 and 20
 //! MB at 640×480 for a 1M-Gaussian home), so environments that each owned one held a set per
-//! environment however few rendered at a time; a vector environment of 64 held 64.
+//! environment however few rendered at a time; a vector environment of 64 held 64. Renders
+//! beyond the worker threads (a server's request threads) borrow renderers the pool does not
+//! keep: it holds at most one per worker thread.
 
 use crate::camera::Camera;
 use crate::index::SplatIndex;
@@ -18,6 +20,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 pub struct RendererPool {
     index: Arc<SplatIndex>,
     count: usize,
+    /// The most renderers kept: more renders than worker threads at once only wait on each
+    /// other, and a renderer sized for a large frame is hundreds of megabytes.
+    keep: usize,
     idle: Mutex<Idle>,
 }
 
@@ -25,19 +30,21 @@ pub struct RendererPool {
 #[derive(Default)]
 struct Idle {
     renderers: Vec<Renderer>,
-    /// Renderers built so far (counted once back from their first render: one lost to a
+    /// Renderers held, idle or lent (counted once back from their first render: one lost to a
     /// panicking render is not held).
-    built: usize,
+    held: usize,
     /// Timings and counts of the last render to finish.
     last: RenderStats,
 }
 
 impl RendererPool {
-    /// Indexes `gaussians` for rendering; renderers are built as renders need them.
+    /// Indexes `gaussians` for rendering; renderers are built as renders need them and kept up
+    /// to one per thread of the current rayon pool.
     pub fn new(gaussians: &Gaussians) -> RendererPool {
         RendererPool {
             index: Arc::new(SplatIndex::build(gaussians)),
             count: gaussians.len(),
+            keep: rayon::current_num_threads().max(1),
             idle: Mutex::new(Idle::default()),
         }
     }
@@ -57,10 +64,10 @@ impl RendererPool {
         self.lock().last
     }
 
-    /// Renderers built so far: the most renders that were under way at once. The pool keeps
-    /// them all, each with buffers sized for the largest frame it rendered.
+    /// Renderers the pool holds: the most renders that were under way at once, up to one per
+    /// worker thread, each with buffers sized for the largest frame it rendered.
     pub fn renderers(&self) -> usize {
-        self.lock().built
+        self.lock().held
     }
 
     /// Renders every camera of `cameras` in order, on one renderer of the pool; as
@@ -85,11 +92,24 @@ impl RendererPool {
             .iter()
             .map(|c| renderer.render(gaussians, categories, c, options))
             .collect();
-        let mut idle = self.lock();
-        idle.built += usize::from(new);
-        idle.last = renderer.stats();
-        idle.renderers.push(renderer);
+        self.give_back(renderer, new);
         images
+    }
+
+    /// Takes `renderer` back (`new`: built for the render that returns it), keeping it while
+    /// the pool holds fewer than it keeps.
+    fn give_back(&self, renderer: Renderer, new: bool) {
+        let mut idle = self.lock();
+        idle.last = renderer.stats();
+        idle.held += usize::from(new);
+        if idle.held > self.keep {
+            idle.held -= 1;
+            // Dropped after the lock: freeing hundreds of megabytes takes a while.
+            drop(idle);
+            drop(renderer);
+        } else {
+            idle.renderers.push(renderer);
+        }
     }
 
     fn lock(&self) -> MutexGuard<'_, Idle> {
@@ -210,6 +230,30 @@ mod tests {
         let batch = pool.render_batch(&g, &[], &cameras(3), &options).unwrap();
         assert_eq!(batch.len(), 3);
         assert_eq!(pool.renderers(), 1);
+    }
+
+    #[test]
+    fn renderers_beyond_one_per_worker_thread_are_not_kept() {
+        let g = scene();
+        let pool = RendererPool::new(&g);
+        let keep = rayon::current_num_threads();
+        // As many renders at once as a server's request threads may start: each built its own.
+        for _ in 0..keep + 5 {
+            pool.give_back(Renderer::with_index(pool.index.clone(), pool.count), true);
+        }
+        assert_eq!(pool.renderers(), keep);
+        assert_eq!(pool.lock().renderers.len(), keep);
+        // The kept ones are lent again, and a render that finds none idle builds one.
+        let busy: Vec<Renderer> = (0..keep)
+            .map(|_| pool.lock().renderers.pop().unwrap())
+            .collect();
+        pool.render_batch(&g, &[], &cameras(1), &RenderOptions::default())
+            .unwrap();
+        assert_eq!(pool.renderers(), keep, "the extra one is dropped");
+        for r in busy {
+            pool.give_back(r, false);
+        }
+        assert_eq!(pool.lock().renderers.len(), keep);
     }
 
     #[test]

@@ -14,6 +14,9 @@
 //! - the episodes of a run with their outcome and, per episode, every recorded step for the
 //!   player's timeline ([`player`]).
 //!
+//! [`connections`] holds the limits on connections (how many, how slow) and [`videos`] the
+//! episode animations made so far.
+//!
 //! [`client`] is a minimal HTTP client of these routes for the benchmark and the tests.
 //!
 //! Human play records the person as agent `human` in a run folder of the evaluator's format
@@ -27,12 +30,14 @@
 
 pub mod assets;
 pub mod client;
+pub mod connections;
 pub mod frame;
 pub mod player;
 pub mod scenes;
 pub mod server;
 pub mod session;
 pub mod subject;
+pub mod videos;
 
 pub use server::{Server, serve};
 pub use subject::{Subject, ViewOptions};

@@ -18,17 +18,22 @@
 //! | `GET /api/episodes/{id}/video.gif` | that episode as an animation (`sage3d report --videos`'s) |
 //!
 //! Names in a request (scenes, episodes, sessions) are looked up among those the viewer
-//! opened; none becomes a path.
+//! opened; none becomes a path. A `POST` carries JSON (`Content-Type: application/json`, at
+//! most [`MAX_BODY`] bytes, arriving within [`BODY_TIMEOUT`]) and, when a browser sends it, an
+//! `Origin` of the viewer itself: another site's page can neither send a form nor script a
+//! request that changes a session. At most one frame per worker thread renders at once (the
+//! rest wait their turn) and one animation is made at a time ([`crate::videos`]).
 
 use crate::frame::{self, FrameRequest};
 use crate::player::{episode_detail, episode_list};
 use crate::scenes::SceneCache;
 use crate::session::{self, Purpose, Session, Sessions};
 use crate::subject::{self, Subject, ViewOptions};
+use crate::videos::VideoCache;
 use axum::Router;
 use axum::body::Body;
 use axum::extract::{Path, Query, Request, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::http::{HeaderMap, Method, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -38,18 +43,36 @@ use sage_eval::EvalRecord;
 use sage_physics::AgentProfile;
 use serde::Deserialize;
 use serde_json::{Value, json};
-use std::future::IntoFuture;
 use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
+use tokio::sync::Semaphore;
+
+/// The largest request body: session requests are a few numbers.
+pub const MAX_BODY: usize = 64 * 1024;
+
+/// How long a request's body may take to arrive once its head has.
+pub const BODY_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// A started viewer: where it listens and the URL to open.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Server {
     /// The bound address.
     pub addr: SocketAddr,
-    /// The page's URL (with the token when one is needed).
+    /// The page's URL (with the token when one is needed); on a server listening on every
+    /// interface, its loopback URL.
     pub url: String,
+}
+
+impl Server {
+    /// The line that tells a person where to open the viewer.
+    pub fn announcement(&self) -> String {
+        let mut line = format!("sage3d view: open {}", self.url);
+        if self.addr.ip().is_unspecified() {
+            line += " (listening on every interface: from another machine, put this machine's name or address in place of the loopback one)";
+        }
+        line
+    }
 }
 
 /// The viewer's state, shared by every request.
@@ -65,6 +88,10 @@ struct App {
     token: Option<String>,
     loopback: bool,
     title: String,
+    /// One permit per render under way: renders beyond the worker threads would only wait on
+    /// each other while each held a frame's buffers.
+    renders: Arc<Semaphore>,
+    videos: VideoCache,
 }
 
 /// An error as the API answers it.
@@ -136,6 +163,8 @@ pub fn serve(
             .local_addr()
             .map_err(|e| Error::invalid(e.to_string()))?;
         let host = match addr.ip() {
+            IpAddr::V6(ip) if ip.is_unspecified() => "[::1]".to_string(),
+            IpAddr::V4(ip) if ip.is_unspecified() => "127.0.0.1".to_string(),
             IpAddr::V6(ip) => format!("[{ip}]"),
             IpAddr::V4(ip) => ip.to_string(),
         };
@@ -144,22 +173,15 @@ pub fn serve(
             None => format!("http://{host}:{}/", addr.port()),
         };
         on_ready(&Server { addr, url });
-        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
-        let server = tokio::spawn(
-            axum::serve(listener, router(app))
-                .with_graceful_shutdown(async {
-                    let _ = stopped.await;
-                })
-                .into_future(),
-        );
+        let (stop, stopped) = tokio::sync::watch::channel(false);
+        let server = tokio::spawn(crate::connections::serve(listener, router(app), stopped));
         // Asked here, on the calling thread: Python can only see its signals there.
         while keep_going() && !server.is_finished() {
             tokio::time::sleep(Duration::from_millis(250)).await;
         }
-        let _ = stop.send(());
+        let _ = stop.send(true);
         server
             .await
-            .map_err(|e| Error::invalid(format!("server: {e}")))?
             .map_err(|e| Error::invalid(format!("server: {e}")))
     })
 }
@@ -217,6 +239,8 @@ fn open_app(opts: &ViewOptions) -> Result<App> {
         token,
         loopback: opts.host.is_loopback(),
         title: format!("{title} — {}", opts.path.display()),
+        renders: Arc::new(Semaphore::new(rayon::current_num_threads().max(1))),
+        videos: VideoCache::default(),
     })
 }
 
@@ -242,7 +266,7 @@ fn router(app: Arc<App>) -> Router {
 
 /// Lets a request through only with the token (when the viewer has one) and, on a loopback
 /// address, only when it names a loopback host (a page of another site cannot reach the
-/// viewer through a name that resolves to 127.0.0.1).
+/// viewer through a name that resolves to 127.0.0.1); a `POST` only as [`posted`] lets it.
 async fn guard(State(app): State<Arc<App>>, req: Request, next: Next) -> Response {
     if app.loopback && !loopback_host(req.headers()) {
         return ApiError(
@@ -273,7 +297,67 @@ async fn guard(State(app): State<Arc<App>>, req: Request, next: Next) -> Respons
             .into_response();
         }
     }
-    next.run(req).await
+    if req.method() == Method::GET || req.method() == Method::HEAD {
+        return next.run(req).await;
+    }
+    match posted(req).await {
+        Ok(req) => next.run(req).await,
+        Err(e) => e.into_response(),
+    }
+}
+
+/// A request that changes something, let through when it is JSON sent by the viewer's own
+/// page or a program (a browser names the page's origin; a form or a script of another site
+/// cannot send JSON without a preflight the viewer does not answer), with its body read now
+/// within [`MAX_BODY`] and [`BODY_TIMEOUT`].
+async fn posted(req: Request) -> ApiResult<Request> {
+    let (parts, body) = req.into_parts();
+    let text = |name| parts.headers.get(name).and_then(|v| v.to_str().ok());
+    if let Some(origin) = text(header::ORIGIN) {
+        let host = text(header::HOST).unwrap_or_default();
+        let own = origin
+            .split_once("://")
+            .is_some_and(|(_, h)| !host.is_empty() && h.eq_ignore_ascii_case(host));
+        if !own {
+            return Err(ApiError(
+                StatusCode::FORBIDDEN,
+                format!("a request from the page of {origin} is not the viewer's own"),
+            ));
+        }
+    }
+    let json = text(header::CONTENT_TYPE).is_some_and(|t| {
+        t.split(';')
+            .next()
+            .is_some_and(|m| m.trim().eq_ignore_ascii_case("application/json"))
+    });
+    if !json {
+        return Err(ApiError(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            format!(
+                "{} {}: the body must be JSON, sent as Content-Type: application/json",
+                parts.method,
+                parts.uri.path()
+            ),
+        ));
+    }
+    let bytes = tokio::time::timeout(BODY_TIMEOUT, axum::body::to_bytes(body, MAX_BODY))
+        .await
+        .map_err(|_| {
+            ApiError(
+                StatusCode::REQUEST_TIMEOUT,
+                format!(
+                    "the request's body did not arrive within {} s",
+                    BODY_TIMEOUT.as_secs()
+                ),
+            )
+        })?
+        .map_err(|e| {
+            ApiError(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("the request's body could not be read whole within {MAX_BODY} bytes: {e}"),
+            )
+        })?;
+    Ok(Request::from_parts(parts, Body::from(bytes)))
 }
 
 /// True when the request's `Host` names a loopback host.
@@ -354,6 +438,15 @@ async fn load(app: Arc<App>, scene: String) -> ApiResult<Arc<crate::scenes::Load
     blocking(move || Ok(app.scenes.get(&scene)?)).await
 }
 
+/// Waits for a render's turn: held until the render ends, even when its client has gone.
+async fn render_turn(app: &App) -> ApiResult<tokio::sync::OwnedSemaphorePermit> {
+    app.renders
+        .clone()
+        .acquire_owned()
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))
+}
+
 fn image(content_type: &'static str, bytes: Vec<u8>) -> Response {
     (
         [
@@ -372,7 +465,9 @@ async fn frame(
 ) -> ApiResult<Response> {
     let loaded = load(app.clone(), scene.clone()).await?;
     let dir = app.scenes.dir(&scene).map(|d| d.display().to_string());
+    let turn = render_turn(&app).await?;
     let (bytes, command) = blocking(move || {
+        let _turn = turn;
         let bytes = frame::render(&loaded, &app.config, &app.profile, &req)?;
         let command =
             frame::render_command(&dir.unwrap_or(scene), &app.config, &app.profile, &req)?;
@@ -601,20 +696,24 @@ fn recorded(subject: &Subject, id: &str) -> ApiResult<(EvalRecord, Option<String
 async fn video(State(app): State<Arc<App>>, Path(id): Path<String>) -> ApiResult<Response> {
     let (rec, instruction) = recorded(&*lock(&app.subject)?, &id)?;
     let loaded = load(app.clone(), rec.scene.clone()).await?;
+    let key = id.clone();
+    // Not a render turn: animations are made one at a time by the cache, beside frames.
     let gif = blocking(move || {
         let ctx = &loaded.ctx;
-        Ok(sage_eval::report::video::episode_gif(
-            ctx,
-            &app.config,
-            &ctx.semantic,
-            &ctx.pathfinder.grid,
-            &rec,
-            instruction.as_deref().unwrap_or_default(),
-            sage_eval::report::video::VideoSize::default(),
-        )?)
+        Ok(app.videos.get(&key, || {
+            sage_eval::report::video::episode_gif(
+                ctx,
+                &app.config,
+                &ctx.semantic,
+                &ctx.pathfinder.grid,
+                &rec,
+                instruction.as_deref().unwrap_or_default(),
+                sage_eval::report::video::VideoSize::default(),
+            )
+        })?)
     })
     .await?;
-    let mut response = image("image/gif", gif);
+    let mut response = image("image/gif", gif.to_vec());
     if let Ok(value) = header::HeaderValue::from_str(&format!(
         "attachment; filename=\"{}.gif\"",
         sage_io::names::stem(&id)

@@ -116,8 +116,13 @@ impl Session {
                 "a played episode starts where the episode does",
             ));
         }
-        if !(x.is_finite() && y.is_finite() && yaw.is_finite()) {
-            return Err(Error::invalid("place: x, y and yaw must be finite numbers"));
+        // As a frame's pose: a yaw past ±MAX_COORDINATE would reach the recorded pose as a
+        // number no command takes back.
+        if !sage_core::within_bounds(Vec3::new(x, y, yaw)) {
+            return Err(Error::invalid(format!(
+                "place: x, y and yaw must be numbers within ±{}",
+                sage_core::MAX_COORDINATE
+            )));
         }
         let at = self
             .loaded

@@ -216,6 +216,15 @@ fn scenes_map_frames_and_explore_sessions_through_physics() {
     let (status, body) = request(
         v.addr,
         "POST",
+        &format!("/api/sessions/{id}/place"),
+        Some(&json!({"x": s0["pose"]["x"], "y": s0["pose"]["y"], "yaw": 3.4e38})),
+        &[],
+    );
+    assert_eq!(status, 400);
+    assert!(String::from_utf8_lossy(&body).contains("within ±10000"));
+    let (status, body) = request(
+        v.addr,
+        "POST",
         &format!("/api/sessions/{id}/step"),
         Some(&json!({"action": "jump"})),
         &[],
@@ -366,6 +375,100 @@ fn a_public_viewer_needs_its_token_and_other_addresses_need_the_flag() {
     assert_eq!(status, 200);
     // The script and style sheet hold no data and load without it.
     assert_eq!(request(v.addr, "GET", "/app.js", None, &[]).0, 200);
+}
+
+/// Sends `bytes` as they are and reads what comes back until the server closes.
+fn raw(addr: SocketAddr, bytes: &[u8]) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(120)))
+        .unwrap();
+    s.write_all(bytes).unwrap();
+    let mut reply = Vec::new();
+    s.read_to_end(&mut reply).unwrap();
+    String::from_utf8_lossy(&reply).into_owned()
+}
+
+/// A `POST` of `body` with `headers` (one per line, `\r\n`-ended), closing the connection.
+fn raw_post(addr: SocketAddr, target: &str, headers: &str, body: &str) -> String {
+    raw(
+        addr,
+        format!(
+            "POST {target} HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nConnection: close\r\nContent-Length: {}\r\n{headers}\r\n{body}",
+            addr.port(),
+            body.len()
+        )
+        .as_bytes(),
+    )
+}
+
+#[test]
+fn other_sites_forms_oversized_bodies_and_idle_connections_are_refused() {
+    let (_, scenes, _) = fixture();
+    let v = start(options(scenes));
+    let json = "Content-Type: application/json\r\n";
+    let own = format!("Origin: http://127.0.0.1:{}\r\n", v.addr.port());
+    let opened = raw_post(v.addr, "/api/sessions", &format!("{json}{own}"), "{}");
+    assert!(opened.starts_with("HTTP/1.1 200"), "{opened}");
+    // A form another site's page posts (it needs no preflight), and no body at all.
+    for (headers, body) in [
+        ("Content-Type: application/x-www-form-urlencoded\r\n", "a=1"),
+        ("Content-Type: text/plain\r\n", "{}"),
+        ("", ""),
+    ] {
+        let reply = raw_post(v.addr, "/api/sessions/1/map", headers, body);
+        assert!(reply.starts_with("HTTP/1.1 415"), "{headers}: {reply}");
+        assert!(reply.contains("application/json"), "{reply}");
+    }
+    // JSON from another site's script, or from a sandboxed page.
+    for origin in ["http://attacker.example", "null", "http://127.0.0.1:1"] {
+        let reply = raw_post(
+            v.addr,
+            "/api/sessions",
+            &format!("{json}Origin: {origin}\r\n"),
+            "{}",
+        );
+        assert!(reply.starts_with("HTTP/1.1 403"), "{origin}: {reply}");
+        assert!(reply.contains("not the viewer's own"), "{reply}");
+    }
+    let big = format!(
+        "{{\"scene\": \"{}\"}}",
+        "a".repeat(sage_view::server::MAX_BODY)
+    );
+    let reply = raw_post(v.addr, "/api/sessions", json, &big);
+    assert!(reply.starts_with("HTTP/1.1 413"), "{reply:.80}");
+    // A connection that never sends a request, and one that stops halfway through its head,
+    // are closed by the server (after its head timeout): reading them ends, with no answer.
+    let addr = v.addr;
+    let idle = std::thread::spawn(move || raw(addr, b""));
+    let halfway = raw(v.addr, b"GET /api/info HTTP/1.1\r\nHost: 127.0.0.1\r\n");
+    for reply in [idle.join().unwrap(), halfway] {
+        assert!(!reply.contains("200 OK"), "{reply}");
+    }
+}
+
+#[test]
+fn a_viewer_on_every_interface_prints_a_url_that_opens_here() {
+    let (_, scenes, _) = fixture();
+    let v = start(ViewOptions {
+        host: "0.0.0.0".parse().unwrap(),
+        public: true,
+        ..options(scenes)
+    });
+    assert!(v.url.starts_with("http://127.0.0.1:"), "{}", v.url);
+    let server = sage_view::Server {
+        addr: v.addr,
+        url: v.url.clone(),
+    };
+    assert!(server.announcement().contains("every interface"));
+    let (status, _) = request(
+        v.addr,
+        "GET",
+        &format!("/api/info?{}", v.url.split('?').nth(1).unwrap()),
+        None,
+        &[],
+    );
+    assert_eq!(status, 200);
 }
 
 /// The records of a run folder by episode id.
