@@ -70,6 +70,9 @@ pub struct Imported {
 /// The command, as the run record of a dataset folder it made names it.
 pub const COMMAND: &str = "data import";
 
+/// The run-record field naming the split an import is writing, removed once it has written it.
+pub const PENDING: &str = "importing";
+
 /// What the run record says of an import: the source's format, its settings and the hashes
 /// (FNV-1a 64) of the files read.
 fn provenance(source: &Source) -> serde_json::Value {
@@ -228,37 +231,36 @@ pub fn import(
     }
     let dir = dataset.join("episodes");
     let file = dir.join(format!("{split}.jsonl"));
-    if file.exists() && !force {
+    // A split an import was writing when it was stopped is that import's, for its rerun to
+    // write again; any other is refused without `force`.
+    let pending = sage_io::run::read_record(dataset)
+        .is_some_and(|r| r.get(PENDING).and_then(serde_json::Value::as_str) == Some(split));
+    if file.exists() && !force && !pending {
         return Err(Error::invalid(
             "this split exists already; choose another `split`, or set `force` to replace it",
         )
         .in_file(&file));
     }
+    // The record says which split is being written before any of it is, so a folder left by a
+    // stopped import is claimed by its rerun (a new folder's record is marked unfinished).
+    let fresh = sage_io::run::recorded_command(dataset).is_none()
+        || sage_io::run::unfinished_command(dataset).as_deref() == Some(COMMAND);
+    let record_path = dataset.join(sage_io::RUN_RECORD);
+    if fresh {
+        sage_io::run::write_run_record(
+            dataset,
+            COMMAND,
+            None,
+            serde_json::json!({ "status": sage_io::run::UNFINISHED, PENDING: split }),
+        )?;
+    } else {
+        let mut record: serde_json::Value = sage_io::files::read_json(&record_path)?;
+        record[PENDING] = split.into();
+        sage_io::files::write_json(&record_path, &record)?;
+    }
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     jsonl::write(&file, &episodes)?;
     folder::add_split(dataset, split, &episodes)?;
-    // A built dataset keeps its build's record (it names the scenes folder `eval` reads); either
-    // record lists every import by split, with its source and the source files' hashes.
-    let imported = provenance(source);
-    if sage_io::run::recorded_command(dataset).is_none() {
-        let mut settings = serde_json::json!({ "imports": { split: imported } });
-        if let Some(s) = scenes {
-            settings["scenes"] = folder::scenes_record(dataset, s);
-        }
-        sage_io::run::write_run_record(dataset, COMMAND, None, settings)?;
-    } else {
-        let path = dataset.join(sage_io::RUN_RECORD);
-        let mut record: serde_json::Value = sage_io::files::read_json(&path)?;
-        if !record["imports"].is_object() {
-            record["imports"] = serde_json::json!({});
-        }
-        record["imports"][split] = imported;
-        // The folder a dataset records stays; one that records none learns this one.
-        if let (Some(s), None) = (scenes, record.get("scenes")) {
-            record["scenes"] = folder::scenes_record(dataset, s);
-        }
-        sage_io::files::write_json(&path, &record)?;
-    }
     let mut out = Imported {
         episodes,
         rejected: Vec::new(),
@@ -290,6 +292,32 @@ pub fn import(
         )?;
         out.rejected = read.rejected;
         out.report = Some(path);
+    }
+    // Last, once every file is written: a built dataset keeps its build's record (it names the
+    // scenes folder `eval` reads); either record lists every import by split, with its source
+    // and the source files' hashes.
+    let imported = provenance(source);
+    if fresh {
+        let mut settings = serde_json::json!({ "imports": { split: imported } });
+        if let Some(s) = scenes {
+            settings["scenes"] = folder::scenes_record(dataset, s);
+        }
+        sage_io::run::write_run_record(dataset, COMMAND, None, settings)?;
+    } else {
+        let path = record_path;
+        let mut record: serde_json::Value = sage_io::files::read_json(&path)?;
+        if let Some(fields) = record.as_object_mut() {
+            fields.remove(PENDING);
+        }
+        if !record["imports"].is_object() {
+            record["imports"] = serde_json::json!({});
+        }
+        record["imports"][split] = imported;
+        // The folder a dataset records stays; one that records none learns this one.
+        if let (Some(s), None) = (scenes, record.get("scenes")) {
+            record["scenes"] = folder::scenes_record(dataset, s);
+        }
+        sage_io::files::write_json(&path, &record)?;
     }
     Ok(out)
 }

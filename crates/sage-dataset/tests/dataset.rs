@@ -1130,3 +1130,62 @@ fn an_import_of_no_episode_is_refused_and_writes_no_split() {
     assert!(!data.join(sage_dataset::folder::SPLITS_FILE).exists());
     assert!(!data.join(sage_io::RUN_RECORD).exists());
 }
+
+#[test]
+fn an_import_stopped_before_its_record_is_redone_by_its_rerun() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("walks.json");
+    let walks = [walk_in("home_a", "few"), walk_in("home_b", "many")];
+    gvln::write(&file, &walks, GvlnFrame::World, &StepSizes::default()).unwrap();
+    let source = sage_dataset::import::Source::Gvln {
+        file,
+        offset: Vec2::ZERO,
+    };
+    let import =
+        |data: &Path, split: &str| sage_dataset::import::import(&source, data, split, None, false);
+    let whole = dir.path().join("whole");
+    import(&whole, "a").unwrap();
+    import(&whole, "b").unwrap();
+    // What an import stopped after its split file leaves: the record naming the split it was
+    // writing (a new folder's marked unfinished), the split, no finished record.
+    let record = |data: &Path| sage_io::run::read_record(data).unwrap();
+    let stopped = dir.path().join("stopped");
+    import(&stopped, "a").unwrap();
+    let first = record(&stopped);
+    std::fs::remove_file(stopped.join(sage_io::RUN_RECORD)).unwrap();
+    sage_io::run::write_run_record(
+        &stopped,
+        sage_dataset::import::COMMAND,
+        None,
+        serde_json::json!({"status": "unfinished", "importing": "a"}),
+    )
+    .unwrap();
+    assert!(sage_io::run::unfinished_command(&stopped).is_some());
+    import(&stopped, "a").unwrap();
+    assert_eq!(record(&stopped), first);
+    // Stopped adding a second split to a finished folder: the rerun writes it again, once.
+    let mut adding = first.clone();
+    adding["importing"] = "b".into();
+    sage_io::files::write_json(&stopped.join(sage_io::RUN_RECORD), &adding).unwrap();
+    std::fs::copy(
+        whole.join("episodes/b.jsonl"),
+        stopped.join("episodes/b.jsonl"),
+    )
+    .unwrap();
+    import(&stopped, "b").unwrap();
+    assert_eq!(record(&stopped), record(&whole));
+    for f in [
+        "episodes/a.jsonl",
+        "episodes/b.jsonl",
+        sage_dataset::folder::SPLITS_FILE,
+    ] {
+        assert_eq!(
+            std::fs::read(stopped.join(f)).unwrap(),
+            std::fs::read(whole.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // A split no stopped import was writing is still the user's to keep.
+    let e = import(&stopped, "b").unwrap_err();
+    assert!(e.to_string().contains("this split exists already"), "{e}");
+}

@@ -1,6 +1,6 @@
 //! Synthetic scene folders: generate one from a seed and write it with its run record.
 
-use sage_core::Result;
+use sage_core::{Error, Result};
 use sage_scene::{Scene, SplatLayout};
 use sage_synth::SynthConfig;
 use std::path::Path;
@@ -56,6 +56,7 @@ pub fn synthesize_into(
     let scene = sage_synth::generate(config)?;
     on_stage(Stage::Writing);
     sage_io::run::mark_unfinished(out, SYNTH_COMMAND, Some(config.seed))?;
+    remove_earlier_scene(out)?;
     scene.save(out, layout)?;
     let details = serde_json::json!({
         "config": {
@@ -71,4 +72,77 @@ pub fn synthesize_into(
     });
     sage_io::run::write_run_record(out, SYNTH_COMMAND, Some(config.seed), details)?;
     Ok(scene)
+}
+
+/// Removes the Gaussian files and meshes an earlier `scene synth` left in `out`. The folder is
+/// new, empty or that command's own ([`sage_io::run::claim_folder`]), so they are its; a rerun
+/// with other settings writes one layout's Gaussian file and its own objects' meshes, and left
+/// beside them, the other layout's file (which the loader reads first) or the meshes of objects
+/// the new scene does not have would make a folder of two scenes.
+fn remove_earlier_scene(out: &Path) -> Result<()> {
+    use sage_scene::scene::files;
+    for name in [files::COMPRESSED_PLY, files::STANDARD_PLY, files::MESHES] {
+        let path = out.join(name);
+        let Ok(meta) = std::fs::symlink_metadata(&path) else {
+            continue;
+        };
+        let removed = if meta.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+        removed.map_err(|e| Error::io(&path, e))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sage_scene::scene::files;
+
+    /// The files of folder `dir` and its sub-folders (not the lock), relative, sorted.
+    fn listing(dir: &Path) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    out.push(p.strip_prefix(dir).unwrap().display().to_string());
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+
+    #[test]
+    fn a_rerun_with_other_settings_leaves_no_file_of_the_earlier_scene() {
+        let tmp = tempfile::tempdir().unwrap();
+        let big = SynthConfig {
+            seed: 3,
+            rooms: 5,
+            objects: 30,
+            gaussians: 4000,
+            ..SynthConfig::default()
+        };
+        let small = SynthConfig {
+            seed: 9,
+            rooms: 2,
+            objects: 6,
+            gaussians: 1500,
+            ..SynthConfig::default()
+        };
+        let (rerun, fresh) = (tmp.path().join("rerun"), tmp.path().join("fresh"));
+        synthesize(&big, &rerun, SplatLayout::Compressed, &|_| {}).unwrap();
+        synthesize(&small, &rerun, SplatLayout::Standard, &|_| {}).unwrap();
+        synthesize(&small, &fresh, SplatLayout::Standard, &|_| {}).unwrap();
+        assert!(!rerun.join(files::COMPRESSED_PLY).exists());
+        assert_eq!(listing(&rerun), listing(&fresh));
+        let count = |dir: &Path| Scene::load(dir).unwrap().0.gaussians.len();
+        assert_eq!(count(&rerun), count(&fresh));
+    }
 }

@@ -1092,11 +1092,19 @@ pub fn finish(plan: &Plan, out: &Path) -> Result<Manifest> {
         crate::preview::write(&from, out, &samples, s.preview)?;
     }
     write_json(&out.join(MANIFEST), &manifest)?;
+    remove_packed_frames(out, s.format)?;
+    Ok(manifest)
+}
+
+/// Removes the route folders of frames once a layout that packs them (shards, LeRobot videos)
+/// has written its manifest: on a finished render, and again on a rerun that finds the render
+/// finished, for a run stopped between the manifest and this.
+fn remove_packed_frames(out: &Path, format: Layout) -> Result<()> {
     let frames = out.join(IMAGES_DIR);
-    if s.format.packs_frames() && frames.exists() {
+    if format.packs_frames() && frames.exists() {
         std::fs::remove_dir_all(&frames).map_err(|e| Error::io(&frames, e))?;
     }
-    Ok(manifest)
+    Ok(())
 }
 
 /// What the LeRobot files are made from besides the samples: the render's frame size and
@@ -1289,6 +1297,7 @@ pub fn claim(plan: &Plan, out: &Path, force: bool) -> Result<(FolderLock, Option
     }
     lock.remove_temporary();
     if same && let Ok(m) = read_json::<Manifest>(&out.join(MANIFEST)) {
+        remove_packed_frames(out, plan.settings.format)?;
         return Ok((lock, Some(m)));
     }
     sage_io::run::write_run_record(

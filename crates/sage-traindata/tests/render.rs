@@ -239,6 +239,29 @@ fn webdataset_shards_hold_every_frame_and_the_sample_json() {
         }
     }
     assert_eq!(seen, m.counts.kept);
+    // Stopped after its manifest, before it removed the route folders the shards were made
+    // from: the rerun finds the render finished and removes them.
+    let before = tree(out.path());
+    let frames = tempfile::tempdir().unwrap();
+    render_with_threads(&settings(Layout::Frames), frames.path(), 2);
+    copy_tree(&frames.path().join("images"), &out.path().join("images"));
+    let again = sage_traindata::render(&s, out.path(), false, &|_| {}).unwrap();
+    assert_eq!(again, m);
+    assert_eq!(tree(out.path()), before);
+}
+
+/// Copies folder `from` into `to` (made), file by file.
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let target = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_tree(&p, &target);
+        } else {
+            std::fs::copy(&p, &target).unwrap();
+        }
+    }
 }
 
 #[test]
