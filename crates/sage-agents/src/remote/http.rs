@@ -6,7 +6,7 @@
 
 use super::{Transport, parse};
 use sage_core::{Error, Result};
-use sage_http::{Client, Stage};
+use sage_http::{Client, Reply, Stage};
 use std::time::Duration;
 
 /// The system prompt of the chat agent, after the published MLLM baseline server: one action
@@ -61,7 +61,29 @@ fn decimal(x: f32) -> f64 {
     x.to_string().parse().unwrap_or_else(|_| f64::from(x))
 }
 
-/// POSTs `body` as JSON to `url`; the reply's text when the status is 200, else a fault.
+/// Most characters of an HTML page quoted in the fault it makes.
+const QUOTED_PAGE_CHARS: usize = 120;
+
+/// True for a reply that is a web page: said so by its `Content-Type`, or, where that is
+/// missing or generic, by a body that opens as an HTML document. A proxy's sign-in page or a
+/// web app at the wrong path answers 200 with one; read as a model's text, a page that
+/// mentions "move forward" would become moves.
+fn is_html_page(reply: &Reply) -> bool {
+    let declared = reply
+        .header("content-type")
+        .is_some_and(|t| t.trim().to_ascii_lowercase().starts_with("text/html"));
+    let opening: String = reply
+        .body
+        .trim_start()
+        .chars()
+        .take(15)
+        .collect::<String>()
+        .to_ascii_lowercase();
+    declared || opening.starts_with("<!doctype html") || opening.starts_with("<html")
+}
+
+/// POSTs `body` as JSON to `url`; the reply's text when the status is 200 and the reply is not
+/// a web page, else a fault.
 fn post(
     client: &Client,
     url: &str,
@@ -74,6 +96,13 @@ fn post(
             Stage::Request => e.to_string(),
             Stage::Body => format!("reading the reply: {e}"),
         })?;
+    if reply.status == 200 && is_html_page(&reply) {
+        let quoted: String = reply.body.trim().chars().take(QUOTED_PAGE_CHARS).collect();
+        return Err(format!(
+            "the reply is an HTML page, not a model server's answer (is {url} the server's \
+             endpoint?): {quoted}"
+        ));
+    }
     reply.into_ok().map_err(|f| f.message)
 }
 
@@ -239,6 +268,81 @@ mod tests {
         );
         assert_eq!(base_url("https://api.x/v1/").unwrap(), "https://api.x/v1");
         assert!(step_url("ftp://h").is_err());
+    }
+
+    /// A reply of status 200 with `content_type` and `body`.
+    fn reply(content_type: Option<&str>, body: &str) -> Reply {
+        Reply {
+            status: 200,
+            headers: content_type
+                .map(|t| ("content-type".to_string(), t.to_string()))
+                .into_iter()
+                .collect(),
+            body: body.to_string(),
+        }
+    }
+
+    #[test]
+    fn a_web_page_is_told_from_a_model_answer() {
+        let page = "<p>Sign in, then move forward to your dashboard</p>";
+        assert!(is_html_page(&reply(Some("text/html; charset=utf-8"), page)));
+        assert!(is_html_page(&reply(Some(" Text/HTML"), "move forward")));
+        for body in [
+            "\n  <!DOCTYPE html><html>",
+            "<HTML><body>move forward</body>",
+        ] {
+            assert!(is_html_page(&reply(Some("text/plain"), body)), "{body}");
+            assert!(is_html_page(&reply(None, body)), "{body}");
+        }
+        for (t, body) in [
+            (Some("text/plain"), "move forward 75 cm"),
+            (Some("application/json"), r#"{"result": "<html> STOP"}"#),
+            (None, "<turn left> 30 degrees"),
+        ] {
+            assert!(!is_html_page(&reply(t, body)), "{body}");
+        }
+    }
+
+    #[test]
+    fn a_web_page_answered_with_200_is_a_fault_naming_the_url() {
+        use std::io::{Read, Write};
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let url = format!("http://{}/vln_step", listener.local_addr().unwrap());
+        let server = std::thread::spawn(move || {
+            let (mut stream, _) = listener.accept().unwrap();
+            let mut head = Vec::new();
+            let mut byte = [0u8];
+            while !head.ends_with(b"\r\n\r\n") {
+                stream.read_exact(&mut byte).unwrap();
+                head.push(byte[0]);
+            }
+            let head = String::from_utf8(head).unwrap();
+            let length: usize = head
+                .lines()
+                .find_map(|l| {
+                    l.to_ascii_lowercase()
+                        .strip_prefix("content-length:")
+                        .map(|v| v.trim().parse().unwrap())
+                })
+                .unwrap();
+            let mut body = vec![0u8; length];
+            stream.read_exact(&mut body).unwrap();
+            let page = "<html><body>Welcome! Click to move forward.</body></html>";
+            write!(
+                stream,
+                "HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{page}",
+                page.len()
+            )
+            .unwrap();
+            (head, body)
+        });
+        let mut client = StepClient::new(&url, Duration::from_secs(10));
+        let e = client.ask(&["AAAA".into()], "go").unwrap_err();
+        assert!(e.contains("HTML page") && e.contains(&url), "{e}");
+        let (head, body) = server.join().unwrap();
+        assert!(head.starts_with("POST /vln_step "), "{head}");
+        let sent: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(sent["instruction"], "go");
     }
 
     #[test]
