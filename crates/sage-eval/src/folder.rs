@@ -74,8 +74,8 @@ pub fn run_record(dir: &Path) -> Result<serde_json::Value> {
 ///
 /// # Errors
 ///
-/// As [`run_record`]; an `invalid` error naming the folder when the run was not finished,
-/// saying which command to rerun to finish it.
+/// As [`run_record`]; an `invalid` error naming the folder when the run was not finished:
+/// naming the command still writing it, else saying which command to rerun to finish it.
 pub fn finished_run_record(dir: &Path) -> Result<serde_json::Value> {
     let record = run_record(dir)?;
     let Some(status) = unfinished_status(&record) else {
@@ -117,6 +117,14 @@ pub fn finished_run_record(dir: &Path) -> Result<serde_json::Value> {
             format!("rerun the same `sage3d {COMMAND}` into it to finish it"),
         )
     };
+    if let Some(writer) = sage_io::lock::writer_of(dir) {
+        let now = if what == "human run" {
+            format!("is open for play in {writer}: play an episode there to finish it")
+        } else {
+            format!("is still being written by {writer}: wait for it to finish")
+        };
+        return Err(Error::invalid(format!("the {what} in this folder {now}")).in_file(dir));
+    }
     Err(Error::invalid(format!(
         "the {what} in this folder was not finished (its {RUN_RECORD} has status '{status}'): {finish}"
     ))

@@ -130,6 +130,21 @@ fn a_stopped_evaluation_is_unfinished_until_its_rerun_which_ends_as_an_uninterru
         assert_eq!(e.to_string(), expected);
     }
     assert!(!stopped.join("report.html").exists() && !dir.path().join("re").exists());
+    // While its writer still writes it, a reader names the writer rather than a rerun.
+    {
+        let _writer = sage_eval::claim(&stopped, false).unwrap();
+        let writer = format!(
+            "being written by the `eval` run of process {}",
+            std::process::id()
+        );
+        let errors = [
+            report::read_run(&stopped).unwrap_err(),
+            sage_eval::folder::finished_run_record(&stopped).unwrap_err(),
+        ];
+        for e in errors {
+            assert!(e.to_string().contains(&writer), "{e}");
+        }
+    }
 
     evaluate(&settings, &stopped);
     assert_eq!(outputs(&stopped), outputs(&whole));
@@ -190,13 +205,25 @@ fn a_human_run_is_finished_once_an_episode_is_played() {
     let out = dir.path().join("human");
     let mut run = HumanRun::open(settings.clone(), &out, false).unwrap();
     assert_eq!(record(&out)["status"], "unfinished");
+    // Open for play here, it names the process playing it.
     let e = report::read_run(&out).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!(
+            "the human run in this folder is open for play in the `eval` run of process {}",
+            std::process::id()
+        )) && e.contains("play an episode there to finish it"),
+        "{e}"
+    );
+    // Closed unplayed, it says how to finish it.
+    let unplayed = dir.path().join("unplayed");
+    drop(HumanRun::open(settings.clone(), &unplayed, false).unwrap());
+    let e = report::read_run(&unplayed).unwrap_err().to_string();
     assert!(
         e.contains("the human run in this folder was not finished")
             && e.contains(&format!(
                 "play an episode of it (`sage3d view {} --play {}`)",
                 f.data.display(),
-                out.display()
+                unplayed.display()
             )),
         "{e}"
     );

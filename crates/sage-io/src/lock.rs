@@ -223,6 +223,19 @@ impl Drop for FolderLock {
     }
 }
 
+/// Who is writing folder `dir` now, in words ("the `eval` run of process 41 (…)"), or `None`
+/// when no command holds its lock as a writer. Only looks: nothing is made or locked for long
+/// (a reader's lock is taken and let go at once, which no writer notices), so a command that
+/// reads a folder it may not lock can tell a run still being written from an abandoned one.
+pub fn writer_of(dir: &Path) -> Option<String> {
+    let path = dir.join(LOCK_FILE);
+    let file = File::open(&path).ok()?;
+    match file.try_lock_shared() {
+        Err(TryLockError::WouldBlock) => Some(describe(read_holder(&path).as_ref())),
+        _ => None,
+    }
+}
+
 /// `dir` and those of its parents that do not exist, deepest first.
 fn missing_folders(dir: &Path) -> Vec<PathBuf> {
     dir.ancestors()
@@ -388,6 +401,31 @@ mod tests {
         std::fs::create_dir(&empty).unwrap();
         drop(FolderLock::acquire(&empty, "eval").unwrap());
         assert!(empty.is_dir() && std::fs::read_dir(&empty).unwrap().count() == 0);
+    }
+
+    #[test]
+    fn the_writer_of_a_folder_is_named_while_it_writes_and_readers_are_not_writers() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("run");
+        assert_eq!(writer_of(&dir), None);
+        std::fs::create_dir(&dir).unwrap();
+        let lock = FolderLock::acquire(&dir, "eval").unwrap();
+        let pid = std::process::id().to_string();
+        let writer = writer_of(&dir).expect("a writer holds it");
+        assert!(
+            writer.contains(&format!("the `eval` run of process {pid}")),
+            "{writer}"
+        );
+        // Looking took nothing: the writer still holds the folder alone.
+        assert!(FolderLock::acquire_shared(&dir, "report").is_err());
+        drop(lock);
+        assert_eq!(writer_of(&dir), None);
+        let reader = FolderLock::acquire_shared(&dir, "report").unwrap();
+        assert_eq!(writer_of(&dir), None);
+        drop(reader);
+        // A lock file its holder left behind when it was killed names no writer.
+        std::fs::write(dir.join(LOCK_FILE), r#"{"command": "eval", "pid": 1}"#).unwrap();
+        assert_eq!(writer_of(&dir), None);
     }
 
     #[test]
