@@ -307,6 +307,24 @@ impl CameraSpec {
                 ));
             }
         };
+        if !sage_core::within_bounds(camera.position) {
+            let p = camera.position;
+            return Err(Error::format(
+                if self.c2w.is_some() {
+                    "c2w"
+                } else {
+                    "position"
+                },
+                format!(
+                    "the camera centre must be finite and within ±{} m, as a `sage3d render \
+                     --position` is, got {}, {}, {}",
+                    sage_core::MAX_COORDINATE,
+                    p.x,
+                    p.y,
+                    p.z
+                ),
+            ));
+        }
         camera.near = self.near.unwrap_or(DEFAULT_NEAR);
         camera.far = self.far.unwrap_or(DEFAULT_FAR);
         camera.validate()?;
@@ -429,6 +447,17 @@ mod tests {
         assert!(e.to_string().contains("hfov_deg/fx"), "{e}");
         let e = CameraSpec::parse(r#"{"width":64,"height":48,"hfov_deg":90,"c2w":[[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#).unwrap().camera().unwrap_err();
         assert!(e.to_string().starts_with("c2w:"), "{e}");
+        let far = r#"{"width":64,"height":48,"hfov_deg":90,"position":[0,20000,1]}"#;
+        let e = CameraSpec::parse(far).unwrap().camera().unwrap_err();
+        assert!(
+            e.to_string().starts_with("position:") && e.to_string().contains("20000"),
+            "{e}"
+        );
+        let far = r#"{"width":64,"height":48,"hfov_deg":90,"c2w":[[1,0,0,-1e5],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#;
+        let e = CameraSpec::parse(far).unwrap().camera().unwrap_err();
+        assert!(e.to_string().starts_with("c2w:"), "{e}");
+        let near = r#"{"width":64,"height":48,"hfov_deg":90,"position":[-9999,0,1]}"#;
+        assert!(CameraSpec::parse(near).unwrap().camera().is_ok());
         let e = CameraSpec::parse(r#"{"width":64,"height":48,"hfov":90}"#).unwrap_err();
         assert!(e.to_string().contains("unknown field `hfov`"), "{e}");
     }
