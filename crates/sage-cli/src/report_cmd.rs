@@ -102,7 +102,7 @@ pub fn run(a: ReportArgs) -> Result<()> {
                     "--out names the folder of a rescoring: give the mode (--mode) or the alignment (--dtw) to rescore in",
                 ));
             }
-            let _lock = sage_eval::claim(out, a.force)?;
+            let _lock = sage_eval::claim_rescoring(out, a.force)?;
             let (done, report) = with_bars(&scenes, a.videos, |job| {
                 sage_eval::rescore_with_report(&a.run, a.mode, a.dtw, out, job)
             })?;

@@ -233,6 +233,20 @@ pub fn claim(out: &Path, force: bool) -> Result<FolderLock> {
     sage_io::run::claim_folder(out, &[COMMAND], &RUN_OUTPUTS, force)
 }
 
+/// [`claim`] for a rescoring (`sage3d report RUN --mode M --out NEW`, which writes an
+/// evaluation's folder): the same folders are taken, and a refusal names the command that
+/// was run, `sage3d report`.
+///
+/// # Errors
+///
+/// As [`claim`].
+pub fn claim_rescoring(out: &Path, force: bool) -> Result<FolderLock> {
+    sage_io::run::claim_folder(out, &[RESCORING_COMMAND, COMMAND], &RUN_OUTPUTS, force)
+}
+
+/// The command that rescores a run, as a refused folder names it.
+const RESCORING_COMMAND: &str = "report";
+
 /// The run record's fingerprint of the scenes `episodes` name: per scene, the hash of every
 /// file loading it reads ([`sage_scene::scenes_input_hashes`]; a scene not among `dirs` has
 /// none).

@@ -20,8 +20,8 @@ pub mod settings;
 pub mod summary;
 
 pub use evaluator::{
-    RunOutcome, Runner, claim, env_config, evaluation_env, run, run_with, run_with_report,
-    score_into, with_runner,
+    RunOutcome, Runner, claim, claim_rescoring, env_config, evaluation_env, run, run_with,
+    run_with_report, score_into, with_runner,
 };
 pub use human::HumanRun;
 pub use merge::{merge_shards, merge_shards_with_report};

@@ -252,7 +252,7 @@ fn a_rescoring_killed_part_way_is_written_again_by_its_rerun_and_by_nothing_else
     evaluate(Mode::Sage, Dtw::Exact, &run);
     let job = sage_eval::report::ReportJob::new(&f.scenes);
     let rescore = |out: &Path, mode: Mode, force: bool| {
-        let _lock = sage_eval::claim(out, force)?;
+        let _lock = sage_eval::claim_rescoring(out, force)?;
         sage_eval::rescore_with_report(&run, Some(mode), None, out, &job)
     };
     let whole = dir.path().join("whole");
@@ -307,4 +307,19 @@ fn a_rescoring_killed_part_way_is_written_again_by_its_rerun_and_by_nothing_else
     let eval = dir.path().join("eval");
     killed_rescoring(&run, &eval, &["episodes.jsonl"]);
     held(rescore(&eval, Mode::Vlnce, true).unwrap_err());
+    // A folder of other files is refused naming the command run, a rescoring's `report`.
+    let foreign = dir.path().join("foreign");
+    std::fs::create_dir(&foreign).unwrap();
+    std::fs::write(foreign.join("notes.txt"), "mine").unwrap();
+    let e = rescore(&foreign, Mode::Vlnce, false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("holds files `sage3d report` did not write ('notes.txt')"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(foreign.join("notes.txt")).unwrap(),
+        "mine"
+    );
 }
