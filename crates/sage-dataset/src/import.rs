@@ -73,6 +73,19 @@ pub const COMMAND: &str = "data import";
 /// The run-record field naming the split an import is writing, removed once it has written it.
 pub const PENDING: &str = "importing";
 
+/// The splits a run record names as being written by imports that have not finished: none,
+/// one (as a text, as records before several were named wrote it) or a list.
+fn pending_splits(record: Option<&serde_json::Value>) -> Vec<String> {
+    match record.and_then(|r| r.get(PENDING)) {
+        Some(serde_json::Value::String(split)) => vec![split.clone()],
+        Some(serde_json::Value::Array(splits)) => splits
+            .iter()
+            .filter_map(|s| s.as_str().map(String::from))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
 /// What the run record says of an import: the source's format, its settings and the hashes
 /// (FNV-1a 64) of the files read.
 fn provenance(source: &Source) -> serde_json::Value {
@@ -233,30 +246,32 @@ pub fn import(
     let file = dir.join(format!("{split}.jsonl"));
     // A split an import was writing when it was stopped is that import's, for its rerun to
     // write again; any other is refused without `force`.
-    let pending = sage_io::run::read_record(dataset)
-        .is_some_and(|r| r.get(PENDING).and_then(serde_json::Value::as_str) == Some(split));
-    if file.exists() && !force && !pending {
+    let record_path = dataset.join(sage_io::RUN_RECORD);
+    let earlier = sage_io::run::read_record(dataset);
+    let mut pending = pending_splits(earlier.as_ref());
+    if file.exists() && !force && !pending.iter().any(|p| p == split) {
         return Err(Error::invalid(
             "this split exists already; choose another `split`, or set `force` to replace it",
         )
         .in_file(&file));
     }
     // The record says which split is being written before any of it is, so a folder left by a
-    // stopped import is claimed by its rerun (a new folder's record is marked unfinished).
-    let fresh = sage_io::run::recorded_command(dataset).is_none()
-        || sage_io::run::unfinished_command(dataset).as_deref() == Some(COMMAND);
-    let record_path = dataset.join(sage_io::RUN_RECORD);
-    if fresh {
-        sage_io::run::write_run_record(
+    // stopped import is claimed by its rerun (a new folder's record is marked unfinished). The
+    // splits other stopped imports left stay named, for their own reruns.
+    if !pending.iter().any(|p| p == split) {
+        pending.push(split.to_string());
+    }
+    match earlier {
+        None => sage_io::run::write_run_record(
             dataset,
             COMMAND,
             None,
-            serde_json::json!({ "status": sage_io::run::UNFINISHED, PENDING: split }),
-        )?;
-    } else {
-        let mut record: serde_json::Value = sage_io::files::read_json(&record_path)?;
-        record[PENDING] = split.into();
-        sage_io::files::write_json(&record_path, &record)?;
+            serde_json::json!({ "status": sage_io::run::UNFINISHED, PENDING: pending }),
+        )?,
+        Some(mut record) => {
+            record[PENDING] = pending.clone().into();
+            sage_io::files::write_json(&record_path, &record)?;
+        }
     }
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     jsonl::write(&file, &episodes)?;
@@ -297,27 +312,33 @@ pub fn import(
     // scenes folder `eval` reads); either record lists every import by split, with its source
     // and the source files' hashes.
     let imported = provenance(source);
-    if fresh {
-        let mut settings = serde_json::json!({ "imports": { split: imported } });
-        if let Some(s) = scenes {
-            settings["scenes"] = folder::scenes_record(dataset, s);
+    let mut record: serde_json::Value = sage_io::files::read_json(&record_path)?;
+    pending.retain(|p| p != split);
+    if !record["imports"].is_object() {
+        record["imports"] = serde_json::json!({});
+    }
+    record["imports"][split] = imported;
+    // The folder a dataset records stays; one that records none learns this one.
+    if let (Some(s), None) = (scenes, record.get("scenes")) {
+        record["scenes"] = folder::scenes_record(dataset, s);
+    }
+    let first = sage_io::run::unfinished_command(dataset).as_deref() == Some(COMMAND);
+    if first && pending.is_empty() {
+        // The folder's first imports are all written: its record as an import writes it.
+        let mut settings = serde_json::json!({ "imports": record["imports"].take() });
+        if let Some(s) = record.get_mut("scenes") {
+            settings["scenes"] = s.take();
         }
         sage_io::run::write_run_record(dataset, COMMAND, None, settings)?;
     } else {
-        let path = record_path;
-        let mut record: serde_json::Value = sage_io::files::read_json(&path)?;
-        if let Some(fields) = record.as_object_mut() {
-            fields.remove(PENDING);
+        if pending.is_empty() {
+            if let Some(fields) = record.as_object_mut() {
+                fields.remove(PENDING);
+            }
+        } else {
+            record[PENDING] = pending.into();
         }
-        if !record["imports"].is_object() {
-            record["imports"] = serde_json::json!({});
-        }
-        record["imports"][split] = imported;
-        // The folder a dataset records stays; one that records none learns this one.
-        if let (Some(s), None) = (scenes, record.get("scenes")) {
-            record["scenes"] = folder::scenes_record(dataset, s);
-        }
-        sage_io::files::write_json(&path, &record)?;
+        sage_io::files::write_json(&record_path, &record)?;
     }
     Ok(out)
 }

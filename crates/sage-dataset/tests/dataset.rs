@@ -1188,4 +1188,22 @@ fn an_import_stopped_before_its_record_is_redone_by_its_rerun() {
     // A split no stopped import was writing is still the user's to keep.
     let e = import(&stopped, "b").unwrap_err();
     assert!(e.to_string().contains("this split exists already"), "{e}");
+    // The first import of a new folder stopped, then another split imported before its rerun:
+    // both splits end recorded, in the bytes of imports never stopped.
+    let other = dir.path().join("other");
+    import(&other, "a").unwrap();
+    sage_io::run::write_run_record(
+        &other,
+        sage_dataset::import::COMMAND,
+        None,
+        serde_json::json!({"status": "unfinished", "importing": "a"}),
+    )
+    .unwrap();
+    import(&other, "b").unwrap();
+    let between = record(&other);
+    assert_eq!(between["status"], "unfinished");
+    assert_eq!(between["importing"], serde_json::json!(["a"]));
+    assert!(between["imports"]["b"].is_object());
+    import(&other, "a").unwrap();
+    assert_eq!(record(&other), record(&whole));
 }
