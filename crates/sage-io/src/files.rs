@@ -8,7 +8,7 @@ use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 /// What sets a temporary file's name apart: `.{name}.tmp-{process}-{count}`.
-const TEMP_MARK: &str = ".tmp-";
+pub(crate) const TEMP_MARK: &str = ".tmp-";
 
 /// A temporary sibling of `path`, unique to this process and this call, so that threads (and
 /// processes) writing the same file at once never share one ([`is_temporary`] recognises it).

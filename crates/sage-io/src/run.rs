@@ -1,6 +1,6 @@
 //! The run record: how an output folder was made (SPEC §13).
 
-use crate::files::{is_temporary, write_json};
+use crate::files::{TEMP_MARK, is_temporary, write_json};
 use crate::lock::{FolderLock, LOCK_FILE};
 use sage_core::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -154,7 +154,8 @@ pub fn claim_folder(
 
 /// Checks that an output file may be written at `path`: one that does not exist yet, or any
 /// with `force`. An existing file may be the user's, and a file carries no record of who
-/// wrote it, so it is replaced only when asked.
+/// wrote it, so it is replaced only when asked. The temporary files that killed writes of
+/// `path` left beside it are removed ([`remove_stale_temporaries`]).
 ///
 /// # Errors
 ///
@@ -170,7 +171,46 @@ pub fn claim_file(path: &Path, force: bool) -> Result<()> {
         )
         .in_file(path));
     }
+    remove_stale_temporaries(path);
     Ok(())
+}
+
+/// Removes the temporary files ([`is_temporary`]) that writes of `path` by processes that have
+/// ended left beside it (a command killed while writing its output file): a single output file
+/// has no folder lock to say nothing else writes there, so only those whose process is gone
+/// are removed. Best effort, and only where the system lists its processes (`/proc`):
+/// elsewhere they are left.
+fn remove_stale_temporaries(path: &Path) {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let processes = Path::new("/proc");
+    if !processes.join("self").exists() {
+        return;
+    }
+    let prefix = format!(".{}{TEMP_MARK}", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file
+            .strip_prefix(&prefix)
+            .and_then(|tag| tag.split_once('-'))
+            .map(|(pid, _)| pid)
+        else {
+            continue;
+        };
+        let ended = !processes.join(pid).exists();
+        if ended && is_temporary(&file) && entry.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// [`claim_file`] for a command that reads `inputs`: files, and folders every file of which it
@@ -404,5 +444,28 @@ mod tests {
         assert!(e.contains("out.json") && e.contains("`force`"), "{e}");
         claim_file(&file, true).unwrap();
         assert!(claim_file(dir.path(), true).is_err());
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn temporaries_of_an_output_file_whose_writer_ended_are_removed_when_it_is_claimed() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("scene.ply");
+        // Above the largest process id Linux hands out: a writer that has ended.
+        let ended = 4_194_305;
+        let live = std::process::id();
+        let names = [
+            format!(".scene.ply.tmp-{ended}-0"),
+            format!(".scene.ply.tmp-{live}-3"),
+            format!(".other.ply.tmp-{ended}-0"),
+            format!(".scene.ply.tmp-{ended}-x"),
+            "scene.ply.bak".to_string(),
+        ];
+        for name in &names {
+            std::fs::write(dir.path().join(name), "part").unwrap();
+        }
+        claim_file(&out, false).unwrap();
+        let left: Vec<bool> = names.iter().map(|n| dir.path().join(n).exists()).collect();
+        assert_eq!(left, [false, true, true, true, true]);
     }
 }
