@@ -155,7 +155,7 @@ pub fn claim_folder(
 /// Checks that an output file may be written at `path`: one that does not exist yet, or any
 /// with `force`. An existing file may be the user's, and a file carries no record of who
 /// wrote it, so it is replaced only when asked. The temporary files that killed writes of
-/// `path` left beside it are removed ([`remove_stale_temporaries`]).
+/// `path` left beside it are removed, where their process has ended.
 ///
 /// # Errors
 ///
