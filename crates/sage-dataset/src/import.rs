@@ -249,7 +249,8 @@ pub fn import(
     let record_path = dataset.join(sage_io::RUN_RECORD);
     let earlier = sage_io::run::read_record(dataset);
     let mut pending = pending_splits(earlier.as_ref());
-    if file.exists() && !force && !pending.iter().any(|p| p == split) {
+    let stopped_here = pending.iter().any(|p| p == split);
+    if file.exists() && !force && !stopped_here {
         return Err(Error::invalid(
             "this split exists already; choose another `split`, or set `force` to replace it",
         )
@@ -258,7 +259,7 @@ pub fn import(
     // The record says which split is being written before any of it is, so a folder left by a
     // stopped import is claimed by its rerun (a new folder's record is marked unfinished). The
     // splits other stopped imports left stay named, for their own reruns.
-    if !pending.iter().any(|p| p == split) {
+    if !stopped_here {
         pending.push(split.to_string());
     }
     match earlier {

@@ -88,7 +88,9 @@ pub fn finished_run_record(dir: &Path) -> Result<serde_json::Value> {
             .and_then(serde_json::Value::as_str)
             .unwrap_or("?")
     };
-    let (what, finish) = if let Some(from) = record.get("rescored_from") {
+    // What the run is, how to finish it, and how it stands while its writer still runs.
+    const WRITING: (&str, &str) = ("is still being written by", "wait for it to finish");
+    let (what, finish, busy) = if let Some(from) = record.get("rescored_from") {
         let run = from
             .get("run")
             .and_then(serde_json::Value::as_str)
@@ -101,6 +103,7 @@ pub fn finished_run_record(dir: &Path) -> Result<serde_json::Value> {
                 setting("dtw"),
                 dir.display()
             ),
+            WRITING,
         )
     } else if setting("agent") == sage_agents::AgentKind::Human.to_string() {
         (
@@ -110,20 +113,21 @@ pub fn finished_run_record(dir: &Path) -> Result<serde_json::Value> {
                 setting("dataset"),
                 dir.display()
             ),
+            ("is open for play in", "play an episode there to finish it"),
         )
     } else {
         (
             "evaluation",
             format!("rerun the same `sage3d {COMMAND}` into it to finish it"),
+            WRITING,
         )
     };
     if let Some(writer) = sage_io::lock::writer_of(dir) {
-        let now = if what == "human run" {
-            format!("is open for play in {writer}: play an episode there to finish it")
-        } else {
-            format!("is still being written by {writer}: wait for it to finish")
-        };
-        return Err(Error::invalid(format!("the {what} in this folder {now}")).in_file(dir));
+        let (stands, then) = busy;
+        return Err(Error::invalid(format!(
+            "the {what} in this folder {stands} {writer}: {then}"
+        ))
+        .in_file(dir));
     }
     Err(Error::invalid(format!(
         "the {what} in this folder was not finished (its {RUN_RECORD} has status '{status}'): {finish}"

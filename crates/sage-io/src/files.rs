@@ -8,7 +8,7 @@ use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 /// What sets a temporary file's name apart: `.{name}.tmp-{process}-{count}`.
-pub(crate) const TEMP_MARK: &str = ".tmp-";
+const TEMP_MARK: &str = ".tmp-";
 
 /// A temporary sibling of `path`, unique to this process and this call, so that threads (and
 /// processes) writing the same file at once never share one ([`is_temporary`] recognises it).
@@ -26,15 +26,16 @@ fn temp_path(path: &Path) -> PathBuf {
 /// (`.{name}.tmp-{process}-{count}`): one that a write interrupted by a crash or a signal
 /// leaves behind, and that nothing reads.
 pub fn is_temporary(name: &str) -> bool {
+    temporary_parts(name).is_some()
+}
+
+/// The name of the file a temporary file `name` of [`write_atomic`] was to become, and the id
+/// of the process that wrote it; `None` for any other name.
+pub(crate) fn temporary_parts(name: &str) -> Option<(&str, &str)> {
     let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
-    name.strip_prefix('.')
-        .and_then(|n| n.rsplit_once(TEMP_MARK))
-        .is_some_and(|(base, tag)| {
-            !base.is_empty()
-                && tag
-                    .split_once('-')
-                    .is_some_and(|(p, k)| digits(p) && digits(k))
-        })
+    let (base, tag) = name.strip_prefix('.')?.rsplit_once(TEMP_MARK)?;
+    let (process, count) = tag.split_once('-')?;
+    (!base.is_empty() && digits(process) && digits(count)).then_some((base, process))
 }
 
 /// Writes `path` through `body` into a temporary sibling, then renames it into place.

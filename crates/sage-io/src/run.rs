@@ -1,6 +1,6 @@
 //! The run record: how an output folder was made (SPEC §13).
 
-use crate::files::{TEMP_MARK, is_temporary, write_json};
+use crate::files::{is_temporary, temporary_parts, write_json};
 use crate::lock::{FolderLock, LOCK_FILE};
 use sage_core::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -193,21 +193,15 @@ fn remove_stale_temporaries(path: &Path) {
     if !processes.join("self").exists() {
         return;
     }
-    let prefix = format!(".{}{TEMP_MARK}", name.to_string_lossy());
+    let name = name.to_string_lossy();
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     for entry in entries.flatten() {
         let file = entry.file_name().to_string_lossy().into_owned();
-        let Some(pid) = file
-            .strip_prefix(&prefix)
-            .and_then(|tag| tag.split_once('-'))
-            .map(|(pid, _)| pid)
-        else {
-            continue;
-        };
-        let ended = !processes.join(pid).exists();
-        if ended && is_temporary(&file) && entry.file_type().is_ok_and(|t| t.is_file()) {
+        let ended = temporary_parts(&file)
+            .is_some_and(|(base, pid)| base == name && !processes.join(pid).exists());
+        if ended && entry.file_type().is_ok_and(|t| t.is_file()) {
             let _ = std::fs::remove_file(entry.path());
         }
     }

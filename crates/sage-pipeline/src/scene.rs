@@ -101,22 +101,12 @@ mod tests {
     use super::*;
     use sage_scene::scene::files;
 
-    /// The files of folder `dir` and its sub-folders (not the lock), relative, sorted.
+    /// The files of folder `dir` and its sub-folders, relative, sorted.
     fn listing(dir: &Path) -> Vec<String> {
-        let mut out = Vec::new();
-        let mut stack = vec![dir.to_path_buf()];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else {
-                    out.push(p.strip_prefix(dir).unwrap().display().to_string());
-                }
-            }
-        }
-        out.sort();
-        out
+        sage_io::files::read_tree(dir)
+            .unwrap()
+            .into_keys()
+            .collect()
     }
 
     #[test]
