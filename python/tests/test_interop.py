@@ -50,21 +50,36 @@ def test_convert_compressed_to_standard_matches_splat_transform(sage3d, tmp_path
             assert np.all(np.abs(a - b) <= tol)
 
 
-def test_convert_preserves_order_standard_to_compressed(sage3d, tmp_path):
+def test_convert_standard_to_compressed_chunks_along_a_z_curve(sage3d, tmp_path):
+    """The tool's random scene is in no spatial order (as a trained PLY is): written compressed,
+    its Gaussians are reordered so that each chunk of 256 is compact, as splat-transform's own
+    writer does, and every Gaussian comes back once, within a step of its chunk's bounds."""
     src = TESTDATA / "random_4k_sh3.ply"
     packed = tmp_path / "x.compressed.ply"
     back = tmp_path / "x.ply"
-    sage3d("splat", "convert", src, packed)
+    out = sage3d("splat", "convert", src, packed)
+    assert "Z-order" in out.stdout + out.stderr
     sage3d("splat", "convert", packed, back)
     a, b = vertex_table(src), vertex_table(back)
-    extent = max(np.ptp(a["x"]), np.ptp(a["y"]), np.ptp(a["z"]))
-    # Chunks of 256 consecutive Gaussians: 10-11 bit quantisation of each chunk's range.
-    for name in ["x", "y", "z"]:
-        assert np.max(np.abs(a[name] - b[name])) <= extent / 1023
+    assert len(a) == len(b)
+    pa = np.stack([a["x"], a["y"], a["z"]], axis=1).astype(np.float64)
+    pb = np.stack([b["x"], b["y"], b["z"]], axis=1).astype(np.float64)
     data = plyfile.PlyData.read(str(packed))
     assert [e.name for e in data.elements] == ["chunk", "vertex", "sh"]
-    assert len(data["chunk"].data) == (len(a) + 255) // 256
+    chunks = data["chunk"].data
+    assert len(chunks) == (len(a) + 255) // 256
     assert len(data["sh"].data.dtype.names) == 45
+    lo = np.stack([chunks["min_x"], chunks["min_y"], chunks["min_z"]], axis=1)
+    hi = np.stack([chunks["max_x"], chunks["max_y"], chunks["max_z"]], axis=1)
+    # Each Gaussian read back is the nearest source Gaussian, one for one, within half an
+    # 11-10-11 bit step of its chunk's bounds (plus float rounding).
+    step = np.repeat((hi - lo) / np.array([2047.0, 1023.0, 2047.0]), 256, axis=0)[: len(b)]
+    nearest = np.array([np.argmin(((pa - p) ** 2).sum(axis=1)) for p in pb])
+    assert len(set(nearest.tolist())) == len(a)
+    assert np.all(np.abs(pb - pa[nearest]) <= step / 2 + 1e-5)
+    # Compact chunks: in the source's order each would span the whole scene.
+    extent = np.ptp(pa, axis=0)
+    assert np.mean(hi - lo, axis=0).sum() < 0.7 * extent.sum()
 
 
 def splat_attributes(path):

@@ -55,6 +55,28 @@ pub fn morton_code(unit: Vec3) -> u64 {
     spread_bits(q.x as u32) | spread_bits(q.y as u32) << 1 | spread_bits(q.z as u32) << 2
 }
 
+/// The order that visits `n` points (`position(i)`, finite) along a Z-order (Morton) curve
+/// over their bounds, 21 bits per axis; ties keep index order, so points already in it give
+/// `0..n`.
+pub fn morton_order(n: usize, position: impl Fn(usize) -> Vec3 + Sync) -> Vec<u32> {
+    let bounds = (0..n)
+        .into_par_iter()
+        .map(|i| sage_core::Aabb::EMPTY.grow(position(i)))
+        .reduce(|| sage_core::Aabb::EMPTY, |a, b| a.union(b));
+    let (lo, size) = if bounds.is_empty() {
+        (Vec3::ZERO, Vec3::ONE)
+    } else {
+        (bounds.min, bounds.size().max(Vec3::splat(1e-6)))
+    };
+    let inv = Vec3::ONE / size;
+    let mut keyed: Vec<(u64, u32)> = (0..n as u32)
+        .into_par_iter()
+        .map(|i| (morton_code((position(i as usize) - lo) * inv), i))
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 /// One Gaussian at full precision: what readers produce and writers consume.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gaussian {
@@ -507,28 +529,11 @@ impl Gaussians {
         Ok(())
     }
 
-    /// The order that visits the Gaussians along a Z-order (Morton) curve over their bounds, 21
-    /// bits per axis; ties keep index order. Renderers chunk Gaussians in this order, and a store
-    /// already in it is read sequentially.
+    /// The order that visits the Gaussians along a Z-order (Morton) curve over their bounds
+    /// ([`morton_order`]). Renderers chunk Gaussians in this order, and a store already in it
+    /// is read sequentially.
     pub fn morton_order(&self) -> Vec<u32> {
-        let bounds = self.bounds();
-        let (lo, size) = if bounds.is_empty() {
-            (Vec3::ZERO, Vec3::ONE)
-        } else {
-            (bounds.min, bounds.size().max(Vec3::splat(1e-6)))
-        };
-        let inv = Vec3::ONE / size;
-        let mut keyed: Vec<(u64, u32)> = (0..self.len() as u32)
-            .into_par_iter()
-            .map(|i| {
-                (
-                    morton_code((Vec3::from_array(self.positions[i as usize]) - lo) * inv),
-                    i,
-                )
-            })
-            .collect();
-        keyed.par_sort_unstable();
-        keyed.into_iter().map(|(_, i)| i).collect()
+        morton_order(self.len(), |i| Vec3::from_array(self.positions[i]))
     }
 
     /// Puts the Gaussians in [`Gaussians::morton_order`] (no copy when already in it) and

@@ -6,7 +6,7 @@ use super::format::open_named;
 use super::{BlockDecoder, Format, SplatTable, decode_blocks, write_file};
 use crate::gaussians::{Gaussian, sh_rest_count};
 use crate::mapped::{refuse_non_file, with_mapped_file};
-use crate::ply::{SplatLayout, standard};
+use crate::ply::{SplatLayout, compressed, standard};
 use sage_core::{Error, Result};
 use std::io::Write;
 use std::path::Path;
@@ -27,7 +27,7 @@ pub struct ConvertReport {
     pub input_format: Format,
     /// The output's format, from its name.
     pub output_format: Format,
-    /// Gaussians converted (in input order).
+    /// Gaussians converted.
     pub gaussians: usize,
     /// SH degree of the input.
     pub sh_degree_in: u8,
@@ -35,6 +35,10 @@ pub struct ConvertReport {
     pub sh_degree_out: u8,
     /// What the output does not hold of the input, one sentence each (empty: nothing lost).
     pub losses: Vec<String>,
+    /// True when the output holds the Gaussians in another order than the input: a compressed
+    /// PLY of an input whose 256-Gaussian chunks were loose is written along a Z-order curve
+    /// ([`ply::compressed::write_order`](crate::ply::compressed::write_order)).
+    pub reordered: bool,
 }
 
 /// Converts `input` (any format sage3d reads) to `output` (standard PLY, compressed PLY or SPZ,
@@ -81,13 +85,25 @@ fn convert_bytes(
         Some(d) => d,
         None => sh_degree_in,
     };
+    let mut reordered = false;
     if output_format == Format::Ply(SplatLayout::Standard) {
         stream_standard(decoder.as_ref(), sh_degree_out, output)?;
     } else {
         // Every value checked before anything is written.
         let mut table = decoder.to_table()?;
         drop_sh_bands(&mut table, sh_degree_out);
+        if output_format == Format::Ply(SplatLayout::Compressed) {
+            reordered = compressed::write_order(&table).is_some();
+        }
         write_file(output, &table, output_format)?;
+    }
+    let mut losses = losses(output_format, sh_degree_in, sh_degree_out);
+    if reordered {
+        losses.push(
+            "the Gaussians' order: the input's spread each 256-Gaussian chunk over the scene, so \
+             they are written along a Z-order curve (Gaussian i of the output is not the input's)"
+                .to_string(),
+        );
     }
     Ok(ConvertReport {
         input_format,
@@ -95,7 +111,8 @@ fn convert_bytes(
         gaussians: decoder.len(),
         sh_degree_in,
         sh_degree_out,
-        losses: losses(output_format, sh_degree_in, sh_degree_out),
+        losses,
+        reordered,
     })
 }
 

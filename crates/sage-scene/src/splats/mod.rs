@@ -176,6 +176,11 @@ pub trait SplatSource: Sync {
 
     /// Gaussian `i`.
     fn get(&self, i: usize) -> Gaussian;
+
+    /// The centre of Gaussian `i` (what a writer orders by, without decoding the rest).
+    fn position(&self, i: usize) -> glam::Vec3 {
+        self.get(i).position
+    }
 }
 
 impl SplatSource for SplatTable {
@@ -203,6 +208,10 @@ impl SplatSource for Gaussians {
 
     fn get(&self, i: usize) -> Gaussian {
         Gaussians::get(self, i)
+    }
+
+    fn position(&self, i: usize) -> glam::Vec3 {
+        glam::Vec3::from_array(self.positions[i])
     }
 }
 
