@@ -211,7 +211,7 @@ fn a_damaged_dataset_is_refused_before_any_work() {
     let out = eval_output("1", &data, &scenes, &run, &["--agent", "forward"]);
     assert!(!out.status.success());
     assert!(
-        stderr(&out).contains("line 1.scene: scene name '../home1'"),
+        stderr(&out).contains("line 1, scene: scene name '../home1'"),
         "{}",
         stderr(&out)
     );

@@ -98,9 +98,21 @@ impl Error {
         self.file.as_deref()
     }
 
-    /// The location inside the file, outermost first, joined with `.`.
+    /// The location inside the file, outermost first, joined with `.`, except after a place
+    /// that ends with a line of a line-per-record file (`line 3`, `shard 0, line 3`), which a
+    /// comma ends: `line 3, record.steps[0]` (a field path is not a member of the line).
     pub fn location(&self) -> String {
-        self.location.join(".")
+        let mut out = String::new();
+        for (k, part) in self.location.iter().enumerate() {
+            if k > 0 {
+                let line = self.location[k - 1]
+                    .rsplit_once("line ")
+                    .is_some_and(|(_, n)| n.parse::<u64>().is_ok());
+                out.push_str(if line { ", " } else { "." });
+            }
+            out.push_str(part);
+        }
+        out
     }
 
     /// The message alone, without file or location.
@@ -150,6 +162,18 @@ impl<T> ResultExt<T> for Result<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_line_and_its_field_path_are_told_apart() {
+        let e = Error::format("position", "not finite")
+            .within("start")
+            .within("line 3")
+            .in_file("episodes.jsonl");
+        assert_eq!(
+            e.to_string(),
+            "episodes.jsonl: line 3, start.position: not finite"
+        );
+    }
 
     #[test]
     fn display_names_file_location_and_message() {

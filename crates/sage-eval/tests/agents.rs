@@ -236,13 +236,13 @@ fn bad_replay_files_name_file_and_line() {
     for (lines, says) in [
         (
             "{\"episode_id\": \"a\", \"actions\": [\"stop\"]}\n{\"episode_id\": \"b\", \"actions\": [\"fly_away\"]}\n",
-            "line 2.actions[0]",
+            "line 2, actions[0]",
         ),
         (
             "{\"episode_id\": \"a\", \"poses\": [[1, 2]]}\n",
-            "line 1.poses[0]",
+            "line 1, poses[0]",
         ),
-        ("{\"actions\": []}\n", "line 1.episode_id"),
+        ("{\"actions\": []}\n", "line 1, episode_id"),
         ("not json\n", "line 1"),
         (
             "{\"episode_id\": \"a\", \"actions\": [1]}\n{\"episode_id\": \"a\", \"actions\": [2]}\n",

@@ -361,7 +361,7 @@ fn huge_and_infinite_numbers_are_errors_naming_the_field() {
     .unwrap();
     let e = jsonl::read(&p).unwrap_err();
     assert_names(&e, &p);
-    assert!(e.to_string().contains("line 1.start.position"), "{e}");
+    assert!(e.to_string().contains("line 1, start.position"), "{e}");
 
     let g = dir.path().join("g.json");
     gvln::write(&g, &fixture_episodes(), GvlnFrame::World, &space).unwrap();
@@ -408,7 +408,7 @@ fn huge_and_infinite_numbers_are_errors_naming_the_field() {
     let e = ReplayFile::read(&r).unwrap_err();
     assert_names(&e, &r);
     assert!(
-        e.to_string().contains("line 1.actions[0]") && e.to_string().contains("finite"),
+        e.to_string().contains("line 1, actions[0]") && e.to_string().contains("finite"),
         "{e}"
     );
 
@@ -422,7 +422,7 @@ fn huge_and_infinite_numbers_are_errors_naming_the_field() {
     let e = ReplayFile::read(&r).unwrap_err();
     assert_names(&e, &r);
     assert!(
-        e.to_string().contains("line 2.poses[1]") && e.to_string().contains("10000"),
+        e.to_string().contains("line 2, poses[1]") && e.to_string().contains("10000"),
         "{e}"
     );
 }

@@ -652,7 +652,7 @@ fn positions_out_of_bounds_in_records_are_refused_naming_line_and_field() {
         std::fs::write(&records, &text).unwrap();
         let named = |what: &str, e: String| {
             assert!(
-                e.contains(&format!("{}: line 1.{field}: ", records.display()))
+                e.contains(&format!("{}: line 1, {field}: ", records.display()))
                     && e.contains("finite"),
                 "{what}, {pointer}: {e}"
             );
@@ -683,7 +683,7 @@ fn positions_out_of_bounds_in_records_are_refused_naming_line_and_field() {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains(&format!("shard 0, line 1.{field}: ")), "{e}");
+        assert!(e.contains(&format!("shard 0, line 1, {field}: ")), "{e}");
     }
 }
 
