@@ -449,12 +449,12 @@ fn encode_chunk(items: &[Gaussian], k: usize) -> EncodedChunk {
 /// within a few per cent of a fresh Morton order, a trained PLY's order hundreds of times wider.
 const KEEP_ORDER_SPREAD: f64 = 1.25;
 
-/// The order [`write`] puts the Gaussians of `g` in, as indices into `g` (`None`: the source's
+/// The order [`write()`] puts the Gaussians of `g` in, as indices into `g` (`None`: the source's
 /// own). Each chunk's positions, scales and colours are quantised between that chunk's own
 /// bounds, so a chunk of Gaussians from all over the scene (a trained PLY's order) would cost
 /// most of their precision: such a source is written along a Z-order curve
 /// ([`morton_order`]), as splat-transform and SuperSplat write this layout. A source whose
-/// chunks are already compact (within [`KEEP_ORDER_SPREAD`] of that order's, as a decoded
+/// chunks are already compact (within `KEEP_ORDER_SPREAD` of that order's, as a decoded
 /// compressed file is) keeps its order, so re-encoding moves no Gaussian.
 pub fn write_order(g: &impl SplatSource) -> Option<Vec<u32>> {
     let morton = morton_order(g.len(), |i| g.position(i));
