@@ -445,8 +445,8 @@ fn encode_chunk(items: &[Gaussian], k: usize) -> EncodedChunk {
 }
 
 /// The source order's chunks may be this much wider (summed over chunks and axes) than a
-/// Morton order's for [`write_order`] to keep it: a file from a compressed writer, decoded, is
-/// within a few per cent of a fresh Morton order, a trained PLY's order hundreds of times wider.
+/// Morton order's for [`write_order`] to keep it: splat-transform's compressed files, decoded,
+/// are within 0.1 % of a fresh Morton order; a shuffled 1M-Gaussian home is 13.5 times wider.
 const KEEP_ORDER_SPREAD: f64 = 1.25;
 
 /// The order [`write()`] puts the Gaussians of `g` in, as indices into `g` (`None`: the source's
