@@ -277,9 +277,13 @@ impl Scene {
                 note(&p.file_name().unwrap_or_default().to_string_lossy(), true);
                 let (mut g, format) = splats::read_gaussians_file(p)?;
                 report.splat_format = Some(format);
-                // Compressed PLY files are spatially chunked by construction; other files may
-                // be in any order (training output is), which would make render chunks loose.
-                if format != Format::Ply(SplatLayout::Compressed) {
+                // Other files may be in any order (training output is), which would make render
+                // chunks loose. Compressed PLY files are chunked spatially by their writers, but
+                // a writer that kept a trained PLY's order leaves them loose: those are sorted
+                // too, by the compressed writer's own test.
+                if format != Format::Ply(SplatLayout::Compressed)
+                    || ply::compressed::chunks_are_loose(&g)
+                {
                     report.morton_reordered = g.sort_morton();
                 }
                 g

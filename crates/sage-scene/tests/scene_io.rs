@@ -342,6 +342,47 @@ fn a_shuffled_standard_ply_is_loaded_in_morton_order() {
     assert!(!Scene::load(dir.path()).unwrap().1.morton_reordered);
 }
 
+#[test]
+fn a_compressed_ply_with_loose_chunks_is_loaded_in_morton_order() {
+    let scene = generate(&small()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+    let (compact, report) = Scene::load(dir.path()).unwrap();
+    assert!(!report.morton_reordered, "sage3d's own file is compact");
+    // Every chunk's position bounds widened to the whole scene's: each chunk's Gaussians now
+    // decode to places all over it, as a writer that kept a trained PLY's order leaves them.
+    let path = dir.path().join("3dgs_compressed.ply");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let body = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let chunks = compact.gaussians.len().div_ceil(256);
+    let float = |b: &[u8], at: usize| f32::from_le_bytes(b[at..at + 4].try_into().unwrap());
+    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for c in 0..chunks {
+        for k in 0..3 {
+            lo[k] = lo[k].min(float(&bytes, body + 72 * c + 4 * k));
+            hi[k] = hi[k].max(float(&bytes, body + 72 * c + 12 + 4 * k));
+        }
+    }
+    for c in 0..chunks {
+        for (k, v) in lo.iter().chain(&hi).enumerate() {
+            let at = body + 72 * c + 4 * k;
+            bytes[at..at + 4].copy_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(&path, &bytes).unwrap();
+    let (loose, report) = Scene::load(dir.path()).unwrap();
+    assert!(report.morton_reordered);
+    assert_eq!(loose.gaussians.len(), compact.gaussians.len());
+    assert_eq!(
+        loose.gaussians.morton_order(),
+        (0..loose.gaussians.len() as u32).collect::<Vec<_>>()
+    );
+}
+
 /// A USDA collision file with one tetrahedron per object (named `ins_{id}`, at its box centre)
 /// and one wall far from every box.
 fn collision_usda(scene: &Scene) -> String {
