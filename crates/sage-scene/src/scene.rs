@@ -281,10 +281,11 @@ impl Scene {
                 // chunks loose. Compressed PLY files are chunked spatially by their writers, but
                 // a writer that kept a trained PLY's order leaves them loose: those are sorted
                 // too, by the compressed writer's own test.
-                if format != Format::Ply(SplatLayout::Compressed)
-                    || ply::compressed::chunks_are_loose(&g)
-                {
+                if format != Format::Ply(SplatLayout::Compressed) {
                     report.morton_reordered = g.sort_morton();
+                } else if let Some(order) = ply::compressed::loose_order(&g) {
+                    g = g.permuted(&order);
+                    report.morton_reordered = true;
                 }
                 g
             }

@@ -461,20 +461,24 @@ pub fn write_order(g: &impl SplatSource) -> Option<Vec<u32>> {
 }
 
 /// A source whose chunks, in its order, span on average at most this share of the scene's
-/// extent (summed over the axes) is taken as compact by [`chunks_are_loose`] without a Morton
+/// extent (summed over the axes) is taken as compact by [`loose_order`] without a Morton
 /// order to compare with: a Morton order's chunks span 0.07 of a 1M-Gaussian home's, a
 /// shuffled order's all of it.
 const SURELY_COMPACT: f64 = 0.25;
 
-/// True when the 256-Gaussian chunks of `g`, in its order, are loose: [`write_order`] would
-/// reorder it. Chunks that span under a quarter of the scene on average are compact at the
-/// cost of one pass over the positions; others are compared with a Morton order.
-pub fn chunks_are_loose(g: &impl SplatSource) -> bool {
+/// [`write_order`]'s Morton order when the 256-Gaussian chunks of `g`, in its order, are
+/// loose; `None` when they are compact. Chunks that span under a quarter of the scene on
+/// average are compact at the cost of one pass over the positions; others are compared with a
+/// Morton order.
+pub fn loose_order(g: &impl SplatSource) -> Option<Vec<u32>> {
     let source = chunk_spread(g, &|j| j);
     let whole = sage_core::Aabb::from_points((0..g.len()).map(|i| g.position(i))).size();
     let whole = f64::from(whole.x) + f64::from(whole.y) + f64::from(whole.z);
     let chunks = g.len().div_ceil(CHUNK) as f64;
-    source > SURELY_COMPACT * chunks * whole && morton_if_loose(g, source).is_some()
+    if source <= SURELY_COMPACT * chunks * whole {
+        return None;
+    }
+    morton_if_loose(g, source)
 }
 
 /// A Morton order of `g` when the source's chunks, of `source` spread ([`chunk_spread`]), are
@@ -508,10 +512,30 @@ fn chunk_spread(g: &impl SplatSource, at: &(dyn Fn(usize) -> usize + Sync)) -> f
 /// source: a NaN would otherwise be written as its chunk's minimum, an infinity stretch the
 /// chunk's bounds), or the write error.
 pub fn write(w: &mut impl Write, g: &impl SplatSource) -> std::io::Result<()> {
+    // Every value checked before the positions are ordered.
+    check_all(g)?;
+    encode_in_order(w, g, write_order(g).as_deref())
+}
+
+/// [`write()`] with the Gaussians in `order` (indices into `g`; `None`: its own), for a caller
+/// that has taken [`write_order`] already.
+///
+/// # Errors
+///
+/// As [`write()`].
+pub fn write_in_order(
+    w: &mut impl Write,
+    g: &impl SplatSource,
+    order: Option<&[u32]>,
+) -> std::io::Result<()> {
+    check_all(g)?;
+    encode_in_order(w, g, order)
+}
+
+/// [`check_finite`] over every Gaussian of `g`, in blocks; the first failing block, whatever
+/// the threads' order.
+fn check_all(g: &impl SplatSource) -> std::io::Result<()> {
     let n = g.len();
-    let invalid = |e: Error| std::io::Error::new(std::io::ErrorKind::InvalidData, e.to_string());
-    // Every value checked before the positions are ordered; the first failing block, whatever
-    // the threads' order.
     (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
@@ -523,9 +547,17 @@ pub fn write(w: &mut impl Write, g: &impl SplatSource) -> std::io::Result<()> {
         .collect::<Vec<_>>()
         .into_iter()
         .collect::<Result<()>>()
-        .map_err(invalid)?;
-    let order = write_order(g);
-    let at = |j: usize| order.as_ref().map_or(j, |o| o[j] as usize);
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e.to_string()))
+}
+
+/// Encodes and writes the checked Gaussians of `g` in `order` (`None`: its own).
+fn encode_in_order(
+    w: &mut impl Write,
+    g: &impl SplatSource,
+    order: Option<&[u32]>,
+) -> std::io::Result<()> {
+    let n = g.len();
+    let at = |j: usize| order.map_or(j, |o| o[j] as usize);
     let k = sh_rest_count(g.sh_degree());
     let chunks: Vec<EncodedChunk> = (0..n.div_ceil(CHUNK))
         .into_par_iter()

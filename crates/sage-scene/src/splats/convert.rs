@@ -93,9 +93,15 @@ fn convert_bytes(
         let mut table = decoder.to_table()?;
         drop_sh_bands(&mut table, sh_degree_out);
         if output_format == Format::Ply(SplatLayout::Compressed) {
-            reordered = compressed::write_order(&table).is_some();
+            // The order taken once, to write and to report.
+            let order = compressed::write_order(&table);
+            reordered = order.is_some();
+            sage_io::files::write_atomic(output, |w| {
+                compressed::write_in_order(w, &table, order.as_deref())
+            })?;
+        } else {
+            write_file(output, &table, output_format)?;
         }
-        write_file(output, &table, output_format)?;
     }
     let mut losses = losses(output_format, sh_degree_in, sh_degree_out);
     if reordered {
