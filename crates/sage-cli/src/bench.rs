@@ -181,9 +181,10 @@ pub struct RenderBenchArgs {
     /// these are read back; an RGB-D agent's sensors are rgb,depth_median).
     #[arg(long, default_value = "all")]
     channels: String,
-    /// Render every GPU batch in this many depth slabs, 1 to 4 (default: as many as the last
-    /// batch's work calls for). The images do not change; the work skipped behind finished
-    /// tiles and the dispatches of each slab do.
+    /// Render every GPU batch and each of its cameras in this many depth slabs, 1 to 4
+    /// (default: as many as the last batch's work calls for, and one for a camera that sees
+    /// fewer than 768 chunks of 256 Gaussians). The images do not change; the work skipped
+    /// behind finished tiles and the dispatches of each slab do.
     #[arg(long)]
     slabs: Option<u32>,
     /// The GPU renderer's blending kernel: blocks (shaped for CPU drivers such as lavapipe: 32

@@ -11,7 +11,7 @@ use glam::Vec3;
 use sage_scene::ply::read_splats_file;
 use sage_scene::{Gaussian, Gaussians};
 use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
-use sage_splat::passes::GPU_SLABS;
+use sage_splat::passes::{GPU_FEW_CHUNKS, GPU_SLABS};
 use sage_splat::{
     Backend, Blending, Camera, Channels, Device, KernelShape, RenderOptions, RenderOutput, Renderer,
 };
@@ -87,8 +87,10 @@ fn agree(cpu: &RenderOutput, gpu: &RenderOutput, what: &str) -> f64 {
     p
 }
 
-/// Renders every camera on both executors and checks they agree; returns the GPU renderer's
-/// work for the last camera.
+/// Renders every camera on both executors and checks they agree: on the GPU in all
+/// [`GPU_SLABS`] and in the slabs the renderer chooses (one for the few chunks of most test
+/// scenes), so the path through several slabs meets the CPU renderer on every scene. Returns
+/// the GPU renderer's work for the last camera in [`GPU_SLABS`] slabs.
 fn compare(g: &Gaussians, categories: &[u16], cameras: &[Camera], what: &str) -> Option<GpuStats> {
     let gpu = gpu()?;
     let options = RenderOptions {
@@ -97,13 +99,20 @@ fn compare(g: &Gaussians, categories: &[u16], cameras: &[Camera], what: &str) ->
     };
     let renderer = GpuRenderer::new(&gpu, g).unwrap();
     let mut cpu = Renderer::new(g);
+    let mut in_all = None;
     for (k, cam) in cameras.iter().enumerate() {
         let a = cpu.render(g, categories, cam, &options).unwrap();
-        let b = renderer.render(g, categories, cam, &options).unwrap();
-        let p = agree(&a, &b, &format!("{what}, camera {k}"));
-        eprintln!("{what}, camera {k}: PSNR {p:.1} dB");
+        for slabs in [Some(GPU_SLABS), None] {
+            renderer.set_slabs(slabs).unwrap();
+            let b = renderer.render(g, categories, cam, &options).unwrap();
+            let p = agree(&a, &b, &format!("{what}, camera {k}, slabs {slabs:?}"));
+            eprintln!("{what}, camera {k}, slabs {slabs:?}: PSNR {p:.1} dB");
+            if slabs.is_some() {
+                in_all = Some(renderer.stats());
+            }
+        }
     }
-    Some(renderer.stats())
+    in_all
 }
 
 #[test]
@@ -337,6 +346,62 @@ fn the_images_are_the_same_in_any_number_of_depth_slabs_with_either_blending_ker
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
     assert!(chosen == *first, "slabs chosen from the work differ");
+}
+
+#[test]
+fn a_camera_that_sees_few_chunks_takes_one_slab_of_a_batch_rendered_in_several() {
+    let Some(gpu) = gpu() else { return };
+    // A cloud of 240,000 Gaussians (over GPU_FEW_CHUNKS chunks) ahead of the eye and a faint
+    // one of 20,000 behind it (no tile of it is ever finished, so more slabs only add work),
+    // in Morton order so that chunks are compact.
+    let ahead = random_gaussians(21, 240_000, 0, 2.0);
+    let behind = random_gaussians(22, 20_000, 0, 1.0);
+    let mut items: Vec<Gaussian> = (0..ahead.len()).map(|i| ahead.get(i)).collect();
+    items.extend((0..behind.len()).map(|i| Gaussian {
+        position: behind.get(i).position * Vec3::new(-1.0, 1.0, 1.0),
+        opacity_logit: -3.0,
+        ..behind.get(i)
+    }));
+    let g = Gaussians::from_gaussians(&items, 0).unwrap();
+    let g = g.permuted(&g.morton_order());
+    let eye = Vec3::new(-0.5, 0.0, 1.2);
+    let cameras = [
+        camera(48, 40, eye, 0.0, 0.0),
+        camera(40, 32, eye, std::f32::consts::PI, 0.0),
+    ];
+    let options = RenderOptions::default();
+    let renderer = GpuRenderer::new(&gpu, &g).unwrap();
+    let alone = |k: usize, slabs: u32| {
+        renderer.set_slabs(Some(slabs)).unwrap();
+        let out = renderer.render(&g, &[], &cameras[k], &options).unwrap();
+        (out, renderer.stats().chunks)
+    };
+    let (many, many_in_one) = alone(0, 1);
+    let (few, few_in_one) = alone(1, 1);
+    let (_, many_in_all) = alone(0, GPU_SLABS);
+    let (_, few_in_all) = alone(1, GPU_SLABS);
+    // The premises: the first camera sees many chunks, and the second's few span slabs.
+    let few_chunks = u64::from(GPU_FEW_CHUNKS);
+    assert!(
+        many_in_one >= few_chunks && few_in_one < few_chunks,
+        "{many_in_one}, {few_in_one}"
+    );
+    assert!(few_in_all > few_in_one, "{few_in_all} against {few_in_one}");
+    // A fresh renderer's first batch is in all the slabs; the camera that sees few chunks
+    // takes the first alone, the other all of them, and the images do not change.
+    let fresh = GpuRenderer::new(&gpu, &g).unwrap();
+    let batch = fresh.render_batch(&g, &[], &cameras, &options).unwrap();
+    let stats = fresh.stats();
+    assert_eq!(stats.slabs, GPU_SLABS);
+    assert_eq!(stats.chunks, many_in_all + few_in_one, "{stats:?}");
+    assert!(
+        batch[0] == many && batch[1] == few,
+        "the batch differs from its cameras alone"
+    );
+    // The camera that sees few, alone, then makes the renderer choose one slab.
+    fresh.render(&g, &[], &cameras[1], &options).unwrap();
+    fresh.render(&g, &[], &cameras[1], &options).unwrap();
+    assert_eq!(fresh.stats().slabs, 1);
 }
 
 #[test]

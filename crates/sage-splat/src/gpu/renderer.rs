@@ -8,12 +8,12 @@ use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, appearance_texels, init_buffer};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, ENTRY_TEXELS, Kernels,
-    LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES, PLANES, SLABS,
-    SPLAT_INDEX_BITS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
+    LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_FEW_CHUNKS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES,
+    PLANES, SLABS, SPLAT_INDEX_BITS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
 };
 use crate::camera::Camera;
 use crate::index::frustum_planes;
-use crate::passes::{Blending, KernelShape, PassTimes};
+use crate::passes::{Blending, GPU_FEW_CHUNKS, KernelShape, PassTimes};
 use crate::project::{LOW_PASS, MAX_ALPHA, MIN_ALPHA};
 use crate::render::{Channels, RenderOptions, RenderOutput, to_byte};
 use crate::sh;
@@ -41,6 +41,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const LIVE_TILES: u32 = {LIVE_TILES}u;\n\
          const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst LIVE_SLABS: u32 = {LIVE_SLABS}u;\n\
          const LIVE_OUT_PLANES: u32 = {LIVE_OUT_PLANES}u;\n\
+         const LIVE_FEW_CHUNKS: u32 = {LIVE_FEW_CHUNKS}u;\n\
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SPLAT_INDEX_BITS: u32 = {SPLAT_INDEX_BITS}u;\n\
          const ENTRY_TEXELS: u32 = {ENTRY_TEXELS}u;\n\
@@ -108,15 +109,12 @@ fn out_planes(channels: &Channels) -> (u32, u64) {
         })
 }
 
-/// Chunks per camera, summed over the slabs, below which a batch saves too little behind
-/// finished tiles to pay for more than one slab's dispatches (256 chunks: 64k Gaussians).
-const FEW_CHUNKS: u64 = 256;
-
-/// The slabs of the next batch after one that did the work of `stats`: one where each camera
-/// saw little, else [`SLABS`]. A renderer's frames follow each other (a walk, a turn), so the
-/// last batch's work predicts the next; the images are the same whatever the slabs.
+/// The slabs of the next batch after one that did the work of `stats`: one where its cameras
+/// saw fewer than [`GPU_FEW_CHUNKS`] on average (summed over the slabs), else [`SLABS`]. A
+/// renderer's frames follow each other (a walk, a turn), so the last batch's work predicts the
+/// next; the images are the same whatever the slabs.
 fn slabs_after(stats: &GpuStats) -> u32 {
-    if stats.chunks < FEW_CHUNKS * stats.cameras as u64 {
+    if stats.chunks < u64::from(GPU_FEW_CHUNKS) * stats.cameras as u64 {
         1
     } else {
         SLABS
@@ -434,8 +432,10 @@ impl GpuRenderer {
     }
 
     /// Renders every batch from now on in `slabs` depth slabs (1 to
-    /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), or, with `None` (the default), in as many as
-    /// the last batch's work calls for. The images are the same whatever the slabs: what
+    /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), every camera of it in all of them, or, with
+    /// `None` (the default), in as many as the last batch's work calls for, a camera that sees
+    /// fewer than [`GPU_FEW_CHUNKS`] chunks in the first alone. The images are the same
+    /// whatever the slabs: what
     /// changes is the work skipped behind finished tiles against the dispatches each slab
     /// costs, which weigh differently on each device (`sage3d bench render --slabs` measures
     /// them).
@@ -858,6 +858,11 @@ impl GpuRenderer {
         fixed[LIVE_CAMERAS as usize] = cameras.len() as u32;
         fixed[LIVE_SLABS as usize] = state.slabs;
         fixed[LIVE_OUT_PLANES as usize] = out_bits;
+        fixed[LIVE_FEW_CHUNKS as usize] = if state.fixed_slabs.is_some() {
+            0
+        } else {
+            GPU_FEW_CHUNKS
+        };
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu

@@ -392,7 +392,8 @@ fn cull(
 
 // Per camera, the cuts of the batch's live[LIVE_SLABS] slabs at quantiles of its chunks'
 // middle depths (rounded up to a bin's end, so a slab holds at least its share): −F32_MAX, the
-// cuts, then F32_MAX up to SLABS. A camera that sees nothing has everything in its first slab.
+// cuts, then F32_MAX up to SLABS. A camera that sees fewer than live[LIVE_FEW_CHUNKS] chunks
+// (nothing, say) has everything in its first slab.
 @compute @workgroup_size(256)
 fn cut_slabs(
     @builtin(local_invocation_index) lid: u32,
@@ -414,7 +415,11 @@ fn cut_slabs(
     // Bins before `b` hold `below` chunks.
     var b = 0u;
     var below = 0u;
-    let slabs = clamp(live[LIVE_SLABS], 1u, SLABS);
+    // In more slabs its chunks would each be marked in several (`GPU_FEW_CHUNKS` in `passes.rs`).
+    var slabs = clamp(live[LIVE_SLABS], 1u, SLABS);
+    if total < live[LIVE_FEW_CHUNKS] {
+        slabs = 1u;
+    }
     for (var k = 1u; k < SLABS; k++) {
         let rank = k * total / slabs;
         loop {

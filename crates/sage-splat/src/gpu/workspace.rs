@@ -54,13 +54,15 @@ const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
 /// splat and chunk, then its mask in two.
 pub(crate) const ENTRY_TEXELS: u32 = 3;
 /// Live slots the host writes before each batch: cameras × chunks, the batch's tiles, its
-/// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits).
+/// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits), and the visible
+/// chunks below which a camera takes one slab of the batch's (zero when the slabs are fixed).
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
 pub(crate) const LIVE_TILES: u32 = 1;
 pub(crate) const LIVE_CAMERAS: u32 = 2;
 pub(crate) const LIVE_SLABS: u32 = 3;
 pub(crate) const LIVE_OUT_PLANES: u32 = 4;
-const LIVE_FIXED: u32 = 5;
+pub(crate) const LIVE_FEW_CHUNKS: u32 = 5;
+const LIVE_FIXED: u32 = 6;
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
 pub(crate) use crate::camera::DEPTH_KEY_BITS;
