@@ -234,12 +234,17 @@ impl fmt::Display for RenderReport {
         for t in &self.sizes {
             write!(
                 f,
-                "{}x{:<10} median {:.1} ms/frame (worst {:.1}), {:.0} frames/s",
-                t.width,
-                t.height,
-                t.median_ms,
+                "{}x{:<10} median {:.1} ms/frame (",
+                t.width, t.height, t.median_ms
+            )?;
+            if let Some(mean) = t.mean_ms {
+                write!(f, "mean {mean:.1}, ")?;
+            }
+            write!(
+                f,
+                "worst {:.1}), {:.0} frames/s",
                 t.worst_ms,
-                1e3 / t.median_ms,
+                1e3 / t.median_ms
             )?;
             match &t.breakdown {
                 Some(b) => writeln!(

@@ -66,6 +66,8 @@ fn load_and_render_hand_generated_inputs_to_the_fresh_step() {
         text.contains("\n16x12         median ") && text.contains("\n24x16         median "),
         "{text}"
     );
+    // The mean beside the median: what a user rendering every heading pays per frame.
+    assert!(text.contains(" ms/frame (mean "), "{text}");
     // The CPU renders: its stage breakdown and index are reported, no batches (the CPU renders
     // a batch one camera after the other), and the JSON keeps the fields it always had.
     assert!(report.renderer.starts_with("cpu"), "{}", report.renderer);
