@@ -435,10 +435,9 @@ impl GpuRenderer {
     /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), every camera of it in all of them, or, with
     /// `None` (the default), in as many as the last batch's work calls for, a camera that sees
     /// fewer than [`GPU_FEW_CHUNKS`] chunks in the first alone. The images are the same
-    /// whatever the slabs: what
-    /// changes is the work skipped behind finished tiles against the dispatches each slab
-    /// costs, which weigh differently on each device (`sage3d bench render --slabs` measures
-    /// them).
+    /// whatever the slabs: what changes is the work skipped behind finished tiles against the
+    /// dispatches each slab costs, which weigh differently on each device (`sage3d bench render
+    /// --slabs` measures them).
     ///
     /// # Errors
     ///
