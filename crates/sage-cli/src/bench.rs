@@ -182,8 +182,8 @@ pub struct RenderBenchArgs {
     #[arg(long, default_value = "all")]
     channels: String,
     /// Render every GPU batch and each of its cameras in this many depth slabs, 1 to 4
-    /// (default: as many as the last batch's work calls for, and one for a camera that sees
-    /// fewer than 768 chunks of 256 Gaussians). The images do not change; the work skipped
+    /// (default: one for a batch every camera of which sees fewer than 768 chunks of 256
+    /// Gaussians, else four, with such a camera in the first alone). The images do not change; the work skipped
     /// behind finished tiles and the dispatches of each slab do.
     #[arg(long)]
     slabs: Option<u32>,

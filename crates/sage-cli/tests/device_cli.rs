@@ -308,6 +308,12 @@ fn bench_render_on_the_gpu_reports_frame_times_and_batches() {
             b["streamed_frames_per_s"].as_f64().unwrap() > 0.0,
             "{report}"
         );
+        // Single frames of the batch's size (no single size here) timed in its rounds.
+        let (single, mean) = (b["single_ms"].as_f64(), b["single_mean_ms"].as_f64());
+        assert!(
+            single.is_some_and(|t| t > 0.0) && mean.is_some_and(|t| t > 0.0),
+            "{report}"
+        );
         // Where the device writes timestamps: its stages, its copy of the images and the
         // host's unpacking of them.
         if let Some(p) = b.get("gpu_passes") {

@@ -41,7 +41,7 @@ pub struct RenderSettings {
     pub batch_size: (u32, u32),
     /// The images each frame renders out (on the GPU, the ones read back).
     pub channels: Channels,
-    /// Depth slabs of every GPU batch, fixed (`None`: chosen from the last batch's work).
+    /// Depth slabs of every GPU batch, fixed (`None`: chosen from what its cameras see).
     pub slabs: Option<u32>,
     /// The GPU renderer's blending kernel.
     pub blending: Blending,
@@ -185,6 +185,16 @@ pub struct BatchRate {
     pub batch_ms: f64,
     /// Frames per second: cameras over the batch's time.
     pub frames_per_s: f64,
+    /// The median single frame of the same headings at the batch's size, one camera per
+    /// call, timed in rounds with the batches (a pass of single frames, then a share of the
+    /// batches, three times), so that the batch's ratio to it comes from the same minutes of a
+    /// machine whose speed drifts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub single_ms: Option<f64>,
+    /// The mean of those single frames: times the batch's cameras, what they cost rendered one
+    /// at a time.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub single_mean_ms: Option<f64>,
     /// Frames per second of batches rendered back to back, each submitted before the images
     /// of the one before are waited for ([`Backend::submit_batch`]): the read-back and
     /// unpacking of one overlap the rendering of the next, as in a training-data render.
@@ -273,20 +283,13 @@ impl fmt::Display for RenderReport {
                 "batch {:<4} {:>4}x{:<4} {:.1} ms per batch, {:.0} frames/s",
                 b.cameras, b.width, b.height, b.batch_ms, b.frames_per_s
             )?;
-            let single = self
-                .sizes
-                .iter()
-                .find(|t| (t.width, t.height) == (b.width, b.height));
-            if let Some(single) = single {
-                write!(f, " ({:.1}× a single frame", b.batch_ms / single.median_ms)?;
-                if let Some(mean) = single.mean_ms {
-                    write!(
-                        f,
-                        ", {:.2}× its cameras one at a time",
-                        b.batch_ms / (mean * b.cameras as f64)
-                    )?;
-                }
-                write!(f, ")")?;
+            if let (Some(single), Some(mean)) = (b.single_ms, b.single_mean_ms) {
+                write!(
+                    f,
+                    " ({:.1}× a single frame of {single:.1} ms in the same rounds, {:.2}× its cameras one at a time)",
+                    b.batch_ms / single,
+                    b.batch_ms / (mean * b.cameras as f64)
+                )?;
             }
             write!(
                 f,
@@ -478,7 +481,8 @@ fn streamed(
 
 /// Renders `frames` headings at every size, each pass over them after [`WARM_UP`] of rendering
 /// them (on the GPU in [`ROUNDS`] with the CPU renderer); on the GPU then the batches, each
-/// size after a warm-up, timed one at a time and then streamed. Every heading and every batch
+/// size after a warm-up, timed one at a time (in [`ROUNDS`] with single frames of the same
+/// headings, the batch's ratio to them from the same minutes) and then streamed. Every heading and every batch
 /// is rendered once before the first is timed ([`warm_up`]).
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
@@ -589,14 +593,26 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 .collect();
             let parts: Vec<&[Camera]> = cams.chunks(count).collect();
             warm_up(&mut backend, scene, &parts, &options, parts.len())?;
-            // Every part once, and at least three timed batches for a median.
-            let mut times = Vec::with_capacity(parts.len().max(3));
-            let mut passes = Vec::with_capacity(times.capacity());
-            for part in parts.iter().cycle().take(parts.len().max(3)) {
-                let start = Instant::now();
-                backend.render_batch(gaussians, categories, part, &options)?;
-                times.push(start.elapsed().as_secs_f64() * 1e3);
-                passes.extend(backend.pass_times());
+            // Every part once, and at least three timed batches for a median, shared out over
+            // the rounds, each after a pass of the single frames it is compared with.
+            let timed_batches = parts.len().max(ROUNDS);
+            let mut times = Vec::with_capacity(timed_batches);
+            let mut passes = Vec::with_capacity(timed_batches);
+            let mut single_times = Vec::with_capacity(ROUNDS * headings.len());
+            let mut order = parts.iter().cycle();
+            for round in 0..ROUNDS {
+                for cam in &headings {
+                    let start = Instant::now();
+                    backend.render(gaussians, categories, cam, &options)?;
+                    single_times.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+                let share = timed_batches * (round + 1) / ROUNDS - timed_batches * round / ROUNDS;
+                for part in order.by_ref().take(share) {
+                    let start = Instant::now();
+                    backend.render_batch(gaussians, categories, part, &options)?;
+                    times.push(start.elapsed().as_secs_f64() * 1e3);
+                    passes.extend(backend.pass_times());
+                }
             }
             // Twice the timed batches again, streamed.
             let stream: Vec<&[Camera]> = parts
@@ -613,6 +629,8 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 height: h,
                 batch_ms,
                 frames_per_s: count as f64 * 1e3 / batch_ms,
+                single_ms: Some(crate::median(&single_times)),
+                single_mean_ms: Some(single_times.iter().sum::<f64>() / single_times.len() as f64),
                 streamed_frames_per_s,
                 gpu_passes: timed.then(|| median_passes(&passes)),
             });

@@ -63,6 +63,18 @@ impl SplatIndex {
                 .map(|(c, _)| c as u32),
         );
     }
+
+    /// How many chunks' bounds meet the camera's view volume, counted up to `limit` (the
+    /// count stops there): what [`Self::visible_chunks`] would list, where only whether it
+    /// reaches `limit` matters.
+    pub fn visible_count(&self, camera: &Camera, limit: usize) -> usize {
+        let planes = frustum_planes(camera);
+        self.bounds
+            .iter()
+            .filter(|b| !b.is_empty() && planes.iter().all(|(n, d)| box_reaches(b, *n, *d)))
+            .take(limit)
+            .count()
+    }
 }
 
 /// True when some point of `b` satisfies n·p ≥ d.
@@ -117,6 +129,9 @@ mod tests {
         let mut visible = Vec::new();
         index.visible_chunks(&cam, &mut visible);
         assert_eq!(visible.len(), 2);
+        assert_eq!(index.visible_count(&cam, usize::MAX), 2);
+        assert_eq!(index.visible_count(&cam, 1), 1);
+        assert_eq!(index.visible_count(&cam, 0), 0);
         for c in visible {
             assert!(index.bounds[c as usize].min.x > 0.0);
         }

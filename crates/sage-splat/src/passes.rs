@@ -13,7 +13,7 @@ pub const GPU_SLABS: u32 = 4;
 
 /// Visible chunks (of 256 Gaussians) below which a camera saves too little behind finished
 /// tiles to pay for more than one GPU slab: its chunks then all go to its batch's first slab,
-/// and a batch whose cameras saw fewer on average is rendered in one slab. In more slabs a
+/// and a batch all of whose cameras see fewer is rendered in one slab. In more slabs a
 /// chunk that spans several is marked in each, and most chunks of a view that sees little do
 /// (its depth cuts fall among few chunks). Measured on lavapipe, 224² views of a 1M-Gaussian
 /// home frame by frame: those facing a near wall (146–317 chunks) took 0.46–0.93 times as

@@ -387,7 +387,7 @@ fn a_camera_that_sees_few_chunks_takes_one_slab_of_a_batch_rendered_in_several()
         "{many_in_one}, {few_in_one}"
     );
     assert!(few_in_all > few_in_one, "{few_in_all} against {few_in_one}");
-    // A fresh renderer's first batch is in all the slabs; the camera that sees few chunks
+    // The batch is in all the slabs (one camera sees many chunks); the camera that sees few
     // takes the first alone, the other all of them, and the images do not change.
     let fresh = GpuRenderer::new(&gpu, &g).unwrap();
     let batch = fresh.render_batch(&g, &[], &cameras, &options).unwrap();
@@ -398,10 +398,16 @@ fn a_camera_that_sees_few_chunks_takes_one_slab_of_a_batch_rendered_in_several()
         batch[0] == many && batch[1] == few,
         "the batch differs from its cameras alone"
     );
-    // The camera that sees few, alone, then makes the renderer choose one slab.
-    fresh.render(&g, &[], &cameras[1], &options).unwrap();
-    fresh.render(&g, &[], &cameras[1], &options).unwrap();
-    assert_eq!(fresh.stats().slabs, 1);
+    // The slabs follow each batch's own cameras, not the batch before: the camera that sees
+    // few alone takes one, and the one that sees many right after it takes them all.
+    for (k, slabs) in [(1, 1), (0, GPU_SLABS), (1, 1), (1, 1), (0, GPU_SLABS)] {
+        let out = fresh.render(&g, &[], &cameras[k], &options).unwrap();
+        assert_eq!(fresh.stats().slabs, slabs, "camera {k}");
+        assert!(
+            out == *[&many, &few][k],
+            "camera {k} differs from its render above"
+        );
+    }
 }
 
 #[test]

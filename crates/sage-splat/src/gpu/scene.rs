@@ -24,6 +24,9 @@ pub(crate) struct SceneBuffers {
     /// instance, then its higher-order SH codes (i8, four to a word).
     pub(crate) appearance: wgpu::TextureView,
     pub(crate) chunk_bounds: wgpu::Buffer,
+    /// The same bounds on the host, where a batch's slabs are chosen from what its cameras
+    /// see before it is recorded.
+    pub(crate) index: SplatIndex,
     /// Chunks of [`crate::index::CHUNK`] Gaussians.
     pub(crate) chunks: u32,
     /// Bytes of all of them.
@@ -146,6 +149,7 @@ impl SceneBuffers {
             appearance: texel_texture(gpu, "appearance", WORDS, &appearance),
             chunk_bounds: init_buffer(gpu, "chunk bounds", &chunk_bounds),
             chunks: index.bounds.len() as u32,
+            index,
             bytes,
         }
     }
