@@ -416,7 +416,8 @@ fn cameras(intrinsics: Intrinsics, eye: glam::Vec3, pitch_deg: f32, count: usize
 /// Rounds over the headings when the GPU renders: its frames, then the CPU renderer's, three
 /// times, so that both renderers' medians come from the same minutes of a machine whose speed
 /// drifts, and each renders its headings one after another as it would alone (a CPU frame
-/// right after each GPU frame would find its caches cold).
+/// right after each GPU frame would find its caches cold). Each batch size takes as many
+/// rounds of single frames and batches, for the same reason.
 const ROUNDS: usize = 3;
 
 /// How long the measured renderer renders before each timed pass: a GPU left idle (while the
@@ -482,8 +483,8 @@ fn streamed(
 /// Renders `frames` headings at every size, each pass over them after [`WARM_UP`] of rendering
 /// them (on the GPU in [`ROUNDS`] with the CPU renderer); on the GPU then the batches, each
 /// size after a warm-up, timed one at a time (in [`ROUNDS`] with single frames of the same
-/// headings, the batch's ratio to them from the same minutes) and then streamed. Every heading and every batch
-/// is rendered once before the first is timed ([`warm_up`]).
+/// headings, so the batch's ratio to them comes from the same minutes) and then streamed.
+/// Every heading and every batch is rendered once before the first is timed ([`warm_up`]).
 fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
     let start = Instant::now();
     let mut backend = Backend::open(settings.device, &scene.gaussians)?;
