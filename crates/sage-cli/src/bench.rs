@@ -183,8 +183,8 @@ pub struct RenderBenchArgs {
     channels: String,
     /// Render every GPU batch and each of its cameras in this many depth slabs, 1 to 4
     /// (default: one for a batch every camera of which sees fewer than 768 chunks of 256
-    /// Gaussians, else four, with such a camera in the first alone). The images do not change; the work skipped
-    /// behind finished tiles and the dispatches of each slab do.
+    /// Gaussians, else four, with such a camera in the first alone). The images do not
+    /// change; the work skipped behind finished tiles and the dispatches of each slab do.
     #[arg(long)]
     slabs: Option<u32>,
     /// The GPU renderer's blending kernel: blocks (shaped for CPU drivers such as lavapipe: 32

@@ -56,6 +56,11 @@ fn median(values: &[f64]) -> f64 {
     sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
+/// The mean of `values` (NaN when there are none).
+fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
 /// The same Gaussians at SH degree 3, higher bands filled with small deterministic values.
 fn to_sh3(g: &Gaussians) -> Result<Gaussians> {
     let items: Vec<_> = (0..g.len())

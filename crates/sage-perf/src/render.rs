@@ -566,7 +566,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
             height: h,
             median_ms: col(0),
             worst_ms: rows.iter().map(|r| r[0]).fold(0.0, f64::max),
-            mean_ms: Some(rows.iter().map(|r| r[0]).sum::<f64>() / rows.len() as f64),
+            mean_ms: Some(crate::mean(&rows.iter().map(|r| r[0]).collect::<Vec<_>>())),
             cpu_median_ms: cpu.is_some().then(|| crate::median(&cpu_ms)),
             breakdown: (!backend.is_gpu()).then(|| Breakdown {
                 cull_ms: col(1),
@@ -631,7 +631,7 @@ fn measure(scene: &Scene, settings: &RenderSettings) -> Result<RenderReport> {
                 batch_ms,
                 frames_per_s: count as f64 * 1e3 / batch_ms,
                 single_ms: Some(crate::median(&single_times)),
-                single_mean_ms: Some(single_times.iter().sum::<f64>() / single_times.len() as f64),
+                single_mean_ms: Some(crate::mean(&single_times)),
                 streamed_frames_per_s,
                 gpu_passes: timed.then(|| median_passes(&passes)),
             });

@@ -49,31 +49,29 @@ impl SplatIndex {
         std::mem::size_of_val(self.bounds.as_slice())
     }
 
+    /// The chunks whose bounds meet the camera's view volume, in order.
+    fn visible(&self, camera: &Camera) -> impl Iterator<Item = u32> {
+        let planes = frustum_planes(camera);
+        self.bounds
+            .iter()
+            .enumerate()
+            .filter(move |(_, b)| {
+                !b.is_empty() && planes.iter().all(|(n, d)| box_reaches(b, *n, *d))
+            })
+            .map(|(c, _)| c as u32)
+    }
+
     /// Appends to `out` the chunks whose bounds meet the camera's view volume.
     pub fn visible_chunks(&self, camera: &Camera, out: &mut Vec<u32>) {
-        let planes = frustum_planes(camera);
         out.clear();
-        out.extend(
-            self.bounds
-                .iter()
-                .enumerate()
-                .filter(|(_, b)| {
-                    !b.is_empty() && planes.iter().all(|(n, d)| box_reaches(b, *n, *d))
-                })
-                .map(|(c, _)| c as u32),
-        );
+        out.extend(self.visible(camera));
     }
 
     /// How many chunks' bounds meet the camera's view volume, counted up to `limit` (the
     /// count stops there): what [`Self::visible_chunks`] would list, where only whether it
     /// reaches `limit` matters.
     pub fn visible_count(&self, camera: &Camera, limit: usize) -> usize {
-        let planes = frustum_planes(camera);
-        self.bounds
-            .iter()
-            .filter(|b| !b.is_empty() && planes.iter().all(|(n, d)| box_reaches(b, *n, *d)))
-            .take(limit)
-            .count()
+        self.visible(camera).take(limit).count()
     }
 }
 

@@ -428,10 +428,10 @@ impl GpuRenderer {
     /// Renders every batch from now on in `slabs` depth slabs (1 to
     /// [`GPU_SLABS`](crate::passes::GPU_SLABS)), every camera of it in all of them, or, with
     /// `None` (the default), in one when every camera of the batch sees fewer than
-    /// [`GPU_FEW_CHUNKS`] chunks, else in all of them with such a camera in the first alone. The images are the same
-    /// whatever the slabs: what changes is the work skipped behind finished tiles against the
-    /// dispatches each slab costs, which weigh differently on each device (`sage3d bench render
-    /// --slabs` measures them).
+    /// [`GPU_FEW_CHUNKS`] chunks, else in all of them with such a camera in the first alone.
+    /// The images are the same whatever the slabs: what changes is the work skipped behind
+    /// finished tiles against the dispatches each slab costs, which weigh differently on each
+    /// device (`sage3d bench render --slabs` measures them).
     ///
     /// # Errors
     ///
