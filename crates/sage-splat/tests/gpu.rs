@@ -10,7 +10,7 @@
 use glam::Vec3;
 use sage_scene::ply::read_splats_file;
 use sage_scene::{Gaussian, Gaussians};
-use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats};
+use sage_splat::gpu::{Gpu, GpuRenderer, GpuStats, SOFTWARE_PIECE};
 use sage_splat::passes::{GPU_FEW_CHUNKS, GPU_SLABS};
 use sage_splat::{
     Backend, Blending, Camera, Channels, Device, KernelShape, RenderOptions, RenderOutput, Renderer,
@@ -346,6 +346,101 @@ fn the_images_are_the_same_in_any_number_of_depth_slabs_with_either_blending_ker
         .render_batch(g, categories, &cameras, &options)
         .unwrap();
     assert!(chosen == *first, "slabs chosen from the work differ");
+}
+
+/// `n` small splats over part of the first 8×8 block of a 16×16 camera at the origin facing
+/// +x (`camera(16, 16, …)`), from 1 to 1.5 m away, and one opaque splat behind them all: the
+/// block's other pixels stay unfinished through the whole list of its tile.
+fn crowded_tile(n: usize) -> Gaussians {
+    let (xn, yn) = ((2.0 - 8.0) / 8.0, (4.0 - 8.0) / 8.0);
+    let mut items: Vec<Gaussian> = (0..n)
+        .map(|i| {
+            let d = 1.0 + 0.5 * i as f32 / n as f32;
+            Gaussian {
+                position: Vec3::new(d, -xn * d, -yn * d),
+                log_scale: Vec3::splat((0.0625 * d).ln()),
+                opacity_logit: 0.0,
+                sh_dc: [1.0, -1.0, 0.5],
+                instance: 1,
+                ..Gaussian::default()
+            }
+        })
+        .collect();
+    items.push(Gaussian {
+        position: Vec3::new(5.0, 0.0, 0.0),
+        log_scale: Vec3::splat(3.0f32.ln()),
+        opacity_logit: 5.0,
+        sh_dc: [-1.0, 1.0, 0.0],
+        instance: 2,
+        ..Gaussian::default()
+    });
+    Gaussians::from_gaussians(&items, 0).unwrap()
+}
+
+#[test]
+fn a_tile_listing_more_entries_than_a_piece_is_blended_whole_in_later_passes() {
+    let Some(gpu) = gpu() else { return };
+    // 70,001 entries in one tile's list of one slab: more loop iterations than a CPU driver
+    // lets one invocation run (lavapipe's 65,535), blended whole only in pieces.
+    let g = crowded_tile(70_000);
+    let cam = camera(16, 16, Vec3::ZERO, 0.0, 0.0);
+    let options = RenderOptions::default();
+    let cpu = Renderer::new(&g).render(&g, &[], &cam, &options).unwrap();
+    assert!(cpu.instance.contains(&1) && cpu.instance.contains(&2));
+    let renderer = GpuRenderer::new(&gpu, &g).unwrap();
+    renderer.set_slabs(Some(1)).unwrap();
+    renderer.set_blend_piece(Some(SOFTWARE_PIECE)).unwrap();
+    let mut renders = Vec::new();
+    for blending in [Blending::Blocks, Blending::Columns] {
+        renderer.set_blending(blending);
+        let b = renderer.render(&g, &[], &cam, &options).unwrap();
+        agree(&cpu, &b, &format!("a crowded tile, {blending}"));
+        assert!(cpu.instance == b.instance, "{blending}: instances differ");
+        let stats = renderer.stats();
+        assert_eq!(stats.blend_passes, 3, "{blending}: {stats:?}");
+        assert!(stats.tile_entries > 70_000, "{stats:?}");
+        renders.push(b);
+    }
+    assert!(renders[0] == renders[1], "the two blending kernels differ");
+    // The passes are kept: the next batch is not rendered again.
+    assert_eq!(renderer.stats().regrown, 0);
+    // More pieces than the passes a slab records: an error that says so, not wrong pixels.
+    renderer.set_blend_piece(Some(256)).unwrap();
+    let e = renderer.render(&g, &[], &cam, &options).unwrap_err();
+    assert!(e.message().contains("blending passes"), "{e}");
+    assert!(renderer.set_blend_piece(Some(0)).is_err());
+}
+
+#[test]
+fn the_images_are_the_same_whatever_the_blending_piece() {
+    let Some(gpu) = gpu() else { return };
+    let scene = home(12, 3, 20, 30_000);
+    let g = &scene.gaussians;
+    let categories = &scene.instances.category_ids;
+    let c = scene.floorplan.rooms[0].profile.centroid();
+    let cameras: Vec<Camera> = (0..4)
+        .map(|k| camera(64, 48, Vec3::new(c.x, c.y, 1.1), 1.6 * k as f32, 0.0))
+        .collect();
+    let renderer = GpuRenderer::new(&gpu, g).unwrap();
+    let options = RenderOptions::default();
+    for slabs in [1, GPU_SLABS] {
+        renderer.set_slabs(Some(slabs)).unwrap();
+        for blending in [Blending::Blocks, Blending::Columns] {
+            renderer.set_blending(blending);
+            renderer.set_blend_piece(None).unwrap();
+            let whole = renderer
+                .render_batch(g, categories, &cameras, &options)
+                .unwrap();
+            renderer.set_blend_piece(Some(512)).unwrap();
+            let pieces = renderer
+                .render_batch(g, categories, &cameras, &options)
+                .unwrap();
+            let stats = renderer.stats();
+            eprintln!("{slabs} slabs, {blending}: {stats:?}");
+            assert!(stats.blend_passes > 1, "{stats:?}");
+            assert!(whole == pieces, "{slabs} slabs, {blending}: pieces differ");
+        }
+    }
 }
 
 #[test]

@@ -21,4 +21,4 @@ pub use context::Gpu;
 pub fn is_fault(e: &sage_core::Error) -> bool {
     e.message().starts_with("GPU ")
 }
-pub use renderer::{GpuRenderer, GpuStats, Submitted};
+pub use renderer::{GpuRenderer, GpuStats, SOFTWARE_PIECE, Submitted};

@@ -8,8 +8,9 @@ use super::live::LIVE_WORDS;
 use super::scene::{SceneBuffers, appearance_texels, init_buffer};
 use super::workspace::{
     BatchPlan, CAMERA_WORDS, Caps, DEPTH_BINS, DEPTH_KEY_BITS, ENTRY_TEXELS, Kernels,
-    LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_FEW_CHUNKS, LIVE_OUT_PLANES, LIVE_SLABS, LIVE_TILES,
-    PLANES, SLABS, SPLAT_INDEX_BITS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots,
+    LIVE_CAMERA_CHUNKS, LIVE_CAMERAS, LIVE_FEW_CHUNKS, LIVE_OUT_PLANES, LIVE_PASSES, LIVE_PIECE,
+    LIVE_SECOND_COUNT, LIVE_SLABS, LIVE_TILES, LIVE_WANTED_AT, MAX_BLEND_PASSES, PLANES, SLABS,
+    SPLAT_INDEX_BITS, TILE_SORT_PASSES, Workspace, camera_block_bytes, camera_slots, list_words,
 };
 use crate::camera::Camera;
 use crate::index::{SplatIndex, frustum_planes};
@@ -42,6 +43,7 @@ fn prelude(sh_rest: usize, gaussians: u32, chunks: u32, camera_slots: u32) -> St
          const LIVE_CAMERAS: u32 = {LIVE_CAMERAS}u;\nconst LIVE_SLABS: u32 = {LIVE_SLABS}u;\n\
          const LIVE_OUT_PLANES: u32 = {LIVE_OUT_PLANES}u;\n\
          const LIVE_FEW_CHUNKS: u32 = {LIVE_FEW_CHUNKS}u;\n\
+         const LIVE_PIECE: u32 = {LIVE_PIECE}u;\nconst LIVE_PASSES: u32 = {LIVE_PASSES}u;\n\
          const DEPTH_KEY_BITS: u32 = {DEPTH_KEY_BITS}u;\n\
          const SPLAT_INDEX_BITS: u32 = {SPLAT_INDEX_BITS}u;\n\
          const ENTRY_TEXELS: u32 = {ENTRY_TEXELS}u;\n\
@@ -127,6 +129,21 @@ fn slabs_for(index: &SplatIndex, cameras: &[Camera]) -> u32 {
     }
 }
 
+/// The most entries of its tile a blending workgroup takes at once on a CPU driver
+/// ([`GpuRenderer::set_blend_piece`]): `raster` spends at most about 305 loop iterations per
+/// 256 entries (each splat reaching its block, and the words of block bits), so a piece spends
+/// some 39,000 of lavapipe's 65,535 per invocation, the rest kept for the kernel's other loops.
+pub const SOFTWARE_PIECE: u32 = 32 * 1024;
+
+/// The blending piece on `gpu` by default: [`SOFTWARE_PIECE`] on a CPU driver, else unbounded.
+fn default_piece(gpu: &Gpu) -> u32 {
+    if gpu.is_software() {
+        SOFTWARE_PIECE
+    } else {
+        u32::MAX
+    }
+}
+
 /// The work of the last batch a [`GpuRenderer`] rendered.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct GpuStats {
@@ -144,8 +161,11 @@ pub struct GpuStats {
     pub tile_entries: u64,
     /// (splat, tile) pairs the work space holds.
     pub capacity: u32,
-    /// Times a batch was rendered again after growing the work space.
+    /// Times a batch was rendered again after growing the work space or its blending passes.
     pub regrown: u32,
+    /// Blending passes per slab: a tile blends at most [`GpuRenderer::set_blend_piece`]'s
+    /// entries in one pass and the rest in the passes after.
+    pub blend_passes: u32,
     /// Device bytes of the work space (the scene's upload not included).
     pub workspace_bytes: u64,
     /// GPU time of each stage, when the renderer times its passes
@@ -175,6 +195,11 @@ struct State {
     fixed_slabs: Option<u32>,
     /// The blending kernel ([`GpuRenderer::set_blending`]).
     blending: Blending,
+    /// The most entries of its tile a blending workgroup takes at once
+    /// ([`GpuRenderer::set_blend_piece`]), and the blending passes per slab, grown when a tile
+    /// of a batch wanted more.
+    piece: u32,
+    blend_passes: u32,
     categories: Vec<u16>,
     scene_group: wgpu::BindGroup,
     categories_buffer: wgpu::Buffer,
@@ -222,8 +247,11 @@ struct InFlight {
     image_words: u64,
     /// Timestamps after the images in the read-back (0 when not timed).
     stamps: u32,
-    /// Depth slabs it rendered in.
+    /// Depth slabs it rendered in, and its blending passes per slab.
     slabs: u32,
+    blend_passes: u32,
+    /// The live slot of the most blending passes a tile wanted.
+    passes_wanted: u32,
     /// What the work space held when it rendered, and the live slots of its unclamped counts
     /// (largest and sum over the slabs).
     caps: Caps,
@@ -231,10 +259,12 @@ struct InFlight {
     totals: [u32; 3],
 }
 
-/// The outcome of a batch: its images, or the larger work space it needs.
+/// The outcome of a batch: its images, or the larger work space or the blending passes per
+/// slab it needs.
 enum Finished {
     Images(Vec<RenderOutput>, GpuStats),
     Grow(Caps),
+    MorePasses(u32),
 }
 
 /// A batch submitted to the GPU by [`GpuRenderer::submit`]: the caller does other work while
@@ -280,6 +310,10 @@ impl Submitted {
                 if need.fit(&r.gpu) {
                     r.grow(&mut state, need);
                 }
+                r.render_held(&mut state, &self.categories, &self.cameras, &self.options)
+            }
+            Finished::MorePasses(passes) => {
+                r.more_passes(&mut state, passes)?;
                 r.render_held(&mut state, &self.categories, &self.cameras, &self.options)
             }
         }
@@ -344,6 +378,8 @@ impl GpuRenderer {
                 stats: GpuStats::default(),
                 fixed_slabs: None,
                 blending: Blending::default(),
+                piece: default_piece(gpu),
+                blend_passes: 1,
                 categories: Vec::new(),
                 scene_group,
                 categories_buffer,
@@ -448,6 +484,49 @@ impl GpuRenderer {
     /// --blending` measures each). The images are the same bytes with either.
     pub fn set_blending(&self, blending: Blending) {
         self.lock().blending = blending;
+    }
+
+    /// Lets one blending workgroup take at most `entries` of its tile's entries in a slab
+    /// (rounded up to a multiple of 256) before handing the rest on to a later pass, or, with
+    /// `None`, the adapter's default: [`SOFTWARE_PIECE`] on a CPU driver, whose shaders stop
+    /// every loop of an invocation silently once a budget of iterations is spent (lavapipe's
+    /// 65,535), and no bound on a hardware GPU. A batch whose tile wants more passes than the
+    /// renderer records is rendered again with as many (counted in [`GpuStats::regrown`]), and
+    /// later batches keep them until the piece changes. The images are the same bytes whatever
+    /// the pieces.
+    ///
+    /// # Errors
+    ///
+    /// Zero entries.
+    pub fn set_blend_piece(&self, entries: Option<u32>) -> Result<()> {
+        let piece = match entries {
+            Some(0) => return Err(Error::invalid("blending piece: at least one entry")),
+            Some(n) => n.div_ceil(256).saturating_mul(256).max(256),
+            None => default_piece(&self.gpu),
+        };
+        let mut state = self.lock();
+        if state.piece != piece {
+            // Passes are counted in pieces: they grow again as batches want.
+            state.piece = piece;
+            state.blend_passes = 1;
+        }
+        Ok(())
+    }
+
+    /// Records `passes` blending passes per slab from now on, as a batch's tile wanted.
+    fn more_passes(&self, state: &mut State, passes: u32) -> Result<()> {
+        if passes > MAX_BLEND_PASSES {
+            return Err(Error::invalid(format!(
+                "GPU {}: a tile lists more than {} (splat, tile) entries in one depth slab, more \
+                 than {MAX_BLEND_PASSES} blending passes of {} take (render with more slabs or \
+                 a larger blending piece)",
+                self.gpu.describe(),
+                u64::from(MAX_BLEND_PASSES) * u64::from(state.piece),
+                state.piece
+            )));
+        }
+        state.blend_passes = state.blend_passes.max(passes);
+        Ok(())
     }
 
     /// Renders one camera (see [`GpuRenderer::render_batch`]).
@@ -682,6 +761,7 @@ impl GpuRenderer {
                         total.tile_entries += stats.tile_entries;
                         total.capacity = stats.capacity;
                         total.slabs = stats.slabs;
+                        total.blend_passes = stats.blend_passes;
                         total.passes = match (total.passes, stats.passes) {
                             (Some(a), Some(b)) => Some(a.add(&b)),
                             (a, b) => a.or(b),
@@ -701,6 +781,11 @@ impl GpuRenderer {
                     }
                     Finished::Grow(need) => {
                         return Err(self.too_large(&cameras[range.start], &need));
+                    }
+                    Finished::MorePasses(passes) => {
+                        total.regrown += 1;
+                        self.more_passes(state, passes)?;
+                        queue.push_front(range);
                     }
                 }
             }
@@ -856,6 +941,11 @@ impl GpuRenderer {
         } else {
             GPU_FEW_CHUNKS
         };
+        fixed[LIVE_PIECE as usize] = state.piece;
+        fixed[LIVE_PASSES as usize] = state.blend_passes;
+        let [second_count, wanted_at] = list_words(tiles);
+        fixed[LIVE_SECOND_COUNT as usize] = second_count;
+        fixed[LIVE_WANTED_AT as usize] = wanted_at;
         gpu.queue
             .write_buffer(&self.kernels.live.buffer, 0, bytemuck::cast_slice(&fixed));
         let mut encoder = gpu
@@ -874,6 +964,7 @@ impl GpuRenderer {
                     depth_passes,
                     tile_passes,
                     slabs,
+                    blend_passes: state.blend_passes,
                     blending: state.blending,
                     grid,
                     stamps: state.timing.as_ref().map(|(q, _)| q),
@@ -929,6 +1020,8 @@ impl GpuRenderer {
             image_words: out_offset,
             stamps,
             slabs,
+            blend_passes: state.blend_passes,
+            passes_wanted: w.passes_wanted,
             caps: w.caps,
             peaks: w.peaks,
             totals: w.totals,
@@ -972,6 +1065,8 @@ impl GpuRenderer {
                     tile_entries: caps.tile_entries.max(tile_entries),
                     ..caps
                 })
+            } else if words[flight.passes_wanted as usize] > flight.blend_passes {
+                Finished::MorePasses(words[flight.passes_wanted as usize])
             } else {
                 let end = live_words + flight.image_words as usize;
                 let images = &words[live_words..end];
@@ -1001,6 +1096,7 @@ impl GpuRenderer {
                     GpuStats {
                         cameras: flight.slots.len(),
                         slabs: flight.slabs,
+                        blend_passes: flight.blend_passes,
                         chunks: totals[0],
                         splats: totals[1],
                         tile_entries: totals[2],

@@ -19,7 +19,8 @@
 // (those counts in that order) → scan → `emit` ((unfinished tile, splat) entries in that order) →
 // stable radix sort by the tile within its camera → `ranges` (each tile's entries, and the list of
 // tiles with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
-// slab before left). Last, `compose` turns the state into the images. Slabs partition depth and
+// slab before left; on a CPU driver at most a piece of the tile's entries, the rest in the
+// slab's later blending passes, see `hand_on`). Last, `compose` turns the state into the images. Slabs partition depth and
 // each tile blends in depth order, so the images are those of blending everything at once; what the
 // slabs save is the work behind finished tiles.
 
@@ -45,12 +46,14 @@ struct Camera {
 }
 
 // Live slots of this workspace's derived sizes: visible (camera, chunk) entries, visible
-// splats, (tile, splat) entries, tiles with entries, each clamped to what the buffers hold.
+// splats, (tile, splat) entries, and the tiles in each blending list (`tile_list`), each
+// clamped to what the buffers hold.
 struct Slots {
     entries: u32,
     splats: u32,
     tile_entries: u32,
     listed_tiles: u32,
+    handed_on: u32,
 }
 
 // The scene, resident. Positions (x, y, z and the opacity, as the CPU renderer's sigmoid
@@ -116,10 +119,13 @@ struct Slots {
 // Per camera from `place.z`: the summed-area table of `tile_done`, (tiles across + 1) ×
 // (tiles down + 1) words, row 0 and column 0 zero.
 @group(1) @binding(16) var<storage, read_write> finished_sum: array<u32>;
-// The slab being rendered (x).
+// The slab being rendered (x) and its blending pass (y).
 @group(1) @binding(17) var<uniform> slab: vec4<u32>;
-// The tiles of the batch with entries in this slab, in no particular order (each is blended
-// on its own), and their count after the list's capacity (at live[LIVE_TILES]).
+// Two lists of tiles to blend, in no particular order (each is blended on its own), each of
+// the batch's tiles long and followed by its count (`list_start`): list 0 holds the tiles with
+// entries in this slab, as `ranges` finds them; a blending pass reads the list of its parity
+// and hands a tile whose piece ended with entries left on to the other. After both, the most
+// blending passes a tile of the batch wanted (`hand_on`).
 @group(1) @binding(18) var<storage, read_write> tile_list: array<atomic<u32>>;
 
 // The visible splats, a texel each (`texel`) of four textures: shapes (x, y, conic a, conic b),
@@ -1003,6 +1009,16 @@ fn sorted_blocks(i: u32) -> u32 {
     return textureLoad(tiles_sorted, texel(i), 0).y >> SPLAT_INDEX_BITS;
 }
 
+// The first word of blending list q (0 or 1; 2: the passes wanted), and where its count is
+// (the host's `list_words` has the same places).
+fn list_start(q: u32) -> u32 {
+    return q * (live[LIVE_TILES] + 1u);
+}
+
+fn list_count(q: u32) -> u32 {
+    return list_start(q) + live[LIVE_TILES];
+}
+
 @compute @workgroup_size(256)
 fn ranges(
     @builtin(local_invocation_index) lid: u32,
@@ -1019,7 +1035,7 @@ fn ranges(
     let t = cameras[key >> DEPTH_KEY_BITS].place.x + (key & ((1u << DEPTH_KEY_BITS) - 1u));
     if i == 0u || sorted_tile(i - 1u) != key {
         tile_ranges[t].x = i;
-        atomicStore(&tile_list[atomicAdd(&tile_list[live[LIVE_TILES]], 1u)], t);
+        atomicStore(&tile_list[atomicAdd(&tile_list[list_count(0u)], 1u)], t);
     }
     if i + 1u == m || sorted_tile(i + 1u) != key {
         tile_ranges[t].y = i + 1u;
@@ -1066,7 +1082,9 @@ fn start_pixels(
         atomicStore(&tile_done[t], outside_columns(size, wid.x, wid.y));
         tile_ranges[t] = vec2<u32>(0u);
         if t == 0u {
-            atomicStore(&tile_list[live[LIVE_TILES]], 0u);
+            atomicStore(&tile_list[list_count(0u)], 0u);
+            atomicStore(&tile_list[list_count(1u)], 0u);
+            atomicStore(&tile_list[list_start(2u)], 0u);
         }
     }
     let px = wid.x * TILE + lid % TILE;
@@ -1191,34 +1209,67 @@ fn blend(q: ptr<function, Pixels>, power: vec4<f32>, sb: vec4<f32>, c: vec4<f32>
     (*q).live = (*q).live & !ends;
 }
 
-// What a raster workgroup blends: a tile of the batch, its entries of this slab (first, one
-// past the last), its camera and the camera's size, and the tile's first pixel.
+// What a raster workgroup blends: a tile of the batch, its entries of this slab left to blend
+// (first, one past the last), the end of the piece it blends now (at most `LIVE_PIECE`
+// entries), its camera and the camera's size, and the tile's first pixel.
 struct RasterJob {
     tile: u32,
     range: vec2<u32>,
+    end: u32,
     camera: u32,
     size: vec4<u32>,
     origin: vec2<u32>,
 }
 
-// The job of the workgroup of listed tile `listed`: thread 0 takes the tile from the list and
-// every thread reads it through the workgroup, so the tile and the loop bounds are uniform; the
-// tile's range is emptied for the next slab (the list's count was read before this dispatch).
+// The tiles in this pass's list (the workgroups dispatched may be more).
+fn listed_tiles() -> u32 {
+    return live[select(slots.listed_tiles, slots.handed_on, (slab.y & 1u) == 1u)];
+}
+
+// The job of the workgroup of listed tile `listed`: thread 0 takes the tile from the pass's
+// list and every thread reads it through the workgroup, so the tile and the loop bounds are
+// uniform; the tile's range is emptied for the next slab (the list's count was read before
+// this dispatch, and emptied here for the pass after next).
 fn raster_job(lid: u32, listed: u32) -> RasterJob {
+    let list = slab.y & 1u;
     if lid == 0u {
         atomicStore(&threads_done, 0u);
-        let t = atomicLoad(&tile_list[listed]);
+        let t = atomicLoad(&tile_list[list_start(list) + listed]);
         raster_tile = vec3<u32>(t, tile_ranges[t]);
         tile_ranges[t] = vec2<u32>(0u);
         if listed == 0u {
-            atomicStore(&tile_list[live[LIVE_TILES]], 0u);
+            atomicStore(&tile_list[list_count(list)], 0u);
         }
     }
     let job = workgroupUniformLoad(&raster_tile);
     let c = tile_camera(job.x);
     let size = cameras[c].size;
     let local = job.x - cameras[c].place.x;
-    return RasterJob(job.x, job.yz, c, size, vec2<u32>(local % size.z, local / size.z) * TILE);
+    let end = job.y + min(live[LIVE_PIECE], job.z - job.y);
+    let origin = vec2<u32>(local % size.z, local / size.z) * TILE;
+    return RasterJob(job.x, job.yz, end, c, size, origin);
+}
+
+// After a piece that ended with entries of its tile left and `threads` threads of the
+// workgroup (those whose pixels are all finished counted in `threads_done`): while some pixel
+// is unfinished, the rest goes to the next pass's list, or, in the slab's last pass, the
+// passes the tile wanted are noted for the host, which renders the batch again with as many.
+// Pieces bound the loop iterations of one invocation, which a CPU driver caps (lavapipe's
+// shared budget of 65,535 ends every loop early once spent, silently).
+fn hand_on(lid: u32, job: RasterJob, threads: u32) {
+    workgroupBarrier();
+    if lid != 0u || atomicLoad(&threads_done) == threads {
+        return;
+    }
+    if slab.y + 1u < live[LIVE_PASSES] {
+        tile_ranges[job.tile] = vec2<u32>(job.end, job.range.y);
+        let next = (slab.y + 1u) & 1u;
+        let at = atomicAdd(&tile_list[list_count(next)], 1u);
+        atomicStore(&tile_list[list_start(next) + at], job.tile);
+    } else {
+        let pieces = (job.range.y - job.end - 1u) / live[LIVE_PIECE] + 1u;
+        atomicMax(&tile_list[list_start(2u)], slab.y + 1u + pieces);
+    }
 }
 
 // The Gaussian's exponent at a column of four pixel centres `dx` across and `dy` down from
@@ -1251,11 +1302,11 @@ fn raster(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let listed = group_index(wid, nwg);
-    if listed >= live[slots.listed_tiles] {
+    if listed >= listed_tiles() {
         return;
     }
     let job = raster_job(lid, listed);
-    let range = job.range;
+    let range = vec2<u32>(job.range.x, job.end);
     let c = job.camera;
     let size = job.size;
     let px = job.origin.x + lid % TILE;
@@ -1331,6 +1382,12 @@ fn raster(
             }
         }
     }
+    if job.end < job.range.y {
+        if !any(upper.live) && !any(lower.live) && !counted {
+            atomicAdd(&threads_done, 1u);
+        }
+        hand_on(lid, job, 32u);
+    }
     let finished = select(0u, 1u, was_live.x && !any(upper.live))
         + select(0u, 1u, was_live.y && !any(lower.live));
     if finished > 0u {
@@ -1357,11 +1414,11 @@ fn raster_columns(
     @builtin(num_workgroups) nwg: vec3<u32>,
 ) {
     let listed = group_index(wid, nwg);
-    if listed >= live[slots.listed_tiles] {
+    if listed >= listed_tiles() {
         return;
     }
     let job = raster_job(lid, listed);
-    let range = job.range;
+    let range = vec2<u32>(job.range.x, job.end);
     let c = job.camera;
     let size = job.size;
     let px = job.origin.x + lid % TILE;
@@ -1406,6 +1463,12 @@ fn raster_columns(
                 blend(&q, power, sb, column_c[k]);
             }
         }
+    }
+    if job.end < job.range.y {
+        if !any(q.live) && !counted {
+            atomicAdd(&threads_done, 1u);
+        }
+        hand_on(lid, job, 64u);
     }
     if was_live && !any(q.live) {
         atomicAdd(&tile_done[job.tile], 1u);

@@ -54,15 +54,30 @@ const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
 /// splat and chunk, then its mask in two.
 pub(crate) const ENTRY_TEXELS: u32 = 3;
 /// Live slots the host writes before each batch: cameras × chunks, the batch's tiles, its
-/// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits), and the visible
-/// chunks below which a camera takes one slab of the batch's (zero when the slabs are fixed).
+/// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits), the visible
+/// chunks below which a camera takes one slab of the batch's (zero when the slabs are fixed),
+/// the most entries one blending workgroup takes of its tile (a piece), the blending passes
+/// per slab, and the words of the tile lists the host's programs read ([`list_words`]).
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
 pub(crate) const LIVE_TILES: u32 = 1;
 pub(crate) const LIVE_CAMERAS: u32 = 2;
 pub(crate) const LIVE_SLABS: u32 = 3;
 pub(crate) const LIVE_OUT_PLANES: u32 = 4;
 pub(crate) const LIVE_FEW_CHUNKS: u32 = 5;
-const LIVE_FIXED: u32 = 6;
+pub(crate) const LIVE_PIECE: u32 = 6;
+pub(crate) const LIVE_PASSES: u32 = 7;
+pub(crate) const LIVE_SECOND_COUNT: u32 = 8;
+pub(crate) const LIVE_WANTED_AT: u32 = 9;
+const LIVE_FIXED: u32 = 10;
+/// Most blending passes per slab: a tile blends at most this many pieces in one slab.
+pub(crate) const MAX_BLEND_PASSES: u32 = 64;
+
+/// In the tile-list buffer of a batch of `tiles` tiles: where the second list's count is and
+/// where the passes wanted are (`list_start` and `list_count` in `splat.wgsl`: each list is
+/// `tiles` words and its count).
+pub(crate) fn list_words(tiles: u32) -> [u32; 2] {
+    [2 * tiles + 1, 2 * tiles + 2]
+}
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
 pub(crate) use crate::camera::DEPTH_KEY_BITS;
@@ -177,7 +192,7 @@ impl Caps {
             + u64::from(self.splats) * 3
             + digit_words(shape, self.splats)
             + digit_words(shape, self.tile_entries)
-            + 8 * u64::from(self.tiles)
+            + 9 * u64::from(self.tiles)
             + self.image_words;
         let splat_textures: u64 = SPLAT_TEXTURES
             .iter()
@@ -337,6 +352,8 @@ pub(crate) struct BatchPlan<'a> {
     pub(crate) tile_passes: u32,
     /// Depth slabs.
     pub(crate) slabs: u32,
+    /// Blending passes per slab (at most [`MAX_BLEND_PASSES`]).
+    pub(crate) blend_passes: u32,
     /// The blending kernel.
     pub(crate) blending: Blending,
     /// The per-pixel passes' grid: the largest camera's tiles across and down × cameras.
@@ -407,8 +424,8 @@ struct Dispatches {
     splats: u64,
     /// A thread per (tile, splat) entry.
     tile_entries: u64,
-    /// A workgroup per tile with entries.
-    listed_tiles: u64,
+    /// A workgroup per tile in each blending list.
+    listed_tiles: [u64; 2],
 }
 
 /// A batch's buffers for up to [`Caps`], with what is recorded over them.
@@ -441,7 +458,9 @@ pub(crate) struct Workspace {
     /// tile entries.
     pub(crate) peaks: [u32; 3],
     pub(crate) totals: [u32; 3],
-    /// Bytes between the slabs' indices in the slab buffer.
+    /// Live slot of the most blending passes a tile of the batch wanted.
+    pub(crate) passes_wanted: u32,
+    /// Bytes between the (slab, blending pass) entries of the slab buffer.
     slab_stride: u32,
     _buffers: Vec<wgpu::Buffer>,
 }
@@ -527,16 +546,17 @@ impl Workspace {
         let tile_done = buffer("finished tiles", u64::from(caps.tiles));
         // (tiles across + 1)(tiles down + 1) ≤ 4 × tiles per camera.
         let finished_sum = buffer("finished-tile tables", 4 * u64::from(caps.tiles));
-        let tile_list = buffer("listed tiles", u64::from(caps.tiles) + 1);
+        let tile_list = buffer("listed tiles", 2 * u64::from(caps.tiles) + 3);
         let slab_stride = gpu
             .device
             .limits()
             .min_uniform_buffer_offset_alignment
             .max(16);
-        let slab_words: Vec<u32> = (0..SLABS)
+        let slab_words: Vec<u32> = (0..SLABS * MAX_BLEND_PASSES)
             .flat_map(|k| {
                 let mut entry = vec![0; slab_stride as usize / 4];
-                entry[0] = k;
+                entry[0] = k / MAX_BLEND_PASSES;
+                entry[1] = k % MAX_BLEND_PASSES;
                 entry
             })
             .collect();
@@ -647,18 +667,45 @@ impl Workspace {
             tile_entries.n,
             TILE_SORT_PASSES,
         );
-        // Stage 4, from the count the binning's ranges left after the list: the tiles to blend.
+        // Stages 4 and 5, from the counts after the tile lists: the tiles a blending pass of
+        // each parity blends (the first list is the one the binning's ranges fill).
         b.stage();
         let listed_tiles =
             b.derive(Size::of(Count::SourceAt(LIVE_TILES), caps.tiles).dispatched(1));
+        b.stage();
+        let handed_on =
+            b.derive(Size::of(Count::SourceAt(LIVE_SECOND_COUNT), caps.tiles).dispatched(1));
+        // Stage 6, once the slabs are blended: the most passes a tile wanted, for the host.
+        b.stage();
+        let passes_wanted = b.derive(Size {
+            keep_raw: true,
+            ..Size::of(Count::SourceAt(LIVE_WANTED_AT), u32::MAX)
+        });
         let programs = live.programs(
             gpu,
             &b,
-            &[&flags, &flags, &entry_counts, &tile_counts, &tile_list],
+            &[
+                &flags,
+                &flags,
+                &entry_counts,
+                &tile_counts,
+                &tile_list,
+                &tile_list,
+                &tile_list,
+            ],
         );
         let slots = uniform_buffer(
             gpu,
-            &[entries.n, splat_count.n, tile_entries.n, listed_tiles.n],
+            &[
+                entries.n,
+                splat_count.n,
+                tile_entries.n,
+                listed_tiles.n,
+                handed_on.n,
+                0,
+                0,
+                0,
+            ],
         );
         let frame_group = bind(
             gpu,
@@ -697,6 +744,7 @@ impl Workspace {
             caps,
             peaks: [entries.peak, splat_count.peak, tile_entries.peak],
             totals: [entries.total, splat_count.total, tile_entries.total],
+            passes_wanted: passes_wanted.peak,
             slab_stride,
             dispatches: Dispatches {
                 camera_chunks: flag_count.args,
@@ -705,7 +753,7 @@ impl Workspace {
                 entry_runs: entry_runs.args,
                 splats: splat_threads.args,
                 tile_entries: tile_entries.args,
-                listed_tiles: listed_tiles.args,
+                listed_tiles: [listed_tiles.args, handed_on.args],
             },
             cameras,
             images,
@@ -755,6 +803,7 @@ impl Workspace {
             depth_passes,
             tile_passes,
             slabs,
+            blend_passes,
             blending,
             grid,
             stamps,
@@ -781,7 +830,7 @@ impl Workspace {
         k.cut_slabs.run_grid(pass, &groups, threads_grid(cameras));
         stamp(pass);
         for slab in 0..slabs {
-            let offset = [slab * self.slab_stride];
+            let offset = [slab * MAX_BLEND_PASSES * self.slab_stride];
             let groups: [(&wgpu::BindGroup, &[u32]); 2] =
                 [(scene_group, &[]), (&self.frame_group, &offset)];
             k.finished_table
@@ -830,14 +879,21 @@ impl Workspace {
                 .encode(pass, &k.scan, live, &self.tile_sort, tile_passes as usize);
             live.dispatch(pass, &k.ranges, &splats_in, d.tile_entries);
             stamp(pass);
-            live.encode(pass, &self.programs, 4);
             let raster = match blending {
                 Blending::Blocks => &k.raster,
                 Blending::Columns => &k.raster_columns,
             };
-            live.dispatch(pass, raster, &splats_in, d.listed_tiles);
+            // Pass p blends list p mod 2 and hands tiles with entries left on to the other.
+            for p in 0..blend_passes {
+                let list = (p % 2) as usize;
+                live.encode(pass, &self.programs, 4 + list);
+                let offset = [offset[0] + p * self.slab_stride];
+                let splats_in = [scene, (&self.frame_group, &offset[..]), splats_in[2]];
+                live.dispatch(pass, raster, &splats_in, d.listed_tiles[list]);
+            }
             stamp(pass);
         }
+        live.encode(pass, &self.programs, 6);
         k.compose.run_grid(pass, &groups, grid);
         stamp(pass);
     }
