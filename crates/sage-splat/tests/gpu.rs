@@ -404,6 +404,13 @@ fn a_tile_listing_more_entries_than_a_piece_is_blended_whole_in_later_passes() {
     assert!(renders[0] == renders[1], "the two blending kernels differ");
     // The passes are kept: the next batch is not rendered again.
     assert_eq!(renderer.stats().regrown, 0);
+    // A new piece starts again from one pass; a submitted batch that wants more is rendered
+    // again when waited for.
+    renderer.set_blend_piece(Some(2 * SOFTWARE_PIECE)).unwrap();
+    let submitted = renderer.submit(&g, &[], &[cam], &options).unwrap();
+    let waited = submitted.wait().unwrap();
+    assert!(waited[0] == renders[1], "a submitted batch differs");
+    assert_eq!(renderer.stats().blend_passes, 2);
     // More pieces than the passes a slab records: an error that says so, not wrong pixels.
     renderer.set_blend_piece(Some(256)).unwrap();
     let e = renderer.render(&g, &[], &cam, &options).unwrap_err();
