@@ -247,9 +247,10 @@ struct InFlight {
     image_words: u64,
     /// Timestamps after the images in the read-back (0 when not timed).
     stamps: u32,
-    /// Depth slabs it rendered in, and its blending passes per slab.
+    /// Depth slabs it rendered in, its blending passes per slab and their piece.
     slabs: u32,
     blend_passes: u32,
+    piece: u32,
     /// The live slot of the most blending passes a tile wanted.
     passes_wanted: u32,
     /// What the work space held when it rendered, and the live slots of its unclamped counts
@@ -264,7 +265,11 @@ struct InFlight {
 enum Finished {
     Images(Vec<RenderOutput>, GpuStats),
     Grow(Caps),
-    MorePasses(u32),
+    /// The blending passes per slab a tile wanted, in pieces of `piece` entries.
+    MorePasses {
+        passes: u32,
+        piece: u32,
+    },
 }
 
 /// A batch submitted to the GPU by [`GpuRenderer::submit`]: the caller does other work while
@@ -286,8 +291,9 @@ enum Flight {
 }
 
 impl Submitted {
-    /// The images, in camera order (rendered again, after the work space grew, when the batch
-    /// needed more than it held).
+    /// The images, in camera order (rendered again, after the work space or the blending
+    /// passes grew, when the batch needed more than they held: counted in
+    /// [`GpuStats::regrown`]).
     ///
     /// # Errors
     ///
@@ -302,21 +308,20 @@ impl Submitted {
         match r.finish(&mut state, flight)? {
             Finished::Images(images, stats) => {
                 state.stats = stats;
-                Ok(images)
+                return Ok(images);
             }
-            // Rendered again in a grown work space, with this batch's categories bound
-            // (another caller may have changed them since).
             Finished::Grow(need) => {
                 if need.fit(&r.gpu) {
                     r.grow(&mut state, need);
                 }
-                r.render_held(&mut state, &self.categories, &self.cameras, &self.options)
             }
-            Finished::MorePasses(passes) => {
-                r.more_passes(&mut state, passes)?;
-                r.render_held(&mut state, &self.categories, &self.cameras, &self.options)
-            }
+            Finished::MorePasses { passes, piece } => r.more_passes(&mut state, passes, piece)?,
         }
+        // Rendered again, with this batch's categories bound (another caller may have changed
+        // them since).
+        let images = r.render_held(&mut state, &self.categories, &self.cameras, &self.options)?;
+        state.stats.regrown += 1;
+        Ok(images)
     }
 }
 
@@ -513,16 +518,20 @@ impl GpuRenderer {
         Ok(())
     }
 
-    /// Records `passes` blending passes per slab from now on, as a batch's tile wanted.
-    fn more_passes(&self, state: &mut State, passes: u32) -> Result<()> {
+    /// Records `passes` blending passes per slab from now on, as a batch's tile wanted in
+    /// pieces of `piece` entries (nothing when the piece has changed since: the batch rendered
+    /// again in the new pieces says what it wants).
+    fn more_passes(&self, state: &mut State, passes: u32, piece: u32) -> Result<()> {
+        if piece != state.piece {
+            return Ok(());
+        }
         if passes > MAX_BLEND_PASSES {
             return Err(Error::invalid(format!(
                 "GPU {}: a tile lists more than {} (splat, tile) entries in one depth slab, more \
-                 than {MAX_BLEND_PASSES} blending passes of {} take (render with more slabs or \
-                 a larger blending piece)",
+                 than {MAX_BLEND_PASSES} blending passes of {piece} take (render with more slabs \
+                 or a larger blending piece)",
                 self.gpu.describe(),
-                u64::from(MAX_BLEND_PASSES) * u64::from(state.piece),
-                state.piece
+                u64::from(MAX_BLEND_PASSES) * u64::from(piece),
             )));
         }
         state.blend_passes = state.blend_passes.max(passes);
@@ -782,9 +791,9 @@ impl GpuRenderer {
                     Finished::Grow(need) => {
                         return Err(self.too_large(&cameras[range.start], &need));
                     }
-                    Finished::MorePasses(passes) => {
+                    Finished::MorePasses { passes, piece } => {
                         total.regrown += 1;
-                        self.more_passes(state, passes)?;
+                        self.more_passes(state, passes, piece)?;
                         queue.push_front(range);
                     }
                 }
@@ -1021,6 +1030,7 @@ impl GpuRenderer {
             stamps,
             slabs,
             blend_passes: state.blend_passes,
+            piece: state.piece,
             passes_wanted: w.passes_wanted,
             caps: w.caps,
             peaks: w.peaks,
@@ -1066,7 +1076,10 @@ impl GpuRenderer {
                     ..caps
                 })
             } else if words[flight.passes_wanted as usize] > flight.blend_passes {
-                Finished::MorePasses(words[flight.passes_wanted as usize])
+                Finished::MorePasses {
+                    passes: words[flight.passes_wanted as usize],
+                    piece: flight.piece,
+                }
             } else {
                 let end = live_words + flight.image_words as usize;
                 let images = &words[live_words..end];
