@@ -1063,6 +1063,7 @@ impl GpuRenderer {
             let caps = flight.caps;
             let found = flight.peaks.map(|slot| words[slot as usize]);
             let totals = flight.totals.map(|slot| u64::from(words[slot as usize]));
+            let passes_wanted = words[flight.passes_wanted as usize];
             if let Some([entries, splats, tile_entries]) = caps.wanted(found) {
                 let cameras = flight.slots.len() as u32;
                 let per_camera = [splats, tile_entries].map(|n| n.div_ceil(cameras));
@@ -1075,9 +1076,9 @@ impl GpuRenderer {
                     tile_entries: caps.tile_entries.max(tile_entries),
                     ..caps
                 })
-            } else if words[flight.passes_wanted as usize] > flight.blend_passes {
+            } else if passes_wanted > flight.blend_passes {
                 Finished::MorePasses {
-                    passes: words[flight.passes_wanted as usize],
+                    passes: passes_wanted,
                     piece: flight.piece,
                 }
             } else {

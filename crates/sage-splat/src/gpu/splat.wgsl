@@ -20,9 +20,9 @@
 // stable radix sort by the tile within its camera → `ranges` (each tile's entries, and the list of
 // tiles with any) → `raster` (a workgroup per listed tile, blending into the per-pixel state the
 // slab before left; on a CPU driver at most a piece of the tile's entries, the rest in the
-// slab's later blending passes, see `hand_on`). Last, `compose` turns the state into the images. Slabs partition depth and
-// each tile blends in depth order, so the images are those of blending everything at once; what the
-// slabs save is the work behind finished tiles.
+// slab's later blending passes, see `hand_on`). Last, `compose` turns the state into the
+// images. Slabs partition depth and each tile blends in depth order, so the images are those of
+// blending everything at once; what the slabs save is the work behind finished tiles.
 
 struct Camera {
     // Camera-to-world rotation columns (right, down, forward) and centre; w unused.
@@ -1250,13 +1250,20 @@ fn raster_job(lid: u32, listed: u32) -> RasterJob {
     return RasterJob(job.x, job.yz, end, c, size, origin);
 }
 
-// After a piece that ended with entries of its tile left and `threads` threads of the
-// workgroup (those whose pixels are all finished counted in `threads_done`): while some pixel
-// is unfinished, the rest goes to the next pass's list, or, in the slab's last pass, the
-// passes the tile wanted are noted for the host, which renders the batch again with as many.
-// Pieces bound the loop iterations of one invocation, which a CPU driver caps (lavapipe's
-// shared budget of 65,535 ends every loop early once spent, silently).
-fn hand_on(lid: u32, job: RasterJob, threads: u32) {
+// After a piece of a workgroup of `threads` threads (each counted in `threads_done` once its
+// pixels are all finished; `finished_now` when this thread's finished but is not counted yet):
+// when the piece ended with entries of its tile left and some pixel is unfinished, the rest
+// goes to the next pass's list, or, in the slab's last pass, the passes the tile wanted are
+// noted for the host, which renders the batch again with as many. Pieces bound the loop
+// iterations of one invocation, which a CPU driver caps (lavapipe's shared budget of 65,535
+// ends every loop early once spent, silently).
+fn hand_on(lid: u32, job: RasterJob, threads: u32, finished_now: bool) {
+    if job.end == job.range.y {
+        return;
+    }
+    if finished_now {
+        atomicAdd(&threads_done, 1u);
+    }
     workgroupBarrier();
     if lid != 0u || atomicLoad(&threads_done) == threads {
         return;
@@ -1382,12 +1389,7 @@ fn raster(
             }
         }
     }
-    if job.end < job.range.y {
-        if !any(upper.live) && !any(lower.live) && !counted {
-            atomicAdd(&threads_done, 1u);
-        }
-        hand_on(lid, job, 32u);
-    }
+    hand_on(lid, job, 32u, !counted && !any(upper.live) && !any(lower.live));
     let finished = select(0u, 1u, was_live.x && !any(upper.live))
         + select(0u, 1u, was_live.y && !any(lower.live));
     if finished > 0u {
@@ -1464,12 +1466,7 @@ fn raster_columns(
             }
         }
     }
-    if job.end < job.range.y {
-        if !any(q.live) && !counted {
-            atomicAdd(&threads_done, 1u);
-        }
-        hand_on(lid, job, 64u);
-    }
+    hand_on(lid, job, 64u, !counted && !any(q.live));
     if was_live && !any(q.live) {
         atomicAdd(&tile_done[job.tile], 1u);
     }
