@@ -131,3 +131,16 @@ def test_coacd_cache_files_are_read_by_sage3d(small_scene, sage3d, tmp_path):
     again = tmp_path / "again.json"
     sage3d("physics", "pending", small_scene, *args, "--out", again)
     assert json.loads(again.read_text())["meshes"] == []
+    # An entry cut short: the build names it, `pending` lists it alone again, and the tool,
+    # which skips whole entries when it resumes, takes it as one to make.
+    damaged = pending["meshes"][0]
+    entry = pathlib.Path(damaged["cache_file"])
+    entry.write_bytes(entry.read_bytes()[:-4])
+    failed = sage3d("physics", "build", small_scene, *args, check=False)
+    assert failed.returncode != 0 and str(entry) in failed.stderr, failed.stderr
+    assert "cannot be read" in failed.stderr, failed.stderr
+    sage3d("physics", "pending", small_scene, *args, "--out", again, "--force")
+    assert [m["key"] for m in json.loads(again.read_text())["meshes"]] == [damaged["key"]]
+    assert not tool.is_whole_entry(entry, damaged["key"])
+    assert all(tool.is_whole_entry(m["cache_file"], m["key"]) for m in pending["meshes"][1:])
+    assert not tool.is_whole_entry(pending["meshes"][1]["cache_file"], damaged["key"])

@@ -38,6 +38,30 @@ def encode(key_hex, parts):
     return bytes(out)
 
 
+def is_whole_entry(path, key_hex):
+    """Whether `path` holds a whole cache file of `key_hex`, as sage3d reads it: a file cut
+    short, of another version or of another key is made again (sage3d lists it as pending)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except FileNotFoundError:
+        return False
+    head = len(MAGIC) + 4 + 16 + 4
+    if len(data) < head or data[: len(MAGIC)] != MAGIC:
+        return False
+    (version,) = struct.unpack_from("<I", data, len(MAGIC))
+    if version != VERSION or data[len(MAGIC) + 4 : len(MAGIC) + 20] != int(key_hex, 16).to_bytes(16, "little"):
+        return False
+    (parts,) = struct.unpack_from("<I", data, head - 4)
+    at = head
+    for _ in range(parts):
+        if at + 8 > len(data):
+            return False
+        nv, nt = struct.unpack_from("<II", data, at)
+        at += 8 + 12 * (nv + nt)
+    return at == len(data)
+
+
 def write_atomic(path, data):
     os.makedirs(os.path.dirname(path), exist_ok=True)
     tmp = f"{path}.tmp-{os.getpid()}"
@@ -63,7 +87,7 @@ def main(argv=None):
     settings = todo["settings"]
     for i, m in enumerate(todo["meshes"]):
         # Each entry is written as soon as it is done, so a rerun after a crash resumes.
-        if os.path.isfile(m["cache_file"]):
+        if is_whole_entry(m["cache_file"], m["key"]):
             continue
         mesh = coacd.Mesh(np.asarray(m["vertices"], dtype=np.float64), np.asarray(m["triangles"], dtype=np.int32))
         parts = coacd.run_coacd(

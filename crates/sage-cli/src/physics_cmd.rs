@@ -115,9 +115,18 @@ impl DecompArgs {
     fn bodies(&self, scene_dir: &Path) -> Result<(Scene, SceneBodies, BuildReport)> {
         let (decomposer, cache) = (self.decomposer()?, self.cache(scene_dir));
         let options = self.body_options();
-        with_bar(|on_object| {
+        let built = with_bar(|on_object| {
             sage_pipeline::physics::bodies(scene_dir, &options, &decomposer, &cache, on_object)
-        })
+        })?;
+        note_remade(&built.2);
+        Ok(built)
+    }
+}
+
+/// Tells, on standard error, which damaged hull cache entries the build made anew.
+fn note_remade(report: &BuildReport) {
+    for damage in &report.remade {
+        eprintln!("note: a damaged hull cache entry was decomposed anew and replaced: {damage}");
     }
 }
 
@@ -374,6 +383,7 @@ fn export_usd(a: UsdArgs) -> Result<()> {
             on_object,
         )
     })?;
+    note_remade(&report.build);
     println!(
         "{} -> {} ({} bodies, {} collision parts; {} decomposed, {} from cache)",
         a.scene.display(),

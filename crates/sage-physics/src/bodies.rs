@@ -2,7 +2,7 @@
 //! oriented box), wall pieces extruded from the floorplan with door and window openings cut out,
 //! and floor and ceiling slabs.
 
-use crate::decompose::{Decomposer, HullCache, cache_key};
+use crate::decompose::{CacheEntry, Decomposer, HullCache, cache_key};
 use crate::hull::ConvexPart;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -147,6 +147,10 @@ pub struct BuildReport {
     /// here.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub collision: Option<sage_scene::collision::CollisionReport>,
+    /// The damaged hull cache entries ([`CacheEntry::Damaged`]) decomposed anew and replaced,
+    /// in object order, each as the error that found it (naming the file).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub remade: Vec<String>,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -191,8 +195,9 @@ impl SceneBodies {
     ///
     /// # Errors
     ///
-    /// Bad settings, an unreadable or damaged cache entry (named), a failed write, or a CoACD
-    /// entry that has not been made yet.
+    /// Bad settings, an unreadable cache entry (named), a failed write, or a CoACD entry that
+    /// has not been made yet or is damaged. A damaged entry of the in-process decomposer is
+    /// made anew and replaced ([`BuildReport::remade`]).
     pub fn build(
         scene: &Scene,
         decomposer: &Decomposer,
@@ -227,12 +232,13 @@ impl SceneBodies {
             .collect::<Vec<_>>();
         let mut bodies = Vec::new();
         for (oi, (o, parts)) in scene.objects.iter().zip(object_parts).enumerate() {
-            let (parts, source) = parts.map_err(|e| {
+            let (parts, source, damage) = parts.map_err(|e| {
                 e.within(format!(
                     "object {} (ins_id {}, {})",
                     o.id.0, o.ins_id, o.category
                 ))
             })?;
+            report.remade.extend(damage.map(|d| d.to_string()));
             match source {
                 PartSource::Decomposed => report.decomposed += 1,
                 PartSource::Cached => report.cached += 1,
@@ -423,40 +429,45 @@ fn given_hulls(given: &BodyParts) -> Vec<ConvexPart> {
 }
 
 /// The parts of one object: its given parts, else cached or decomposed hulls of its mesh, else
-/// its box.
+/// its box; and the damaged cache entry that decomposing replaced, if any.
 fn object_parts(
     object: &Object,
     decomposer: &Decomposer,
     cache: &HullCache,
-) -> Result<(Vec<ConvexPart>, PartSource)> {
+) -> Result<(Vec<ConvexPart>, PartSource, Option<Error>)> {
     if let Some(given) = &object.body {
         // A body left with no part that spans a volume is its box.
         let parts = given_hulls(given);
         if !parts.is_empty() {
-            return Ok((parts, PartSource::Given));
+            return Ok((parts, PartSource::Given, None));
         }
     }
     let boxed = || {
         ConvexPart::from_obb(&object.obb)
-            .map(|p| (vec![p], PartSource::Box))
+            .map(|p| vec![p])
             .ok_or_else(|| Error::invalid("the oriented box has no volume and no mesh is given"))
     };
     let Some(mesh) = object.mesh.as_ref().filter(|m| !m.triangles.is_empty()) else {
-        return boxed();
+        return Ok((boxed()?, PartSource::Box, None));
     };
     let key = cache_key(mesh, decomposer);
-    if let Some(parts) = cache.load(key)? {
-        return Ok((parts, PartSource::Cached));
-    }
-    let parts = decomposer.run(mesh)?;
-    if parts.is_empty() {
-        // A mesh too thin to voxelise (a flat rug): its box is the honest body.
-        let boxed = boxed()?;
-        cache.store(key, &boxed.0)?;
-        return Ok((boxed.0, PartSource::Decomposed));
-    }
+    let damage = match cache.load(key)? {
+        CacheEntry::Parts(parts) => return Ok((parts, PartSource::Cached, None)),
+        CacheEntry::Missing => None,
+        CacheEntry::Damaged(e) => Some(e),
+    };
+    let parts = decomposer.run(mesh).map_err(|e| match &damage {
+        // CoACD's entries are made offline: the user is told this one is to be made again.
+        Some(d) => Error::invalid(format!(
+            "the hull cache entry cannot be read ({d}); {}",
+            e.message()
+        )),
+        None => e,
+    })?;
+    // A mesh too thin to voxelise (a flat rug): its box is the honest body.
+    let parts = if parts.is_empty() { boxed()? } else { parts };
     cache.store(key, &parts)?;
-    Ok((parts, PartSource::Decomposed))
+    Ok((parts, PartSource::Decomposed, damage))
 }
 
 /// The solid boxes of a wall after cutting the door and window holes that lie in it, and the

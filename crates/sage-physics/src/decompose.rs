@@ -7,6 +7,12 @@
 //! written offline by `python/tools/coacd_cache.py` in the same format, under keys computed
 //! here (`sage3d physics pending` lists the meshes it still has to do).
 //!
+//! A cache only ever saves work: an entry that cannot be read as its key's (cut short, from
+//! another format version, holding another key) is [`CacheEntry::Damaged`], and a build makes
+//! it anew and replaces it as it would a missing one, reporting the file
+//! ([`crate::BuildReport::remade`]), where an error would stop every build of the scene until
+//! someone removed the file by hand.
+//!
 //! File format (little endian), one file `{key}.hulls` per entry:
 //! `b"SAGEHULL"`, `u32` version (1), 16-byte key, `u32` part count, then per part `u32` vertex
 //! count `n`, `u32` triangle count `m`, `n × 3 f32` positions, `m × 3 u32` indices.
@@ -165,6 +171,18 @@ pub fn cache_key(mesh: &TriMesh, decomposer: &Decomposer) -> u128 {
     h.finish()
 }
 
+/// What a [`HullCache`] holds under one key.
+#[derive(Debug)]
+pub enum CacheEntry {
+    /// The parts stored under the key.
+    Parts(Vec<ConvexPart>),
+    /// No entry: the key's mesh has not been decomposed with these settings.
+    Missing,
+    /// An entry that is not a whole cache file of the key (cut short, another format version,
+    /// another key): the format error, naming the file. It is to be made again, as a missing one.
+    Damaged(Error),
+}
+
 /// A folder of cached decompositions, one file per key.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HullCache {
@@ -204,20 +222,24 @@ impl HullCache {
         self.dir.join(format!("{key:032x}.{EXTENSION}"))
     }
 
-    /// Reads the entry of `key`; `Ok(None)` when there is none.
+    /// Reads the entry of `key`: its parts, [`CacheEntry::Missing`], or
+    /// [`CacheEntry::Damaged`] with the error that names the file and what is wrong.
     ///
     /// # Errors
     ///
-    /// A format error naming the file when an entry exists but is damaged or holds another key.
-    pub fn load(&self, key: u128) -> Result<Option<Vec<ConvexPart>>> {
+    /// The cache is a file, or the entry exists but cannot be read (permissions).
+    pub fn load(&self, key: u128) -> Result<CacheEntry> {
         self.check_folder()?;
         let path = self.path(key);
         let bytes = match std::fs::read(&path) {
             Ok(b) => b,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(CacheEntry::Missing),
             Err(e) => return Err(Error::io(&path, e)),
         };
-        decode(&bytes, key).in_file(&path).map(Some)
+        Ok(match decode(&bytes, key).in_file(&path) {
+            Ok(parts) => CacheEntry::Parts(parts),
+            Err(e) => CacheEntry::Damaged(e),
+        })
     }
 
     /// Writes the entry of `key` atomically.
@@ -376,11 +398,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let cache = HullCache::new(dir.path().join("c"));
         let parts = vec![ConvexPart::hull_of(&cube(1.0).positions).unwrap()];
-        assert!(cache.load(7).unwrap().is_none());
+        assert!(matches!(cache.load(7).unwrap(), CacheEntry::Missing));
         cache.store(7, &parts).unwrap();
-        assert_eq!(cache.load(7).unwrap().unwrap(), parts);
+        assert!(matches!(cache.load(7).unwrap(), CacheEntry::Parts(p) if p == parts));
         std::fs::copy(cache.path(7), cache.path(8)).unwrap();
-        let e = cache.load(8).unwrap_err().to_string();
+        let CacheEntry::Damaged(e) = cache.load(8).unwrap() else {
+            panic!("an entry holding another key is damaged");
+        };
+        let e = e.to_string();
         assert!(e.contains("key") && e.contains(".hulls"), "{e}");
         let file = dir.path().join("a file");
         std::fs::write(&file, "x").unwrap();

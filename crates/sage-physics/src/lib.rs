@@ -23,7 +23,7 @@ pub use agent::{
     collision_intensity,
 };
 pub use bodies::{Body, BodyKind, BuildReport, PartSource, SceneBodies};
-pub use decompose::{Decomposer, HullCache, cache_key, default_cache_dir};
+pub use decompose::{CacheEntry, Decomposer, HullCache, cache_key, default_cache_dir};
 pub use hull::{ConvexPart, volume_iou};
 pub use splat_bodies::{SplatBodies, SplatBodyParams, SplatBodyReport};
 pub use worklist::WorkList;

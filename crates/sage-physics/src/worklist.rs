@@ -2,7 +2,7 @@
 //! what an offline decomposer needs to fill it (`python/tools/coacd_cache.py` reads this file,
 //! runs CoACD on each mesh and writes each `cache_file`; `docs/physics.md`).
 
-use crate::decompose::{Decomposer, HullCache, cache_key};
+use crate::decompose::{CacheEntry, Decomposer, HullCache, cache_key};
 use sage_scene::Scene;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -32,15 +32,16 @@ pub struct WorkList {
     pub cache_dir: PathBuf,
     /// The decomposer as the cache key describes it.
     pub decomposer: String,
-    /// The meshes without cached hulls, in object order.
+    /// The meshes without cached hulls (missing or damaged), in object order.
     pub meshes: Vec<PendingMesh>,
     /// Its parameters by name.
     pub settings: serde_json::Value,
 }
 
 impl WorkList {
-    /// The meshes of `scene` that `decomposer` has not yet decomposed into `cache` (objects
-    /// with given parts, e.g. from a published collision file, need none).
+    /// The meshes of `scene` that `decomposer` has not yet decomposed into `cache`, or whose
+    /// entry there is damaged (objects with given parts, e.g. from a published collision file,
+    /// need none).
     pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> WorkList {
         let meshes = scene
             .objects
@@ -49,9 +50,10 @@ impl WorkList {
             .filter_map(|o| {
                 let mesh = o.mesh.as_ref().filter(|m| !m.triangles.is_empty())?;
                 let key = cache_key(mesh, decomposer);
-                let cache_file = cache.path(key);
-                (!cache_file.is_file()).then(|| PendingMesh {
-                    cache_file,
+                // A damaged entry is to be made again, as `physics build` asks.
+                let cached = matches!(cache.load(key), Ok(CacheEntry::Parts(_)));
+                (!cached).then(|| PendingMesh {
+                    cache_file: cache.path(key),
                     ins_id: o.ins_id.clone(),
                     instance: o.id.0,
                     key: format!("{key:032x}"),

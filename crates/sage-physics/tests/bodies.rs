@@ -4,7 +4,7 @@
 use glam::Vec3;
 use sage_core::Pose;
 use sage_physics::{
-    AgentBody, BodyKind, Command, Decomposer, HullCache, PartSource, SceneBodies, World,
+    AgentBody, BodyKind, Command, Decomposer, HullCache, PartSource, SceneBodies, WorkList, World,
     WorldOptions,
 };
 use sage_scene::{DoorState, HoleKind, Scene};
@@ -101,18 +101,80 @@ fn hulls_cover_the_meshes_and_come_back_from_the_cache() {
 }
 
 #[test]
-fn a_damaged_cache_entry_is_an_error_naming_the_file_and_object() {
+fn a_damaged_cache_entry_is_made_anew_and_reported() {
     let scene = scene();
     let dir = tempfile::tempdir().unwrap();
     let cache = HullCache::new(dir.path());
+    let (made, _) = SceneBodies::build(&scene, &COARSE, &cache).unwrap();
+    let meshed = scene.objects.iter().filter(|o| o.mesh.is_some()).count();
+    let key = |o: usize| sage_physics::cache_key(scene.objects[o].mesh.as_ref().unwrap(), &COARSE);
+    // Cut short, another format version, another key's entry.
+    let whole = std::fs::read(cache.path(key(3))).unwrap();
+    std::fs::write(cache.path(key(3)), &whole[..whole.len() - 5]).unwrap();
+    let mut version = std::fs::read(cache.path(key(5))).unwrap();
+    version[8] = 9;
+    std::fs::write(cache.path(key(5)), version).unwrap();
+    std::fs::copy(cache.path(key(0)), cache.path(key(7))).unwrap();
+    let pending = WorkList::of(&scene, &COARSE, &cache);
+    let listed: Vec<u32> = pending.meshes.iter().map(|m| m.instance).collect();
+    let ids = [3, 5, 7].map(|o| scene.objects[o].id.0);
+    assert_eq!(listed, ids, "the work list names the damaged entries");
+
+    let (again, report) = SceneBodies::build(&scene, &COARSE, &cache).unwrap();
+    assert_eq!((report.decomposed, report.cached), (3, meshed - 3));
+    assert_eq!(report.remade.len(), 3);
+    for (o, remade) in [3, 5, 7].into_iter().zip(&report.remade) {
+        let file = cache.path(key(o)).display().to_string();
+        assert!(remade.starts_with(&file), "{remade}");
+    }
+    assert!(
+        report.remade[0].contains("file size"),
+        "{}",
+        report.remade[0]
+    );
+    assert!(report.remade[1].contains("version"), "{}", report.remade[1]);
+    assert!(report.remade[2].contains("key"), "{}", report.remade[2]);
+    let parts = |b: &SceneBodies| b.bodies.iter().map(|b| b.parts.clone()).collect::<Vec<_>>();
+    assert!(
+        parts(&made) == parts(&again),
+        "the hulls made anew are those first made"
+    );
+    let (_, third) = SceneBodies::build(&scene, &COARSE, &cache).unwrap();
+    assert_eq!((third.decomposed, third.cached), (0, meshed));
+    assert!(third.remade.is_empty());
+    assert!(WorkList::of(&scene, &COARSE, &cache).meshes.is_empty());
+}
+
+#[test]
+fn a_damaged_coacd_entry_is_an_error_naming_the_file_and_object() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let cache = HullCache::new(dir.path());
+    let coacd = Decomposer::Coacd {
+        threshold: 0.05,
+        max_hulls: 8,
+    };
+    // Every entry made offline (a box stands in for CoACD's hulls), then one damaged.
+    for o in scene.objects.iter() {
+        if let Some(mesh) = &o.mesh {
+            let part = sage_physics::ConvexPart::from_obb(&o.obb).unwrap();
+            cache
+                .store(sage_physics::cache_key(mesh, &coacd), &[part])
+                .unwrap();
+        }
+    }
+    SceneBodies::build(&scene, &coacd, &cache).unwrap();
     let mesh = scene.objects[3].mesh.as_ref().unwrap();
-    let path = cache.path(sage_physics::cache_key(mesh, &COARSE));
+    let path = cache.path(sage_physics::cache_key(mesh, &coacd));
     std::fs::write(&path, b"SAGEHULL\x01\0\0\0short").unwrap();
-    let e = SceneBodies::build(&scene, &COARSE, &cache)
+    let e = SceneBodies::build(&scene, &coacd, &cache)
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains(&path.display().to_string()) && e.contains("object 4"),
+        e.contains(&path.display().to_string())
+            && e.contains("object 4")
+            && e.contains("cannot be read")
+            && e.contains("physics pending"),
         "{e}"
     );
 }
