@@ -579,6 +579,20 @@ mod tests {
         }
     }
 
+    /// The help of `--slabs` states the renderer's own bound, which a doc comment can only
+    /// spell as a literal.
+    #[test]
+    fn the_slabs_help_states_the_renderers_bound() {
+        use clap::CommandFactory;
+        let mut bench = Bench::command();
+        let render = bench.find_subcommand_mut("render").unwrap();
+        // Words joined by single spaces, however the help is wrapped.
+        let help = render.render_long_help().to_string();
+        let help = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        let bound = format!("fewer than {} chunks", sage_splat::passes::GPU_FEW_CHUNKS);
+        assert!(help.contains(&bound), "{help}");
+    }
+
     /// Sizes are refused by the parser, naming the flag, before any work.
     #[test]
     fn sizes_are_checked_before_any_work() {
