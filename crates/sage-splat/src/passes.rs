@@ -59,8 +59,8 @@ pub enum Blending {
     #[default]
     Blocks,
     /// Shaped for hardware GPUs: 64 threads per tile, each blending a column of four pixels,
-    /// all stepping through the tile's whole list together, with a quarter of the workgroup
-    /// memory for twice the threads.
+    /// all stepping through the tile's whole list together in batches of 64 splats read into
+    /// workgroup memory (3 KB for two warps, where `Blocks` holds about 150 bytes for one).
     Columns,
 }
 

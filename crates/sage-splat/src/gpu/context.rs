@@ -20,7 +20,7 @@ const TIMESTAMPS: wgpu::Features =
 const ENCODER_TIMESTAMPS: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
 
 /// Names a user may set to pick an adapter by (part of) its name on a machine with several.
-pub const ADAPTER_VARIABLE: &str = "SAGE3D_GPU_ADAPTER";
+pub(crate) const ADAPTER_VARIABLE: &str = "SAGE3D_GPU_ADAPTER";
 
 impl Gpu {
     /// The process-wide GPU, opened on first use (one per `hardware_only` choice).

@@ -49,7 +49,7 @@ fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
 pub(crate) const RUN_GROUP: u32 = 8;
 
 /// Texels across a row of every texture the kernels index by a flat number (`TEXELS_ACROSS`
-/// and `texel` in `splat.wgsl`): rows of 64 KB, and at least 8,192 rows (33.5 million texels)
+/// and `texel` in `texel.wgsl`, which the splat and sort kernels include): rows of 64 KB, and at least 8,192 rows (33.5 million texels)
 /// on every WebGPU adapter.
 pub(crate) const TEXELS_ACROSS: u32 = 4096;
 
@@ -196,7 +196,7 @@ pub(crate) fn uniform_buffer(gpu: &Gpu, words: &[u32]) -> wgpu::Buffer {
         })
 }
 
-/// One entry point of a shader module with its pipeline layout.
+/// One entry point of a shader module, as a compute pipeline.
 pub(crate) struct Kernel {
     pipeline: wgpu::ComputePipeline,
 }

@@ -213,7 +213,7 @@ impl Live {
 }
 
 impl LiveBuilder {
-    /// No slots, no stages; `fixed` slots reserved first (written by the host).
+    /// No derived slots and no stages yet; the first `fixed` slots are the host's to write.
     pub(crate) fn new(fixed: u32) -> LiveBuilder {
         LiveBuilder {
             slots: fixed,

@@ -161,7 +161,8 @@ pub struct GpuStats {
     pub tile_entries: u64,
     /// (splat, tile) pairs the work space holds.
     pub capacity: u32,
-    /// Times a batch was rendered again after growing the work space or its blending passes.
+    /// Times a batch (or a part of one) was rendered again after growing the work space or its
+    /// blending passes, or in two halves where one work space could not hold it.
     pub regrown: u32,
     /// Blending passes per slab: a tile blends at most [`GpuRenderer::set_blend_piece`]'s
     /// entries in one pass and the rest in the passes after.

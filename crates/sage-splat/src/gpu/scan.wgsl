@@ -2,7 +2,9 @@
 // threads, each a run of SCAN_BLOCK / 256; the constant comes from the Rust side), n read on
 // the GPU (`live[n_slot]`) and the workgroups dispatched indirectly from it. `scan_blocks`
 // scans each block and writes its total to `sums`; once `sums` is scanned the same way
-// (recursively), `add_sums` adds each block's offset back.
+// (recursively), `add_sums` adds each block's offset back; or, for a reader that adds its
+// block's offset itself (the radix sort's `scatter`: `Finish::Apart` in sort.rs), the lowest
+// level's offsets stay in `sums`.
 //
 // A block takes two barriers: a software driver (lavapipe) runs a workgroup's threads a vector
 // at a time and switches between them at every barrier, which costs more than the additions.

@@ -41,7 +41,7 @@ fn sh_words(sh_rest: usize) -> usize {
 /// Words of a Gaussian's appearance before its SH codes: its colour and step, its instance.
 const APPEARANCE_HEAD: usize = 3;
 
-/// Texels of a Gaussian's appearance with `sh_rest` higher-order SH coefficients (1 to 4).
+/// Texels of a Gaussian's appearance (1 to 4) with `sh_rest` higher-order SH coefficients.
 pub(crate) fn appearance_texels(sh_rest: usize) -> u32 {
     (APPEARANCE_HEAD + sh_words(sh_rest)).div_ceil(4) as u32
 }

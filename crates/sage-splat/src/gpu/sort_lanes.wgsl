@@ -1,6 +1,6 @@
 // The radix sort's kernels shaped for hardware GPUs (`sort.wgsl`): a thread per pair, blocks
 // of 256. A workgroup of `histogram` counts HISTOGRAM_BLOCKS blocks, a pair of each per thread,
-// between the same two barriers; `scatter` ranks each pair among the equal digits of its block
+// before one barrier (workgroup memory starts zeroed); `scatter` ranks each pair among the equal digits of its block
 // from bit masks in workgroup memory.
 
 // Per block of the workgroup and digit, its pairs.

@@ -1,14 +1,13 @@
 // The image formation of the CPU renderer (SPEC §3) as compute kernels over a batch of
-// cameras; the constants come from the Rust crate in a generated prelude (TILE, LOW_PASS,
-// MIN_ALPHA, MAX_ALPHA, MIN_TRANSMITTANCE, the SH constants, the storage steps, SH_REST,
-// APPEARANCE_TEXELS, GAUSSIANS, CHUNKS, SLABS, DEPTH_BINS, PLANES, CAMERA_SLOTS, RUN_GROUP,
-// TEXELS_ACROSS and the fixed live slots).
+// cameras; the constants come from the Rust crate in a generated prelude (`prelude` in
+// renderer.rs: the image formation's constants, the storage steps, the sizes of the batch's
+// arrays, the key and entry bit widths, the output planes and the fixed live slots).
 //
 // Every camera of the batch goes through the same dispatches, and every pass after the first runs
 // over what the one before found (`live`, dispatched indirectly). Once per batch: `clear` →
 // `start_pixels` → `cull` (a thread per camera × chunk of 256 Gaussians: against the camera's
 // frustum, then the chunk's depth range and screen rectangle, and a histogram of the chunks' middle
-// depths) → `cut_slabs` (per camera, SLABS depth slabs at quantiles of that histogram). Then per
+// depths) → `cut_slabs` (per camera, the batch's live[LIVE_SLABS] depth slabs, at most SLABS, at quantiles of that histogram). Then per
 // slab, front to back, as the CPU renderer does: `finished_table` (per camera, a summed-area table
 // of the tiles whose every pixel is finished) → `select_chunks` (the chunks reaching the slab and
 // some unfinished tile) → scan → `list_chunks` (the selected (camera, chunk) entries) → `mark` (a
@@ -79,7 +78,7 @@ struct Slots {
 // `mark`; a GPU's constant cache serves the camera a workgroup shares.
 @group(1) @binding(0) var<uniform> cameras: array<Camera, CAMERA_SLOTS>;
 @group(1) @binding(1) var<storage, read> live: array<u32>;
-// Per camera × chunk (+1): visible, then its exclusive scan.
+// Per camera × chunk (+1): selected for this slab (`select_chunks`), then its exclusive scan.
 @group(1) @binding(2) var<storage, read_write> chunk_flags: array<u32>;
 // The visible entries, camera × CHUNKS + chunk.
 @group(1) @binding(3) var<storage, read_write> chunk_list: array<u32>;
@@ -1292,7 +1291,7 @@ fn reaches(live: vec4<bool>, power: vec4<f32>, sb: vec4<f32>) -> bool {
     return any(live & (power >= vec4<f32>(-0.5 * sb.w)));
 }
 
-// A workgroup per tile of every camera; each of its 32 threads blends a column of eight pixels
+// Each of a workgroup's 32 threads blends a column of eight pixels
 // (as two vectors of four lanes), so a splat read (its index and the splat, from the textures)
 // serves eight pixels.
 // Eight neighbouring threads cover a block of 8×8 pixels and go through only the splats whose

@@ -53,21 +53,31 @@ const SPLAT_TEXTURES: [(&str, wgpu::TextureFormat); 4] = [
 /// Texels of the entry table per visible entry (`index_entries` in `splat.wgsl`): its first
 /// splat and chunk, then its mask in two.
 pub(crate) const ENTRY_TEXELS: u32 = 3;
-/// Live slots the host writes before each batch: cameras × chunks, the batch's tiles, its
-/// cameras, its depth slabs, the planes `compose` writes out (`OUT_*` bits), the visible
-/// chunks below which a camera takes one slab of the batch's (zero when the slabs are fixed),
-/// the most entries one blending workgroup takes of its tile (a piece), the blending passes
-/// per slab, and the words of the tile lists the host's programs read ([`list_words`]).
+// Live slots the host writes before each batch, one by one below.
+/// Live slot: cameras × chunks.
 pub(crate) const LIVE_CAMERA_CHUNKS: u32 = 0;
+/// Live slot: the batch's tiles.
 pub(crate) const LIVE_TILES: u32 = 1;
+/// Live slot: the batch's cameras.
 pub(crate) const LIVE_CAMERAS: u32 = 2;
+/// Live slot: the batch's depth slabs.
 pub(crate) const LIVE_SLABS: u32 = 3;
+/// Live slot: the planes `compose` writes out (`OUT_*` bits).
 pub(crate) const LIVE_OUT_PLANES: u32 = 4;
+/// Live slot: the visible chunks below which a camera takes one slab of the batch's (zero
+/// when the slabs are fixed).
 pub(crate) const LIVE_FEW_CHUNKS: u32 = 5;
+/// Live slot: the most entries one blending workgroup takes of its tile (a piece).
 pub(crate) const LIVE_PIECE: u32 = 6;
+/// Live slot: the blending passes per slab.
 pub(crate) const LIVE_PASSES: u32 = 7;
+/// Live slot: where in the tile lists the second list's count is ([`list_words`]), for the
+/// size programs that read it.
 pub(crate) const LIVE_SECOND_COUNT: u32 = 8;
+/// Live slot: where in the tile lists a slab's last pass notes the passes it would have
+/// needed ([`list_words`]).
 pub(crate) const LIVE_WANTED_AT: u32 = 9;
+/// The live slots the host writes, before those the size programs derive.
 const LIVE_FIXED: u32 = 10;
 /// Most blending passes per slab: a tile blends at most this many pieces in one slab.
 pub(crate) const MAX_BLEND_PASSES: u32 = 64;
@@ -81,8 +91,8 @@ pub(crate) fn list_words(tiles: u32) -> [u32; 2] {
 /// Bits of a sort key below the camera (`depth_key`, `tile_key` in `splat.wgsl`): the camera
 /// of the batch takes the byte above, so a batch holds at most 256 cameras.
 pub(crate) use crate::camera::DEPTH_KEY_BITS;
-/// Bits of a (tile, splat) entry's value that hold the splat's place in the depth order; the
-/// four above them say which 8×8 blocks of the tile the splat's box reaches (`emit` writes
+/// Bits of a (tile, splat) entry's value that hold the splat's index in the splat textures
+/// (its slot in `project`'s output, which the depth order's values name); the four above them say which 8×8 blocks of the tile the splat's box reaches (`emit` writes
 /// them, the blending kernels read them with the splat).
 pub(crate) const SPLAT_INDEX_BITS: u32 = 28;
 /// Most 8-bit passes the tile sort takes (a camera's tiles below 2²⁴).
@@ -183,11 +193,15 @@ impl Caps {
     }
 
     /// Device bytes of buffers and textures of these capacities for kernels of `shape` (the
-    /// scan and sort scratch included; the camera blocks, sized by the adapter, not).
+    /// sorts' digit counts included; not the scans' block sums, a word per block of
+    /// `SCAN_BLOCK`, nor the uniform buffers the adapter's alignment sizes: the camera blocks
+    /// and the slab entries).
     pub(crate) fn bytes(&self, shape: KernelShape) -> u64 {
         let words = u64::from(self.cameras) * u64::from(DEPTH_BINS + SLABS + 1)
-            + 6 * u64::from(self.camera_chunks)
-            + 11 * u64::from(self.entries)
+            // Chunk flags and views.
+            + 5 * u64::from(self.camera_chunks)
+            // Chunk list, entry masks and counts.
+            + 10 * u64::from(self.entries)
             // Depth keys and values, tile counts.
             + u64::from(self.splats) * 3
             + digit_words(shape, self.splats)
