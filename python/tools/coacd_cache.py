@@ -15,6 +15,7 @@ n x 3 float32 positions, m x 3 uint32 indices. Files are written to a temporary 
 
 import argparse
 import json
+import math
 import os
 import struct
 import sys
@@ -39,8 +40,10 @@ def encode(key_hex, parts):
 
 
 def is_whole_entry(path, key_hex):
-    """Whether `path` holds a whole cache file of `key_hex`, as sage3d reads it: a file cut
-    short, of another version or of another key is made again (sage3d lists it as pending)."""
+    """Whether `path` holds a whole cache file of `key_hex`, by the checks sage3d reads it
+    with: a file cut short, of another version or key, with trailing bytes, a coordinate that
+    is not finite or a triangle index past its part's vertices is made again (sage3d lists it
+    as pending)."""
     try:
         with open(path, "rb") as f:
             data = f.read()
@@ -58,7 +61,15 @@ def is_whole_entry(path, key_hex):
         if at + 8 > len(data):
             return False
         nv, nt = struct.unpack_from("<II", data, at)
-        at += 8 + 12 * (nv + nt)
+        at += 8
+        end = at + 12 * (nv + nt)
+        if end > len(data):
+            return False
+        coords = struct.unpack_from(f"<{3 * nv}f", data, at)
+        indices = struct.unpack_from(f"<{3 * nt}I", data, at + 12 * nv)
+        if not all(math.isfinite(c) for c in coords) or any(i >= nv for i in indices):
+            return False
+        at = end
     return at == len(data)
 
 

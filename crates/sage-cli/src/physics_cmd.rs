@@ -16,8 +16,8 @@ pub enum PhysicsCommand {
     /// Build the collision bodies of a scene (decomposing meshes not yet in the cache) and
     /// report the decomposition quality: hull counts and hull volume against mesh volume.
     Build(BuildArgs),
-    /// List the object meshes whose hulls are not yet cached, with their cache paths, as JSON
-    /// (the work list of python/tools/coacd_cache.py).
+    /// List the object meshes whose hulls are not yet cached (missing, or a damaged entry), with
+    /// their cache paths, as JSON (the work list of python/tools/coacd_cache.py).
     Pending(PendingArgs),
     /// Drive an agent through a scene with a list of commands; print one JSON report per step.
     Drive(DriveArgs),
@@ -331,7 +331,7 @@ fn pending(a: PendingArgs) -> Result<()> {
         a.force,
     )?;
     println!(
-        "{} meshes without cached hulls -> {}",
+        "{} meshes without cached hulls (missing or damaged) -> {}",
         list.meshes.len(),
         a.out.display()
     );

@@ -1,5 +1,6 @@
 //! `sage3d physics drive`: one JSON report per step on a synthetic scene, and bad input refused
-//! with a message naming the flag or command.
+//! with a message naming the flag or command; `physics build` and `export usd` over a damaged
+//! hull cache entry.
 
 mod common;
 
@@ -92,4 +93,83 @@ fn drive_prints_a_report_per_step_and_refuses_bad_commands() {
     );
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("yaw"));
+}
+
+/// A damaged hull cache entry is decomposed anew: `physics build` and `export usd` succeed,
+/// name the file in a note on standard error, and `physics build --json` lists it in `remade`.
+#[test]
+fn a_damaged_hull_cache_entry_is_remade_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s");
+    let scene = scene.to_str().unwrap();
+    let made = sage3d(&[
+        "scene",
+        "synth",
+        "--seed",
+        "3",
+        "--rooms",
+        "2",
+        "--objects",
+        "4",
+        "--gaussians",
+        "1000",
+        "--out",
+        scene,
+    ]);
+    assert!(made.status.success());
+    let cache = dir.path().join("hulls");
+    let flags = ["--resolution", "16", "--cache", cache.to_str().unwrap()];
+    let build = |json: bool| {
+        let mut args = vec!["physics", "build", scene];
+        args.extend(flags);
+        if json {
+            args.push("--json");
+        }
+        sage3d(&args)
+    };
+    assert!(build(false).status.success());
+    let mut entries: Vec<_> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    entries.sort();
+    let damage = |path: &std::path::Path| {
+        let bytes = std::fs::read(path).unwrap();
+        std::fs::write(path, &bytes[..bytes.len() - 3]).unwrap();
+    };
+    let note = |path: &std::path::Path| {
+        format!(
+            "note: a damaged hull cache entry was decomposed anew and replaced: {}: ",
+            path.display()
+        )
+    };
+
+    damage(&entries[0]);
+    let out = build(true);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains(&note(&entries[0])), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let remade = report["remade"].as_array().unwrap();
+    assert_eq!(remade.len(), 1);
+    assert!(
+        remade[0]
+            .as_str()
+            .unwrap()
+            .starts_with(&entries[0].display().to_string())
+    );
+    // Replaced: the next build reads every entry and says nothing of damage.
+    let out = build(true);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("note:"));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(report.get("remade").is_none() && report["decomposed"] == 0);
+
+    damage(&entries[1]);
+    let usda = dir.path().join("scene.usda");
+    let mut args = vec!["export", "usd", scene, usda.to_str().unwrap()];
+    args.extend(flags);
+    let out = sage3d(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains(&note(&entries[1])), "{stderr}");
 }

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use sage_core::{Error, InstanceId, Obb, Result};
 use sage_scene::{
     BodyParts, BodySource, DoorState, HoleKind, InstanceKind, Object, PhysicsRole, RigidBody,
-    Scene, Wall,
+    Scene, TriMesh, Wall,
 };
 use serde::Serialize;
 use std::time::Instant;
@@ -238,7 +238,12 @@ impl SceneBodies {
                     o.id.0, o.ins_id, o.category
                 ))
             })?;
-            report.remade.extend(damage.map(|d| d.to_string()));
+            // Objects of one mesh share its entry: it is named once.
+            if let Some(damage) = damage.map(|d| d.to_string())
+                && !report.remade.contains(&damage)
+            {
+                report.remade.push(damage);
+            }
             match source {
                 PartSource::Decomposed => report.decomposed += 1,
                 PartSource::Cached => report.cached += 1,
@@ -428,6 +433,22 @@ fn given_hulls(given: &BodyParts) -> Vec<ConvexPart> {
         .collect()
 }
 
+/// The hulls of an object's given parts, when any spans a volume: a body left with none is made
+/// as if none were given.
+fn given_parts(object: &Object) -> Option<Vec<ConvexPart>> {
+    let hulls = given_hulls(object.body.as_ref()?);
+    (!hulls.is_empty()).then_some(hulls)
+}
+
+/// The mesh whose hulls make `object`'s body: none when its given parts make it, or when it has
+/// no mesh with a triangle (its box does). The builder and the CoACD work list both ask here.
+pub(crate) fn hull_mesh(object: &Object) -> Option<&TriMesh> {
+    if given_parts(object).is_some() {
+        return None;
+    }
+    object.mesh.as_ref().filter(|m| !m.triangles.is_empty())
+}
+
 /// The parts of one object: its given parts, else cached or decomposed hulls of its mesh, else
 /// its box; and the damaged cache entry that decomposing replaced, if any.
 fn object_parts(
@@ -435,19 +456,15 @@ fn object_parts(
     decomposer: &Decomposer,
     cache: &HullCache,
 ) -> Result<(Vec<ConvexPart>, PartSource, Option<Error>)> {
-    if let Some(given) = &object.body {
-        // A body left with no part that spans a volume is its box.
-        let parts = given_hulls(given);
-        if !parts.is_empty() {
-            return Ok((parts, PartSource::Given, None));
-        }
+    if let Some(parts) = given_parts(object) {
+        return Ok((parts, PartSource::Given, None));
     }
     let boxed = || {
         ConvexPart::from_obb(&object.obb)
             .map(|p| vec![p])
             .ok_or_else(|| Error::invalid("the oriented box has no volume and no mesh is given"))
     };
-    let Some(mesh) = object.mesh.as_ref().filter(|m| !m.triangles.is_empty()) else {
+    let Some(mesh) = hull_mesh(object) else {
         return Ok((boxed()?, PartSource::Box, None));
     };
     let key = cache_key(mesh, decomposer);
@@ -457,11 +474,19 @@ fn object_parts(
         CacheEntry::Damaged(e) => Some(e),
     };
     let parts = decomposer.run(mesh).map_err(|e| match &damage {
-        // CoACD's entries are made offline: the user is told this one is to be made again.
-        Some(d) => Error::invalid(format!(
-            "the hull cache entry cannot be read ({d}); {}",
-            e.message()
-        )),
+        // CoACD's entries are made offline: the damage, in its file, and how to make it again.
+        Some(d) => {
+            let why = format!(
+                "{}; the entry cannot be read and is to be made again: {}",
+                d.message(),
+                e.message()
+            );
+            let e = Error::format(d.location(), why);
+            match d.file() {
+                Some(file) => e.in_file(file),
+                None => e,
+            }
+        }
         None => e,
     })?;
     // A mesh too thin to voxelise (a flat rug): its box is the honest body.

@@ -7,9 +7,10 @@
 //! written offline by `python/tools/coacd_cache.py` in the same format, under keys computed
 //! here (`sage3d physics pending` lists the meshes it still has to do).
 //!
-//! A cache only ever saves work: an entry that cannot be read as its key's (cut short, from
-//! another format version, holding another key) is [`CacheEntry::Damaged`], and a build makes
-//! it anew and replaces it as it would a missing one, reporting the file
+//! A cache only ever saves work: an entry that cannot be read as its key's (another magic or
+//! format version, another key, cut short or with bytes to spare, a coordinate that is not
+//! finite, a triangle index past its part's vertices) is [`CacheEntry::Damaged`], and a build
+//! makes it anew and replaces it as it would a missing one, reporting the file
 //! ([`crate::BuildReport::remade`]), where an error would stop every build of the scene until
 //! someone removed the file by hand.
 //!
@@ -178,8 +179,8 @@ pub enum CacheEntry {
     Parts(Vec<ConvexPart>),
     /// No entry: the key's mesh has not been decomposed with these settings.
     Missing,
-    /// An entry that is not a whole cache file of the key (cut short, another format version,
-    /// another key): the format error, naming the file. It is to be made again, as a missing one.
+    /// An entry that is not a whole cache file of the key (as the module's documentation lists):
+    /// the format error, naming the file. It is to be made again, as a missing one.
     Damaged(Error),
 }
 
@@ -420,6 +421,54 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    /// Every way an entry can fail to be its key's whole file is [`CacheEntry::Damaged`],
+    /// saying what is wrong; the same entry whole is read.
+    #[test]
+    fn each_kind_of_damage_is_told() {
+        let dir = tempfile::tempdir().unwrap();
+        let cache = HullCache::new(dir.path());
+        let part = ConvexPart::hull_of(&cube(1.0).positions).unwrap();
+        let whole = encode(5, std::slice::from_ref(&part));
+        // Offsets: magic 0, version 8, key 12, part count 28, the part's counts 32 and 36,
+        // its vertices from 40, its triangles after them.
+        let triangles = 40 + 12 * part.vertices.len();
+        let patch = |at: usize, bytes: &[u8]| {
+            let mut b = whole.clone();
+            b[at..at + bytes.len()].copy_from_slice(bytes);
+            b
+        };
+        let mut trailing = whole.clone();
+        trailing.push(0);
+        let nv = part.vertices.len() as u32;
+        for (bytes, told) in [
+            (patch(0, b"NOTHULLS"), "not a sage3d hull cache file"),
+            (patch(8, &2u32.to_le_bytes()), "expected 1, found 2"),
+            (
+                patch(12, &6u128.to_le_bytes()),
+                "expected 00000000000000000000000000000005",
+            ),
+            (whole[..20].to_vec(), "truncated at byte 12 of 20"),
+            (
+                whole[..whole.len() - 1].to_vec(),
+                "counts exceed the file size",
+            ),
+            (trailing, "1 trailing bytes"),
+            (patch(40, &f32::NAN.to_le_bytes()), "not finite"),
+            (patch(triangles, &nv.to_le_bytes()), "index out of range"),
+        ] {
+            std::fs::write(cache.path(5), &bytes).unwrap();
+            match cache.load(5).unwrap() {
+                CacheEntry::Damaged(e) => {
+                    let e = e.to_string();
+                    assert!(e.contains(told) && e.contains(".hulls"), "{told}: {e}");
+                }
+                other => panic!("{told}: {other:?}"),
+            }
+        }
+        std::fs::write(cache.path(5), &whole).unwrap();
+        assert!(matches!(cache.load(5).unwrap(), CacheEntry::Parts(p) if p == [part]));
     }
 
     #[test]

@@ -2,7 +2,9 @@
 //! what an offline decomposer needs to fill it (`python/tools/coacd_cache.py` reads this file,
 //! runs CoACD on each mesh and writes each `cache_file`; `docs/physics.md`).
 
+use crate::bodies::hull_mesh;
 use crate::decompose::{CacheEntry, Decomposer, HullCache, cache_key};
+use sage_core::Result;
 use sage_scene::Scene;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -42,26 +44,30 @@ impl WorkList {
     /// The meshes of `scene` that `decomposer` has not yet decomposed into `cache`, or whose
     /// entry there is damaged (objects with given parts, e.g. from a published collision file,
     /// need none).
-    pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> WorkList {
-        let meshes = scene
-            .objects
-            .iter()
-            .filter(|o| o.body.as_ref().is_none_or(|b| b.parts.is_empty()))
-            .filter_map(|o| {
-                let mesh = o.mesh.as_ref().filter(|m| !m.triangles.is_empty())?;
-                let key = cache_key(mesh, decomposer);
-                // A damaged entry is to be made again, as `physics build` asks.
-                let cached = matches!(cache.load(key), Ok(CacheEntry::Parts(_)));
-                (!cached).then(|| PendingMesh {
-                    cache_file: cache.path(key),
-                    ins_id: o.ins_id.clone(),
-                    instance: o.id.0,
-                    key: format!("{key:032x}"),
-                    triangles: mesh.triangles.clone(),
-                    vertices: mesh.positions.iter().map(|p| p.to_array()).collect(),
-                })
-            })
-            .collect();
+    ///
+    /// # Errors
+    ///
+    /// The cache is a file, or an entry exists but cannot be read (permissions), naming it.
+    pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> Result<WorkList> {
+        let mut meshes = Vec::new();
+        for o in &scene.objects {
+            let Some(mesh) = hull_mesh(o) else {
+                continue;
+            };
+            let key = cache_key(mesh, decomposer);
+            // A damaged entry is to be made again, as `physics build` asks.
+            if let CacheEntry::Parts(_) = cache.load(key)? {
+                continue;
+            }
+            meshes.push(PendingMesh {
+                cache_file: cache.path(key),
+                ins_id: o.ins_id.clone(),
+                instance: o.id.0,
+                key: format!("{key:032x}"),
+                triangles: mesh.triangles.clone(),
+                vertices: mesh.positions.iter().map(|p| p.to_array()).collect(),
+            });
+        }
         let settings = match *decomposer {
             Decomposer::Coacd {
                 threshold,
@@ -75,11 +81,11 @@ impl WorkList {
                 serde_json::json!({"resolution": resolution, "concavity": concavity, "max_hulls": max_hulls})
             }
         };
-        WorkList {
+        Ok(WorkList {
             cache_dir: cache.dir().to_path_buf(),
             decomposer: decomposer.describe(),
             meshes,
             settings,
-        }
+        })
     }
 }

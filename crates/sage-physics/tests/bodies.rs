@@ -115,7 +115,7 @@ fn a_damaged_cache_entry_is_made_anew_and_reported() {
     version[8] = 9;
     std::fs::write(cache.path(key(5)), version).unwrap();
     std::fs::copy(cache.path(key(0)), cache.path(key(7))).unwrap();
-    let pending = WorkList::of(&scene, &COARSE, &cache);
+    let pending = WorkList::of(&scene, &COARSE, &cache).unwrap();
     let listed: Vec<u32> = pending.meshes.iter().map(|m| m.instance).collect();
     let ids = [3, 5, 7].map(|o| scene.objects[o].id.0);
     assert_eq!(listed, ids, "the work list names the damaged entries");
@@ -142,7 +142,12 @@ fn a_damaged_cache_entry_is_made_anew_and_reported() {
     let (_, third) = SceneBodies::build(&scene, &COARSE, &cache).unwrap();
     assert_eq!((third.decomposed, third.cached), (0, meshed));
     assert!(third.remade.is_empty());
-    assert!(WorkList::of(&scene, &COARSE, &cache).meshes.is_empty());
+    assert!(
+        WorkList::of(&scene, &COARSE, &cache)
+            .unwrap()
+            .meshes
+            .is_empty()
+    );
 }
 
 #[test]
@@ -318,6 +323,25 @@ fn published_parts_make_object_bodies_and_a_static_structure_body() {
         source: BodySource::Published,
         parts: vec![box_mesh(lo, mid), box_mesh(mid, hi)],
     });
+    // Given parts all too flat to span a volume: the body is made from the mesh, as if none
+    // were given, and the work list names the mesh as the build needs it.
+    let flat = box_mesh(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0));
+    scene.objects[1].body = Some(BodyParts {
+        source: BodySource::Published,
+        parts: vec![flat],
+    });
+    let coacd = Decomposer::Coacd {
+        threshold: 0.05,
+        max_hulls: 8,
+    };
+    let pending = WorkList::of(&scene, &coacd, &HullCache::new("no-cache-here")).unwrap();
+    let listed: Vec<u32> = pending.meshes.iter().map(|m| m.instance).collect();
+    let meshed: Vec<u32> = scene.objects[1..]
+        .iter()
+        .filter(|o| o.mesh.is_some())
+        .map(|o| o.id.0)
+        .collect();
+    assert_eq!(listed, meshed);
     scene.structure_body = Some(BodyParts {
         source: BodySource::Published,
         parts: vec![
@@ -331,6 +355,7 @@ fn published_parts_make_object_bodies_and_a_static_structure_body() {
         SceneBodies::build(&scene, &COARSE, &HullCache::new(dir.path())).unwrap();
     assert_eq!(report.sources[0].source, BodySource::Published);
     assert_eq!(report.sources[0].parts, 2);
+    assert_eq!(bodies.bodies[1].source, PartSource::Decomposed);
     assert_eq!(report.structure_parts, 1);
     let s = bodies
         .bodies

@@ -75,7 +75,8 @@ pub fn bodies(
 }
 
 /// Writes to `out` the work list of the scene in `scene_dir` (loaded with `options`): its
-/// object meshes that `decomposer` has not yet decomposed into `cache` (what an offline
+/// object meshes that `decomposer` has not yet decomposed into `cache`, or whose entry there is
+/// damaged (what an offline
 /// decomposer such as `python/tools/coacd_cache.py` is to do). An existing `out` is replaced only with `force`,
 /// and never when it is one of the scene's files.
 ///
@@ -92,7 +93,7 @@ pub fn work_list(
 ) -> Result<WorkList> {
     options.claim_output(scene_dir, out, force)?;
     let (scene, _) = options.load(scene_dir)?;
-    let list = WorkList::of(&scene, decomposer, cache);
+    let list = WorkList::of(&scene, decomposer, cache)?;
     write_json(out, &list)?;
     Ok(list)
 }
