@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::sage3d;
+use common::{s, sage3d, small_scene, stderr};
 
 #[test]
 fn drive_prints_a_report_per_step_and_refuses_bad_commands() {
@@ -101,22 +101,8 @@ fn drive_prints_a_report_per_step_and_refuses_bad_commands() {
 fn a_damaged_hull_cache_entry_is_remade_and_named() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("s");
-    let scene = scene.to_str().unwrap();
-    let made = sage3d(&[
-        "scene",
-        "synth",
-        "--seed",
-        "3",
-        "--rooms",
-        "2",
-        "--objects",
-        "4",
-        "--gaussians",
-        "1000",
-        "--out",
-        scene,
-    ]);
-    assert!(made.status.success());
+    small_scene(&scene, "3", "1000");
+    let scene = s(&scene);
     let cache = dir.path().join("hulls");
     let flags = ["--resolution", "16", "--cache", cache.to_str().unwrap()];
     let build = |json: bool| {
@@ -146,9 +132,9 @@ fn a_damaged_hull_cache_entry_is_remade_and_named() {
 
     damage(&entries[0]);
     let out = build(true);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    assert!(stderr.contains(&note(&entries[0])), "{stderr}");
+    let said = stderr(&out);
+    assert!(out.status.success(), "{said}");
+    assert!(said.contains(&note(&entries[0])), "{said}");
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let remade = report["remade"].as_array().unwrap();
     assert_eq!(remade.len(), 1);
@@ -160,7 +146,7 @@ fn a_damaged_hull_cache_entry_is_remade_and_named() {
     );
     // Replaced: the next build reads every entry and says nothing of damage.
     let out = build(true);
-    assert!(!String::from_utf8_lossy(&out.stderr).contains("note:"));
+    assert!(!stderr(&out).contains("note:"));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(report.get("remade").is_none() && report["decomposed"] == 0);
 
@@ -169,7 +155,7 @@ fn a_damaged_hull_cache_entry_is_remade_and_named() {
     let mut args = vec!["export", "usd", scene, usda.to_str().unwrap()];
     args.extend(flags);
     let out = sage3d(&args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    assert!(stderr.contains(&note(&entries[1])), "{stderr}");
+    let said = stderr(&out);
+    assert!(out.status.success(), "{said}");
+    assert!(said.contains(&note(&entries[1])), "{said}");
 }
