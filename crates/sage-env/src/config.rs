@@ -123,7 +123,7 @@ impl Default for TaskConfig {
         TaskConfig {
             max_steps: 500,
             success_distance: 1.0,
-            nogoal_time_limit: 120.0,
+            nogoal_time_limit: sage_metrics::nogoal::NOGOAL_TIME_LIMIT as f32,
         }
     }
 }

@@ -251,7 +251,8 @@ impl Appender {
 }
 
 /// The records of `text` and the byte length of the lines they came from; `tolerate_tail`
-/// drops an unfinished or unreadable last line instead of failing on it.
+/// drops an unfinished or unreadable last line, or one whose record fails its checks, instead
+/// of failing on it (its episode runs again).
 fn parse(
     path: &Path,
     text: &str,

@@ -145,7 +145,8 @@ impl LabelledBox {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum OfficialGoal {
-    /// No semantic map loaded: plain distance to the goal point against the goal radius 0.5 m.
+    /// No semantic map loaded: plain distance to the goal point: < 0.5 m for SR, < 1.5 m for
+    /// OSR, ≤ 2.0 m for CSR.
     NoMap,
     /// A map is loaded: its "smart position" entry (see [`official_goal_box`]), or `None` when
     /// no entry lies within 2 m of the goal point (then distance to the goal point is used).

@@ -4,7 +4,8 @@ use std::collections::BTreeSet;
 
 /// Side of an exploration cell (metres).
 pub const EXPLORE_CELL: f64 = 0.5;
-/// Simulated seconds after which a NoGoal episode ends (mode `sage`).
+/// Simulated seconds after which a NoGoal episode ends by default (the environment's
+/// `task.nogoal_time_limit`), whatever the metric mode.
 pub const NOGOAL_TIME_LIMIT: f64 = 120.0;
 /// The published code's coverage target: 400 cells (its coverage is cells / 400, capped at 1).
 pub const OFFICIAL_COVERAGE_CELLS: f64 = 400.0;
