@@ -2,6 +2,8 @@
 checker, observation types and spaces, zero-copy arrays, determinism by seed, rewards and the
 info dict, the registered ids and the continuous action space."""
 
+import json
+
 import gymnasium
 import numpy as np
 import pytest
@@ -171,6 +173,27 @@ def test_continuous_ground_actions():
         env.reset(seed=0)
 
 
+def test_uav_action_box_ends_where_the_physics_clamps():
+    env = make(actions="uav", sensors=[])
+    profile = sage3d.env_config("sage", json.dumps({"agent": "uav"}))["profile"]
+    assert env.action_space.shape == (6,)
+    # vz is bounded by the climb rate, not the speed: the box's edge is where the physics
+    # stops answering a larger command.
+    assert env.action_space.high[3] == pytest.approx(profile["max_climb"])
+    assert profile["max_climb"] < profile["max_speed"]
+
+    def rise(vz):
+        obs, _ = env.reset(seed=3, options={"episode_index": 0})
+        z = obs["pose"][2]
+        obs, *_ = env.step(np.array([0.0, 0.0, 0.0, vz, 0.0, 0.2], np.float32))
+        return obs["pose"][2] - z
+
+    edge = float(env.action_space.high[3])
+    assert rise(edge) == pytest.approx(edge * 0.2, abs=1e-4)
+    assert rise(edge * 2) == pytest.approx(rise(edge), abs=1e-6)
+    assert rise(edge / 2) == pytest.approx(edge * 0.1, abs=1e-4)
+
+
 def test_bad_settings_are_clear_errors():
     with pytest.raises(ValueError, match="hfov"):
         make(hfov=190)
@@ -199,9 +222,15 @@ def test_bad_settings_are_clear_errors():
     for bad, match in (({"foo": 1}, r"unknown reset option 'foo' \(accepted: episode_id, episode_index\)"),
                        ({"episode": "x", "seed": 3}, r"unknown reset option 'episode', 'seed'"),
                        ({"episode_id": env.episodes[0]["episode_id"], "episode_index": 1},
-                        "not both")):
+                        "not both"),
+                       ({"episode_id": "no such episode"}, "is not among this env's episodes"),
+                       ({"episode_index": 10**6}, "episode_index: 1000000 is past")):
         with pytest.raises(ValueError, match=match):
             env.reset(seed=99, options=bad)
+    assert env.np_random.integers(1000) == drawn
+    env.reset(seed=5)
+    with pytest.raises(TypeError, match="seed: expected a whole number"):
+        env.reset(seed=1.5)
     assert env.np_random.integers(1000) == drawn
     with pytest.raises(TypeError, match="expected a dict"):
         env.reset(options=["episode_id"])

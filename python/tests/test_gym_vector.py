@@ -70,6 +70,19 @@ def test_wrong_batch_sizes_are_errors():
                        ({"episode_index": 0}, "one index per sub-environment")):
         with pytest.raises(ValueError, match=match):
             vec.reset(options=bad)
+    # A refused reset reseeds no generator: the episodes drawn after it are those drawn
+    # without it.
+    def draws(refused):
+        vec.reset(seed=7)
+        for seed, options in refused:
+            with pytest.raises((TypeError, ValueError)):
+                vec.reset(seed=seed, options=options)
+        return [vec.reset()[0]["pose"].tolist() for _ in range(6)]
+
+    expected = draws([])
+    assert draws([(99, {"episode_index": [0, 10**6]}),
+                  ([99, 1.5], None),
+                  (99, {"episode_index": [0]})]) == expected
     first, _ = vec.reset(seed=np.int64(3))
     again, _ = vec.reset(seed=3)
     np.testing.assert_array_equal(first["pose"], again["pose"])

@@ -142,6 +142,7 @@ fn pool(
 struct Limits {
     name: &'static str,
     max_speed: f32,
+    max_climb: f32,
     max_yaw_rate: f32,
     camera_height: f32,
 }
@@ -176,6 +177,7 @@ pub fn env_config<'py>(
             &Limits {
                 name: profile.name,
                 max_speed: profile.max_speed,
+                max_climb: profile.max_climb,
                 max_yaw_rate: profile.max_yaw_rate,
                 camera_height: profile.camera_height,
             },

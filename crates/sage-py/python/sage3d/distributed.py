@@ -198,7 +198,7 @@ def evaluate(dataset, scenes=None, agent=None, out=None, width: int | None = Non
     ``episodes.jsonl``, ``summary.json`` and ``sage3d_run.json`` the same bytes as one ``sage3d
     eval`` over the whole split, then writes the run's report (``report.html``). ``agent`` and
     ``options`` (``split``, ``mode``, ``dtw``, ``seed``, ``preset``, ``device``: every task
-    renders on it) as in :func:`sage3d.evaluate` (a Python agent must be picklable). An agent
+    renders on it; ``splat_bodies``) as in :func:`sage3d.evaluate` (a Python agent must be picklable). An agent
     whose server holds one episode's state (``socket:HOST:PORT?server=navid``) gets its tasks
     one after another, as ``sage3d eval`` runs its episodes one at a time. ``progress`` prints the episodes done (of the split) as
     tasks finish. A task whose worker or node dies is rerun up to ``max_retries`` times (Ray's

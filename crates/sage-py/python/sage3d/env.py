@@ -228,7 +228,8 @@ def check_discrete(space: spaces.Space, action: Any, name: str = "action") -> No
 def action_space(config: dict, look: bool = False) -> spaces.Space:
     """Discrete(4) (STOP, FORWARD, LEFT, RIGHT) or Discrete(6) with LOOK_UP / LOOK_DOWN;
     for velocities a Box ``[stop, vx, vy, wz, dt]`` (UAV: ``[stop, vx, vy, vz, wz, dt]``),
-    ``stop >= 0.5`` calling STOP, within the agent profile's limits."""
+    ``stop >= 0.5`` calling STOP, within the agent profile's limits: ``vx`` and ``vy`` each
+    within its speed (the physics scales the pair down to it), ``vz`` within its climb rate."""
     a = config["actions"]
     if a["kind"] == "discrete":
         return spaces.Discrete(6 if look else 4)
@@ -237,7 +238,8 @@ def action_space(config: dict, look: bool = False) -> spaces.Space:
     if a["kind"] == "ground":
         low, high = [0, -v, -v, -wz, 0], [1, v, v, wz, dt]
     else:
-        low, high = [0, -v, -v, -v, -wz, 0], [1, v, v, v, wz, dt]
+        vz = p["max_climb"]
+        low, high = [0, -v, -v, -vz, -wz, 0], [1, v, v, vz, wz, dt]
     return spaces.Box(np.array(low, np.float32), np.array(high, np.float32), dtype=np.float32)
 
 
@@ -325,7 +327,8 @@ class SageEnv(_Prepared, gym.Env):
     #: The keys ``reset(options=...)`` accepts; any other is a ``ValueError``.
     RESET_OPTIONS = ("episode_id", "episode_index")
 
-    def _index(self, options: dict) -> int:
+    def _named(self, options: dict) -> int | None:
+        """The episode ``options`` names, or ``None`` where it names none (drawn at random)."""
         if "episode_id" in options:
             try:
                 return self._ids[options["episode_id"]]
@@ -336,16 +339,20 @@ class SageEnv(_Prepared, gym.Env):
             if index >= len(self._ids):
                 raise ValueError(f"episode_index: {index} is past this env's {len(self._ids)} episodes")
             return index
-        return int(self.np_random.integers(len(self._ids)))
+        return None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        # Checked before the generator is reseeded, so a refused call changes nothing.
+        # Everything is checked before the generator is reseeded, so a refused call changes nothing.
         options = check_options(options, self.RESET_OPTIONS)
         if "episode_id" in options and "episode_index" in options:
             raise ValueError("reset options: name the episode by episode_id or by episode_index, not both")
         sim = self._open_sim()
-        super().reset(seed=None if seed is None else whole("seed", seed))
-        obs, info = sim.reset(self._index(options))
+        seed = None if seed is None else whole("seed", seed)
+        index = self._named(options)
+        super().reset(seed=seed)
+        if index is None:
+            index = int(self.np_random.integers(len(self._ids)))
+        obs, info = sim.reset(index)
         self._last = obs
         return obs, info
 

@@ -80,7 +80,8 @@ class SageVectorEnv(_Prepared, VectorEnv):
         ``seed + i``) or one per sub-environment; ``options={"episode_index": [...]}`` picks
         the episodes (any other key is a ``ValueError``)."""
         self._check_open()
-        # Checked before the generators are reseeded, so a refused call changes nothing.
+        # Everything is checked before the generators are reseeded, so a refused call changes
+        # nothing.
         options = check_options(options, self.RESET_OPTIONS)
         indices = None
         if "episode_index" in options:
@@ -91,6 +92,10 @@ class SageVectorEnv(_Prepared, VectorEnv):
             if len(indices) != self.num_envs:
                 raise ValueError(f"episode_index: expected {self.num_envs} indices, one per "
                                  f"sub-environment, got {len(indices)}")
+            pool = self._sim.num_episodes()
+            for i, k in enumerate(indices):
+                if k >= pool:
+                    raise ValueError(f"episode_index[{i}]: {k} is past this env's {pool} episodes")
         if seed is not None:
             seeds: list[Any]
             if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
@@ -100,9 +105,10 @@ class SageVectorEnv(_Prepared, VectorEnv):
             if len(seeds) != self.num_envs:
                 raise ValueError(f"seed: expected {self.num_envs} seeds (one per sub-environment), "
                                  f"got {len(seeds)}")
+            seeds = [None if s is None else whole("seed", s) for s in seeds]
             for i, s in enumerate(seeds):
                 if s is not None:
-                    self._rngs[i] = seeding.np_random(whole("seed", s))[0]
+                    self._rngs[i] = seeding.np_random(s)[0]
         if indices is None:
             indices = [self._draw(i) for i in range(self.num_envs)]
         obs, infos = self._sim.reset(indices)
