@@ -103,7 +103,8 @@ pub struct SplatBodyParams {
     pub min_opacity: f32,
     /// Objects with fewer usable Gaussians keep their box.
     pub min_gaussians: usize,
-    /// Most convex parts per object: a coarser voxel is tried while there are more.
+    /// Convex parts per object wanted at most: while there are more, a coarser voxel (×1.5) is
+    /// tried, up to three times; the third coarser one is kept whatever its count.
     pub max_parts: usize,
 }
 

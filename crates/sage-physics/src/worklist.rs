@@ -4,7 +4,7 @@
 
 use crate::bodies::hull_mesh;
 use crate::decompose::{CacheEntry, Decomposer, HullCache, cache_key};
-use sage_core::Result;
+use sage_core::{Error, Result};
 use sage_scene::Scene;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -13,7 +13,7 @@ use std::path::PathBuf;
 /// version.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PendingMesh {
-    /// Where the decomposer must write the hulls.
+    /// Where the decomposer must write the hulls, absolute.
     pub cache_file: PathBuf,
     /// The object's `ins_id` in labels.json.
     pub ins_id: String,
@@ -30,7 +30,7 @@ pub struct PendingMesh {
 /// The work list file's content (fields in alphabetical order, as [`PendingMesh`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct WorkList {
-    /// The cache folder.
+    /// The cache folder, absolute.
     pub cache_dir: PathBuf,
     /// The decomposer as the cache key describes it.
     pub decomposer: String,
@@ -49,6 +49,11 @@ impl WorkList {
     ///
     /// The cache is a file, or an entry exists but cannot be read (permissions), naming it.
     pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> Result<WorkList> {
+        // The decomposer runs in a working folder of its own: a path relative to ours would
+        // put the hulls where sage3d never looks.
+        let cache_dir =
+            std::path::absolute(cache.dir()).map_err(|e| Error::io(cache.dir(), e))?;
+        let absolute = HullCache::new(&cache_dir);
         let mut meshes = Vec::new();
         for o in &scene.objects {
             let Some(mesh) = hull_mesh(o) else {
@@ -60,7 +65,7 @@ impl WorkList {
                 continue;
             }
             meshes.push(PendingMesh {
-                cache_file: cache.path(key),
+                cache_file: absolute.path(key),
                 ins_id: o.ins_id.clone(),
                 instance: o.id.0,
                 key: format!("{key:032x}"),
@@ -82,7 +87,7 @@ impl WorkList {
             }
         };
         Ok(WorkList {
-            cache_dir: cache.dir().to_path_buf(),
+            cache_dir,
             decomposer: decomposer.describe(),
             meshes,
             settings,

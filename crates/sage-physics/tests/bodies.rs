@@ -342,6 +342,14 @@ fn published_parts_make_object_bodies_and_a_static_structure_body() {
         .map(|o| o.id.0)
         .collect();
     assert_eq!(listed, meshed);
+    // A relative cache folder is written out whole: the decomposer runs in a working folder of
+    // its own.
+    let here = std::env::current_dir().unwrap();
+    assert_eq!(pending.cache_dir, here.join("no-cache-here"));
+    for m in &pending.meshes {
+        assert!(m.cache_file.is_absolute(), "{}", m.cache_file.display());
+        assert_eq!(m.cache_file.parent(), Some(pending.cache_dir.as_path()));
+    }
     scene.structure_body = Some(BodyParts {
         source: BodySource::Published,
         parts: vec![
