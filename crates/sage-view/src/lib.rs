@@ -25,8 +25,9 @@
 //! The server binds to 127.0.0.1 unless told otherwise; another address needs
 //! [`ViewOptions::public`], and then every request must carry a random token given in the
 //! printed URL. It answers only its own routes: no request names a file, so nothing outside
-//! the folders it was given (and no file of theirs but through these routes) can be read,
-//! and it writes nothing but the human-play run folder.
+//! the folders it was given (and no file of theirs but through these routes) can be read.
+//! It writes the human-play run folder and, as every command that loads a scene does, the
+//! scene's cache of collision hulls (`SCENE/.sage3d/collision/`), nothing else.
 
 pub mod assets;
 pub mod client;

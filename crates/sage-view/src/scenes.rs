@@ -1,11 +1,13 @@
-//! The scenes the viewer has opened: each loaded once, on first use, as the environment
-//! loads it (its context: Gaussians, physics, path finder, semantic map), with its renderer and
-//! its top-down map.
+//! The scenes the viewer has opened: each loaded once per choice of bodies, on first use, as
+//! the environment loads it (its context: Gaussians, physics, path finder, semantic map), with
+//! its renderer and its top-down map.
 
 use glam::Vec2;
 use sage_core::{Error, Result, ResultExt};
 use sage_env::SceneContext;
 use sage_eval::report::maps::{base_map, map_zoom};
+use sage_physics::SplatBodies;
+use sage_scene::LoadOptions;
 use sage_splat::Device;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -33,7 +35,9 @@ type Load = Arc<OnceLock<Result<Arc<LoadedScene>, String>>>;
 pub struct SceneCache {
     dirs: BTreeMap<String, PathBuf>,
     device: Device,
-    loaded: Mutex<BTreeMap<String, Load>>,
+    /// By scene and choice of bodies ([`SplatBodies::as_str`]): the bodies are built when the
+    /// scene loads, and an environment refuses a scene loaded with another choice than its own.
+    loaded: Mutex<BTreeMap<(String, &'static str), Load>>,
 }
 
 impl SceneCache {
@@ -61,12 +65,14 @@ impl SceneCache {
         self.dirs.contains_key(name)
     }
 
-    /// Scene `name`, loaded on first use (concurrent first uses wait for one load).
+    /// Scene `name` with the bodies `bodies` chooses (an environment's
+    /// [`sage_env::EnvConfig::splat_bodies`]), loaded on first use (concurrent first uses wait
+    /// for one load); each choice is a load of its own.
     ///
     /// # Errors
     ///
     /// An unknown scene, or the load's error (kept: a scene that failed is not retried).
-    pub fn get(&self, name: &str) -> Result<Arc<LoadedScene>> {
+    pub fn get(&self, name: &str, bodies: SplatBodies) -> Result<Arc<LoadedScene>> {
         let dir = self
             .dirs
             .get(name)
@@ -75,11 +81,11 @@ impl SceneCache {
             .loaded
             .lock()
             .map_err(|_| Error::invalid("scene cache poisoned"))?
-            .entry(name.to_string())
+            .entry((name.to_string(), bodies.as_str()))
             .or_default()
             .clone();
         cell.get_or_init(|| {
-            load(dir, self.device)
+            load(dir, self.device, bodies)
                 .within(format!("scene {name}"))
                 .map(Arc::new)
                 .map_err(|e| e.to_string())
@@ -89,9 +95,14 @@ impl SceneCache {
     }
 }
 
-/// Loads the scene in `dir` with its renderer and map.
-fn load(dir: &std::path::Path, device: Device) -> Result<LoadedScene> {
-    let ctx = Arc::new(SceneContext::load(dir, None)?);
+/// Loads the scene in `dir` with the bodies `bodies` chooses, its renderer and map.
+fn load(dir: &std::path::Path, device: Device, bodies: SplatBodies) -> Result<LoadedScene> {
+    let ctx = Arc::new(SceneContext::load_with_bodies(
+        dir,
+        None,
+        &LoadOptions::default(),
+        bodies,
+    )?);
     // Opened now, so that a device that cannot render fails the scene's load, not each frame.
     ctx.renderer(device)?;
     let (map_png, map) = map_json(&ctx)?;

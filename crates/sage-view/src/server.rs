@@ -1,16 +1,19 @@
 //! The web server: the page, its assets and the JSON API, on axum over tokio.
 //!
-//! Routes (every `/api` answer is JSON unless it is an image; errors are `{"error": …}` with
-//! 400 for a bad request and 404 for something that is not here):
+//! Routes (every `/api` answer is JSON unless it is an image; every `/api` error is
+//! `{"error": …}`: 400 for a bad request, 404 for something that is not here, 403 for what
+//! is refused, and axum's own statuses for a request of the wrong form, a session id that is
+//! not a number or a frame query missing a field (400), a body that is not the route's JSON
+//! (422), a route asked with another method (405)):
 //!
 //! | route | what |
 //! |---|---|
 //! | `GET /` | the page ([`crate::assets`]) |
-//! | `GET /api/info` | what is viewed: kind, scenes, episodes with outcomes, preset, play progress |
+//! | `GET /api/info` | what is viewed: kind, scenes, episodes with outcomes, preset (with its bodies, `splat_bodies`), play progress |
 //! | `GET /api/scenes/{scene}/map` | the map's pixel frame and its objects, rooms, doors |
 //! | `GET /api/scenes/{scene}/map.png` | the map image |
 //! | `GET /api/scenes/{scene}/frame?x&y&z&yaw&pitch&width&height&layer&format` | a frame; its `X-Sage3d-Render` header is the `sage3d render` command of the same image |
-//! | `POST /api/sessions` | open a session: `{scene}` or `{episode}`, `{play: true}` to play it |
+//! | `POST /api/sessions` | open a session: `{scene}` or `{episode}`, `{play: true}` to play it (`{map_shown: true}`: with the map from the start); in human play an episode is explored only once played |
 //! | `POST /api/sessions/{id}/step` | `{action}`; a played episode that ends is recorded |
 //! | `POST /api/sessions/{id}/place` | `{x, y, yaw}`: an explore session starts again there |
 //! | `POST /api/sessions/{id}/map` | a play session notes that the map was shown |
@@ -39,7 +42,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use sage_core::{Error, Result};
 use sage_env::{ActionSpace, EnvConfig};
-use sage_eval::EvalRecord;
+use sage_eval::{EvalRecord, EvalSettings};
 use sage_physics::AgentProfile;
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -187,15 +190,18 @@ pub fn serve(
 }
 
 /// The environment a run is viewed in: the one it recorded (camera, profile, task), moving with
-/// its steps; a run that moved by velocities (a pose replay, a Python run's ground actions)
-/// has no step for the keys, so explore sessions take its preset's steps.
-fn explorable(env: &EnvConfig, preset: &str) -> Result<EnvConfig> {
+/// its steps, on its bodies; a run that moved by velocities (a pose replay, a Python run's
+/// ground actions) has no step for the keys, so explore sessions take its preset's steps.
+fn explorable(env: &EnvConfig, settings: &EvalSettings) -> Result<EnvConfig> {
     let actions = match env.actions {
         ActionSpace::Discrete { .. } => env.actions,
-        _ => EnvConfig::preset(preset)?.actions,
+        _ => EnvConfig::preset(&settings.preset)?.actions,
     };
     Ok(EnvConfig {
         actions,
+        // The settings record the bodies in every run, also one recorded before its `env`
+        // was (whose environment is then the preset's, with the default bodies).
+        splat_bodies: settings.splat_bodies,
         ..env.clone()
     })
 }
@@ -205,15 +211,24 @@ fn open_app(opts: &ViewOptions) -> Result<App> {
     let (subject, dirs) = subject::open(opts)?;
     let (config, play_config, title) = match &subject {
         Subject::Run { settings, env, .. } => (
-            explorable(env, &settings.preset)?,
+            explorable(env, settings)?,
             None,
             format!("run: {} on {}", settings.agent, settings.split),
         ),
-        Subject::Play { run } => (
-            EnvConfig::preset(&run.settings().preset)?,
-            Some(run.env_config()?),
-            format!("human play: {}", run.folder().display()),
-        ),
+        Subject::Play { run } => {
+            let play = run.env_config()?;
+            // Exploring a played episode moves on the bodies it was played on: one load of
+            // each scene serves both.
+            let explore = EnvConfig {
+                splat_bodies: play.splat_bodies,
+                ..EnvConfig::preset(&run.settings().preset)?
+            };
+            (
+                explore,
+                Some(play),
+                format!("human play: {}", run.folder().display()),
+            )
+        }
         Subject::Dataset { split, .. } => (
             EnvConfig::preset(&opts.preset)?,
             None,
@@ -260,6 +275,7 @@ fn router(app: Arc<App>) -> Router {
         .route("/api/sessions/{id}/map", post(map_shown))
         .route("/api/episodes/{id}", get(episode))
         .route("/api/episodes/{id}/video.gif", get(video))
+        .layer(middleware::from_fn(json_errors))
         .layer(middleware::from_fn_with_state(app.clone(), guard))
         .with_state(app)
 }
@@ -304,6 +320,44 @@ async fn guard(State(app): State<Arc<App>>, req: Request, next: Next) -> Respons
         Ok(req) => next.run(req).await,
         Err(e) => e.into_response(),
     }
+}
+
+/// Answers an `/api` error that is not yet JSON as `{"error": …}` with its status and headers:
+/// axum's own refusals of a request's form (a path parameter or query that does not parse,
+/// a body that is not the route's JSON) are plain text, and a route that does not exist or
+/// a wrong method has no body at all.
+async fn json_errors(req: Request, next: Next) -> Response {
+    let api = req.uri().path().starts_with("/api/");
+    let what = format!("{} {}", req.method(), req.uri().path());
+    let response = next.run(req).await;
+    let status = response.status();
+    let json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|t| t.to_str().ok())
+        .is_some_and(|t| t.starts_with("application/json"));
+    if !api || json || !(status.is_client_error() || status.is_server_error()) {
+        return response;
+    }
+    let (parts, body) = response.into_parts();
+    // axum's refusals are a line; a longer body is none of them, and its status says enough.
+    let text = axum::body::to_bytes(body, MAX_BODY)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+        .unwrap_or_default();
+    let text = if text.is_empty() {
+        format!("{what}: {}", status.canonical_reason().unwrap_or("error"))
+    } else {
+        text
+    };
+    let mut answer = ApiError(status, text).into_response();
+    // The others stay (a 405's `Allow`); the body's type and length are the new body's.
+    for (name, value) in &parts.headers {
+        if name != header::CONTENT_TYPE && name != header::CONTENT_LENGTH {
+            answer.headers_mut().append(name.clone(), value.clone());
+        }
+    }
+    answer
 }
 
 /// A request that changes something, let through when it is JSON sent by the viewer's own
@@ -412,6 +466,7 @@ async fn info(State(app): State<Arc<App>>) -> ApiResult<axum::Json<Value>> {
             "hfov_deg": app.config.sensors.hfov_deg,
             "max_steps": app.config.task.max_steps,
             "success_distance": app.config.task.success_distance,
+            "splat_bodies": app.config.splat_bodies,
         },
         "play": play,
     })))
@@ -430,12 +485,12 @@ async fn map_png(State(app): State<Arc<App>>, Path(scene): Path<String>) -> ApiR
     Ok(image("image/png", loaded.map_png.clone()))
 }
 
-/// Scene `scene`, loaded off the async threads.
+/// Scene `scene` on the bodies of the environment explored in, loaded off the async threads.
 async fn load(app: Arc<App>, scene: String) -> ApiResult<Arc<crate::scenes::LoadedScene>> {
     if !app.scenes.contains(&scene) {
         return Err(not_found(format!("no scene '{scene}' here")));
     }
-    blocking(move || Ok(app.scenes.get(&scene)?)).await
+    blocking(move || Ok(app.scenes.get(&scene, app.config.splat_bodies)?)).await
 }
 
 /// Waits for a render's turn: held until the render ends, even when its client has gone.
@@ -503,11 +558,6 @@ async fn open_session(
 ) -> ApiResult<axum::Json<Value>> {
     blocking(move || {
         let (scene, episode) = session_episode(&app, &req)?;
-        let loaded = app.scenes.get(&scene)?;
-        let episode = match episode {
-            Some(e) => e,
-            None => session::explore_episode(session::default_start(&loaded)?, 0.0),
-        };
         let (config, purpose) = if req.play {
             let config = app
                 .play_config
@@ -520,6 +570,12 @@ async fn open_session(
         } else {
             (&app.config, Purpose::Explore)
         };
+        // Loaded with the bodies the session's environment asks for: it refuses others.
+        let loaded = app.scenes.get(&scene, config.splat_bodies)?;
+        let episode = match episode {
+            Some(e) => e,
+            None => session::explore_episode(session::default_start(&loaded)?, 0.0),
+        };
         let session = Session::start(&scene, loaded, config, episode, purpose)?;
         let mut sessions = lock(&app.sessions)?;
         let id = sessions.insert(session);
@@ -530,7 +586,7 @@ async fn open_session(
 
 /// The scene and the environment episode a session request names: a play request needs an
 /// episode of the human run not yet played; an explore request may name an episode (its start
-/// and goal) or a scene.
+/// and goal; in human play only one already played) or a scene.
 fn session_episode(
     app: &App,
     req: &OpenSession,
@@ -551,11 +607,22 @@ fn session_episode(
     match &*subject {
         Subject::Play { run } => {
             let e = run.episode(id).ok_or_else(unknown)?;
-            if req.play && run.recorded(id).is_some() {
+            let played = run.recorded(id).is_some();
+            if req.play && played {
                 return Err(Error::invalid(format!(
                     "episode {id} is already played and recorded in this run"
                 ))
                 .into());
+            }
+            // Exploring shows the goal, the reference path and the distance to the goal: of
+            // an episode still to play, that would be playing it with the answer, unnoted.
+            if !req.play && !played {
+                return Err(ApiError(
+                    StatusCode::FORBIDDEN,
+                    format!(
+                        "episode {id} is not played yet: play it (`play: true`) before exploring it"
+                    ),
+                ));
             }
             Ok((e.scene.clone(), Some(e.env_episode())))
         }

@@ -144,7 +144,8 @@ impl Session {
     /// The session as the page shows it: the pose and camera pitch, the step, the last step's
     /// contact (its intensity c(t) and the bodies touched) and, in an episode, distance to the
     /// goal, whether the episode ended and why, the path walked so far, and an episode's
-    /// reference path and goal point.
+    /// reference path and goal point; and the choice of bodies recovered from Gaussians the
+    /// scene moves on (`splat_bodies`: the environment's, which a scene loaded otherwise refuses).
     pub fn state(&self, id: u64) -> Value {
         let trace = self.env.trace();
         let pose = self.env.pose().unwrap_or(self.started.start);
@@ -197,6 +198,7 @@ impl Session {
                 .map(|p| [num(p.x), num(p.y)])
                 .collect::<Vec<_>>(),
             "goal": goal.map(|g| [num(g.point.x), num(g.point.y)]),
+            "splat_bodies": self.loaded.ctx.splat_bodies,
         })
     }
 }

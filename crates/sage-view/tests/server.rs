@@ -664,3 +664,168 @@ fn a_run_is_viewed_in_the_environment_it_recorded() {
     assert_eq!(info["preset"]["forward"], 0.25, "{info}");
     assert_eq!(info["preset"]["max_steps"], 77, "{info}");
 }
+
+/// The `error` of a JSON error answer, which must be one.
+fn error_of(status: u16, body: &[u8], want: u16) -> String {
+    let text = String::from_utf8_lossy(body);
+    assert_eq!(status, want, "{text}");
+    let json: Value = serde_json::from_slice(body).unwrap_or_else(|e| panic!("{e}: {text}"));
+    json["error"]
+        .as_str()
+        .unwrap_or_else(|| panic!("{json}"))
+        .to_string()
+}
+
+#[test]
+fn a_run_on_other_bodies_is_explored_on_them() {
+    let (dir, _, _) = fixture();
+    let out = dir.path().join("run-never-bodies");
+    let settings = EvalSettings {
+        splat_bodies: sage_physics::SplatBodies::Never,
+        ..train_settings("forward")
+    };
+    sage_eval::run(&settings, &out, &|_, _| {}).unwrap();
+    let v = start(options(&out));
+    let info = get_json(&v, "/api/info");
+    assert_eq!(info["preset"]["splat_bodies"], "never", "{info}");
+    let id = info["episodes"][0]["id"].as_str().unwrap().to_string();
+    // The environment refuses a scene loaded on other bodies: these open only when the scene
+    // was loaded with the run's choice.
+    let s = post_json(&v, "/api/sessions", json!({"episode": id}));
+    assert_eq!(s["splat_bodies"], "never", "{s}");
+    let sid = s["session"].as_str().unwrap();
+    let s1 = post_json(
+        &v,
+        &format!("/api/sessions/{sid}/step"),
+        json!({"action": "forward"}),
+    );
+    assert_eq!(s1["step"], 1);
+    let walk = post_json(&v, "/api/sessions", json!({"scene": "home1"}));
+    assert_eq!(walk["splat_bodies"], "never", "{walk}");
+}
+
+#[test]
+fn the_scene_cache_loads_each_choice_of_bodies_apart() {
+    use sage_physics::SplatBodies;
+    let (_, scenes, _) = fixture();
+    let dirs = [("home1".to_string(), scenes.join("home1"))].into();
+    let cache = sage_view::scenes::SceneCache::new(dirs, sage_splat::Device::Cpu);
+    let never = cache.get("home1", SplatBodies::Never).unwrap();
+    let auto = cache.get("home1", SplatBodies::Auto).unwrap();
+    assert_eq!(never.ctx.splat_bodies, Some(SplatBodies::Never));
+    assert_eq!(auto.ctx.splat_bodies, Some(SplatBodies::Auto));
+    assert!(!std::sync::Arc::ptr_eq(&never, &auto));
+    // Each choice is loaded once.
+    let again = cache.get("home1", SplatBodies::Never).unwrap();
+    assert!(std::sync::Arc::ptr_eq(&never, &again));
+    let err = cache.get("home2", SplatBodies::Auto).err().unwrap();
+    assert!(err.to_string().contains("no scene 'home2'"), "{err}");
+}
+
+#[test]
+fn in_human_play_an_episode_is_explored_only_once_played() {
+    let (dir, scenes, data) = fixture();
+    let v = start(ViewOptions {
+        play: Some(dir.path().join("human-explore")),
+        scenes: Some(scenes.clone()),
+        split: Some("train".into()),
+        ..options(data)
+    });
+    let info = get_json(&v, "/api/info");
+    let id = info["episodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["task"] == "vln")
+        .unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    // Exploring it first would show its goal, reference path and distance to the goal.
+    let (status, body) = request(
+        v.addr,
+        "POST",
+        "/api/sessions",
+        Some(&json!({"episode": id})),
+        &[],
+    );
+    let error = error_of(status, &body, 403);
+    assert!(error.contains("not played yet"), "{error}");
+    // Walking a scene shows no episode's goal, and stays open.
+    let walk = post_json(&v, "/api/sessions", json!({"scene": "home1"}));
+    assert!(walk["goal"].is_null(), "{walk}");
+    let s = post_json(&v, "/api/sessions", json!({"episode": id, "play": true}));
+    let sid = s["session"].as_str().unwrap();
+    let end = post_json(
+        &v,
+        &format!("/api/sessions/{sid}/step"),
+        json!({"action": "stop"}),
+    );
+    assert_eq!(end["played"], 1, "{end}");
+    // Played and recorded: now it may be explored, goal and way shown.
+    let e = post_json(&v, "/api/sessions", json!({"episode": id}));
+    assert_eq!(e["purpose"], "explore");
+    assert!(e["goal"].is_array(), "{e}");
+    assert!(!e["reference_path"].as_array().unwrap().is_empty(), "{e}");
+}
+
+#[test]
+fn requests_of_the_wrong_form_get_json_errors() {
+    let (_, scenes, _) = fixture();
+    let v = start(options(scenes));
+    let s = post_json(&v, "/api/sessions", json!({}));
+    assert_eq!(s["session"], "1");
+    // A session id that is not a number.
+    let (status, body) = request(
+        v.addr,
+        "POST",
+        "/api/sessions/first/step",
+        Some(&json!({"action": "left"})),
+        &[],
+    );
+    let error = error_of(status, &body, 400);
+    assert!(error.contains("first"), "{error}");
+    // A frame query missing a field.
+    let (status, body) = request(
+        v.addr,
+        "GET",
+        "/api/scenes/home1/frame?x=1&y=0&yaw=0",
+        None,
+        &[],
+    );
+    let error = error_of(status, &body, 400);
+    assert!(error.contains("missing field `z`"), "{error}");
+    // A body that is not the route's JSON.
+    let (status, body) = request(
+        v.addr,
+        "POST",
+        "/api/sessions/1/step",
+        Some(&json!({"move": "left"})),
+        &[],
+    );
+    let error = error_of(status, &body, 422);
+    assert!(error.contains("action"), "{error}");
+    // A route that does not exist, and a route asked with the wrong method (its `Allow` kept).
+    let (status, body) = request(v.addr, "GET", "/api/nothing", None, &[]);
+    let error = error_of(status, &body, 404);
+    assert!(error.contains("GET /api/nothing"), "{error}");
+    let reply =
+        sage_view::client::request(v.addr, "GET", "/api/sessions/1/step", None, &[]).unwrap();
+    let error = error_of(reply.status, &reply.body, 405);
+    assert!(error.contains("Method Not Allowed"), "{error}");
+    assert!(
+        reply
+            .headers
+            .iter()
+            .any(|(k, v)| k == "allow" && v.contains("POST")),
+        "{:?}",
+        reply.headers
+    );
+    // The session is untouched by the refused requests.
+    let after = post_json(
+        &v,
+        "/api/sessions/1/place",
+        json!({"x": s["pose"]["x"], "y": s["pose"]["y"]}),
+    );
+    assert_eq!(after["step"], 0);
+}
