@@ -10,9 +10,12 @@ use std::time::Instant;
 pub enum SplatCommand {
     /// Convert between 3DGS formats. The input may be standard or compressed PLY, SPZ, SOG,
     /// glTF/GLB (KHR_gaussian_splatting) or .splat, told from its content; the output format
-    /// comes from its name: NAME.ply (standard), NAME.compressed.ply or NAME.spz. Values pass
-    /// at full precision from reader to writer (standard PLY output is lossless); what the
-    /// output format cannot hold is listed. Gaussian order is preserved.
+    /// comes from its name: NAME.ply (standard; NAME.decompressed.ply too), NAME.compressed.ply
+    /// or NAME_compressed.ply, or NAME.spz. Values pass at full precision from reader to writer
+    /// (standard PLY output is lossless); what the output format cannot hold is listed.
+    /// Gaussian order is kept, except in a compressed PLY of an input whose 256-Gaussian chunks
+    /// would spread over the scene (a trained PLY's order): that is written along a Z-order
+    /// curve, and the conversion says so.
     Convert(ConvertArgs),
 }
 
@@ -20,7 +23,7 @@ pub enum SplatCommand {
 pub struct ConvertArgs {
     /// Input 3DGS file (any format sage3d reads).
     input: PathBuf,
-    /// Output file: NAME.ply, NAME.compressed.ply or NAME.spz.
+    /// Output file: NAME.ply, NAME.compressed.ply (or NAME_compressed.ply) or NAME.spz.
     output: PathBuf,
     /// Keep SH bands up to this degree (0–3; default: all the input has).
     #[arg(long, value_parser = clap::value_parser!(u8).range(0..=3))]

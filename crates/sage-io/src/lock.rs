@@ -310,7 +310,9 @@ fn outer_writers(dir: &Path) -> Result<()> {
 fn read_holder(path: &Path) -> Option<serde_json::Value> {
     let deadline = Instant::now() + HOLDER_WAIT;
     loop {
-        let text = std::fs::read_to_string(path).ok()?;
+        // Bounded: a lock file is a few hundred bytes, and a stray huge one must not be read
+        // whole.
+        let text = crate::files::read_text(path, &crate::limits::JSON_MB).ok()?;
         let holder = serde_json::from_str::<serde_json::Value>(&text)
             .ok()
             .filter(serde_json::Value::is_object);

@@ -1,8 +1,10 @@
 //! The run record: how an output folder was made (SPEC §13).
 
 use crate::files::{is_temporary, temporary_parts, write_json};
+use crate::limits::JSON_MB;
 use crate::lock::{FolderLock, LOCK_FILE};
-use sage_core::{Error, Result};
+use sage_core::{Error, Result, ResultExt};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The file in which a command records how its output folder was made (SPEC §13).
@@ -56,10 +58,39 @@ pub fn mark_unfinished(dir: &Path, command: &str, seed: Option<u64>) -> Result<(
     )
 }
 
-/// The run record in `dir`, if there is a readable one.
+/// The run record in `dir`, if there is a readable one. A record that cannot be read (over
+/// [`JSON_MB`], unreadable, not JSON) counts as none; [`load_record`] says why.
 pub fn read_record(dir: &Path) -> Option<serde_json::Value> {
-    let text = std::fs::read_to_string(dir.join(RUN_RECORD)).ok()?;
-    serde_json::from_str(&text).ok()
+    load_record(dir).ok().flatten()
+}
+
+/// The run record in `dir`: `None` when there is none, or when it is not JSON text (a damaged
+/// record names no command, as a missing one does).
+///
+/// # Errors
+///
+/// A record over [`JSON_MB`] (refused from its size before it is read, naming the file, the
+/// limit and its variable), or one that cannot be read (a folder by that name, no permission).
+pub fn load_record(dir: &Path) -> Result<Option<serde_json::Value>> {
+    let path = dir.join(RUN_RECORD);
+    let file = match std::fs::File::open(&path) {
+        Ok(file) => file,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(Error::io(&path, e)),
+    };
+    let size = file.metadata().map_err(|e| Error::io(&path, e))?.len();
+    JSON_MB.check(size, "file size").in_file(&path)?;
+    // Bounded again while reading: the file may have grown since its size was looked at.
+    let max = JSON_MB.get()?;
+    let mut bytes = Vec::new();
+    file.take(max.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(&path, e))?;
+    JSON_MB
+        .check(bytes.len() as u64, "file size")
+        .in_file(&path)?;
+    let json = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(&bytes);
+    Ok(serde_json::from_slice(json).ok())
 }
 
 /// The command named by the run record in `dir`, if there is a readable one.
@@ -312,6 +343,37 @@ mod tests {
         drop(claim(&["data import", "data build"], false).unwrap());
         std::fs::write(dir.path().join("file"), "x").unwrap();
         assert!(claim_folder(&dir.path().join("file"), &["render"], &[], true).is_err());
+    }
+
+    #[test]
+    fn an_oversized_run_record_is_refused_from_its_size_naming_the_limit() {
+        let dir = tempfile::tempdir().unwrap();
+        assert_eq!(load_record(dir.path()).unwrap(), None, "no record");
+        // A damaged record names no command, as before.
+        let path = dir.path().join(RUN_RECORD);
+        std::fs::write(&path, "{\"command\": ").unwrap();
+        assert_eq!(load_record(dir.path()).unwrap(), None);
+        // With a byte-order mark, as some editors save it.
+        std::fs::write(&path, "\u{feff}{\"command\": \"render\"}").unwrap();
+        assert_eq!(recorded_command(dir.path()).as_deref(), Some("render"));
+        // One byte over the default limit, sparse (nothing is written), so the default applies
+        // and no environment variable is shared with other tests.
+        std::fs::File::create(&path)
+            .unwrap()
+            .set_len((1024 << 20) + 1)
+            .unwrap();
+        let e = load_record(dir.path()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "{}: file size: 1024.1 MB, over the limit of 1024 MB on a JSON file; set the \
+                 environment variable SAGE3D_MAX_JSON_MB to raise it",
+                path.display()
+            )
+        );
+        // The readers that take an unreadable record for none do so here too.
+        assert_eq!(read_record(dir.path()), None);
+        assert!(!is_finished(dir.path()) && unfinished_command(dir.path()).is_none());
     }
 
     #[test]

@@ -67,8 +67,10 @@ pub fn input_hashes(dir: &Path) -> BTreeMap<String, String> {
 }
 
 /// The paths of the files navigation reads in scene folder `dir` (labels, structure, objects,
-/// occupancy, whatever `meshes/` holds, and the mesh files `objects.json` names elsewhere in
-/// the folder: [`named_mesh_files`]), whether or not each exists.
+/// occupancy, an imported capture's `capture.json`, whatever `meshes/` holds, and the mesh
+/// files `objects.json` names elsewhere in the folder: [`named_mesh_files`]), whether or not
+/// each exists. `capture.json` counts because loading a capture without `structure.json` takes
+/// its ceiling height from it.
 pub fn input_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = [
         "labels.json",
@@ -76,6 +78,7 @@ pub fn input_files(dir: &Path) -> Vec<PathBuf> {
         "objects.json",
         "occupancy.json",
         "occupancy.png",
+        "capture.json",
     ]
     .iter()
     .map(|f| dir.join(f))
@@ -165,6 +168,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("neither a scene folder"), "{e}");
+    }
+
+    #[test]
+    fn a_capture_s_capture_json_is_hashed_and_editing_it_changes_the_hashes() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path();
+        std::fs::write(dir.join("occupancy.json"), "{}").unwrap();
+        let without = input_hashes(dir);
+        assert!(!without.contains_key("capture.json"), "{without:?}");
+        // Loading a capture takes its ceiling height from capture.json.
+        std::fs::write(dir.join("capture.json"), r#"{"floor": {"ceiling_m": 2.5}}"#).unwrap();
+        let before = input_hashes(dir);
+        assert_eq!(
+            before.keys().collect::<Vec<_>>(),
+            ["capture.json", "occupancy.json"]
+        );
+        std::fs::write(dir.join("capture.json"), r#"{"floor": {"ceiling_m": 3.5}}"#).unwrap();
+        let after = input_hashes(dir);
+        assert_ne!(before["capture.json"], after["capture.json"]);
+        assert_eq!(before["occupancy.json"], after["occupancy.json"]);
     }
 
     #[test]

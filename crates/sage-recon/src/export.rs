@@ -14,6 +14,7 @@
 use crate::plan::PLAN_FILE;
 use glam::{Mat3, Mat4, Vec4};
 use sage_core::{Error, Result, ResultExt};
+use sage_io::limits::JSON_MB;
 use sage_splat::{Camera, Intrinsics};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
@@ -228,7 +229,7 @@ pub fn write_points_ply(path: &Path, points: &[(glam::Vec3, [f32; 3], glam::Vec3
 /// A write error, or an owned point cloud that cannot be removed (naming it).
 pub fn write_transforms(path: &Path, t: &Transforms) -> Result<Option<PathBuf>> {
     // Read before the write replaces it: only the old file tells whether it named the points.
-    let referenced = previous_points_reference(path);
+    let referenced = previous_points_reference(path)?;
     sage_io::files::write_json(path, t)?;
     if t.ply_file_path.is_some() {
         return Ok(None);
@@ -244,14 +245,23 @@ pub fn write_transforms(path: &Path, t: &Transforms) -> Result<Option<PathBuf>> 
 }
 
 /// Whether the `transforms.json` at `path` names [`POINTS_FILE`] beside it as its
-/// `ply_file_path` (false when it is missing or unreadable: then nothing shows the export
-/// wrote the points). Only that exact name counts: a hand-edited file may name any point cloud,
-/// which is then the user's.
-fn previous_points_reference(path: &Path) -> bool {
-    std::fs::read(path)
+/// `ply_file_path` (false when it is missing, unreadable or not JSON: then nothing shows the
+/// export wrote the points). Only that exact name counts: a hand-edited file may name any point
+/// cloud, which is then the user's.
+///
+/// # Errors
+///
+/// A file over `SAGE3D_MAX_JSON_MB`, refused from its size (naming it and the limit) rather
+/// than read whole or taken for one that names no points.
+fn previous_points_reference(path: &Path) -> Result<bool> {
+    let Ok(meta) = std::fs::metadata(path) else {
+        return Ok(false);
+    };
+    JSON_MB.check(meta.len(), "file size").in_file(path)?;
+    Ok(sage_io::files::read_text(path, &JSON_MB)
         .ok()
-        .and_then(|bytes| serde_json::from_slice::<serde_json::Value>(&bytes).ok())
-        .is_some_and(|v| v.get("ply_file_path").and_then(|p| p.as_str()) == Some(POINTS_FILE))
+        .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+        .is_some_and(|v| v.get("ply_file_path").and_then(|p| p.as_str()) == Some(POINTS_FILE)))
 }
 
 /// Reads a `transforms.json` written by [`write_transforms`] (or any file with its fields).

@@ -9,7 +9,7 @@ use crate::sweep::{SweepParams, perimeter, sweep};
 use crate::volume::{VolumeParams, volume};
 use crate::{PoseTag, ViewPose};
 use glam::{Vec2, Vec3};
-use sage_core::{Error, Result, ResultExt};
+use sage_core::{Error, Result};
 use sage_io::canvas::{Canvas, legend_height, legend_width};
 use sage_scene::Scene;
 use sage_splat::{Camera, Intrinsics};
@@ -296,12 +296,10 @@ pub fn make_plan(
 }
 
 impl Plan {
-    /// Reads a plan file.
+    /// Reads a plan file (at most `SAGE3D_MAX_JSON_MB`, refused from its size before it is
+    /// read).
     pub fn load(path: &Path) -> Result<Plan> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let plan: Plan = serde_json::from_str(&text)
-            .map_err(|e| sage_io::files::json_error(&e))
-            .in_file(path)?;
+        let plan: Plan = sage_io::files::read_json(path)?;
         if plan.format != FORMAT {
             return Err(Error::format(
                 "format",

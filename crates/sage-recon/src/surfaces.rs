@@ -67,6 +67,22 @@ pub fn object_base_color(category: &str, color: Option<&str>) -> [f32; 3] {
     sage_io::palette::distinct_color(h % 4096).map(|c| c as f32 / 255.0)
 }
 
+/// What structure triangle `tri` is in a scene whose ceiling is at `height`: a floor when it is
+/// horizontal and within [`LEVEL_TOLERANCE`] of z = 0, a ceiling when horizontal and within it
+/// of `height`, a wall otherwise (a step, a sunken floor or a roof above the ceiling included:
+/// they are neither level).
+fn structure_kind(tri: &[Vec3; 3], height: f32) -> SurfaceKind {
+    let horizontal = normal(tri).z.abs() > 0.9;
+    let z = (tri[0].z + tri[1].z + tri[2].z) / 3.0;
+    if horizontal && z.abs() < LEVEL_TOLERANCE {
+        SurfaceKind::Floor
+    } else if horizontal && (z - height).abs() < LEVEL_TOLERANCE {
+        SurfaceKind::Ceiling
+    } else {
+        SurfaceKind::Wall
+    }
+}
+
 /// The 12 triangles of an oriented box, wound outwards.
 pub fn obb_mesh(b: &Obb) -> TriMesh {
     // Not shared with the generator's axis-aligned boxes (`sage-synth`, `shapes::cuboid`): their
@@ -101,15 +117,7 @@ impl SceneSurfaces {
         if let Some(m) = &scene.structure_mesh {
             for t in 0..m.triangles.len() {
                 let tri = m.triangle(t);
-                let n = normal(&tri);
-                let z = (tri[0].z + tri[1].z + tri[2].z) / 3.0;
-                let kind = if n.z.abs() > 0.9 && z < LEVEL_TOLERANCE {
-                    SurfaceKind::Floor
-                } else if n.z.abs() > 0.9 && z > height - LEVEL_TOLERANCE {
-                    SurfaceKind::Ceiling
-                } else {
-                    SurfaceKind::Wall
-                };
+                let kind = structure_kind(&tri, height);
                 let base = match kind {
                     SurfaceKind::Floor => FLOOR_RGB,
                     SurfaceKind::Ceiling => CEILING_RGB,
@@ -314,6 +322,34 @@ mod tests {
             assert!(p.x >= 0.0 && p.y >= 0.0 && p.x / scale + p.y <= 1.0 + 1e-5);
         }
         assert_eq!(pts, surface_samples(&s, 4000, 3));
+    }
+
+    #[test]
+    fn only_horizontal_faces_level_with_the_floor_or_the_ceiling_are_floors_or_ceilings() {
+        // A flat triangle at height z, and one standing up from it.
+        let flat = |z: f32| {
+            [
+                Vec3::new(0.0, 0.0, z),
+                Vec3::new(1.0, 0.0, z),
+                Vec3::new(0.0, 1.0, z),
+            ]
+        };
+        let upright = [Vec3::ZERO, Vec3::X, Vec3::new(0.0, 0.0, 1.0)];
+        let height = 2.8;
+        for (z, kind) in [
+            (0.0, SurfaceKind::Floor),
+            (0.04, SurfaceKind::Floor),
+            (-0.04, SurfaceKind::Floor),
+            (2.78, SurfaceKind::Ceiling),
+            (2.84, SurfaceKind::Ceiling),
+            // Neither level: a sunken slab's underside, a sill, a roof above the ceiling.
+            (-0.5, SurfaceKind::Wall),
+            (0.9, SurfaceKind::Wall),
+            (3.5, SurfaceKind::Wall),
+        ] {
+            assert_eq!(structure_kind(&flat(z), height), kind, "z = {z}");
+        }
+        assert_eq!(structure_kind(&upright, height), SurfaceKind::Wall);
     }
 
     #[test]

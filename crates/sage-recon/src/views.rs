@@ -6,7 +6,7 @@
 use crate::export::ExportView;
 use crate::plan::Plan;
 use crate::raster::MeshImage;
-use sage_core::{Error, Result, ResultExt};
+use sage_core::{Error, Result};
 use sage_io::files::{write_json, write_png, write_rgb_png};
 use sage_splat::Intrinsics;
 use serde::{Deserialize, Serialize};
@@ -102,17 +102,14 @@ pub fn depth_name(k: usize) -> String {
     format!("{VIEWS_DIR}/depth_{k:04}.png")
 }
 
-/// Reads `views/render.json` of `dir`, if there is one.
+/// Reads `views/render.json` of `dir`, if there is one (at most `SAGE3D_MAX_JSON_MB`, refused
+/// from its size before it is read).
 pub fn read_manifest(dir: &Path) -> Result<Option<Manifest>> {
     let path = dir.join(VIEWS_DIR).join(MANIFEST);
     if !path.is_file() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    serde_json::from_str(&text)
-        .map(Some)
-        .map_err(|e| sage_io::files::json_error(&e))
-        .in_file(&path)
+    sage_io::files::read_json(&path).map(Some)
 }
 
 /// Prepares `dir/views` for `manifest`: writes the manifest, or checks that the one already

@@ -507,6 +507,20 @@ fn an_export_without_points_removes_the_points_it_owns_and_no_others() {
     write_transforms(&path, &elsewhere).unwrap();
     assert_eq!(write_transforms(&path, &without).unwrap(), None);
     assert!(points.is_file());
+
+    // An earlier index over the JSON limit (a sparse file) is not read whole to find out
+    // whether it named the points: the export stops, naming it and the limit, and leaves both.
+    std::fs::File::create(&path)
+        .unwrap()
+        .set_len((1024 << 20) + 1)
+        .unwrap();
+    let e = write_transforms(&path, &without).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!("{}: file size: 1024.1 MB", path.display()))
+            && e.contains("SAGE3D_MAX_JSON_MB"),
+        "{e}"
+    );
+    assert!(points.is_file());
 }
 
 #[test]
@@ -646,6 +660,19 @@ fn plan_files_round_trip_and_bad_ones_name_the_field() {
     std::fs::write(&path, "{\"format\": 3}").unwrap();
     let e = sage_recon::Plan::load(&path).unwrap_err().to_string();
     assert!(e.contains("plan.json") && e.contains("line 1"), "{e}");
+    // Over the JSON limit (one byte over the default, a sparse file): refused from its size.
+    std::fs::File::create(&path)
+        .unwrap()
+        .set_len((1024 << 20) + 1)
+        .unwrap();
+    let e = sage_recon::Plan::load(&path).unwrap_err().to_string();
+    assert!(
+        e.starts_with(&format!(
+            "{}: file size: 1024.1 MB, over the limit",
+            path.display()
+        )) && e.contains("SAGE3D_MAX_JSON_MB"),
+        "{e}"
+    );
 }
 
 #[test]

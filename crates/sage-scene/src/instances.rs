@@ -100,7 +100,10 @@ impl InstanceTable {
     }
 }
 
-/// A uniform 2-D grid over the floor that lists, per cell, the boxes overlapping it.
+/// A uniform 2-D grid over the floor that lists, per cell, the boxes overlapping it. Only an
+/// acceleration structure: a point's cell lists every box whose footprint, grown by the margin
+/// any lookup tests, can hold the point (in index order), so what a lookup finds after
+/// filtering its candidates does not depend on the cells' size or number.
 struct BoxGrid {
     origin: Vec2,
     cell: f32,
@@ -109,8 +112,33 @@ struct BoxGrid {
     cells: Vec<Vec<u32>>,
 }
 
+/// Cells a grid may have per box (plus [`MIN_GRID_CELLS`]): enough for boxes spread over a
+/// home at the requested cell size, while a few boxes far apart (a stray label kilometres out)
+/// coarsen the cells instead of allocating millions of empty ones.
+const GRID_CELLS_PER_BOX: usize = 16;
+
+/// Cells a grid may always have, however few its boxes.
+const MIN_GRID_CELLS: usize = 1024;
+
+/// How far around its footprint a box is listed: lookups test `contains` with at most
+/// [`STRUCTURE_MARGIN`] along the box's own (rotated) axes, which reaches up to √2 times that
+/// beyond its axis-aligned bounds at a corner.
+const GRID_MARGIN: f32 = 2.0 * STRUCTURE_MARGIN;
+
 impl BoxGrid {
+    /// A grid of cells of `cell` metres, coarser where that would make more than
+    /// [`GRID_CELLS_PER_BOX`] cells per box (and [`MIN_GRID_CELLS`]).
     fn new(boxes: &[(Obb, u32)], cell: f32) -> BoxGrid {
+        let max_cells = boxes
+            .len()
+            .saturating_mul(GRID_CELLS_PER_BOX)
+            .saturating_add(MIN_GRID_CELLS);
+        BoxGrid::with_max_cells(boxes, cell, max_cells)
+    }
+
+    /// A grid of cells of at least `cell` metres and at most `max_cells` cells (and 4096 along
+    /// a side).
+    fn with_max_cells(boxes: &[(Obb, u32)], cell: f32, max_cells: usize) -> BoxGrid {
         let bounds = boxes
             .iter()
             .fold(sage_core::Aabb::EMPTY, |b, (o, _)| b.union(o.aabb()));
@@ -120,8 +148,19 @@ impl BoxGrid {
             bounds.min.truncate()
         };
         let size = bounds.size().truncate();
-        let nx = ((size.x / cell).ceil() as usize).clamp(1, 4096);
-        let ny = ((size.y / cell).ceil() as usize).clamp(1, 4096);
+        let count = |cell: f32| {
+            (
+                ((size.x / cell).ceil() as usize).clamp(1, 4096),
+                ((size.y / cell).ceil() as usize).clamp(1, 4096),
+            )
+        };
+        let mut cell = cell;
+        let (mut nx, mut ny) = count(cell);
+        // Ends at the latest with one cell, which `max_cells` (at least 1) allows.
+        while nx * ny > max_cells.max(1) {
+            cell *= 1.25;
+            (nx, ny) = count(cell);
+        }
         let mut grid = BoxGrid {
             origin,
             cell: cell.max(size.x / nx as f32).max(size.y / ny as f32),
@@ -131,8 +170,8 @@ impl BoxGrid {
         };
         for (i, (o, _)) in boxes.iter().enumerate() {
             let bb = o.aabb();
-            let (x0, y0) = grid.index(bb.min.truncate() - Vec2::splat(STRUCTURE_MARGIN));
-            let (x1, y1) = grid.index(bb.max.truncate() + Vec2::splat(STRUCTURE_MARGIN));
+            let (x0, y0) = grid.index(bb.min.truncate() - Vec2::splat(GRID_MARGIN));
+            let (x1, y1) = grid.index(bb.max.truncate() + Vec2::splat(GRID_MARGIN));
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     grid.cells[y * nx + x].push(i as u32);
@@ -229,4 +268,94 @@ pub fn assign_instances(
                 *id = classify(Vec3::from_array(positions[c * 4096 + j]));
             }
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The boxes holding `p` (within `margin`) among the candidates of its cell, in order.
+    fn found(grid: &BoxGrid, boxes: &[(Obb, u32)], p: Vec3, margin: f32) -> Vec<u32> {
+        grid.candidates(p.truncate())
+            .iter()
+            .copied()
+            .filter(|&i| boxes[i as usize].0.contains(p, margin))
+            .collect()
+    }
+
+    /// The same without a grid: every box, in order.
+    fn brute(boxes: &[(Obb, u32)], p: Vec3, margin: f32) -> Vec<u32> {
+        (0..boxes.len() as u32)
+            .filter(|&i| boxes[i as usize].0.contains(p, margin))
+            .collect()
+    }
+
+    /// Points on a lattice of 0.1 m (and three heights) over `half` metres around `c`.
+    fn around(c: Vec2, half: f32) -> Vec<Vec3> {
+        let n = (half / 0.1) as i32;
+        let mut out = Vec::new();
+        for i in -n..=n {
+            for j in -n..=n {
+                for z in [-0.02, 0.5, 1.01] {
+                    out.push((c + Vec2::new(i as f32, j as f32) * 0.1).extend(z));
+                }
+            }
+        }
+        out
+    }
+
+    fn obb(x: f32, y: f32, yaw: f32) -> Obb {
+        Obb {
+            center: Vec3::new(x, y, 0.5),
+            half_extents: Vec3::new(0.6, 0.3, 0.5),
+            yaw,
+        }
+    }
+
+    #[test]
+    fn far_apart_boxes_build_a_small_grid_that_finds_what_every_box_would() {
+        // Two small boxes 2 km apart along both axes: 0.5 m cells would be 4096 × 4096.
+        let boxes = vec![(obb(0.0, 0.0, 0.0), 1), (obb(2000.0, 2000.0, 0.7), 2)];
+        let grid = BoxGrid::new(&boxes, 0.5);
+        assert!(
+            grid.cells.len() <= MIN_GRID_CELLS + 2 * GRID_CELLS_PER_BOX,
+            "{} cells",
+            grid.cells.len()
+        );
+        for (o, _) in &boxes {
+            for p in around(o.center.truncate(), 1.0) {
+                for margin in [OBJECT_MARGIN, STRUCTURE_MARGIN] {
+                    assert_eq!(
+                        found(&grid, &boxes, p, margin),
+                        brute(&boxes, p, margin),
+                        "{p}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_coarsened_grid_finds_what_the_fine_grid_finds() {
+        // 100 m apart (40,000 cells at 0.5 m, which the bound coarsens), the far box turned so
+        // that its grown corners reach past its axis-aligned bounds.
+        let boxes = vec![
+            (obb(0.0, 0.0, 0.0), 1),
+            (obb(0.9, 0.2, 0.3), 2),
+            (obb(100.0, 100.0, std::f32::consts::FRAC_PI_4), 3),
+        ];
+        let fine = BoxGrid::with_max_cells(&boxes, 0.5, usize::MAX);
+        let coarse = BoxGrid::new(&boxes, 0.5);
+        assert!(fine.cells.len() > 40_000, "{} cells", fine.cells.len());
+        assert!(coarse.cells.len() <= MIN_GRID_CELLS + 3 * GRID_CELLS_PER_BOX);
+        for (o, _) in &boxes {
+            for p in around(o.center.truncate(), 1.0) {
+                for margin in [OBJECT_MARGIN, STRUCTURE_MARGIN] {
+                    let want = brute(&boxes, p, margin);
+                    assert_eq!(found(&fine, &boxes, p, margin), want, "{p}");
+                    assert_eq!(found(&coarse, &boxes, p, margin), want, "{p}");
+                }
+            }
+        }
+    }
 }

@@ -136,10 +136,16 @@ pub mod writers {
 
 /// Refuses scene folder `dir` when its run record says that the command writing it has not
 /// finished ([`writers`]): a killed run's Gaussians and labels are not a scene. A folder
-/// without a run record (a downloaded InteriorGS scene) or with a finished one passes.
+/// without a run record (a downloaded InteriorGS scene) or with a finished one passes; a record
+/// over `SAGE3D_MAX_JSON_MB` or one that cannot be read is an error naming it.
 fn refuse_unfinished(dir: &Path) -> Result<()> {
-    match sage_io::run::unfinished_command(dir) {
-        Some(command) if writers::ALL.contains(&command.as_str()) => Err(Error::invalid(format!(
+    let record = sage_io::run::load_record(dir)?;
+    let unfinished = record
+        .as_ref()
+        .filter(|r| sage_io::run::unfinished_status(r).is_some())
+        .and_then(|r| r.get("command")?.as_str());
+    match unfinished {
+        Some(command) if writers::ALL.contains(&command) => Err(Error::invalid(format!(
             "not a whole scene: `sage3d {command}` did not finish writing this folder (its {} says so); rerun that command into it",
             sage_io::RUN_RECORD
         ))
@@ -149,7 +155,8 @@ fn refuse_unfinished(dir: &Path) -> Result<()> {
 }
 
 /// FNV-1a 64 hashes (hex) of every file loading the scene folder `dir` reads, keyed by their
-/// path relative to `dir`: the annotations, occupancy and meshes navigation reads
+/// path relative to `dir`: the annotations, occupancy, meshes and an imported capture's
+/// `capture.json` (its ceiling height) that navigation reads
 /// ([`sage_io::scenes::input_hashes`]), the Gaussian file and the published collision file
 /// found by name. What run records store, so that a result names the exact scene it came from.
 pub fn input_hashes(dir: &Path) -> std::collections::BTreeMap<String, String> {

@@ -176,7 +176,7 @@ fn box_values_beyond_single_precision_are_named_as_such() {
     };
     for big in [json!(1e300), json!("-1e300")] {
         let e = labels::parse(&with(big.clone())).unwrap_err();
-        assert_eq!(e.location(), "[0].bounding_box[2][0]", "{e}");
+        assert_eq!(e.location(), "[0].bounding_box[2].x", "{e}");
         assert!(
             e.message()
                 .contains("out of the single-precision (f32) range")
@@ -195,7 +195,7 @@ fn box_values_beyond_single_precision_are_named_as_such() {
     corners[0]["z"] = json!(1e300);
     let text = json!([{"ins_id": "1", "label": "c", "bounding_box": corners}]).to_string();
     let e = labels::parse(&text).unwrap_err();
-    assert_eq!(e.location(), "[0].bounding_box[0][1]", "{e}");
+    assert_eq!(e.location(), "[0].bounding_box[0].y", "{e}");
 }
 
 /// Writes `hostile.gltf` into `dir` holding the tetrahedron with its buffer at `uri` declared

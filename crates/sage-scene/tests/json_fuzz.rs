@@ -408,7 +408,7 @@ fn specific_bad_values_name_the_field() {
             "labels.json",
             |d| d[0]["bounding_box"][0]["x"] = serde_json::json!(1e39),
             // Finite in the file's double precision: the error says which range it leaves.
-            "[0].bounding_box[0][0]: 1e+39 is out of the single-precision (f32) range",
+            "[0].bounding_box[0].x: 1e+39 is out of the single-precision (f32) range",
         ),
         (
             "labels.json",

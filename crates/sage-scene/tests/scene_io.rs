@@ -265,6 +265,38 @@ fn scene_json_files_may_begin_with_a_byte_order_mark_and_are_refused_over_their_
 }
 
 #[test]
+fn an_oversized_run_record_is_refused_naming_the_file_and_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = generate(&SynthConfig {
+        rooms: 2,
+        objects: 4,
+        gaussians: 4_000,
+        ..small()
+    })
+    .unwrap();
+    scene.save(dir.path(), SplatLayout::Compressed).unwrap();
+    // Every load reads the run record (to refuse a half-written folder): one byte over the
+    // default limit (a sparse file: nothing is written) is refused from its size, not read.
+    let record = dir.path().join(sage_io::RUN_RECORD);
+    std::fs::File::create(&record)
+        .unwrap()
+        .set_len((1024 << 20) + 1)
+        .unwrap();
+    let e = Scene::load(dir.path()).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{}: file size: 1024.1 MB, over the limit of 1024 MB on a JSON file; set the \
+             environment variable SAGE3D_MAX_JSON_MB to raise it",
+            record.display()
+        )
+    );
+    // A record of the right size loads as before.
+    sage_io::write_run_record(dir.path(), "scene synth", Some(7), serde_json::json!({})).unwrap();
+    assert!(Scene::load(dir.path()).is_ok());
+}
+
+#[test]
 fn not_a_folder_is_an_error() {
     let e = Scene::load(std::path::Path::new("no/such/scene"))
         .unwrap_err()

@@ -178,6 +178,39 @@ fn writers_round_trip_within_their_quantisation() {
     }
 }
 
+#[test]
+fn a_decompressed_or_uncompressed_name_is_written_as_a_standard_ply() {
+    // `splat-transform` names its decoded output `NAME.decompressed.ply`: converting a
+    // compressed file to that name must give the lossless standard layout, not quantise again.
+    let dir = tempfile::tempdir().unwrap();
+    let input = testdata("random_3k_sh0.compressed.ply");
+    let (source, _) = table("random_3k_sh0.compressed.ply");
+    for name in ["x.decompressed.ply", "x_uncompressed.ply"] {
+        let out = dir.path().join(name);
+        let report = convert(&input, &out, ConvertOptions::default()).unwrap();
+        assert_eq!(
+            report.output_format,
+            Format::Ply(SplatLayout::Standard),
+            "{name}"
+        );
+        assert!(report.losses.is_empty(), "{name}: {:?}", report.losses);
+        let (back, detected) = splats::read_table_file(&out).unwrap();
+        assert_eq!(detected, Format::Ply(SplatLayout::Standard), "{name}");
+        assert_eq!(back, source, "{name}: standard PLY holds every value");
+    }
+    for name in ["x.compressed.ply", "x_compressed.ply"] {
+        let out = dir.path().join(name);
+        let report = convert(&input, &out, ConvertOptions::default()).unwrap();
+        assert_eq!(
+            report.output_format,
+            Format::Ply(SplatLayout::Compressed),
+            "{name}"
+        );
+        let (_, detected) = splats::read_table_file(&out).unwrap();
+        assert_eq!(detected, Format::Ply(SplatLayout::Compressed), "{name}");
+    }
+}
+
 /// `table` in the order the compressed writer puts it in.
 fn in_write_order(table: &SplatTable) -> SplatTable {
     match sage_scene::ply::compressed::write_order(table) {
@@ -300,6 +333,49 @@ fn sh_bands_can_be_dropped_not_added() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("dropped, not added"), "{e}");
+}
+
+#[test]
+fn an_spz_of_a_wide_scene_reports_the_coarser_position_step_it_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let positions = |report: &splats::convert::ConvertReport| -> String {
+        report
+            .losses
+            .iter()
+            .find(|l| l.starts_with("positions"))
+            .cloned()
+            .unwrap()
+    };
+    let input = testdata("random_3k_sh0.ply");
+    let report = convert(
+        &input,
+        &dir.path().join("near.spz"),
+        ConvertOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        positions(&report),
+        "positions quantised to 24-bit fixed point (1/4096 m steps)"
+    );
+    // One Gaussian 3 km out: 12 fraction bits would overflow 24 bits, so the writer uses 11.
+    let (mut wide, _) = table("random_3k_sh0.ply");
+    wide.gaussians[17].position.x = 3000.0;
+    let wide_ply = dir.path().join("wide.ply");
+    splats::write_file(&wide_ply, &wide, Format::Ply(SplatLayout::Standard)).unwrap();
+    let out = dir.path().join("wide.spz");
+    let report = convert(&wide_ply, &out, ConvertOptions::default()).unwrap();
+    assert_eq!(
+        positions(&report),
+        "positions quantised to 24-bit fixed point (1/2048 m steps: the scene reaches beyond \
+         ±2048 m along an axis, where 1/4096 m steps would overflow 24 bits)"
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    let decoder = splats::spz::SpzDecoder::open(&bytes).unwrap();
+    assert_eq!(
+        decoder.fractional_bits(),
+        11,
+        "the step reported is the one written"
+    );
 }
 
 #[test]

@@ -273,7 +273,7 @@ mod tests {
             .unwrap_err();
         assert!(
             e.to_string()
-                .starts_with("[0].bounding_box[0][0]: expected a finite number"),
+                .starts_with("[0].bounding_box[0].x: expected a finite number"),
             "{e}"
         );
         let e = parse(r#"[{"label":"x"}]"#).unwrap_err();

@@ -29,14 +29,17 @@ pub enum SplatLayout {
 }
 
 impl SplatLayout {
-    /// The layout a file name asks for when writing: `*.compressed.ply` or `*_compressed.ply`
-    /// is compressed (as `splat-transform` decides), any other `.ply` standard.
+    /// The layout a file name asks for when writing, in any case as the other format names:
+    /// `*.compressed.ply` (what `splat-transform` tests) or `*_compressed.ply` (the scene
+    /// folders' `3dgs_compressed.ply`) is compressed, any other `.ply` standard. The suffix must
+    /// follow a `.` or `_`: `x.decompressed.ply`, the name `splat-transform` gives its decoded
+    /// output, and `x_uncompressed.ply` are standard, never silently quantised.
     pub fn from_file_name(path: &Path) -> Result<SplatLayout> {
         let name = path
             .file_name()
             .map(|n| n.to_string_lossy().to_ascii_lowercase())
             .unwrap_or_default();
-        if name.ends_with("compressed.ply") {
+        if name.ends_with(".compressed.ply") || name.ends_with("_compressed.ply") {
             Ok(SplatLayout::Compressed)
         } else if name.ends_with(".ply") {
             Ok(SplatLayout::Standard)
@@ -108,4 +111,39 @@ pub fn write_splats_file(
         SplatLayout::Standard => standard::write(w, gaussians),
         SplatLayout::Compressed => compressed::write(w, gaussians),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_a_separated_compressed_suffix_asks_for_the_compressed_layout() {
+        let layout = |name: &str| SplatLayout::from_file_name(Path::new(name)).unwrap();
+        for name in [
+            "x.compressed.ply",
+            "x_compressed.ply",
+            "dir/3dgs_compressed.ply",
+            "X.COMPRESSED.PLY",
+            "x_Compressed.Ply",
+        ] {
+            assert_eq!(layout(name), SplatLayout::Compressed, "{name}");
+        }
+        // `compressed.ply` ending a longer word is not the suffix: these are standard PLYs.
+        for name in [
+            "x.decompressed.ply",
+            "random_3k_sh0.decompressed.ply",
+            "x_uncompressed.ply",
+            "xcompressed.ply",
+            "compressed.ply",
+            "x.ply",
+            "X.PLY",
+        ] {
+            assert_eq!(layout(name), SplatLayout::Standard, "{name}");
+        }
+        let e = SplatLayout::from_file_name(Path::new("x.compressed"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.compressed: cannot tell the layout"), "{e}");
+    }
 }

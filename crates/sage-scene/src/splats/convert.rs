@@ -86,6 +86,7 @@ fn convert_bytes(
         None => sh_degree_in,
     };
     let mut reordered = false;
+    let mut fraction_bits = None;
     if output_format == Format::Ply(SplatLayout::Standard) {
         stream_standard(decoder.as_ref(), sh_degree_out, output)?;
     } else {
@@ -101,9 +102,18 @@ fn convert_bytes(
             })?;
         } else {
             write_file(output, &table, output_format)?;
+            if output_format == Format::Spz {
+                // A scene beyond ±2048 m was written with coarser steps than `losses` states.
+                fraction_bits = Some(super::spz::position_fraction_bits(&table)?);
+            }
         }
     }
     let mut losses = losses(output_format, sh_degree_in, sh_degree_out);
+    if let Some(bits) = fraction_bits
+        && let Some(line) = losses.iter_mut().find(|l| l.starts_with(SPZ_POSITIONS))
+    {
+        *line = spz_position_loss(bits);
+    }
     if reordered {
         losses.push(
             "the Gaussians' order: the input's spread each 256-Gaussian chunk over the scene, so \
@@ -163,8 +173,29 @@ fn zero_sh_above(gaussians: &mut [Gaussian], degree: u8) {
     }
 }
 
+/// How every SPZ position loss begins.
+const SPZ_POSITIONS: &str = "positions quantised to 24-bit fixed point";
+
+/// The SPZ position loss for `bits` fraction bits: steps of 2^-bits m, which the writer makes
+/// coarser than the usual 1/4096 m only for a scene reaching beyond ±2048 m along an axis.
+fn spz_position_loss(bits: u8) -> String {
+    let step = match bits {
+        0 => "1 m".to_string(),
+        b => format!("1/{} m", 1u32 << b),
+    };
+    if bits >= super::spz::DEFAULT_FRACTION_BITS {
+        format!("{SPZ_POSITIONS} ({step} steps)")
+    } else {
+        format!(
+            "{SPZ_POSITIONS} ({step} steps: the scene reaches beyond ±2048 m along an axis, \
+             where 1/4096 m steps would overflow 24 bits)"
+        )
+    }
+}
+
 /// What a file written in `to` does not hold of Gaussians of SH degree `from_degree` written
-/// with degree `to_degree`.
+/// with degree `to_degree`; an SPZ's positions as for a scene within ±2048 m (`convert`
+/// reports the step it actually wrote).
 pub fn losses(to: Format, from_degree: u8, to_degree: u8) -> Vec<String> {
     let mut out = Vec::new();
     if to_degree < from_degree {
@@ -196,9 +227,9 @@ pub fn losses(to: Format, from_degree: u8, to_degree: u8) -> Vec<String> {
             }
         }
         _ => {
+            out.push(spz_position_loss(super::spz::DEFAULT_FRACTION_BITS));
             out.extend(
                 [
-                    "positions quantised to 24-bit fixed point (1/4096 m steps)",
                     "log-scales quantised to 8 bits (1/16 steps over [-10, 6))",
                     "rotations normalised and quantised (smallest three, 9 bits per component)",
                     "base colour and opacity quantised to 8 bits",

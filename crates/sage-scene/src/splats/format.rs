@@ -111,8 +111,9 @@ impl Format {
         })
     }
 
-    /// The format a file name asks for when writing: `*.compressed.ply` / `*_compressed.ply`
-    /// compressed PLY (as `splat-transform` decides), other `*.ply` standard PLY, `*.spz` SPZ.
+    /// The format a file name asks for when writing, in any case: `*.compressed.ply` /
+    /// `*_compressed.ply` compressed PLY ([`SplatLayout::from_file_name`]; `*.decompressed.ply`
+    /// is not one), other `*.ply` standard PLY, `*.spz` SPZ.
     ///
     /// # Errors
     ///

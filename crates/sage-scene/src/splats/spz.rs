@@ -827,6 +827,19 @@ fn pack(src: &impl SplatSource, version: u32) -> io::Result<(Header, [Vec<u8>; 6
     Ok((header, arrays))
 }
 
+/// The fraction bits of the positions [`write`] gives `src`: the reference's 12 (steps of
+/// 1/4096 m) for a scene within ±2048 m, one fewer per doubling beyond.
+///
+/// # Errors
+///
+/// A coordinate beyond what 24 bits hold even without fraction bits (±8388607 m).
+pub fn position_fraction_bits(src: &impl SplatSource) -> Result<u8> {
+    fractional_bits(src).map_err(|e| Error::invalid(e.to_string()))
+}
+
+/// The fraction bits the writer uses when every position is within ±2048 m (steps of 1/4096 m).
+pub const DEFAULT_FRACTION_BITS: u8 = FRACTIONAL_BITS;
+
 /// The most fraction bits (at most the reference's 12) that keep every coordinate inside 24
 /// bits; the reference always uses 12 and wraps coordinates beyond ±2048 m around.
 fn fractional_bits(src: &impl SplatSource) -> io::Result<u8> {
