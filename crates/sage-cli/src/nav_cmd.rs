@@ -16,7 +16,8 @@ pub enum NavCommand {
     /// (InteriorGS occupancy.png/json) for an agent height.
     Map(MapArgs),
     /// Generate trajectories for a scene, or for every scene folder inside a folder (parallel
-    /// over scenes, resumable: complete scenes with the same settings are skipped).
+    /// over scenes, resumable: complete scenes with the same settings and unchanged scene files
+    /// are skipped).
     Trajectories(TrajectoriesArgs),
 }
 

@@ -304,6 +304,29 @@ fn trajectory_instructions(
     out
 }
 
+/// The Base-Action plan to write, if any: one whose instruction passes the validator, as every
+/// instruction written does. The check is counted in `report`'s validation; a scene without a
+/// start for the motion, or an instruction the validator rejects, counts as a Base-Action trip
+/// not applicable (no episode).
+fn validated_base_action(
+    validator: &Validator,
+    plan: Option<lowlevel::BaseActionPlan>,
+    report: &mut SceneReport,
+) -> Option<lowlevel::BaseActionPlan> {
+    let checked = plan.filter(|p| {
+        let outcome = validator.check(&p.instruction.text, InstructionType::BaseAction);
+        report.validation.record(outcome);
+        outcome.is_ok()
+    });
+    if checked.is_none() {
+        *report
+            .not_applicable
+            .entry(InstructionType::BaseAction.as_str().into())
+            .or_insert(0) += 1;
+    }
+    checked
+}
+
 /// Builds the episodes of one loaded scene.
 pub fn scene_episodes(
     scene: &Scene,
@@ -371,16 +394,10 @@ pub fn scene_episodes(
     }
     for i in 0..params.base_actions {
         let mut rng = rng_on(BASE_STREAM + i as u64);
-        let Some(plan) = lowlevel::base_action(&prep.finder, &params.space, &mut rng) else {
-            *report
-                .not_applicable
-                .entry(InstructionType::BaseAction.as_str().into())
-                .or_insert(0) += 1;
+        let plan = lowlevel::base_action(&prep.finder, &params.space, &mut rng);
+        let Some(plan) = validated_base_action(&validator, plan, &mut report) else {
             continue;
         };
-        report
-            .validation
-            .record(validator.check(&plan.instruction.text, InstructionType::BaseAction));
         let poses = actions::replay(plan.start, &plan.actions, &params.space);
         let mut path: Vec<[f32; 3]> = poses.iter().map(|p| p.position.into()).collect();
         path.dedup();
@@ -466,7 +483,9 @@ pub struct SceneOutcome {
 }
 
 /// Builds (or resumes) one scene's file: an earlier file is kept only when it was made with
-/// `params` from the scene's input files as they are now and no LLM request of it failed.
+/// `params` from the scene's input files as they are now and no LLM request of it failed. A
+/// scene folder whose name is not a plain name is skipped, with the reason
+/// ([`trajectory::check_scene_names`]; [`build()`] refuses the whole build over one).
 pub fn run_scene(
     dir: &Path,
     out: &Path,
@@ -474,6 +493,15 @@ pub fn run_scene(
     client: Option<&LlmClient>,
 ) -> SceneOutcome {
     let name = sage_io::scenes::scene_name(dir);
+    if let Err(e) = trajectory::check_scene_names(&[dir.to_path_buf()]) {
+        // Never a file: its name would leave `scenes/`, or name episodes no reader takes.
+        return SceneOutcome {
+            scene: name,
+            status: Status::Skipped,
+            episodes: 0,
+            reason: Some(e.to_string()),
+        };
+    }
     let file = scene_file(out, &name);
     // Complete: made with these settings from the scene's files as they are now, and every
     // LLM request answered (a failed one is retried by the next run, not kept for good).
@@ -871,6 +899,11 @@ pub fn assemble(
 
 /// Runs the whole pipeline: every scene (parallel, resumable; `on_scene` is called as each
 /// finishes), then the assembly. Returns the outcomes and the summary.
+///
+/// # Errors
+///
+/// Bad settings, a scene folder whose name is not a plain name (before any work:
+/// [`trajectory::check_scene_names`]), an LLM endpoint that cannot be set up, or a write error.
 pub fn build(
     dirs: &[PathBuf],
     out: &Path,
@@ -879,6 +912,7 @@ pub fn build(
     on_scene: &(dyn Fn(&SceneOutcome) + Sync),
 ) -> Result<(Vec<SceneOutcome>, DatasetSummary)> {
     params.validate()?;
+    trajectory::check_scene_names(dirs)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let client = params.llm.clone().map(LlmClient::new).transpose()?;
     let outcomes: Vec<SceneOutcome> = dirs
@@ -900,6 +934,49 @@ pub fn build(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_base_action_the_validator_rejects_is_not_written() {
+        let scene = sage_synth::generate(&sage_synth::SynthConfig {
+            seed: 1,
+            rooms: 2,
+            objects: 6,
+            gaussians: 1000,
+            ..sage_synth::SynthConfig::default()
+        })
+        .unwrap();
+        let params = SceneParams::new(1, 0);
+        let prep = trajectory::prepare(&scene, &params.trajectories).unwrap();
+        let tm = TextMap::build(&scene, &prep.map, &prep.endpoints);
+        let validator = Validator::new(&tm);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let plan = lowlevel::base_action(&prep.finder, &params.space, &mut rng).unwrap();
+        let mut report = SceneReport::default();
+        let kept = validated_base_action(&validator, Some(plan.clone()), &mut report);
+        assert_eq!(kept.as_ref(), Some(&plan));
+        assert_eq!(
+            (report.validation.checked, report.validation.accepted),
+            (1, 1)
+        );
+        assert!(report.not_applicable.is_empty());
+        // Too short for the validator: counted as checked and rejected, and not applicable.
+        let mut bad = plan.clone();
+        bad.instruction.text = "Go.".into();
+        assert_eq!(
+            validated_base_action(&validator, Some(bad), &mut report),
+            None
+        );
+        assert_eq!(
+            (report.validation.checked, report.validation.accepted),
+            (2, 1)
+        );
+        assert_eq!(report.validation.rejected.values().sum::<usize>(), 1);
+        assert_eq!(report.not_applicable["Base-Action"], 1);
+        // No start for the motion: not applicable, nothing checked.
+        assert_eq!(validated_base_action(&validator, None, &mut report), None);
+        assert_eq!(report.validation.checked, 2);
+        assert_eq!(report.not_applicable["Base-Action"], 2);
+    }
 
     #[test]
     fn datasets_are_planned_for_the_ground_profile_asked_for() {

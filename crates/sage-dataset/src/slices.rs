@@ -10,10 +10,10 @@ use std::path::Path;
 pub const ASSETS_MANY: usize = 376;
 /// Fewer assets than this: `few`.
 pub const ASSETS_FEW: usize = 184;
-/// Longer paths than this (metres): `long`.
-pub const PATH_LONG: f32 = 29.0;
-/// Shorter paths than this (metres): `short`.
-pub const PATH_SHORT: f32 = 8.4;
+/// Longer paths than this (metres): `long` (the upper of [`sage_nav::sampling::PATH_EDGES`]).
+pub const PATH_LONG: f32 = sage_nav::sampling::PATH_EDGES[1];
+/// Shorter paths than this (metres): `short` (the lower of [`sage_nav::sampling::PATH_EDGES`]).
+pub const PATH_SHORT: f32 = sage_nav::sampling::PATH_EDGES[0];
 
 /// The slice tags of an episode.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
@@ -60,14 +60,14 @@ pub fn scene_assets_slice(dir: &Path) -> Result<&'static str> {
     Ok(assets_slice(scene_objects(dir)?.len()))
 }
 
-/// The path slice of a path `length` metres long.
+/// The path slice of a path `length` metres long: the length bin the trajectory sampler puts
+/// it in ([`sage_nav::sampling::length_bin`] over the paper's edges), so a `--length-mix` share
+/// of a bin is the share of that slice.
 pub fn path_slice(length: f32) -> &'static str {
-    if length > PATH_LONG {
-        "long"
-    } else if length < PATH_SHORT {
-        "short"
-    } else {
-        "medium"
+    match sage_nav::sampling::length_bin(&sage_nav::sampling::PATH_EDGES, length) {
+        0 => "short",
+        1 => "medium",
+        _ => "long",
     }
 }
 
@@ -85,5 +85,16 @@ mod tests {
         assert_eq!(path_slice(29.0), "medium");
         assert_eq!(path_slice(8.4), "medium");
         assert_eq!(path_slice(8.39), "short");
+        // The sampler's bins agree at the edges: a trajectory counted as medium is tagged so.
+        let sampling = sage_nav::sampling::SamplingParams::default();
+        for (length, slice) in [
+            (8.39, "short"),
+            (8.4, "medium"),
+            (29.0, "medium"),
+            (29.01, "long"),
+        ] {
+            assert_eq!(path_slice(length), slice);
+            assert_eq!(["short", "medium", "long"][sampling.bin_of(length)], slice);
+        }
     }
 }

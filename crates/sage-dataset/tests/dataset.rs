@@ -230,6 +230,36 @@ fn a_scene_that_fails_on_a_rebuild_brings_no_old_episodes() {
     assert!(episodes.iter().all(|e| e.scene != "scene1"));
 }
 
+/// A scene folder whose name no reader takes as a scene name (`Episode::check`) is refused
+/// before any work, naming the folder and the rule, instead of building episodes that no
+/// split file could be read back with.
+#[test]
+fn a_scene_folder_without_a_plain_name_is_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let spaced = dir.path().join("My Home");
+    for (name, bytes) in read_tree(&scenes().1[0]).unwrap() {
+        std::fs::create_dir_all(spaced.join(&name).parent().unwrap()).unwrap();
+        std::fs::write(spaced.join(&name), bytes).unwrap();
+    }
+    let out = dir.path().join("out");
+    let (p, a) = params();
+    let dirs = [scenes().1[1].clone(), spaced.clone()];
+    let e = build::build(&dirs, &out, &p, &a, &|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&spaced.display().to_string()), "{e}");
+    assert!(
+        e.contains("'My Home'") && e.contains("rename the folder"),
+        "{e}"
+    );
+    assert!(!out.exists(), "a refused build wrote into its folder");
+    // One scene on its own (as a distributed build's task runs it) is skipped with the reason.
+    let outcome = build::run_scene(&spaced, &out, &p, None);
+    assert_eq!(outcome.status, Status::Skipped);
+    assert!(outcome.reason.unwrap().contains("rename the folder"));
+    assert!(!build::scene_file(&out, "My Home").exists());
+}
+
 #[test]
 fn episodes_are_complete_and_their_actions_reach_the_goal() {
     let out = tempfile::tempdir().unwrap();

@@ -134,7 +134,9 @@ pub fn base_action(
     None
 }
 
-/// The room index of a `room_{i}` reference.
+/// The room index of a `room_{i}` reference. A region (`region_{i}`, the room endpoints of a
+/// scene with neither rooms nor objects) has none, so no instruction names it: nothing there
+/// is visible to name it by.
 pub fn room_index(reference: &str) -> Option<usize> {
     reference.strip_prefix("room_")?.parse().ok()
 }
@@ -208,4 +210,16 @@ pub fn single_goal(
         subtype: Some(kind),
         source: Source::Template,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rooms_have_an_index_and_regions_none() {
+        assert_eq!(room_index("room_2"), Some(2));
+        assert_eq!(room_index("region_0"), None);
+        assert_eq!(room_index("room_x"), None);
+    }
 }

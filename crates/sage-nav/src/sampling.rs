@@ -25,7 +25,9 @@
 //!
 //! - A scene with neither rooms nor objects (an imported capture) has **regions** instead: its
 //!   navigable cells cut into [`REGION`]-metre squares, each with at least 1 m² of them a room
-//!   endpoint `region_{i}` (label `region`), standing like a room.
+//!   endpoint `region_{i}` (label `region`). Unlike a room, a region stands on any of its
+//!   square's cells with `room_clearance` (any of its navigable cells when none has it): no
+//!   instruction names a region's centre, so its trips may end anywhere in the square.
 //!
 //! Doors and windows are never endpoints, nor are objects whose base is above
 //! `max_object_base` (ceiling lamps, pictures hung high): nobody is sent to stand beside those.
@@ -102,7 +104,8 @@ pub struct SamplingParams {
     pub min_length: f32,
     /// Relative weights of start / goal kinds: room, object, area (default 1, 2, 1).
     pub kind_weights: [f32; 3],
-    /// Path-length bin edges, metres (default SPEC §9: 8.4 and 29.0: short, medium, long).
+    /// Path-length bin edges, metres (default [`PATH_EDGES`], SPEC §9: short, medium, long);
+    /// [`length_bin`] says which bin a length on an edge falls in.
     pub length_edges: Vec<f32>,
     /// Wanted share of each length bin (one more than the edges); `None`: no quota.
     pub length_mix: Option<Vec<f32>>,
@@ -128,7 +131,7 @@ impl Default for SamplingParams {
             min_distance: 2.0,
             min_length: 2.0,
             kind_weights: [1.0, 2.0, 1.0],
-            length_edges: vec![8.4, 29.0],
+            length_edges: PATH_EDGES.to_vec(),
             length_mix: None,
             attempts_per_trajectory: 50,
             max_object_base: 1.2,
@@ -185,10 +188,37 @@ impl SamplingParams {
         Ok(())
     }
 
-    /// The length bin of a path length.
+    /// The length bin of a path length ([`length_bin`] over `length_edges`).
     pub fn bin_of(&self, length: f32) -> usize {
-        self.length_edges.iter().filter(|e| length > **e).count()
+        length_bin(&self.length_edges, length)
     }
+}
+
+/// The paper's path-length edges, metres (SPEC §9): `short` below 8.4, `long` above 29.0,
+/// `medium` between them, both bounds included. The dataset's path slice and the sampler's
+/// length bins both use these edges through [`length_bin`], so a trajectory counted in a bin
+/// is tagged with that bin's slice.
+pub const PATH_EDGES: [f32; 2] = [8.4, 29.0];
+
+/// The bin of a path `length` among increasing `edges`: 0 below the first edge, `edges.len()`
+/// above the last, one more for each edge passed. A length exactly on an edge falls in the bin
+/// nearer the middle: an edge of the lower half of the list belongs to the bin above it, one of
+/// the upper half to the bin below. With [`PATH_EDGES`] that is the paper's strict thresholds
+/// (`short` < 8.4 m ≤ `medium` ≤ 29.0 m < `long`); with a single edge a length on it stays in
+/// the lower bin.
+pub fn length_bin(edges: &[f32], length: f32) -> usize {
+    let lower_half = edges.len() / 2;
+    edges
+        .iter()
+        .enumerate()
+        .filter(|&(i, &e)| {
+            if i < lower_half {
+                length >= e
+            } else {
+                length > e
+            }
+        })
+        .count()
 }
 
 /// A place to stand: a navigable cell, its centre and the heading that faces the target.
@@ -479,8 +509,9 @@ fn region_endpoints(pf: &PathFinder, params: &SamplingParams) -> Vec<Endpoint> {
 pub const ROOM_CENTRE_RADIUS: f32 = 0.5;
 
 /// Stand cells of a room: those within [`ROOM_CENTRE_RADIUS`] of its central cell (the one
-/// nearest to `centre`, the centroid of its outline; first in index order on ties), all on the
-/// island that holds most of the room's cells.
+/// nearest to `centre`, the centroid of its outline; first in index order on ties), all among
+/// the room's cells with `clearance` (its navigable cells when none has it) on the island that
+/// holds most of those.
 fn room_stands(pf: &PathFinder, room: usize, centre: Vec2, clearance: f32) -> Vec<Stand> {
     let g = &pf.grid;
     let cells: Vec<usize> = pf
@@ -612,4 +643,27 @@ fn ring_stands_on(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lengths_on_the_paper_edges_are_medium() {
+        let bin = |l: f32| length_bin(&PATH_EDGES, l);
+        assert_eq!(bin(8.39), 0);
+        assert_eq!(bin(8.4), 1);
+        assert_eq!(bin(29.0), 1);
+        assert_eq!(bin(29.01), 2);
+        assert_eq!(SamplingParams::default().bin_of(8.4), 1);
+        // Other edges follow the same rule: the lower half's edges go up, the upper half's down.
+        assert_eq!(length_bin(&[5.0], 5.0), 0);
+        assert_eq!(length_bin(&[5.0], 5.01), 1);
+        let four = [1.0, 2.0, 3.0, 4.0];
+        let bins: Vec<usize> = [1.0, 2.0, 3.0, 4.0].map(|l| length_bin(&four, l)).to_vec();
+        assert_eq!(bins, [1, 2, 2, 3]);
+        assert_eq!(length_bin(&four, 0.5), 0);
+        assert_eq!(length_bin(&four, 4.5), 4);
+    }
 }

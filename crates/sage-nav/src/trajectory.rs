@@ -214,6 +214,12 @@ pub struct TrajectorySet {
     pub grid_source: String,
     /// The resolved settings.
     pub settings: TrajectoryParams,
+    /// FNV-1a 64 hashes of the scene's input files when the trajectories were made
+    /// ([`sage_io::scenes::input_hashes`]): a rerun keeps the file only while they still hold
+    /// ([`run_scene`]). Empty where no scene folder was read ([`generate`] alone), and in files
+    /// written before the field, which a rerun therefore makes again.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub inputs: BTreeMap<String, String>,
     /// What sampling did.
     pub report: SamplingReport,
     /// The trajectories.
@@ -470,6 +476,7 @@ pub fn generate(
             version: env!("CARGO_PKG_VERSION").into(),
             grid_source: prep.source.as_str().into(),
             settings: params.clone(),
+            inputs: BTreeMap::new(),
             report,
             trajectories: out,
         },
@@ -535,15 +542,20 @@ pub struct SceneOutcome {
 
 /// Generates and writes one scene's outputs into `out`: `trajectories.png`, then
 /// `trajectories.json` (written last, atomically: its presence means the scene is complete).
-/// A scene whose file exists with the same settings is left as it is (`resumed`).
+/// A scene whose file exists with the same settings and the same hashes of the scene's input
+/// files is left as it is (`resumed`); an edited scene is made again.
 pub fn run_scene(scene_dir: &Path, out: &Path, params: &TrajectoryParams) -> SceneOutcome {
     let done = out.join(TRAJECTORIES_FILE);
+    // Hashed before the scene is read: a file edited while this scene runs then differs from
+    // what is recorded, and the next run makes the scene again.
+    let inputs = sage_io::scenes::input_hashes(scene_dir);
     let outcome = resume_or_run(
-        || complete_with(&done, params),
+        || complete_with(&done, params, &inputs),
         || {
             let (scene, _) = Scene::load(scene_dir)?;
             let prep = prepare(&scene, params)?;
-            let (set, _) = generate(&scene.name, &prep, params)?;
+            let (mut set, _) = generate(&scene.name, &prep, params)?;
+            set.inputs = inputs.clone();
             std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
             draw_trajectories(&prep, &set).save_png(&out.join(TRAJECTORIES_PNG))?;
             sage_io::files::write_json(&done, &set)?;
@@ -555,13 +567,40 @@ pub fn run_scene(scene_dir: &Path, out: &Path, params: &TrajectoryParams) -> Sce
         status: outcome.status,
         trajectories: outcome.count,
         reason: outcome.reason,
-        inputs: sage_io::scenes::input_hashes(scene_dir),
+        inputs,
     }
 }
 
-/// The trajectory count of a complete output file written with `params`, if there is one.
-fn complete_with(path: &Path, params: &TrajectoryParams) -> Option<usize> {
+/// The trajectory count of a complete output file written with `params` from input files
+/// whose hashes are `inputs`, if there is one.
+fn complete_with(
+    path: &Path,
+    params: &TrajectoryParams,
+    inputs: &BTreeMap<String, String>,
+) -> Option<usize> {
     let text = std::fs::read_to_string(path).ok()?;
     let set: TrajectorySet = serde_json::from_str(&text).ok()?;
-    (set.settings == *params).then_some(set.trajectories.len())
+    (set.settings == *params && set.inputs == *inputs).then_some(set.trajectories.len())
+}
+
+/// Refuses scene folders whose names are not plain names ([`sage_io::names::check_plain`]):
+/// a scene is named by its folder, episodes and trajectory files carry that name, and every
+/// reader of episodes refuses any other, so a run over such a folder would write what nothing
+/// reads back. Checked over all `dirs` before any work.
+///
+/// # Errors
+///
+/// An `invalid` error naming the first such folder and the rule.
+pub fn check_scene_names(dirs: &[PathBuf]) -> Result<()> {
+    for dir in dirs {
+        let name = sage_io::scenes::scene_name(dir);
+        sage_io::names::check_plain("scene", &name).map_err(|e| {
+            Error::invalid(format!(
+                "{} (a scene is named by its folder: rename the folder)",
+                e.message()
+            ))
+            .in_file(dir)
+        })?;
+    }
+    Ok(())
 }

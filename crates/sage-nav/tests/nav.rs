@@ -784,6 +784,81 @@ fn a_run_writes_resumes_and_reports_skips() {
 }
 
 #[test]
+fn a_rerun_makes_an_edited_scene_again_and_keeps_an_unchanged_one() {
+    let root = tempfile::tempdir().unwrap();
+    let scene = root.path().join("home");
+    small_synth(10)
+        .save(&scene, sage_scene::SplatLayout::Standard)
+        .unwrap();
+    let params = TrajectoryParams {
+        count: 3,
+        seed: 4,
+        ..TrajectoryParams::default()
+    };
+    let out = root.path().join("out");
+    let file = out.join(trajectory::TRAJECTORIES_FILE);
+    let read = || -> trajectory::TrajectorySet {
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap()
+    };
+    let first = trajectory::run_scene(&scene, &out, &params);
+    assert_eq!(first.status, Status::Done, "{:?}", first.reason);
+    assert_eq!(read().inputs, sage_io::scenes::input_hashes(&scene));
+    assert!(read().inputs.contains_key("labels.json"));
+    assert_eq!(
+        trajectory::run_scene(&scene, &out, &params).status,
+        Status::Resumed
+    );
+    // The same settings over an edited scene: the file is made again, from the scene as it is
+    // now, and says so in its hashes (and so does the outcome, which the run record lists).
+    let labels = scene.join("labels.json");
+    let text = std::fs::read_to_string(&labels).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    std::fs::write(
+        &labels,
+        serde_json::to_string_pretty(&value).unwrap() + "\n",
+    )
+    .unwrap();
+    let edited = sage_io::scenes::input_hashes(&scene);
+    assert_ne!(edited, first.inputs);
+    let again = trajectory::run_scene(&scene, &out, &params);
+    assert_eq!(again.status, Status::Done, "{:?}", again.reason);
+    assert_eq!(again.inputs, edited);
+    assert_eq!(read().inputs, edited);
+    assert_eq!(
+        trajectory::run_scene(&scene, &out, &params).status,
+        Status::Resumed
+    );
+    // A file written before the hashes were recorded cannot tell what it was made from: made
+    // again.
+    let mut old: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    old.as_object_mut().unwrap().remove("inputs");
+    std::fs::write(&file, old.to_string()).unwrap();
+    assert!(read().inputs.is_empty());
+    assert_eq!(
+        trajectory::run_scene(&scene, &out, &params).status,
+        Status::Done
+    );
+    assert_eq!(read().inputs, edited);
+}
+
+#[test]
+fn scene_folders_without_plain_names_are_refused_by_name() {
+    let root = tempfile::tempdir().unwrap();
+    let plain = root.path().join("home_1.b");
+    let spaced = root.path().join("My Home");
+    trajectory::check_scene_names(std::slice::from_ref(&plain)).unwrap();
+    let e = trajectory::check_scene_names(&[plain, spaced.clone()])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&spaced.display().to_string()), "{e}");
+    assert!(
+        e.contains("'My Home'") && e.contains("rename the folder"),
+        "{e}"
+    );
+}
+
+#[test]
 fn an_object_outside_the_map_is_clipped_not_a_panic() {
     let far = object(
         "crate",

@@ -6,7 +6,7 @@
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, DatasetSummary, SceneOutcome, SceneParams};
 use sage_dataset::import::Source;
-use sage_lang::llm::LlmConfig;
+use sage_lang::llm::{LlmClient, LlmConfig};
 use sage_physics::AgentProfile;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
@@ -142,6 +142,11 @@ impl BuildSettings {
             ..LlmConfig::default()
         });
         params.validate()?;
+        // An endpoint that cannot be asked (no URL, no model, no concurrency) is refused with
+        // the other settings, before any scene: on a distributed build's driver too.
+        if let Some(llm) = &params.llm {
+            LlmClient::new(llm.clone())?;
+        }
         let assemble = AssembleParams::new(self.seed, self.balanced, self.scene_unseen, self.val);
         Ok((params, assemble))
     }
@@ -176,9 +181,10 @@ impl DatasetReport {
 ///
 /// # Errors
 ///
-/// Bad settings (naming the field), no scenes, an output folder holding files the build did
-/// not write, or a write error. A scene that fails is skipped with its reason (in the
-/// outcomes) and the build goes on.
+/// Bad settings (naming the field), no scenes, a scene folder whose name is not a plain name
+/// ([`sage_nav::trajectory::check_scene_names`]: episodes carry it, and readers take no
+/// other), an output folder holding files the build did not write, or a write error. A scene
+/// that fails is skipped with its reason (in the outcomes) and the build goes on.
 pub fn build(
     scenes: &Path,
     out: &Path,
@@ -205,6 +211,8 @@ pub fn build_with(
 ) -> Result<DatasetReport> {
     params.validate()?;
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
+    // Before the folder is claimed: a build refused for a scene's name leaves nothing behind.
+    sage_nav::trajectory::check_scene_names(&dirs)?;
     let _lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, force)?;
     // Recorded before the work too, as unfinished: a build that crashes halfway is this
     // command's folder, so its rerun resumes instead of being refused, and no reader takes
@@ -218,6 +226,87 @@ pub fn build_with(
         outcomes,
         summary,
     })
+}
+
+/// Claims `out` for a dataset build made in steps, as [`build()`] claims it (without `force`):
+/// a new or empty folder, or a dataset build's own. The distributed build (Python's
+/// `sage3d.distributed.generate`) calls it on its driver before any scene is built, then
+/// [`build_scene`] once per scene wherever its tasks run, then [`assemble`] on the driver. The
+/// folder is left marked as this build's and unfinished (the other fields of a build's record
+/// there are kept, so a rebuild keeps the splits `data import` added): every reader refuses it
+/// while the scene files come in, and the assembly's claim takes it as the build's own. The
+/// folder's lock is held during the claim only, as the steps run in other processes.
+///
+/// # Errors
+///
+/// An output folder holding files the build did not write, one another command is writing,
+/// or a write error.
+pub fn claim_steps(out: &Path, seed: u64) -> Result<()> {
+    let _lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, false)?;
+    let mut details = match sage_io::run::read_record(out) {
+        Some(serde_json::Value::Object(record))
+            if record.get("command").and_then(|c| c.as_str()) == Some(build::COMMAND) =>
+        {
+            record
+        }
+        _ => serde_json::Map::new(),
+    };
+    // Those four are written afresh; the rest of an earlier build's record stays as it was.
+    for own in ["tool", "version", "command", "seed"] {
+        details.remove(own);
+    }
+    details.insert("status".into(), sage_io::run::UNFINISHED.into());
+    sage_io::run::write_run_record(
+        out,
+        build::COMMAND,
+        Some(seed),
+        serde_json::Value::Object(details),
+    )
+}
+
+/// Builds (or resumes) one scene of a build made in steps ([`claim_steps`]) into
+/// `out/scenes/{scene}.json`: [`build::run_scene`] with the LLM client `params.llm` names,
+/// made as [`build()`] makes it (without one, the offline grammar), so a scene's file holds
+/// what `sage3d data build` with the same settings writes. Each call makes its own client:
+/// `params.llm.concurrency` bounds the requests of one call, and the answers are cached in
+/// `params.llm.cache_dir` as seen where the call runs.
+///
+/// # Errors
+///
+/// A scene folder whose name is not a plain name, or an LLM endpoint that cannot be set up; a
+/// scene that fails otherwise is skipped with its reason (in the outcome).
+pub fn build_scene(dir: &Path, out: &Path, params: &SceneParams) -> Result<SceneOutcome> {
+    sage_nav::trajectory::check_scene_names(&[dir.to_path_buf()])?;
+    let client = params.llm.clone().map(LlmClient::new).transpose()?;
+    Ok(build::run_scene(dir, out, params, client.as_ref()))
+}
+
+/// Assembles a dataset built in steps ([`claim_steps`], [`build_scene`]) from its scene files
+/// (one per folder in `dirs`, found in `scenes`): claims `out` as [`build()`] does and holds it
+/// while it writes the run record unfinished, the splits, files and summary
+/// ([`build::assemble`]), then the run record finished. Returns the summary.
+///
+/// # Errors
+///
+/// A scene folder whose name is not a plain name, an output folder that is no dataset build's
+/// (not claimed by [`claim_steps`]) or that another command is writing, or a write error.
+pub fn assemble(
+    out: &Path,
+    scenes: &Path,
+    dirs: &[PathBuf],
+    params: &SceneParams,
+    assemble: &AssembleParams,
+) -> Result<DatasetSummary> {
+    sage_nav::trajectory::check_scene_names(dirs)?;
+    let _lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, false)?;
+    let names: Vec<String> = dirs
+        .iter()
+        .map(|d| sage_io::scenes::scene_name(d))
+        .collect();
+    build::write_run_record(out, scenes, dirs, params, assemble, false)?;
+    let summary = build::assemble(out, &names, assemble, &params.space)?;
+    build::write_run_record(out, scenes, dirs, params, assemble, true)?;
+    Ok(summary)
 }
 
 /// What [`import`] did.
@@ -298,4 +387,151 @@ pub fn export(
         force,
     )?;
     sage_dataset::export::export(dataset, split, scenes, format, out, force)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sage_io::runner::Status;
+
+    /// A scenes folder with one small synthetic scene, `home1`.
+    fn scenes(root: &Path) -> PathBuf {
+        let scenes = root.join("scenes");
+        sage_synth::generate(&sage_synth::SynthConfig {
+            seed: 3,
+            rooms: 3,
+            objects: 20,
+            gaussians: 1000,
+            ..sage_synth::SynthConfig::default()
+        })
+        .unwrap()
+        .save(&scenes.join("home1"), sage_scene::SplatLayout::Compressed)
+        .unwrap();
+        scenes
+    }
+
+    #[test]
+    fn a_build_in_steps_writes_what_the_build_writes_and_claims_its_folder() {
+        let root = tempfile::tempdir().unwrap();
+        let scenes = scenes(root.path());
+        let dirs = sage_io::scenes::scene_dirs(&scenes).unwrap();
+        let settings = BuildSettings {
+            per_scene: 2,
+            seed: 4,
+            balanced: 4,
+            ..BuildSettings::default()
+        };
+        let whole = root.path().join("whole");
+        build(&scenes, &whole, &settings, false, &|_, _| {}).unwrap();
+
+        let steps = root.path().join("steps");
+        let (params, assemble_params) = settings.params(&steps).unwrap();
+        claim_steps(&steps, settings.seed).unwrap();
+        // Marked as the build's, unfinished: no reader takes it while the scenes come in.
+        assert!(sage_dataset::folder::check(&steps).is_err());
+        for d in &dirs {
+            assert_eq!(
+                build_scene(d, &steps, &params).unwrap().status,
+                Status::Done
+            );
+        }
+        assemble(&steps, &scenes, &dirs, &params, &assemble_params).unwrap();
+        let (a, b) = (
+            sage_io::files::read_tree(&whole).unwrap(),
+            sage_io::files::read_tree(&steps).unwrap(),
+        );
+        assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+        assert!(a == b, "the build in steps differs from the build");
+        sage_dataset::folder::check(&steps).unwrap();
+
+        // A rerun's claim keeps the record's other fields, marked unfinished again.
+        claim_steps(&steps, settings.seed).unwrap();
+        let record = sage_io::run::read_record(&steps).unwrap();
+        assert_eq!(record["status"], sage_io::run::UNFINISHED);
+        assert_eq!(
+            record["inputs"],
+            sage_io::run::read_record(&whole).unwrap()["inputs"]
+        );
+        assemble(&steps, &scenes, &dirs, &params, &assemble_params).unwrap();
+        assert!(sage_io::files::read_tree(&steps).unwrap() == a);
+
+        // A folder of other files is refused before anything is written into it, and so is an
+        // assembly into a folder no claim made the build's.
+        let foreign = root.path().join("foreign");
+        std::fs::create_dir_all(&foreign).unwrap();
+        std::fs::write(foreign.join("notes.txt"), "mine").unwrap();
+        let e = claim_steps(&foreign, 4).unwrap_err().to_string();
+        assert!(e.contains("notes.txt"), "{e}");
+        assert_eq!(sage_io::run::entries(&foreign).unwrap(), ["notes.txt"]);
+        let unclaimed = root.path().join("unclaimed");
+        std::fs::create_dir_all(unclaimed.join("scenes")).unwrap();
+        let e = assemble(&unclaimed, &scenes, &dirs, &params, &assemble_params)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("'scenes'"), "{e}");
+        assert!(!unclaimed.join("episodes").exists());
+    }
+
+    #[test]
+    fn a_scene_built_in_steps_asks_the_llm_endpoint_its_settings_name() {
+        let root = tempfile::tempdir().unwrap();
+        let scenes = scenes(root.path());
+        let out = root.path().join("out");
+        // No server listens at this address: every request fails, which the scene's report
+        // counts; the offline grammar would make none.
+        let closed = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap();
+        let mut params = build::SceneParams::new(2, 1);
+        params.llm = Some(LlmConfig {
+            base_url: format!("http://{closed}/v1"),
+            max_retries: 0,
+            timeout_s: 5,
+            cache_dir: Some(out.join("llm_cache")),
+            ..LlmConfig::default()
+        });
+        let outcome = build_scene(&scenes.join("home1"), &out, &params).unwrap();
+        assert_eq!(outcome.status, Status::Done, "{:?}", outcome.reason);
+        let file: build::SceneEpisodes = serde_json::from_str(
+            &std::fs::read_to_string(build::scene_file(&out, "home1")).unwrap(),
+        )
+        .unwrap();
+        assert!(file.report.llm_failures > 0, "{:?}", file.report);
+        assert_eq!(file.settings.llm, params.llm);
+        // An endpoint that cannot be asked is refused with the settings, naming what is wrong.
+        let bad = BuildSettings {
+            llm_url: Some(" ".into()),
+            ..BuildSettings::default()
+        };
+        assert!(
+            bad.params(&out)
+                .unwrap_err()
+                .to_string()
+                .contains("base_url")
+        );
+    }
+
+    #[test]
+    fn a_scene_folder_without_a_plain_name_stops_the_build_before_its_folder() {
+        let root = tempfile::tempdir().unwrap();
+        let scenes = scenes(root.path());
+        let spaced = scenes.join("My Home");
+        std::fs::rename(scenes.join("home1"), &spaced).unwrap();
+        let out = root.path().join("out");
+        let settings = BuildSettings {
+            per_scene: 1,
+            ..BuildSettings::default()
+        };
+        let e = build(&scenes, &out, &settings, false, &|_, _| {})
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("'My Home'") && e.contains("rename the folder"),
+            "{e}"
+        );
+        assert!(!out.exists());
+        let (params, _) = settings.params(&out).unwrap();
+        assert!(build_scene(&spaced, &out, &params).is_err());
+    }
 }

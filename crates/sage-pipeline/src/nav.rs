@@ -179,8 +179,9 @@ pub struct TrajectoriesReport {
 ///
 /// # Errors
 ///
-/// No scenes, an output folder holding files the command did not write, or a write error. A
-/// scene that fails is skipped with its reason (in the outcomes).
+/// No scenes, a scene folder whose name is not a plain name
+/// ([`trajectory::check_scene_names`]), an output folder holding files the command did not
+/// write, or a write error. A scene that fails is skipped with its reason (in the outcomes).
 pub fn trajectories(
     scenes: &Path,
     out: Option<&Path>,
@@ -189,6 +190,8 @@ pub fn trajectories(
     on_scene: &(dyn Fn(&SceneOutcome, usize) + Sync),
 ) -> Result<TrajectoriesReport> {
     let dirs = sage_io::scenes::scene_dirs(scenes)?;
+    // Before the folder is claimed: a refused run leaves nothing behind.
+    trajectory::check_scene_names(&dirs)?;
     let single = dirs.len() == 1 && dirs[0] == scenes;
     let out = out.map_or_else(
         || {
@@ -242,7 +245,9 @@ pub fn trajectories(
         .collect();
     // The record says what the folder holds, not what this run did: a scene another run
     // completed is `done` there, so a resumed or repeated run records the same bytes as one
-    // that ran through (the outcomes returned still tell the resumed ones apart).
+    // that ran through (the outcomes returned still tell the resumed ones apart). A scene
+    // resumes only while its input files hash as its file records, so the hashes listed are
+    // those its trajectories were made from.
     let held: Vec<SceneOutcome> = outcomes
         .iter()
         .cloned()

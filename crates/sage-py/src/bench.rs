@@ -76,8 +76,11 @@ fn eval_options(
 }
 
 /// Checks the settings of a dataset build into `out` (`sage3d data build`'s flags by name)
-/// before any work: a bad name or value is a `ValueError` naming it, as
-/// [`build_dataset`](crate::pipeline::build_dataset) raises it.
+/// before any work, then claims `out` for the build: a bad name or value is a `ValueError`
+/// naming it, as [`build_dataset`](crate::pipeline::build_dataset) raises it, and a folder that
+/// is neither new, empty nor a dataset build's is refused, naming a file it holds, as `sage3d
+/// data build` refuses it without `--force` ([`sage_pipeline::dataset::claim_steps`]: the
+/// folder is marked as the build's, unfinished until [`assemble_dataset`] finishes it).
 #[pyfunction]
 #[pyo3(signature = (out, **settings))]
 pub fn check_build_settings(
@@ -85,7 +88,9 @@ pub fn check_build_settings(
     out: PathBuf,
     settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<()> {
-    build_params(py, &out, settings).map(|_| ())
+    let (_, assemble) = build_params(py, &out, settings)?;
+    py.detach(|| sage_pipeline::dataset::claim_steps(&out, assemble.seed))
+        .py()
 }
 
 /// The options of an evaluation (`sage3d eval`'s flags by name) with every default filled in,
@@ -335,9 +340,11 @@ fn build_params(
 
 /// Builds (or resumes) one scene's episode file `out/scenes/{scene}.json` as `sage3d data
 /// build` does with the same settings (keyword arguments as
-/// [`build_dataset`](crate::pipeline::build_dataset) takes them); returns `{scene, status,
-/// episodes, reason?}`, the file's path relative to `out` and its text (for a driver without a
-/// shared file system).
+/// [`build_dataset`](crate::pipeline::build_dataset) takes them), high-level instructions from
+/// the LLM endpoint when `llm_url` names one ([`sage_pipeline::dataset::build_scene`]); returns
+/// `{scene, status, episodes, reason?}`, the file's path relative to `out` and its text (for a
+/// driver without a shared file system). A scene folder whose name is not a plain name is a
+/// `ValueError` naming it.
 #[pyfunction]
 #[pyo3(signature = (scene_dir, out, **settings))]
 pub fn build_scene<'py>(
@@ -347,12 +354,14 @@ pub fn build_scene<'py>(
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<(Bound<'py, PyAny>, PathBuf, Option<String>)> {
     let (params, _) = build_params(py, &out, settings)?;
-    let (outcome, file, text) = py.detach(|| {
-        let o = build::run_scene(&scene_dir, &out, &params, None);
-        let file = build::scene_file(Path::new(""), &o.scene);
-        let text = std::fs::read_to_string(out.join(&file)).ok();
-        (o, file, text)
-    });
+    let (outcome, file, text) = py
+        .detach(|| {
+            let o = sage_pipeline::dataset::build_scene(&scene_dir, &out, &params)?;
+            let file = build::scene_file(Path::new(""), &o.scene);
+            let text = std::fs::read_to_string(out.join(&file)).ok();
+            Ok::<_, Error>((o, file, text))
+        })
+        .py()?;
     Ok((to_py(py, &outcome)?, file, text))
 }
 
@@ -360,7 +369,9 @@ pub fn build_scene<'py>(
 /// splits, balanced test selection, JSONL / GVLN / R2R files and the summary, between two run
 /// records (naming `root`, the folder the scene folders were found in), unfinished before
 /// and finished after, as `sage3d data build` ends: an assembly cut short leaves a folder no
-/// reader takes for a dataset. Returns the summary.
+/// reader takes for a dataset. `out` must be a folder [`check_build_settings`] claimed (or an
+/// earlier build's); its lock is held meanwhile ([`sage_pipeline::dataset::assemble`]).
+/// Returns the summary.
 #[pyfunction]
 #[pyo3(signature = (out, scenes, root, **settings))]
 pub fn assemble_dataset<'py>(
@@ -371,18 +382,8 @@ pub fn assemble_dataset<'py>(
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (params, assemble) = build_params(py, &out, settings)?;
-    let name = |d: &Path| {
-        d.file_name()
-            .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
-    };
     let summary = py
-        .detach(|| {
-            let names: Vec<String> = scenes.iter().map(|d| name(d)).collect();
-            build::write_run_record(&out, &root, &scenes, &params, &assemble, false)?;
-            let summary = build::assemble(&out, &names, &assemble, &params.space)?;
-            build::write_run_record(&out, &root, &scenes, &params, &assemble, true)?;
-            Ok::<_, Error>(summary)
-        })
+        .detach(|| sage_pipeline::dataset::assemble(&out, &root, &scenes, &params, &assemble))
         .py()?;
     to_py(py, &summary)
 }
