@@ -6,6 +6,7 @@ over Ray writes the single-machine render byte for byte."""
 
 import json
 import math
+import os
 import shutil
 
 import numpy as np
@@ -125,7 +126,41 @@ def test_settings_are_checked(data, tmp_path):
         sg.render_training_data(dataset, scenes, tmp_path / "c", answers="navila", step=0.255)
     with pytest.raises(ValueError, match="unknown `answers` wording 'cm'"):
         sg.render_training_data(dataset, scenes, tmp_path / "c", answers="cm")
+    # The motion cap has the command line's bounds (its `max_actions + 1` step limit never
+    # overflows), for the one call and for the distributed steps' settings alike.
+    for cap in (0, 1_000_001):
+        with pytest.raises(ValueError, match="`max_actions`"):
+            sg.render_training_data(dataset, scenes, tmp_path / "c", max_actions=cap)
+        with pytest.raises(ValueError, match="`max_actions`"):
+            sg._sage3d.training_settings(dataset, scenes, max_actions=cap)
     assert not (tmp_path / "c").exists()
+
+
+def test_a_claim_holds_the_folder_against_the_command_line_until_released(data, sage3d, tmp_path):
+    """The claim a distributed render's driver holds for the whole call: while it is held, a
+    `sage3d data render` into the folder exits 1 naming this process, and no other claim or
+    finish takes the folder."""
+    scenes, dataset = data
+    settings = sg._sage3d.training_settings(dataset, scenes, **RENDER)
+    out = tmp_path / "held"
+    with sg._sage3d.training_claim(settings, out) as claim:
+        assert claim.held and claim.manifest is None and claim.out == out
+        cli = sage3d("data", "render", dataset, "--scenes", scenes, "--out", out, "--split", "few",
+                     "--limit", 6, check=False)
+        assert cli.returncode == 1, cli.stderr
+        assert f"being written by the `data render` run of process {os.getpid()}" in cli.stderr
+        with pytest.raises(ValueError, match=f"process {os.getpid()}"):
+            sg._sage3d.training_claim(settings, out)
+        with pytest.raises(ValueError, match="being written"):
+            sg._sage3d.training_finish(settings, out)
+        with pytest.raises(ValueError, match="the claim holds"):
+            sg._sage3d.training_finish(settings, tmp_path / "other", claim)
+    assert not claim.held
+    with pytest.raises(ValueError, match="was released"):
+        sg._sage3d.training_finish(settings, out, claim)
+    # Let go, the folder is claimed again at once (the same render: resumed).
+    with sg._sage3d.training_claim(settings, out) as again:
+        assert again.held and again.manifest is None
 
 
 @pytest.mark.parametrize("fmt", FORMATS)

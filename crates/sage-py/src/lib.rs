@@ -29,6 +29,7 @@ fn _sage3d(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<scene::PyPathFinder>()?;
     m.add_class::<sim::Sim>()?;
     m.add_class::<sim::VecSim>()?;
+    m.add_class::<training::TrainingClaim>()?;
     m.add_function(wrap_pyfunction!(sim::env_config, m)?)?;
     m.add_function(wrap_pyfunction!(bench::read_split, m)?)?;
     m.add_function(wrap_pyfunction!(bench::list_splits, m)?)?;

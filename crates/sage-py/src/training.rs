@@ -2,15 +2,18 @@
 //! call, and its steps (plan, claim, one scene, finish) that `sage3d.distributed` runs as Ray
 //! tasks. The steps take the render's settings as JSON (`sage_traindata::Settings`), made by
 //! [`training_settings`] from the same keyword arguments [`render_training_data`] takes;
-//! both, like the command line, turn them into settings with `sage_traindata::Options`.
+//! both, like the command line, turn them into settings with `sage_traindata::Options`. The
+//! claim ([`TrainingClaim`]) holds the output folder's lock for the driver until it lets go,
+//! so that one writer per folder holds across the steps.
 
 use crate::convert::{PyResultExt, arg_extractors, from_json, from_kwargs, to_py};
 use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sage_traindata::{Options, Plan, RouteDone, SceneProgress, Settings};
+use sage_io::lock::FolderLock;
+use sage_traindata::{Manifest, Options, Plan, RouteDone, SceneProgress, Settings};
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The options of a render from its dataset, scenes folder and keyword arguments (those of
 /// `sage_traindata::Options`, by name; absent ones take its defaults).
@@ -61,10 +64,12 @@ arg_extractors! {
 /// speak, a step or turn not whole in centimetres or degrees refused), `width`/`height` (224),
 /// `hfov` (90),
 /// `sensors` (`"rgb"`, `"rgb,depth"` or a list of `rgb`, `depth`, `semantic`, `instance`),
-/// `format` (`"navila"`, `"webdataset"` or `"frames"`), `shard_size` (samples per NaVILA part,
-/// 10000, or episodes per WebDataset shard, 100), `limit`, `seed` (0), `agent` (`"wheeled"`),
-/// `image` (`"jpg"` or `"png"`), `jpeg_quality` (90), `keep_failed`, `preview` (0) and
-/// `device` (`"cpu"`, `"gpu"` or `"auto"`). A finished render in `out` with the same
+/// `format` (`"navila"`, `"webdataset"`, `"frames"` or `"lerobot"`: LeRobot v3.0, frames
+/// always PNG), `shard_size` (samples per NaVILA part, 10000, or episodes per WebDataset shard,
+/// 100), `limit`, `seed` (0), `agent` (`"wheeled"`), `image` (`"jpg"` or `"png"`),
+/// `jpeg_quality` (90), `keep_failed`, `preview` (0), `device` (`"cpu"`, `"gpu"` or `"auto"`)
+/// and `splat_bodies` (`"auto"`, `"always"` or `"never"`: which objects get bodies recovered
+/// from their Gaussians for the walks). A finished render in `out` with the same
 /// settings is returned as it is; `force` replaces another render's output. Returns the
 /// manifest (`manifest.json`).
 #[pyfunction]
@@ -171,38 +176,129 @@ pub fn training_render_scene<'py>(
     to_py(py, &rendered)
 }
 
+/// An output folder claimed for a render ([`training_claim`]): holds the folder's lock
+/// (`OUT/.sage3d.lock`) until its `release()`, the end of a `with` block, or the object's
+/// collection, so that no other command (`sage3d data render`, another claim) writes
+/// the folder meanwhile. A distributed render's driver holds it from the claim to the
+/// manifest: its Ray tasks write into folders of their own, and only the driver writes `out`.
+#[pyclass(module = "sage3d._sage3d", name = "TrainingClaim")]
+pub struct TrainingClaim {
+    out: PathBuf,
+    lock: Option<FolderLock>,
+    manifest: Option<Manifest>,
+}
+
+impl TrainingClaim {
+    /// An error unless the claim still holds the lock of `out`.
+    fn check_holds(&self, out: &Path) -> PyResult<()> {
+        if self.lock.is_none() {
+            return Err(PyValueError::new_err(format!(
+                "the claim of {} was released: claim the folder again",
+                self.out.display()
+            )));
+        }
+        let same = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+        if same(out) != same(&self.out) {
+            return Err(PyValueError::new_err(format!(
+                "the claim holds {}, not {}",
+                self.out.display(),
+                out.display()
+            )));
+        }
+        Ok(())
+    }
+}
+
+#[pymethods]
+impl TrainingClaim {
+    /// The folder claimed.
+    #[getter]
+    fn out(&self) -> PathBuf {
+        self.out.clone()
+    }
+
+    /// The manifest when the same render had already finished in the folder, else `None`.
+    #[getter]
+    fn manifest<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.manifest)
+    }
+
+    /// True while the claim holds the folder's lock.
+    #[getter]
+    fn held(&self) -> bool {
+        self.lock.is_some()
+    }
+
+    /// Lets go of the folder's lock (again: nothing).
+    fn release(&mut self) {
+        self.lock = None;
+    }
+
+    /// The claim itself, held for the `with` block.
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    /// Lets go of the folder at the end of the `with` block; an exception raised in it goes on.
+    #[pyo3(signature = (_kind=None, _value=None, _traceback=None))]
+    fn __exit__(
+        &mut self,
+        _kind: Option<&Bound<'_, PyAny>>,
+        _value: Option<&Bound<'_, PyAny>>,
+        _traceback: Option<&Bound<'_, PyAny>>,
+    ) -> bool {
+        self.release();
+        false
+    }
+}
+
 /// Claims `out` for the render: a new or empty folder, or the folder of the same render
 /// (resumed); `force` replaces another render's output. Writes the run record. Returns the
-/// manifest when the same render already finished there, else `None`. The folder's lock is
-/// held during the claim only (no other command may be writing it then).
+/// claim ([`TrainingClaim`]), which holds the folder's lock until it is released (use it in a
+/// `with` block) and whose `manifest` is the manifest when the same render already finished
+/// there, else `None`.
 #[pyfunction]
 #[pyo3(signature = (settings_json, out, force=false))]
-pub fn training_claim<'py>(
-    py: Python<'py>,
+pub fn training_claim(
+    py: Python<'_>,
     settings_json: &str,
     out: PathBuf,
     force: bool,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<TrainingClaim> {
     let plan = plan(py, settings_json)?;
-    let done = py
-        .detach(|| sage_traindata::claim(&plan, &out, force).map(|(_lock, done)| done))
+    let (lock, manifest) = py
+        .detach(|| sage_traindata::claim(&plan, &out, force))
         .py()?;
-    to_py(py, &done)
+    Ok(TrainingClaim {
+        out,
+        lock: Some(lock),
+        manifest,
+    })
 }
 
 /// Finishes the render in `out` once every scene's routes are there: the format's files, the
-/// preview when asked for, then `manifest.json`, holding the folder's lock meanwhile. Returns
-/// the manifest.
+/// preview when asked for, then `manifest.json`. Holds the folder's lock meanwhile: `claim`'s
+/// (a [`TrainingClaim`] of `out` not released) when given, else its own. Returns the manifest.
 #[pyfunction]
+#[pyo3(signature = (settings_json, out, claim=None))]
 pub fn training_finish<'py>(
     py: Python<'py>,
     settings_json: &str,
     out: PathBuf,
+    claim: Option<PyRef<'py, TrainingClaim>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    if let Some(claim) = &claim {
+        claim.check_holds(&out)?;
+    }
     let plan = plan(py, settings_json)?;
+    let held = claim.is_some();
     let manifest = py
         .detach(|| {
-            let _lock = sage_traindata::lock(&out)?;
+            let _lock = if held {
+                None
+            } else {
+                Some(sage_traindata::lock(&out)?)
+            };
             sage_traindata::finish(&plan, &out)
         })
         .py()?;

@@ -15,7 +15,8 @@ const MAX_BLOCKED: usize = 3;
 pub enum Ending {
     /// It reached the end of the reference path (within half a step) and called STOP.
     Reached,
-    /// The preset's cap on motions was hit; it called STOP where it stood.
+    /// The preset's cap on motions was hit (a rotation in place counts each turn); it called
+    /// STOP where it stood.
     Capped,
     /// Three forward moves in a row were blocked; it called STOP where it stood.
     Blocked,
@@ -29,7 +30,8 @@ pub enum Ending {
 /// (an object goal is not approached further: the straight line to its footprint may cross a
 /// wall). Because every decision is taken from the achieved pose, a step that
 /// physics shortened is made up by the following ones, as a robot replaying the path would.
-/// A reference path of a single point is a rotation in place ([`PathFollower::rotate_in_place`]).
+/// A reference path of a single point is a rotation in place ([`PathFollower::rotate_in_place`]),
+/// whose turns count against the cap as every other motion does.
 #[derive(Clone)]
 pub struct PathFollower {
     step: f32,
@@ -140,6 +142,11 @@ impl Agent for PathFollower {
                 -1 => Action::TurnRight,
                 _ => return Ok(self.stop(Ending::Reached)),
             };
+            // Each turn in place is a motion: the cap bounds a rotation as it bounds a walk.
+            if self.motions >= self.max_actions {
+                return Ok(self.stop(Ending::Capped));
+            }
+            self.motions += 1;
             self.spin -= self.spin.signum();
             return Ok(turn);
         }

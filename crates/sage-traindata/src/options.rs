@@ -46,7 +46,7 @@ pub struct Options {
         arg(
             long,
             default_value_t = Options::default().max_actions,
-            value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1_000_000)
+            value_parser = max_actions()
         )
     )]
     pub max_actions: usize,
@@ -134,6 +134,14 @@ pub struct Options {
         arg(long, value_name = "auto|always|never", default_value_t = Options::default().splat_bodies)
     )]
     pub splat_bodies: SplatBodies,
+}
+
+/// The parser of `--max-actions`: the caps every path takes ([`MAX_ACTIONS_RANGE`](crate::preset::MAX_ACTIONS_RANGE)).
+#[cfg(feature = "clap")]
+fn max_actions() -> clap::builder::RangedU64ValueParser<usize> {
+    let caps = crate::preset::MAX_ACTIONS_RANGE;
+    clap::builder::RangedU64ValueParser::<usize>::new()
+        .range(*caps.start() as u64..=*caps.end() as u64)
 }
 
 /// The parser of `--width` and `--height`: the sensors' sizes ([`sage_env::config::IMAGE_SIDE`]).
@@ -380,6 +388,29 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("sometimes"), "{e}");
+    }
+
+    #[test]
+    fn the_motion_cap_is_bounded_on_every_path_naming_max_actions() {
+        for bad in [0, 1_000_001, usize::MAX] {
+            let o: Options =
+                serde_json::from_value(serde_json::json!({ "max_actions": bad })).unwrap();
+            let e = o.settings_with(Path::new("s")).unwrap_err().to_string();
+            assert!(
+                e.contains("`max_actions`") && e.contains("1..=1000000"),
+                "{bad}: {e}"
+            );
+        }
+        let most: Options = serde_json::from_str(r#"{"max_actions": 1000000}"#).unwrap();
+        let settings = most.settings_with(Path::new("s")).unwrap();
+        assert_eq!(settings.env_config().unwrap().task.max_steps, 1_000_001);
+        // Settings JSON that never went through the options (a distributed render's steps) is
+        // refused where a render starts, not overflowed into the step limit.
+        let mut text = serde_json::to_value(&settings).unwrap();
+        text["preset"]["max_actions"] = serde_json::json!(usize::MAX);
+        let direct: Settings = serde_json::from_value(text).unwrap();
+        let e = direct.env_config().unwrap_err().to_string();
+        assert!(e.contains("`max_actions`"), "{e}");
     }
 
     #[test]

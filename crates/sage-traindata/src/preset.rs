@@ -12,6 +12,11 @@ use serde::{Deserialize, Serialize};
 /// is 50 for every one of its presets.
 pub const DEFAULT_MAX_ACTIONS: usize = 50;
 
+/// The motion caps a render takes, on every path in (flags, Python, settings files, settings
+/// JSON): at least one motion, and a bound far above any walk that keeps the environment's
+/// step limit (`max_actions + 1`) from overflowing.
+pub const MAX_ACTIONS_RANGE: std::ops::RangeInclusive<usize> = 1..=1_000_000;
+
 /// How a trajectory becomes discrete actions.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ActionPreset {
@@ -178,7 +183,8 @@ impl ActionPreset {
     ///
     /// # Errors
     ///
-    /// A step outside (0, 5] m, a turn outside (0, 180] degrees or a cap of 0.
+    /// A step outside (0, 5] m, a turn outside (0, 180] degrees or a cap outside
+    /// [`MAX_ACTIONS_RANGE`].
     pub fn with(
         base: ActionPreset,
         step_m: Option<f32>,
@@ -204,10 +210,25 @@ impl ActionPreset {
                 p.turn_deg
             )));
         }
-        if p.max_actions == 0 {
-            return Err(Error::invalid("`max_actions`: must be at least 1"));
-        }
+        p.check_max_actions()?;
         Ok(p)
+    }
+
+    /// Checks the cap on motions: within [`MAX_ACTIONS_RANGE`].
+    ///
+    /// # Errors
+    ///
+    /// A cap outside the range, naming `max_actions`.
+    pub fn check_max_actions(&self) -> Result<()> {
+        if !MAX_ACTIONS_RANGE.contains(&self.max_actions) {
+            return Err(Error::invalid(format!(
+                "`max_actions`: {} is outside {}..={} (motions per trajectory)",
+                self.max_actions,
+                MAX_ACTIONS_RANGE.start(),
+                MAX_ACTIONS_RANGE.end()
+            )));
+        }
+        Ok(())
     }
 
     /// `self` answering in `answers`' words.

@@ -7,7 +7,7 @@ use crate::preset::ActionPreset;
 use sage_core::{Result, wrap_angle};
 use sage_dataset::Episode;
 use sage_env::agents::Agent;
-use sage_env::{Action, Env, Images, Observation, Pending};
+use sage_env::{Action, Env, Images, Observation, Pending, Termination};
 use serde::{Deserialize, Serialize};
 
 /// Episodes of one scene that share a start, a reference path and a goal, so one walk (one
@@ -69,7 +69,8 @@ pub enum Verdict {
     Clean,
     /// Touched an obstacle on the way.
     Collided,
-    /// Ended farther than the success distance from the goal position.
+    /// Ended away from the goal: farther than the success distance from its position, a
+    /// rotation in place short of its turn (cut by the motion cap), or out of the scene.
     FarFromGoal,
 }
 
@@ -78,7 +79,9 @@ pub enum Verdict {
 pub struct Walk {
     /// Every action, STOP last.
     pub steps: Vec<WalkStep>,
-    /// `reached`, `capped` (the motion cap) or `blocked` (three blocked moves in a row).
+    /// `reached`, `capped` (the motion cap, or the environment's step limit), `blocked`
+    /// (three blocked moves in a row) or `left_scene` (a move took the agent out of the scene,
+    /// which ends the environment's episode).
     pub ending: String,
     /// Steps on which the agent touched something.
     pub contact_steps: usize,
@@ -122,6 +125,11 @@ pub struct Walker {
     turn: f32,
     steps: Vec<WalkStep>,
     obs: Option<Observation>,
+    /// A rotation in place (a reference path of one point).
+    rotation: bool,
+    /// How the environment ended the episode on a motion (its step limit, the agent out of the
+    /// scene): the walk ends there, with a STOP where the agent stands.
+    ended: Option<Termination>,
 }
 
 impl Walker {
@@ -143,7 +151,8 @@ impl Walker {
         let first = &route.episodes[0];
         let episode = first.env_episode();
         let mut follower = PathFollower::new(preset);
-        if first.reference_path.len() == 1 {
+        let rotation = first.reference_path.len() == 1;
+        if rotation {
             let net = net_turns(first);
             follower.rotate_in_place(turns_in_place(net as f32 * dataset_turn_deg, preset));
         }
@@ -155,6 +164,8 @@ impl Walker {
             turn: preset.turn_deg.to_radians(),
             steps: Vec::new(),
             obs: None,
+            rotation,
+            ended: None,
         };
         Ok((walker, pending))
     }
@@ -173,7 +184,10 @@ impl Walker {
 
     /// Chooses the next action from the frame last observed and applies it (physics, no
     /// rendering): the next frame to render, or `None` once the walk called STOP (whose
-    /// frame nobody sees).
+    /// frame nobody sees). When a motion ends the environment's episode (its step limit, the
+    /// agent out of the scene), the frame after it is still rendered and the walk then ends
+    /// with a STOP where the agent stands, as at the motion cap; that STOP is recorded
+    /// without a step (the episode is over), not moving and touching nothing.
     ///
     /// # Errors
     ///
@@ -184,9 +198,19 @@ impl Walker {
                 "a walk advanced without a frame observed",
             ));
         };
-        let action = self.follower.act(obs)?;
         let p = obs.pose;
         let pose = [p.position.x, p.position.y, p.yaw];
+        if self.ended.is_some() {
+            self.steps.push(WalkStep {
+                action: crate::preset::action_name(Action::Stop).into(),
+                pose,
+                commanded: pose,
+                achieved: pose,
+                contact: false,
+            });
+            return Ok(None);
+        }
+        let action = self.follower.act(obs)?;
         let commanded = match action {
             Action::MoveForward => [
                 pose[0] + self.step_m * p.yaw.cos(),
@@ -206,12 +230,19 @@ impl Walker {
             // STOP does not move: what it reports touching was touched by the step before.
             contact: action != Action::Stop && !info.touched.is_empty(),
         });
-        Ok((action != Action::Stop).then_some(next))
+        if action == Action::Stop {
+            return Ok(None);
+        }
+        // The environment ended the episode on this motion: a further step would be refused.
+        self.ended = info.termination;
+        Ok(Some(next))
     }
 
     /// The walk so far, judged: the straight-line distance from where it ended to the
     /// route's goal position, within the success distance of `env`'s task and without
-    /// contact for a clean verdict.
+    /// contact for a clean verdict. A rotation in place that the motion cap cut short, and a
+    /// walk that left the scene, did not end at their goal: `far_from_goal` unless they
+    /// touched something.
     pub fn finish(&self, env: &Env, route: &Route) -> Walk {
         let steps = self.steps.clone();
         let contact_steps = steps.iter().filter(|s| s.contact).count();
@@ -222,21 +253,26 @@ impl Walker {
             .goal
             .as_ref()
             .map(|g| end.distance(glam::Vec2::new(g.position[0], g.position[1])));
+        let ending = match (self.ended, self.follower.ending()) {
+            (Some(Termination::LeftScene), _) => "left_scene",
+            (Some(_), _) | (None, Some(Ending::Capped)) => "capped",
+            (None, Some(Ending::Blocked)) => "blocked",
+            (None, _) => "reached",
+        };
+        // A rotation's goal is its heading, which a capped one falls short of; a walk out of
+        // the scene fails in the environment whatever its distance.
+        let short = ending == "left_scene" || (self.rotation && ending == "capped");
         let verdict = if contact_steps > 0 {
             Verdict::Collided
-        } else if final_distance.is_some_and(|d| d <= env.config().task.success_distance) {
+        } else if !short && final_distance.is_some_and(|d| d <= env.config().task.success_distance)
+        {
             Verdict::Clean
         } else {
             Verdict::FarFromGoal
         };
         Walk {
             steps,
-            ending: match self.follower.ending() {
-                Some(Ending::Capped) => "capped",
-                Some(Ending::Blocked) => "blocked",
-                _ => "reached",
-            }
-            .into(),
+            ending: ending.into(),
             contact_steps,
             final_distance,
             verdict,

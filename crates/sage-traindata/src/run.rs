@@ -162,8 +162,8 @@ impl Settings {
     ///
     /// # Errors
     ///
-    /// A bad profile, size, field of view or preset, naming the field; a step or turn the
-    /// answers' wording cannot say; sensors the layout cannot hold.
+    /// A bad profile, size, field of view, preset or motion cap (`max_actions`), naming the
+    /// field; a step or turn the answers' wording cannot say; sensors the layout cannot hold.
     pub fn env_config(&self) -> Result<EnvConfig> {
         let mut config = EnvConfig {
             agent: self.agent.clone(),
@@ -188,6 +188,9 @@ impl Settings {
             semantic: self.sensors.semantic,
             instance: self.sensors.instance,
         };
+        // Settings read from JSON (a distributed render's steps) have not been through the
+        // options: the cap is checked before the step limit is made from it.
+        self.preset.check_max_actions()?;
         config.task.max_steps = config.task.max_steps.max(self.preset.max_actions + 1);
         self.preset.check_answers()?;
         if self.shard_size == 0 {
@@ -439,8 +442,9 @@ fn writes_episodes(settings: &Settings, walk: Option<&Walk>) -> bool {
 
 /// Removes every file of a route folder but its record: the frames of a route whose episodes
 /// are not written (a dropped walk, or one that could not be walked), which no annotation,
-/// shard or manifest would name. Its record stays: it says the route is done (a resume does
-/// not walk it again) and why its episodes are left out.
+/// shard or manifest would name. Its record stays and says why its episodes are left out; a
+/// dropped walk's record also makes the route done (a resume does not walk it again), while a
+/// record holding only an error does not ([`is_done`]: the next run tries the route again).
 fn drop_frames(dir: &Path) -> Result<()> {
     let entries = match std::fs::read_dir(dir) {
         Ok(entries) => entries,
@@ -942,8 +946,9 @@ pub struct Manifest {
     pub skipped: Vec<Skip>,
     /// The format's files (parts, shards, index).
     pub files: Vec<FileEntry>,
-    /// The frames under `images/` (none for WebDataset, whose shards hold them): count, total
-    /// bytes and one FNV-1a 64 over every relative path and its bytes in path order.
+    /// The frames under `images/` (none for WebDataset and LeRobot, whose shards and Parquet
+    /// files hold them): count, total bytes and one FNV-1a 64 over every frame in path order,
+    /// each as its relative path, a 0 byte, its length (u64, little-endian) and its bytes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub images: Option<FileEntry>,
 }
@@ -1132,28 +1137,61 @@ fn lerobot_spec(plan: &Plan) -> Result<crate::lerobot::Spec> {
     })
 }
 
-/// The frames of the kept samples as one entry: count, bytes and a hash over paths and bytes.
+/// The frames of the kept samples as one entry: count, bytes and the hash of
+/// [`frames_hash`].
 fn images_entry(out: &Path, samples: &[EpisodeSample]) -> Result<FileEntry> {
-    let mut files: Vec<&String> = samples
+    let mut files: Vec<&str> = samples
         .iter()
         .flat_map(|e| e.files.iter().flatten())
+        .map(String::as_str)
         .collect();
-    files.sort();
+    files.sort_unstable();
     files.dedup();
-    let mut hash = sage_io::hash::Fnv1a128::new();
-    let mut bytes = 0u64;
-    let root = out.join(IMAGES_DIR);
-    for f in &files {
-        let data = std::fs::read(root.join(f)).map_err(|e| Error::io(root.join(f), e))?;
-        bytes += data.len() as u64;
-        hash.write(f.as_bytes());
-        hash.write(&data);
-    }
+    let (bytes, hash) = frames_hash(&out.join(IMAGES_DIR), &files)?;
     Ok(FileEntry {
         path: format!("{IMAGES_DIR}/ ({} files)", files.len()),
         bytes,
-        fnv1a64: format!("{:016x}", hash.finish() as u64),
+        fnv1a64: hash,
     })
+}
+
+/// The bytes of `files` (relative to `root`, `/` between names, in the order given: sorted)
+/// and the FNV-1a 64 ([`sage_io::hash::fnv1a64`]) of one stream holding, per file, its path
+/// (UTF-8), a 0 byte, its length in bytes as a little-endian u64, then its bytes: the length
+/// and the 0 byte (which no path holds) delimit each file, so moving bytes from one file to
+/// the next, or from a path into a file, changes the hash. As 16 lower-case hex digits.
+fn frames_hash(root: &Path, files: &[&str]) -> Result<(u64, String)> {
+    let mut hash = Fnv1a64::new();
+    let mut bytes = 0u64;
+    for f in files {
+        let path = root.join(f);
+        let data = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        bytes += data.len() as u64;
+        hash.write(f.as_bytes());
+        hash.write(&[0]);
+        hash.write(&(data.len() as u64).to_le_bytes());
+        hash.write(&data);
+    }
+    Ok((bytes, format!("{:016x}", hash.0)))
+}
+
+/// FNV-1a 64 fed piece by piece: [`sage_io::hash::fnv1a64`] of everything fed (tested), without
+/// holding it all in memory (a render's frames may take gigabytes). sage-io offers the one-shot
+/// form only.
+struct Fnv1a64(u64);
+
+impl Fnv1a64 {
+    /// The hash of nothing.
+    fn new() -> Fnv1a64 {
+        Fnv1a64(0xcbf2_9ce4_8422_2325)
+    }
+
+    /// Feeds `bytes`.
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
 }
 
 /// The command a render's run record names.
@@ -1365,4 +1403,39 @@ pub fn render(
         render_scene(&plan, &scene, out, &|r| on_progress(Progress::Route(r)))?;
     }
     finish(&plan, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_frames_hash_is_fnv1a64_of_delimited_paths_and_bytes() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        std::fs::create_dir_all(root.join("home/r")).unwrap();
+        std::fs::write(root.join("home/r/0000.jpg"), b"ab").unwrap();
+        std::fs::write(root.join("home/r/0001.jpg"), b"").unwrap();
+        let files = ["home/r/0000.jpg", "home/r/0001.jpg"];
+        let (bytes, hash) = frames_hash(root, &files).unwrap();
+        let mut stream = Vec::new();
+        for (path, data) in [(files[0], &b"ab"[..]), (files[1], &b""[..])] {
+            stream.extend_from_slice(path.as_bytes());
+            stream.push(0);
+            stream.extend_from_slice(&(data.len() as u64).to_le_bytes());
+            stream.extend_from_slice(data);
+        }
+        assert_eq!(bytes, 2);
+        assert_eq!(hash, sage_io::hash::fnv1a64_hex(&stream));
+        // A byte moved from one frame to the next is another stream, hence another hash.
+        std::fs::write(root.join("home/r/0000.jpg"), b"a").unwrap();
+        std::fs::write(root.join("home/r/0001.jpg"), b"b").unwrap();
+        let (moved_bytes, moved) = frames_hash(root, &files).unwrap();
+        assert_eq!(moved_bytes, 2);
+        assert_ne!(moved, hash);
+        let e = frames_hash(root, &["home/r/missing.jpg"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("missing.jpg"), "{e}");
+    }
 }

@@ -808,3 +808,118 @@ fn navila_answers_speak_centimetres_and_a_resume_must_keep_the_wording() {
     assert!(e.contains("`answers`") && e.contains("22.5"), "{e}");
     assert!(!fresh.path().join("out").exists());
 }
+
+/// An environment over `scene` of `plan` with `plan`'s configuration changed by `change`.
+fn plan_env(
+    plan: &sage_traindata::Plan,
+    scene: &str,
+    change: impl FnOnce(&mut sage_env::EnvConfig),
+) -> sage_env::Env {
+    let ctx = sage_env::SceneContext::load_with_bodies(
+        &plan.scene_dirs[scene],
+        None,
+        &sage_scene::LoadOptions::default(),
+        plan.env.splat_bodies,
+    )
+    .unwrap();
+    let mut config = plan.env.clone();
+    change(&mut config);
+    sage_env::Env::new(std::sync::Arc::new(ctx), config).unwrap()
+}
+
+#[test]
+fn a_rotation_in_place_turns_at_most_the_motion_cap_and_a_capped_one_is_not_clean() {
+    use sage_traindata::replay::{self, net_turns, turns_in_place};
+    let (scenes, dataset) = data();
+    let mut s = Settings::new(dataset, scenes).unwrap();
+    s.preset.max_actions = 1;
+    let plan = sage_traindata::Plan::new(&s).unwrap();
+    let (mut capped, mut whole) = (0, 0);
+    for (scene, routes) in &plan.routes {
+        let mut env = plan_env(&plan, scene, |c| c.sensors = c.sensors.without_images());
+        for route in routes
+            .iter()
+            .filter(|r| r.episodes[0].reference_path.len() == 1)
+        {
+            let asked = turns_in_place(
+                net_turns(&route.episodes[0]) as f32 * plan.dataset_turn_deg,
+                &s.preset,
+            )
+            .unsigned_abs() as usize;
+            let walk = replay::walk(&mut env, route, &s.preset, plan.dataset_turn_deg, |_, _| {
+                Ok(())
+            })
+            .unwrap();
+            let turns = &walk.steps[..walk.steps.len() - 1];
+            assert_eq!(walk.steps.last().unwrap().action, "STOP");
+            assert!(turns.iter().all(|t| t.action.starts_with("TURN_")));
+            // One turn at most: the cap bounds the turns of a rotation as any other motion.
+            assert_eq!(turns.len(), asked.min(1), "{}", route.name);
+            if asked > 1 {
+                // Short of the heading it was asked for: not a clean walk, whatever the distance.
+                assert_eq!(walk.ending, "capped");
+                assert_ne!(walk.verdict, Verdict::Clean);
+                capped += 1;
+            } else {
+                assert_eq!(walk.ending, "reached");
+                whole += 1;
+            }
+        }
+    }
+    assert!(
+        capped > 0,
+        "no rotation of more than one turn ({whole} of one)"
+    );
+}
+
+#[test]
+fn a_walk_whose_episode_the_environment_ends_stops_there_without_an_error() {
+    use sage_traindata::replay;
+    let (scenes, dataset) = data();
+    let s = Settings {
+        width: 32,
+        height: 24,
+        ..Settings::new(dataset, scenes).unwrap()
+    };
+    let plan = sage_traindata::Plan::new(&s).unwrap();
+    let (scene, routes) = plan.routes.iter().next().unwrap();
+    // A walk of more than three motions, in an environment whose episodes end at three steps.
+    let mut free = plan_env(&plan, scene, |c| c.sensors = c.sensors.without_images());
+    let route = routes
+        .iter()
+        .find(|r| {
+            replay::walk(
+                &mut free,
+                r,
+                &s.preset,
+                plan.dataset_turn_deg,
+                |_, _| Ok(()),
+            )
+            .unwrap()
+            .steps
+            .len()
+                > 4
+        })
+        .expect("a walk of more than three motions");
+    let mut env = plan_env(&plan, scene, |c| c.task.max_steps = 3);
+    let mut frames = 0;
+    let walk = replay::walk(&mut env, route, &s.preset, plan.dataset_turn_deg, |k, _| {
+        assert_eq!(k, frames);
+        frames += 1;
+        Ok(())
+    })
+    .unwrap();
+    // The third motion ended the episode; the walk calls STOP where that left the agent, as at
+    // the motion cap, seen in a frame of its own.
+    assert_eq!(walk.steps.len(), 4, "{:?}", walk.steps);
+    assert_eq!(frames, walk.steps.len());
+    assert!(walk.steps[..3].iter().all(|st| st.action != "STOP"));
+    let stop = &walk.steps[3];
+    assert_eq!(stop.action, "STOP");
+    assert_eq!(stop.pose, walk.steps[2].achieved);
+    assert_eq!((stop.commanded, stop.achieved), (stop.pose, stop.pose));
+    assert!(!stop.contact);
+    assert_eq!(walk.ending, "capped");
+    let clean = walk.contact_steps == 0 && walk.final_distance.is_some_and(|d| d <= 1.0);
+    assert_eq!(walk.verdict == Verdict::Clean, clean, "{walk:?}");
+}

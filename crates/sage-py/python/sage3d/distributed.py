@@ -343,7 +343,9 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     :func:`sage3d.render_training_data` (``split``, ``preset``,
     ``format``, ``sensors``, ``limit``, …). The driver claims ``out`` (as the command line
     does: a new or empty folder, or the same render's to resume; ``force`` replaces another
-    render's output); each task renders its scene into a temporary folder of its node and
+    render's output) and holds its lock (``out/.sage3d.lock``) until the call returns, so a
+    ``sage3d data render`` or another call on the same folder meanwhile is refused, naming
+    this one; each task renders its scene into a temporary folder of its node and
     returns the files of ``images/{scene}/``, which the driver writes into ``out`` (each file
     through a temporary name, each route's ``route.json`` last); once every scene is there the
     driver writes the format's files and the manifest. Only the driver writes ``out`` (no
@@ -364,9 +366,19 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     progress = _args.flag("distributed.render_training_data: progress", progress)
     settings = _sage3d.training_settings(dataset, scenes, **kwargs)
     ray = _ray()
-    finished = _sage3d.training_claim(settings, out, force)
-    if finished is not None:
-        return finished
+    # The lock is the driver's, for the whole call: the tasks run in other processes (other
+    # nodes) and write no file of ``out``, the driver writes every one under it.
+    with _sage3d.training_claim(settings, out, force) as claim:
+        if claim.manifest is not None:
+            return claim.manifest
+        _render_claimed(ray, settings, out, num_cpus, progress)
+        return _sage3d.training_finish(settings, out, claim)
+
+
+def _render_claimed(ray, settings, out, num_cpus, progress):
+    """The scenes of a claimed render not yet done in ``out``, one Ray task each, their files
+    written into ``out`` as the tasks finish; raises ``RuntimeError`` naming the scenes whose
+    task failed, once the others are written."""
     pending = {}
     for scene, state in _sage3d.training_progress(settings, out).items():
         if len(state["done"]) < state["routes"]:
@@ -391,7 +403,6 @@ def render_training_data(dataset, scenes, out, num_cpus: float = 1, force: bool 
     finally:
         tasks.close()
     tasks.raise_failed("training-data render", len(refs), out)
-    return _sage3d.training_finish(settings, out)
 
 
 def _cause(err):

@@ -15,8 +15,10 @@ finished), whose ``settings.format`` names one of three layouts:
 ``webdataset``
     Tar shards ``shards/{split}-NNNNNN.tar``, one sample per episode: members
     ``{key}.{k:04}.jpg`` (``.depth.png``, …) per frame and ``{key}.json`` (the episode record
-    below with its ``files`` named by field, ``0003.jpg``), ``key`` the episode id with
-    characters other than letters, digits, ``-`` and ``_`` replaced by ``_``.
+    below with its ``files`` named by field, ``0003.jpg``), ``key`` the episode id's file
+    name: the id itself when it is lower-case letters, digits, ``-`` and ``_``; otherwise the
+    id's first characters lower-cased, every other character replaced by ``_``, then ``-`` and
+    16 hex digits of a hash of the id (distinct ids keep distinct keys, none holding a dot).
 ``frames``
     ``episodes.jsonl``, one episode record per line, and the frames under ``images/``.
 
