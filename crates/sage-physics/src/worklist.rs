@@ -51,8 +51,7 @@ impl WorkList {
     pub fn of(scene: &Scene, decomposer: &Decomposer, cache: &HullCache) -> Result<WorkList> {
         // The decomposer runs in a working folder of its own: a path relative to ours would
         // put the hulls where sage3d never looks.
-        let cache_dir =
-            std::path::absolute(cache.dir()).map_err(|e| Error::io(cache.dir(), e))?;
+        let cache_dir = std::path::absolute(cache.dir()).map_err(|e| Error::io(cache.dir(), e))?;
         let absolute = HullCache::new(&cache_dir);
         let mut meshes = Vec::new();
         for o in &scene.objects {
