@@ -827,7 +827,7 @@ fn pack(src: &impl SplatSource, version: u32) -> io::Result<(Header, [Vec<u8>; 6
     Ok((header, arrays))
 }
 
-/// The fraction bits of the positions [`write`] gives `src`: the reference's 12 (steps of
+/// The fraction bits of the positions [`write()`] gives `src`: the reference's 12 (steps of
 /// 1/4096 m) for a scene within ±2048 m, one fewer per doubling beyond.
 ///
 /// # Errors
