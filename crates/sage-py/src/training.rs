@@ -246,9 +246,9 @@ impl TrainingClaim {
         _kind: Option<&Bound<'_, PyAny>>,
         _value: Option<&Bound<'_, PyAny>>,
         _traceback: Option<&Bound<'_, PyAny>>,
-    ) -> bool {
+    ) {
+        // Returning None (falsy) lets an exception raised in the block go on.
         self.release();
-        false
     }
 }
 
