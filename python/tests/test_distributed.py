@@ -3,6 +3,7 @@ the dataset of `sage3d data build`, and evaluation with one task per scene gives
 summary of `sage3d eval`."""
 
 import json
+import os
 import pathlib
 
 import pytest
@@ -60,6 +61,35 @@ def test_generate_equals_data_build(local_ray, scenes, cli_data, tmp_path):
     with pytest.raises(ValueError, match="per_scen"):
         distributed.generate(scenes, tmp_path / "typo", per_scen=2)
     assert not (tmp_path / "typo").exists()
+
+
+def test_the_driver_claim_holds_the_dataset_folder_until_released(scenes, sage3d, tmp_path):
+    """The claim `generate`'s driver holds from before the tasks to the end of the assembly:
+    meanwhile `sage3d data build` into the folder exits 1 naming this process, the scene steps
+    (which take no lock) still write there, and the assembly takes only a held claim of its own
+    folder."""
+    settings = dict(per_scene=2, seed=5, balanced=6)
+    out = tmp_path / "held"
+    dirs = sg._sage3d.scene_dirs(scenes)
+    with sg._sage3d.dataset_claim(out, **settings) as claim:
+        assert claim.held and claim.manifest is None and claim.out == out
+        cli = sage3d("data", "build", scenes, "--out", out, "--per-scene", 2, "--seed", 5, check=False)
+        assert cli.returncode == 1, cli.stderr
+        assert f"being written by the `data build` run of process {os.getpid()}" in cli.stderr
+        with pytest.raises(ValueError, match=f"process {os.getpid()}"):
+            sg._sage3d.dataset_claim(out, **settings)
+        for d in dirs:
+            outcome, _, _ = sg._sage3d.build_scene(d, out, **settings)
+            assert outcome["status"] == "done"
+        with pytest.raises(ValueError, match="being written"):
+            sg._sage3d.assemble_dataset(out, dirs, scenes, **settings)
+        with pytest.raises(ValueError, match="the claim holds"):
+            sg._sage3d.assemble_dataset(tmp_path / "other", dirs, scenes, claim=claim, **settings)
+        summary = sg._sage3d.assemble_dataset(out, dirs, scenes, claim=claim, **settings)
+    assert not claim.held and summary["episodes"] > 0
+    assert "test" in sg._sage3d.list_splits(out)
+    with pytest.raises(ValueError, match="was released"):
+        sg._sage3d.assemble_dataset(out, dirs, scenes, claim=claim, **settings)
 
 
 class Forward:

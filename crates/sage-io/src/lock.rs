@@ -176,6 +176,14 @@ impl FolderLock {
         (&self.file).write_all(format!("{holder}\n").as_bytes())
     }
 
+    /// Whether this is the lock of folder `dir` (compared by canonical path, so `out/` and
+    /// `./out` name the same folder): a caller handed a lock checks it is the right folder's
+    /// before writing there under it.
+    pub fn holds(&self, dir: &Path) -> bool {
+        let canonical = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+        canonical(dir) == canonical(&self.dir)
+    }
+
     /// Removes the temporary files ([`is_temporary`]) that interrupted earlier runs left in the
     /// folder and its sub-folders: while the lock is held no other command writes there, so
     /// they can only be stale. A sub-folder holding its own lock file (another command's folder)
@@ -382,6 +390,9 @@ mod tests {
         let dir = root.path().join("a/b/run");
         let lock = FolderLock::acquire(&dir, "eval").unwrap();
         assert!(dir.join(LOCK_FILE).is_file());
+        // The lock knows its folder however it is named, and no other.
+        assert!(lock.holds(&dir) && lock.holds(&root.path().join("a/./b/../b/run")));
+        assert!(!lock.holds(&root.path().join("a/b")));
         let e = FolderLock::acquire(&dir, "data render")
             .unwrap_err()
             .to_string();

@@ -6,6 +6,7 @@
 use sage_core::{Error, Result};
 use sage_dataset::build::{self, AssembleParams, DatasetSummary, SceneOutcome, SceneParams};
 use sage_dataset::import::Source;
+use sage_io::lock::FolderLock;
 use sage_lang::llm::{LlmClient, LlmConfig};
 use sage_physics::AgentProfile;
 use serde::{Deserialize, Serialize};
@@ -234,15 +235,17 @@ pub fn build_with(
 /// [`build_scene`] once per scene wherever its tasks run, then [`assemble`] on the driver. The
 /// folder is left marked as this build's and unfinished (the other fields of a build's record
 /// there are kept, so a rebuild keeps the splits `data import` added): every reader refuses it
-/// while the scene files come in, and the assembly's claim takes it as the build's own. The
-/// folder's lock is held during the claim only, as the steps run in other processes.
+/// while the scene files come in, and the assembly's claim takes it as the build's own.
+/// Returns the folder's lock: the driver holds it until the assembly (handing it to
+/// [`assemble`]), so no other command writes the folder while the steps, which run in other
+/// processes and take no lock, write their scene files there.
 ///
 /// # Errors
 ///
 /// An output folder holding files the build did not write, one another command is writing,
 /// or a write error.
-pub fn claim_steps(out: &Path, seed: u64) -> Result<()> {
-    let _lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, false)?;
+pub fn claim_steps(out: &Path, seed: u64) -> Result<FolderLock> {
+    let lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, false)?;
     let mut details = match sage_io::run::read_record(out) {
         Some(serde_json::Value::Object(record))
             if record.get("command").and_then(|c| c.as_str()) == Some(build::COMMAND) =>
@@ -261,7 +264,8 @@ pub fn claim_steps(out: &Path, seed: u64) -> Result<()> {
         build::COMMAND,
         Some(seed),
         serde_json::Value::Object(details),
-    )
+    )?;
+    Ok(lock)
 }
 
 /// Builds (or resumes) one scene of a build made in steps ([`claim_steps`]) into
@@ -282,23 +286,41 @@ pub fn build_scene(dir: &Path, out: &Path, params: &SceneParams) -> Result<Scene
 }
 
 /// Assembles a dataset built in steps ([`claim_steps`], [`build_scene`]) from its scene files
-/// (one per folder in `dirs`, found in `scenes`): claims `out` as [`build()`] does and holds it
-/// while it writes the run record unfinished, the splits, files and summary
-/// ([`build::assemble`]), then the run record finished. Returns the summary.
+/// (one per folder in `dirs`, found in `scenes`) under the lock `held` (the one
+/// [`claim_steps`] returned, still held) or, without one, claiming `out` as [`build()`] does:
+/// writes the run record unfinished, the splits, files and summary ([`build::assemble`]), then
+/// the run record finished. Returns the summary.
 ///
 /// # Errors
 ///
-/// A scene folder whose name is not a plain name, an output folder that is no dataset build's
-/// (not claimed by [`claim_steps`]) or that another command is writing, or a write error.
+/// A scene folder whose name is not a plain name, a lock `held` of another folder, an output
+/// folder that is no dataset build's (not claimed by [`claim_steps`]) or that another command
+/// is writing, or a write error.
 pub fn assemble(
     out: &Path,
     scenes: &Path,
     dirs: &[PathBuf],
     params: &SceneParams,
     assemble: &AssembleParams,
+    held: Option<&FolderLock>,
 ) -> Result<DatasetSummary> {
     sage_nav::trajectory::check_scene_names(dirs)?;
-    let _lock = sage_io::run::claim_folder(out, &[build::COMMAND], &build::OUTPUTS, false)?;
+    let _own = match held {
+        // Taken by `claim_steps` for this build and held since: no other command has written.
+        Some(lock) if lock.holds(out) => None,
+        Some(_) => {
+            return Err(Error::invalid(
+                "the lock handed to the assembly is another folder's: claim this one",
+            )
+            .in_file(out));
+        }
+        None => Some(sage_io::run::claim_folder(
+            out,
+            &[build::COMMAND],
+            &build::OUTPUTS,
+            false,
+        )?),
+    };
     let names: Vec<String> = dirs
         .iter()
         .map(|d| sage_io::scenes::scene_name(d))
@@ -426,16 +448,44 @@ mod tests {
 
         let steps = root.path().join("steps");
         let (params, assemble_params) = settings.params(&steps).unwrap();
-        claim_steps(&steps, settings.seed).unwrap();
-        // Marked as the build's, unfinished: no reader takes it while the scenes come in.
+        let lock = claim_steps(&steps, settings.seed).unwrap();
+        // Marked as the build's, unfinished: no reader takes it while the scenes come in, and
+        // no other build writes it while the claim's lock is held.
         assert!(sage_dataset::folder::check(&steps).is_err());
+        let e = build(&scenes, &steps, &settings, false, &|_, _| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("being written"), "{e}");
         for d in &dirs {
             assert_eq!(
                 build_scene(d, &steps, &params).unwrap().status,
                 Status::Done
             );
         }
-        assemble(&steps, &scenes, &dirs, &params, &assemble_params).unwrap();
+        // The assembly takes only the lock of its own folder.
+        let other = FolderLock::acquire(&root.path().join("other"), build::COMMAND).unwrap();
+        let e = assemble(
+            &steps,
+            &scenes,
+            &dirs,
+            &params,
+            &assemble_params,
+            Some(&other),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("another folder's"), "{e}");
+        drop(other);
+        assemble(
+            &steps,
+            &scenes,
+            &dirs,
+            &params,
+            &assemble_params,
+            Some(&lock),
+        )
+        .unwrap();
+        drop(lock);
         let (a, b) = (
             sage_io::files::read_tree(&whole).unwrap(),
             sage_io::files::read_tree(&steps).unwrap(),
@@ -445,14 +495,14 @@ mod tests {
         sage_dataset::folder::check(&steps).unwrap();
 
         // A rerun's claim keeps the record's other fields, marked unfinished again.
-        claim_steps(&steps, settings.seed).unwrap();
+        drop(claim_steps(&steps, settings.seed).unwrap());
         let record = sage_io::run::read_record(&steps).unwrap();
         assert_eq!(record["status"], sage_io::run::UNFINISHED);
         assert_eq!(
             record["inputs"],
             sage_io::run::read_record(&whole).unwrap()["inputs"]
         );
-        assemble(&steps, &scenes, &dirs, &params, &assemble_params).unwrap();
+        assemble(&steps, &scenes, &dirs, &params, &assemble_params, None).unwrap();
         assert!(sage_io::files::read_tree(&steps).unwrap() == a);
 
         // A folder of other files is refused before anything is written into it, and so is an
@@ -465,7 +515,7 @@ mod tests {
         assert_eq!(sage_io::run::entries(&foreign).unwrap(), ["notes.txt"]);
         let unclaimed = root.path().join("unclaimed");
         std::fs::create_dir_all(unclaimed.join("scenes")).unwrap();
-        let e = assemble(&unclaimed, &scenes, &dirs, &params, &assemble_params)
+        let e = assemble(&unclaimed, &scenes, &dirs, &params, &assemble_params, None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("'scenes'"), "{e}");

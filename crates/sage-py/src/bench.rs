@@ -3,6 +3,7 @@
 //! Ray tasks. Files are the CLI's: `sage3d eval` and `sage3d data build` write the same.
 
 use crate::agent::PyAgent;
+use crate::claim::FolderClaim;
 use crate::convert::{PyResultExt, from_json, from_kwargs, to_py};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -81,16 +82,20 @@ fn eval_options(
 /// is neither new, empty nor a dataset build's is refused, naming a file it holds, as `sage3d
 /// data build` refuses it without `--force` ([`sage_pipeline::dataset::claim_steps`]: the
 /// folder is marked as the build's, unfinished until [`assemble_dataset`] finishes it).
+/// Returns the claim ([`FolderClaim`]), which holds the folder's lock until it is released
+/// (use it in a `with` block around the scenes' tasks and the assembly).
 #[pyfunction]
 #[pyo3(signature = (out, **settings))]
-pub fn check_build_settings(
+pub fn dataset_claim(
     py: Python<'_>,
     out: PathBuf,
     settings: Option<&Bound<'_, PyDict>>,
-) -> PyResult<()> {
+) -> PyResult<FolderClaim> {
     let (_, assemble) = build_params(py, &out, settings)?;
-    py.detach(|| sage_pipeline::dataset::claim_steps(&out, assemble.seed))
-        .py()
+    let lock = py
+        .detach(|| sage_pipeline::dataset::claim_steps(&out, assemble.seed))
+        .py()?;
+    Ok(FolderClaim::new(out, lock, None))
 }
 
 /// The options of an evaluation (`sage3d eval`'s flags by name) with every default filled in,
@@ -369,21 +374,24 @@ pub fn build_scene<'py>(
 /// splits, balanced test selection, JSONL / GVLN / R2R files and the summary, between two run
 /// records (naming `root`, the folder the scene folders were found in), unfinished before
 /// and finished after, as `sage3d data build` ends: an assembly cut short leaves a folder no
-/// reader takes for a dataset. `out` must be a folder [`check_build_settings`] claimed (or an
-/// earlier build's); its lock is held meanwhile ([`sage_pipeline::dataset::assemble`]).
-/// Returns the summary.
+/// reader takes for a dataset. `out` must be a folder [`dataset_claim`] claimed (or an
+/// earlier build's); its lock is held meanwhile: `claim`'s (a [`FolderClaim`] of `out` not
+/// released) when given, else its own ([`sage_pipeline::dataset::assemble`]). Returns the
+/// summary.
 #[pyfunction]
-#[pyo3(signature = (out, scenes, root, **settings))]
+#[pyo3(signature = (out, scenes, root, claim=None, **settings))]
 pub fn assemble_dataset<'py>(
     py: Python<'py>,
     out: PathBuf,
     scenes: Vec<PathBuf>,
     root: PathBuf,
+    claim: Option<PyRef<'py, FolderClaim>>,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let held = claim.as_ref().map(|c| c.lock_of(&out)).transpose()?;
     let (params, assemble) = build_params(py, &out, settings)?;
     let summary = py
-        .detach(|| sage_pipeline::dataset::assemble(&out, &root, &scenes, &params, &assemble))
+        .detach(|| sage_pipeline::dataset::assemble(&out, &root, &scenes, &params, &assemble, held))
         .py()?;
     to_py(py, &summary)
 }

@@ -3,17 +3,17 @@
 //! tasks. The steps take the render's settings as JSON (`sage_traindata::Settings`), made by
 //! [`training_settings`] from the same keyword arguments [`render_training_data`] takes;
 //! both, like the command line, turn them into settings with `sage_traindata::Options`. The
-//! claim ([`TrainingClaim`]) holds the output folder's lock for the driver until it lets go,
+//! claim ([`FolderClaim`]) holds the output folder's lock for the driver until it lets go,
 //! so that one writer per folder holds across the steps.
 
+use crate::claim::FolderClaim;
 use crate::convert::{PyResultExt, arg_extractors, from_json, from_kwargs, to_py};
 use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sage_io::lock::FolderLock;
-use sage_traindata::{Manifest, Options, Plan, RouteDone, SceneProgress, Settings};
+use sage_traindata::{Options, Plan, RouteDone, SceneProgress, Settings};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// The options of a render from its dataset, scenes folder and keyword arguments (those of
 /// `sage_traindata::Options`, by name; absent ones take its defaults).
@@ -176,85 +176,9 @@ pub fn training_render_scene<'py>(
     to_py(py, &rendered)
 }
 
-/// An output folder claimed for a render ([`training_claim`]): holds the folder's lock
-/// (`OUT/.sage3d.lock`) until its `release()`, the end of a `with` block, or the object's
-/// collection, so that no other command (`sage3d data render`, another claim) writes
-/// the folder meanwhile. A distributed render's driver holds it from the claim to the
-/// manifest: its Ray tasks write into folders of their own, and only the driver writes `out`.
-#[pyclass(module = "sage3d._sage3d", name = "TrainingClaim")]
-pub struct TrainingClaim {
-    out: PathBuf,
-    lock: Option<FolderLock>,
-    manifest: Option<Manifest>,
-}
-
-impl TrainingClaim {
-    /// An error unless the claim still holds the lock of `out`.
-    fn check_holds(&self, out: &Path) -> PyResult<()> {
-        if self.lock.is_none() {
-            return Err(PyValueError::new_err(format!(
-                "the claim of {} was released: claim the folder again",
-                self.out.display()
-            )));
-        }
-        let same = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-        if same(out) != same(&self.out) {
-            return Err(PyValueError::new_err(format!(
-                "the claim holds {}, not {}",
-                self.out.display(),
-                out.display()
-            )));
-        }
-        Ok(())
-    }
-}
-
-#[pymethods]
-impl TrainingClaim {
-    /// The folder claimed.
-    #[getter]
-    fn out(&self) -> PathBuf {
-        self.out.clone()
-    }
-
-    /// The manifest when the same render had already finished in the folder, else `None`.
-    #[getter]
-    fn manifest<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        to_py(py, &self.manifest)
-    }
-
-    /// True while the claim holds the folder's lock.
-    #[getter]
-    fn held(&self) -> bool {
-        self.lock.is_some()
-    }
-
-    /// Lets go of the folder's lock (again: nothing).
-    fn release(&mut self) {
-        self.lock = None;
-    }
-
-    /// The claim itself, held for the `with` block.
-    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
-        slf
-    }
-
-    /// Lets go of the folder at the end of the `with` block; an exception raised in it goes on.
-    #[pyo3(signature = (_kind=None, _value=None, _traceback=None))]
-    fn __exit__(
-        &mut self,
-        _kind: Option<&Bound<'_, PyAny>>,
-        _value: Option<&Bound<'_, PyAny>>,
-        _traceback: Option<&Bound<'_, PyAny>>,
-    ) {
-        // Returning None (falsy) lets an exception raised in the block go on.
-        self.release();
-    }
-}
-
 /// Claims `out` for the render: a new or empty folder, or the folder of the same render
 /// (resumed); `force` replaces another render's output. Writes the run record. Returns the
-/// claim ([`TrainingClaim`]), which holds the folder's lock until it is released (use it in a
+/// claim ([`FolderClaim`]), which holds the folder's lock until it is released (use it in a
 /// `with` block) and whose `manifest` is the manifest when the same render already finished
 /// there, else `None`.
 #[pyfunction]
@@ -264,34 +188,35 @@ pub fn training_claim(
     settings_json: &str,
     out: PathBuf,
     force: bool,
-) -> PyResult<TrainingClaim> {
+) -> PyResult<FolderClaim> {
     let plan = plan(py, settings_json)?;
     let (lock, manifest) = py
         .detach(|| sage_traindata::claim(&plan, &out, force))
         .py()?;
-    Ok(TrainingClaim {
-        out,
-        lock: Some(lock),
-        manifest,
-    })
+    let manifest = manifest
+        .map(|m| serde_json::to_value(&m))
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("the manifest as JSON: {e}")))?;
+    Ok(FolderClaim::new(out, lock, manifest))
 }
 
 /// Finishes the render in `out` once every scene's routes are there: the format's files, the
 /// preview when asked for, then `manifest.json`. Holds the folder's lock meanwhile: `claim`'s
-/// (a [`TrainingClaim`] of `out` not released) when given, else its own. Returns the manifest.
+/// (a [`FolderClaim`] of `out` not released) when given, else its own. Returns the manifest.
 #[pyfunction]
 #[pyo3(signature = (settings_json, out, claim=None))]
 pub fn training_finish<'py>(
     py: Python<'py>,
     settings_json: &str,
     out: PathBuf,
-    claim: Option<PyRef<'py, TrainingClaim>>,
+    claim: Option<PyRef<'py, FolderClaim>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    if let Some(claim) = &claim {
-        claim.check_holds(&out)?;
-    }
+    let held = claim
+        .as_ref()
+        .map(|c| c.lock_of(&out))
+        .transpose()?
+        .is_some();
     let plan = plan(py, settings_json)?;
-    let held = claim.is_some();
     let manifest = py
         .detach(|| {
             let _lock = if held {

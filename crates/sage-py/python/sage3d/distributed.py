@@ -142,8 +142,10 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     resumes) ``out/scenes/{scene}.json``; the driver writes any scene file it does not see (no
     shared output folder), then assembles splits, files and summary in scene name order, so the
     dataset is byte-identical to the CLI's, and its run record names the scenes folder as the
-    CLI's does. ``progress`` prints a line per finished scene. Returns ``{"scenes": [outcome
-    per scene], "summary": ...}``.
+    CLI's does. The driver holds ``out``'s lock from the claim to the assembly, so another
+    command writing ``out`` meanwhile (``sage3d data build``, another ``generate``) is refused.
+    ``progress`` prints a line per finished scene. Returns ``{"scenes": [outcome per scene],
+    "summary": ...}``.
     """
     # Every argument is checked before Ray starts; a misspelt or bad setting fails here, naming
     # it, not in every task.
@@ -151,9 +153,21 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     out = _args.path("generate: out", out)
     num_cpus = _args.number("generate: num_cpus", num_cpus)
     progress = _args.flag("generate: progress", progress)
-    _sage3d.check_build_settings(out, **settings)
-    ray = _ray()
-    dirs = [os.fspath(d) for d in _sage3d.scene_dirs(scenes)]
+    # The lock is the driver's, from the claim to the assembly: the tasks run in other
+    # processes (other nodes) and take none, so no other command may write ``out`` meanwhile.
+    with _sage3d.dataset_claim(out, **settings) as claim:
+        ray = _ray()
+        dirs = [os.fspath(d) for d in _sage3d.scene_dirs(scenes)]
+        outcomes = _build_claimed(ray, dirs, out, num_cpus, progress, settings)
+        summary = _sage3d.assemble_dataset(out, dirs, scenes, claim=claim, **settings)
+    return {"scenes": [outcomes[os.path.basename(d)] for d in dirs], "summary": summary}
+
+
+def _build_claimed(ray, dirs, out, num_cpus, progress, settings):
+    """The scenes of a claimed dataset build, one Ray task each, their files written into
+    ``out`` as the tasks finish where a task's node does not share it; returns each scene's
+    outcome by name, or raises ``RuntimeError`` naming the scenes whose task failed, once the
+    others are written."""
     task = ray.remote(num_cpus=num_cpus)(_build_scene)
     refs = {task.remote(d, out, settings): os.path.basename(d) for d in dirs}
     outcomes = {}
@@ -176,8 +190,7 @@ def generate(scenes, out, num_cpus: float = 1, progress: bool = True, **settings
     finally:
         tasks.close()
     tasks.raise_failed("dataset generation", len(refs), out)
-    summary = _sage3d.assemble_dataset(out, dirs, scenes, **settings)
-    return {"scenes": [outcomes[os.path.basename(d)] for d in dirs], "summary": summary}
+    return outcomes
 
 
 def _evaluate_shard(dataset, scenes, agent, shard_out, kwargs, scene):
