@@ -118,15 +118,25 @@ impl DecompArgs {
         let built = with_bar(|on_object| {
             sage_pipeline::physics::bodies(scene_dir, &options, &decomposer, &cache, on_object)
         })?;
-        note_remade(&built.2);
+        note_cache(&built.2);
         Ok(built)
     }
 }
 
-/// Tells, on standard error, which damaged hull cache entries the build made anew.
-fn note_remade(report: &BuildReport) {
+/// Tells, on standard error, which damaged hull cache entries the build made anew, and which
+/// entries it could not write (the first, and how many).
+fn note_cache(report: &BuildReport) {
     for damage in &report.remade {
         eprintln!("note: a damaged hull cache entry was decomposed anew and replaced: {damage}");
+    }
+    if let Some(first) = report.unstored.first() {
+        let more = match report.unstored.len() {
+            1 => String::new(),
+            n => format!(" ({} more entries alike)", n - 1),
+        };
+        eprintln!(
+            "note: a hull cache entry could not be written, so its object's parts are decomposed again on every load; give a writable folder with --cache to keep them: {first}{more}"
+        );
     }
 }
 
@@ -383,7 +393,7 @@ fn export_usd(a: UsdArgs) -> Result<()> {
             on_object,
         )
     })?;
-    note_remade(&report.build);
+    note_cache(&report.build);
     println!(
         "{} -> {} ({} bodies, {} collision parts; {} decomposed, {} from cache)",
         a.scene.display(),

@@ -95,6 +95,38 @@ fn drive_prints_a_report_per_step_and_refuses_bad_commands() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("yaw"));
 }
 
+/// A hull cache folder that cannot be written (on Linux, one under `/proc`, refused even to
+/// root, as on a read-only mount) does not fail `physics build`: it builds, says in a note that
+/// the entries could not be kept and how to keep them, and `--json` lists them in `unstored`.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_hull_cache_that_cannot_be_written_is_noted_not_fatal() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("s");
+    small_scene(&scene, "3", "1000");
+    let out = sage3d(&[
+        "physics",
+        "build",
+        s(&scene),
+        "--resolution",
+        "16",
+        "--cache",
+        "/proc/self/sage3d-hulls",
+        "--json",
+    ]);
+    let said = stderr(&out);
+    assert!(out.status.success(), "{said}");
+    assert!(
+        said.contains("note: a hull cache entry could not be written")
+            && said.contains("--cache")
+            && said.contains("/proc/self/sage3d-hulls"),
+        "{said}"
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(!report["unstored"].as_array().unwrap().is_empty());
+    assert!(report["decomposed"].as_u64().unwrap() > 0);
+}
+
 /// A damaged hull cache entry is decomposed anew: `physics build` and `export usd` succeed,
 /// name the file in a note on standard error, and `physics build --json` lists it in `remade`.
 #[test]

@@ -42,7 +42,8 @@ pub enum BodyKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PartSource {
-    /// Decomposed now and written to the cache.
+    /// Decomposed now and written to the cache (unless [`BuildReport::unstored`] names its
+    /// entry).
     Decomposed,
     /// Read from the cache.
     Cached,
@@ -151,6 +152,12 @@ pub struct BuildReport {
     /// in object order, each as the error that found it (naming the file).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub remade: Vec<String>,
+    /// The hull cache entries that could not be written (a read-only scene folder, a full
+    /// disk), in object order, each as its write error (naming the file): their objects took
+    /// the parts just decomposed, and every later build decomposes them again until a writable
+    /// cache folder is given.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub unstored: Vec<String>,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -191,13 +198,15 @@ pub struct SceneBodies {
 
 impl SceneBodies {
     /// Builds every body of `scene`, decomposing meshes missing from `cache` (in parallel) and
-    /// storing them.
+    /// storing them. An entry that cannot be stored does not stop the build: its parts are used
+    /// as decomposed and the write error is reported ([`BuildReport::unstored`]), so a scene in
+    /// a read-only folder still loads.
     ///
     /// # Errors
     ///
-    /// Bad settings, an unreadable cache entry (named), a failed write, or a CoACD entry that
-    /// has not been made yet or is damaged. A damaged entry of the in-process decomposer is
-    /// made anew and replaced ([`BuildReport::remade`]).
+    /// Bad settings, an unreadable cache entry (named), or a CoACD entry that has not been made
+    /// yet or is damaged. A damaged entry of the in-process decomposer is made anew and
+    /// replaced ([`BuildReport::remade`]).
     pub fn build(
         scene: &Scene,
         decomposer: &Decomposer,
@@ -232,17 +241,22 @@ impl SceneBodies {
             .collect::<Vec<_>>();
         let mut bodies = Vec::new();
         for (oi, (o, parts)) in scene.objects.iter().zip(object_parts).enumerate() {
-            let (parts, source, damage) = parts.map_err(|e| {
+            let (parts, source, entry) = parts.map_err(|e| {
                 e.within(format!(
                     "object {} (ins_id {}, {})",
                     o.id.0, o.ins_id, o.category
                 ))
             })?;
             // Objects of one mesh share its entry: it is named once.
-            if let Some(damage) = damage.map(|d| d.to_string())
-                && !report.remade.contains(&damage)
-            {
-                report.remade.push(damage);
+            for (note, list) in [
+                (entry.damage, &mut report.remade),
+                (entry.unstored, &mut report.unstored),
+            ] {
+                if let Some(note) = note.map(|e| e.to_string())
+                    && !list.contains(&note)
+                {
+                    list.push(note);
+                }
             }
             match source {
                 PartSource::Decomposed => report.decomposed += 1,
@@ -449,15 +463,24 @@ pub(crate) fn hull_mesh(object: &Object) -> Option<&TriMesh> {
     object.mesh.as_ref().filter(|m| !m.triangles.is_empty())
 }
 
+/// What became of an object's hull cache entry besides being read.
+#[derive(Debug, Default)]
+struct EntryNotes {
+    /// The damage of the entry that decomposing replaced ([`BuildReport::remade`]).
+    damage: Option<Error>,
+    /// Why the entry just decomposed could not be written ([`BuildReport::unstored`]).
+    unstored: Option<Error>,
+}
+
 /// The parts of one object: its given parts, else cached or decomposed hulls of its mesh, else
-/// its box; and the damaged cache entry that decomposing replaced, if any.
+/// its box; and what became of its cache entry.
 fn object_parts(
     object: &Object,
     decomposer: &Decomposer,
     cache: &HullCache,
-) -> Result<(Vec<ConvexPart>, PartSource, Option<Error>)> {
+) -> Result<(Vec<ConvexPart>, PartSource, EntryNotes)> {
     if let Some(parts) = given_parts(object) {
-        return Ok((parts, PartSource::Given, None));
+        return Ok((parts, PartSource::Given, EntryNotes::default()));
     }
     let boxed = || {
         ConvexPart::from_obb(&object.obb)
@@ -465,11 +488,13 @@ fn object_parts(
             .ok_or_else(|| Error::invalid("the oriented box has no volume and no mesh is given"))
     };
     let Some(mesh) = hull_mesh(object) else {
-        return Ok((boxed()?, PartSource::Box, None));
+        return Ok((boxed()?, PartSource::Box, EntryNotes::default()));
     };
     let key = cache_key(mesh, decomposer);
     let damage = match cache.load(key)? {
-        CacheEntry::Parts(parts) => return Ok((parts, PartSource::Cached, None)),
+        CacheEntry::Parts(parts) => {
+            return Ok((parts, PartSource::Cached, EntryNotes::default()));
+        }
         CacheEntry::Missing => None,
         CacheEntry::Damaged(e) => Some(e),
     };
@@ -491,8 +516,14 @@ fn object_parts(
     })?;
     // A mesh too thin to voxelise (a flat rug): its box is the honest body.
     let parts = if parts.is_empty() { boxed()? } else { parts };
-    cache.store(key, &parts)?;
-    Ok((parts, PartSource::Decomposed, damage))
+    // The parts are good whether or not they could be kept: a scene in a read-only folder
+    // still loads, decomposing again each time (the report says so).
+    let unstored = cache.store(key, &parts).err();
+    Ok((
+        parts,
+        PartSource::Decomposed,
+        EntryNotes { damage, unstored },
+    ))
 }
 
 /// The solid boxes of a wall after cutting the door and window holes that lie in it, and the

@@ -100,6 +100,35 @@ fn hulls_cover_the_meshes_and_come_back_from_the_cache() {
     assert_eq!(r3.cached, 0);
 }
 
+/// A cache folder that cannot be written (on Linux, one under `/proc`, where the file system
+/// refuses new folders even to root, as a read-only mount does) does not stop the build: the
+/// bodies are those a writable cache gives, every build decomposes them again, and the report
+/// names the write error.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_cache_that_cannot_be_written_gives_the_same_bodies_and_says_so() {
+    let scene = scene();
+    let dir = tempfile::tempdir().unwrap();
+    let (made, kept) = SceneBodies::build(&scene, &COARSE, &HullCache::new(dir.path())).unwrap();
+    assert!(kept.unstored.is_empty());
+    let meshed = scene.objects.iter().filter(|o| o.mesh.is_some()).count();
+    let unwritable = HullCache::new("/proc/self/sage3d-hulls");
+    for _ in 0..2 {
+        let (bodies, report) = SceneBodies::build(&scene, &COARSE, &unwritable).unwrap();
+        assert!(bodies == made, "the bodies differ from a writable cache's");
+        assert_eq!((report.decomposed, report.cached), (meshed, 0));
+        assert!(!report.unstored.is_empty());
+        for e in &report.unstored {
+            assert!(e.starts_with("/proc/self/sage3d-hulls"), "{e}");
+        }
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(
+            json["unstored"].as_array().unwrap().len(),
+            report.unstored.len()
+        );
+    }
+}
+
 #[test]
 fn a_damaged_cache_entry_is_made_anew_and_reported() {
     let scene = scene();
