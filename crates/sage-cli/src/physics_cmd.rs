@@ -132,7 +132,7 @@ fn note_cache(report: &BuildReport) {
     if let Some(first) = report.unstored.first() {
         let more = match report.unstored.len() {
             1 => String::new(),
-            n => format!(" ({} more entries alike)", n - 1),
+            n => format!(" (and {} other write errors)", n - 1),
         };
         eprintln!(
             "note: a hull cache entry could not be written, so its object's parts are decomposed again on every load; give a writable folder with --cache to keep them: {first}{more}"

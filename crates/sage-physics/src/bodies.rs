@@ -153,7 +153,8 @@ pub struct BuildReport {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub remade: Vec<String>,
     /// The hull cache entries that could not be written (a read-only scene folder, a full
-    /// disk), in object order, each as its write error (naming the file): their objects took
+    /// disk), in object order, each as its write error (naming the file, or the folder that
+    /// could not be made; an error alike for many entries is listed once): their objects took
     /// the parts just decomposed, and every later build decomposes them again until a writable
     /// cache folder is given.
     #[serde(skip_serializing_if = "Vec::is_empty")]
